@@ -1,0 +1,105 @@
+#pragma once
+// Streams the valid spectra of a selection of images (or one collection) in blocks: memory is bounded by
+// the block size, never by the number of spectra. Blocks follow the chunk layout, so streaming every
+// block in order reads every chunk once. read() may be called from several threads at once.
+#include <omp.h>
+
+#include <Eigen/Core>
+#include <exception>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "core/colour.h"
+#include "core/interrupt.h"
+#include "store/store.h"
+
+namespace specula::store {
+
+/// Which spectra to stream: images whose names match any glob (all images when empty), or one collection.
+struct Selection {
+  std::vector<std::string> image_globs;
+  std::string collection;
+};
+
+class BlockReader {
+ public:
+  /// Resolves the selection; throws InputError if nothing matches or the sources' wavelength grids differ.
+  /// Blocks hold whole chunk rows, grouped until they reach about min_block_pixels pixels.
+  BlockReader(const Store& store, const Selection& selection, std::size_t min_block_pixels = 32768);
+
+  std::size_t bands() const { return wavelengths_.size(); }
+  const WavelengthGrid& wavelengths() const { return wavelengths_; }
+  const std::string& units() const { return units_; }
+  std::size_t block_count() const { return blocks_.size(); }
+  /// Number of valid spectra over all blocks.
+  std::uint64_t spectra() const { return spectra_; }
+  /// Largest number of spectra a block can yield (size output buffers with it).
+  std::size_t max_block_spectra() const { return max_block_; }
+  /// Names of the selected images (or the collection).
+  const std::vector<std::string>& source_names() const { return names_; }
+  /// Index into source_names() of block i.
+  std::size_t block_source(std::size_t i) const { return blocks_.at(i).source; }
+  /// First row (image row or spectrum index) of block i within its source.
+  std::size_t block_first_row(std::size_t i) const { return blocks_.at(i).row0; }
+
+  /// Reads block i's valid spectra into out (resized to n x bands, one spectrum per row). Thread-safe.
+  void read(std::size_t i, RowMatrixXf& out) const;
+  /// As above, in double precision.
+  void read(std::size_t i, RowMatrixXd& out) const;
+
+ private:
+  struct SourceData {
+    h5::Id cube, mask;  // mask invalid for collections
+    std::size_t width = 0;  // pixels per row (1 for collections)
+  };
+  struct Block {
+    std::size_t source;
+    std::size_t row0, rows;
+  };
+  template <class T>
+  void read_block(std::size_t i, Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& out) const;
+
+  Store store_;
+  WavelengthGrid wavelengths_;
+  std::string units_;
+  std::vector<std::string> names_;
+  std::vector<SourceData> sources_;
+  std::vector<Block> blocks_;
+  std::uint64_t spectra_ = 0;
+  std::size_t max_block_ = 0;
+};
+
+/// Streams every block through fn(block_index, spectra, thread) on all OpenMP threads, each thread with its
+/// own buffer; checks for interruption between blocks. The first exception thrown by fn or a read stops the
+/// stream and is rethrown here. Results that must not depend on the thread count should be stored per block
+/// and merged in block order by the caller.
+template <class T, class Fn>
+void for_each_block(const BlockReader& reader, Fn&& fn) {
+  using Matrix = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  const long long n = static_cast<long long>(reader.block_count());
+#pragma omp parallel
+  {
+    Matrix buffer;
+#pragma omp for schedule(dynamic, 1)
+    for (long long i = 0; i < n; ++i) {
+      {
+        std::lock_guard lock(error_mutex);
+        if (error) continue;
+      }
+      try {
+        check_interrupt();
+        reader.read(static_cast<std::size_t>(i), buffer);
+        fn(static_cast<std::size_t>(i), static_cast<const Matrix&>(buffer), omp_get_thread_num());
+      } catch (...) {
+        std::lock_guard lock(error_mutex);
+        if (!error) error = std::current_exception();
+      }
+    }
+  }
+  if (error) std::rethrow_exception(error);
+}
+
+}  // namespace specula::store

@@ -1,0 +1,19 @@
+#pragma once
+// OpenEXR: spectral images in the layout of Fichet et al. 2021 and linear RGB previews.
+#include <filesystem>
+#include <span>
+
+#include "store/cube.h"
+
+namespace specula::store {
+
+/// Reads a spectral EXR: reflective channels "T.<nm>,<frac>nm" (units "reflectance"), else emissive
+/// "S0.<nm>,<frac>nm" (units "radiance"); other channels ignored; throws InputError if none present.
+Cube read_spectral_exr(const std::filesystem::path& path);
+/// Writes `cube` as a spectral EXR (float32, T.* if units == "reflectance", else S0.*), exact round trip.
+void write_spectral_exr(const std::filesystem::path& path, const Cube& cube);
+/// Writes linear RGB float (rgb.size() == 3 * width * height) as a half-float RGB EXR, atomically.
+void write_exr_rgb(const std::filesystem::path& path, std::size_t width, std::size_t height,
+                   std::span<const float> rgb);
+
+}  // namespace specula::store

@@ -1,0 +1,589 @@
+#include "store/store.h"
+
+#include <atomic>
+#include <cmath>
+#include <cstdlib>
+#include <ctime>
+#include <sstream>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/interrupt.h"
+#include "core/progress.h"
+
+namespace specula::store {
+namespace {
+
+constexpr std::size_t kChunkBytes = 1 << 20;
+std::atomic<long long> g_fail_after{-2};  // -2: not yet read from the environment
+
+std::string join(const std::vector<std::string>& v) {
+  if (v.empty()) return "none";
+  std::string s;
+  for (std::size_t i = 0; i < v.size() && i < 12; ++i) s += (i ? ", " : "") + v[i];
+  if (v.size() > 12) s += ", ... (" + std::to_string(v.size()) + " in all)";
+  return s;
+}
+
+void maybe_fail_write(const std::string& ctx) {
+  long long n = g_fail_after.load();
+  if (n == -2) {
+    const char* env = std::getenv("SPECULA_INJECT_WRITE_FAILURE");
+    long long v = env ? std::atoll(env) : -1;
+    g_fail_after.compare_exchange_strong(n, v);
+    n = g_fail_after.load();
+  }
+  if (n < 0) return;
+  if (n == 0) throw LibraryError(ctx + ": cannot write chunk: No space left on device (injected failure)");
+  g_fail_after.fetch_sub(1);
+}
+
+h5::Id create_plist(hid_t cls, std::string_view ctx) { return h5::Id(h5::check(H5Pcreate(cls), ctx, "H5Pcreate")); }
+
+h5::Id chunked_dcpl(std::span<const hsize_t> chunk, const Compression& c, std::string_view ctx) {
+  h5::Id dcpl = create_plist(H5P_DATASET_CREATE, ctx);
+  h5::check(H5Pset_chunk(dcpl, int(chunk.size()), chunk.data()), ctx, "H5Pset_chunk");
+  if (c.kind == Compression::Kind::deflate) {
+    h5::check(H5Pset_shuffle(dcpl), ctx, "H5Pset_shuffle");
+    h5::check(H5Pset_deflate(dcpl, unsigned(c.level)), ctx, "H5Pset_deflate");
+  }
+  return dcpl;
+}
+
+h5::Id create_group(hid_t loc, const std::string& path, std::string_view ctx) {
+  h5::Id lcpl = create_plist(H5P_LINK_CREATE, ctx);
+  h5::check(H5Pset_create_intermediate_group(lcpl, 1), ctx, "H5Pset_create_intermediate_group");
+  return h5::Id(h5::check(H5Gcreate2(loc, path.c_str(), lcpl, H5P_DEFAULT, H5P_DEFAULT), ctx, "cannot create " + path));
+}
+
+h5::Id open_group(hid_t loc, const std::string& path, std::string_view ctx) {
+  return h5::Id(h5::check(H5Gopen2(loc, path.c_str(), H5P_DEFAULT), ctx, "cannot open " + path));
+}
+
+h5::Id open_dataset(hid_t loc, const std::string& path, std::string_view ctx) {
+  if (!h5::exists(loc, path)) throw InputError(std::string(ctx) + ": dataset '" + path + "' is missing");
+  return h5::Id(h5::check(H5Dopen2(loc, path.c_str(), H5P_DEFAULT), ctx, "cannot open " + path));
+}
+
+std::string compression_of(hid_t ds, std::string_view ctx) {
+  h5::Id dcpl(h5::check(H5Dget_create_plist(ds), ctx, "H5Dget_create_plist"));
+  const int n = H5Pget_nfilters(dcpl);
+  std::string s;
+  for (int i = 0; i < n; ++i) {
+    unsigned flags = 0, values[8];
+    std::size_t nvalues = 8;
+    char name[64] = {0};
+    const H5Z_filter_t f = H5Pget_filter2(dcpl, unsigned(i), &flags, &nvalues, values, sizeof name, name, nullptr);
+    if (f == H5Z_FILTER_SHUFFLE) s += s.empty() ? "shuffle" : "+shuffle";
+    else if (f == H5Z_FILTER_DEFLATE) s += (s.empty() ? "deflate:" : "+deflate:") + std::to_string(nvalues ? values[0] : 0);
+    else s += (s.empty() ? "" : "+") + std::string(name);
+  }
+  return s.empty() ? "none" : s;
+}
+
+std::size_t chunk_rows_of(hid_t ds, std::string_view ctx) {
+  h5::Id dcpl(h5::check(H5Dget_create_plist(ds), ctx, "H5Dget_create_plist"));
+  if (H5Pget_layout(dcpl) != H5D_CHUNKED) return 0;
+  hsize_t dims[8] = {0};
+  h5::check(H5Pget_chunk(dcpl, 8, dims), ctx, "H5Pget_chunk");
+  return std::size_t(dims[0]);
+}
+
+// Row/column chunk shape of an H x W x B float32 cube: about kChunkBytes, whole rows when they fit.
+std::pair<hsize_t, hsize_t> image_chunk(std::size_t h, std::size_t w, std::size_t b) {
+  const std::size_t row_bytes = w * b * sizeof(float);
+  if (row_bytes >= kChunkBytes) return {1, hsize_t(std::max<std::size_t>(1, kChunkBytes / (b * sizeof(float))))};
+  return {hsize_t(std::min(h, std::max<std::size_t>(1, kChunkBytes / row_bytes))), hsize_t(w)};
+}
+
+void write_hyperslab(hid_t ds, hid_t memtype, std::span<const hsize_t> start, std::span<const hsize_t> count,
+                     const void* data, const std::string& ctx) {
+  h5::Id fspace(h5::check(H5Dget_space(ds), ctx, "H5Dget_space"));
+  h5::check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr), ctx,
+            "H5Sselect_hyperslab");
+  h5::Id mspace(h5::check(H5Screate_simple(int(count.size()), count.data(), nullptr), ctx, "H5Screate_simple"));
+  maybe_fail_write(ctx);
+  h5::check(H5Dwrite(ds, memtype, mspace, fspace, H5P_DEFAULT, data), ctx, "cannot write data");
+}
+
+void read_hyperslab(hid_t ds, hid_t memtype, std::span<const hsize_t> start, std::span<const hsize_t> count,
+                    void* data, const std::string& ctx) {
+  h5::Id fspace(h5::check(H5Dget_space(ds), ctx, "H5Dget_space"));
+  h5::check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr), ctx,
+            "H5Sselect_hyperslab");
+  h5::Id mspace(h5::check(H5Screate_simple(int(count.size()), count.data(), nullptr), ctx, "H5Screate_simple"));
+  h5::check(H5Dread(ds, memtype, mspace, fspace, H5P_DEFAULT, data), ctx, "cannot read data");
+}
+
+h5::Id vlen_string_type(std::string_view ctx) {
+  h5::Id t(h5::check(H5Tcopy(H5T_C_S1), ctx, "H5Tcopy"));
+  h5::check(H5Tset_size(t, H5T_VARIABLE), ctx, "H5Tset_size");
+  h5::check(H5Tset_cset(t, H5T_CSET_UTF8), ctx, "H5Tset_cset");
+  return t;
+}
+
+WavelengthGrid read_grid(hid_t group, const std::string& ctx) {
+  return WavelengthGrid(h5::read_vector(group, "wavelengths", ctx), ctx + ": wavelengths");
+}
+
+void write_grid(hid_t group, const WavelengthGrid& g, const std::string& ctx) {
+  h5::write_vector(group, "wavelengths", g.values(), ctx);
+  h5::Id ds(h5::check(H5Dopen2(group, "wavelengths", H5P_DEFAULT), ctx, "cannot open wavelengths"));
+  h5::write_attr(ds, "units", std::string_view("nm"), ctx);
+}
+
+std::size_t attr_size(hid_t obj, const std::string& name, const std::string& ctx) {
+  const long long v = h5::read_int_attr(obj, name, ctx);
+  if (v < 0) throw InputError(ctx + ": attribute '" + name + "' is negative (" + std::to_string(v) + ")");
+  return std::size_t(v);
+}
+
+}  // namespace
+
+Compression Compression::parse(std::string_view spec) {
+  Compression c;
+  if (spec == "none") {
+    c.kind = Kind::none;
+    return c;
+  }
+  if (spec == "deflate") return c;
+  if (spec.starts_with("deflate:") && spec.size() == 9 && spec[8] >= '1' && spec[8] <= '9') {
+    c.level = spec[8] - '0';
+    return c;
+  }
+  throw UsageError("--compression '" + std::string(spec) + "': use none, deflate or deflate:LEVEL with LEVEL 1-9");
+}
+
+std::string Compression::describe() const {
+  return kind == Kind::none ? "none" : "shuffle+deflate:" + std::to_string(level);
+}
+
+void validate_name(const std::string& name, const std::string& kind) {
+  bool ok = !name.empty() && name.size() <= 255 && name[0] != '.';
+  for (char c : name)
+    ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.' || c == '+');
+  if (!ok)
+    throw UsageError(kind + " name '" + name +
+                     "' is not allowed: use 1-255 characters of letters, digits, '_', '-', '.', '+', not starting with '.'");
+}
+
+std::string utc_now() {
+  std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  ::gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return buf;
+}
+
+void inject_write_failure_after(long long n) { g_fail_after.store(n); }
+
+void write_provenance(hid_t obj, const Provenance& p, const std::string& command_line, std::string_view ctx) {
+  h5::write_attr(obj, "source_file", std::string_view(p.source_file), ctx);
+  h5::write_attr(obj, "importer", std::string_view(p.importer), ctx);
+  h5::write_attr(obj, "specula_version", std::string_view(SPECULA_VERSION), ctx);
+  h5::write_attr(obj, "command_line", std::string_view(p.command_line.empty() ? command_line : p.command_line), ctx);
+  h5::write_attr(obj, "created_utc", std::string_view(p.created_utc.empty() ? utc_now() : p.created_utc), ctx);
+}
+
+Provenance read_provenance(hid_t obj, std::string_view ctx) {
+  Provenance p;
+  auto get = [&](const char* name) { return h5::has_attr(obj, name) ? h5::read_string_attr(obj, name, ctx) : ""; };
+  p.source_file = get("source_file");
+  p.importer = get("importer");
+  p.command_line = get("command_line");
+  p.created_utc = get("created_utc");
+  return p;
+}
+
+// ---------------------------------------------------------------- Store
+
+Store Store::open(const std::filesystem::path& path) {
+  h5::quiet_errors();
+  Store s;
+  s.path_ = path;
+  const std::string ctx = s.label();
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw InputError(ctx + ": no such file");
+  if (std::filesystem::is_directory(path, ec)) throw InputError(ctx + ": is a directory, not a store file");
+  const htri_t is = H5Fis_hdf5(path.c_str());
+  if (is <= 0) {
+    H5Eclear2(H5E_DEFAULT);
+    throw InputError(ctx + ": not an HDF5 file, so not a specula store (create one with `specula import` or `specula synth-db`)");
+  }
+  h5::Id fapl = create_plist(H5P_FILE_ACCESS, ctx);
+  h5::check(H5Pset_cache(fapl, 0, 521, 16 << 20, 1.0), ctx, "H5Pset_cache");
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl);
+  if (f < 0) {
+    const std::string lib = h5::last_error();
+    H5Eclear2(H5E_DEFAULT);
+    throw InputError(ctx + ": cannot be opened as HDF5, the file is corrupt or truncated (HDF5: " + lib + ")");
+  }
+  s.file_ = std::make_shared<h5::Id>(f);
+  if (!h5::has_attr(f, "specula_format") || h5::read_string_attr(f, "specula_format", ctx) != kFormatName)
+    throw InputError(ctx + ": an HDF5 file but not a specula store (no specula_format = \"" + kFormatName +
+                     "\" attribute on /); create stores with `specula import` or `specula synth-db`");
+  s.version_ = h5::read_int_attr(f, "format_version", ctx);
+  if (s.version_ > kFormatVersion)
+    throw InputError(ctx + ": store format version " + std::to_string(s.version_) + " is newer than this specula (" +
+                     SPECULA_VERSION + ") reads (up to " + std::to_string(kFormatVersion) + "); upgrade specula");
+  if (s.version_ < 1) throw InputError(ctx + ": invalid store format version " + std::to_string(s.version_));
+  return s;
+}
+
+std::vector<std::string> Store::images() const { return h5::list(file(), "/images"); }
+std::vector<std::string> Store::collections() const { return h5::list(file(), "/collections"); }
+std::vector<std::string> Store::samples() const { return h5::list(file(), "/samples"); }
+std::vector<std::string> Store::grids() const { return h5::list(file(), "/grids"); }
+std::vector<std::string> Store::bases() const { return h5::list(file(), "/bases"); }
+
+ImageInfo Store::image_info(const std::string& name) const {
+  const std::string path = "/images/" + name;
+  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(file(), path))
+    throw InputError(label() + ": no image '" + name + "' (images: " + join(images()) + ")");
+  const std::string ctx = label() + ": " + path;
+  h5::Id g = open_group(file(), path, ctx);
+  ImageInfo info;
+  info.name = name;
+  h5::Id cube = open_dataset(g, "cube", ctx);
+  auto dims = h5::shape(cube, ctx);
+  if (dims.size() != 3) throw InputError(ctx + "/cube: expected 3 dimensions (height, width, bands)");
+  info.height = dims[0];
+  info.width = dims[1];
+  info.bands = dims[2];
+  info.wavelengths = read_grid(g, ctx);
+  if (info.wavelengths.size() != info.bands)
+    throw InputError(ctx + ": cube has " + std::to_string(info.bands) + " bands but wavelengths lists " +
+                     std::to_string(info.wavelengths.size()));
+  info.has_fwhm = h5::exists(g, "fwhm");
+  info.units = h5::has_attr(g, "units") ? h5::read_string_attr(g, "units", ctx) : "unknown";
+  info.valid_pixels = attr_size(g, "valid_pixels", ctx);
+  info.chunk_rows = chunk_rows_of(cube, ctx);
+  info.compression = compression_of(cube, ctx);
+  info.provenance = read_provenance(g, ctx);
+  h5::Id mask = open_dataset(g, "mask", ctx);
+  auto mdims = h5::shape(mask, ctx);
+  if (mdims.size() != 2 || mdims[0] != dims[0] || mdims[1] != dims[1])
+    throw InputError(ctx + "/mask: shape does not match the cube's height x width");
+  return info;
+}
+
+CollectionInfo Store::collection_info(const std::string& name) const {
+  const std::string path = "/collections/" + name;
+  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(file(), path))
+    throw InputError(label() + ": no collection '" + name + "' (collections: " + join(collections()) + ")");
+  const std::string ctx = label() + ": " + path;
+  h5::Id g = open_group(file(), path, ctx);
+  CollectionInfo info;
+  info.name = name;
+  h5::Id ds = open_dataset(g, "spectra", ctx);
+  auto dims = h5::shape(ds, ctx);
+  if (dims.size() != 2) throw InputError(ctx + "/spectra: expected 2 dimensions (spectra, bands)");
+  info.size = dims[0];
+  info.bands = dims[1];
+  info.wavelengths = read_grid(g, ctx);
+  if (info.wavelengths.size() != info.bands) throw InputError(ctx + ": spectra and wavelengths disagree on band count");
+  info.units = h5::has_attr(g, "units") ? h5::read_string_attr(g, "units", ctx) : "unknown";
+  info.chunk_rows = chunk_rows_of(ds, ctx);
+  info.provenance = read_provenance(g, ctx);
+  return info;
+}
+
+SamplesInfo Store::samples_info(const std::string& name) const {
+  const std::string path = "/samples/" + name;
+  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(file(), path))
+    throw InputError(label() + ": no samples '" + name + "' (samples: " + join(samples()) + ")");
+  const std::string ctx = label() + ": " + path;
+  h5::Id g = open_group(file(), path, ctx);
+  SamplesInfo info;
+  info.name = name;
+  h5::Id values = open_dataset(g, "values", ctx);
+  auto dims = h5::shape(values, ctx);
+  h5::Id angles = open_dataset(g, "angles", ctx);
+  auto adims = h5::shape(angles, ctx);
+  if (dims.size() != 2 || adims.size() != 2 || adims[1] != 4 || adims[0] != dims[0])
+    throw InputError(ctx + ": angles must be N x 4 and values N x B with the same N");
+  info.size = dims[0];
+  info.bands = dims[1];
+  info.wavelengths = read_grid(g, ctx);
+  if (info.wavelengths.size() != info.bands) throw InputError(ctx + ": values and wavelengths disagree on band count");
+  info.units = h5::has_attr(g, "units") ? h5::read_string_attr(g, "units", ctx) : "unknown";
+  info.provenance = read_provenance(g, ctx);
+  return info;
+}
+
+Cube Store::read_image(const std::string& name) const {
+  const ImageInfo info = image_info(name);
+  const std::string ctx = label() + ": /images/" + name;
+  h5::Id g = open_group(file(), "/images/" + name, ctx);
+  Cube c;
+  c.resize(info.height, info.width, info.bands);
+  c.wavelengths = info.wavelengths;
+  c.units = info.units;
+  c.provenance = info.provenance;
+  if (info.has_fwhm) c.fwhm = h5::read_vector(g, "fwhm", ctx);
+  h5::Id cube = open_dataset(g, "cube", ctx);
+  h5::check(H5Dread(cube, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, c.data.data()), ctx, "cannot read cube");
+  c.mask.resize(info.height * info.width);
+  h5::Id mask = open_dataset(g, "mask", ctx);
+  h5::check(H5Dread(mask, H5T_NATIVE_UINT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, c.mask.data()), ctx, "cannot read mask");
+  return c;
+}
+
+Collection Store::read_collection(const std::string& name) const {
+  const CollectionInfo info = collection_info(name);
+  const std::string ctx = label() + ": /collections/" + name;
+  h5::Id g = open_group(file(), "/collections/" + name, ctx);
+  Collection c;
+  c.wavelengths = info.wavelengths;
+  c.units = info.units;
+  c.provenance = info.provenance;
+  c.values.resize(info.size * info.bands);
+  h5::Id ds = open_dataset(g, "spectra", ctx);
+  if (!c.values.empty())
+    h5::check(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, c.values.data()), ctx, "cannot read spectra");
+  h5::Id names = open_dataset(g, "names", ctx);
+  if (h5::shape(names, ctx) != std::vector<hsize_t>{info.size})
+    throw InputError(ctx + "/names: expected one name per spectrum");
+  std::vector<char*> raw(info.size, nullptr);
+  h5::Id type = vlen_string_type(ctx);
+  if (info.size) h5::check(H5Dread(names, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, raw.data()), ctx, "cannot read names");
+  c.names.reserve(info.size);
+  for (char* p : raw) c.names.emplace_back(p ? p : "");
+  if (info.size) {
+    h5::Id space(h5::check(H5Dget_space(names), ctx, "H5Dget_space"));
+#if H5_VERSION_GE(1, 12, 0)
+    H5Treclaim(type, space, H5P_DEFAULT, raw.data());
+#else
+    H5Dvlen_reclaim(type, space, H5P_DEFAULT, raw.data());
+#endif
+  }
+  return c;
+}
+
+void Store::read_samples(const std::string& name, std::size_t first, std::size_t count, std::span<double> angles,
+                         std::span<float> values) const {
+  const SamplesInfo info = samples_info(name);
+  const std::string ctx = label() + ": /samples/" + name;
+  if (first + count > info.size || angles.size() != count * 4 || values.size() != count * info.bands)
+    throw UsageError(ctx + ": read_samples range or buffer sizes are wrong");
+  if (count == 0) return;
+  h5::Id g = open_group(file(), "/samples/" + name, ctx);
+  h5::Id a = open_dataset(g, "angles", ctx);
+  h5::Id v = open_dataset(g, "values", ctx);
+  const hsize_t s2[2] = {first, 0}, ca[2] = {count, 4}, cv[2] = {count, info.bands};
+  read_hyperslab(a, H5T_NATIVE_DOUBLE, s2, ca, angles.data(), ctx);
+  read_hyperslab(v, H5T_NATIVE_FLOAT, s2, cv, values.data(), ctx);
+}
+
+// ---------------------------------------------------------------- StoreWriter
+
+struct StoreWriter::Temp {
+  explicit Temp(const std::filesystem::path& target) : out(target, /*copy_existing=*/true) {}
+  AtomicOutput out;
+};
+
+StoreWriter::StoreWriter(const std::filesystem::path& path, WriteOptions options)
+    : target_(path), options_(std::move(options)) {
+  h5::quiet_errors();
+  const std::string ctx = label();
+  const bool existed = std::filesystem::exists(path);
+  if (existed) Store::open(path);  // validates: a specula store of a version we can write
+  temp_ = std::make_unique<Temp>(path);
+  h5::Id fapl = create_plist(H5P_FILE_ACCESS, ctx);
+  h5::check(H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG), ctx, "H5Pset_fclose_degree");
+  h5::check(H5Pset_cache(fapl, 0, 521, 16 << 20, 1.0), ctx, "H5Pset_cache");
+  const auto& tmp = temp_->out.temp_path();
+  if (existed) {
+    file_ = h5::Id(h5::check(H5Fopen(tmp.c_str(), H5F_ACC_RDWR, fapl), ctx, "cannot open the store for writing"));
+  } else {
+    file_ = h5::Id(h5::check(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), ctx, "cannot create the store"));
+    h5::write_attr(file_, "specula_format", std::string_view(kFormatName), ctx);
+    h5::write_attr(file_, "format_version", kFormatVersion, ctx);
+    h5::write_attr(file_, "specula_version", std::string_view(SPECULA_VERSION), ctx);
+    h5::write_attr(file_, "created_utc", std::string_view(utc_now()), ctx);
+  }
+}
+
+StoreWriter::~StoreWriter() = default;
+
+void StoreWriter::check_name(const std::string& kind, const std::string& group, const std::string& name) {
+  validate_name(name, kind);
+  const std::string path = group + "/" + name;
+  if (h5::exists(file_, path)) {
+    if (!options_.replace)
+      throw InputError(label() + ": " + kind + " '" + name + "' exists already; choose another --name or pass --replace");
+    h5::check(H5Ldelete(file_, path.c_str(), H5P_DEFAULT), label(), "cannot remove old " + path);
+  }
+}
+
+void StoreWriter::add_image(const std::string& name, const Cube& cube) {
+  const std::string ctx = label() + ": /images/" + name;
+  const std::string src = cube.provenance.source_file.empty() ? name : cube.provenance.source_file;
+  if (cube.height == 0 || cube.width == 0 || cube.bands == 0)
+    throw InputError(src + ": image is empty (" + std::to_string(cube.height) + "x" + std::to_string(cube.width) + "x" +
+                     std::to_string(cube.bands) + ")");
+  if (cube.data.size() != cube.height * cube.width * cube.bands || (!cube.mask.empty() && cube.mask.size() != cube.height * cube.width))
+    throw UsageError(ctx + ": cube buffers do not match its dimensions");
+  if (cube.wavelengths.size() != cube.bands)
+    throw InputError(src + ": image has " + std::to_string(cube.bands) + " bands but " +
+                     std::to_string(cube.wavelengths.size()) + " wavelengths");
+  if (!cube.fwhm.empty() && cube.fwhm.size() != cube.bands)
+    throw InputError(src + ": " + std::to_string(cube.fwhm.size()) + " FWHM values for " + std::to_string(cube.bands) + " bands");
+  // Non-finite values in valid pixels are the importer's business; here they are a hard error.
+  std::uint64_t valid = 0;
+  for (std::size_t p = 0; p < cube.height * cube.width; ++p) {
+    if (!cube.mask.empty() && !cube.mask[p]) continue;
+    ++valid;
+    const float* s = cube.data.data() + p * cube.bands;
+    for (std::size_t b = 0; b < cube.bands; ++b)
+      if (!std::isfinite(s[b]))
+        throw InputError(src + ": non-finite value at row " + std::to_string(p / cube.width) + ", column " +
+                         std::to_string(p % cube.width) + ", band " + std::to_string(b) +
+                         "; mask such pixels (--nan mask) before storing");
+  }
+  check_name("image", "/images", name);
+
+  h5::Id g = create_group(file_, "/images/" + name, ctx);
+  h5::write_attr(g, "kind", std::string_view("image"), ctx);
+  h5::write_attr(g, "units", std::string_view(cube.units), ctx);
+  h5::write_attr(g, "valid_pixels", static_cast<long long>(valid), ctx);
+  write_provenance(g, cube.provenance, options_.command_line, ctx);
+  write_grid(g, cube.wavelengths, ctx);
+  if (!cube.fwhm.empty()) h5::write_vector(g, "fwhm", cube.fwhm, ctx);
+
+  const auto [ch, cw] = image_chunk(cube.height, cube.width, cube.bands);
+  const hsize_t dims[3] = {cube.height, cube.width, cube.bands};
+  const hsize_t chunk[3] = {ch, cw, cube.bands};
+  h5::Id space(h5::check(H5Screate_simple(3, dims, nullptr), ctx, "H5Screate_simple"));
+  h5::Id dcpl = chunked_dcpl(chunk, options_.compression, ctx);
+  h5::Id ds(h5::check(H5Dcreate2(g, "cube", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx, "cannot create cube"));
+  h5::write_attr(ds, "axes", std::string_view("height,width,band"), ctx);
+
+  const hsize_t mdims[2] = {cube.height, cube.width};
+  const hsize_t mchunk[2] = {ch, cw};
+  h5::Id mspace(h5::check(H5Screate_simple(2, mdims, nullptr), ctx, "H5Screate_simple"));
+  h5::Id mdcpl = chunked_dcpl(mchunk, options_.compression, ctx);
+  h5::Id mds(h5::check(H5Dcreate2(g, "mask", H5T_STD_U8LE, mspace, H5P_DEFAULT, mdcpl, H5P_DEFAULT), ctx, "cannot create mask"));
+
+  // Write by chunk rows; masked pixels are stored as zeros so the cube holds only finite numbers.
+  std::vector<float> rows;
+  std::vector<std::uint8_t> mrows;
+  Progress progress("writing " + name, cube.height);
+  for (std::size_t y0 = 0; y0 < cube.height; y0 += ch) {
+    check_interrupt();
+    const std::size_t n = std::min<std::size_t>(ch, cube.height - y0);
+    const std::size_t px = n * cube.width;
+    rows.assign(cube.data.begin() + std::ptrdiff_t(y0 * cube.width * cube.bands),
+                cube.data.begin() + std::ptrdiff_t((y0 + n) * cube.width * cube.bands));
+    mrows.assign(px, 1);
+    if (!cube.mask.empty()) {
+      for (std::size_t p = 0; p < px; ++p) {
+        mrows[p] = cube.mask[y0 * cube.width + p] ? 1 : 0;
+        if (!mrows[p]) std::fill_n(rows.data() + p * cube.bands, cube.bands, 0.0f);
+      }
+    }
+    const hsize_t start[3] = {y0, 0, 0}, count[3] = {n, cube.width, cube.bands};
+    write_hyperslab(ds, H5T_NATIVE_FLOAT, start, count, rows.data(), ctx);
+    write_hyperslab(mds, H5T_NATIVE_UINT8, std::span<const hsize_t>(start, 2), std::span<const hsize_t>(count, 2),
+                    mrows.data(), ctx);
+    progress.advance(n);
+  }
+}
+
+void StoreWriter::add_collection(const std::string& name, const Collection& col) {
+  const std::string ctx = label() + ": /collections/" + name;
+  const std::string src = col.provenance.source_file.empty() ? name : col.provenance.source_file;
+  const std::size_t n = col.size(), b = col.bands();
+  if (n == 0 || b == 0) throw InputError(src + ": collection is empty");
+  if (col.values.size() != n * b) throw UsageError(ctx + ": values do not match names x bands");
+  for (std::size_t i = 0; i < n * b; ++i)
+    if (!std::isfinite(col.values[i]))
+      throw InputError(src + ": non-finite value in spectrum '" + col.names[i / b] + "' at " +
+                       std::to_string(col.wavelengths[i % b]) + " nm");
+  check_name("collection", "/collections", name);
+  h5::Id g = create_group(file_, "/collections/" + name, ctx);
+  h5::write_attr(g, "kind", std::string_view("collection"), ctx);
+  h5::write_attr(g, "units", std::string_view(col.units), ctx);
+  write_provenance(g, col.provenance, options_.command_line, ctx);
+  write_grid(g, col.wavelengths, ctx);
+
+  const hsize_t dims[2] = {n, b};
+  const hsize_t chunk[2] = {std::min<hsize_t>(n, std::max<hsize_t>(1, kChunkBytes / (b * sizeof(float)))), b};
+  h5::Id space(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
+  h5::Id dcpl = chunked_dcpl(chunk, options_.compression, ctx);
+  h5::Id ds(h5::check(H5Dcreate2(g, "spectra", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx, "cannot create spectra"));
+  for (hsize_t r0 = 0; r0 < n; r0 += chunk[0]) {
+    check_interrupt();
+    const hsize_t start[2] = {r0, 0}, count[2] = {std::min<hsize_t>(chunk[0], n - r0), b};
+    write_hyperslab(ds, H5T_NATIVE_FLOAT, start, count, col.values.data() + r0 * b, ctx);
+  }
+  const hsize_t ndims[1] = {n};
+  h5::Id nspace(h5::check(H5Screate_simple(1, ndims, nullptr), ctx, "H5Screate_simple"));
+  h5::Id type = vlen_string_type(ctx);
+  h5::Id nds(h5::check(H5Dcreate2(g, "names", type, nspace, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx, "cannot create names"));
+  std::vector<const char*> ptrs;
+  for (const auto& s : col.names) ptrs.push_back(s.c_str());
+  h5::check(H5Dwrite(nds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()), ctx, "cannot write names");
+}
+
+void StoreWriter::create_samples(const std::string& name, const WavelengthGrid& wavelengths, const std::string& units,
+                                 const Provenance& provenance) {
+  const std::string ctx = label() + ": /samples/" + name;
+  if (wavelengths.empty()) throw UsageError(ctx + ": samples need at least one wavelength");
+  check_name("samples", "/samples", name);
+  h5::Id g = create_group(file_, "/samples/" + name, ctx);
+  h5::write_attr(g, "kind", std::string_view("samples"), ctx);
+  h5::write_attr(g, "units", std::string_view(units), ctx);
+  write_provenance(g, provenance, options_.command_line, ctx);
+  write_grid(g, wavelengths, ctx);
+  const hsize_t b = wavelengths.size();
+  const hsize_t adims0[2] = {0, 4}, vdims0[2] = {0, b};
+  const hsize_t amax[2] = {H5S_UNLIMITED, 4}, vmax[2] = {H5S_UNLIMITED, b};
+  const hsize_t achunk[2] = {8192, 4};
+  const hsize_t vchunk[2] = {std::max<hsize_t>(1, kChunkBytes / (b * sizeof(float))), b};
+  h5::Id aspace(h5::check(H5Screate_simple(2, adims0, amax), ctx, "H5Screate_simple"));
+  h5::Id vspace(h5::check(H5Screate_simple(2, vdims0, vmax), ctx, "H5Screate_simple"));
+  h5::Id adcpl = chunked_dcpl(achunk, options_.compression, ctx);
+  h5::Id vdcpl = chunked_dcpl(vchunk, options_.compression, ctx);
+  h5::Id a(h5::check(H5Dcreate2(g, "angles", H5T_IEEE_F64LE, aspace, H5P_DEFAULT, adcpl, H5P_DEFAULT), ctx, "cannot create angles"));
+  h5::write_attr(a, "columns", std::string_view("theta_i,phi_i,theta_o,phi_o"), ctx);
+  h5::write_attr(a, "units", std::string_view("rad"), ctx);
+  h5::Id v(h5::check(H5Dcreate2(g, "values", H5T_IEEE_F32LE, vspace, H5P_DEFAULT, vdcpl, H5P_DEFAULT), ctx, "cannot create values"));
+}
+
+void StoreWriter::append_samples(const std::string& name, std::span<const double> angles, std::span<const float> values) {
+  const std::string ctx = label() + ": /samples/" + name;
+  if (!h5::exists(file_, "/samples/" + name)) throw UsageError(ctx + ": create_samples first");
+  h5::Id g = open_group(file_, "/samples/" + name, ctx);
+  h5::Id a = open_dataset(g, "angles", ctx);
+  h5::Id v = open_dataset(g, "values", ctx);
+  const auto vd = h5::shape(v, ctx);
+  const hsize_t b = vd[1];
+  if (angles.size() % 4 != 0 || values.size() != angles.size() / 4 * b)
+    throw UsageError(ctx + ": append_samples needs n x 4 angles and n x " + std::to_string(b) + " values");
+  const hsize_t n = angles.size() / 4;
+  for (std::size_t i = 0; i < angles.size(); ++i)
+    if (!std::isfinite(angles[i])) throw InputError(ctx + ": non-finite angle in sample " + std::to_string(vd[0] + i / 4));
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!std::isfinite(values[i])) throw InputError(ctx + ": non-finite value in sample " + std::to_string(vd[0] + i / b));
+  if (n == 0) return;
+  const hsize_t new_a[2] = {vd[0] + n, 4}, new_v[2] = {vd[0] + n, b};
+  h5::check(H5Dset_extent(a, new_a), ctx, "cannot extend angles");
+  h5::check(H5Dset_extent(v, new_v), ctx, "cannot extend values");
+  const hsize_t start[2] = {vd[0], 0}, ca[2] = {n, 4}, cv[2] = {n, b};
+  write_hyperslab(a, H5T_NATIVE_DOUBLE, start, ca, angles.data(), ctx);
+  write_hyperslab(v, H5T_NATIVE_FLOAT, start, cv, values.data(), ctx);
+}
+
+void StoreWriter::commit() {
+  if (!temp_) throw UsageError(label() + ": StoreWriter::commit called twice");
+  h5::check(H5Fflush(file_, H5F_SCOPE_GLOBAL), label(), "cannot flush the store");
+  const hid_t f = file_.get();
+  file_ = h5::Id();
+  (void)f;
+  temp_->out.commit();
+  temp_.reset();
+}
+
+}  // namespace specula::store

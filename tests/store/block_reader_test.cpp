@@ -1,0 +1,144 @@
+#include "store/block_reader.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "core/error.h"
+#include "test_support.h"
+
+using namespace specula;
+using namespace specula::store;
+
+namespace {
+
+Cube random_cube(std::size_t h, std::size_t w, std::size_t b, unsigned seed) {
+  Cube c;
+  c.resize(h, w, b);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 2.0f);
+  for (auto& v : c.data) v = u(rng);
+  c.mask.assign(h * w, 1);
+  std::bernoulli_distribution drop(0.3);
+  for (auto& m : c.mask) m = drop(rng) ? 0 : 1;
+  c.wavelengths = WavelengthGrid::range(420, 420 + 10.0 * double(b - 1), 10);
+  return c;
+}
+
+// Brute force: every valid spectrum of every cube, in image then row-major pixel order.
+RowMatrixXd all_valid(const std::vector<Cube>& cubes) {
+  std::vector<const float*> rows;
+  for (const auto& c : cubes)
+    for (std::size_t p = 0; p < c.height * c.width; ++p)
+      if (c.mask[p]) rows.push_back(c.data.data() + p * c.bands);
+  RowMatrixXd m(Eigen::Index(rows.size()), Eigen::Index(cubes[0].bands));
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    for (std::size_t b = 0; b < cubes[0].bands; ++b) m(Eigen::Index(i), Eigen::Index(b)) = rows[i][b];
+  return m;
+}
+
+}  // namespace
+
+class BlockReaderTest : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(BlockReaderTest, StreamsExactlyTheValidSpectraInOrder) {
+  test::ScratchDir dir;
+  auto path = dir / "s.h5";
+  std::vector<Cube> cubes{random_cube(300, 170, 31, 1), random_cube(97, 503, 31, 2), random_cube(1, 1, 31, 3)};
+  {
+    StoreWriter w(path, {.compression = Compression::parse(GetParam())});
+    for (std::size_t i = 0; i < cubes.size(); ++i) w.add_image("img" + std::to_string(i), cubes[i]);
+    w.commit();
+  }
+  Store s = Store::open(path);
+  BlockReader reader(s, {}, 4096);
+  const RowMatrixXd expect = all_valid(cubes);
+  ASSERT_EQ(reader.spectra(), std::uint64_t(expect.rows()));
+  ASSERT_GT(reader.block_count(), 3u);
+  std::vector<RowMatrixXd> blocks(reader.block_count());
+  for_each_block<double>(reader, [&](std::size_t i, const RowMatrixXd& m, int) { blocks[i] = m; });
+  Eigen::Index row = 0;
+  for (const auto& b : blocks) {
+    ASSERT_LE(std::size_t(b.rows()), reader.max_block_spectra());
+    ASSERT_TRUE(b.isApprox(expect.middleRows(row, b.rows()), 0.0) || b.rows() == 0);
+    row += b.rows();
+  }
+  EXPECT_EQ(row, expect.rows());
+  // float blocks carry the same values
+  RowMatrixXf f;
+  reader.read(1, f);
+  EXPECT_EQ(f.cast<double>(), blocks[1]);
+}
+
+INSTANTIATE_TEST_SUITE_P(Compression, BlockReaderTest, ::testing::Values("none", "deflate:1"));
+
+TEST(BlockReader, SameBlocksForAnyThreadCount) {
+  test::ScratchDir dir;
+  auto path = dir / "s.h5";
+  {
+    StoreWriter w(path, {});
+    w.add_image("a", random_cube(200, 100, 8, 4));
+    w.commit();
+  }
+  Store s = Store::open(path);
+  BlockReader reader(s, {}, 1000);
+  auto sums = [&](int threads) {
+    omp_set_num_threads(threads);
+    std::vector<double> per_block(reader.block_count());
+    for_each_block<double>(reader, [&](std::size_t i, const RowMatrixXd& m, int) { per_block[i] = m.sum(); });
+    return per_block;
+  };
+  EXPECT_EQ(sums(1), sums(2));
+}
+
+TEST(BlockReader, SelectsByGlobOrCollectionAndRejectsMixedGrids) {
+  test::ScratchDir dir;
+  auto path = dir / "s.h5";
+  Collection col;
+  col.names = {"x", "y", "z"};
+  col.wavelengths = WavelengthGrid({500, 600});
+  col.values = {1, 2, 3, 4, 5, 6};
+  {
+    StoreWriter w(path, {});
+    w.add_image("day1", random_cube(10, 10, 31, 1));
+    w.add_image("day2", random_cube(10, 10, 31, 2));
+    w.add_image("night", random_cube(10, 10, 29, 3));
+    w.add_collection("chips", col);
+    w.commit();
+  }
+  Store s = Store::open(path);
+  BlockReader days(s, {.image_globs = {"day*"}});
+  EXPECT_EQ(days.source_names(), (std::vector<std::string>{"day1", "day2"}));
+  try {
+    BlockReader all(s, {});
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("29 bands"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(BlockReader(s, {.image_globs = {"none*"}}), InputError);
+  BlockReader chips(s, {.collection = "chips"});
+  EXPECT_EQ(chips.spectra(), 3u);
+  RowMatrixXf m;
+  chips.read(0, m);
+  EXPECT_EQ(m(2, 1), 6.0f);
+}
+
+TEST(BlockReader, ErrorsInsideTheStreamAreRethrown) {
+  test::ScratchDir dir;
+  auto path = dir / "s.h5";
+  {
+    StoreWriter w(path, {});
+    w.add_image("a", random_cube(2000, 100, 4, 1));
+    w.commit();
+  }
+  Store s = Store::open(path);
+  BlockReader reader(s, {}, 100);
+  ASSERT_GT(reader.block_count(), 3u);
+  EXPECT_THROW(for_each_block<float>(reader, [](std::size_t i, const RowMatrixXf&, int) {
+                 if (i == 3) throw InputError("boom");
+               }),
+               InputError);
+  request_interrupt();
+  EXPECT_THROW(for_each_block<float>(reader, [](std::size_t, const RowMatrixXf&, int) {}), Interrupted);
+  clear_interrupt();
+}
