@@ -4,6 +4,7 @@
 
 #include <fstream>
 
+#include "core/error.h"
 #include "test_support.h"
 
 using specula::AtomicOutput;
