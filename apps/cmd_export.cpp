@@ -1,0 +1,91 @@
+// specula export: an object out of the store as spectral OpenEXR, ENVI, CSV, or an sRGB preview
+// (8-bit PNG or linear EXR).
+#include <fmt/format.h>
+
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "core/error.h"
+#include "store/io/csv.h"
+#include "store/io/envi.h"
+#include "store/io/exr.h"
+#include "store/io/png_stack.h"
+#include "store/store.h"
+
+namespace specula::app {
+namespace {
+
+struct ExportOptions {
+  std::string store;
+  std::string object;
+  std::string output;
+  std::string format = "auto";
+  std::string interleave = "bsq";
+  PreviewOptions preview;
+};
+
+std::string format_of(const ExportOptions& o) {
+  if (o.format != "auto") return o.format;
+  std::string ext = std::filesystem::path(o.output).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (ext == ".exr") return "exr";
+  if (ext == ".png") return "png";
+  if (ext == ".csv") return "csv";
+  if (ext == ".hdr" || ext == ".raw" || ext == ".img" || ext == ".dat" || ext == ".bsq" || ext == ".bil" || ext == ".bip")
+    return "envi";
+  throw UsageError(o.output + ": cannot tell the format from the extension '" + ext +
+                   "'; pass --format exr|envi|png|rgb-exr|csv");
+}
+
+void run_export(const ExportOptions& o) {
+  const store::Store s = store::Store::open(o.store);
+  const std::string format = format_of(o);
+  const auto collections = s.collections();
+  if (std::find(collections.begin(), collections.end(), o.object) != collections.end()) {
+    if (format != "csv")
+      throw UsageError(s.label() + ": '" + o.object + "' is a collection; export it as .csv (--format csv)");
+    store::write_csv_collection(o.output, s.read_collection(o.object));
+    fmt::print("wrote {}\n", o.output);
+    return;
+  }
+  if (format == "csv") throw UsageError(s.label() + ": '" + o.object + "' is not a collection; CSV export is for collections");
+  const store::Cube cube = s.read_image(o.object);
+  if (format == "exr") {
+    store::write_spectral_exr(o.output, cube);
+  } else if (format == "envi") {
+    std::filesystem::path data = o.output;
+    if (data.extension() == ".hdr") data.replace_extension(".raw");
+    const store::Interleave il = o.interleave == "bil" ? store::Interleave::bil
+                                 : o.interleave == "bip" ? store::Interleave::bip
+                                                         : store::Interleave::bsq;
+    store::write_envi(data, cube, il);
+  } else if (format == "png") {
+    const Picture p = render(cube, o.preview);
+    store::write_png_rgb8(o.output, p.width, p.height, p.srgb8);
+  } else if (format == "rgb-exr") {
+    const Picture p = render(cube, o.preview);
+    store::write_exr_rgb(o.output, p.width, p.height, p.linear);
+  } else {
+    throw UsageError("--format '" + format + "': use exr, envi, png, rgb-exr or csv");
+  }
+  fmt::print("wrote {}\n", o.output);
+}
+
+}  // namespace
+
+void setup_export(CLI::App& app) {
+  auto o = std::make_shared<ExportOptions>();
+  auto* cmd = app.add_subcommand("export", "Write an object as spectral EXR, ENVI, CSV, or an sRGB preview (PNG, linear EXR)");
+  cmd->add_option("store", o->store, "Store file")->required();
+  cmd->add_option("object", o->object, "Image or collection name")->required();
+  cmd->add_option("-o,--output", o->output, "Output file; the extension picks the format (.exr .hdr .png .csv)")->required();
+  cmd->add_option("--format", o->format, "auto, exr (spectral), envi, png (sRGB 8-bit), rgb-exr (linear sRGB), csv")
+      ->check(CLI::IsMember({"auto", "exr", "envi", "png", "rgb-exr", "csv"}))
+      ->capture_default_str();
+  cmd->add_option("--interleave", o->interleave, "ENVI interleave: bsq, bil or bip")
+      ->check(CLI::IsMember({"bsq", "bil", "bip"}))
+      ->capture_default_str();
+  add_preview_options(cmd, o->preview);
+  cmd->callback([o] { run_export(*o); });
+}
+
+}  // namespace specula::app

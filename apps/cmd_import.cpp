@@ -1,0 +1,222 @@
+// specula import: ENVI, MATLAB, PNG stacks, spectral OpenEXR and CSV tables into a store, all files in one
+// transaction (all or nothing), resampled to a target wavelength grid when asked.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "core/error.h"
+#include "store/io/csv.h"
+#include "store/io/envi.h"
+#include "store/io/exr.h"
+#include "store/io/mat.h"
+#include "store/io/png_stack.h"
+#include "store/store.h"
+
+namespace specula::app {
+namespace {
+
+struct ImportOptions {
+  std::vector<std::string> inputs;
+  std::string output;
+  std::string name;
+  std::string wavelengths;
+  std::string source_wavelengths;
+  std::string mask;
+  std::string var = "ref";
+  std::string format = "auto";
+  std::string nan = "reject";
+  std::string compression = "deflate";
+  std::string units;
+  bool replace = false;
+};
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  return s;
+}
+
+std::string detect_format(const std::filesystem::path& p) {
+  if (std::filesystem::is_directory(p)) return "png";
+  const std::string ext = lower(p.extension().string());
+  if (ext == ".hdr" || ext == ".raw" || ext == ".img" || ext == ".dat" || ext == ".bsq" || ext == ".bil" || ext == ".bip")
+    return "envi";
+  if (ext == ".mat") return "mat";
+  if (ext == ".png") return "png";
+  if (ext == ".exr") return "exr";
+  if (ext == ".csv") return "csv";
+  throw UsageError(p.string() + ": cannot tell the format from the extension '" + ext +
+                   "'; pass --format envi|mat|png|exr|csv");
+}
+
+// Resamples every spectrum of `values` (count x from.size()) onto `to`, refusing extrapolation.
+std::vector<float> resample(const std::vector<float>& values, std::size_t count, const WavelengthGrid& from,
+                            const WavelengthGrid& to, const std::string& ctx) {
+  const Eigen::MatrixXf r = resample_matrix(from, to, ctx).cast<float>();
+  std::vector<float> out(count * to.size());
+  Eigen::Map<const RowMatrixXf> in(values.data(), Eigen::Index(count), Eigen::Index(from.size()));
+  Eigen::Map<RowMatrixXf> o(out.data(), Eigen::Index(count), Eigen::Index(to.size()));
+  o.noalias() = in * r.transpose();
+  return out;
+}
+
+// Applies the NaN/Inf policy: reject (one line naming the count and the first position) or mask.
+void apply_nan_policy(Cube& c, const std::string& policy, const std::string& src) {
+  std::uint64_t bad_values = 0, bad_pixels = 0;
+  std::size_t first = SIZE_MAX, first_band = 0;
+  const std::size_t px = c.height * c.width;
+  std::vector<std::uint8_t> bad(px, 0);
+  for (std::size_t p = 0; p < px; ++p) {
+    if (!c.mask.empty() && !c.mask[p]) continue;
+    const float* s = c.data.data() + p * c.bands;
+    for (std::size_t b = 0; b < c.bands; ++b)
+      if (!std::isfinite(s[b])) {
+        ++bad_values;
+        if (!bad[p]) ++bad_pixels;
+        bad[p] = 1;
+        if (first == SIZE_MAX) first = p, first_band = b;
+      }
+  }
+  if (bad_values == 0) return;
+  if (policy == "reject")
+    throw InputError(fmt::format("{}: {} NaN/Inf values in {} pixels (first at row {}, column {}, band {} = {} nm); "
+                                 "pass --nan mask to mask those pixels",
+                                 src, bad_values, bad_pixels, first / c.width, first % c.width, first_band,
+                                 c.wavelengths.empty() ? 0.0 : c.wavelengths[first_band]));
+  if (c.mask.empty()) c.mask.assign(px, 1);
+  for (std::size_t p = 0; p < px; ++p)
+    if (bad[p]) c.mask[p] = 0;
+  fmt::print(stderr, "{}: masked {} pixels holding NaN/Inf\n", src, bad_pixels);
+}
+
+void load_mask_png(Cube& c, const std::string& path) {
+  const store::PngImage m = store::read_png(path);
+  if (m.width != c.width || m.height != c.height)
+    throw InputError(fmt::format("{}: mask is {}x{}, image is {}x{}", path, m.width, m.height, c.width, c.height));
+  if (c.mask.empty()) c.mask.assign(c.width * c.height, 1);
+  for (std::size_t p = 0; p < c.width * c.height; ++p)
+    if (m.samples[p * m.channels] == 0) c.mask[p] = 0;
+}
+
+std::string default_name(const std::filesystem::path& p) {
+  std::string s = p.filename().string();
+  if (std::filesystem::is_directory(p) || s.empty()) s = std::filesystem::absolute(p).lexically_normal().filename().string();
+  if (s.empty()) s = "image";
+  const auto dot = s.find('.');
+  if (dot != std::string::npos && dot > 0) s = s.substr(0, dot);
+  for (char& ch : s)
+    if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-' || ch == '+')) ch = '_';
+  return s;
+}
+
+void run_import(const ImportOptions& o) {
+  const store::Compression compression = store::Compression::parse(o.compression);
+  const WavelengthGrid target = o.wavelengths.empty() ? WavelengthGrid{} : WavelengthGrid::parse(o.wavelengths);
+  const WavelengthGrid source = o.source_wavelengths.empty() ? WavelengthGrid{} : WavelengthGrid::parse(o.source_wavelengths);
+  // The grid data without its own wavelengths is on: --source-wavelengths, else --wavelengths.
+  const WavelengthGrid& given = source.empty() ? target : source;
+
+  struct Item {
+    std::string format;
+    std::vector<std::filesystem::path> files;
+  };
+  std::vector<Item> items;
+  for (const auto& in : o.inputs) {
+    const std::string fmt_ = o.format == "auto" ? detect_format(in) : o.format;
+    if (fmt_ == "png" && !items.empty() && items.back().format == "png")
+      items.back().files.emplace_back(in);  // all PNGs form one band stack
+    else
+      items.push_back({fmt_, {in}});
+  }
+  if (!o.name.empty() && items.size() > 1)
+    throw UsageError(fmt::format("--name names one object but the inputs make {}; drop --name to name them by file",
+                                 items.size()));
+
+  std::vector<std::string> report;  // printed only once everything has landed
+  store::StoreWriter writer(o.output, {.compression = compression, .replace = o.replace, .command_line = command_line()});
+  for (const auto& item : items) {
+    const std::filesystem::path& first = item.files.front();
+    const std::string src = first.string();
+    const std::string name = o.name.empty() ? default_name(first) : o.name;
+    if (item.format == "csv") {
+      store::Collection col = store::read_csv_collection(first, given);
+      if (!target.empty() && !target.approx_equal(col.wavelengths)) {
+        col.values = resample(col.values, col.size(), col.wavelengths, target, src);
+        col.wavelengths = target;
+      }
+      if (!o.units.empty()) col.units = o.units;
+      col.provenance.source_file = src;
+      col.provenance.importer = "csv";
+      writer.add_collection(name, col);
+      report.push_back(fmt::format("imported collection {}: {} spectra, {}", name, col.size(), col.wavelengths.describe()));
+      continue;
+    }
+    store::Cube cube;
+    if (item.format == "envi") {
+      cube = store::read_envi(first);
+    } else if (item.format == "mat") {
+      cube = store::read_mat(first, o.var, o.mask.empty() ? std::nullopt : std::optional<std::string>(o.mask), given);
+    } else if (item.format == "png") {
+      if (given.empty())
+        throw UsageError(src + ": a PNG band stack carries no wavelengths; pass --wavelengths FIRST:LAST:STEP");
+      cube = store::read_png_stack(item.files, given);
+    } else if (item.format == "exr") {
+      cube = store::read_spectral_exr(first);
+    } else {
+      throw UsageError("--format '" + item.format + "': use auto, envi, mat, png, exr or csv");
+    }
+    if (!o.mask.empty() && item.format != "mat") load_mask_png(cube, o.mask);
+    if (!o.units.empty()) cube.units = o.units;
+    apply_nan_policy(cube, o.nan, src);
+    if (!target.empty() && !target.approx_equal(cube.wavelengths)) {
+      // Masked pixels may hold anything; zero them so resampling cannot spread NaN.
+      if (!cube.mask.empty())
+        for (std::size_t p = 0; p < cube.mask.size(); ++p)
+          if (!cube.mask[p]) std::fill_n(cube.data.begin() + std::ptrdiff_t(p * cube.bands), cube.bands, 0.0f);
+      cube.data = resample(cube.data, cube.height * cube.width, cube.wavelengths, target, src);
+      cube.wavelengths = target;
+      cube.bands = target.size();
+      cube.fwhm.clear();
+    }
+    cube.provenance.source_file = src;
+    if (cube.provenance.importer.empty()) cube.provenance.importer = item.format;
+    writer.add_image(name, cube);
+    std::size_t valid = cube.mask.empty() ? cube.height * cube.width
+                                          : std::size_t(std::count(cube.mask.begin(), cube.mask.end(), 1));
+    report.push_back(fmt::format("imported image {}: {}x{}, {}, {} valid pixels, units {}", name, cube.height, cube.width,
+               cube.wavelengths.describe(), valid, cube.units));
+  }
+  writer.commit();
+  for (const auto& line : report) fmt::print("{}\n", line);
+}
+
+}  // namespace
+
+void setup_import(CLI::App& app) {
+  auto o = std::make_shared<ImportOptions>();
+  auto* cmd = app.add_subcommand("import", "Import spectral images (ENVI, .mat, PNG stack, spectral EXR) or CSV tables into a store");
+  cmd->add_option("inputs", o->inputs, "Input files (all PNGs together form one band stack; a directory of PNGs too)")
+      ->required();
+  cmd->add_option("-o,--output", o->output, "Store to create or add to")->required();
+  cmd->add_option("--name", o->name, "Object name (default: the file name without extension)");
+  cmd->add_option("--wavelengths", o->wavelengths,
+                  "Target grid FIRST:LAST:STEP or a comma list; data is resampled linearly onto it (no extrapolation). "
+                  "Also the data's own grid when it carries none (PNG stacks)");
+  cmd->add_option("--source-wavelengths", o->source_wavelengths, "The data's own grid when it carries none and --wavelengths resamples");
+  cmd->add_option("--mask", o->mask, "Mask: a PNG file (nonzero = valid), or for .mat the name of a mask variable");
+  cmd->add_option("--var", o->var, "Cube variable in a .mat file")->capture_default_str();
+  cmd->add_option("--format", o->format, "auto, envi, mat, png, exr or csv")
+      ->check(CLI::IsMember({"auto", "envi", "mat", "png", "exr", "csv"}))
+      ->capture_default_str();
+  cmd->add_option("--nan", o->nan, "NaN/Inf in valid pixels: reject (default) or mask")
+      ->check(CLI::IsMember({"reject", "mask"}))
+      ->capture_default_str();
+  cmd->add_option("--compression", o->compression, "none, deflate or deflate:LEVEL (shuffle + deflate)")->capture_default_str();
+  cmd->add_option("--units", o->units, "Override the units: reflectance, radiance, counts, ...");
+  cmd->add_flag("--replace", o->replace, "Replace objects of the same name");
+  cmd->callback([o] { run_import(*o); });
+}
+
+}  // namespace specula::app

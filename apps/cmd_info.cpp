@@ -1,0 +1,137 @@
+// specula info and specula ls: what a store holds, for people (text) and programs (--json).
+#include <fmt/format.h>
+
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "core/error.h"
+#include "store/h5.h"
+#include "store/store.h"
+
+namespace specula::app {
+namespace h5 = store::h5;
+namespace {
+
+struct InfoOptions {
+  std::string store;
+  std::string object;
+  bool json = false;
+};
+
+std::string provenance_json(const store::Provenance& p) {
+  return fmt::format(R"({{"source_file":{},"importer":{},"command_line":{},"created_utc":{}}})", json_string(p.source_file),
+                     json_string(p.importer), json_string(p.command_line), json_string(p.created_utc));
+}
+
+std::string image_json(const store::ImageInfo& i) {
+  return fmt::format(
+      R"({{"kind":"image","name":{},"height":{},"width":{},"bands":{},"wavelengths":{},"units":{},"valid_pixels":{},)"
+      R"("chunk_rows":{},"compression":{},"has_fwhm":{},"provenance":{}}})",
+      json_string(i.name), i.height, i.width, i.bands, json_array(i.wavelengths.values()), json_string(i.units),
+      i.valid_pixels, i.chunk_rows, json_string(i.compression), i.has_fwhm ? "true" : "false",
+      provenance_json(i.provenance));
+}
+
+std::string collection_json(const store::CollectionInfo& c) {
+  return fmt::format(R"({{"kind":"collection","name":{},"size":{},"bands":{},"wavelengths":{},"units":{},"provenance":{}}})",
+                     json_string(c.name), c.size, c.bands, json_array(c.wavelengths.values()), json_string(c.units),
+                     provenance_json(c.provenance));
+}
+
+std::string samples_json(const store::SamplesInfo& s) {
+  return fmt::format(R"({{"kind":"samples","name":{},"size":{},"bands":{},"wavelengths":{},"units":{},"provenance":{}}})",
+                     json_string(s.name), s.size, s.bands, json_array(s.wavelengths.values()), json_string(s.units),
+                     provenance_json(s.provenance));
+}
+
+std::string image_line(const store::ImageInfo& i) {
+  return fmt::format("image       {:<24} {}x{}  {}  {} valid  {}  [{}]", i.name, i.height, i.width,
+                     i.wavelengths.describe(), i.valid_pixels, i.units, i.compression);
+}
+std::string collection_line(const store::CollectionInfo& c) {
+  return fmt::format("collection  {:<24} {} spectra  {}  {}", c.name, c.size, c.wavelengths.describe(), c.units);
+}
+std::string samples_line(const store::SamplesInfo& s) {
+  return fmt::format("samples     {:<24} {} samples  {}  {}", s.name, s.size, s.wavelengths.describe(), s.units);
+}
+
+void list_objects(const store::Store& s, bool json) {
+  std::vector<std::string> rows;
+  for (const auto& n : s.images()) rows.push_back(json ? image_json(s.image_info(n)) : image_line(s.image_info(n)));
+  for (const auto& n : s.collections())
+    rows.push_back(json ? collection_json(s.collection_info(n)) : collection_line(s.collection_info(n)));
+  for (const auto& n : s.samples()) rows.push_back(json ? samples_json(s.samples_info(n)) : samples_line(s.samples_info(n)));
+  for (const auto& n : s.grids()) rows.push_back(json ? fmt::format(R"({{"kind":"grid","name":{}}})", json_string(n)) : "grid        " + n);
+  for (const auto& n : s.bases()) rows.push_back(json ? fmt::format(R"({{"kind":"basis","name":{}}})", json_string(n)) : "basis       " + n);
+  if (json) {
+    fmt::print("[");
+    for (std::size_t i = 0; i < rows.size(); ++i) fmt::print("{}{}", i ? "," : "", rows[i]);
+    fmt::print("]");
+  } else {
+    for (const auto& r : rows) fmt::print("{}\n", r);
+  }
+}
+
+void run_info(const InfoOptions& o) {
+  const store::Store s = store::Store::open(o.store);
+  if (o.object.empty()) {
+    std::uint64_t spectra = 0;
+    for (const auto& n : s.images()) spectra += s.image_info(n).valid_pixels;
+    const auto bytes = std::filesystem::file_size(s.path());
+    const std::string created = h5::has_attr(s.file(), "created_utc") ? h5::read_string_attr(s.file(), "created_utc", s.label()) : "";
+    if (o.json) {
+      fmt::print(R"({{"store":{},"format_version":{},"bytes":{},"created_utc":{},"valid_spectra":{},"objects":)",
+                 json_string(s.path().string()), s.format_version(), bytes, json_string(created), spectra);
+      list_objects(s, true);
+      fmt::print("}}\n");
+      return;
+    }
+    fmt::print("{}: specula store, format version {}, {:.1f} MB, created {}\n", s.path().string(), s.format_version(),
+               double(bytes) / 1e6, created);
+    fmt::print("{} images ({} valid spectra), {} collections, {} sample sets, {} grids, {} bases\n", s.images().size(),
+               spectra, s.collections().size(), s.samples().size(), s.grids().size(), s.bases().size());
+    list_objects(s, false);
+    return;
+  }
+  std::string name = o.object;
+  for (const char* prefix : {"images/", "collections/", "samples/", "/images/", "/collections/", "/samples/"})
+    if (name.rfind(prefix, 0) == 0) name = name.substr(std::string(prefix).size());
+  auto has = [](const std::vector<std::string>& v, const std::string& n) { return std::find(v.begin(), v.end(), n) != v.end(); };
+  if (has(s.images(), name)) {
+    const auto i = s.image_info(name);
+    if (o.json) return fmt::print("{}\n", image_json(i));
+    fmt::print("{}\n  wavelengths {}\n  source {} (importer {})\n  created {} by: {}\n", image_line(i),
+               json_array(i.wavelengths.values()), i.provenance.source_file, i.provenance.importer,
+               i.provenance.created_utc, i.provenance.command_line);
+  } else if (has(s.collections(), name)) {
+    const auto c = s.collection_info(name);
+    if (o.json) return fmt::print("{}\n", collection_json(c));
+    fmt::print("{}\n  source {}\n  created {} by: {}\n", collection_line(c), c.provenance.source_file,
+               c.provenance.created_utc, c.provenance.command_line);
+  } else if (has(s.samples(), name)) {
+    const auto c = s.samples_info(name);
+    if (o.json) return fmt::print("{}\n", samples_json(c));
+    fmt::print("{}\n  source {}\n", samples_line(c), c.provenance.source_file);
+  } else {
+    throw InputError(s.label() + ": no object '" + o.object + "'; `specula ls " + s.path().string() + "` lists them");
+  }
+}
+
+}  // namespace
+
+void setup_info(CLI::App& app) {
+  auto o = std::make_shared<InfoOptions>();
+  auto* cmd = app.add_subcommand("info", "Describe a store, or one object in it");
+  cmd->add_option("store", o->store, "Store file")->required();
+  cmd->add_option("object", o->object, "Object name (image, collection or samples)");
+  cmd->add_flag("--json", o->json, "Print JSON");
+  cmd->callback([o] { run_info(*o); });
+}
+
+void setup_ls(CLI::App& app) {
+  auto store = std::make_shared<std::string>();
+  auto* cmd = app.add_subcommand("ls", "List the objects in a store, one per line");
+  cmd->add_option("store", *store, "Store file")->required();
+  cmd->callback([store] { list_objects(store::Store::open(*store), false); });
+}
+
+}  // namespace specula::app

@@ -1,0 +1,15 @@
+#pragma once
+// Every subcommand lives in its own file with an options struct, a setup function that registers it
+// (its callback runs it) and a run function.
+#include <CLI/CLI.hpp>
+
+namespace specula::app {
+
+void setup_import(CLI::App& app);
+void setup_export(CLI::App& app);
+void setup_relight(CLI::App& app);
+void setup_info(CLI::App& app);
+void setup_ls(CLI::App& app);
+void setup_synth_db(CLI::App& app);
+
+}  // namespace specula::app

@@ -1,0 +1,160 @@
+#include "apps/common.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <fstream>
+#include <sstream>
+
+#include "core/cie.h"
+#include "core/error.h"
+
+namespace specula::app {
+namespace {
+std::string g_command_line;
+
+bool parse_double(const std::string& s, double& v) {
+  try {
+    std::size_t pos = 0;
+    v = std::stod(s, &pos);
+    return pos == s.size();
+  } catch (...) {
+    return false;
+  }
+}
+}  // namespace
+
+const std::string& command_line() { return g_command_line; }
+
+void set_command_line(int argc, char** argv) {
+  g_command_line.clear();
+  for (int i = 0; i < argc; ++i) {
+    if (i) g_command_line += ' ';
+    const std::string a = argv[i];
+    const bool quote = a.empty() || a.find_first_of(" \t'\"$") != std::string::npos;
+    g_command_line += quote ? "'" + a + "'" : a;
+  }
+}
+
+Eigen::VectorXd load_illuminant(const std::string& spec, const WavelengthGrid& grid) {
+  if (spec == "D65" || spec == "D50" || spec == "A" || spec == "E") return illuminant(spec, grid);
+  double v = 0;
+  if (spec.size() > 1 && (spec[0] == 'D' || spec[0] == 'd') && parse_double(spec.substr(1), v))
+    return daylight(v * 100.0, grid);
+  if (spec.rfind("blackbody:", 0) == 0 && parse_double(spec.substr(10), v)) {
+    if (!(v >= 500 && v <= 50000)) throw UsageError("illuminant '" + spec + "': temperature must be 500-50000 K");
+    return blackbody(v, grid);
+  }
+  if (!std::filesystem::exists(spec))
+    throw UsageError("illuminant '" + spec +
+                     "' is neither D65, D50, A, E, D<CCT/100> (e.g. D75), blackbody:<K> nor an existing SPD file");
+  std::ifstream in(spec);
+  std::vector<double> nm, val;
+  std::string line;
+  std::size_t lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (line.empty() || line[0] == '#') continue;
+    std::replace(line.begin(), line.end(), ';', ',');
+    const auto comma = line.find(',');
+    double a = 0, b = 0;
+    if (comma == std::string::npos || !parse_double(line.substr(0, comma), a) || !parse_double(line.substr(comma + 1), b)) {
+      if (nm.empty()) continue;  // header
+      throw InputError(spec + ":" + std::to_string(lineno) + ": expected 'wavelength_nm,value'");
+    }
+    if (!std::isfinite(b)) throw InputError(spec + ":" + std::to_string(lineno) + ": value is not finite");
+    nm.push_back(a);
+    val.push_back(b);
+  }
+  if (nm.size() < 2) throw InputError(spec + ": an SPD needs at least two 'wavelength_nm,value' rows");
+  const WavelengthGrid src(nm, spec);
+  return resample_matrix(src, grid, spec) * Eigen::Map<const Eigen::VectorXd>(val.data(), Eigen::Index(val.size()));
+}
+
+void add_preview_options(CLI::App* cmd, PreviewOptions& o, bool with_illuminant) {
+  if (with_illuminant)
+    cmd->add_option("--illuminant", o.illuminant,
+                    "Light for reflectance data: D65, D50, A, E, D<CCT/100>, blackbody:K or an SPD CSV file")
+        ->capture_default_str();
+  cmd->add_option("--exposure", o.exposure, "Exposure in stops, or 'auto'")->capture_default_str();
+  cmd->add_option("--tone", o.tone, "Tone mapping: clip or reinhard")
+      ->check(CLI::IsMember({"clip", "reinhard"}))
+      ->capture_default_str();
+  cmd->add_flag("--no-desaturate", o.no_desaturate, "Clip out-of-gamut colours instead of desaturating them");
+  cmd->add_flag("--no-adapt", o.no_adapt, "Do not adapt the scene white to D65");
+}
+
+RowMatrixX3f cube_xyz(const Cube& cube, const Eigen::VectorXd& illum, Eigen::Vector3d& white) {
+  const SpectrumKind kind = cube.units == "reflectance" ? SpectrumKind::reflectance : SpectrumKind::radiance;
+  const SpectrumToXyz to_xyz(cube.wavelengths, kind, illum);
+  white = to_xyz.white();
+  const Eigen::Index n = Eigen::Index(cube.height * cube.width);
+  RowMatrixX3f xyz(n, 3);
+  to_xyz.apply(Eigen::Map<const RowMatrixXf>(cube.data.data(), n, Eigen::Index(cube.bands)), xyz);
+  return xyz;
+}
+
+Picture render(const Cube& cube, const PreviewOptions& o) {
+  const Eigen::VectorXd illum = load_illuminant(o.illuminant, cube.wavelengths);
+  Eigen::Vector3d white;
+  RowMatrixX3f xyz = cube_xyz(cube, illum, white);
+  DisplayOptions d;
+  d.tone = o.tone == "reinhard" ? ToneMap::reinhard : ToneMap::clip;
+  d.desaturate = !o.no_desaturate;
+  d.adapt_to_d65 = !o.no_adapt;
+  if (o.exposure == "auto") {
+    d.exposure_stops = 0;
+    if (cube.units != "reflectance") {
+      std::vector<float> y;
+      for (Eigen::Index i = 0; i < xyz.rows(); ++i)
+        if (cube.valid(std::size_t(i) / cube.width, std::size_t(i) % cube.width)) y.push_back(xyz(i, 1));
+      if (!y.empty()) {
+        auto k = y.begin() + std::ptrdiff_t(double(y.size() - 1) * 0.99);
+        std::nth_element(y.begin(), k, y.end());
+        if (*k > 0) d.exposure_stops = -std::log2(double(*k));
+      }
+    }
+  } else if (!parse_double(o.exposure, d.exposure_stops) || std::abs(d.exposure_stops) > 64) {
+    throw UsageError("--exposure '" + o.exposure + "': give stops between -64 and 64, or auto");
+  }
+  Picture p;
+  p.width = cube.width;
+  p.height = cube.height;
+  p.srgb8.resize(3 * std::size_t(xyz.rows()));
+  RowMatrixX3f lin(xyz.rows(), 3);
+  xyz_to_display(xyz, white, d, lin, p.srgb8);
+  p.linear.assign(lin.data(), lin.data() + lin.size());
+  if (!cube.mask.empty())
+    for (std::size_t i = 0; i < cube.mask.size(); ++i)
+      if (!cube.mask[i]) {
+        p.srgb8[3 * i] = std::uint8_t(std::min(255, 96 + p.srgb8[3 * i] / 2));
+        p.srgb8[3 * i + 1] = std::uint8_t(p.srgb8[3 * i + 1] / 4);
+        p.srgb8[3 * i + 2] = std::uint8_t(p.srgb8[3 * i + 2] / 4);
+      }
+  return p;
+}
+
+std::string json_string(std::string_view s) {
+  std::string out = "\"";
+  for (char c : s) {
+    switch (c) {
+      case '"': out += "\\\""; break;
+      case '\\': out += "\\\\"; break;
+      case '\n': out += "\\n"; break;
+      case '\t': out += "\\t"; break;
+      case '\r': out += "\\r"; break;
+      default:
+        if (static_cast<unsigned char>(c) < 0x20) out += fmt::format("\\u{:04x}", int(c));
+        else out += c;
+    }
+  }
+  return out + "\"";
+}
+
+std::string json_array(std::span<const double> v) {
+  std::string out = "[";
+  for (std::size_t i = 0; i < v.size(); ++i) out += (i ? "," : "") + (std::isfinite(v[i]) ? fmt::format("{}", v[i]) : "null");
+  return out + "]";
+}
+
+}  // namespace specula::app

@@ -1,0 +1,57 @@
+#pragma once
+// What the subcommands share: provenance of the command line, illuminant and preview options,
+// rendering a cube to sRGB, JSON output.
+#include <CLI/CLI.hpp>
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/colour.h"
+#include "store/cube.h"
+
+namespace specula::app {
+
+using store::Cube;
+
+/// The command line as typed, recorded as provenance.
+const std::string& command_line();
+/// Remembers argv for command_line().
+void set_command_line(int argc, char** argv);
+
+/// An SPD: a CIE name ("D65", "D50", "A", "E"), "D<CCT>" daylight (e.g. D75 = 7500 K), "blackbody:K", or a
+/// CSV file "wavelength_nm,value" (header optional); resampled to grid. Throws UsageError/InputError.
+Eigen::VectorXd load_illuminant(const std::string& spec, const WavelengthGrid& grid);
+
+/// Options that turn spectra into an sRGB picture.
+struct PreviewOptions {
+  std::string illuminant = "D65";
+  std::string exposure = "auto";
+  std::string tone = "clip";
+  bool no_desaturate = false;
+  bool no_adapt = false;
+};
+/// Registers --exposure, --tone, --no-desaturate, --no-adapt (and --illuminant when asked) on `cmd`.
+void add_preview_options(CLI::App* cmd, PreviewOptions& o, bool with_illuminant = true);
+
+/// A rendered picture: 8-bit sRGB and the linear RGB behind it (3 values per pixel, row-major).
+struct Picture {
+  std::size_t width = 0, height = 0;
+  std::vector<std::uint8_t> srgb8;
+  std::vector<float> linear;
+};
+/// Renders `cube` as its units say (reflectance lit by the illuminant, radiance as is); masked pixels are
+/// drawn dark red as the reference's figure 7.1 marks them. "auto" exposure maps the 99th percentile
+/// luminance of valid pixels to 1 for radiance (0 EV for reflectance).
+Picture render(const Cube& cube, const PreviewOptions& o);
+/// XYZ rows of a cube's pixels (N x 3) under the preview options' illuminant.
+RowMatrixX3f cube_xyz(const Cube& cube, const Eigen::VectorXd& illuminant, Eigen::Vector3d& white);
+
+/// JSON string literal with escapes.
+std::string json_string(std::string_view s);
+/// JSON array of numbers (shortest round-trip formatting).
+std::string json_array(std::span<const double> v);
+
+}  // namespace specula::app

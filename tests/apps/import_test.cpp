@@ -1,0 +1,210 @@
+// `specula import` end to end: every bad input gives one line naming the file, exit status 1, and leaves
+// the store byte-identical; good input lands whole.
+#include <gtest/gtest.h>
+#include <matio.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <thread>
+
+#include "store/store.h"
+#include "test_support.h"
+
+using namespace specula;
+using specula::test::run_specula;
+
+namespace {
+
+// Writes a small float32 BIP ENVI image whose value at (y, x, b) is y + 10x + 100b.
+void write_envi(const std::filesystem::path& base, std::size_t h, std::size_t w, std::size_t b,
+                const std::string& extra_header = "", float nan_at = -1, std::size_t truncate_to = 0,
+                int data_type = 4, const std::string& wavelengths = "") {
+  std::vector<float> v(h * w * b);
+  for (std::size_t y = 0; y < h; ++y)
+    for (std::size_t x = 0; x < w; ++x)
+      for (std::size_t k = 0; k < b; ++k) v[(y * w + x) * b + k] = float(y + 10 * x + 100 * k);
+  if (nan_at >= 0) v[std::size_t(nan_at)] = std::nanf("");
+  std::string wl = wavelengths;
+  if (wl.empty()) {
+    for (std::size_t k = 0; k < b; ++k) wl += (k ? ", " : "") + std::to_string(420 + 10 * k);
+  }
+  std::ofstream hdr(base.string() + ".hdr");
+  hdr << "ENVI\nsamples = " << w << "\nlines = " << h << "\nbands = " << b << "\nheader offset = 0\n"
+      << "data type = " << data_type << "\ninterleave = bip\nbyte order = 0\nwavelength units = Nanometers\n"
+      << "wavelength = {" << wl << "}\n" << extra_header;
+  std::ofstream raw(base.string() + ".raw", std::ios::binary);
+  const std::size_t bytes = truncate_to ? truncate_to : v.size() * 4;
+  raw.write(reinterpret_cast<const char*>(v.data()), std::streamsize(bytes));
+}
+
+std::filesystem::path make_store(const test::ScratchDir& dir) {
+  auto store = dir / "db.h5";
+  write_envi(dir / "good", 6, 5, 31);
+  auto r = run_specula("-q import '" + (dir / "good.hdr").string() + "' -o '" + store.string() + "'");
+  EXPECT_EQ(r.status, 0) << r.output;
+  return store;
+}
+
+// Runs a failing import and checks the contract: exit 1, one line, names `names`, store unchanged.
+void expect_rejected(const test::ScratchDir& dir, const std::string& args, const std::string& names,
+                     const std::string& says) {
+  auto store = dir / "db.h5";
+  const std::string before = test::read_bytes(store);
+  auto r = run_specula("-q import " + args + " -o '" + store.string() + "'");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  EXPECT_NE(r.output.find(names), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(says), std::string::npos) << r.output;
+  EXPECT_EQ(test::read_bytes(store), before) << "the store changed";
+  for (auto& e : std::filesystem::directory_iterator(dir.path()))
+    EXPECT_EQ(e.path().string().find(".tmp-"), std::string::npos) << "left behind: " << e.path();
+}
+
+}  // namespace
+
+TEST(ImportCli, GoodEnviLandsWithItsValues) {
+  test::ScratchDir dir;
+  auto store = make_store(dir);
+  auto s = store::Store::open(store);
+  auto cube = s.read_image("good");
+  ASSERT_EQ(cube.bands, 31u);
+  EXPECT_EQ(cube.pixel(3, 4)[2], float(3 + 40 + 200));
+  EXPECT_EQ(cube.provenance.importer, "envi");
+  EXPECT_NE(cube.provenance.command_line.find("import"), std::string::npos);
+}
+
+TEST(ImportCli, TruncatedRawFile) {
+  test::ScratchDir dir;
+  make_store(dir);
+  write_envi(dir / "cut", 6, 5, 31, "", -1, 100);
+  expect_rejected(dir, "'" + (dir / "cut.hdr").string() + "'", "cut", "bytes");
+}
+
+TEST(ImportCli, HeaderSizeMismatch) {
+  test::ScratchDir dir;
+  make_store(dir);
+  write_envi(dir / "big", 6, 5, 31);
+  std::ofstream(dir / "big.raw", std::ios::app) << "extra bytes that the header does not describe";
+  expect_rejected(dir, "'" + (dir / "big.hdr").string() + "'", "big", "bytes");
+}
+
+TEST(ImportCli, UnknownDataType) {
+  test::ScratchDir dir;
+  make_store(dir);
+  write_envi(dir / "dt", 6, 5, 31, "", -1, 0, 7);
+  expect_rejected(dir, "'" + (dir / "dt.hdr").string() + "'", "dt.hdr", "data type");
+}
+
+TEST(ImportCli, NonMonotonicWavelengths) {
+  test::ScratchDir dir;
+  make_store(dir);
+  write_envi(dir / "wl", 2, 2, 3, "", -1, 0, 4, "500, 490, 510");
+  expect_rejected(dir, "'" + (dir / "wl.hdr").string() + "'", "wl", "increase");
+}
+
+TEST(ImportCli, TargetGridOutsideTheDataIsRefused) {
+  test::ScratchDir dir;
+  make_store(dir);
+  expect_rejected(dir, "'" + (dir / "good.hdr").string() + "' --name again --wavelengths 380:780:10", "good",
+                  "extrapolation");
+}
+
+TEST(ImportCli, NanIsRejectedWithCountAndPositionOrMasked) {
+  test::ScratchDir dir;
+  auto store = make_store(dir);
+  write_envi(dir / "nan", 6, 5, 31, "", float((2 * 5 + 3) * 31 + 4));
+  expect_rejected(dir, "'" + (dir / "nan.hdr").string() + "'", "nan", "1 NaN/Inf values in 1 pixels (first at row 2, column 3, band 4 = 460 nm)");
+  auto r = run_specula("-q import '" + (dir / "nan.hdr").string() + "' --nan mask -o '" + store.string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  auto info = store::Store::open(store).image_info("nan");
+  EXPECT_EQ(info.valid_pixels, 29u);
+}
+
+TEST(ImportCli, MatWithoutTheNamedVariable) {
+  test::ScratchDir dir;
+  make_store(dir);
+  auto mat = dir / "scene.mat";
+  mat_t* f = Mat_CreateVer(mat.c_str(), nullptr, MAT_FT_MAT5);
+  ASSERT_NE(f, nullptr);
+  double data[8] = {1, 2, 3, 4, 5, 6, 7, 8};
+  std::size_t dims[3] = {2, 2, 2};
+  matvar_t* v = Mat_VarCreate("rad", MAT_C_DOUBLE, MAT_T_DOUBLE, 3, dims, data, 0);
+  Mat_VarWrite(f, v, MAT_COMPRESSION_NONE);
+  Mat_VarFree(v);
+  Mat_Close(f);
+  expect_rejected(dir, "'" + mat.string() + "' --var ref --wavelengths 500,600", "scene.mat", "rad");
+}
+
+TEST(ImportCli, CorruptOrForeignStoreIsNotTouched) {
+  test::ScratchDir dir;
+  write_envi(dir / "good", 6, 5, 31);
+  // A text file posing as a store.
+  auto fake = dir / "db.h5";
+  std::ofstream(fake) << "not hdf5 at all";
+  expect_rejected(dir, "'" + (dir / "good.hdr").string() + "'", "db.h5", "not an HDF5 file");
+  // An HDF5 file that is not a specula store.
+  std::filesystem::remove(fake);
+  H5Fclose(H5Fcreate(fake.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT));
+  expect_rejected(dir, "'" + (dir / "good.hdr").string() + "'", "db.h5", "not a specula store");
+}
+
+TEST(ImportCli, FullDiskDuringImport) {
+  test::ScratchDir dir;
+  make_store(dir);
+  write_envi(dir / "more", 64, 64, 31);
+  ::setenv("SPECULA_INJECT_WRITE_FAILURE", "0", 1);
+  expect_rejected(dir, "'" + (dir / "more.hdr").string() + "'", "db.h5", "No space left on device");
+  ::unsetenv("SPECULA_INJECT_WRITE_FAILURE");
+}
+
+TEST(ImportCli, AllFilesOrNone) {
+  test::ScratchDir dir;
+  make_store(dir);
+  write_envi(dir / "fine", 4, 4, 31);
+  write_envi(dir / "cut", 6, 5, 31, "", -1, 10);
+  expect_rejected(dir, "'" + (dir / "fine.hdr").string() + "' '" + (dir / "cut.hdr").string() + "'", "cut", "bytes");
+  EXPECT_EQ(store::Store::open(dir / "db.h5").images(), std::vector<std::string>{"good"});
+}
+
+TEST(ImportCli, KilledOrInterruptedImportLeavesTheStoreAsItWas) {
+  test::ScratchDir dir;
+  auto store = make_store(dir);
+  const std::string before = test::read_bytes(store);
+  for (int sig : {SIGKILL, SIGINT}) {
+    const pid_t pid = ::fork();
+    if (pid == 0) {
+      ::execl(SPECULA_BINARY, SPECULA_BINARY, "-q", "synth-db", "-o", store.c_str(), "--images", "400", "--size",
+              "256x256", "--compression", "deflate:9", static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    // Wait until the transaction's temporary file exists, then stop the writer.
+    bool started = false;
+    for (int i = 0; i < 400 && !started; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(25));
+      for (auto& e : std::filesystem::directory_iterator(dir.path()))
+        started = started || e.path().string().find(".tmp-") != std::string::npos;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    ::kill(pid, sig);
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    ASSERT_TRUE(started);
+    if (sig == SIGKILL) {
+      EXPECT_EQ(test::read_bytes(store), before) << "kill -9 changed the store";
+      for (auto& e : std::filesystem::directory_iterator(dir.path()))
+        if (e.path().string().find(".tmp-") != std::string::npos) std::filesystem::remove(e.path());
+    } else {
+      // Ctrl-C: synth-db keeps the images it finished (possibly none); the store is a valid store either way.
+      EXPECT_EQ(WEXITSTATUS(status), 130);
+      auto s = store::Store::open(store);
+      EXPECT_EQ(s.images().front(), "good");
+      for (auto& e : std::filesystem::directory_iterator(dir.path()))
+        EXPECT_EQ(e.path().string().find(".tmp-"), std::string::npos) << "left behind: " << e.path();
+    }
+  }
+}
