@@ -1,0 +1,249 @@
+#include "store/io/mat.h"
+
+#include <matio.h>
+
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "test_support.h"
+
+namespace specula::store {
+namespace {
+
+using test::ScratchDir;
+
+struct MatVar {
+  std::string name;
+  matio_classes cls;
+  matio_types type;
+  std::vector<std::size_t> dims;
+  std::vector<unsigned char> bytes;  // column-major element bytes
+  int flags = 0;
+};
+
+template <typename T>
+MatVar make_var(const std::string& name, matio_classes cls, matio_types type, std::vector<std::size_t> dims,
+                const std::vector<T>& values, int flags = 0) {
+  MatVar v{name, cls, type, std::move(dims), {}, flags};
+  v.bytes.resize(values.size() * sizeof(T));
+  std::memcpy(v.bytes.data(), values.data(), v.bytes.size());
+  return v;
+}
+
+// Writes the variables with matio itself; returns false when this matio cannot create `version` files.
+bool write_mat(const std::filesystem::path& p, mat_ft version, const std::vector<MatVar>& vars,
+               matio_compression compression = MAT_COMPRESSION_NONE) {
+  mat_t* mat = Mat_CreateVer(p.c_str(), nullptr, version);
+  if (!mat) return false;
+  for (const auto& v : vars) {
+    std::vector<std::size_t> dims = v.dims;
+    std::vector<unsigned char> bytes = v.bytes;
+    matvar_t* mv = Mat_VarCreate(v.name.c_str(), v.cls, v.type, static_cast<int>(dims.size()), dims.data(),
+                                 bytes.data(), v.flags);
+    EXPECT_NE(mv, nullptr) << v.name;
+    if (!mv) break;
+    EXPECT_EQ(Mat_VarWrite(mat, mv, compression), 0) << v.name;
+    Mat_VarFree(mv);
+  }
+  EXPECT_EQ(Mat_Close(mat), 0);
+  return true;
+}
+
+constexpr std::size_t kRows = 3, kCols = 4, kBands = 5;
+double f(std::size_t r, std::size_t c, std::size_t b) { return 100.0 * r + 10.0 * c + b; }
+
+// Column-major: element (r, c, b) at r + rows * (c + cols * b).
+template <typename T>
+std::vector<T> column_major(double offset = 0) {
+  std::vector<T> out(kRows * kCols * kBands);
+  for (std::size_t r = 0; r < kRows; ++r)
+    for (std::size_t c = 0; c < kCols; ++c)
+      for (std::size_t b = 0; b < kBands; ++b) out[r + kRows * (c + kCols * b)] = static_cast<T>(f(r, c, b) + offset);
+  return out;
+}
+
+void expect_cube(const Cube& cube, double offset = 0) {
+  ASSERT_EQ(cube.height, kRows);
+  ASSERT_EQ(cube.width, kCols);
+  ASSERT_EQ(cube.bands, kBands);
+  for (std::size_t r = 0; r < kRows; ++r)
+    for (std::size_t c = 0; c < kCols; ++c)
+      for (std::size_t b = 0; b < kBands; ++b)
+        EXPECT_EQ(cube.pixel(r, c)[b], static_cast<float>(f(r, c, b) + offset)) << r << "," << c << "," << b;
+}
+
+const std::vector<double> kNm = {400, 450, 500, 550, 600};
+
+MatVar ref_double() {
+  return make_var("ref", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands}, column_major<double>(0.5));
+}
+MatVar wl_var(const std::string& name = "wavelengths") {
+  return make_var(name, MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands}, kNm);
+}
+
+std::string input_error(const std::function<void()>& fn) {
+  try {
+    fn();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "expected InputError";
+  return {};
+}
+
+TEST(Mat, V5ColumnMajorDoubleWithWavelengths) {
+  ScratchDir dir;
+  ASSERT_TRUE(write_mat(dir / "a.mat", MAT_FT_MAT5, {wl_var(), ref_double()}));
+  const Cube cube = read_mat(dir / "a.mat", "ref", std::nullopt, {});
+  expect_cube(cube, 0.5);
+  ASSERT_EQ(cube.wavelengths.size(), kBands);
+  EXPECT_EQ(cube.wavelengths[0], 400.0);
+  EXPECT_EQ(cube.wavelengths[4], 600.0);
+  EXPECT_TRUE(cube.mask.empty());
+  EXPECT_EQ(cube.provenance.importer, "mat");
+}
+
+TEST(Mat, V5CompressedAndBandsVariable) {
+  ScratchDir dir;
+  ASSERT_TRUE(write_mat(dir / "z.mat", MAT_FT_MAT5, {ref_double(), wl_var("bands")}, MAT_COMPRESSION_ZLIB));
+  const Cube cube = read_mat(dir / "z.mat", "ref", std::nullopt, WavelengthGrid::range(700, 740, 10));
+  expect_cube(cube, 0.5);
+  EXPECT_EQ(cube.wavelengths[1], 450.0);  // the file's variable wins over the argument
+}
+
+TEST(Mat, V73ColumnMajor) {
+  ScratchDir dir;
+  if (!write_mat(dir / "h.mat", MAT_FT_MAT73, {ref_double(), wl_var()}))
+    GTEST_SKIP() << "this matio cannot create v7.3 files (built without HDF5)";
+  mat_t* m = Mat_Open((dir / "h.mat").c_str(), MAT_ACC_RDONLY);
+  ASSERT_NE(m, nullptr);
+  EXPECT_EQ(Mat_GetVersion(m), MAT_FT_MAT73);
+  Mat_Close(m);
+  const Cube cube = read_mat(dir / "h.mat", "ref", std::nullopt, {});
+  expect_cube(cube, 0.5);
+  EXPECT_EQ(cube.wavelengths[2], 500.0);
+}
+
+TEST(Mat, IntegerAndSingleClassesConvert) {
+  for (mat_ft version : {MAT_FT_MAT5, MAT_FT_MAT73}) {
+    SCOPED_TRACE(version == MAT_FT_MAT5 ? "v5" : "v7.3");
+    ScratchDir dir;
+    const std::vector<std::size_t> dims = {kRows, kCols, kBands};
+    const std::vector<std::pair<MatVar, double>> cases = {
+        {make_var("s", MAT_C_SINGLE, MAT_T_SINGLE, dims, column_major<float>(0.25)), 0.25},
+        {make_var("u8", MAT_C_UINT8, MAT_T_UINT8, dims, column_major<std::uint8_t>()), 0.0},
+        {make_var("u16", MAT_C_UINT16, MAT_T_UINT16, dims, column_major<std::uint16_t>(1000)), 1000.0},
+        {make_var("i16", MAT_C_INT16, MAT_T_INT16, dims, column_major<std::int16_t>(-400)), -400.0},
+    };
+    std::vector<MatVar> vars;
+    for (const auto& c : cases) vars.push_back(c.first);
+    if (!write_mat(dir / "t.mat", version, vars)) GTEST_SKIP() << "no v7.3 support in this matio";
+    for (const auto& [var, offset] : cases) {
+      SCOPED_TRACE(var.name);
+      expect_cube(read_mat(dir / "t.mat", var.name, std::nullopt, WavelengthGrid(kNm)), offset);
+    }
+  }
+}
+
+TEST(Mat, MaskVariableLogicalUint8Double) {
+  // Column-major 3 x 4 mask: invalid pixels (r, c) = (0, 1), (2, 3), (1, 0).
+  std::vector<std::uint8_t> valid(kRows * kCols, 1);
+  valid[0 + kRows * 1] = 0;
+  valid[2 + kRows * 3] = 0;
+  valid[1 + kRows * 0] = 0;
+  std::vector<double> valid_d(valid.begin(), valid.end());
+  valid_d[1] = 0.0;
+  valid_d[5] = -2.0;  // nonzero = valid; (2, 1)
+  for (mat_ft version : {MAT_FT_MAT5, MAT_FT_MAT73}) {
+    ScratchDir dir;
+    const std::vector<MatVar> vars = {
+        ref_double(), wl_var(),
+        make_var("lmask", MAT_C_UINT8, MAT_T_UINT8, {kRows, kCols}, valid, MAT_F_LOGICAL),
+        make_var("umask", MAT_C_UINT8, MAT_T_UINT8, {kRows, kCols}, valid),
+        make_var("dmask", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols}, valid_d),
+        make_var("badmask", MAT_C_UINT8, MAT_T_UINT8, {kCols, kRows}, valid)};
+    if (!write_mat(dir / "m.mat", version, vars)) GTEST_SKIP() << "no v7.3 support in this matio";
+    for (const char* name : {"lmask", "umask", "dmask"}) {
+      SCOPED_TRACE(name);
+      const Cube cube = read_mat(dir / "m.mat", "ref", std::string(name), {});
+      ASSERT_EQ(cube.mask.size(), kRows * kCols);
+      for (std::size_t r = 0; r < kRows; ++r)
+        for (std::size_t c = 0; c < kCols; ++c) {
+          const bool expected = !((r == 0 && c == 1) || (r == 2 && c == 3) || (r == 1 && c == 0));
+          EXPECT_EQ(cube.valid(r, c), expected) << r << "," << c;
+        }
+      expect_cube(cube, 0.5);
+    }
+    const std::string msg = input_error([&] { read_mat(dir / "m.mat", "ref", std::string("badmask"), {}); });
+    EXPECT_NE(msg.find("mask variable 'badmask' is 4 x 3 but 'ref' is 3 x 4"), std::string::npos) << msg;
+    const std::string none = input_error([&] { read_mat(dir / "m.mat", "ref", std::string("nomask"), {}); });
+    EXPECT_NE(none.find("no mask variable 'nomask'"), std::string::npos) << none;
+  }
+}
+
+TEST(Mat, MissingVariableListsVariables) {
+  for (mat_ft version : {MAT_FT_MAT5, MAT_FT_MAT73}) {
+    ScratchDir dir;
+    const auto p = dir / "file.mat";
+    const std::vector<double> one = {1};
+    if (!write_mat(p, version,
+                   {make_var("a", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, one),
+                    make_var("b", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, one),
+                    make_var("c", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, one)}))
+      GTEST_SKIP() << "no v7.3 support in this matio";
+    EXPECT_EQ(input_error([&] { read_mat(p, "ref", std::nullopt, WavelengthGrid(kNm)); }),
+              p.string() + ": no variable 'ref' (variables: a, b, c)");
+  }
+}
+
+TEST(Mat, BadInputs) {
+  ScratchDir dir;
+  const std::vector<std::int64_t> big(kRows * kCols * kBands, 7);
+  const std::vector<double> short_wl = {400, 500};
+  ASSERT_TRUE(write_mat(dir / "b.mat", MAT_FT_MAT5,
+                        {ref_double(), make_var("i64", MAT_C_INT64, MAT_T_INT64, {kRows, kCols, kBands}, big)}));
+  std::string m = input_error([&] { read_mat(dir / "b.mat", "ref", std::nullopt, {}); });
+  EXPECT_NE(m.find("b.mat: no 'wavelengths' or 'bands' variable; pass --wavelengths"), std::string::npos) << m;
+  m = input_error([&] { read_mat(dir / "b.mat", "ref", std::nullopt, WavelengthGrid(short_wl)); });
+  EXPECT_NE(m.find("has 5 bands but --wavelengths gives 2"), std::string::npos) << m;
+  m = input_error([&] { read_mat(dir / "b.mat", "i64", std::nullopt, WavelengthGrid(kNm)); });
+  EXPECT_NE(m.find("variable 'i64' is int64; convert it to double"), std::string::npos) << m;
+
+  ASSERT_TRUE(write_mat(dir / "w.mat", MAT_FT_MAT5,
+                        {ref_double(), make_var("wavelengths", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 2}, short_wl)}));
+  m = input_error([&] { read_mat(dir / "w.mat", "ref", std::nullopt, {}); });
+  EXPECT_NE(m.find("variable 'wavelengths' is double 1 x 2 but 'ref' has 5 bands"), std::string::npos) << m;
+  const Cube overridden = read_mat(dir / "w.mat", "ref", std::nullopt, WavelengthGrid::range(700, 740, 10));
+  EXPECT_EQ(overridden.wavelengths[4], 740.0);
+
+  {
+    std::ofstream junk(dir / "junk.mat", std::ios::binary);
+    junk << std::string(300, 'x');
+  }
+  m = input_error([&] { read_mat(dir / "junk.mat", "ref", std::nullopt, WavelengthGrid(kNm)); });
+  EXPECT_NE(m.find("junk.mat: not a MATLAB .mat file"), std::string::npos) << m;
+  m = input_error([&] { read_mat(dir / "absent.mat", "ref", std::nullopt, WavelengthGrid(kNm)); });
+  EXPECT_NE(m.find("absent.mat: no such file"), std::string::npos) << m;
+}
+
+TEST(Mat, TwoDimensionalVariableIsOneBand) {
+  ScratchDir dir;
+  const std::vector<float> plane = {1, 2, 3, 4, 5, 6};  // 2 x 3 column-major: (r, c) = r + 2c + 1
+  ASSERT_TRUE(write_mat(dir / "p.mat", MAT_FT_MAT5, {make_var("img", MAT_C_SINGLE, MAT_T_SINGLE, {2, 3}, plane)}));
+  const Cube cube = read_mat(dir / "p.mat", "img", std::nullopt, WavelengthGrid(std::vector<double>{550}));
+  ASSERT_EQ(cube.height, 2u);
+  ASSERT_EQ(cube.width, 3u);
+  ASSERT_EQ(cube.bands, 1u);
+  EXPECT_EQ(cube.pixel(0, 0)[0], 1.0f);
+  EXPECT_EQ(cube.pixel(1, 0)[0], 2.0f);
+  EXPECT_EQ(cube.pixel(0, 2)[0], 5.0f);
+  EXPECT_EQ(cube.pixel(1, 2)[0], 6.0f);
+}
+
+}  // namespace
+}  // namespace specula::store
