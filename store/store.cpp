@@ -417,6 +417,11 @@ void StoreWriter::check_name(const std::string& kind, const std::string& group, 
   }
 }
 
+namespace {
+void write_image_objects(hid_t file_, const std::string& name, const Cube& cube, std::uint64_t valid,
+                         const WriteOptions& options_, const std::string& ctx);
+}
+
 void StoreWriter::add_image(const std::string& name, const Cube& cube) {
   const std::string ctx = label() + ": /images/" + name;
   const std::string src = cube.provenance.source_file.empty() ? name : cube.provenance.source_file;
@@ -443,7 +448,20 @@ void StoreWriter::add_image(const std::string& name, const Cube& cube) {
                          "; mask such pixels (--nan mask) before storing");
   }
   check_name("image", "/images", name);
+  try {
+    write_image_objects(file_, name, cube, valid, options_, ctx);
+  } catch (...) {
+    // Leave no half-written image in the transaction (a later commit keeps only whole images).
+    const std::string path = "/images/" + name;
+    if (h5::exists(file_, path)) H5Ldelete(file_, path.c_str(), H5P_DEFAULT);
+    H5Eclear2(H5E_DEFAULT);
+    throw;
+  }
+}
 
+namespace {
+void write_image_objects(hid_t file_, const std::string& name, const Cube& cube, std::uint64_t valid,
+                         const WriteOptions& options_, const std::string& ctx) {
   h5::Id g = create_group(file_, "/images/" + name, ctx);
   h5::write_attr(g, "kind", std::string_view("image"), ctx);
   h5::write_attr(g, "units", std::string_view(cube.units), ctx);
@@ -490,6 +508,7 @@ void StoreWriter::add_image(const std::string& name, const Cube& cube) {
     progress.advance(n);
   }
 }
+}  // namespace
 
 void StoreWriter::add_collection(const std::string& name, const Collection& col) {
   const std::string ctx = label() + ": /collections/" + name;
