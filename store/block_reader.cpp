@@ -1,6 +1,11 @@
 #include "store/block_reader.h"
 
+#include <fcntl.h>
 #include <fnmatch.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include <cstring>
 
 #include "core/error.h"
 
@@ -26,11 +31,131 @@ std::size_t group_rows(std::size_t chunk_rows, std::size_t width, std::size_t mi
   return std::max<std::size_t>(1, chunk_rows) * chunks;
 }
 
+// Undoes HDF5's shuffle filter: byte k of element i was stored at k * n + i.
+void unshuffle4(const unsigned char* in, std::size_t n, unsigned char* out) {
+  const unsigned char* b0 = in;
+  const unsigned char* b1 = in + n;
+  const unsigned char* b2 = in + 2 * n;
+  const unsigned char* b3 = in + 3 * n;
+  for (std::size_t i = 0; i < n; ++i) {
+    out[4 * i] = b0[i];
+    out[4 * i + 1] = b1[i];
+    out[4 * i + 2] = b2[i];
+    out[4 * i + 3] = b3[i];
+  }
+}
+
 }  // namespace
+
+BlockReader::~BlockReader() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+bool BlockReader::direct() const {
+  for (const auto& s : sources_)
+    if (!s.direct) return false;
+  return !sources_.empty();
+}
+
+void BlockReader::map_chunks(SourceData& sd, std::size_t rows) const {
+  const std::string ctx = store_.label();
+  h5::Id dcpl(h5::check(H5Dget_create_plist(sd.cube), ctx, "H5Dget_create_plist"));
+  if (H5Pget_layout(dcpl) != H5D_CHUNKED) return;
+  const int nf = H5Pget_nfilters(dcpl);
+  for (int i = 0; i < nf; ++i) {
+    unsigned flags = 0, values[8];
+    std::size_t nvalues = 8;
+    const H5Z_filter_t f = H5Pget_filter2(dcpl, unsigned(i), &flags, &nvalues, values, 0, nullptr, nullptr);
+    if (f == H5Z_FILTER_SHUFFLE && i == 0) sd.shuffle = true;
+    else if (f == H5Z_FILTER_DEFLATE && i == nf - 1) sd.deflate = true;
+    else return;  // an unknown pipeline: HDF5 decodes it
+  }
+  hsize_t cdims[3] = {0, 0, 0};
+  const int rank = H5Pget_chunk(dcpl, 3, cdims);
+  if (rank < 2 || cdims[rank - 1] != bands()) return;
+  sd.chunk_rows = cdims[0];
+  sd.chunk_cols = rank == 3 ? cdims[1] : 1;
+  sd.col_chunks = (sd.width + sd.chunk_cols - 1) / sd.chunk_cols;
+  const std::size_t row_chunks = (rows + sd.chunk_rows - 1) / sd.chunk_rows;
+  sd.chunks.resize(row_chunks * sd.col_chunks);
+  for (std::size_t r = 0; r < row_chunks; ++r)
+    for (std::size_t c = 0; c < sd.col_chunks; ++c) {
+      hsize_t offset[3] = {r * sd.chunk_rows, c * sd.chunk_cols, 0};
+      unsigned fmask = 0;
+      haddr_t addr = 0;
+      hsize_t size = 0;
+      if (H5Dget_chunk_info_by_coord(sd.cube, offset, &fmask, &addr, &size) < 0) {
+        H5Eclear2(H5E_DEFAULT);
+        sd.chunks.clear();
+        return;
+      }
+      auto& ref = sd.chunks[r * sd.col_chunks + c];
+      ref.address = addr == HADDR_UNDEF ? 0 : addr;
+      ref.size = addr == HADDR_UNDEF ? 0 : size;
+      ref.filter_mask = fmask;
+    }
+  sd.direct = true;
+}
+
+void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size_t rows, float* out) const {
+  const std::size_t b = bands();
+  const std::size_t chunk_values = src.chunk_rows * src.chunk_cols * b;
+  thread_local std::vector<unsigned char> packed, plain, unshuffled;
+  for (std::size_t r = row0 / src.chunk_rows; r * src.chunk_rows < row0 + rows; ++r) {
+    const std::size_t y0 = r * src.chunk_rows;
+    const std::size_t ny = std::min(src.chunk_rows, row0 + rows - y0);
+    for (std::size_t c = 0; c < src.col_chunks; ++c) {
+      const ChunkRef& ref = src.chunks[r * src.col_chunks + c];
+      const std::size_t x0 = c * src.chunk_cols;
+      const std::size_t nx = std::min(src.chunk_cols, src.width - x0);
+      const float* values = nullptr;
+      plain.resize(chunk_values * sizeof(float));
+      if (ref.size == 0) {
+        std::memset(plain.data(), 0, plain.size());
+        values = reinterpret_cast<const float*>(plain.data());
+      } else {
+        packed.resize(ref.size);
+        std::size_t got = 0;
+        while (got < ref.size) {
+          const ssize_t n = ::pread(fd_, packed.data() + got, ref.size - got, off_t(ref.address + got));
+          if (n <= 0)
+            throw LibraryError(store_.label() + ": cannot read chunk at byte " + std::to_string(ref.address) +
+                               (n < 0 ? std::string(": ") + std::strerror(errno) : std::string(": file is truncated")));
+          got += std::size_t(n);
+        }
+        const unsigned char* data = packed.data();
+        std::size_t size = ref.size;
+        const bool deflated = src.deflate && !(ref.filter_mask & (1u << (src.shuffle ? 1 : 0)));
+        const bool shuffled = src.shuffle && !(ref.filter_mask & 1u);
+        if (deflated) {
+          uLongf len = uLongf(plain.size());
+          if (::uncompress(plain.data(), &len, data, uLong(size)) != Z_OK || len != plain.size())
+            throw InputError(store_.label() + ": corrupt compressed chunk at byte " + std::to_string(ref.address));
+          data = plain.data();
+          size = len;
+        } else if (size != plain.size()) {
+          throw InputError(store_.label() + ": chunk at byte " + std::to_string(ref.address) + " has " +
+                           std::to_string(size) + " bytes, expected " + std::to_string(plain.size()));
+        }
+        if (shuffled) {
+          unshuffled.resize(size);
+          unshuffle4(data, size / 4, unshuffled.data());
+          data = unshuffled.data();
+        }
+        values = reinterpret_cast<const float*>(data);
+      }
+      // Chunk rows [y0, y0 + ny) x columns [x0, x0 + nx) into the block buffer.
+      for (std::size_t y = 0; y < ny; ++y)
+        std::memcpy(out + ((y0 + y - row0) * src.width + x0) * b, values + y * src.chunk_cols * b, nx * b * sizeof(float));
+    }
+  }
+}
 
 BlockReader::BlockReader(const Store& store, const Selection& selection, std::size_t min_block_pixels)
     : store_(store) {
   const std::string ctx = store.label();
+  fd_ = ::open(store.path().c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd_ < 0) throw LibraryError(ctx + ": cannot open for reading: " + std::strerror(errno));
   if (!selection.collection.empty()) {
     if (!selection.image_globs.empty())
       throw UsageError("select either images or a collection, not both");
@@ -43,6 +168,7 @@ BlockReader::BlockReader(const Store& store, const Selection& selection, std::si
     sd.cube = open_with_cache(store.file(), "/collections/" + info.name + "/spectra",
                               rows_per_block * info.bands * sizeof(float) * 2, ctx);
     sd.width = 1;
+    map_chunks(sd, info.size);
     sources_.push_back(std::move(sd));
     for (std::size_t r = 0; r < info.size; r += rows_per_block)
       blocks_.push_back({0, r, std::min(rows_per_block, info.size - r)});
@@ -66,6 +192,7 @@ BlockReader::BlockReader(const Store& store, const Selection& selection, std::si
     sd.cube = open_with_cache(store.file(), "/images/" + name + "/cube", cache, ctx);
     sd.mask = open_with_cache(store.file(), "/images/" + name + "/mask", cache / info.bands + 4096, ctx);
     sd.width = info.width;
+    map_chunks(sd, info.height);
     const std::size_t source = names_.size();
     names_.push_back(name);
     sources_.push_back(std::move(sd));
@@ -101,7 +228,9 @@ void BlockReader::read_block(std::size_t i, Eigen::Matrix<T, Eigen::Dynamic, Eig
   const hsize_t count2[2] = {blk.rows, b};
   const int rank = image ? 3 : 2;
   const hsize_t* count = image ? count3 : count2;
-  {
+  if (src.direct) {
+    read_direct(src, blk.row0, blk.rows, raw.data());
+  } else {
     h5::Id fspace(h5::check(H5Dget_space(src.cube), ctx, "H5Dget_space"));
     h5::check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start, nullptr, count, nullptr), ctx, "H5Sselect_hyperslab");
     h5::Id mspace(h5::check(H5Screate_simple(rank, count, nullptr), ctx, "H5Screate_simple"));

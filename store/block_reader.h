@@ -27,6 +27,11 @@ class BlockReader {
   /// Resolves the selection; throws InputError if nothing matches or the sources' wavelength grids differ.
   /// Blocks hold whole chunk rows, grouped until they reach about min_block_pixels pixels.
   BlockReader(const Store& store, const Selection& selection, std::size_t min_block_pixels = 32768);
+  BlockReader(const BlockReader&) = delete;
+  BlockReader& operator=(const BlockReader&) = delete;
+  ~BlockReader();
+  /// True when every source is read by direct chunk access (no HDF5 lock on the data path).
+  bool direct() const;
 
   std::size_t bands() const { return wavelengths_.size(); }
   const WavelengthGrid& wavelengths() const { return wavelengths_; }
@@ -49,10 +54,22 @@ class BlockReader {
   void read(std::size_t i, RowMatrixXd& out) const;
 
  private:
-  struct SourceData {
-    h5::Id cube, mask;  // mask invalid for collections
-    std::size_t width = 0;  // pixels per row (1 for collections)
+  // Where each chunk of a source's spectra lies in the file, so blocks are read with pread and decoded
+  // (inflate, unshuffle) on the calling thread instead of inside HDF5's global lock.
+  struct ChunkRef {
+    std::uint64_t address = 0, size = 0;  // size 0: never written, reads as zeros
+    unsigned filter_mask = 0;             // bit i set: filter i was skipped for this chunk
   };
+  struct SourceData {
+    h5::Id cube, mask;      // mask invalid for collections
+    std::size_t width = 0;  // pixels per row (1 for collections)
+    bool direct = false;    // chunk map below is usable (filters: none, or shuffle then deflate)
+    bool shuffle = false, deflate = false;
+    std::size_t chunk_rows = 0, chunk_cols = 0, col_chunks = 0;
+    std::vector<ChunkRef> chunks;  // row-chunk major
+  };
+  void map_chunks(SourceData& sd, std::size_t rows) const;
+  void read_direct(const SourceData& src, std::size_t row0, std::size_t rows, float* out) const;
   struct Block {
     std::size_t source;
     std::size_t row0, rows;
@@ -61,6 +78,7 @@ class BlockReader {
   void read_block(std::size_t i, Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& out) const;
 
   Store store_;
+  int fd_ = -1;
   WavelengthGrid wavelengths_;
   std::string units_;
   std::vector<std::string> names_;

@@ -44,7 +44,9 @@ class BlockReaderTest : public ::testing::TestWithParam<const char*> {};
 TEST_P(BlockReaderTest, StreamsExactlyTheValidSpectraInOrder) {
   test::ScratchDir dir;
   auto path = dir / "s.h5";
-  std::vector<Cube> cubes{random_cube(300, 170, 31, 1), random_cube(97, 503, 31, 2), random_cube(1, 1, 31, 3)};
+  // The third image is wider than one 1 MiB chunk row, so its chunks split the columns.
+  std::vector<Cube> cubes{random_cube(300, 170, 31, 1), random_cube(97, 503, 31, 2), random_cube(3, 9000, 31, 5),
+                          random_cube(1, 1, 31, 3)};
   {
     StoreWriter w(path, {.compression = Compression::parse(GetParam())});
     for (std::size_t i = 0; i < cubes.size(); ++i) w.add_image("img" + std::to_string(i), cubes[i]);
@@ -52,6 +54,7 @@ TEST_P(BlockReaderTest, StreamsExactlyTheValidSpectraInOrder) {
   }
   Store s = Store::open(path);
   BlockReader reader(s, {}, 4096);
+  EXPECT_TRUE(reader.direct());
   const RowMatrixXd expect = all_valid(cubes);
   ASSERT_EQ(reader.spectra(), std::uint64_t(expect.rows()));
   ASSERT_GT(reader.block_count(), 3u);
@@ -141,4 +144,46 @@ TEST(BlockReader, ErrorsInsideTheStreamAreRethrown) {
   request_interrupt();
   EXPECT_THROW(for_each_block<float>(reader, [](std::size_t, const RowMatrixXf&, int) {}), Interrupted);
   clear_interrupt();
+}
+
+TEST(BlockReader, FallsBackToHdf5ForFiltersItDoesNotDecode) {
+  test::ScratchDir dir;
+  auto path = dir / "s.h5";
+  Cube c = random_cube(40, 30, 5, 9);
+  {
+    StoreWriter w(path, {});
+    w.add_image("plain", c);
+    w.commit();
+  }
+  // Rewrite the cube with a Fletcher-32 checksum filter, which the direct path does not decode.
+  {
+    hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    H5Ldelete(f, "/images/plain/cube", H5P_DEFAULT);
+    const hsize_t dims[3] = {40, 30, 5}, chunk[3] = {7, 30, 5};
+    hid_t space = H5Screate_simple(3, dims, nullptr);
+    hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+    H5Pset_chunk(dcpl, 3, chunk);
+    H5Pset_fletcher32(dcpl);
+    hid_t ds = H5Dcreate2(f, "/images/plain/cube", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT);
+    std::vector<float> zeroed = c.data;
+    for (std::size_t p = 0; p < 40 * 30; ++p)
+      if (!c.mask[p]) std::fill_n(zeroed.begin() + std::ptrdiff_t(p * 5), 5, 0.0f);
+    H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, zeroed.data());
+    H5Dclose(ds);
+    H5Pclose(dcpl);
+    H5Sclose(space);
+    H5Fclose(f);
+  }
+  Store s = Store::open(path);
+  BlockReader reader(s, {}, 100);
+  EXPECT_FALSE(reader.direct());
+  const RowMatrixXd expect = all_valid({c});
+  Eigen::Index row = 0;
+  RowMatrixXd m;
+  for (std::size_t i = 0; i < reader.block_count(); ++i) {
+    reader.read(i, m);
+    ASSERT_EQ(m, expect.middleRows(row, m.rows()));
+    row += m.rows();
+  }
+  EXPECT_EQ(row, expect.rows());
 }
