@@ -57,6 +57,21 @@ void run_relight(const RelightOptions& o) {
   const SpectrumToXyz under_to(grid, SpectrumKind::reflectance, l_to);
   RowMatrixX3f xyz_orig(n, 3), xyz_spec(n, 3);
   under_from.apply(f, xyz_orig);
+  if (!reflectance) {
+    // Radiance has no absolute scale: call the 99th-percentile luminance under the old light white (Y = 1),
+    // so the colour differences below do not depend on the data's units.
+    std::vector<float> y;
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (cube.valid(std::size_t(i) / cube.width, std::size_t(i) % cube.width)) y.push_back(xyz_orig(i, 1));
+    if (!y.empty()) {
+      auto k = y.begin() + std::ptrdiff_t(double(y.size() - 1) * 0.99);
+      std::nth_element(y.begin(), k, y.end());
+      if (*k > 0) {
+        f /= *k;
+        xyz_orig /= *k;
+      }
+    }
+  }
   under_to.apply(f, xyz_spec);
 
   // RGB camera: linear-sRGB matching curves M * cmf; per-channel scaling by the lights' responses (eq 4.10).
@@ -145,7 +160,9 @@ void setup_relight(CLI::App& app) {
   auto* cmd = app.add_subcommand("relight", "Relight an image spectrally (eq 4.9) and in RGB (eq 4.10); compare with CIEDE2000");
   cmd->add_option("store", o->store, "Store file")->required();
   cmd->add_option("image", o->image, "Image name")->required();
-  cmd->add_option("--from", o->from, "Light the image was taken under (radiance data) or shown under (reflectance)")
+  cmd->add_option("--from", o->from,
+                  "Light the image was taken under (radiance data, whose 99th-percentile luminance is taken as white) "
+                  "or shown under (reflectance)")
       ->capture_default_str();
   cmd->add_option("--to", o->to, "New light")->capture_default_str();
   cmd->add_option("-o,--output", o->output, "PNG with the panels side by side")->required();
