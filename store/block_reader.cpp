@@ -3,9 +3,10 @@
 #include <fcntl.h>
 #include <fnmatch.h>
 #include <unistd.h>
-#include <zlib.h>
+#include <libdeflate.h>
 
 #include <cstring>
+#include <memory>
 
 #include "core/error.h"
 
@@ -128,8 +129,12 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
         const bool deflated = src.deflate && !(ref.filter_mask & (1u << (src.shuffle ? 1 : 0)));
         const bool shuffled = src.shuffle && !(ref.filter_mask & 1u);
         if (deflated) {
-          uLongf len = uLongf(plain.size());
-          if (::uncompress(plain.data(), &len, data, uLong(size)) != Z_OK || len != plain.size())
+          thread_local std::unique_ptr<libdeflate_decompressor, void (*)(libdeflate_decompressor*)> inflater(
+              libdeflate_alloc_decompressor(), libdeflate_free_decompressor);
+          std::size_t len = 0;
+          if (!inflater || libdeflate_zlib_decompress(inflater.get(), data, size, plain.data(), plain.size(), &len) !=
+                               LIBDEFLATE_SUCCESS ||
+              len != plain.size())
             throw InputError(store_.label() + ": corrupt compressed chunk at byte " + std::to_string(ref.address));
           data = plain.data();
           size = len;
