@@ -232,8 +232,18 @@ Cube read_spectral_exr(const fs::path& path) {
     Imf::FrameBuffer frame;
     for (std::size_t b = 0; b < channels.size(); ++b)
       frame.insert(channels[b].name, Imf::Slice::Make(Imf::FLOAT, cube.data.data() + b, window, x_stride, y_stride));
+    // A mask travels as the alpha channel "A" (0 = masked), which spectral readers ignore.
+    std::vector<float> alpha;
+    if (header.channels().findChannel("A")) {
+      alpha.assign(cube.height * cube.width, 1.0f);
+      frame.insert("A", Imf::Slice::Make(Imf::FLOAT, alpha.data(), window, sizeof(float), sizeof(float) * cube.width));
+    }
     file.setFrameBuffer(frame);
     file.readPixels(window.min.y, window.max.y);
+    if (!alpha.empty()) {
+      cube.mask.resize(alpha.size());
+      for (std::size_t p = 0; p < alpha.size(); ++p) cube.mask[p] = alpha[p] > 0.5f ? 1 : 0;
+    }
 
     cube.units = is_reflective ? "reflectance" : "radiance";
     cube.provenance.source_file = path.string();
@@ -263,6 +273,14 @@ void write_spectral_exr(const fs::path& path, const Cube& cube) {
       header.channels().insert(name, Imf::Channel(Imf::FLOAT));
       char* base = const_cast<char*>(reinterpret_cast<const char*>(cube.data.data() + b));
       frame.insert(name, Imf::Slice(Imf::FLOAT, base, x_stride, y_stride));
+    }
+    std::vector<float> alpha;
+    if (!cube.mask.empty()) {
+      alpha.resize(cube.mask.size());
+      for (std::size_t p = 0; p < alpha.size(); ++p) alpha[p] = cube.mask[p] ? 1.0f : 0.0f;
+      header.channels().insert("A", Imf::Channel(Imf::FLOAT));
+      frame.insert("A", Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(alpha.data()), sizeof(float),
+                                   sizeof(float) * cube.width));
     }
     write_exr(path, header, frame, static_cast<int>(cube.height));
   });

@@ -561,3 +561,21 @@ TEST(ExrRealData, D65IsEmissiveAndMatchesCieTable) {
 
 }  // namespace
 }  // namespace specula::store
+
+TEST(ExrMask, MaskTravelsAsAlphaChannel) {
+  specula::test::ScratchDir dir;
+  specula::store::Cube c;
+  c.resize(3, 5, 4);
+  for (std::size_t i = 0; i < c.data.size(); ++i) c.data[i] = float(i);
+  c.wavelengths = specula::WavelengthGrid({450, 500, 550, 600});
+  c.units = "reflectance";
+  c.mask.assign(15, 1);
+  c.mask[4] = c.mask[11] = 0;
+  specula::store::write_spectral_exr(dir / "m.exr", c);
+  auto back = specula::store::read_spectral_exr(dir / "m.exr");
+  EXPECT_EQ(back.mask, c.mask);
+  EXPECT_EQ(back.data, c.data);
+  c.mask.clear();
+  specula::store::write_spectral_exr(dir / "n.exr", c);
+  EXPECT_TRUE(specula::store::read_spectral_exr(dir / "n.exr").mask.empty());
+}
