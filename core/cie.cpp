@@ -6,15 +6,11 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/text.h"
 
 namespace specula {
 namespace {
 
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
 
 // log(exp(a) - 1) for a > 0 without overflow.
 double log_expm1(double a) { return a > 30.0 ? a + std::log1p(-std::exp(-a)) : std::log(std::expm1(a)); }

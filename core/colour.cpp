@@ -9,15 +9,11 @@
 #include <string>
 
 #include "core/error.h"
+#include "core/text.h"
 
 namespace specula {
 namespace {
 
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
 
 std::string describe_xyz(const Eigen::Vector3d& v) {
   return "(" + num(v[0]) + ", " + num(v[1]) + ", " + num(v[2]) + ")";

@@ -5,15 +5,11 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/text.h"
 
 namespace specula {
 namespace {
 
-std::string num(double v) {
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
 
 double parse_number(std::string_view text, std::string_view spec) {
   while (!text.empty() && text.front() == ' ') text.remove_prefix(1);

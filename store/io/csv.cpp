@@ -13,9 +13,12 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/text.h"
 
 namespace specula::store {
 namespace {
+
+std::string shown40(std::string_view s) { return printable(s, 40); }
 
 struct Cell {
   std::string text;
@@ -26,24 +29,6 @@ struct Row {
   std::size_t line = 0;
   std::vector<Cell> cells;
 };
-
-std::string_view trim(std::string_view s) {
-  const char* ws = " \t\r\n\f\v";
-  const auto b = s.find_first_not_of(ws);
-  if (b == std::string_view::npos) return {};
-  return s.substr(b, s.find_last_not_of(ws) - b + 1);
-}
-
-std::string shown(std::string_view s) {
-  constexpr std::size_t kMax = 40;
-  std::string out;
-  for (char c : s.substr(0, kMax)) {
-    const auto u = static_cast<unsigned char>(c);
-    out += (u < 0x20 || u == 0x7f) ? '?' : c;
-  }
-  if (s.size() > kMax) out += "...";
-  return out;
-}
 
 std::string format(double v) {
   std::array<char, 32> buf{};
@@ -155,10 +140,10 @@ class Reader {
     if (s.starts_with('+')) s.remove_prefix(1);
     const auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
     if (ec == std::errc::result_out_of_range && ptr == s.data() + s.size())
-      fail(line, c.column, "'" + shown(c.text) + "' is out of range for float32; rescale the data");
-    if (!parse(c.text, v)) fail(line, c.column, "'" + shown(c.text) + "' is not a number; fix the cell");
+      fail(line, c.column, "'" + shown40(c.text) + "' is out of range for float32; rescale the data");
+    if (!parse(c.text, v)) fail(line, c.column, "'" + shown40(c.text) + "' is not a number; fix the cell");
     if (!std::isfinite(v))
-      fail(line, c.column, "'" + shown(c.text) + "' is not a finite number; fill the gap or drop the spectrum");
+      fail(line, c.column, "'" + shown40(c.text) + "' is not a finite number; fill the gap or drop the spectrum");
     return v;
   }
 
@@ -298,7 +283,7 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
     for (std::size_t i = head_named ? 1 : 0; i < hc.size(); ++i) {
       double v = 0;
       if (!Reader::parse(hc[i].text, v) || !std::isfinite(v))
-        rd.fail(head.line, hc[i].column, "header cell '" + shown(hc[i].text) + "' is not a wavelength; " + hint);
+        rd.fail(head.line, hc[i].column, "header cell '" + shown40(hc[i].text) + "' is not a wavelength; " + hint);
       wl.push_back(v);
       lines.push_back(head.line);
       columns.push_back(hc[i].column);
@@ -361,12 +346,12 @@ void write_csv_collection(const std::filesystem::path& path, const Collection& c
   for (std::size_t s = 0; s < N; ++s) {
     const std::string& name = collection.names[s];
     if (name.find_first_of("\r\n") != std::string::npos)
-      throw UsageError("write_csv_collection: spectrum name '" + shown(name) + "' contains a line break");
+      throw UsageError("write_csv_collection: spectrum name '" + shown40(name) + "' contains a line break");
     out += quoted(name);
     for (std::size_t b = 0; b < B; ++b) {
       const float v = collection.values[s * B + b];
       if (!std::isfinite(v))
-        throw UsageError("write_csv_collection: spectrum '" + shown(name) + "' is not finite at " +
+        throw UsageError("write_csv_collection: spectrum '" + shown40(name) + "' is not finite at " +
                          format(collection.wavelengths[b]) + " nm; CSV cannot hold it");
       out += "," + format(v);
     }

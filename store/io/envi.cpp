@@ -16,6 +16,7 @@
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/text.h"
 
 namespace specula::store {
 namespace {
@@ -29,29 +30,10 @@ struct Field {
 };
 using Fields = std::map<std::string, Field, std::less<>>;
 
-std::string_view trim(std::string_view s) {
-  const char* ws = " \t\r\n\f\v";
-  const auto b = s.find_first_not_of(ws);
-  if (b == std::string_view::npos) return {};
-  return s.substr(b, s.find_last_not_of(ws) - b + 1);
-}
-
 std::string lower(std::string_view s) {
   std::string out(s);
   for (char& c : out)
     if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-  return out;
-}
-
-// A value from the file, safe to put in a one-line message.
-std::string shown(std::string_view s) {
-  constexpr std::size_t kMax = 60;
-  std::string out;
-  for (char c : s.substr(0, kMax)) {
-    const auto u = static_cast<unsigned char>(c);
-    out += (u < 0x20 || u == 0x7f) ? '?' : c;
-  }
-  if (s.size() > kMax) out += "...";
   return out;
 }
 
@@ -89,7 +71,7 @@ Fields parse_fields(std::string_view text, const std::string& filename) {
   const auto lines = split_lines(text);
   if (lines.empty() || lower(trim(lines[0])) != "envi")
     throw InputError(filename + ": not an ENVI header (the first line must be \"ENVI\", found \"" +
-                     shown(lines.empty() ? std::string_view{} : trim(lines[0])) +
+                     printable(lines.empty() ? std::string_view{} : trim(lines[0])) +
                      "\"); give the .hdr file that belongs to the image");
   Fields fields;
   for (std::size_t i = 1; i < lines.size(); ++i) {
@@ -99,10 +81,10 @@ Fields parse_fields(std::string_view text, const std::string& filename) {
     const auto eq = line.find('=');
     if (eq == std::string_view::npos)
       throw InputError(filename + ": line " + std::to_string(line_no) + ": expected \"key = value\", found \"" +
-                       shown(line) + "\"; fix or remove the line");
+                       printable(line) + "\"; fix or remove the line");
     std::string key = key_of(line.substr(0, eq));
     if (key.empty())
-      throw InputError(filename + ": line " + std::to_string(line_no) + ": \"" + shown(line) +
+      throw InputError(filename + ": line " + std::to_string(line_no) + ": \"" + printable(line) +
                        "\" has no key before '='; fix or remove the line");
     auto value = trim(line.substr(eq + 1));
     std::string stored;
@@ -115,7 +97,7 @@ Fields parse_fields(std::string_view text, const std::string& filename) {
           stored += rest.substr(0, close);
           if (!trim(rest.substr(close + 1)).empty())
             throw InputError(filename + ": line " + std::to_string(j + 1) + ": text \"" +
-                             shown(trim(rest.substr(close + 1))) + "\" after the '}' closing '" + key +
+                             printable(trim(rest.substr(close + 1))) + "\" after the '}' closing '" + key +
                              "'; put it on its own line");
           break;
         }
@@ -138,7 +120,7 @@ Fields parse_fields(std::string_view text, const std::string& filename) {
 
 [[noreturn]] void bad_field(const std::string& filename, const std::string& key, const Field& f,
                             const std::string& problem) {
-  throw InputError(filename + ": line " + std::to_string(f.line) + ": " + key + " = " + shown(f.value) + " " +
+  throw InputError(filename + ": line " + std::to_string(f.line) + ": " + key + " = " + printable(f.value) + " " +
                    problem);
 }
 
@@ -192,7 +174,7 @@ std::vector<double> parse_real_list(const std::string& filename, const std::stri
     const double d = parse_real(items[i], ok);
     if (!ok)
       throw InputError(filename + ": line " + std::to_string(f.line) + ": " + key + " value " + std::to_string(i + 1) +
-                       " \"" + shown(items[i]) + "\" is not a finite number; fix the list");
+                       " \"" + printable(items[i]) + "\" is not a finite number; fix the list");
     out.push_back(d);
   }
   return out;
@@ -523,7 +505,7 @@ Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback
     problem = "the header has no wavelengths; pass --wavelengths FIRST:LAST:STEP (" + std::to_string(h.bands) +
               " bands, e.g. 400:700:10 for 31) or add a 'wavelength' list";
   } else if (factor < 0) {
-    problem = "wavelength units = " + shown(h.wavelength_units) +
+    problem = "wavelength units = " + printable(h.wavelength_units) +
               " is not supported; use Nanometers or Micrometers, or pass --wavelengths in nm";
   } else if (factor == 0 && h.wavelength.back() < 100) {
     problem = "wavelengths " + format_real(h.wavelength.front()) + "-" + format_real(h.wavelength.back()) +
