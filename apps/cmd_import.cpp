@@ -141,7 +141,18 @@ void run_import(const ImportOptions& o) {
     const std::string src = first.string();
     const std::string name = o.name.empty() ? default_name(first) : o.name;
     if (item.format == "csv") {
-      store::Collection col = store::read_csv_collection(first, given);
+      // The target grid is the table's own grid only for a table without a wavelength header.
+      store::Collection col;
+      try {
+        col = store::read_csv_collection(first, source);
+      } catch (const InputError& no_grid) {
+        if (!source.empty() || target.empty()) throw;
+        try {
+          col = store::read_csv_collection(first, target);
+        } catch (const InputError&) {
+          throw no_grid;
+        }
+      }
       if (!target.empty() && !target.approx_equal(col.wavelengths)) {
         col.values = resample(col.values, col.size(), col.wavelengths, target, src);
         col.wavelengths = target;

@@ -12,6 +12,7 @@
 #include <fstream>
 #include <thread>
 
+#include "store/io/png_stack.h"
 #include "store/store.h"
 #include "test_support.h"
 
@@ -207,4 +208,59 @@ TEST(ImportCli, KilledOrInterruptedImportLeavesTheStoreAsItWas) {
         EXPECT_EQ(e.path().string().find(".tmp-"), std::string::npos) << "left behind: " << e.path();
     }
   }
+}
+
+TEST(ImportCli, CaveStylePngStackWithMaskAndResampling) {
+  test::ScratchDir dir;
+  std::filesystem::create_directories(dir / "balloons_ms");
+  const std::size_t w = 4, h = 3;
+  // Band k at pixel p holds 1000 * (k + 1) + p, so linear resampling halfway between bands is checkable.
+  for (std::size_t k = 0; k < 3; ++k) {
+    std::vector<std::uint16_t> v(w * h);
+    for (std::size_t p = 0; p < w * h; ++p) v[p] = std::uint16_t(1000 * (k + 1) + p);
+    char name[64];
+    std::snprintf(name, sizeof name, "balloons_ms_%02zu.png", k + 1);
+    store::write_png_gray16(dir / "balloons_ms" / name, w, h, v);
+  }
+  std::vector<std::uint8_t> mask(3 * w * h, 255);
+  mask[3 * 5] = mask[3 * 5 + 1] = mask[3 * 5 + 2] = 0;
+  store::write_png_rgb8(dir / "mask.png", w, h, mask);
+  auto db = dir / "db.h5";
+  auto r = run_specula("-q import '" + (dir / "balloons_ms").string() + "' -o '" + db.string() +
+                       "' --source-wavelengths 400:420:10 --wavelengths 405:415:5 --mask '" +
+                       (dir / "mask.png").string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  auto cube = store::Store::open(db).read_image("balloons_ms");
+  ASSERT_EQ(cube.bands, 3u);
+  EXPECT_EQ(cube.mask[5], 0);
+  EXPECT_EQ(std::count(cube.mask.begin(), cube.mask.end(), 1), 11);
+  for (std::size_t p : {0u, 7u, 11u})
+    for (std::size_t k = 0; k < 3; ++k)  // 405, 410, 415 nm: bands 0.5, 1, 1.5 of the source
+      EXPECT_NEAR(cube.data[p * 3 + k], (1000.0 * (1.5 + 0.5 * double(k)) + double(p)) / 65535.0, 1e-6);
+  // Without a grid the stack cannot be imported.
+  r = run_specula("-q import '" + (dir / "balloons_ms").string() + "' -o '" + (dir / "x.h5").string() + "'");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("--wavelengths"), std::string::npos) << r.output;
+}
+
+TEST(ImportCli, RealColorCheckerImageAndMunsellTable) {
+  SPECULA_REQUIRE_SHARED();
+  test::ScratchDir dir;
+  auto db = dir / "db.h5";
+  const auto data = test::shared_dir() / "data";
+  auto r = run_specula("-q import '" + (data / "images/Macbeth.exr").string() + "' '" +
+                       (data / "reflectance/munsell_matt_1269_380-780_5nm.csv").string() + "' -o '" + db.string() +
+                       "' --wavelengths 420:720:10");
+  ASSERT_EQ(r.status, 0) << r.output;
+  auto s = store::Store::open(db);
+  auto macbeth = s.image_info("Macbeth");
+  EXPECT_EQ(macbeth.height, 400u);
+  EXPECT_EQ(macbeth.width, 600u);
+  EXPECT_EQ(macbeth.bands, 31u);
+  EXPECT_EQ(macbeth.units, "reflectance");
+  auto munsell = s.read_collection("munsell_matt_1269_380-780_5nm");
+  ASSERT_EQ(munsell.size(), 1269u);
+  EXPECT_EQ(munsell.names[0], "2.5R9/2");
+  // 2.5R9/2 at 420 nm is 0.69536 in the file (column 420).
+  EXPECT_NEAR(munsell.values[0], 0.69536f, 1e-6f);
 }
