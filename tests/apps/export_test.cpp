@@ -1,6 +1,8 @@
 // `specula export`: previews against closed-form sRGB values, and file round trips through the CLI.
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include "store/io/png_stack.h"
 #include "store/store.h"
 #include "test_support.h"
@@ -75,4 +77,34 @@ TEST(ExportCli, UnknownObjectAndExtensionAreExplained) {
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("--format"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
+}
+
+TEST(ExportCli, SpdFileIlluminantEqualsTheBuiltInOne) {
+  test::ScratchDir dir;
+  store::Cube c = flat(3, 3, 0.0f, "reflectance");
+  for (std::size_t i = 0; i < c.data.size(); ++i) c.data[i] = 0.05f + 0.9f * float(i % 31) / 30.0f;
+  auto path = store_with(dir, "scene", c);
+  {
+    std::ofstream spd(dir / "flat.csv");
+    spd << "wavelength_nm,power\n";
+    for (int nm = 380; nm <= 780; nm += 20) spd << nm << "," << 3.5 << "\n";  // any constant is equal energy
+  }
+  auto a = run_specula("-q export '" + path.string() + "' scene -o '" + (dir / "a.png").string() + "' --illuminant E");
+  auto b = run_specula("-q export '" + path.string() + "' scene -o '" + (dir / "b.png").string() + "' --illuminant '" +
+                       (dir / "flat.csv").string() + "'");
+  ASSERT_EQ(a.status, 0) << a.output;
+  ASSERT_EQ(b.status, 0) << b.output;
+  EXPECT_EQ(test::read_bytes(dir / "a.png"), test::read_bytes(dir / "b.png"));
+  auto d = run_specula("-q export '" + path.string() + "' scene -o '" + (dir / "d.png").string() + "' --illuminant A");
+  ASSERT_EQ(d.status, 0);
+  EXPECT_NE(test::read_bytes(dir / "a.png"), test::read_bytes(dir / "d.png"));
+  {
+    std::ofstream bad(dir / "bad.csv");
+    bad << "wavelength_nm,power\n400,1\n500,nan\n";
+  }
+  auto e = run_specula("-q export '" + path.string() + "' scene -o '" + (dir / "e.png").string() + "' --illuminant '" +
+                       (dir / "bad.csv").string() + "'");
+  EXPECT_EQ(e.status, 1);
+  EXPECT_NE(e.output.find("bad.csv:3"), std::string::npos) << e.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "e.png"));
 }
