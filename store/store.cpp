@@ -143,6 +143,31 @@ std::size_t attr_size(hid_t obj, const std::string& name, const std::string& ctx
 
 }  // namespace
 
+namespace {
+void write_matrix(hid_t loc, const std::string& name, const Eigen::MatrixXd& m, const std::string& ctx) {
+  const hsize_t dims[2] = {hsize_t(m.rows()), hsize_t(m.cols())};
+  h5::Id space(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
+  h5::Id ds(h5::check(H5Dcreate2(loc, name.c_str(), H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx,
+                      "cannot create " + name));
+  const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rm = m;
+  if (m.size()) h5::check(H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rm.data()), ctx, "cannot write " + name);
+}
+
+Eigen::MatrixXd read_matrix(hid_t loc, const std::string& name, const std::string& ctx) {
+  if (!h5::exists(loc, name)) throw InputError(ctx + ": dataset '" + name + "' is missing");
+  h5::Id ds(h5::check(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), ctx, "cannot open " + name));
+  const auto dims = h5::shape(ds, ctx);
+  if (dims.size() != 2) throw InputError(ctx + ": dataset '" + name + "' is not two-dimensional");
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rm{Eigen::Index(dims[0]), Eigen::Index(dims[1])};
+  if (rm.size()) h5::check(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rm.data()), ctx, "cannot read " + name);
+  return rm;
+}
+
+Eigen::VectorXd to_vector(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), Eigen::Index(v.size()));
+}
+}  // namespace
+
 Compression Compression::parse(std::string_view spec) {
   Compression c;
   if (spec == "none") {
@@ -362,6 +387,37 @@ Collection Store::read_collection(const std::string& name) const {
 #endif
   }
   return c;
+}
+
+Basis Store::read_basis(const std::string& name) const {
+  const std::string path = "/bases/" + name;
+  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(file(), path))
+    throw InputError(label() + ": no basis '" + name + "' (bases: " + join(bases()) + ")");
+  const std::string ctx = label() + ": " + path;
+  h5::Id g = open_group(file(), path, ctx);
+  Basis b;
+  b.method = h5::read_string_attr(g, "method", ctx);
+  b.n = std::uint64_t(std::max(0LL, h5::read_int_attr(g, "n", ctx)));
+  b.source = h5::has_attr(g, "source") ? h5::read_string_attr(g, "source", ctx) : "";
+  b.provenance = read_provenance(g, ctx);
+  b.wavelengths = read_grid(g, ctx);
+  b.components = read_matrix(g, "components", ctx);
+  if (b.components.cols() != Eigen::Index(b.wavelengths.size()))
+    throw InputError(ctx + ": components have " + std::to_string(b.components.cols()) + " bands, wavelengths " +
+                     std::to_string(b.wavelengths.size()));
+  auto vec = [&](const char* nm) {
+    return h5::exists(g, nm) ? to_vector(h5::read_vector(g, nm, ctx)) : Eigen::VectorXd();
+  };
+  b.mean = vec("mean");
+  b.eigenvalues = vec("eigenvalues");
+  b.explained_variance_ratio = vec("explained_variance_ratio");
+  b.weights = vec("weights");
+  if (h5::exists(g, "covariance")) b.covariance = read_matrix(g, "covariance", ctx);
+  if (h5::exists(g, "second_moment")) b.second_moment = read_matrix(g, "second_moment", ctx);
+  if (b.mean.size() && b.mean.size() != b.components.cols())
+    throw InputError(ctx + ": mean has " + std::to_string(b.mean.size()) + " entries for " +
+                     std::to_string(b.components.cols()) + " bands");
+  return b;
 }
 
 void Store::read_samples(const std::string& name, std::size_t first, std::size_t count, std::span<double> angles,
@@ -618,6 +674,40 @@ void StoreWriter::add_collection(const std::string& name, const Collection& col)
   std::vector<const char*> ptrs;
   for (const auto& s : col.names) ptrs.push_back(s.c_str());
   h5::check(H5Dwrite(nds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()), ctx, "cannot write names");
+}
+
+
+void StoreWriter::add_basis(const std::string& name, const Basis& basis) {
+  const std::string ctx = label() + ": /bases/" + name;
+  const auto b = Eigen::Index(basis.bands());
+  if (b == 0 || basis.components.cols() != b || basis.components.rows() == 0)
+    throw UsageError(ctx + ": a basis needs k x B components on its wavelength grid");
+  auto check_len = [&](const Eigen::VectorXd& v, const char* what) {
+    if (v.size() != 0 && v.size() != b && std::string(what) != "weights")
+      throw UsageError(ctx + ": " + what + " has " + std::to_string(v.size()) + " entries for " + std::to_string(b) + " bands");
+  };
+  check_len(basis.mean, "mean");
+  check_len(basis.eigenvalues, "eigenvalues");
+  check_len(basis.explained_variance_ratio, "explained_variance_ratio");
+  if (!basis.components.allFinite()) throw InputError(ctx + ": basis has non-finite components");
+  check_name("basis", "/bases", name);
+  h5::Id g = create_group(file_, "/bases/" + name, ctx);
+  h5::write_attr(g, "kind", std::string_view("basis"), ctx);
+  h5::write_attr(g, "method", std::string_view(basis.method), ctx);
+  h5::write_attr(g, "n", static_cast<long long>(basis.n), ctx);
+  h5::write_attr(g, "source", std::string_view(basis.source), ctx);
+  write_provenance(g, basis.provenance, options_.command_line, ctx);
+  write_grid(g, basis.wavelengths, ctx);
+  write_matrix(g, "components", basis.components, ctx);
+  auto vec = [&](const char* nm, const Eigen::VectorXd& v) {
+    if (v.size()) h5::write_vector(g, nm, std::span<const double>(v.data(), std::size_t(v.size())), ctx);
+  };
+  vec("mean", basis.mean);
+  vec("eigenvalues", basis.eigenvalues);
+  vec("explained_variance_ratio", basis.explained_variance_ratio);
+  vec("weights", basis.weights);
+  if (basis.covariance.size()) write_matrix(g, "covariance", basis.covariance, ctx);
+  if (basis.second_moment.size()) write_matrix(g, "second_moment", basis.second_moment, ctx);
 }
 
 void StoreWriter::create_samples(const std::string& name, const WavelengthGrid& wavelengths, const std::string& units,

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/wavelengths.h"
+#include "store/basis.h"
 #include "store/cube.h"
 #include "store/h5.h"
 
@@ -89,6 +90,8 @@ class Store {
   Cube read_image(const std::string& name) const;
   /// The whole collection in memory.
   Collection read_collection(const std::string& name) const;
+  /// Basis `name`; throws InputError listing the bases when absent or malformed.
+  Basis read_basis(const std::string& name) const;
   /// Rows [first, first + count) of samples `name`: angles (count x 4, radians) and values (count x B).
   void read_samples(const std::string& name, std::size_t first, std::size_t count, std::span<double> angles,
                     std::span<float> values) const;
@@ -120,6 +123,8 @@ class StoreWriter {
   void add_image(const std::string& name, const Cube& cube);
   /// Adds collection `name`.
   void add_collection(const std::string& name, const Collection& collection);
+  /// Adds basis `name` (float64 datasets; empty members are not written).
+  void add_basis(const std::string& name, const Basis& basis);
   /// Creates an empty extendible set of scattered BRDF samples.
   void create_samples(const std::string& name, const WavelengthGrid& wavelengths, const std::string& units,
                       const Provenance& provenance);
