@@ -8,22 +8,76 @@
 
 #include "core/error.h"
 #include "core/interrupt.h"
+#include "core/progress.h"
 
 namespace specula::stats {
 namespace {
 
 // The moments of one block: its mean and centred Gram, computed in double from float32 or float64 rows.
+// Adds the lower triangle of D D^T to gram, D being `rows` x `len` row-major with rows a multiple of 4:
+// 4 x 4 blocks of dot products over contiguous rows, each block's 16 sums vectorised along the row.
+void gram_lower_add(const double* d, std::size_t rows, std::size_t len, double* gram, std::size_t ld) {
+  for (std::size_t p = 0; p < rows; p += 4)
+    for (std::size_t q = 0; q <= p; q += 4) {
+      const double *p0 = d + p * len, *p1 = p0 + len, *p2 = p1 + len, *p3 = p2 + len;
+      const double *q0 = d + q * len, *q1 = q0 + len, *q2 = q1 + len, *q3 = q2 + len;
+      double s00 = 0, s01 = 0, s02 = 0, s03 = 0, s10 = 0, s11 = 0, s12 = 0, s13 = 0;
+      double s20 = 0, s21 = 0, s22 = 0, s23 = 0, s30 = 0, s31 = 0, s32 = 0, s33 = 0;
+#pragma omp simd reduction(+ : s00, s01, s02, s03, s10, s11, s12, s13, s20, s21, s22, s23, s30, s31, s32, s33)
+      for (std::size_t j = 0; j < len; ++j) {
+        s00 += p0[j] * q0[j]; s01 += p0[j] * q1[j]; s02 += p0[j] * q2[j]; s03 += p0[j] * q3[j];
+        s10 += p1[j] * q0[j]; s11 += p1[j] * q1[j]; s12 += p1[j] * q2[j]; s13 += p1[j] * q3[j];
+        s20 += p2[j] * q0[j]; s21 += p2[j] * q1[j]; s22 += p2[j] * q2[j]; s23 += p2[j] * q3[j];
+        s30 += p3[j] * q0[j]; s31 += p3[j] * q1[j]; s32 += p3[j] * q2[j]; s33 += p3[j] * q3[j];
+      }
+      const double s[4][4] = {{s00, s01, s02, s03}, {s10, s11, s12, s13}, {s20, s21, s22, s23}, {s30, s31, s32, s33}};
+      for (std::size_t a = 0; a < 4; ++a)
+        for (std::size_t c = 0; c < 4; ++c) gram[(p + a) * ld + q + c] += s[a][c];
+    }
+}
+
+// The moments of one block in one pass: deviations d = x - x0 from the block's first spectrum (the
+// shifted-data algorithm; x0 lies within the data's spread, so sum(d d^T) - sum(d) sum(d)^T / n does not
+// cancel badly), accumulated over tiles of spectra small enough to stay in cache.
 template <class Block>
 Moments block_moments(const Block& x, std::size_t bands) {
-  thread_local RowMatrixXd centred;
   Moments m(bands);
   if (x.rows() == 0) return m;
-  const Eigen::RowVectorXd mean = x.template cast<double>().colwise().sum() / double(x.rows());
-  centred = x.template cast<double>().rowwise() - mean;
-  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(Eigen::Index(bands), Eigen::Index(bands));
-  gram.selfadjointView<Eigen::Lower>().rankUpdate(centred.transpose());
-  gram.triangularView<Eigen::StrictlyUpper>() = gram.transpose();
-  m.merge_raw(std::uint64_t(x.rows()), mean.transpose(), gram);
+  const std::size_t b = bands, bp = (bands + 3) / 4 * 4;
+  constexpr std::size_t kTile = 256;
+  thread_local std::vector<double> tile, shift;
+  tile.assign(bp * kTile, 0.0);  // padding rows stay zero
+  shift.assign(b, 0.0);
+  for (std::size_t k = 0; k < b; ++k) shift[k] = double(x(0, Eigen::Index(k)));
+  std::vector<double> gram(bp * bp, 0.0);
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(Eigen::Index(b));
+  const std::size_t rows = std::size_t(x.rows());
+  for (std::size_t r0 = 0; r0 < rows; r0 += kTile) {
+    const std::size_t n = std::min(kTile, rows - r0);
+    // Transpose the tile into band rows (zero beyond n so a short last tile adds nothing).
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto row = x.row(Eigen::Index(r0 + i));
+      for (std::size_t k = 0; k < b; ++k) tile[k * kTile + i] = double(row(Eigen::Index(k))) - shift[k];
+    }
+    if (n < kTile)
+      for (std::size_t k = 0; k < b; ++k) std::fill(tile.begin() + std::ptrdiff_t(k * kTile + n), tile.begin() + std::ptrdiff_t((k + 1) * kTile), 0.0);
+    for (std::size_t k = 0; k < b; ++k) {
+      double s = 0;
+      for (std::size_t i = 0; i < n; ++i) s += tile[k * kTile + i];
+      sum[Eigen::Index(k)] += s;
+    }
+    gram_lower_add(tile.data(), bp, kTile, gram.data(), bp);
+  }
+  const double n = double(rows);
+  Eigen::MatrixXd scatter{Eigen::Index(b), Eigen::Index(b)};
+  for (std::size_t p = 0; p < b; ++p)
+    for (std::size_t q = 0; q <= p; ++q) {
+      const double v = gram[p * bp + q] - sum[Eigen::Index(p)] * sum[Eigen::Index(q)] / n;
+      scatter(Eigen::Index(p), Eigen::Index(q)) = v;
+      scatter(Eigen::Index(q), Eigen::Index(p)) = v;
+    }
+  const Eigen::Map<const Eigen::VectorXd> x0(shift.data(), Eigen::Index(b));
+  m.merge_raw(std::uint64_t(rows), x0 + sum / n, scatter);
   return m;
 }
 
@@ -88,6 +142,7 @@ Moments stream_moments(const store::BlockReader& reader) {
     slots[l] = std::move(m);
   };
   const std::size_t wave = std::size_t(std::max(1, omp_get_max_threads())) * 8;
+  Progress progress("covariance", reader.spectra());
   std::vector<Moments> part;
   for (std::size_t first = 0; first < blocks; first += wave) {
     const std::size_t n = std::min(wave, blocks - first);
@@ -103,6 +158,7 @@ Moments stream_moments(const store::BlockReader& reader) {
           check_interrupt();
           reader.read(first + std::size_t(j), buffer);
           part[std::size_t(j)] = block_moments(buffer, bands);
+          progress.advance(std::uint64_t(buffer.rows()));
         } catch (...) {
           std::lock_guard lock(error_mutex);
           if (!error) error = std::current_exception();
