@@ -11,5 +11,9 @@ void setup_relight(CLI::App& app);
 void setup_info(CLI::App& app);
 void setup_ls(CLI::App& app);
 void setup_synth_db(CLI::App& app);
+void setup_pca(CLI::App& app);
+void setup_project(CLI::App& app);
+void setup_plot_basis(CLI::App& app);
+void setup_compare_bases(CLI::App& app);
 
 }  // namespace specula::app

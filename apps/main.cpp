@@ -23,6 +23,10 @@ int main(int argc, char** argv) {
   specula::app::setup_info(app);
   specula::app::setup_ls(app);
   specula::app::setup_synth_db(app);
+  specula::app::setup_pca(app);
+  specula::app::setup_project(app);
+  specula::app::setup_plot_basis(app);
+  specula::app::setup_compare_bases(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

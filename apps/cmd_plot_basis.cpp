@@ -1,0 +1,129 @@
+// specula plot-basis (reference §7.3, figures 7.2 and 7.3): a basis's eigenvalues and first components as
+// CSV tables, and as PNG plots drawn by gnuplot when it is installed.
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "apps/gnuplot.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "store/store.h"
+
+namespace specula::app {
+
+namespace {
+
+struct PlotBasisOptions {
+  std::string store;
+  std::string basis;
+  std::string output;
+  std::size_t components = 8;
+};
+
+// Writes `text` to `path` atomically.
+void write_text(const std::filesystem::path& path, const std::string& text) {
+  AtomicOutput out(path);
+  {
+    std::ofstream f(out.temp_path(), std::ios::binary);
+    f << text;
+    f.flush();
+    if (!f) throw LibraryError(path.string() + ": cannot write: " + std::strerror(errno));
+  }
+  out.commit();
+}
+
+void run_plot_basis(const PlotBasisOptions& o) {
+  if (o.components < 1) throw UsageError("--components must be at least 1");
+  const store::Store s = store::Store::open(o.store);
+  const store::Basis b = s.read_basis(o.basis);
+  if (b.k() == 0) throw InputError(fmt::format("{}: basis '{}' has no components", s.label(), o.basis));
+  const std::size_t n = std::min(o.components, b.k());
+  const std::filesystem::path dir = o.output;
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (!std::filesystem::is_directory(dir))
+    throw InputError(fmt::format("-o {}: not a directory and cannot be created{}{}", dir.string(), ec ? ": " : "",
+                                 ec ? ec.message() : ""));
+  const bool has_eigenvalues = b.eigenvalues.size() > 0;
+
+  std::string eig_rows;
+  if (has_eigenvalues) {
+    const Eigen::VectorXd& ev = b.eigenvalues;
+    Eigen::VectorXd ratio = b.explained_variance_ratio;
+    if (ratio.size() != ev.size()) ratio = ev / (ev.sum() > 0 ? ev.sum() : 1.0);
+    std::string csv = "index,eigenvalue,explained_ratio,cumulative_ratio\n";
+    double cumulative = 0;
+    for (Eigen::Index i = 0; i < ev.size(); ++i) {
+      cumulative += ratio[i];
+      csv += fmt::format("{},{},{},{}\n", i + 1, ev[i], ratio[i], cumulative);
+      eig_rows += fmt::format("{} {}\n", i + 1, ev[i]);
+    }
+    write_text(dir / "eigenvalues.csv", csv);
+  }
+
+  std::string csv = "wavelength_nm";
+  for (std::size_t c = 0; c < n; ++c) csv += fmt::format(",c{}", c + 1);
+  csv += "\n";
+  std::string comp_rows;
+  for (std::size_t w = 0; w < b.bands(); ++w) {
+    std::string row = fmt::format("{}", b.wavelengths[w]);
+    for (std::size_t c = 0; c < n; ++c) row += fmt::format(",{}", b.components(Eigen::Index(c), Eigen::Index(w)));
+    csv += row + "\n";
+    std::replace(row.begin(), row.end(), ',', ' ');
+    comp_rows += row + "\n";
+  }
+  write_text(dir / "components.csv", csv);
+
+  const std::filesystem::path gnuplot = find_gnuplot();
+  if (gnuplot.empty()) {
+    std::fprintf(stderr, "gnuplot not found: wrote the CSV files only; install gnuplot-nox for the PNG plots\n");
+    return;
+  }
+  const std::string method = b.method == "nmf" ? "NMF" : "principal";
+  const std::string label = fmt::format("basis {} in {} ({} spectra)", o.basis, s.label(), b.n);
+  if (has_eigenvalues) {
+    std::string script = "$EV << EOD\n" + eig_rows + "EOD\n";
+    script += "set title " + gnuplot_quote("Eigenvalue magnitudes of " + label) + " noenhanced\n";
+    script += "set logscale y\nset format y '10^{%L}'\nset grid\nunset key\n";
+    script += "set xlabel 'component index'\nset ylabel '|eigenvalue| (variance along the component)'\n";
+    script += fmt::format("set xrange [0.5:{}]\n", double(b.eigenvalues.size()) + 0.5);
+    script += "plot $EV using 1:(abs($2) > 0 ? abs($2) : 1/0) with linespoints pt 7 ps 0.8 lc rgb '#1f4e99'\n";
+    plot_png(gnuplot, dir / "eigenvalues.png", gnuplot_png_terminal(900, 600), script);
+  }
+  std::string script = "$C << EOD\n" + comp_rows + "EOD\n";
+  script += "set title " + gnuplot_quote(fmt::format("First {} {} components of {}", n, method, label)) + " noenhanced\n";
+  script += "set grid\nset xzeroaxis lt -1 lw 0.5\nset key outside right top\n";
+  script += "set xlabel 'wavelength (nm)'\nset ylabel 'component weight'\n";
+  script += fmt::format("set xrange [{}:{}]\n", b.wavelengths.front(), b.wavelengths.back());
+  script += fmt::format("plot for [i=2:{}] $C using 1:i with lines lw 2 title sprintf('c%d', i-1)\n", n + 1);
+  plot_png(gnuplot, dir / "components.png", gnuplot_png_terminal(1000, 600), script);
+}
+
+}  // namespace
+
+void setup_plot_basis(CLI::App& app) {
+  auto o = std::make_shared<PlotBasisOptions>();
+  auto* cmd = app.add_subcommand(
+      "plot-basis", "Write a basis's eigenvalues and first components as CSV, and as PNG plots when gnuplot is installed");
+  cmd->add_option("store", o->store, "Store file")->required();
+  cmd->add_option("basis", o->basis, "Basis name")->required();
+  cmd->add_option("-o,--output", o->output, "Directory for eigenvalues.csv, components.csv and their PNGs")->required();
+  cmd->add_option("--components", o->components, "Components to write and plot (at most the basis's own)")
+      ->capture_default_str();
+  cmd->callback([o] { run_plot_basis(*o); });
+}
+
+}  // namespace specula::app

@@ -1,0 +1,387 @@
+// specula project (reference §7.3, eqs 7.2-7.3, figure 7.4): an image projected onto the first k principal
+// components of a basis and reconstructed from them, with the per-pixel error of each reconstruction.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "core/error.h"
+#include "stats/pca.h"
+#include "store/io/exr.h"
+#include "store/io/png_stack.h"
+#include "store/store.h"
+
+namespace specula::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kRmsDefinition =
+    "rms = sqrt(mean over valid pixels of ||x - x'||^2 / B) (per-band root-mean-square error); "
+    "max_error = largest per-pixel ||x - x'||_2 over bands";
+
+struct ProjectOptions {
+  std::string store;
+  std::string basis;
+  std::vector<long long> ks;
+  std::string image;
+  std::string output;
+  std::string into_store;
+  PreviewOptions preview;
+  bool json = false;
+};
+
+using Rgb = std::array<std::uint8_t, 3>;
+
+// The ramp of cmd_relight (black-blue-magenta-orange-yellow-white), t in [0, 1].
+Rgb heat(double t) {
+  static const double stops[6][3] = {{0, 0, 0}, {30, 30, 140}, {150, 40, 150}, {240, 100, 40}, {250, 220, 60}, {255, 255, 255}};
+  t = std::clamp(t, 0.0, 1.0) * 5.0;
+  const int i = std::min(4, int(t));
+  const double f = t - i;
+  Rgb c{};
+  for (int k = 0; k < 3; ++k) c[std::size_t(k)] = std::uint8_t(std::lround(stops[i][k] * (1 - f) + stops[i + 1][k] * f));
+  return c;
+}
+
+constexpr Rgb kInk{40, 40, 40}, kMaskedGrey{160, 160, 160};
+
+// A 5x7 bitmap font for the labels: each row is 5 bits, the leftmost pixel in bit 4.
+struct Glyph {
+  char c;
+  std::array<std::uint8_t, 7> rows;
+};
+constexpr Glyph kFont[] = {
+    {'0', {0x0E, 0x11, 0x13, 0x15, 0x19, 0x11, 0x0E}}, {'1', {0x04, 0x0C, 0x04, 0x04, 0x04, 0x04, 0x0E}},
+    {'2', {0x0E, 0x11, 0x01, 0x02, 0x04, 0x08, 0x1F}}, {'3', {0x1F, 0x02, 0x04, 0x02, 0x01, 0x11, 0x0E}},
+    {'4', {0x02, 0x06, 0x0A, 0x12, 0x1F, 0x02, 0x02}}, {'5', {0x1F, 0x10, 0x1E, 0x01, 0x01, 0x11, 0x0E}},
+    {'6', {0x06, 0x08, 0x10, 0x1E, 0x11, 0x11, 0x0E}}, {'7', {0x1F, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08}},
+    {'8', {0x0E, 0x11, 0x11, 0x0E, 0x11, 0x11, 0x0E}}, {'9', {0x0E, 0x11, 0x11, 0x0F, 0x01, 0x02, 0x0C}},
+    {'.', {0x00, 0x00, 0x00, 0x00, 0x00, 0x0C, 0x0C}}, {'-', {0x00, 0x00, 0x00, 0x1F, 0x00, 0x00, 0x00}},
+    {'+', {0x00, 0x04, 0x04, 0x1F, 0x04, 0x04, 0x00}}, {'=', {0x00, 0x00, 0x1F, 0x00, 0x1F, 0x00, 0x00}},
+    {'L', {0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x1F}}, {'a', {0x00, 0x00, 0x0E, 0x01, 0x0F, 0x11, 0x0F}},
+    {'e', {0x00, 0x00, 0x0E, 0x11, 0x1F, 0x10, 0x0E}}, {'g', {0x00, 0x0F, 0x11, 0x11, 0x0F, 0x01, 0x0E}},
+    {'i', {0x04, 0x00, 0x0C, 0x04, 0x04, 0x04, 0x0E}}, {'k', {0x10, 0x10, 0x12, 0x14, 0x18, 0x14, 0x12}},
+    {'l', {0x0C, 0x04, 0x04, 0x04, 0x04, 0x04, 0x0E}}, {'m', {0x00, 0x00, 0x1A, 0x15, 0x15, 0x11, 0x11}},
+    {'n', {0x00, 0x00, 0x16, 0x19, 0x11, 0x11, 0x11}}, {'o', {0x00, 0x00, 0x0E, 0x11, 0x11, 0x11, 0x0E}},
+    {'r', {0x00, 0x00, 0x16, 0x19, 0x10, 0x10, 0x10}}, {'s', {0x00, 0x00, 0x0F, 0x10, 0x0E, 0x01, 0x1E}},
+    {'x', {0x00, 0x00, 0x11, 0x0A, 0x04, 0x0A, 0x11}},
+};
+
+// An RGB8 picture on a white background with drawing helpers; s is the font's pixel size.
+struct Canvas {
+  std::size_t width, height;
+  std::vector<std::uint8_t> rgb;
+  Canvas(std::size_t w, std::size_t h) : width(w), height(h), rgb(3 * w * h, 255) {}
+
+  void put(std::size_t x, std::size_t y, Rgb c) {
+    if (x < width && y < height) std::copy(c.begin(), c.end(), rgb.begin() + std::ptrdiff_t(3 * (y * width + x)));
+  }
+  void fill(std::size_t x0, std::size_t y0, std::size_t w, std::size_t h, Rgb c) {
+    for (std::size_t y = y0; y < y0 + h; ++y)
+      for (std::size_t x = x0; x < x0 + w; ++x) put(x, y, c);
+  }
+  void blit(std::size_t x0, std::size_t y0, std::size_t w, std::size_t h, const std::vector<std::uint8_t>& src) {
+    for (std::size_t y = 0; y < h; ++y)
+      for (std::size_t x = 0; x < w; ++x) {
+        const std::uint8_t* p = src.data() + 3 * (y * w + x);
+        put(x0 + x, y0 + y, {p[0], p[1], p[2]});
+      }
+  }
+  void text(std::size_t x0, std::size_t y0, std::string_view s, std::size_t scale) {
+    for (char ch : s) {
+      const auto* g = std::find_if(std::begin(kFont), std::end(kFont), [ch](const Glyph& f) { return f.c == ch; });
+      if (g != std::end(kFont))
+        for (std::size_t r = 0; r < 7; ++r)
+          for (std::size_t col = 0; col < 5; ++col)
+            if (g->rows[r] & (0x10 >> col)) fill(x0 + col * scale, y0 + r * scale, scale, scale, kInk);
+      x0 += 6 * scale;
+    }
+  }
+};
+
+std::size_t text_width(std::string_view s, std::size_t scale) { return s.empty() ? 0 : (6 * s.size() - 1) * scale; }
+
+std::string number_label(double v) { return v == 0 ? std::string("0") : fmt::format("{:.3g}", v); }
+
+// Font pixel size for pictures of width w: 1 below 250 pixels, growing to 4 for large images.
+std::size_t font_scale(std::size_t w) { return std::clamp<std::size_t>(w / 250 + 1, 1, 4); }
+
+// The narrowest colour bar that still fits "0", "L2 error" and the maximum's label under it.
+std::size_t bar_min_width(double max_value, std::size_t s) {
+  return text_width("L2 error", s) + 2 * text_width(number_label(max_value), s) + 12 * s;
+}
+std::size_t bar_height(std::size_t s) { return 6 * s + 2 + 2 * s + 7 * s; }
+
+// A horizontal colour bar from 0 to max_value at (x, y), labelled under its ends.
+void colour_bar(Canvas& c, std::size_t x, std::size_t y, std::size_t w, double max_value, std::size_t s) {
+  c.fill(x, y, w, 6 * s + 2, kInk);
+  for (std::size_t i = 0; i + 2 < w; ++i) c.fill(x + 1 + i, y + 1, 1, 6 * s, heat(double(i) / double(std::max<std::size_t>(1, w - 3))));
+  const std::size_t ty = y + 6 * s + 2 + 2 * s;
+  const std::string hi = number_label(max_value);
+  c.text(x, ty, "0", s);
+  c.text(x + (w - text_width("L2 error", s)) / 2, ty, "L2 error", s);
+  c.text(x + w - text_width(hi, s), ty, hi, s);
+}
+
+std::vector<std::uint8_t> error_rgb(const std::vector<float>& err, const Cube& cube, double max_value) {
+  std::vector<std::uint8_t> out(3 * err.size());
+  for (std::size_t i = 0; i < err.size(); ++i) {
+    const Rgb c = !cube.mask.empty() && !cube.mask[i] ? kMaskedGrey : heat(max_value > 0 ? err[i] / max_value : 0.0);
+    std::copy(c.begin(), c.end(), out.begin() + std::ptrdiff_t(3 * i));
+  }
+  return out;
+}
+
+// The error map of one reconstruction above its colour bar (0 to the largest valid error).
+void write_error_png(const fs::path& path, const std::vector<float>& err, const Cube& cube, double max_value) {
+  const std::size_t s = font_scale(cube.width), pad = 4 * s;
+  const std::size_t inner = std::max(cube.width, bar_min_width(max_value, s));
+  Canvas c(inner + 2 * pad, pad + cube.height + pad + bar_height(s) + pad);
+  c.blit(pad + (inner - cube.width) / 2, pad, cube.width, cube.height, error_rgb(err, cube, max_value));
+  colour_bar(c, pad, pad + cube.height + pad, inner, max_value, s);
+  store::write_png_rgb8(path, c.width, c.height, c.rgb);
+}
+
+struct KResult {
+  std::size_t k = 0;
+  double rms = 0, max_error = 0;
+  std::vector<float> error;          // per-pixel L2 error over bands
+  std::vector<std::uint8_t> preview;  // sRGB8 of the reconstruction
+};
+
+// Figure 7.4: the original and each reconstruction on top, their error maps (one shared scale) below.
+void write_panel(const fs::path& path, const Cube& cube, const std::vector<std::uint8_t>& original,
+                 const std::vector<KResult>& results) {
+  const std::size_t w = cube.width, h = cube.height, n = results.size();
+  const std::size_t s = font_scale(w), pad = 4 * s, line = 7 * s + 3 * s;
+  double shared = 0;
+  for (const KResult& r : results) shared = std::max(shared, r.max_error);
+  std::vector<std::string> rms_labels;
+  std::size_t col = std::max(w, text_width("original", s));
+  for (const KResult& r : results) {
+    rms_labels.push_back("rms " + number_label(r.rms));
+    col = std::max({col, text_width(rms_labels.back(), s), text_width(fmt::format("k={}", r.k), s)});
+  }
+  const std::size_t bar_w_min = bar_min_width(shared, s);
+  if (n * col + (n - 1) * pad < bar_w_min) col = (bar_w_min - (n - 1) * pad + n - 1) / n;
+  const std::size_t top = pad + line, bottom = top + h + pad;
+  const std::size_t bar_y = bottom + h + s + line + pad;
+  Canvas c(pad + (n + 1) * col + n * pad + pad, bar_y + bar_height(s) + pad);
+  auto column_x = [&](std::size_t i) { return pad + i * (col + pad); };
+  auto centred = [&](std::size_t i, std::size_t width) { return column_x(i) + (col - width) / 2; };
+  c.text(centred(0, text_width("original", s)), pad, "original", s);
+  c.blit(centred(0, w), top, w, h, original);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::string label = fmt::format("k={}", results[i].k);
+    c.text(centred(i + 1, text_width(label, s)), pad, label, s);
+    c.blit(centred(i + 1, w), top, w, h, results[i].preview);
+    c.blit(centred(i + 1, w), bottom, w, h, error_rgb(results[i].error, cube, shared));
+    c.text(centred(i + 1, text_width(rms_labels[i], s)), bottom + h + 2 * s, rms_labels[i], s);
+  }
+  colour_bar(c, column_x(1), bar_y, n * col + (n - 1) * pad, shared, s);
+  store::write_png_rgb8(path, c.width, c.height, c.rgb);
+}
+
+// The exposure render() would pick for the original, fixed so every reconstruction is shown alike.
+PreviewOptions shared_exposure(const Cube& cube, PreviewOptions o) {
+  if (o.exposure != "auto" || cube.units == "reflectance") return o;
+  Eigen::Vector3d white;
+  const RowMatrixX3f xyz = cube_xyz(cube, load_illuminant(o.illuminant, cube.wavelengths), white);
+  std::vector<float> y;
+  for (Eigen::Index i = 0; i < xyz.rows(); ++i)
+    if (cube.valid(std::size_t(i) / cube.width, std::size_t(i) % cube.width)) y.push_back(xyz(i, 1));
+  if (y.empty()) return o;
+  auto k = y.begin() + std::ptrdiff_t(double(y.size() - 1) * 0.99);
+  std::nth_element(y.begin(), k, y.end());
+  if (*k > 0) o.exposure = fmt::format("{}", -std::log2(double(*k)));
+  return o;
+}
+
+// Projects every pixel on the first k components and reconstructs it (eqs 7.2-7.3), in row blocks of doubles.
+KResult project(const Cube& cube, const store::Basis& basis, std::size_t k, Cube& recon) {
+  const std::size_t w = cube.width, b = cube.bands;
+  const std::size_t rows_per_block = std::max<std::size_t>(1, (std::size_t(1) << 20) / (w * b));
+  KResult r;
+  r.k = k;
+  r.error.assign(cube.height * w, 0.0f);
+  recon.data.assign(cube.data.size(), 0.0f);
+  double sum_sq = 0;
+  std::size_t valid = 0;
+  RowMatrixXd x, coef, xr;
+  for (std::size_t y0 = 0; y0 < cube.height; y0 += rows_per_block) {
+    const Eigen::Index m = Eigen::Index(std::min(rows_per_block, cube.height - y0) * w);
+    const std::size_t first = y0 * w;
+    x = Eigen::Map<const RowMatrixXf>(cube.data.data() + first * b, m, Eigen::Index(b)).cast<double>();
+    coef.resize(m, Eigen::Index(k));
+    xr.resize(m, Eigen::Index(b));
+    stats::pca_project(basis, k, x, coef);
+    stats::pca_reconstruct(basis, coef, xr);
+    Eigen::Map<RowMatrixXf>(recon.data.data() + first * b, m, Eigen::Index(b)) = xr.cast<float>();
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const double e2 = (x.row(i) - xr.row(i)).squaredNorm();
+      const std::size_t p = first + std::size_t(i);
+      if (!cube.mask.empty() && !cube.mask[p]) {
+        std::fill_n(recon.data.begin() + std::ptrdiff_t(p * b), b, 0.0f);  // as the store keeps masked pixels
+        continue;
+      }
+      r.error[p] = float(std::sqrt(e2));
+      sum_sq += e2;
+      r.max_error = std::max(r.max_error, std::sqrt(e2));
+      ++valid;
+    }
+  }
+  r.rms = std::sqrt(sum_sq / (double(valid) * double(b)));
+  return r;
+}
+
+struct OutputPaths {
+  fs::path reconstruction, preview, error;
+};
+
+bool names_exr(const std::string& out) {
+  std::string ext = fs::path(out).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char ch) { return char(std::tolower(ch)); });
+  return ext == ".exr";
+}
+
+OutputPaths paths_for(const ProjectOptions& o, std::size_t k) {
+  if (names_exr(o.output)) {
+    const fs::path out = o.output;
+    const fs::path stem = out.parent_path() / out.stem();
+    return {out, stem.string() + "-preview.png", stem.string() + "-error.png"};
+  }
+  const fs::path dir = o.output;
+  return {dir / fmt::format("reconstruction-k{}.exr", k), dir / fmt::format("preview-k{}.png", k),
+          dir / fmt::format("error-k{}.png", k)};
+}
+
+void run_project(const ProjectOptions& o) {
+  std::vector<std::size_t> ks;
+  store::Basis basis;
+  Cube cube;
+  {
+    const store::Store s = store::Store::open(o.store);
+    basis = s.read_basis(o.basis);
+    if (basis.method == "nmf")
+      throw UsageError(s.label() + ": basis " + o.basis + " is an NMF basis; NMF projection is not available yet");
+    if (basis.method != "pca")
+      throw InputError(s.label() + ": basis " + o.basis + " has method '" + basis.method + "'; projection needs a pca basis");
+    if (basis.mean.size() != basis.components.cols())
+      throw InputError(s.label() + ": basis " + o.basis + " has no mean; re-learn it with specula pca");
+    for (long long k : o.ks) {
+      if (k < 1 || std::size_t(k) > basis.k())
+        throw UsageError(fmt::format("-k {}: basis {} has {} components; give k between 1 and {}", k, o.basis, basis.k(),
+                                     basis.k()));
+      ks.push_back(std::size_t(k));
+    }
+    std::sort(ks.begin(), ks.end());
+    ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
+    if (ks.size() > 1 && names_exr(o.output))
+      throw UsageError("-o " + o.output + " names one reconstruction; with several -k give a directory");
+    const store::ImageInfo info = s.image_info(o.image);
+    if (!info.wavelengths.approx_equal(basis.wavelengths))
+      throw InputError(fmt::format("{}: image {} has {}, basis {} has {}; import the image with --wavelengths to match "
+                                   "the basis, or learn a basis on the image's grid",
+                                   s.label(), o.image, info.wavelengths.describe(), o.basis, basis.wavelengths.describe()));
+    if (info.valid_pixels == 0) throw InputError(s.label() + ": image " + o.image + " has no valid pixels");
+    if (!o.into_store.empty()) {
+      const auto images = s.images();
+      for (std::size_t k : ks) {
+        const std::string name = fmt::format("{}-k{}", o.into_store, k);
+        store::validate_name(name, "image");
+        if (std::find(images.begin(), images.end(), name) != images.end())
+          throw UsageError(s.label() + ": image " + name + " already exists; choose another --into-store name");
+      }
+    }
+    cube = s.read_image(o.image);
+  }
+  if (!names_exr(o.output)) {
+    if (fs::exists(o.output) && !fs::is_directory(o.output))
+      throw UsageError("-o " + o.output + ": exists and is not a directory; give a directory or a .exr file");
+    fs::create_directories(o.output);
+  } else if (const fs::path parent = fs::path(o.output).parent_path(); !parent.empty()) {
+    fs::create_directories(parent);
+  }
+
+  const PreviewOptions preview = shared_exposure(cube, o.preview);
+  std::unique_ptr<store::StoreWriter> writer;
+  if (!o.into_store.empty()) writer = std::make_unique<store::StoreWriter>(o.store, store::WriteOptions{{}, false, command_line()});
+  Cube recon;
+  recon.height = cube.height;
+  recon.width = cube.width;
+  recon.bands = cube.bands;
+  recon.mask = cube.mask;
+  recon.wavelengths = cube.wavelengths;
+  recon.fwhm = cube.fwhm;
+  recon.units = cube.units;
+  recon.provenance = {o.store, "pca-project", command_line(), ""};
+
+  std::vector<KResult> results;
+  std::vector<std::string> outputs, store_images;
+  for (std::size_t k : ks) {
+    KResult r = project(cube, basis, k, recon);
+    const OutputPaths p = paths_for(o, k);
+    store::write_spectral_exr(p.reconstruction, recon);
+    r.preview = render(recon, preview).srgb8;
+    store::write_png_rgb8(p.preview, recon.width, recon.height, r.preview);
+    write_error_png(p.error, r.error, cube, r.max_error);
+    for (const fs::path& f : {p.reconstruction, p.preview, p.error}) outputs.push_back(f.string());
+    if (writer) {
+      store_images.push_back(fmt::format("{}-k{}", o.into_store, k));
+      writer->add_image(store_images.back(), recon);
+    }
+    if (ks.size() == 1) r.error.clear();
+    results.push_back(std::move(r));
+  }
+  if (ks.size() > 1) {
+    const fs::path panel = fs::path(o.output) / "panel.png";
+    write_panel(panel, cube, render(cube, preview).srgb8, results);
+    outputs.push_back(panel.string());
+  }
+  if (writer) writer->commit();
+
+  if (o.json) {
+    std::string res, outs, imgs;
+    for (const KResult& r : results)
+      res += fmt::format(R"({}{{"k":{},"rms":{},"max_error":{}}})", res.empty() ? "" : ",", r.k, r.rms, r.max_error);
+    for (const std::string& f : outputs) outs += (outs.empty() ? "" : ",") + json_string(f);
+    for (const std::string& n : store_images) imgs += (imgs.empty() ? "" : ",") + json_string(n);
+    fmt::print(R"({{"image":{},"basis":{},"rms_definition":{},"results":[{}],"outputs":[{}],"store_images":[{}]}})"
+               "\n",
+               json_string(o.image), json_string(o.basis), json_string(kRmsDefinition), res, outs, imgs);
+    return;
+  }
+  for (const KResult& r : results) fmt::print("k={}: rms {:.3g}, max {:.3g} (L2 over bands)\n", r.k, r.rms, r.max_error);
+  for (const std::string& f : outputs) fmt::print("wrote {}\n", f);
+  for (const std::string& n : store_images) fmt::print("added image {} to {}\n", n, o.store);
+}
+
+}  // namespace
+
+void setup_project(CLI::App& app) {
+  auto o = std::make_shared<ProjectOptions>();
+  auto* cmd = app.add_subcommand(
+      "project", "Reconstruct an image from its first k principal components (eqs 7.2-7.3, figure 7.4) with error maps");
+  cmd->add_option("store", o->store, "Store file")->required();
+  cmd->add_option("--basis", o->basis, "PCA basis in the store")->required();
+  cmd->add_option("-k", o->ks, "Components to keep, e.g. 3 or 1,3,6,31 (several also write panel.png)")
+      ->required()
+      ->delimiter(',');
+  cmd->add_option("--image", o->image, "Image in the store, on the basis's wavelength grid")->required();
+  cmd->add_option("-o,--output", o->output,
+                  "Directory for reconstruction-k<K>.exr, preview-k<K>.png, error-k<K>.png (and panel.png); "
+                  "with one k, a .exr file for the reconstruction (previews beside it)")
+      ->required();
+  cmd->add_option("--into-store", o->into_store, "Also add the reconstructions to the store as images NAME-k<K>");
+  cmd->add_flag("--json", o->json, std::string("Print the result as JSON; ") + kRmsDefinition);
+  add_preview_options(cmd, o->preview);
+  cmd->footer(std::string("Errors: ") + kRmsDefinition + "; masked pixels are left out.");
+  cmd->callback([o] { run_project(*o); });
+}
+
+}  // namespace specula::app
