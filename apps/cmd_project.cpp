@@ -37,16 +37,6 @@ struct ProjectOptions {
 
 using Rgb = std::array<std::uint8_t, 3>;
 
-// The ramp of cmd_relight (black-blue-magenta-orange-yellow-white), t in [0, 1].
-Rgb heat(double t) {
-  static const double stops[6][3] = {{0, 0, 0}, {30, 30, 140}, {150, 40, 150}, {240, 100, 40}, {250, 220, 60}, {255, 255, 255}};
-  t = std::clamp(t, 0.0, 1.0) * 5.0;
-  const int i = std::min(4, int(t));
-  const double f = t - i;
-  Rgb c{};
-  for (int k = 0; k < 3; ++k) c[std::size_t(k)] = std::uint8_t(std::lround(stops[i][k] * (1 - f) + stops[i + 1][k] * f));
-  return c;
-}
 
 constexpr Rgb kInk{40, 40, 40}, kMaskedGrey{160, 160, 160};
 

@@ -25,16 +25,6 @@ struct RelightOptions {
   bool json = false;
 };
 
-// A simple perceptual ramp (black-blue-magenta-orange-yellow-white) for difference maps, t in [0, 1].
-std::array<std::uint8_t, 3> heat(double t) {
-  static const double stops[6][3] = {{0, 0, 0}, {30, 30, 140}, {150, 40, 150}, {240, 100, 40}, {250, 220, 60}, {255, 255, 255}};
-  t = std::clamp(t, 0.0, 1.0) * 5.0;
-  const int i = std::min(4, int(t));
-  const double f = t - i;
-  std::array<std::uint8_t, 3> c{};
-  for (int k = 0; k < 3; ++k) c[std::size_t(k)] = std::uint8_t(std::lround(stops[i][k] * (1 - f) + stops[i + 1][k] * f));
-  return c;
-}
 
 void run_relight(const RelightOptions& o) {
   const store::Store s = store::Store::open(o.store);

@@ -134,6 +134,16 @@ Picture render(const Cube& cube, const PreviewOptions& o) {
   return p;
 }
 
+std::array<std::uint8_t, 3> heat(double t) {
+  static const double stops[6][3] = {{0, 0, 0}, {30, 30, 140}, {150, 40, 150}, {240, 100, 40}, {250, 220, 60}, {255, 255, 255}};
+  t = std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0) * 5.0;
+  const int i = std::min(4, int(t));
+  const double f = t - i;
+  std::array<std::uint8_t, 3> c{};
+  for (int k = 0; k < 3; ++k) c[std::size_t(k)] = std::uint8_t(std::lround(stops[i][k] * (1 - f) + stops[i + 1][k] * f));
+  return c;
+}
+
 std::string json_string(std::string_view s) {
   std::string out = "\"";
   for (char c : s) {

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -48,6 +49,9 @@ struct Picture {
 Picture render(const Cube& cube, const PreviewOptions& o);
 /// XYZ rows of a cube's pixels (N x 3) under the preview options' illuminant.
 RowMatrixX3f cube_xyz(const Cube& cube, const Eigen::VectorXd& illuminant, Eigen::Vector3d& white);
+
+/// The error-map colour ramp (black, blue, magenta, orange, yellow, white) at t in [0, 1] (clamped).
+std::array<std::uint8_t, 3> heat(double t);
 
 /// JSON string literal with escapes.
 std::string json_string(std::string_view s);
