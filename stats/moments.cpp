@@ -15,36 +15,38 @@ namespace {
 
 // The moments of one block: its mean and centred Gram, computed in double from float32 or float64 rows.
 // Adds the lower triangle of D D^T to gram, D being `rows` x `len` row-major with rows a multiple of 4:
-// 4 x 4 blocks of dot products over contiguous rows, each block's 16 sums vectorised along the row.
+// 4 x 2 blocks of dot products over contiguous rows (8 vector accumulators and 6 loads fit AVX2's 16
+// registers), each block's sums vectorised along the row. Entries above the diagonal are not meaningful.
 void gram_lower_add(const double* d, std::size_t rows, std::size_t len, double* gram, std::size_t ld) {
   for (std::size_t p = 0; p < rows; p += 4)
-    for (std::size_t q = 0; q <= p; q += 4) {
+    for (std::size_t q = 0; q <= p + 2; q += 2) {
       const double *p0 = d + p * len, *p1 = p0 + len, *p2 = p1 + len, *p3 = p2 + len;
-      const double *q0 = d + q * len, *q1 = q0 + len, *q2 = q1 + len, *q3 = q2 + len;
-      double s00 = 0, s01 = 0, s02 = 0, s03 = 0, s10 = 0, s11 = 0, s12 = 0, s13 = 0;
-      double s20 = 0, s21 = 0, s22 = 0, s23 = 0, s30 = 0, s31 = 0, s32 = 0, s33 = 0;
-#pragma omp simd reduction(+ : s00, s01, s02, s03, s10, s11, s12, s13, s20, s21, s22, s23, s30, s31, s32, s33)
+      const double *q0 = d + q * len, *q1 = q0 + len;
+      double s00 = 0, s01 = 0, s10 = 0, s11 = 0, s20 = 0, s21 = 0, s30 = 0, s31 = 0;
+#pragma omp simd reduction(+ : s00, s01, s10, s11, s20, s21, s30, s31)
       for (std::size_t j = 0; j < len; ++j) {
-        s00 += p0[j] * q0[j]; s01 += p0[j] * q1[j]; s02 += p0[j] * q2[j]; s03 += p0[j] * q3[j];
-        s10 += p1[j] * q0[j]; s11 += p1[j] * q1[j]; s12 += p1[j] * q2[j]; s13 += p1[j] * q3[j];
-        s20 += p2[j] * q0[j]; s21 += p2[j] * q1[j]; s22 += p2[j] * q2[j]; s23 += p2[j] * q3[j];
-        s30 += p3[j] * q0[j]; s31 += p3[j] * q1[j]; s32 += p3[j] * q2[j]; s33 += p3[j] * q3[j];
+        s00 += p0[j] * q0[j]; s01 += p0[j] * q1[j];
+        s10 += p1[j] * q0[j]; s11 += p1[j] * q1[j];
+        s20 += p2[j] * q0[j]; s21 += p2[j] * q1[j];
+        s30 += p3[j] * q0[j]; s31 += p3[j] * q1[j];
       }
-      const double s[4][4] = {{s00, s01, s02, s03}, {s10, s11, s12, s13}, {s20, s21, s22, s23}, {s30, s31, s32, s33}};
-      for (std::size_t a = 0; a < 4; ++a)
-        for (std::size_t c = 0; c < 4; ++c) gram[(p + a) * ld + q + c] += s[a][c];
+      double* g = gram + p * ld + q;
+      g[0] += s00; g[1] += s01;
+      g[ld] += s10; g[ld + 1] += s11;
+      g[2 * ld] += s20; g[2 * ld + 1] += s21;
+      g[3 * ld] += s30; g[3 * ld + 1] += s31;
     }
 }
 
 // The moments of one block in one pass: deviations d = x - x0 from the block's first spectrum (the
 // shifted-data algorithm; x0 lies within the data's spread, so sum(d d^T) - sum(d) sum(d)^T / n does not
-// cancel badly), accumulated over tiles of spectra small enough to stay in cache.
+// cancel badly), accumulated over 64-spectrum tiles (16 KB: they stay in L1).
 template <class Block>
 Moments block_moments(const Block& x, std::size_t bands) {
   Moments m(bands);
   if (x.rows() == 0) return m;
   const std::size_t b = bands, bp = (bands + 3) / 4 * 4;
-  constexpr std::size_t kTile = 256;
+  constexpr std::size_t kTile = 64;
   thread_local std::vector<double> tile, shift;
   tile.assign(bp * kTile, 0.0);  // padding rows stay zero
   shift.assign(b, 0.0);
