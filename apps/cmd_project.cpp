@@ -182,13 +182,9 @@ PreviewOptions shared_exposure(const Cube& cube, PreviewOptions o) {
   if (o.exposure != "auto" || cube.units == "reflectance") return o;
   Eigen::Vector3d white;
   const RowMatrixX3f xyz = cube_xyz(cube, load_illuminant(o.illuminant, cube.wavelengths), white);
-  std::vector<float> y;
-  for (Eigen::Index i = 0; i < xyz.rows(); ++i)
-    if (cube.valid(std::size_t(i) / cube.width, std::size_t(i) % cube.width)) y.push_back(xyz(i, 1));
-  if (y.empty()) return o;
-  auto k = y.begin() + std::ptrdiff_t(double(y.size() - 1) * 0.99);
-  std::nth_element(y.begin(), k, y.end());
-  if (*k > 0) o.exposure = fmt::format("{}", -std::log2(double(*k)));
+  std::vector<float> y = valid_luminance(xyz, cube);
+  const double y99 = quantile(y, 0.99);
+  if (y99 > 0) o.exposure = fmt::format("{}", -std::log2(y99));
   return o;
 }
 

@@ -50,16 +50,11 @@ void run_relight(const RelightOptions& o) {
   if (!reflectance) {
     // Radiance has no absolute scale: call the 99th-percentile luminance under the old light white (Y = 1),
     // so the colour differences below do not depend on the data's units.
-    std::vector<float> y;
-    for (Eigen::Index i = 0; i < n; ++i)
-      if (cube.valid(std::size_t(i) / cube.width, std::size_t(i) % cube.width)) y.push_back(xyz_orig(i, 1));
-    if (!y.empty()) {
-      auto k = y.begin() + std::ptrdiff_t(double(y.size() - 1) * 0.99);
-      std::nth_element(y.begin(), k, y.end());
-      if (*k > 0) {
-        f /= *k;
-        xyz_orig /= *k;
-      }
+    std::vector<float> y = valid_luminance(xyz_orig, cube);
+    const double white = quantile(y, 0.99);
+    if (white > 0) {
+      f /= float(white);
+      xyz_orig /= float(white);
     }
   }
   under_to.apply(f, xyz_spec);
@@ -103,14 +98,12 @@ void run_relight(const RelightOptions& o) {
   d.tone = o.preview.tone == "reinhard" ? ToneMap::reinhard : ToneMap::clip;
   d.desaturate = !o.preview.no_desaturate;
   d.adapt_to_d65 = !o.preview.no_adapt;
-  if (o.preview.exposure == "auto") {
-    std::vector<float> y;
-    for (Eigen::Index i = 0; i < n; ++i) y.push_back(std::max(xyz_orig(i, 1), xyz_spec(i, 1)));
-    auto k = y.begin() + std::ptrdiff_t(double(y.size() - 1) * 0.99);
-    std::nth_element(y.begin(), k, y.end());
-    d.exposure_stops = *k > 0 ? -std::log2(double(*k)) : 0.0;
+  if (const auto stops = parse_exposure(o.preview.exposure)) {
+    d.exposure_stops = *stops;
   } else {
-    d.exposure_stops = std::stod(o.preview.exposure);
+    std::vector<float> y = valid_luminance(xyz_orig.cwiseMax(xyz_spec), cube);
+    const double white = quantile(y, 0.99);
+    d.exposure_stops = white > 0 ? -std::log2(white) : 0.0;
   }
   const std::size_t w = cube.width, h = cube.height, gap = 4, panels = 4;
   const std::size_t pw = panels * w + (panels - 1) * gap;

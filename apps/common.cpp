@@ -102,20 +102,12 @@ Picture render(const Cube& cube, const PreviewOptions& o) {
   d.tone = o.tone == "reinhard" ? ToneMap::reinhard : ToneMap::clip;
   d.desaturate = !o.no_desaturate;
   d.adapt_to_d65 = !o.no_adapt;
-  if (o.exposure == "auto") {
-    d.exposure_stops = 0;
-    if (cube.units != "reflectance") {
-      std::vector<float> y;
-      for (Eigen::Index i = 0; i < xyz.rows(); ++i)
-        if (cube.valid(std::size_t(i) / cube.width, std::size_t(i) % cube.width)) y.push_back(xyz(i, 1));
-      if (!y.empty()) {
-        auto k = y.begin() + std::ptrdiff_t(double(y.size() - 1) * 0.99);
-        std::nth_element(y.begin(), k, y.end());
-        if (*k > 0) d.exposure_stops = -std::log2(double(*k));
-      }
-    }
-  } else if (!parse_double(o.exposure, d.exposure_stops) || std::abs(d.exposure_stops) > 64) {
-    throw UsageError("--exposure '" + o.exposure + "': give stops between -64 and 64, or auto");
+  if (const auto stops = parse_exposure(o.exposure)) {
+    d.exposure_stops = *stops;
+  } else if (cube.units != "reflectance") {
+    std::vector<float> y = valid_luminance(xyz, cube);
+    const double white = quantile(y, 0.99);
+    if (white > 0) d.exposure_stops = -std::log2(white);
   }
   Picture p;
   p.width = cube.width;
@@ -132,6 +124,29 @@ Picture render(const Cube& cube, const PreviewOptions& o) {
         p.srgb8[3 * i + 2] = std::uint8_t(p.srgb8[3 * i + 2] / 4);
       }
   return p;
+}
+
+std::vector<float> valid_luminance(const Eigen::Ref<const RowMatrixX3f>& xyz, const Cube& cube) {
+  std::vector<float> y;
+  y.reserve(std::size_t(xyz.rows()));
+  for (Eigen::Index i = 0; i < xyz.rows(); ++i)
+    if (cube.valid(std::size_t(i) / cube.width, std::size_t(i) % cube.width)) y.push_back(xyz(i, 1));
+  return y;
+}
+
+double quantile(std::vector<float>& values, double q) {
+  if (values.empty()) return 0.0;
+  const auto k = values.begin() + std::ptrdiff_t(double(values.size() - 1) * std::clamp(q, 0.0, 1.0));
+  std::nth_element(values.begin(), k, values.end());
+  return double(*k);
+}
+
+std::optional<double> parse_exposure(const std::string& spec) {
+  if (spec == "auto") return std::nullopt;
+  double v = 0;
+  if (!parse_double(spec, v) || !(std::abs(v) <= 64))
+    throw UsageError("--exposure '" + spec + "': give stops between -64 and 64, or auto");
+  return v;
 }
 
 std::array<std::uint8_t, 3> heat(double t) {

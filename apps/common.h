@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -52,6 +53,13 @@ RowMatrixX3f cube_xyz(const Cube& cube, const Eigen::VectorXd& illuminant, Eigen
 
 /// The error-map colour ramp (black, blue, magenta, orange, yellow, white) at t in [0, 1] (clamped).
 std::array<std::uint8_t, 3> heat(double t);
+
+/// Y (column 1) of xyz, one row per pixel of `cube`, at the cube's valid pixels.
+std::vector<float> valid_luminance(const Eigen::Ref<const RowMatrixX3f>& xyz, const Cube& cube);
+/// The q-quantile (0 <= q <= 1) of values, or 0 when there are none; reorders values.
+double quantile(std::vector<float>& values, double q);
+/// Parses --exposure: stops between -64 and 64, or std::nullopt for "auto"; throws UsageError otherwise.
+std::optional<double> parse_exposure(const std::string& spec);
 
 /// JSON string literal with escapes.
 std::string json_string(std::string_view s);

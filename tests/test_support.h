@@ -7,6 +7,8 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+
+#include "core/error.h"
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -46,6 +48,17 @@ class ScratchDir {
  private:
   std::filesystem::path path_;
 };
+
+/// The what() of the specula::InputError that f() throws, or "no InputError".
+template <class F>
+std::string input_error_text(F&& f) {
+  try {
+    f();
+  } catch (const specula::InputError& e) {
+    return e.what();
+  }
+  return "no InputError";
+}
 
 /// Whole file as bytes.
 inline std::string read_bytes(const std::filesystem::path& p) {

@@ -74,3 +74,20 @@ TEST(RelightCli, RadianceResultDoesNotDependOnTheDataScale) {
   EXPECT_NEAR(mean_de(a.output), mean_de(b.output), 1e-4);
   EXPECT_EQ(test::read_bytes(dir / "a.png"), test::read_bytes(dir / "b.png"));
 }
+
+TEST(RelightCli, BadExposureIsOneLineAndWritesNothing) {
+  test::ScratchDir dir;
+  auto path = dir / "db.h5";
+  {
+    store::StoreWriter w(path, {});
+    w.add_image("grey", cube_of(std::vector<float>(31, 0.4f), "reflectance"));
+    w.commit();
+  }
+  for (const char* bad : {"abc", "100", "nan"}) {
+    auto r = run_specula("relight '" + path.string() + "' grey --exposure " + bad + " -o '" + (dir / "x.png").string() + "'");
+    EXPECT_EQ(r.status, 1) << bad << ": " << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_NE(r.output.find("--exposure"), std::string::npos) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
+  }
+}

@@ -210,15 +210,6 @@ void write_file(const fs::path& path, const std::string& bytes) {
   std::ofstream(path, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
 }
 
-template <class F>
-std::string error_text(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "no InputError";
-}
 
 Cube random_cube(std::size_t h, std::size_t w, std::vector<double> nm, const std::string& units, unsigned seed) {
   Cube c;
@@ -381,12 +372,12 @@ TEST(ExrRead, ChannelNameParsing) {
 TEST(ExrRead, RejectsDuplicateWavelengthsAndNonSpectralFiles) {
   ScratchDir dir;
   write_file(dir / "dup.exr", make_exr(0, 0, 1, 1, {{"T.500nm", kFloat, {1}}, {"T.500,0nm", kFloat, {2}}}));
-  std::string what = error_text([&] { read_spectral_exr(dir / "dup.exr"); });
+  std::string what = specula::test::input_error_text([&] { read_spectral_exr(dir / "dup.exr"); });
   EXPECT_NE(what.find("dup.exr"), std::string::npos) << what;
   EXPECT_NE(what.find("T.500nm"), std::string::npos) << what;
 
   write_file(dir / "rgb.exr", make_exr(0, 0, 1, 1, {{"R", kHalf, {1}}, {"G", kHalf, {1}}, {"B", kHalf, {1}}}));
-  what = error_text([&] { read_spectral_exr(dir / "rgb.exr"); });
+  what = specula::test::input_error_text([&] { read_spectral_exr(dir / "rgb.exr"); });
   EXPECT_NE(what.find("rgb.exr"), std::string::npos) << what;
   EXPECT_NE(what.find("no spectral channels"), std::string::npos) << what;
 }
@@ -396,14 +387,14 @@ TEST(ExrRead, TruncatedOrCorruptFileNamesTheFile) {
   write_spectral_exr(dir / "full.exr", random_cube(64, 48, {400, 450, 500, 550, 600, 650}, "reflectance", 4));
   const std::string bytes = specula::test::read_bytes(dir / "full.exr");
   write_file(dir / "half.exr", bytes.substr(0, bytes.size() / 2));
-  std::string what = error_text([&] { read_spectral_exr(dir / "half.exr"); });
+  std::string what = specula::test::input_error_text([&] { read_spectral_exr(dir / "half.exr"); });
   EXPECT_NE(what.find((dir / "half.exr").string()), std::string::npos) << what;
   EXPECT_EQ(what.find('\n'), std::string::npos) << what;
 
   write_file(dir / "header.exr", bytes.substr(0, 200));
-  EXPECT_NE(error_text([&] { read_spectral_exr(dir / "header.exr"); }).find("header.exr"), std::string::npos);
+  EXPECT_NE(specula::test::input_error_text([&] { read_spectral_exr(dir / "header.exr"); }).find("header.exr"), std::string::npos);
   write_file(dir / "junk.exr", std::string(1000, 'x'));
-  EXPECT_NE(error_text([&] { read_spectral_exr(dir / "junk.exr"); }).find("junk.exr"), std::string::npos);
+  EXPECT_NE(specula::test::input_error_text([&] { read_spectral_exr(dir / "junk.exr"); }).find("junk.exr"), std::string::npos);
   EXPECT_THROW(read_spectral_exr(dir / "missing.exr"), InputError);
 }
 

@@ -101,15 +101,6 @@ std::string gray8_scanlines(std::size_t width, const std::vector<std::uint8_t>& 
   return s;
 }
 
-template <class F>
-std::string error_text(F&& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "no InputError";
-}
 
 TEST(PngRead, HandMade16BitGrayIsBigEndianOnDisk) {
   ScratchDir dir;
@@ -203,7 +194,7 @@ TEST(PngRead, TruncatedFileNamesTheFile) {
   const std::string bytes = specula::test::read_bytes(dir / "full.png");
   ASSERT_GT(bytes.size(), 3 * w * h / 2);
   write_file(dir / "half.png", bytes.substr(0, bytes.size() / 2));
-  const std::string what = error_text([&] { read_png(dir / "half.png"); });
+  const std::string what = specula::test::input_error_text([&] { read_png(dir / "half.png"); });
   EXPECT_NE(what.find((dir / "half.png").string()), std::string::npos) << what;
   EXPECT_NE(what.find("truncated"), std::string::npos) << what;
   EXPECT_EQ(what.find('\n'), std::string::npos);
@@ -218,20 +209,20 @@ TEST(PngRead, CorruptHeaderAndSignature) {
   std::string bad_crc = png;
   bad_crc[8 + 8 + 3] = 9;  // width byte inside IHDR, so the chunk CRC no longer matches
   write_file(dir / "crc.png", bad_crc);
-  std::string what = error_text([&] { read_png(dir / "crc.png"); });
+  std::string what = specula::test::input_error_text([&] { read_png(dir / "crc.png"); });
   EXPECT_NE(what.find((dir / "crc.png").string()), std::string::npos) << what;
   EXPECT_NE(what.find("CRC"), std::string::npos) << what;
 
   std::string bad_sig = png;
   bad_sig[1] = 'Q';
   write_file(dir / "sig.png", bad_sig);
-  what = error_text([&] { read_png(dir / "sig.png"); });
+  what = specula::test::input_error_text([&] { read_png(dir / "sig.png"); });
   EXPECT_NE(what.find((dir / "sig.png").string()), std::string::npos) << what;
 
   // a valid header claiming 100000 x 100000 pixels in a tiny file is rejected before any allocation
   std::string huge = make_png(100000, 100000, 16, 0, gray16_scanlines(3, {1, 2, 3}));
   write_file(dir / "huge.png", huge);
-  what = error_text([&] { read_png(dir / "huge.png"); });
+  what = specula::test::input_error_text([&] { read_png(dir / "huge.png"); });
   EXPECT_NE(what.find("huge.png"), std::string::npos) << what;
 
   write_file(dir / "empty.png", "");
@@ -289,11 +280,11 @@ TEST(PngStack, CountMismatchTellsToPassWavelengths) {
   ScratchDir dir;
   for (int k = 1; k <= 3; ++k)
     write_png_gray16(dir / ("s_0" + std::to_string(k) + ".png"), 2, 2, std::vector<std::uint16_t>(4, 9));
-  const std::string what = error_text([&] { read_png_stack({dir.path()}, WavelengthGrid({400, 500})); });
+  const std::string what = specula::test::input_error_text([&] { read_png_stack({dir.path()}, WavelengthGrid({400, 500})); });
   EXPECT_NE(what.find("3 PNG files"), std::string::npos) << what;
   EXPECT_NE(what.find("2 wavelengths"), std::string::npos) << what;
   EXPECT_NE(what.find("--wavelengths"), std::string::npos) << what;
-  EXPECT_NE(error_text([&] { read_png_stack({dir.path()}, WavelengthGrid()); }).find("--wavelengths"),
+  EXPECT_NE(specula::test::input_error_text([&] { read_png_stack({dir.path()}, WavelengthGrid()); }).find("--wavelengths"),
             std::string::npos);
 
   fs::create_directory(dir / "empty");
@@ -306,19 +297,19 @@ TEST(PngStack, RejectsColourBandsSizeMismatchAndCorruptBands) {
   std::vector<std::uint8_t> rgb(12, 50);
   rgb[3 * 3 + 1] = 51;  // pixel (1, 1): G differs from R
   write_png_rgb8(dir / "colour.png", 2, 2, rgb);
-  std::string what = error_text([&] {
+  std::string what = specula::test::input_error_text([&] {
     read_png_stack({dir / "a.png", dir / "colour.png"}, WavelengthGrid({400, 500}));
   });
   EXPECT_NE(what.find("colour.png"), std::string::npos) << what;
   EXPECT_NE(what.find("(1, 1)"), std::string::npos) << what;
 
   write_png_gray16(dir / "big.png", 3, 2, std::vector<std::uint16_t>(6, 1));
-  what = error_text([&] { read_png_stack({dir / "a.png", dir / "big.png"}, WavelengthGrid({400, 500})); });
+  what = specula::test::input_error_text([&] { read_png_stack({dir / "a.png", dir / "big.png"}, WavelengthGrid({400, 500})); });
   EXPECT_NE(what.find("big.png"), std::string::npos) << what;
 
   const std::string bytes = specula::test::read_bytes(dir / "big.png");
   write_file(dir / "cut.png", bytes.substr(0, bytes.size() / 2));
-  what = error_text([&] { read_png_stack({dir / "a.png", dir / "cut.png"}, WavelengthGrid({400, 500})); });
+  what = specula::test::input_error_text([&] { read_png_stack({dir / "a.png", dir / "cut.png"}, WavelengthGrid({400, 500})); });
   EXPECT_NE(what.find("cut.png"), std::string::npos) << what;
 }
 
