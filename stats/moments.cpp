@@ -1,7 +1,9 @@
 #include "stats/moments.h"
 
+#include <immintrin.h>
 #include <omp.h>
 
+#include <cstring>
 #include <exception>
 #include <mutex>
 #include <optional>
@@ -13,68 +15,92 @@
 namespace specula::stats {
 namespace {
 
-// The moments of one block: its mean and centred Gram, computed in double from float32 or float64 rows.
-// Adds the lower triangle of D D^T to gram, D being `rows` x `len` row-major with rows a multiple of 4:
-// 4 x 2 blocks of dot products over contiguous rows (8 vector accumulators and 6 loads fit AVX2's 16
-// registers), each block's sums vectorised along the row. Entries above the diagonal are not meaningful.
-void gram_lower_add(const double* d, std::size_t rows, std::size_t len, double* gram, std::size_t ld) {
-  for (std::size_t p = 0; p < rows; p += 4)
-    for (std::size_t q = 0; q <= p + 2; q += 2) {
-      const double *p0 = d + p * len, *p1 = p0 + len, *p2 = p1 + len, *p3 = p2 + len;
-      const double *q0 = d + q * len, *q1 = q0 + len;
-      double s00 = 0, s01 = 0, s10 = 0, s11 = 0, s20 = 0, s21 = 0, s30 = 0, s31 = 0;
-#pragma omp simd reduction(+ : s00, s01, s10, s11, s20, s21, s30, s31)
-      for (std::size_t j = 0; j < len; ++j) {
-        s00 += p0[j] * q0[j]; s01 += p0[j] * q1[j];
-        s10 += p1[j] * q0[j]; s11 += p1[j] * q1[j];
-        s20 += p2[j] * q0[j]; s21 += p2[j] * q1[j];
-        s30 += p3[j] * q0[j]; s31 += p3[j] * q1[j];
-      }
-      double* g = gram + p * ld + q;
-      g[0] += s00; g[1] += s01;
-      g[ld] += s10; g[ld + 1] += s11;
-      g[2 * ld] += s20; g[2 * ld + 1] += s21;
-      g[3 * ld] += s30; g[3 * ld + 1] += s31;
-    }
-}
-
 // The moments of one block in one pass: deviations d = x - x0 from the block's first spectrum (the
 // shifted-data algorithm; x0 lies within the data's spread, so sum(d d^T) - sum(d) sum(d)^T / n does not
-// cancel badly), accumulated over 64-spectrum tiles (16 KB: they stay in L1).
-template <class Block>
-Moments block_moments(const Block& x, std::size_t bands) {
+// cancel badly). Spectra are converted to double in tiles of kTile rows of `ld` doubles (bands, then a
+// constant 1 whose Gram row is sum(d), then zero padding to a multiple of 8), small enough for L1.
+// The lower triangle of the tile's Gram is a sum of rank-1 updates computed in 4 x 8 register blocks:
+// per spectrum 2 vector loads and 4 broadcasts feed 8 FMAs, so the kernel is bound by FMA throughput
+// (a portable version for builds without AVX2 and FMA).
+constexpr std::size_t kTile = 64;
+
+#if defined(__AVX2__) && defined(__FMA__)
+void gram_tile_add(const double* tile, std::size_t n, std::size_t ld, double* gram) {
+  for (std::size_t i0 = 0; i0 < ld; i0 += 4)
+    for (std::size_t j0 = 0; j0 <= i0; j0 += 8) {
+      __m256d a00 = _mm256_setzero_pd(), a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00, a31 = a00;
+      const double* x = tile;
+      for (std::size_t t = 0; t < n; ++t, x += ld) {
+        const __m256d c0 = _mm256_loadu_pd(x + j0), c1 = _mm256_loadu_pd(x + j0 + 4);
+        __m256d b = _mm256_broadcast_sd(x + i0);
+        a00 = _mm256_fmadd_pd(b, c0, a00); a01 = _mm256_fmadd_pd(b, c1, a01);
+        b = _mm256_broadcast_sd(x + i0 + 1);
+        a10 = _mm256_fmadd_pd(b, c0, a10); a11 = _mm256_fmadd_pd(b, c1, a11);
+        b = _mm256_broadcast_sd(x + i0 + 2);
+        a20 = _mm256_fmadd_pd(b, c0, a20); a21 = _mm256_fmadd_pd(b, c1, a21);
+        b = _mm256_broadcast_sd(x + i0 + 3);
+        a30 = _mm256_fmadd_pd(b, c0, a30); a31 = _mm256_fmadd_pd(b, c1, a31);
+      }
+      double* g = gram + i0 * ld + j0;
+      const __m256d acc[4][2] = {{a00, a01}, {a10, a11}, {a20, a21}, {a30, a31}};
+      for (std::size_t r = 0; r < 4; ++r, g += ld) {
+        _mm256_storeu_pd(g, _mm256_add_pd(_mm256_loadu_pd(g), acc[r][0]));
+        _mm256_storeu_pd(g + 4, _mm256_add_pd(_mm256_loadu_pd(g + 4), acc[r][1]));
+      }
+    }
+}
+#else
+void gram_tile_add(const double* tile, std::size_t n, std::size_t ld, double* gram) {
+  for (std::size_t i0 = 0; i0 < ld; i0 += 4)
+    for (std::size_t j0 = 0; j0 <= i0; j0 += 8) {
+      double acc[4][8] = {};
+      const double* x = tile;
+      for (std::size_t t = 0; t < n; ++t, x += ld)
+        for (std::size_t r = 0; r < 4; ++r)
+#pragma omp simd
+          for (std::size_t l = 0; l < 8; ++l) acc[r][l] += x[i0 + r] * x[j0 + l];
+      for (std::size_t r = 0; r < 4; ++r)
+        for (std::size_t l = 0; l < 8; ++l) gram[(i0 + r) * ld + j0 + l] += acc[r][l];
+    }
+}
+#endif
+
+// `rows_in` rows of `bands` values, `stride` apart; rows whose mask entry is zero are skipped (no mask: all).
+template <class T>
+Moments block_moments(const T* x, std::size_t stride, std::size_t rows_in, const std::uint8_t* mask, std::size_t bands) {
   Moments m(bands);
-  if (x.rows() == 0) return m;
-  const std::size_t b = bands, bp = (bands + 3) / 4 * 4;
-  constexpr std::size_t kTile = 64;
-  thread_local std::vector<double> tile, shift;
-  tile.assign(bp * kTile, 0.0);  // padding rows stay zero
-  shift.assign(b, 0.0);
-  for (std::size_t k = 0; k < b; ++k) shift[k] = double(x(0, Eigen::Index(k)));
-  std::vector<double> gram(bp * bp, 0.0);
-  Eigen::VectorXd sum = Eigen::VectorXd::Zero(Eigen::Index(b));
-  const std::size_t rows = std::size_t(x.rows());
-  for (std::size_t r0 = 0; r0 < rows; r0 += kTile) {
-    const std::size_t n = std::min(kTile, rows - r0);
-    // Transpose the tile into band rows (zero beyond n so a short last tile adds nothing).
-    for (std::size_t i = 0; i < n; ++i) {
-      const auto row = x.row(Eigen::Index(r0 + i));
-      for (std::size_t k = 0; k < b; ++k) tile[k * kTile + i] = double(row(Eigen::Index(k))) - shift[k];
+  const std::size_t b = bands, ld = (bands + 1 + 7) / 8 * 8;
+  std::size_t first = 0;
+  while (first < rows_in && mask && !mask[first]) ++first;
+  if (first == rows_in) return m;
+  thread_local std::vector<double> tile, shift, gram;
+  tile.assign(ld * kTile, 0.0);
+  gram.assign(ld * ld, 0.0);
+  shift.assign(ld, 0.0);
+  for (std::size_t k = 0; k < b; ++k) shift[k] = double(x[first * stride + k]);
+  for (std::size_t i = 0; i < kTile; ++i) tile[i * ld + b] = 1.0;
+  std::size_t rows = 0, fill = 0;
+  for (std::size_t r = first; r < rows_in; ++r) {
+    if (mask && !mask[r]) continue;
+    const T* row = x + r * stride;
+    double* t = tile.data() + fill * ld;
+#pragma omp simd
+    for (std::size_t k = 0; k < b; ++k) t[k] = double(row[k]) - shift[k];
+    if (++fill == kTile) {
+      gram_tile_add(tile.data(), fill, ld, gram.data());
+      rows += fill;
+      fill = 0;
     }
-    if (n < kTile)
-      for (std::size_t k = 0; k < b; ++k) std::fill(tile.begin() + std::ptrdiff_t(k * kTile + n), tile.begin() + std::ptrdiff_t((k + 1) * kTile), 0.0);
-    for (std::size_t k = 0; k < b; ++k) {
-      double s = 0;
-      for (std::size_t i = 0; i < n; ++i) s += tile[k * kTile + i];
-      sum[Eigen::Index(k)] += s;
-    }
-    gram_lower_add(tile.data(), bp, kTile, gram.data(), bp);
   }
+  if (fill) gram_tile_add(tile.data(), fill, ld, gram.data());
+  rows += fill;
   const double n = double(rows);
+  Eigen::VectorXd sum{Eigen::Index(b)};
+  for (std::size_t k = 0; k < b; ++k) sum[Eigen::Index(k)] = gram[b * ld + k];
   Eigen::MatrixXd scatter{Eigen::Index(b), Eigen::Index(b)};
   for (std::size_t p = 0; p < b; ++p)
     for (std::size_t q = 0; q <= p; ++q) {
-      const double v = gram[p * bp + q] - sum[Eigen::Index(p)] * sum[Eigen::Index(q)] / n;
+      const double v = gram[p * ld + q] - sum[Eigen::Index(p)] * sum[Eigen::Index(q)] / n;
       scatter(Eigen::Index(p), Eigen::Index(q)) = v;
       scatter(Eigen::Index(q), Eigen::Index(p)) = v;
     }
@@ -93,7 +119,8 @@ void Moments::add(const Eigen::Ref<const RowMatrixXd>& block) {
   if (std::size_t(block.cols()) != bands())
     throw UsageError("Moments::add: block has " + std::to_string(block.cols()) + " bands, statistics have " +
                      std::to_string(bands()));
-  merge(block_moments(block, bands()));
+  if (block.rows() > 0)
+    merge(block_moments(block.data(), std::size_t(block.outerStride()), std::size_t(block.rows()), nullptr, bands()));
 }
 
 void Moments::merge(const Moments& other) { merge_raw(other.n_, other.mean_, other.scatter_); }
@@ -153,14 +180,15 @@ Moments stream_moments(const store::BlockReader& reader) {
     std::mutex error_mutex;
 #pragma omp parallel
     {
-      RowMatrixXf buffer;
+      store::BlockReader::RawBlock raw;
 #pragma omp for schedule(dynamic, 1)
       for (long long j = 0; j < static_cast<long long>(n); ++j) {
         try {
           check_interrupt();
-          reader.read(first + std::size_t(j), buffer);
-          part[std::size_t(j)] = block_moments(buffer, bands);
-          progress.advance(std::uint64_t(buffer.rows()));
+          reader.read_raw(first + std::size_t(j), raw);
+          part[std::size_t(j)] = block_moments(raw.values.data(), bands, raw.pixels,
+                                               raw.mask.empty() ? nullptr : raw.mask.data(), bands);
+          progress.advance(std::uint64_t(raw.valid));
         } catch (...) {
           std::lock_guard lock(error_mutex);
           if (!error) error = std::current_exception();

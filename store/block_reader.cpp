@@ -7,6 +7,7 @@
 
 #include <cstring>
 #include <memory>
+#include <type_traits>
 
 #include "core/error.h"
 
@@ -98,6 +99,17 @@ void BlockReader::map_chunks(SourceData& sd, std::size_t rows) const {
   sd.direct = true;
 }
 
+void BlockReader::pread_all(unsigned char* dst, std::size_t size, std::uint64_t address) const {
+  std::size_t got = 0;
+  while (got < size) {
+    const ssize_t n = ::pread(fd_, dst + got, size - got, off_t(address + got));
+    if (n <= 0)
+      throw LibraryError(store_.label() + ": cannot read chunk at byte " + std::to_string(address) +
+                         (n < 0 ? std::string(": ") + std::strerror(errno) : std::string(": file is truncated")));
+    got += std::size_t(n);
+  }
+}
+
 void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size_t rows, float* out) const {
   const std::size_t b = bands();
   const std::size_t chunk_values = src.chunk_rows * src.chunk_cols * b;
@@ -109,6 +121,12 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
       const ChunkRef& ref = src.chunks[r * src.col_chunks + c];
       const std::size_t x0 = c * src.chunk_cols;
       const std::size_t nx = std::min(src.chunk_cols, src.width - x0);
+      if (ref.size == chunk_values * sizeof(float) && !src.deflate && !src.shuffle && src.chunk_cols == src.width) {
+        // Plain whole-row chunk: its first ny rows go straight into the block, without a staging copy.
+        pread_all(reinterpret_cast<unsigned char*>(out + (y0 - row0) * src.width * b), ny * src.width * b * sizeof(float),
+                  ref.address);
+        continue;
+      }
       const float* values = nullptr;
       plain.resize(chunk_values * sizeof(float));
       if (ref.size == 0) {
@@ -116,14 +134,7 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
         values = reinterpret_cast<const float*>(plain.data());
       } else {
         packed.resize(ref.size);
-        std::size_t got = 0;
-        while (got < ref.size) {
-          const ssize_t n = ::pread(fd_, packed.data() + got, ref.size - got, off_t(ref.address + got));
-          if (n <= 0)
-            throw LibraryError(store_.label() + ": cannot read chunk at byte " + std::to_string(ref.address) +
-                               (n < 0 ? std::string(": ") + std::strerror(errno) : std::string(": file is truncated")));
-          got += std::size_t(n);
-        }
+        pread_all(packed.data(), ref.size, ref.address);
         const unsigned char* data = packed.data();
         std::size_t size = ref.size;
         const bool deflated = src.deflate && !(ref.filter_mask & (1u << (src.shuffle ? 1 : 0)));
@@ -216,50 +227,64 @@ BlockReader::BlockReader(const Store& store, const Selection& selection, std::si
   }
 }
 
-template <class T>
-void BlockReader::read_block(std::size_t i, Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& out) const {
+void BlockReader::read_raw(std::size_t i, RawBlock& out) const {
   const Block& blk = blocks_.at(i);
   const SourceData& src = sources_[blk.source];
   const std::string ctx = store_.label() + ": " + names_[blk.source];
   const std::size_t b = bands();
   const std::size_t px = blk.rows * src.width;
   const bool image = src.mask.valid();
-
-  thread_local std::vector<float> raw;
-  thread_local std::vector<std::uint8_t> mask;
-  raw.resize(px * b);
+  out.pixels = px;
+  out.values.resize(px * b);
   const hsize_t start[3] = {blk.row0, 0, 0};
   const hsize_t count3[3] = {blk.rows, src.width, b};
   const hsize_t count2[2] = {blk.rows, b};
-  const int rank = image ? 3 : 2;
-  const hsize_t* count = image ? count3 : count2;
   if (src.direct) {
-    read_direct(src, blk.row0, blk.rows, raw.data());
+    read_direct(src, blk.row0, blk.rows, out.values.data());
   } else {
+    const int rank = image ? 3 : 2;
+    const hsize_t* count = image ? count3 : count2;
     h5::Id fspace(h5::check(H5Dget_space(src.cube), ctx, "H5Dget_space"));
     h5::check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start, nullptr, count, nullptr), ctx, "H5Sselect_hyperslab");
     h5::Id mspace(h5::check(H5Screate_simple(rank, count, nullptr), ctx, "H5Screate_simple"));
-    h5::check(H5Dread(src.cube, H5T_NATIVE_FLOAT, mspace, fspace, H5P_DEFAULT, raw.data()), ctx, "cannot read spectra");
+    h5::check(H5Dread(src.cube, H5T_NATIVE_FLOAT, mspace, fspace, H5P_DEFAULT, out.values.data()), ctx,
+              "cannot read spectra");
   }
-  std::size_t valid = px;
-  if (image) {
-    mask.resize(px);
-    h5::Id fspace(h5::check(H5Dget_space(src.mask), ctx, "H5Dget_space"));
-    h5::check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start, nullptr, count3, nullptr), ctx, "H5Sselect_hyperslab");
-    h5::Id mspace(h5::check(H5Screate_simple(2, count3, nullptr), ctx, "H5Screate_simple"));
-    h5::check(H5Dread(src.mask, H5T_NATIVE_UINT8, mspace, fspace, H5P_DEFAULT, mask.data()), ctx, "cannot read mask");
-    valid = 0;
-    for (std::size_t p = 0; p < px; ++p) valid += mask[p] != 0;
-  }
-  out.resize(Eigen::Index(valid), Eigen::Index(b));
-  if (valid == px) {
-    out = Eigen::Map<const RowMatrixXf>(raw.data(), Eigen::Index(px), Eigen::Index(b)).template cast<T>();
-    return;
-  }
-  Eigen::Index r = 0;
-  for (std::size_t p = 0; p < px; ++p) {
-    if (!mask[p]) continue;
-    out.row(r++) = Eigen::Map<const Eigen::Matrix<float, 1, Eigen::Dynamic>>(raw.data() + p * b, Eigen::Index(b)).template cast<T>();
+  out.valid = px;
+  out.mask.clear();
+  if (!image) return;
+  out.mask.resize(px);
+  h5::Id fspace(h5::check(H5Dget_space(src.mask), ctx, "H5Dget_space"));
+  h5::check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start, nullptr, count3, nullptr), ctx, "H5Sselect_hyperslab");
+  h5::Id mspace(h5::check(H5Screate_simple(2, count3, nullptr), ctx, "H5Screate_simple"));
+  h5::check(H5Dread(src.mask, H5T_NATIVE_UINT8, mspace, fspace, H5P_DEFAULT, out.mask.data()), ctx, "cannot read mask");
+  std::size_t valid = 0;
+  for (std::size_t p = 0; p < px; ++p) valid += out.mask[p] != 0;
+  out.valid = valid;
+  if (valid == px) out.mask.clear();
+}
+
+template <class T>
+void BlockReader::read_block(std::size_t i, Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& out) const {
+  thread_local RawBlock raw;
+  read_raw(i, raw);
+  const std::size_t b = bands();
+  out.resize(Eigen::Index(raw.valid), Eigen::Index(b));
+  T* dst = out.data();
+  // Copies runs of consecutive valid pixels at once.
+  for (std::size_t p = 0; p < raw.pixels;) {
+    if (!raw.is_valid(p)) {
+      ++p;
+      continue;
+    }
+    std::size_t q = p + 1;
+    while (q < raw.pixels && raw.is_valid(q)) ++q;
+    const float* src = raw.spectrum(p, b);
+    const std::size_t len = (q - p) * b;
+    if constexpr (std::is_same_v<T, float>) std::memcpy(dst, src, len * sizeof(float));
+    else std::copy(src, src + len, dst);
+    dst += len;
+    p = q;
   }
 }
 

@@ -48,6 +48,18 @@ class BlockReader {
   /// First row (image row or spectrum index) of block i within its source.
   std::size_t block_first_row(std::size_t i) const { return blocks_.at(i).row0; }
 
+  /// Block i as read from the file, before the mask is applied: caller-owned buffers reused across calls.
+  struct RawBlock {
+    std::vector<float> values;        // pixels x bands, band-fastest
+    std::vector<std::uint8_t> mask;   // pixels entries (nonzero: valid); empty when every pixel is valid
+    std::size_t pixels = 0, valid = 0;
+    /// Spectrum p (valid or not) of the block.
+    const float* spectrum(std::size_t p, std::size_t bands) const { return values.data() + p * bands; }
+    /// True when pixel p holds a valid spectrum.
+    bool is_valid(std::size_t p) const { return mask.empty() || mask[p] != 0; }
+  };
+  /// Reads block i without compacting it: consumers that skip invalid pixels themselves save a copy.
+  void read_raw(std::size_t i, RawBlock& out) const;
   /// Reads block i's valid spectra into out (resized to n x bands, one spectrum per row). Thread-safe.
   void read(std::size_t i, RowMatrixXf& out) const;
   /// As above, in double precision.
@@ -69,6 +81,7 @@ class BlockReader {
     std::vector<ChunkRef> chunks;  // row-chunk major
   };
   void map_chunks(SourceData& sd, std::size_t rows) const;
+  void pread_all(unsigned char* dst, std::size_t size, std::uint64_t address) const;
   void read_direct(const SourceData& src, std::size_t row0, std::size_t rows, float* out) const;
   struct Block {
     std::size_t source;
