@@ -1,5 +1,6 @@
-// specula project (reference §7.3, eqs 7.2-7.3, figure 7.4): an image projected onto the first k principal
-// components of a basis and reconstructed from them, with the per-pixel error of each reconstruction.
+// specula project (reference §7.3, eqs 7.2-7.3, figure 7.4; §7.4, figure 7.7): an image projected onto the
+// first k principal components of a PCA basis, or by non-negative least squares onto an NMF basis, and
+// reconstructed, with the per-pixel error of each reconstruction.
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "core/error.h"
+#include "nmf/nmf.h"
 #include "stats/pca.h"
 #include "store/io/exr.h"
 #include "store/io/png_stack.h"
@@ -205,8 +207,13 @@ KResult project(const Cube& cube, const store::Basis& basis, std::size_t k, Cube
     x = Eigen::Map<const RowMatrixXf>(cube.data.data() + first * b, m, Eigen::Index(b)).cast<double>();
     coef.resize(m, Eigen::Index(k));
     xr.resize(m, Eigen::Index(b));
-    stats::pca_project(basis, k, x, coef);
-    stats::pca_reconstruct(basis, coef, xr);
+    if (basis.method == "nmf") {
+      nmf::nnls_project(basis.components, x, coef);
+      xr.noalias() = coef * basis.components;
+    } else {
+      stats::pca_project(basis, k, x, coef);
+      stats::pca_reconstruct(basis, coef, xr);
+    }
     Eigen::Map<RowMatrixXf>(recon.data.data() + first * b, m, Eigen::Index(b)) = xr.cast<float>();
     for (Eigen::Index i = 0; i < m; ++i) {
       const double e2 = (x.row(i) - xr.row(i)).squaredNorm();
@@ -253,13 +260,23 @@ void run_project(const ProjectOptions& o) {
   {
     const store::Store s = store::Store::open(o.store);
     basis = s.read_basis(o.basis);
-    if (basis.method == "nmf")
-      throw UsageError(s.label() + ": basis " + o.basis + " is an NMF basis; NMF projection is not available yet");
-    if (basis.method != "pca")
-      throw InputError(s.label() + ": basis " + o.basis + " has method '" + basis.method + "'; projection needs a pca basis");
-    if (basis.mean.size() != basis.components.cols())
+    if (basis.method != "pca" && basis.method != "nmf")
+      throw InputError(s.label() + ": basis " + o.basis + " has method '" + basis.method +
+                       "'; projection needs a pca or nmf basis");
+    if (basis.method == "pca" && basis.mean.size() != basis.components.cols())
       throw InputError(s.label() + ": basis " + o.basis + " has no mean; re-learn it with specula pca");
-    for (long long k : o.ks) {
+    if (basis.method == "pca" && o.ks.empty())
+      throw UsageError("-k is required with a PCA basis (e.g. -k 6, or -k 1,3,6,31 for figure 7.4's panel)");
+    if (basis.method == "nmf") {
+      // NNLS on all k components: an NMF basis is not nested, its first j components are no j-component basis.
+      for (long long k : o.ks)
+        if (k != static_cast<long long>(basis.k()))
+          throw UsageError(fmt::format("-k {}: NMF basis {} has {} components and projects onto all of them; learn a "
+                                       "basis with specula nmf -k {} for {} components",
+                                       k, o.basis, basis.k(), k, k));
+      ks.push_back(basis.k());
+    }
+    for (long long k : basis.method == "pca" ? o.ks : std::vector<long long>{}) {
       if (k < 1 || std::size_t(k) > basis.k())
         throw UsageError(fmt::format("-k {}: basis {} has {} components; give k between 1 and {}", k, o.basis, basis.k(),
                                      basis.k()));
@@ -305,7 +322,7 @@ void run_project(const ProjectOptions& o) {
   recon.wavelengths = cube.wavelengths;
   recon.fwhm = cube.fwhm;
   recon.units = cube.units;
-  recon.provenance = {o.store, "pca-project", command_line(), ""};
+  recon.provenance = {o.store, basis.method + "-project", command_line(), ""};
 
   std::vector<KResult> results;
   std::vector<std::string> outputs, store_images;
@@ -352,12 +369,11 @@ void run_project(const ProjectOptions& o) {
 void setup_project(CLI::App& app) {
   auto o = std::make_shared<ProjectOptions>();
   auto* cmd = app.add_subcommand(
-      "project", "Reconstruct an image from its first k principal components (eqs 7.2-7.3, figure 7.4) with error maps");
+      "project", "Reconstruct an image from k principal components (figure 7.4) or an NMF basis (figure 7.7), with error maps");
   cmd->add_option("store", o->store, "Store file")->required();
-  cmd->add_option("--basis", o->basis, "PCA basis in the store")->required();
-  cmd->add_option("-k", o->ks, "Components to keep, e.g. 3 or 1,3,6,31 (several also write panel.png)")
-      ->required()
-      ->delimiter(',');
+  cmd->add_option("--basis", o->basis, "PCA or NMF basis in the store (NMF: non-negative least squares on all its components)")
+      ->required();
+  cmd->add_option("-k", o->ks, "PCA components to keep, e.g. 3 or 1,3,6,31 (several also write panel.png)")->delimiter(',');
   cmd->add_option("--image", o->image, "Image in the store, on the basis's wavelength grid")->required();
   cmd->add_option("-o,--output", o->output,
                   "Directory for reconstruction-k<K>.exr, preview-k<K>.png, error-k<K>.png (and panel.png); "

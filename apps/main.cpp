@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <string_view>
 
 #include "apps/commands.h"
 #include "apps/common.h"
@@ -27,12 +28,16 @@ int main(int argc, char** argv) {
   specula::app::setup_project(app);
   specula::app::setup_plot_basis(app);
   specula::app::setup_compare_bases(app);
+  specula::app::setup_nmf(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
-  } catch (const specula::Interrupted&) {
-    std::fprintf(stderr, "specula: interrupted; unfinished outputs were discarded\n");
+  } catch (const specula::Interrupted& e) {
+    if (std::string_view(e.what()) == "interrupted")
+      std::fprintf(stderr, "specula: interrupted; unfinished outputs were discarded\n");
+    else
+      std::fprintf(stderr, "specula: %s\n", e.what());
     return 130;
   } catch (const specula::Error& e) {
     std::fprintf(stderr, "specula: %s\n", e.what());

@@ -34,6 +34,8 @@ class LibraryError : public Error {
 class Interrupted : public Error {
  public:
   Interrupted() : Error("interrupted") {}
+  /// An interruption with a message saying what was kept and how to continue.
+  explicit Interrupted(const std::string& what) : Error(what) {}
 };
 
 }  // namespace specula

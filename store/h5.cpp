@@ -180,4 +180,23 @@ std::vector<double> read_vector(hid_t loc, const std::string& name, std::string_
   return v;
 }
 
+void write_matrix(hid_t loc, const std::string& name, const Eigen::MatrixXd& m, std::string_view ctx) {
+  const hsize_t dims[2] = {hsize_t(m.rows()), hsize_t(m.cols())};
+  h5::Id space(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
+  h5::Id ds(h5::check(H5Dcreate2(loc, name.c_str(), H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx,
+                      "cannot create " + name));
+  const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rm = m;
+  if (m.size()) h5::check(H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rm.data()), ctx, "cannot write " + name);
+}
+
+Eigen::MatrixXd read_matrix(hid_t loc, const std::string& name, std::string_view ctx) {
+  if (!h5::exists(loc, name)) throw InputError(std::string(ctx) + ": dataset '" + name + "' is missing");
+  h5::Id ds(h5::check(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), ctx, "cannot open " + name));
+  const auto dims = h5::shape(ds, ctx);
+  if (dims.size() != 2) throw InputError(std::string(ctx) + ": dataset '" + name + "' is not two-dimensional");
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rm{Eigen::Index(dims[0]), Eigen::Index(dims[1])};
+  if (rm.size()) h5::check(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rm.data()), ctx, "cannot read " + name);
+  return rm;
+}
+
 }  // namespace specula::store::h5

@@ -3,6 +3,8 @@
 // specula::LibraryError carrying HDF5's own error-stack message, and ids are owned by Id.
 #include <hdf5.h>
 
+#include <Eigen/Core>
+
 #include <span>
 #include <string>
 #include <string_view>
@@ -58,5 +60,9 @@ std::vector<hsize_t> shape(hid_t dataset, std::string_view ctx);
 void write_vector(hid_t loc, const std::string& name, std::span<const double> v, std::string_view ctx);
 /// Reads a whole 1-D numeric dataset as float64.
 std::vector<double> read_vector(hid_t loc, const std::string& name, std::string_view ctx);
+/// Writes a whole 2-D float64 dataset `name` under `loc` (row-major on disk).
+void write_matrix(hid_t loc, const std::string& name, const Eigen::MatrixXd& m, std::string_view ctx);
+/// Reads a whole 2-D numeric dataset as float64; throws InputError naming ctx if absent or not 2-D.
+Eigen::MatrixXd read_matrix(hid_t loc, const std::string& name, std::string_view ctx);
 
 }  // namespace specula::store::h5

@@ -144,25 +144,6 @@ std::size_t attr_size(hid_t obj, const std::string& name, const std::string& ctx
 }  // namespace
 
 namespace {
-void write_matrix(hid_t loc, const std::string& name, const Eigen::MatrixXd& m, const std::string& ctx) {
-  const hsize_t dims[2] = {hsize_t(m.rows()), hsize_t(m.cols())};
-  h5::Id space(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
-  h5::Id ds(h5::check(H5Dcreate2(loc, name.c_str(), H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx,
-                      "cannot create " + name));
-  const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rm = m;
-  if (m.size()) h5::check(H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rm.data()), ctx, "cannot write " + name);
-}
-
-Eigen::MatrixXd read_matrix(hid_t loc, const std::string& name, const std::string& ctx) {
-  if (!h5::exists(loc, name)) throw InputError(ctx + ": dataset '" + name + "' is missing");
-  h5::Id ds(h5::check(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), ctx, "cannot open " + name));
-  const auto dims = h5::shape(ds, ctx);
-  if (dims.size() != 2) throw InputError(ctx + ": dataset '" + name + "' is not two-dimensional");
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rm{Eigen::Index(dims[0]), Eigen::Index(dims[1])};
-  if (rm.size()) h5::check(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rm.data()), ctx, "cannot read " + name);
-  return rm;
-}
-
 Eigen::VectorXd to_vector(const std::vector<double>& v) {
   return Eigen::Map<const Eigen::VectorXd>(v.data(), Eigen::Index(v.size()));
 }
@@ -401,7 +382,7 @@ Basis Store::read_basis(const std::string& name) const {
   b.source = h5::has_attr(g, "source") ? h5::read_string_attr(g, "source", ctx) : "";
   b.provenance = read_provenance(g, ctx);
   b.wavelengths = read_grid(g, ctx);
-  b.components = read_matrix(g, "components", ctx);
+  b.components = h5::read_matrix(g, "components", ctx);
   if (b.components.cols() != Eigen::Index(b.wavelengths.size()))
     throw InputError(ctx + ": components have " + std::to_string(b.components.cols()) + " bands, wavelengths " +
                      std::to_string(b.wavelengths.size()));
@@ -412,8 +393,8 @@ Basis Store::read_basis(const std::string& name) const {
   b.eigenvalues = vec("eigenvalues");
   b.explained_variance_ratio = vec("explained_variance_ratio");
   b.weights = vec("weights");
-  if (h5::exists(g, "covariance")) b.covariance = read_matrix(g, "covariance", ctx);
-  if (h5::exists(g, "second_moment")) b.second_moment = read_matrix(g, "second_moment", ctx);
+  if (h5::exists(g, "covariance")) b.covariance = h5::read_matrix(g, "covariance", ctx);
+  if (h5::exists(g, "second_moment")) b.second_moment = h5::read_matrix(g, "second_moment", ctx);
   if (b.mean.size() && b.mean.size() != b.components.cols())
     throw InputError(ctx + ": mean has " + std::to_string(b.mean.size()) + " entries for " +
                      std::to_string(b.components.cols()) + " bands");
@@ -698,7 +679,7 @@ void StoreWriter::add_basis(const std::string& name, const Basis& basis) {
   h5::write_attr(g, "source", std::string_view(basis.source), ctx);
   write_provenance(g, basis.provenance, options_.command_line, ctx);
   write_grid(g, basis.wavelengths, ctx);
-  write_matrix(g, "components", basis.components, ctx);
+  h5::write_matrix(g, "components", basis.components, ctx);
   auto vec = [&](const char* nm, const Eigen::VectorXd& v) {
     if (v.size()) h5::write_vector(g, nm, std::span<const double>(v.data(), std::size_t(v.size())), ctx);
   };
@@ -706,8 +687,8 @@ void StoreWriter::add_basis(const std::string& name, const Basis& basis) {
   vec("eigenvalues", basis.eigenvalues);
   vec("explained_variance_ratio", basis.explained_variance_ratio);
   vec("weights", basis.weights);
-  if (basis.covariance.size()) write_matrix(g, "covariance", basis.covariance, ctx);
-  if (basis.second_moment.size()) write_matrix(g, "second_moment", basis.second_moment, ctx);
+  if (basis.covariance.size()) h5::write_matrix(g, "covariance", basis.covariance, ctx);
+  if (basis.second_moment.size()) h5::write_matrix(g, "second_moment", basis.second_moment, ctx);
 }
 
 void StoreWriter::create_samples(const std::string& name, const WavelengthGrid& wavelengths, const std::string& units,

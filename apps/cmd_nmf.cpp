@@ -1,0 +1,185 @@
+// specula nmf (reference §7.4): non-negative matrix factorisation of every valid spectrum of the selected
+// images (or a collection), out of core, with restarts, a checkpoint after every epoch and --resume.
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <chrono>
+#include <filesystem>
+
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "core/error.h"
+#include "nmf/nmf.h"
+#include "store/block_reader.h"
+#include "store/store.h"
+
+namespace specula::app {
+namespace {
+
+struct NmfCliOptions {
+  std::string store;
+  std::vector<std::string> images;
+  std::string collection;
+  std::size_t k = 0;
+  std::string init = "nndsvd";
+  std::uint64_t seed = 0;
+  std::size_t restarts = 1;
+  std::size_t max_epochs = 100;
+  double tol = 1e-4;
+  std::string negatives = "clip";
+  std::string name;
+  std::string output;
+  std::string checkpoint;
+  bool resume = false;
+  bool replace = false;
+  bool json = false;
+};
+
+std::string json_history(const std::vector<double>& v) { return json_array({v.data(), v.size()}); }
+
+void run_nmf(const NmfCliOptions& o) {
+  const std::string name = o.name.empty() ? fmt::format("nmf{}", o.k) : o.name;
+  store::validate_name(name, "basis");
+  const std::string out = o.output.empty() ? o.store : o.output;
+  nmf::NmfOptions opt{.k = o.k,
+                      .init = nmf::parse_init(o.init),
+                      .seed = o.seed,
+                      .restarts = o.restarts,
+                      .max_epochs = o.max_epochs,
+                      .tol = o.tol,
+                      .negatives = nmf::parse_negatives(o.negatives),
+                      .checkpoint = o.checkpoint.empty() ? std::filesystem::path(out + ".nmf-" + name + ".checkpoint")
+                                                         : std::filesystem::path(o.checkpoint),
+                      .resume = o.resume};
+  const store::Store s = store::Store::open(o.store);
+  if (!o.replace && !o.resume) {
+    // Refuse before hours of work rather than at the end.
+    if (std::filesystem::exists(out)) {
+      const store::Store target = out == o.store ? s : store::Store::open(out);
+      for (const auto& b : target.bases())
+        if (b == name)
+          throw UsageError(fmt::format("{}: basis {} already exists; choose another --name or give --replace", out, name));
+    }
+  }
+  const store::BlockReader reader(s, {.image_globs = o.images, .collection = o.collection});
+  std::vector<nmf::EpochReport> epochs;
+  opt.on_epoch = [&](const nmf::EpochReport& e) {
+    epochs.push_back(e);
+    if (!o.json)
+      fmt::print("restart {} epoch {:>3}: relative error {:.6f}  ({:.1f} s)\n", e.restart + 1, e.epoch, e.rel_error,
+                 e.seconds);
+    std::fflush(stdout);
+  };
+  const auto t0 = std::chrono::steady_clock::now();
+  const nmf::NmfResult r = nmf::factorize(reader, opt);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const nmf::RestartResult& best = r.best_result();
+
+  store::Basis basis;
+  basis.method = "nmf";
+  basis.wavelengths = reader.wavelengths();
+  basis.n = r.n;
+  basis.components = best.basis;
+  basis.weights = r.weights;
+  basis.second_moment = r.second_moment;
+  if (!o.collection.empty()) {
+    basis.source = "collection " + o.collection;
+  } else {
+    basis.source = "images";
+    for (const auto& n : reader.source_names()) basis.source += " " + n;
+  }
+  basis.provenance.source_file = s.path().string();
+  basis.provenance.importer = fmt::format("nmf k={} init={} seed={} restarts={} rel_error={:.9g} svd_bound={:.9g}",
+                                          o.k, o.init, o.seed, o.restarts, r.rel_error, r.svd_bound);
+  {
+    store::StoreWriter writer(out, {.compression = {}, .replace = o.replace, .command_line = command_line()});
+    writer.add_basis(name, basis);
+    writer.commit();
+  }
+  std::error_code ec;
+  std::filesystem::remove(opt.checkpoint, ec);
+
+  if (o.json) {
+    std::string restarts, times;
+    for (const auto& rr : r.restarts)
+      restarts += fmt::format(R"({}{{"rel_error":{},"epochs":{},"converged":{},"mean_angle_deg":{},"max_angle_deg":{},"history":{}}})",
+                              restarts.empty() ? "" : ",", rr.rel_error, rr.epochs, rr.converged, rr.mean_angle_deg,
+                              rr.max_angle_deg, json_history(rr.history));
+    std::vector<double> t;
+    for (const auto& e : epochs)
+      if (e.restart == r.best) t.push_back(e.seconds);
+    fmt::print(R"({{"store":{},"basis":{},"output":{},"k":{},"n":{},"bands":{},"rel_error":{},"svd_bound":{},)"
+               R"("epochs":{},"converged":{},"seconds":{:.6f},"restarts":[{}],"best_restart":{},"history":{},)"
+               R"("history_seconds":{},"passes":{},"resumed":{},"negatives":{},"values":{},"nnls_unconverged":{},)"
+               R"("weights":{},"components":[{}],"threads":{}}})"
+               "\n",
+               json_string(s.path().string()), json_string(name), json_string(out), o.k, r.n, reader.bands(),
+               r.rel_error, r.svd_bound, best.epochs, best.converged, seconds, restarts, r.best,
+               json_history(best.history), json_history(t), r.passes, r.resumed, r.negatives, r.values,
+               r.nnls_unconverged, json_array({r.weights.data(), std::size_t(r.weights.size())}),
+               [&] {
+                 std::string rows;
+                 for (Eigen::Index i = 0; i < best.basis.rows(); ++i) {
+                   const Eigen::VectorXd row = best.basis.row(i).transpose();
+                   rows += (i ? "," : "") + json_array({row.data(), std::size_t(row.size())});
+                 }
+                 return rows;
+               }(),
+               omp_get_max_threads());
+    return;
+  }
+  fmt::print("NMF of {} spectra ({}), k = {}: relative error {:.6f} (rank-{} SVD bound {:.6f}, {:+.1f} %) after {} epochs{}\n",
+             r.n, reader.wavelengths().describe(), o.k, r.rel_error, o.k, r.svd_bound,
+             r.svd_bound > 0 ? 100 * (r.rel_error / r.svd_bound - 1) : 0.0, best.epochs,
+             best.converged ? "" : " (max epochs reached)");
+  if (r.restarts.size() > 1) {
+    fmt::print("restart  rel error   epochs  mean/max angle to best\n");
+    for (std::size_t i = 0; i < r.restarts.size(); ++i) {
+      const auto& rr = r.restarts[i];
+      fmt::print("{:>7}  {:.6f}  {:>6}  {:.2f}° / {:.2f}°{}\n", i + 1, rr.rel_error, rr.epochs, rr.mean_angle_deg,
+                 rr.max_angle_deg, i == r.best ? "  (best)" : "");
+    }
+  }
+  if (r.negatives)
+    fmt::print("clipped {} negative values to zero ({:.4f} % of {})\n", r.negatives,
+               100.0 * double(r.negatives) / double(std::max<std::uint64_t>(r.values, 1)), r.values);
+  fmt::print("{} passes over the data in {:.2f} s ({} threads); saved basis '{}' in {}\n", r.passes, seconds,
+             omp_get_max_threads(), name, out);
+}
+
+}  // namespace
+
+void setup_nmf(CLI::App& app) {
+  auto o = std::make_shared<NmfCliOptions>();
+  auto* cmd = app.add_subcommand("nmf", "Non-negative matrix factorisation of every valid spectrum, out of core (§7.4)");
+  cmd->add_option("store", o->store, "Store file")->required();
+  cmd->add_option("-k", o->k, "Number of basis spectra")->required()->check(CLI::Range(1, 64));
+  cmd->add_option("--images", o->images, "Image name globs (default: every image)");
+  cmd->add_option("--collection", o->collection, "Use this collection instead of images");
+  cmd->add_option("--init", o->init, "Initial basis: nndsvd (deterministic) or random (uniform in [0, 1])")
+      ->capture_default_str();
+  cmd->add_option("--seed", o->seed, "Seed of random starts (restart r uses seed + r)")->capture_default_str();
+  cmd->add_option("--restarts", o->restarts, "Runs from different starts; the best is kept (restart 1 uses --init)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
+  cmd->add_option("--max-epochs", o->max_epochs, "Passes over the data per restart at most")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  cmd->add_option("--tol", o->tol, "Stop when an epoch lowers the relative error by less than this fraction")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--negatives", o->negatives, "Values below zero: clip (to zero, counted and reported) or reject")
+      ->capture_default_str();
+  cmd->add_option("--name", o->name, "Name of the basis to save (default: nmf<K>)");
+  cmd->add_option("-o,--output", o->output, "Store to save the basis in (default: the input store)");
+  cmd->add_option("--checkpoint", o->checkpoint, "Checkpoint file (default: <output>.nmf-<name>.checkpoint)");
+  cmd->add_flag("--resume", o->resume, "Continue an interrupted run from its checkpoint");
+  cmd->add_flag("--replace", o->replace, "Replace a basis of the same name");
+  cmd->add_flag("--json", o->json, "Print one JSON object (k, n, rel_error, epochs, seconds, restarts, basis, ...)");
+  cmd->footer(
+      "Each epoch is one pass: exact NNLS coefficients for every spectrum, then the basis solved exactly from "
+      "C^T C and C^T X. The error printed is ||X - CS||_F / ||X||_F, computed exactly from that pass.");
+  cmd->callback([o] { run_nmf(*o); });
+}
+
+}  // namespace specula::app

@@ -1,0 +1,534 @@
+#include "nmf/nmf.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <numeric>
+#include <random>
+#include <sstream>
+
+#include "core/error.h"
+#include "core/interrupt.h"
+#include "core/progress.h"
+#include "nmf/checkpoint.h"
+#include "nmf/nnls.h"
+
+namespace specula::nmf {
+namespace {
+
+using store::BlockReader;
+constexpr std::size_t kTile = 256;
+
+// Blocks per wave of an epoch: the basis is re-solved after every wave. Fixed, so results do not depend on
+// the thread count.
+constexpr std::size_t kWaveBlocks = 8;
+
+// Runs fn(block_index, raw, stats) over blocks [first, last) on all threads and returns the per-block
+// statistics summed in block order: the same for any thread count.
+template <class Stats, class Fn>
+Stats reduce_range(const BlockReader& reader, const Stats& zero, std::size_t first, std::size_t last, Progress& progress,
+                   Fn&& fn) {
+  const std::size_t n = last - first;
+  std::vector<Stats> part(n, zero);
+  std::exception_ptr error;
+  std::mutex error_mutex;
+#pragma omp parallel
+  {
+    BlockReader::RawBlock raw;
+#pragma omp for schedule(dynamic, 1)
+    for (long long j = 0; j < static_cast<long long>(n); ++j) {
+      try {
+        check_interrupt();
+        reader.read_raw(first + std::size_t(j), raw);
+        fn(first + std::size_t(j), raw, part[std::size_t(j)]);
+        progress.advance(raw.valid);
+      } catch (...) {
+        std::lock_guard lock(error_mutex);
+        if (!error) error = std::current_exception();
+      }
+    }
+  }
+  if (error) std::rethrow_exception(error);
+  Stats total = zero;
+  for (const auto& p : part) total += p;
+  return total;
+}
+
+// The same over every block, in ranges of a few waves so memory does not grow with the number of blocks.
+template <class Stats, class Fn>
+Stats reduce_blocks(const BlockReader& reader, const Stats& zero, const std::string& label, Fn&& fn) {
+  Progress progress(label, reader.spectra());
+  Stats total = zero;
+  const std::size_t blocks = reader.block_count(), step = 4 * kWaveBlocks;
+  for (std::size_t first = 0; first < blocks; first += step)
+    total += reduce_range(reader, zero, first, std::min(blocks, first + step), progress, fn);
+  return total;
+}
+
+// Calls fn(tile) for the block's valid spectra in tiles of up to kTile rows (double, negatives clipped or
+// refused); returns the number of negative values seen.
+template <class Fn>
+std::uint64_t for_each_tile(const BlockReader& reader, std::size_t block, const BlockReader::RawBlock& raw,
+                            Negatives policy, RowMatrixXd& tile, Fn&& fn) {
+  const std::size_t b = reader.bands();
+  tile.resize(Eigen::Index(kTile), Eigen::Index(b));
+  std::uint64_t negatives = 0;
+  std::size_t fill = 0;
+  for (std::size_t p = 0; p < raw.pixels; ++p) {
+    if (!raw.is_valid(p)) continue;
+    const float* x = raw.spectrum(p, b);
+    double* t = tile.data() + fill * b;
+    bool bad = false;
+    for (std::size_t k = 0; k < b; ++k) {
+      const double v = x[k];
+      bad |= !std::isfinite(v);
+      negatives += v < 0;
+      t[k] = v < 0 ? 0.0 : v;
+    }
+    if (bad || (negatives && policy == Negatives::reject)) {
+      const std::string where = reader.source_names()[reader.block_source(block)];
+      throw InputError(where + ": spectrum " + std::to_string(p) + " of the block starting at row " +
+                       std::to_string(reader.block_first_row(block)) +
+                       (bad ? " has a non-finite value; NMF needs finite data (re-import, or mask the pixel)"
+                            : " has a negative value; rerun with --negatives clip to clip such values to zero"));
+    }
+    if (++fill == kTile) {
+      fn(tile.topRows(Eigen::Index(fill)));
+      fill = 0;
+    }
+  }
+  if (fill) fn(tile.topRows(Eigen::Index(fill)));
+  return negatives;
+}
+
+struct GramStats {
+  Eigen::MatrixXd gram;
+  std::uint64_t n = 0, negatives = 0;
+  GramStats& operator+=(const GramStats& o) {
+    gram += o.gram;
+    n += o.n;
+    negatives += o.negatives;
+    return *this;
+  }
+};
+
+struct SignStats {
+  Eigen::VectorXd pos, neg;
+  SignStats& operator+=(const SignStats& o) {
+    pos += o.pos;
+    neg += o.neg;
+    return *this;
+  }
+};
+
+struct EpochStats {
+  Eigen::MatrixXd ctc, ctx;  // C^T C (k x k), C^T X (k x B)
+  double xx = 0;
+  std::uint64_t unconverged = 0;
+  EpochStats& operator+=(const EpochStats& o) {
+    ctc += o.ctc;
+    ctx += o.ctx;
+    xx += o.xx;
+    unconverged += o.unconverged;
+    return *this;
+  }
+};
+
+GramStats gram_pass(const BlockReader& reader, Negatives policy) {
+  const auto b = Eigen::Index(reader.bands());
+  GramStats zero{Eigen::MatrixXd::Zero(b, b)};
+  GramStats s = reduce_blocks(reader, zero, "nmf: X^T X", [&](std::size_t i, const BlockReader::RawBlock& raw, GramStats& out) {
+    thread_local RowMatrixXd tile;
+    out.negatives += for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
+      out.gram.selfadjointView<Eigen::Lower>().rankUpdate(t.transpose());
+      out.n += std::uint64_t(t.rows());
+    });
+  });
+  s.gram.triangularView<Eigen::StrictlyUpper>() = s.gram.transpose();
+  return s;
+}
+
+// Coefficients of the spectra of blocks [first, last) for `basis` (exact NNLS) and their statistics.
+EpochStats coefficient_pass(const BlockReader& reader, const Eigen::MatrixXd& basis, Negatives policy, std::size_t first,
+                            std::size_t last, Progress& progress) {
+  const Eigen::Index k = basis.rows(), b = basis.cols();
+  const GramNnls solver(basis * basis.transpose());
+  const EpochStats zero{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
+  return reduce_range(reader, zero, first, last, progress, [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
+    thread_local RowMatrixXd tile, h, c;
+    std::uint64_t hint = 0;  // neighbouring spectra usually share their passive set
+    for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
+      h.noalias() = t * basis.transpose();
+      c.resize(t.rows(), k);
+      for (Eigen::Index r = 0; r < t.rows(); ++r) {
+        const NnlsStatus st = solver.solve(h.data() + r * k, c.data() + r * k, hint);
+        out.unconverged += !st.converged;
+      }
+      out.ctc.noalias() += c.transpose() * c;
+      out.ctx.noalias() += c.transpose() * t;
+      out.xx += t.squaredNorm();
+    });
+  });
+}
+
+// The exact S step: min_{S >= 0} ||X - C S||^2 given C^T C and C^T X, one NNLS per band.
+Eigen::MatrixXd solve_basis(const EpochStats& s) {
+  const GramNnls solver(s.ctc);
+  const Eigen::Index k = s.ctc.rows(), b = s.ctx.cols();
+  Eigen::MatrixXd out(k, b);
+  Eigen::VectorXd h(k), c(k);
+  for (Eigen::Index j = 0; j < b; ++j) {
+    h = s.ctx.col(j);
+    solver.solve(h.data(), c.data());
+    out.col(j) = c;
+  }
+  return out;
+}
+
+double certified_error(const EpochStats& s, const Eigen::MatrixXd& basis) {
+  const double err2 = s.xx - 2 * (s.ctx.array() * basis.array()).sum() +
+                      (s.ctc.array() * (basis * basis.transpose()).array()).sum();
+  return s.xx > 0 ? std::sqrt(std::max(0.0, err2) / s.xx) : 0.0;
+}
+
+Eigen::RowVectorXd random_row(Eigen::Index b, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Eigen::RowVectorXd r(b);
+  for (Eigen::Index j = 0; j < b; ++j) r[j] = u(rng);
+  return r;
+}
+
+// Rows scaled to unit norm; returns the factors d (row i divided by d_i). A row that died (all zero) is
+// restarted from a seeded random spectrum (d_i = 1).
+Eigen::VectorXd normalise_rows(Eigen::MatrixXd& s, std::mt19937_64& rng) {
+  Eigen::VectorXd d = Eigen::VectorXd::Ones(s.rows());
+  for (Eigen::Index i = 0; i < s.rows(); ++i) {
+    double norm = s.row(i).norm();
+    if (!(norm > 0)) {
+      s.row(i) = random_row(s.cols(), rng);
+      s.row(i) /= s.row(i).norm();
+      continue;
+    }
+    s.row(i) /= norm;
+    d[i] = norm;
+  }
+  return d;
+}
+
+// Statistics of coefficients C D (when the basis rows were divided by d): C^T C -> D C^T C D, C^T X -> D C^T X.
+void rescale(EpochStats& s, const Eigen::VectorXd& d) {
+  s.ctc = d.asDiagonal() * s.ctc * d.asDiagonal();
+  s.ctx = d.asDiagonal() * s.ctx;
+}
+
+Eigen::MatrixXd random_init(Eigen::Index k, Eigen::Index b, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  Eigen::MatrixXd s(k, b);
+  for (Eigen::Index i = 0; i < k; ++i) s.row(i) = random_row(b, rng);
+  normalise_rows(s, rng);
+  return s;
+}
+
+// NNDSVD (Boutsidis and Gallopoulos 2008) for the basis factor: the top k right singular vectors v_j of X,
+// each split into its positive and negative parts; the part whose product with the norm of the matching part
+// of u_j = X v_j / sigma_j is larger is kept. The u norms take one more pass.
+Eigen::MatrixXd nndsvd_init(const BlockReader& reader, const Eigen::MatrixXd& gram, Eigen::Index k, Negatives policy,
+                            std::uint64_t seed, std::size_t& passes) {
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
+  const Eigen::Index b = gram.rows();
+  Eigen::MatrixXd v(b, k);
+  for (Eigen::Index j = 0; j < k; ++j) v.col(j) = eig.eigenvectors().col(b - 1 - j);
+  const SignStats zero{Eigen::VectorXd::Zero(k), Eigen::VectorXd::Zero(k)};
+  const SignStats signs = reduce_blocks(reader, zero, "nmf: nndsvd", [&](std::size_t i, const BlockReader::RawBlock& raw, SignStats& out) {
+    thread_local RowMatrixXd tile, u;
+    for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
+      u.noalias() = t * v;
+      out.pos += u.cwiseMax(0.0).colwise().squaredNorm().transpose();
+      out.neg += u.cwiseMin(0.0).colwise().squaredNorm().transpose();
+    });
+  });
+  ++passes;
+  std::mt19937_64 rng(seed);
+  Eigen::MatrixXd s(k, b);
+  for (Eigen::Index j = 0; j < k; ++j) {
+    const Eigen::VectorXd vp = v.col(j).cwiseMax(0.0), vn = (-v.col(j)).cwiseMax(0.0);
+    const double mp = std::sqrt(signs.pos[j]) * vp.norm(), mn = std::sqrt(signs.neg[j]) * vn.norm();
+    s.row(j) = (mp >= mn ? vp : vn).transpose();
+  }
+  normalise_rows(s, rng);
+  return s;
+}
+
+std::string fingerprint(const BlockReader& reader, const NmfOptions& o) {
+  std::ostringstream f;
+  f << "k=" << o.k << " init=" << (o.init == Init::nndsvd ? "nndsvd" : "random") << " seed=" << o.seed
+    << " restarts=" << o.restarts << " negatives=" << (o.negatives == Negatives::clip ? "clip" : "reject")
+    << " bands=" << reader.bands() << " spectra=" << reader.spectra() << " blocks=" << reader.block_count()
+    << " sources=";
+  for (const auto& n : reader.source_names()) f << n << ",";
+  return f.str();
+}
+
+std::string describe_difference(const std::string& a, const std::string& b) {
+  std::istringstream sa(a), sb(b);
+  std::string x, y, out;
+  while (sa >> x && sb >> y)
+    if (x != y) out += (out.empty() ? "" : ", ") + y + " (checkpoint: " + x + ")";
+  return out.empty() ? "the runs differ" : out;
+}
+
+}  // namespace
+
+Init parse_init(const std::string& s) {
+  if (s == "nndsvd") return Init::nndsvd;
+  if (s == "random") return Init::random;
+  throw UsageError("--init '" + s + "': choose nndsvd or random");
+}
+
+Negatives parse_negatives(const std::string& s) {
+  if (s == "clip") return Negatives::clip;
+  if (s == "reject") return Negatives::reject;
+  throw UsageError("--negatives '" + s + "': choose clip (clip to zero and count) or reject");
+}
+
+std::pair<double, double> basis_angles(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  if (a.rows() != b.rows() || a.cols() != b.cols() || a.rows() == 0)
+    throw UsageError("basis_angles: bases of different shapes");
+  const Eigen::Index k = a.rows();
+  Eigen::MatrixXd cosine(k, k);
+  for (Eigen::Index i = 0; i < k; ++i)
+    for (Eigen::Index j = 0; j < k; ++j) {
+      const double na = a.row(i).norm(), nb = b.row(j).norm();
+      cosine(i, j) = na > 0 && nb > 0 ? std::clamp(a.row(i).dot(b.row(j)) / (na * nb), -1.0, 1.0) : 0.0;
+    }
+  std::vector<Eigen::Index> perm(static_cast<std::size_t>(k)), best;
+  std::iota(perm.begin(), perm.end(), Eigen::Index(0));
+  if (k <= 8) {
+    double best_sum = -1e300;
+    do {
+      double sum = 0;
+      for (Eigen::Index i = 0; i < k; ++i) sum += cosine(i, perm[std::size_t(i)]);
+      if (sum > best_sum) {
+        best_sum = sum;
+        best = perm;
+      }
+    } while (std::next_permutation(perm.begin(), perm.end()));
+  } else {
+    best.assign(std::size_t(k), -1);
+    std::vector<bool> used_a(static_cast<std::size_t>(k)), used_b(static_cast<std::size_t>(k));
+    for (Eigen::Index step = 0; step < k; ++step) {
+      Eigen::Index bi = -1, bj = -1;
+      for (Eigen::Index i = 0; i < k; ++i)
+        for (Eigen::Index j = 0; j < k; ++j)
+          if (!used_a[std::size_t(i)] && !used_b[std::size_t(j)] && (bi < 0 || cosine(i, j) > cosine(bi, bj))) {
+            bi = i;
+            bj = j;
+          }
+      used_a[std::size_t(bi)] = used_b[std::size_t(bj)] = true;
+      best[std::size_t(bi)] = bj;
+    }
+  }
+  double sum = 0, worst = 0;
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const double deg = std::acos(cosine(i, best[std::size_t(i)])) * 180.0 / M_PI;
+    sum += deg;
+    worst = std::max(worst, deg);
+  }
+  return {sum / double(k), worst};
+}
+
+void nnls_project(const Eigen::MatrixXd& basis, const Eigen::Ref<const RowMatrixXd>& spectra,
+                  Eigen::Ref<RowMatrixXd> coefficients) {
+  if (spectra.cols() != basis.cols() || coefficients.rows() != spectra.rows() || coefficients.cols() != basis.rows())
+    throw UsageError("nnls_project: spectra are " + std::to_string(spectra.rows()) + " x " +
+                     std::to_string(spectra.cols()) + ", basis " + std::to_string(basis.rows()) + " x " +
+                     std::to_string(basis.cols()) + ", coefficients " + std::to_string(coefficients.rows()) + " x " +
+                     std::to_string(coefficients.cols()));
+  const GramNnls solver(basis * basis.transpose());
+  const RowMatrixXd h = spectra * basis.transpose();
+  const Eigen::Index k = basis.rows();
+  std::uint64_t hint = 0;
+  Eigen::VectorXd c(k);
+  for (Eigen::Index r = 0; r < spectra.rows(); ++r) {
+    solver.solve(h.data() + r * k, c.data(), hint);
+    coefficients.row(r) = c.transpose();
+  }
+}
+
+NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
+  const auto b = Eigen::Index(reader.bands());
+  const auto k = Eigen::Index(o.k);
+  if (o.k < 1 || o.k > reader.bands())
+    throw UsageError("-k " + std::to_string(o.k) + ": give between 1 and " + std::to_string(reader.bands()) +
+                     " components (the data has " + std::to_string(reader.bands()) + " bands)");
+  if (o.restarts < 1 || o.restarts > 1000) throw UsageError("--restarts " + std::to_string(o.restarts) + ": give 1 to 1000");
+  if (o.max_epochs < 1) throw UsageError("--max-epochs must be at least 1");
+  if (!(o.tol >= 0) || !std::isfinite(o.tol)) throw UsageError("--tol must be a finite number >= 0");
+  if (reader.spectra() == 0) throw InputError("the selection holds no valid spectra");
+  if (o.resume && o.checkpoint.empty()) throw UsageError("--resume needs a checkpoint path");
+  const auto start = std::chrono::steady_clock::now();
+  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+
+  NmfResult result;
+  const std::string print = fingerprint(reader, o);
+  Checkpoint cp;
+  bool resumed = false;
+  if (o.resume) {
+    cp = load_checkpoint(o.checkpoint);
+    if (cp.fingerprint != print)
+      throw UsageError(o.checkpoint.string() + ": the checkpoint is of another run: " +
+                       describe_difference(cp.fingerprint, print) +
+                       "; rerun with the same options, or without --resume to start afresh");
+    resumed = true;
+  } else {
+    const GramStats g = gram_pass(reader, o.negatives);
+    ++result.passes;
+    cp.fingerprint = print;
+    cp.gram = g.gram;
+    cp.n = g.n;
+    cp.negatives = g.negatives;
+    cp.values = g.n * std::uint64_t(b);
+  }
+  result.resumed = resumed;
+  result.n = cp.n;
+  result.negatives = cp.negatives;
+  result.values = cp.values;
+  result.second_moment = cp.gram / double(std::max<std::uint64_t>(cp.n, 1));
+  {
+    Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(cp.gram, Eigen::EigenvaluesOnly);
+    const Eigen::VectorXd ev = eig.eigenvalues().cwiseMax(0.0);  // ascending
+    const double total = ev.sum();
+    result.svd_bound = total > 0 ? std::sqrt(ev.head(b - k).sum() / total) : 0.0;
+  }
+
+  for (std::size_t r = 0; r < cp.done_bases.size(); ++r) {
+    RestartResult rr;
+    rr.basis = cp.done_bases[r];
+    rr.history = cp.done_histories[r];
+    rr.epochs = rr.history.size();
+    rr.rel_error = rr.history.empty() ? 1.0 : rr.history.back();
+    rr.converged = cp.done_converged[r] != 0;
+    result.restarts.push_back(std::move(rr));
+  }
+  const std::size_t n_waves = (reader.block_count() + kWaveBlocks - 1) / kWaveBlocks;
+  for (std::size_t r = cp.restart; r < o.restarts; ++r) {
+    Eigen::MatrixXd s;
+    std::vector<double> history;
+    if (resumed && r == cp.restart && cp.epoch > 0) {
+      s = cp.basis;
+      history = cp.history;
+      if (s.rows() != k || s.cols() != b)
+        throw InputError(o.checkpoint.string() + ": checkpoint basis has the wrong shape; delete it and start afresh");
+    } else if (r == 0 && o.init == Init::nndsvd) {
+      s = nndsvd_init(reader, cp.gram, k, o.negatives, o.seed, result.passes);
+    } else {
+      s = random_init(k, b, o.seed + r);
+    }
+    std::mt19937_64 rng(o.seed * 1000003 + r);
+    bool converged = false;
+    // Block-coordinate descent in waves: each wave's coefficients are solved exactly for the current basis,
+    // then the basis is solved exactly from every wave's latest statistics. Those statistics are exact for
+    // the coefficients currently held (implicitly) for every spectrum, so the error they give is certified
+    // and never increases. A resumed run restarts from the epoch's end, where all waves are current.
+    std::vector<EpochStats> waves(n_waves, EpochStats{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)});
+    std::vector<char> seen(n_waves, 0);
+    if (resumed && r == cp.restart && cp.epoch > 0) {
+      if (cp.wave_xx.size() != n_waves)
+        throw InputError(o.checkpoint.string() + ": checkpoint holds " + std::to_string(cp.wave_xx.size()) +
+                         " waves, this run has " + std::to_string(n_waves) + "; delete it and start afresh");
+      for (std::size_t w = 0; w < n_waves; ++w) {
+        waves[w].ctc = Eigen::Map<const Eigen::MatrixXd>(cp.wave_ctc.row(Eigen::Index(w)).data(), k, k);
+        waves[w].ctx = Eigen::Map<const Eigen::MatrixXd>(cp.wave_ctx.row(Eigen::Index(w)).data(), k, b);
+        waves[w].xx = cp.wave_xx[w];
+        seen[w] = 1;
+      }
+    }
+    auto total_of = [&] {
+      EpochStats t{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
+      for (std::size_t w = 0; w < n_waves; ++w)
+        if (seen[w]) t += waves[w];
+      return t;
+    };
+    while (history.size() < o.max_epochs) {
+      const std::size_t epoch = history.size() + 1;
+      Progress progress("nmf: restart " + std::to_string(r + 1) + " epoch " + std::to_string(epoch), reader.spectra());
+      for (std::size_t w = 0; w < n_waves; ++w) {
+        const std::size_t first = w * kWaveBlocks, last = std::min(reader.block_count(), first + kWaveBlocks);
+        waves[w] = coefficient_pass(reader, s, o.negatives, first, last, progress);
+        seen[w] = 1;
+        result.nnls_unconverged += waves[w].unconverged;
+        s = solve_basis(total_of());
+        const Eigen::VectorXd d = normalise_rows(s, rng);
+        for (std::size_t v = 0; v < n_waves; ++v)
+          if (seen[v]) rescale(waves[v], d);
+      }
+      ++result.passes;
+      const double err = certified_error(total_of(), s);
+      const double prev = history.empty() ? std::numeric_limits<double>::infinity() : history.back();
+      history.push_back(err);
+      if (o.on_epoch) o.on_epoch({r, epoch, err, elapsed()});
+      cp.restart = r;
+      cp.epoch = history.size();
+      cp.basis = s;
+      cp.history = history;
+      cp.wave_ctc.resize(Eigen::Index(n_waves), k * k);
+      cp.wave_ctx.resize(Eigen::Index(n_waves), k * b);
+      cp.wave_xx.resize(n_waves);
+      for (std::size_t w = 0; w < n_waves; ++w) {
+        cp.wave_ctc.row(Eigen::Index(w)) = Eigen::Map<const Eigen::RowVectorXd>(waves[w].ctc.data(), k * k);
+        cp.wave_ctx.row(Eigen::Index(w)) = Eigen::Map<const Eigen::RowVectorXd>(waves[w].ctx.data(), k * b);
+        cp.wave_xx[w] = waves[w].xx;
+      }
+      if (!o.checkpoint.empty()) save_checkpoint(o.checkpoint, cp);
+      if (prev - err <= o.tol * err) {
+        converged = true;
+        break;
+      }
+      try {
+        check_interrupt();
+      } catch (const Interrupted&) {
+        throw Interrupted("interrupted after epoch " + std::to_string(epoch) + " of restart " + std::to_string(r + 1) +
+                          (o.checkpoint.empty() ? "" : "; continue with --resume (state in " + o.checkpoint.string() + ")"));
+      }
+    }
+    RestartResult rr;
+    rr.basis = s;
+    rr.history = history;
+    rr.epochs = history.size();
+    rr.rel_error = history.back();
+    rr.converged = converged;
+    result.restarts.push_back(rr);
+    cp.done_bases.push_back(s);
+    cp.done_histories.push_back(history);
+    cp.done_converged.push_back(converged);
+    cp.restart = r + 1;
+    cp.epoch = 0;
+    cp.history.clear();
+    cp.wave_ctc.resize(0, 0);
+    cp.wave_ctx.resize(0, 0);
+    cp.wave_xx.clear();
+    cp.basis = s;
+    if (!o.checkpoint.empty() && r + 1 < o.restarts) save_checkpoint(o.checkpoint, cp);
+  }
+  std::size_t best = 0;
+  for (std::size_t r = 1; r < result.restarts.size(); ++r)
+    if (result.restarts[r].rel_error < result.restarts[best].rel_error) best = r;
+  result.best = best;
+  for (auto& rr : result.restarts) std::tie(rr.mean_angle_deg, rr.max_angle_deg) = basis_angles(rr.basis, result.restarts[best].basis);
+  // The certifying pass: the best basis's exact coefficients give its own error and the RMS coefficient of
+  // each component.
+  Progress progress("nmf: certifying pass", reader.spectra());
+  EpochStats fin{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
+  for (std::size_t first = 0; first < reader.block_count(); first += 4 * kWaveBlocks)
+    fin += coefficient_pass(reader, result.restarts[best].basis, o.negatives, first,
+                            std::min(reader.block_count(), first + 4 * kWaveBlocks), progress);
+  ++result.passes;
+  result.nnls_unconverged += fin.unconverged;
+  result.rel_error = certified_error(fin, result.restarts[best].basis);
+  result.weights = (fin.ctc.diagonal() / double(std::max<std::uint64_t>(result.n, 1))).cwiseSqrt();
+  return result;
+}
+
+}  // namespace specula::nmf

@@ -1,0 +1,253 @@
+#include "nmf/nnls.h"
+
+#include <Eigen/Cholesky>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "core/error.h"
+
+namespace specula::nmf {
+namespace {
+
+constexpr std::size_t kMaxCached = 10;
+
+// The indices of the set bits of mask, in order.
+int members(std::uint64_t mask, int* idx) {
+  int n = 0;
+  while (mask) {
+    idx[n++] = std::countr_zero(mask);
+    mask &= mask - 1;
+  }
+  return n;
+}
+
+// The hinted passive set's product q = Q h (k known at compile time, so the loops unroll); true and c set
+// when it is optimal.
+template <std::size_t K>
+bool try_hint(const double* q, const double* h, std::uint64_t mask, double tol, double* c) {
+  double s[K];
+  for (std::size_t i = 0; i < K; ++i) {
+    double v = 0;
+    for (std::size_t j = 0; j < K; ++j) v += q[i * K + j] * h[j];
+    s[i] = v;
+  }
+  bool ok = true;
+  for (std::size_t i = 0; i < K; ++i) ok &= ((mask >> i) & 1u) ? s[i] > 0 : s[i] <= tol;
+  if (!ok) return false;
+  for (std::size_t i = 0; i < K; ++i) c[i] = ((mask >> i) & 1u) ? s[i] : 0.0;
+  return true;
+}
+
+template <std::size_t... K>
+bool try_hint_k(std::size_t k, const double* q, const double* h, std::uint64_t mask, double tol, double* c,
+                std::index_sequence<K...>) {
+  bool result = false;
+  ((k == K + 1 ? (result = try_hint<K + 1>(q, h, mask, tol, c), true) : false) || ...);
+  return result;
+}
+
+}  // namespace
+
+GramNnls::GramNnls(const Eigen::Ref<const Eigen::MatrixXd>& gram) : k_(std::size_t(gram.rows())), gram_(gram) {
+  if (gram.rows() != gram.cols() || k_ < 1 || k_ > 64)
+    throw UsageError("GramNnls: the Gram matrix must be square with 1 to 64 rows, got " + std::to_string(gram.rows()) +
+                     " x " + std::to_string(gram.cols()));
+  if (!gram_.allFinite()) throw UsageError("GramNnls: the Gram matrix has non-finite entries");
+  gram_ = 0.5 * (gram_ + gram_.transpose()).eval();
+  const double ridge = 1e-12 * std::max(gram_.trace(), std::numeric_limits<double>::min());
+  gram_.diagonal().array() += ridge;
+  if (k_ > kMaxCached) return;
+  // Per passive set P, Q (k x k, row-major) maps h to the unconstrained solution on P (rows in P) and to the
+  // gradient h - G s at that solution (rows outside P): one product decides optimality.
+  const std::uint64_t sets = std::uint64_t(1) << k_;
+  const auto k = Eigen::Index(k_);
+  inverses_.assign(sets * k_ * k_, 0.0);
+  int idx[64];
+  for (std::uint64_t m = 0; m < sets; ++m) {
+    const int p = members(m, idx);
+    Eigen::MatrixXd solve = Eigen::MatrixXd::Zero(k, k);  // s = solve * h
+    if (p > 0) {
+      Eigen::MatrixXd sub(p, p);
+      for (int a = 0; a < p; ++a)
+        for (int b = 0; b < p; ++b) sub(a, b) = gram_(idx[a], idx[b]);
+      Eigen::LDLT<Eigen::MatrixXd> ldlt(sub);
+      Eigen::MatrixXd inv = ldlt.solve(Eigen::MatrixXd::Identity(p, p));
+      if (ldlt.info() != Eigen::Success || !inv.allFinite()) inv.setZero();
+      for (int a = 0; a < p; ++a)
+        for (int b = 0; b < p; ++b) solve(idx[a], idx[b]) = inv(a, b);
+    }
+    const Eigen::MatrixXd grad = Eigen::MatrixXd::Identity(k, k) - gram_ * solve;  // w = grad * h
+    double* q = inverses_.data() + m * k_ * k_;
+    for (Eigen::Index i = 0; i < k; ++i)
+      for (Eigen::Index j = 0; j < k; ++j) q[i * k + j] = ((m >> i) & 1u) ? solve(i, j) : grad(i, j);
+  }
+  cached_ = true;
+}
+
+bool GramNnls::solve_passive(std::uint64_t mask, const double* h, double* s) const {
+  if (cached_) {
+    const double* q = inverses_.data() + mask * k_ * k_;
+    for (std::size_t i = 0; i < k_; ++i) {
+      double v = 0;
+      for (std::size_t j = 0; j < k_; ++j) v += q[i * k_ + j] * h[j];
+      s[i] = v;  // outside the passive set: the gradient there
+    }
+    return true;
+  }
+  int idx[64];
+  const int p = members(mask, idx);
+  for (std::size_t i = 0; i < k_; ++i) s[i] = 0.0;
+  if (p == 0) return true;
+  Eigen::MatrixXd sub(p, p);
+  Eigen::VectorXd rhs(p);
+  for (int a = 0; a < p; ++a) {
+    rhs[a] = h[idx[a]];
+    for (int b = 0; b < p; ++b) sub(a, b) = gram_(idx[a], idx[b]);
+  }
+  Eigen::LDLT<Eigen::MatrixXd> ldlt(sub);
+  const Eigen::VectorXd x = ldlt.solve(rhs);
+  if (ldlt.info() != Eigen::Success || !x.allFinite()) return false;
+  for (int a = 0; a < p; ++a) s[idx[a]] = x[a];
+  return true;
+}
+
+// KKT at the unconstrained solution s on `mask` (from solve_passive): s > 0 on the passive set, gradient
+// h - G s <= tol off it. With the cache, s already holds that gradient off the passive set.
+bool GramNnls::optimal(const double* h, const double* s, std::uint64_t mask, double tol) const {
+  for (std::size_t i = 0; i < k_; ++i) {
+    const bool in = (mask >> i) & 1u;
+    if (in) {
+      if (!(s[i] > 0)) return false;
+      continue;
+    }
+    double w = s[i];
+    if (!cached_) {
+      w = h[i];
+      for (std::size_t j = 0; j < k_; ++j)
+        if ((mask >> j) & 1u) w -= gram_(Eigen::Index(i), Eigen::Index(j)) * s[j];
+    }
+    if (w > tol) return false;
+  }
+  return true;
+}
+
+NnlsStatus GramNnls::solve(const double* h, double* c, std::uint64_t& passive) const {
+  NnlsStatus st;
+  double hmax = 0;
+  for (std::size_t i = 0; i < k_; ++i) hmax = std::max(hmax, std::abs(h[i]));
+  const double tol = 1e-11 * std::max(hmax, std::numeric_limits<double>::min());
+  const std::uint64_t all = k_ == 64 ? ~std::uint64_t(0) : (std::uint64_t(1) << k_) - 1;
+  double s[64], w[64];
+  // The hint: if the unconstrained solution on the hinted set is positive and optimal, it is the answer.
+  if (passive & ~all) passive = 0;
+  if (passive && cached_) {
+    if (try_hint_k(k_, inverses_.data() + passive * k_ * k_, h, passive, tol, c, std::make_index_sequence<kMaxCached>{}))
+      return st;
+  } else if (passive && solve_passive(passive, h, s) && optimal(h, s, passive, tol)) {
+    for (std::size_t i = 0; i < k_; ++i) c[i] = ((passive >> i) & 1u) ? s[i] : 0.0;
+    return st;
+  }
+  std::uint64_t mask = 0;
+  for (std::size_t i = 0; i < k_; ++i) {
+    c[i] = 0;
+    w[i] = h[i];
+  }
+  const int cap = 3 * int(k_) + 10;
+  while (true) {
+    int j = -1;
+    double best = tol;
+    for (std::size_t i = 0; i < k_; ++i)
+      if (!((mask >> i) & 1u) && w[i] > best) {
+        best = w[i];
+        j = int(i);
+      }
+    if (j < 0) break;
+    if (++st.iterations > cap) {
+      st.converged = false;
+      break;
+    }
+    mask |= std::uint64_t(1) << j;
+    while (true) {
+      if (!solve_passive(mask, h, s)) {
+        st.converged = false;
+        passive = mask;
+        return st;
+      }
+      bool feasible = true;
+      for (std::size_t i = 0; i < k_; ++i)
+        if (((mask >> i) & 1u) && s[i] <= 0) feasible = false;
+      if (feasible) {
+        for (std::size_t i = 0; i < k_; ++i) c[i] = ((mask >> i) & 1u) ? s[i] : 0.0;
+        break;
+      }
+      // Step from c towards s until the first passive coefficient reaches zero; drop those at zero.
+      double alpha = 1;
+      int hit = -1;
+      for (std::size_t i = 0; i < k_; ++i)
+        if (((mask >> i) & 1u) && s[i] <= 0) {
+          const double a = c[i] / (c[i] - s[i]);
+          if (hit < 0 || a < alpha) {
+            alpha = a;
+            hit = int(i);
+          }
+        }
+      for (std::size_t i = 0; i < k_; ++i) {
+        if (!((mask >> i) & 1u)) continue;
+        c[i] += alpha * (s[i] - c[i]);
+        if (int(i) == hit || c[i] <= 0) {
+          c[i] = 0;
+          mask &= ~(std::uint64_t(1) << i);
+        }
+      }
+      if (++st.iterations > cap) {
+        st.converged = false;
+        passive = mask;
+        return st;
+      }
+    }
+    for (std::size_t i = 0; i < k_; ++i) {
+      if (cached_) {
+        w[i] = s[i];  // the gradient off the passive set; entries on it are not used
+        continue;
+      }
+      double v = h[i];
+      for (std::size_t q = 0; q < k_; ++q) v -= gram_(Eigen::Index(i), Eigen::Index(q)) * c[q];
+      w[i] = v;
+    }
+  }
+  passive = mask;
+  return st;
+}
+
+Eigen::VectorXd nnls_brute_force(const Eigen::MatrixXd& gram, const Eigen::VectorXd& h) {
+  const Eigen::Index k = gram.rows();
+  if (k < 1 || k > 16) throw UsageError("nnls_brute_force: k must be 1..16");
+  Eigen::VectorXd best = Eigen::VectorXd::Zero(k);
+  double best_f = 0;  // objective at c = 0
+  for (std::uint64_t m = 1; m < (std::uint64_t(1) << k); ++m) {
+    std::vector<Eigen::Index> idx;
+    for (Eigen::Index i = 0; i < k; ++i)
+      if ((m >> i) & 1u) idx.push_back(i);
+    const auto p = Eigen::Index(idx.size());
+    Eigen::MatrixXd sub(p, p);
+    Eigen::VectorXd rhs(p);
+    for (Eigen::Index a = 0; a < p; ++a) {
+      rhs[a] = h[idx[std::size_t(a)]];
+      for (Eigen::Index b = 0; b < p; ++b) sub(a, b) = gram(idx[std::size_t(a)], idx[std::size_t(b)]);
+    }
+    const Eigen::VectorXd x = sub.ldlt().solve(rhs);
+    if ((x.array() < 0).any() || !x.allFinite()) continue;
+    Eigen::VectorXd c = Eigen::VectorXd::Zero(k);
+    for (Eigen::Index a = 0; a < p; ++a) c[idx[std::size_t(a)]] = x[a];
+    const double f = 0.5 * c.dot(gram * c) - h.dot(c);
+    if (f < best_f) {
+      best_f = f;
+      best = c;
+    }
+  }
+  return best;
+}
+
+}  // namespace specula::nmf

@@ -1,0 +1,216 @@
+#include "nmf/nmf.h"
+
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <random>
+
+#include "core/error.h"
+#include "core/interrupt.h"
+#include "nmf/checkpoint.h"
+#include "nmf/nnls.h"
+#include "store/store.h"
+#include "test_support.h"
+
+using namespace specula;
+using namespace specula::nmf;
+using specula::test::ScratchDir;
+
+namespace {
+
+constexpr int kBands = 16;
+
+// k non-negative smooth spectra, each with one band where only it is non-zero (separable, so the
+// factorisation is unique up to scale and order).
+Eigen::MatrixXd planted_basis(int k) {
+  Eigen::MatrixXd s(k, kBands);
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < kBands; ++j) {
+      const double centre = 2.0 + 12.0 * i / std::max(1, k - 1);
+      s(i, j) = std::exp(-0.5 * (j - centre) * (j - centre) / 9.0) + 0.05;
+    }
+  for (int i = 0; i < k; ++i)
+    for (int l = 0; l < k; ++l)
+      if (l != i) s(l, i * (kBands / k)) = 0.0;  // anchor band of component i
+  for (int i = 0; i < k; ++i) s.row(i) /= s.row(i).norm();
+  return s;
+}
+
+// N spectra C S (+ optional noise) as a collection in a new store.
+std::filesystem::path make_store(const ScratchDir& dir, const Eigen::MatrixXd& s, std::size_t n, double noise,
+                                 unsigned seed, const std::string& file = "db.h5") {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> g;
+  store::Collection col;
+  col.wavelengths = WavelengthGrid::range(400, 400 + 10.0 * (kBands - 1), 10);
+  col.units = "reflectance";
+  col.values.resize(n * kBands);
+  for (std::size_t i = 0; i < n; ++i) {
+    col.names.push_back("s" + std::to_string(i));
+    Eigen::VectorXd c(s.rows());
+    for (Eigen::Index j = 0; j < c.size(); ++j) c[j] = u(rng) < 0.3 ? 0.0 : u(rng);  // sparse coefficients
+    const Eigen::VectorXd x = s.transpose() * c;
+    for (int b = 0; b < kBands; ++b) col.values[i * kBands + std::size_t(b)] = float(x[b] + noise * g(rng));
+  }
+  const auto path = dir / file;
+  store::StoreWriter w(path, {});
+  w.add_collection("c", col);
+  w.commit();
+  return path;
+}
+
+NmfResult run(const std::filesystem::path& path, NmfOptions o) {
+  const store::Store s = store::Store::open(path);
+  const store::BlockReader reader(s, {.collection = "c"}, 4096);
+  return factorize(reader, o);
+}
+
+}  // namespace
+
+TEST(Nmf, RecoversAPlantedFactorisation) {
+  ScratchDir dir;
+  const Eigen::MatrixXd truth = planted_basis(4);
+  const auto path = make_store(dir, truth, 20000, 0.0, 3);
+  const NmfResult r = run(path, {.k = 4, .max_epochs = 3000, .tol = 0});
+  const auto& best = r.best_result();
+  // float32 storage of C S limits the attainable error to about 1e-7.
+  EXPECT_LT(best.rel_error, 1e-6);
+  const auto [mean_deg, max_deg] = basis_angles(best.basis, truth);
+  EXPECT_LT(max_deg, 1e-4) << "mean " << mean_deg;
+  EXPECT_LT(r.svd_bound, 1e-6);
+  EXPECT_EQ(r.n, 20000u);
+  EXPECT_GE(best.basis.minCoeff(), 0.0);
+}
+
+TEST(Nmf, CertifiedErrorNeverIncreasesAndStaysAboveTheSvdBound) {
+  ScratchDir dir;
+  const auto path = make_store(dir, planted_basis(6), 30000, 0.02, 4);
+  const NmfResult r = run(path, {.k = 3, .init = Init::random, .seed = 9, .max_epochs = 40, .tol = 0});
+  const auto& h = r.best_result().history;
+  ASSERT_EQ(h.size(), 40u);
+  for (std::size_t e = 1; e < h.size(); ++e) EXPECT_LE(h[e], h[e - 1] * (1 + 1e-12)) << "epoch " << e + 1;
+  EXPECT_GT(h.front(), h.back() * 1.01);  // it did improve
+  EXPECT_GE(r.best_result().rel_error, r.svd_bound);
+  EXPECT_LE(r.rel_error, h.back());  // the certifying pass's exact coefficients do at least as well
+  EXPECT_GE(r.rel_error, r.svd_bound);
+  EXPECT_GT(r.svd_bound, 0.01);
+}
+
+TEST(Nmf, SameResultForOneAndTwoThreads) {
+  ScratchDir dir;
+  const auto path = make_store(dir, planted_basis(5), 30000, 0.01, 5);
+  const NmfOptions o{.k = 5, .max_epochs = 8, .tol = 0};
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const NmfResult one = run(path, o);
+  omp_set_num_threads(2);
+  const NmfResult two = run(path, o);
+  omp_set_num_threads(saved);
+  EXPECT_EQ(one.best_result().history, two.best_result().history);
+  EXPECT_TRUE(one.best_result().basis == two.best_result().basis);
+  EXPECT_TRUE(one.weights == two.weights);
+}
+
+TEST(Nmf, InterruptedRunResumesToTheUninterruptedResult) {
+  ScratchDir dir;
+  const auto path = make_store(dir, planted_basis(4), 20000, 0.01, 6);
+  const NmfOptions plain{.k = 4, .restarts = 2, .max_epochs = 6, .tol = 0};
+  const NmfResult straight = run(path, plain);
+
+  NmfOptions o = plain;
+  o.checkpoint = dir / "run.ckpt";
+  o.on_epoch = [](const EpochReport& e) {
+    if (e.restart == 1 && e.epoch == 2) request_interrupt();
+  };
+  EXPECT_THROW(run(path, o), Interrupted);
+  clear_interrupt();
+  const Checkpoint cp = load_checkpoint(o.checkpoint);
+  EXPECT_EQ(cp.restart, 1u);
+  EXPECT_EQ(cp.epoch, 2u);
+  ASSERT_EQ(cp.done_bases.size(), 1u);
+
+  o.on_epoch = nullptr;
+  o.resume = true;
+  const NmfResult resumed = run(path, o);
+  EXPECT_TRUE(resumed.resumed);
+  ASSERT_EQ(resumed.restarts.size(), 2u);
+  for (std::size_t r = 0; r < 2; ++r) {
+    EXPECT_EQ(resumed.restarts[r].history, straight.restarts[r].history) << "restart " << r;
+    EXPECT_TRUE(resumed.restarts[r].basis == straight.restarts[r].basis);
+  }
+  EXPECT_EQ(resumed.best, straight.best);
+}
+
+TEST(Nmf, ResumeRefusesACheckpointOfAnotherRun) {
+  ScratchDir dir;
+  const auto path = make_store(dir, planted_basis(3), 5000, 0.01, 7);
+  NmfOptions o{.k = 3, .max_epochs = 2, .tol = 0, .checkpoint = dir / "run.ckpt"};
+  run(path, o);
+  o.k = 2;
+  o.resume = true;
+  try {
+    run(path, o);
+    FAIL() << "resumed a checkpoint of k = 3 with k = 2";
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("k=2 (checkpoint: k=3)"), std::string::npos) << e.what();
+  }
+  std::filesystem::resize_file(o.checkpoint, 100);
+  o.k = 3;
+  EXPECT_THROW(run(path, o), InputError);
+}
+
+TEST(Nmf, NegativeValuesAreClippedAndCountedOrRefused) {
+  ScratchDir dir;
+  // Noise of 0.05 around small values makes a few percent of the values negative.
+  const auto path = make_store(dir, planted_basis(3), 5000, 0.05, 8);
+  const NmfResult r = run(path, {.k = 3, .max_epochs = 3});
+  EXPECT_GT(r.negatives, 0u);
+  EXPECT_LT(r.negatives, r.values / 5);
+  EXPECT_EQ(r.values, 5000u * kBands);
+  std::uint64_t count = 0;
+  const store::Store s = store::Store::open(path);
+  const store::BlockReader reader(s, {.collection = "c"});
+  store::for_each_block<float>(reader, [&](std::size_t, const RowMatrixXf& x, int) {
+#pragma omp critical
+    count += std::uint64_t((x.array() < 0).count());
+  });
+  EXPECT_EQ(r.negatives, count);
+  EXPECT_THROW(run(path, {.k = 3, .max_epochs = 3, .negatives = Negatives::reject}), InputError);
+}
+
+TEST(Nmf, RestartsAreComparedByMatchedComponentAngles) {
+  Eigen::MatrixXd a = planted_basis(4);
+  Eigen::MatrixXd b = a;
+  b.row(0).swap(b.row(3));  // same basis, other order
+  auto [mean_deg, max_deg] = basis_angles(a, b);
+  EXPECT_NEAR(max_deg, 0.0, 1e-6);
+  b.row(1) = a.row(2);
+  std::tie(mean_deg, max_deg) = basis_angles(a, b);
+  EXPECT_GT(max_deg, 1.0);
+}
+
+TEST(Nmf, RefusesBadOptions) {
+  ScratchDir dir;
+  const auto path = make_store(dir, planted_basis(3), 1000, 0.0, 9);
+  EXPECT_THROW(run(path, {.k = 0}), UsageError);
+  EXPECT_THROW(run(path, {.k = kBands + 1}), UsageError);
+  EXPECT_THROW(run(path, {.k = 2, .restarts = 0}), UsageError);
+  EXPECT_THROW(run(path, {.k = 2, .tol = -1}), UsageError);
+  EXPECT_THROW(parse_init("svd"), UsageError);
+  EXPECT_THROW(parse_negatives("abs"), UsageError);
+}
+
+TEST(Nmf, NnlsProjectionMatchesPerSpectrumSolves) {
+  const Eigen::MatrixXd s = planted_basis(4);
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  RowMatrixXd x(50, kBands);
+  for (Eigen::Index i = 0; i < x.size(); ++i) x.data()[i] = u(rng);
+  RowMatrixXd c(50, 4);
+  nnls_project(s, x, c);
+  for (Eigen::Index r = 0; r < 50; ++r) {
+    const Eigen::VectorXd ref = nnls_brute_force(s * s.transpose(), s * x.row(r).transpose());
+    EXPECT_LE((c.row(r).transpose() - ref).norm(), 1e-9);
+  }
+}
