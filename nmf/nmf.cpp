@@ -413,6 +413,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
     result.restarts.push_back(std::move(rr));
   }
   const std::size_t n_waves = (reader.block_count() + kWaveBlocks - 1) / kWaveBlocks;
+  try {
   for (std::size_t r = cp.restart; r < o.restarts; ++r) {
     Eigen::MatrixXd s;
     std::vector<double> history;
@@ -486,12 +487,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
         converged = true;
         break;
       }
-      try {
-        check_interrupt();
-      } catch (const Interrupted&) {
-        throw Interrupted("interrupted after epoch " + std::to_string(epoch) + " of restart " + std::to_string(r + 1) +
-                          (o.checkpoint.empty() ? "" : "; continue with --resume (state in " + o.checkpoint.string() + ")"));
-      }
+      check_interrupt();
     }
     RestartResult rr;
     rr.basis = s;
@@ -511,6 +507,13 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
     cp.wave_xx.clear();
     cp.basis = s;
     if (!o.checkpoint.empty() && r + 1 < o.restarts) save_checkpoint(o.checkpoint, cp);
+  }
+  } catch (const Interrupted&) {
+    const std::string kept = std::to_string(cp.epoch) + " finished epoch" + (cp.epoch == 1 ? "" : "s") + " of restart " +
+                             std::to_string(cp.restart + 1);
+    throw Interrupted("interrupted; " +
+                      (o.checkpoint.empty() ? kept + " were not saved (no checkpoint)"
+                                            : kept + " kept in " + o.checkpoint.string() + ": continue with --resume"));
   }
   std::size_t best = 0;
   for (std::size_t r = 1; r < result.restarts.size(); ++r)

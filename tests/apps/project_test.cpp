@@ -182,7 +182,8 @@ TEST(ProjectCli, BadInputsAreOneLineErrors) {
 
   r = run_specula("project '" + f.db.string() + "' --basis nmf --image scene -k 1" + out);
   EXPECT_EQ(r.status, 1) << r.output;
-  EXPECT_NE(r.output.find("NMF projection is not available yet"), std::string::npos) << r.output;
+  EXPECT_EQ(lines(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("NMF basis nmf has 2 components and projects onto all of them"), std::string::npos) << r.output;
 
   r = run_specula(f.base() + "-k 1,3 -o '" + (f.dir / "one.exr").string() + "'");
   EXPECT_EQ(r.status, 1) << r.output;
