@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 
 #include "store/store.h"
@@ -116,4 +118,32 @@ TEST(NmfCli, InterruptedRunKeepsItsCheckpointAndResumes) {
   EXPECT_GE(number(r.output, "epochs"), 2.0);  // the epochs before the interruption count
   EXPECT_FALSE(std::filesystem::exists(ckpt));
   EXPECT_EQ(store::Store::open(f.db).bases().size(), 1u);
+}
+
+TEST(NmfCli, PlotBasisDrawsSeveralBasesAsOnePanelWithTheirCsv) {
+  Fixture f;
+  for (const char* k : {"2", "3"}) {
+    const auto r = run_specula("nmf " + f.quoted() + " -k " + k + " --max-epochs 3 --quiet");
+    ASSERT_EQ(r.status, 0) << r.output;
+  }
+  const auto out = f.dir / "fig";
+  const auto r = run_specula("plot-basis " + f.quoted() + " nmf2 nmf3 -o '" + out.string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const store::Basis b = store::Store::open(f.db).read_basis("nmf3");
+  std::ifstream csv(out / "nmf3-components.csv");
+  std::string header, line;
+  std::getline(csv, header);
+  EXPECT_EQ(header, "wavelength_nm,c1,c2,c3");
+  for (std::size_t w = 0; std::getline(csv, line); ++w) {
+    std::stringstream ss(line);
+    std::string cell;
+    std::getline(ss, cell, ',');
+    EXPECT_DOUBLE_EQ(std::stod(cell), b.wavelengths[w]);
+    for (Eigen::Index c = 0; c < 3; ++c) {
+      std::getline(ss, cell, ',');
+      EXPECT_NEAR(std::stod(cell), b.components(c, Eigen::Index(w)), 1e-12);
+    }
+  }
+  EXPECT_TRUE(std::filesystem::exists(out / "nmf2-components.csv"));
+  if (r.output.find("gnuplot not found") == std::string::npos) EXPECT_TRUE(std::filesystem::exists(out / "panel.png"));
 }
