@@ -145,5 +145,7 @@ TEST(NmfCli, PlotBasisDrawsSeveralBasesAsOnePanelWithTheirCsv) {
     }
   }
   EXPECT_TRUE(std::filesystem::exists(out / "nmf2-components.csv"));
-  if (r.output.find("gnuplot not found") == std::string::npos) EXPECT_TRUE(std::filesystem::exists(out / "panel.png"));
+  if (r.output.find("gnuplot not found") == std::string::npos) {
+    EXPECT_TRUE(std::filesystem::exists(out / "panel.png"));
+  }
 }
