@@ -1,5 +1,7 @@
 #include "nmf/nmf.h"
 
+#include <immintrin.h>
+
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
@@ -71,23 +73,28 @@ Stats reduce_blocks(const BlockReader& reader, const Stats& zero, const std::str
 // refused); returns the number of negative values seen.
 template <class Fn>
 std::uint64_t for_each_tile(const BlockReader& reader, std::size_t block, const BlockReader::RawBlock& raw,
-                            Negatives policy, RowMatrixXd& tile, Fn&& fn) {
+                            Negatives policy, RowMatrixXd& tile, Fn&& fn, std::size_t ld = 0) {
   const std::size_t b = reader.bands();
-  tile.resize(Eigen::Index(kTile), Eigen::Index(b));
+  if (ld < b) ld = b;
+  if (std::size_t(tile.rows()) != kTile || std::size_t(tile.cols()) != ld)
+    tile = RowMatrixXd::Zero(Eigen::Index(kTile), Eigen::Index(ld));  // columns beyond b stay zero
   std::uint64_t negatives = 0;
   std::size_t fill = 0;
   for (std::size_t p = 0; p < raw.pixels; ++p) {
     if (!raw.is_valid(p)) continue;
     const float* x = raw.spectrum(p, b);
-    double* t = tile.data() + fill * b;
-    bool bad = false;
+    double* t = tile.data() + fill * ld;
+    int bad = 0;
+    unsigned neg = 0;
+#pragma omp simd reduction(| : bad) reduction(+ : neg)
     for (std::size_t k = 0; k < b; ++k) {
-      const double v = x[k];
-      bad |= !std::isfinite(v);
-      negatives += v < 0;
-      t[k] = v < 0 ? 0.0 : v;
+      const float v = x[k];
+      bad |= (v - v) != 0.0f;  // NaN or infinite
+      neg += v < 0.0f;
+      t[k] = double(v < 0.0f ? 0.0f : v);
     }
-    if (bad || (negatives && policy == Negatives::reject)) {
+    negatives += neg;
+    if (bad || (neg && policy == Negatives::reject)) {
       const std::string where = reader.source_names()[reader.block_source(block)];
       throw InputError(where + ": spectrum " + std::to_string(p) + " of the block starting at row " +
                        std::to_string(reader.block_first_row(block)) +
@@ -101,6 +108,72 @@ std::uint64_t for_each_tile(const BlockReader& reader, std::size_t block, const 
   }
   if (fill) fn(tile.topRows(Eigen::Index(fill)));
   return negatives;
+}
+
+// Small products of the coefficient pass for k <= 8 (coefficients padded to 8), on tiles whose rows are
+// padded to a multiple of 4 with zeros. AVX2 register blocks where available, plain loops otherwise.
+constexpr std::size_t kPad = 8;
+
+// h (n x 8) = X (n x ld) * st (ld x 8).
+void times_basis(const double* x, std::size_t n, std::size_t ld, const double* st, double* h) {
+  std::size_t r = 0;
+#if defined(__AVX2__) && defined(__FMA__)
+  for (; r + 4 <= n; r += 4) {
+    __m256d a00 = _mm256_setzero_pd(), a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00, a31 = a00;
+    const double* x0 = x + r * ld;
+    for (std::size_t b = 0; b < ld; ++b) {
+      const __m256d s0 = _mm256_loadu_pd(st + b * kPad), s1 = _mm256_loadu_pd(st + b * kPad + 4);
+      __m256d v = _mm256_broadcast_sd(x0 + b);
+      a00 = _mm256_fmadd_pd(v, s0, a00); a01 = _mm256_fmadd_pd(v, s1, a01);
+      v = _mm256_broadcast_sd(x0 + ld + b);
+      a10 = _mm256_fmadd_pd(v, s0, a10); a11 = _mm256_fmadd_pd(v, s1, a11);
+      v = _mm256_broadcast_sd(x0 + 2 * ld + b);
+      a20 = _mm256_fmadd_pd(v, s0, a20); a21 = _mm256_fmadd_pd(v, s1, a21);
+      v = _mm256_broadcast_sd(x0 + 3 * ld + b);
+      a30 = _mm256_fmadd_pd(v, s0, a30); a31 = _mm256_fmadd_pd(v, s1, a31);
+    }
+    double* o = h + r * kPad;
+    _mm256_storeu_pd(o, a00); _mm256_storeu_pd(o + 4, a01);
+    _mm256_storeu_pd(o + 8, a10); _mm256_storeu_pd(o + 12, a11);
+    _mm256_storeu_pd(o + 16, a20); _mm256_storeu_pd(o + 20, a21);
+    _mm256_storeu_pd(o + 24, a30); _mm256_storeu_pd(o + 28, a31);
+  }
+#endif
+  for (; r < n; ++r) {
+    double acc[kPad] = {};
+    for (std::size_t b = 0; b < ld; ++b)
+      for (std::size_t j = 0; j < kPad; ++j) acc[j] += x[r * ld + b] * st[b * kPad + j];
+    std::copy(acc, acc + kPad, h + r * kPad);
+  }
+}
+
+// out (rows x 8) += sum over t < n of a_t (row t of a, length rows, a multiple of 4) times c_t (row t of c, 8).
+void outer_accumulate(const double* a, std::size_t lda, std::size_t rows, const double* c, std::size_t n, double* out) {
+  for (std::size_t i0 = 0; i0 < rows; i0 += 4) {
+#if defined(__AVX2__) && defined(__FMA__)
+    __m256d a00 = _mm256_setzero_pd(), a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00, a31 = a00;
+    for (std::size_t t = 0; t < n; ++t) {
+      const double* ct = c + t * kPad;
+      const double* at = a + t * lda + i0;
+      const __m256d c0 = _mm256_loadu_pd(ct), c1 = _mm256_loadu_pd(ct + 4);
+      __m256d v = _mm256_broadcast_sd(at);
+      a00 = _mm256_fmadd_pd(v, c0, a00); a01 = _mm256_fmadd_pd(v, c1, a01);
+      v = _mm256_broadcast_sd(at + 1);
+      a10 = _mm256_fmadd_pd(v, c0, a10); a11 = _mm256_fmadd_pd(v, c1, a11);
+      v = _mm256_broadcast_sd(at + 2);
+      a20 = _mm256_fmadd_pd(v, c0, a20); a21 = _mm256_fmadd_pd(v, c1, a21);
+      v = _mm256_broadcast_sd(at + 3);
+      a30 = _mm256_fmadd_pd(v, c0, a30); a31 = _mm256_fmadd_pd(v, c1, a31);
+    }
+    double* o = out + i0 * kPad;
+    const __m256d acc[8] = {a00, a01, a10, a11, a20, a21, a30, a31};
+    for (std::size_t q = 0; q < 8; ++q) _mm256_storeu_pd(o + 4 * q, _mm256_add_pd(_mm256_loadu_pd(o + 4 * q), acc[q]));
+#else
+    for (std::size_t t = 0; t < n; ++t)
+      for (std::size_t i = 0; i < 4; ++i)
+        for (std::size_t j = 0; j < kPad; ++j) out[(i0 + i) * kPad + j] += a[t * lda + i0 + i] * c[t * kPad + j];
+#endif
+  }
 }
 
 struct GramStats {
@@ -156,9 +229,40 @@ EpochStats coefficient_pass(const BlockReader& reader, const Eigen::MatrixXd& ba
   const Eigen::Index k = basis.rows(), b = basis.cols();
   const GramNnls solver(basis * basis.transpose());
   const EpochStats zero{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
+  if (std::size_t(k) <= kPad) {
+    // Fast path: coefficients padded to 8, tile rows to a multiple of 4; per-block sums in padded form.
+    const std::size_t ld = (std::size_t(b) + 3) / 4 * 4;
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> st =
+        Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>::Zero(Eigen::Index(ld), Eigen::Index(kPad));
+    st.topLeftCorner(b, k) = basis.transpose();
+    return reduce_range(reader, zero, first, last, progress, [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
+      thread_local RowMatrixXd tile;
+      thread_local std::vector<double> h, c, ctx, ctc;
+      h.assign(kTile * kPad, 0.0);
+      c.assign(kTile * kPad, 0.0);  // entries beyond k stay zero
+      ctx.assign(ld * kPad, 0.0);
+      ctc.assign(kPad * kPad, 0.0);
+      std::uint64_t hint = 0;  // neighbouring spectra usually share their passive set
+      for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
+        const std::size_t n = std::size_t(t.rows());
+        times_basis(t.data(), n, ld, st.data(), h.data());
+        for (std::size_t r = 0; r < n; ++r) {
+          const NnlsStatus s = solver.solve(h.data() + r * kPad, c.data() + r * kPad, hint);
+          out.unconverged += !s.converged;
+        }
+        outer_accumulate(t.data(), ld, ld, c.data(), n, ctx.data());
+        outer_accumulate(c.data(), kPad, kPad, c.data(), n, ctc.data());
+        out.xx += t.squaredNorm();
+      }, ld);
+      for (Eigen::Index p = 0; p < k; ++p) {
+        for (Eigen::Index q = 0; q < k; ++q) out.ctc(p, q) += ctc[std::size_t(p) * kPad + std::size_t(q)];
+        for (Eigen::Index j = 0; j < b; ++j) out.ctx(p, j) += ctx[std::size_t(j) * kPad + std::size_t(p)];
+      }
+    });
+  }
   return reduce_range(reader, zero, first, last, progress, [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
     thread_local RowMatrixXd tile, h, c;
-    std::uint64_t hint = 0;  // neighbouring spectra usually share their passive set
+    std::uint64_t hint = 0;
     for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
       h.noalias() = t * basis.transpose();
       c.resize(t.rows(), k);

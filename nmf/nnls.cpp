@@ -155,6 +155,29 @@ NnlsStatus GramNnls::solve(const double* h, double* c, std::uint64_t& passive) c
     w[i] = h[i];
   }
   const int cap = 3 * int(k_) + 10;
+  // Warm start from the hint: drop its indices whose unconstrained solution is not positive until the rest
+  // is; that point (the minimiser on its passive set, positive there) is a valid state of the method.
+  for (std::uint64_t hint = passive; hint && solve_passive(hint, h, s);) {
+    std::uint64_t drop = 0;
+    for (std::size_t i = 0; i < k_; ++i)
+      if (((hint >> i) & 1u) && !(s[i] > 0)) drop |= std::uint64_t(1) << i;
+    if (!drop) {
+      mask = hint;
+      for (std::size_t i = 0; i < k_; ++i) c[i] = ((mask >> i) & 1u) ? s[i] : 0.0;
+      for (std::size_t i = 0; i < k_; ++i) {
+        if ((mask >> i) & 1u) continue;
+        double v = s[i];  // with the cache: the gradient off the passive set
+        if (!cached_) {
+          v = h[i];
+          for (std::size_t q = 0; q < k_; ++q) v -= gram_(Eigen::Index(i), Eigen::Index(q)) * c[q];
+        }
+        w[i] = v;
+      }
+      break;
+    }
+    hint &= ~drop;
+    ++st.iterations;
+  }
   while (true) {
     int j = -1;
     double best = tol;
