@@ -93,7 +93,7 @@ void run_info(const InfoOptions& o) {
     return;
   }
   std::string name = o.object;
-  for (const char* prefix : {"images/", "collections/", "samples/", "/images/", "/collections/", "/samples/"})
+  for (const char* prefix : {"images/", "collections/", "samples/", "bases/", "/images/", "/collections/", "/samples/", "/bases/"})
     if (name.rfind(prefix, 0) == 0) name = name.substr(std::string(prefix).size());
   auto has = [](const std::vector<std::string>& v, const std::string& n) { return std::find(v.begin(), v.end(), n) != v.end(); };
   if (has(s.images(), name)) {
@@ -111,6 +111,18 @@ void run_info(const InfoOptions& o) {
     const auto c = s.samples_info(name);
     if (o.json) return fmt::print("{}\n", samples_json(c));
     fmt::print("{}\n  source {}\n", samples_line(c), c.provenance.source_file);
+  } else if (has(s.bases(), name)) {
+    const store::Basis b = s.read_basis(name);
+    if (o.json)
+      return fmt::print(R"({{"kind":"basis","name":{},"method":{},"k":{},"n":{},"bands":{},"wavelengths":{},"source":{},)"
+                        R"("fit":{},"created":{},"command_line":{}}})"
+                        "\n",
+                        json_string(name), json_string(b.method), b.k(), b.n, b.bands(), json_array(b.wavelengths.values()),
+                        json_string(b.source), json_string(b.provenance.importer), json_string(b.provenance.created_utc),
+                        json_string(b.provenance.command_line));
+    fmt::print("basis {}: {}, {} components on {}, learned from {} spectra\n  source {}\n  fit {}\n  created {} by: {}\n",
+               name, b.method, b.k(), b.wavelengths.describe(), b.n, b.source, b.provenance.importer,
+               b.provenance.created_utc, b.provenance.command_line);
   } else {
     throw InputError(s.label() + ": no object '" + o.object + "'; `specula ls " + s.path().string() + "` lists them");
   }
@@ -122,7 +134,7 @@ void setup_info(CLI::App& app) {
   auto o = std::make_shared<InfoOptions>();
   auto* cmd = app.add_subcommand("info", "Describe a store, or one object in it");
   cmd->add_option("store", o->store, "Store file")->required();
-  cmd->add_option("object", o->object, "Object name (image, collection or samples)");
+  cmd->add_option("object", o->object, "Object name (image, collection, samples or basis)");
   cmd->add_flag("--json", o->json, "Print JSON");
   cmd->callback([o] { run_info(*o); });
 }

@@ -57,6 +57,10 @@ TEST(NmfCli, JsonReportsTheFitAndTheBasisProjectsTheImageWithTheSameError) {
   EXPECT_EQ(b.k(), 4u);
   EXPECT_GE(b.components.minCoeff(), 0.0);
   EXPECT_EQ(b.n, std::uint64_t(number(r.output, "n")));
+  const auto info = run_specula("info " + f.quoted() + " nmf4 --json");
+  ASSERT_EQ(info.status, 0) << info.output;
+  EXPECT_NE(info.output.find("\"method\":\"nmf\""), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("rel_error="), std::string::npos) << info.output;
 
   // The certified error is ||X - C*S|| / ||X|| with C* the exact NNLS coefficients: project recomputes C* pixel
   // by pixel, so its RMS over the same spectra must give the same error.
