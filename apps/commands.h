@@ -15,5 +15,6 @@ void setup_pca(CLI::App& app);
 void setup_project(CLI::App& app);
 void setup_plot_basis(CLI::App& app);
 void setup_compare_bases(CLI::App& app);
+void setup_uplift(CLI::App& app);
 
 }  // namespace specula::app

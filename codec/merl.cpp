@@ -56,7 +56,8 @@ MerlBrdf read_merl(const std::filesystem::path& path) {
   in.read(reinterpret_cast<char*>(dims), sizeof dims);
   if (dims[0] != brdf::kMerlThetaH || dims[1] != brdf::kMerlThetaD || dims[2] != brdf::kMerlPhiD)
     throw InputError(name + ": not a MERL BRDF: header dimensions " + std::to_string(dims[0]) + " x " +
-                     std::to_string(dims[1]) + " x " + std::to_string(dims[2]) + ", expected 90 x 90 x 180");
+                     std::to_string(dims[1]) + " x " + std::to_string(dims[2]) + ", expected 90 x 90 x 180 (the file has " +
+                     std::to_string(size) + " bytes, expected " + expected + ")");
   if (size != kMerlFileBytes)
     throw InputError(name + ": " + (size < kMerlFileBytes ? "truncated" : "oversized") + " MERL BRDF: " +
                      std::to_string(size) + " bytes, expected " + expected);
