@@ -35,6 +35,9 @@ bool MerlBrdf::has_data(std::size_t cell) const {
 }
 
 Eigen::Vector3d MerlBrdf::lookup(const brdf::StdAngles& a) const {
+  if (!std::isfinite(a.theta_i) || !std::isfinite(a.phi_i) || !std::isfinite(a.theta_o) || !std::isfinite(a.phi_o))
+    throw UsageError("MERL lookup: angles (" + num(a.theta_i) + ", " + num(a.phi_i) + ", " + num(a.theta_o) + ", " +
+                     num(a.phi_o) + ") must be finite radians");
   const std::size_t cell = brdf::merl_index(brdf::merl_cell(a));
   return {value(0, cell), value(1, cell), value(2, cell)};
 }

@@ -30,7 +30,8 @@ struct MerlBrdf {
   void set(std::size_t cell, const Eigen::Vector3d& rgb);
   /// True when all three channels of `cell` hold data (are not negative).
   bool has_data(std::size_t cell) const;
-  /// BRDFRead.cpp's lookup_brdf_val: the scaled RGB of the cell holding the standard angles a (negative: no data).
+  /// BRDFRead.cpp's lookup_brdf_val: the scaled RGB of the cell holding the standard angles a (negative: no data);
+  /// throws UsageError on non-finite angles.
   Eigen::Vector3d lookup(const brdf::StdAngles& a) const;
 };
 

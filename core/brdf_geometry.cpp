@@ -61,22 +61,26 @@ StdAngles std_angles(const HalfDiff& h) {
   return {i[0], i[1], o[0], o[1]};
 }
 
+namespace {
+// floor(x) clamped to [0, n - 1] without the undefined int conversion of NaN or huge values.
+int clamped_floor(double x, int n) {
+  if (!(x > 0)) return 0;
+  if (x >= n - 1) return n - 1;
+  return int(x);
+}
+}  // namespace
+
 int merl_theta_h_index(double theta_h) {
-  if (theta_h <= 0.0) return 0;
+  if (!(theta_h > 0.0)) return 0;
   const double theta_half_deg = theta_h / (pi / 2.0) * kMerlThetaH;
-  const int r = int(std::sqrt(theta_half_deg * kMerlThetaH));
-  return std::clamp(r, 0, kMerlThetaH - 1);
+  return clamped_floor(std::sqrt(theta_half_deg * kMerlThetaH), kMerlThetaH);
 }
 
-int merl_theta_d_index(double theta_d) {
-  const int r = int(theta_d / (pi * 0.5) * kMerlThetaD);
-  return std::clamp(r, 0, kMerlThetaD - 1);
-}
+int merl_theta_d_index(double theta_d) { return clamped_floor(theta_d / (pi * 0.5) * kMerlThetaD, kMerlThetaD); }
 
 int merl_phi_d_index(double phi_d) {
   if (phi_d < 0.0) phi_d += pi;
-  const int r = int(phi_d / pi * kMerlPhiD);
-  return std::clamp(r, 0, kMerlPhiD - 1);
+  return clamped_floor(phi_d / pi * kMerlPhiD, kMerlPhiD);
 }
 
 MerlCell merl_cell(const HalfDiff& h) {

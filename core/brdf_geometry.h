@@ -45,7 +45,7 @@ struct MerlCell {
   int theta_h = 0, theta_d = 0, phi_d = 0;
 };
 
-/// BRDFRead.cpp theta_half_index: floor(90 sqrt(theta_h / (pi/2))), clamped to [0, 89].
+/// BRDFRead.cpp theta_half_index: floor(90 sqrt(theta_h / (pi/2))), clamped to [0, 89] (NaN gives 0, as do the others).
 int merl_theta_h_index(double theta_h);
 /// BRDFRead.cpp theta_diff_index: floor(90 theta_d / (pi/2)), clamped to [0, 89].
 int merl_theta_d_index(double theta_d);

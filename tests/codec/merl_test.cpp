@@ -86,6 +86,7 @@ TEST(Merl, LookupUsesTheReferenceConventions) {
   EXPECT_DOUBLE_EQ(b.lookup(a)[0], double(i2) / 1500);
   // Reciprocity: swapping the directions reads the same cell.
   EXPECT_DOUBLE_EQ(b.lookup({a.theta_o, a.phi_o, a.theta_i, a.phi_i})[0], double(i2) / 1500);
+  EXPECT_THROW(b.lookup({std::nan(""), 0, 0, 0}), UsageError);
   EXPECT_FALSE(b.has_data(0));
   EXPECT_TRUE(b.has_data(1));
   b.set(5, Eigen::Vector3d(1, 2, 3));

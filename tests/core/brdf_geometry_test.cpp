@@ -156,6 +156,13 @@ TEST(BrdfGeometry, KnownIndices) {
   EXPECT_EQ(merl_phi_d_index(pi), 179);
   EXPECT_EQ(merl_phi_d_index(0.0), 0);
   EXPECT_EQ(merl_index(MerlCell{89, 89, 179}), kMerlCells - 1);
+  // Out-of-range input is clamped, not undefined.
+  EXPECT_EQ(merl_theta_h_index(std::nan("")), 0);
+  EXPECT_EQ(merl_theta_d_index(std::nan("")), 0);
+  EXPECT_EQ(merl_phi_d_index(std::nan("")), 0);
+  EXPECT_EQ(merl_theta_h_index(1e300), 89);
+  EXPECT_EQ(merl_theta_d_index(1e300), 89);
+  EXPECT_EQ(merl_phi_d_index(-1e300), 0);
 }
 
 TEST(BrdfGeometry, SwappingDirectionsKeepsTheCell) {
