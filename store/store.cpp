@@ -131,7 +131,7 @@ WavelengthGrid read_wavelengths(hid_t group, const std::string& ctx) {
   return WavelengthGrid(h5::read_vector(group, "wavelengths", ctx), ctx + ": wavelengths");
 }
 
-void write_wavelengths(hid_t group, const WavelengthGrid& g, const std::string& ctx) {
+void write_grid(hid_t group, const WavelengthGrid& g, const std::string& ctx) {
   h5::write_vector(group, "wavelengths", g.values(), ctx);
   h5::Id ds(h5::check(H5Dopen2(group, "wavelengths", H5P_DEFAULT), ctx, "cannot open wavelengths"));
   h5::write_attr(ds, "units", std::string_view("nm"), ctx);
@@ -651,7 +651,7 @@ void write_image_objects(hid_t file_, const std::string& name, const Cube& cube,
   h5::write_attr(g, "units", std::string_view(cube.units), ctx);
   h5::write_attr(g, "valid_pixels", static_cast<long long>(valid), ctx);
   write_provenance(g, cube.provenance, options_.command_line, ctx);
-  write_wavelengths(g, cube.wavelengths, ctx);
+  write_grid(g, cube.wavelengths, ctx);
   if (!cube.fwhm.empty()) h5::write_vector(g, "fwhm", cube.fwhm, ctx);
 
   const auto [ch, cw] = image_chunk(cube.height, cube.width, cube.bands);
@@ -714,7 +714,7 @@ void StoreWriter::add_collection(const std::string& name, const Collection& col)
   h5::write_attr(g, "kind", std::string_view("collection"), ctx);
   h5::write_attr(g, "units", std::string_view(col.units), ctx);
   write_provenance(g, col.provenance, options_.command_line, ctx);
-  write_wavelengths(g, col.wavelengths, ctx);
+  write_grid(g, col.wavelengths, ctx);
 
   const hsize_t dims[2] = {n, b};
   const hsize_t chunk[2] = {std::min<hsize_t>(n, std::max<hsize_t>(1, kChunkBytes / (b * sizeof(float)))), b};
@@ -756,7 +756,7 @@ void StoreWriter::add_basis(const std::string& name, const Basis& basis) {
   h5::write_attr(g, "n", static_cast<long long>(basis.n), ctx);
   h5::write_attr(g, "source", std::string_view(basis.source), ctx);
   write_provenance(g, basis.provenance, options_.command_line, ctx);
-  write_wavelengths(g, basis.wavelengths, ctx);
+  write_grid(g, basis.wavelengths, ctx);
   write_matrix(g, "components", basis.components, ctx);
   auto vec = [&](const char* nm, const Eigen::VectorXd& v) {
     if (v.size()) h5::write_vector(g, nm, std::span<const double>(v.data(), std::size_t(v.size())), ctx);
@@ -792,7 +792,7 @@ void StoreWriter::add_grid(const std::string& name, const Grid& grid) {
     h5::write_attr(g, "scale", grid.scale, ctx);
     h5::write_attr(g, "layout", std::string_view("merl"), ctx);
     write_provenance(g, grid.provenance, options_.command_line, ctx);
-    write_wavelengths(g, grid.wavelengths, ctx);
+    write_grid(g, grid.wavelengths, ctx);
     const hsize_t dims[4] = {b, kGridDims[0], kGridDims[1], kGridDims[2]};
     const hsize_t chunk[4] = {1, kGridChunkThetaH, kGridDims[1], kGridDims[2]};
     h5::Id space(h5::check(H5Screate_simple(4, dims, nullptr), ctx, "H5Screate_simple"));
@@ -823,7 +823,7 @@ void StoreWriter::create_samples(const std::string& name, const WavelengthGrid& 
   h5::write_attr(g, "kind", std::string_view("samples"), ctx);
   h5::write_attr(g, "units", std::string_view(units), ctx);
   write_provenance(g, provenance, options_.command_line, ctx);
-  write_wavelengths(g, wavelengths, ctx);
+  write_grid(g, wavelengths, ctx);
   const hsize_t b = wavelengths.size();
   const hsize_t adims0[2] = {0, 4}, vdims0[2] = {0, b};
   const hsize_t amax[2] = {H5S_UNLIMITED, 4}, vmax[2] = {H5S_UNLIMITED, b};
