@@ -35,16 +35,22 @@ void put(std::string& s, T v) {
   s.append(reinterpret_cast<const char*>(&v), sizeof v);
 }
 
+// zlib's crc32 takes at most 4 GiB per call; feed it in 1 GiB pieces.
+uLong crc_update(uLong crc, const void* data, std::size_t n) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (std::size_t done = 0; done < n;) {
+    const auto step = unsigned(std::min<std::size_t>(n - done, 1u << 30));
+    crc = crc32(crc, p + done, step);
+    done += step;
+  }
+  return crc;
+}
+
 class CrcWriter {
  public:
   explicit CrcWriter(std::ofstream& f) : f_(f) {}
   void write(const void* data, std::size_t n) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (std::size_t done = 0; done < n;) {
-      const auto step = unsigned(std::min<std::size_t>(n - done, 1u << 30));
-      crc_ = crc32(crc_, p + done, step);
-      done += step;
-    }
+    crc_ = crc_update(crc_, data, n);
     f_.write(static_cast<const char*>(data), std::streamsize(n));
   }
   uLong crc() const { return crc_; }
@@ -136,15 +142,9 @@ store::Grid read_grid_file(const std::filesystem::path& path) {
   in.read(reinterpret_cast<char*>(grid.brdf.data()), std::streamsize(grid.brdf.size() * sizeof(float)));
   in.read(reinterpret_cast<char*>(&stored_crc), sizeof stored_crc);
   if (!in) throw InputError(name + ": read error (" + std::strerror(errno) + ")");
-  uLong crc = crc32(crc32(0L, Z_NULL, 0), h, kHeaderBytes);
-  crc = crc32(crc, reinterpret_cast<const unsigned char*>(nm.data()), unsigned(nm.size() * sizeof(double)));
-  const auto* vp = reinterpret_cast<const unsigned char*>(grid.brdf.data());
-  const std::size_t vbytes = grid.brdf.size() * sizeof(float);
-  for (std::size_t done = 0; done < vbytes;) {
-    const auto step = unsigned(std::min<std::size_t>(vbytes - done, 1u << 30));
-    crc = crc32(crc, vp + done, step);
-    done += step;
-  }
+  uLong crc = crc_update(crc32(0L, Z_NULL, 0), h, kHeaderBytes);
+  crc = crc_update(crc, nm.data(), nm.size() * sizeof(double));
+  crc = crc_update(crc, grid.brdf.data(), grid.brdf.size() * sizeof(float));
   if (std::uint32_t(crc) != stored_crc)
     throw InputError(name + ": spectral grid is corrupt: CRC-32 " + std::to_string(std::uint32_t(crc)) +
                      " of the contents does not match the stored " + std::to_string(stored_crc));
