@@ -66,7 +66,7 @@ void nnls_normal(const Eigen::Ref<const Eigen::MatrixXd>& gram, const Eigen::Ref
           x[j] = 0;
         }
     }
-    for (Eigen::Index j = 0; j < n; ++j) x[j] = passive[std::size_t(j)] ? s[j] : 0.0;
+    for (Eigen::Index j = 0; j < n; ++j) x[j] = passive[std::size_t(j)] ? std::max(0.0, s[j]) : 0.0;
     w = g - gram * x;
   }
 }
