@@ -111,11 +111,57 @@ bool Uplift::clamped(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x) 
   return any;
 }
 
-bool Uplift::nonnegative(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x) const {
+bool Uplift::nonnegative(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x, UpliftCache* cache) const {
   solve(rgb, x);
   if (x.minCoeff() >= 0) return false;  // the unconstrained minimiser is feasible, so it is the bounded one
   const Eigen::VectorXd g = at_ * rgb;
+  const Eigen::Index n = x.size();
+  if (!cache || n > 64) {
+    nnls_normal(gram_, g, x);
+    return true;
+  }
+  // The optimum for a passive set P is linear in rgb; it is the bounded optimum when x >= 0 on P and the
+  // gradient is <= 0 off P (KKT), with nnls_normal's tolerance.
+  const double tol = 1e-12 * std::max(1.0, g.cwiseAbs().maxCoeff()) * std::max<double>(1.0, double(n));
+  const double neg = 1e-12 * std::max(1.0, x.cwiseAbs().maxCoeff());
+  auto& entries = cache->entries_;
+  for (std::size_t e = 0; e < entries.size(); ++e) {
+    const UpliftCache::Entry& entry = entries[e];
+    Eigen::VectorXd cand = entry.x * rgb;
+    if (cand.minCoeff() < -neg) continue;
+    const Eigen::VectorXd w = entry.w * rgb;
+    bool optimal = true;
+    for (Eigen::Index j = 0; j < n && optimal; ++j)
+      if (!(entry.passive >> j & 1)) optimal = w[j] <= tol;
+    if (!optimal) continue;
+    x = cand.cwiseMax(0.0);
+    std::rotate(entries.begin(), entries.begin() + std::ptrdiff_t(e), entries.begin() + std::ptrdiff_t(e) + 1);
+    ++cache->hits_;
+    return true;
+  }
+  ++cache->misses_;
   nnls_normal(gram_, g, x);
+  UpliftCache::Entry entry;
+  std::vector<Eigen::Index> idx;
+  for (Eigen::Index j = 0; j < n; ++j)
+    if (x[j] > 0) {
+      entry.passive |= std::uint64_t(1) << j;
+      idx.push_back(j);
+    }
+  const auto k = Eigen::Index(idx.size());
+  Eigen::MatrixXd gp(k, k);
+  Eigen::Matrix<double, Eigen::Dynamic, 3> rp(k, 3);
+  for (Eigen::Index a = 0; a < k; ++a) {
+    rp.row(a) = at_.row(idx[std::size_t(a)]);
+    for (Eigen::Index b = 0; b < k; ++b) gp(a, b) = gram_(idx[std::size_t(a)], idx[std::size_t(b)]);
+  }
+  const Eigen::Matrix<double, Eigen::Dynamic, 3> sp = gp.ldlt().solve(rp);
+  entry.x = Eigen::Matrix<double, Eigen::Dynamic, 3>::Zero(n, 3);
+  for (Eigen::Index a = 0; a < k; ++a) entry.x.row(idx[std::size_t(a)]) = sp.row(a);
+  entry.w = at_ - gram_ * entry.x;
+  constexpr std::size_t kEntries = 16;
+  if (entries.size() == kEntries) entries.pop_back();
+  entries.insert(entries.begin(), std::move(entry));
   return true;
 }
 
@@ -137,6 +183,7 @@ store::Grid uplift_merl(const MerlBrdf& rgb, const WavelengthGrid& wavelengths, 
 #pragma omp parallel reduction(+ : cells, constrained) reduction(max : max_err)
   {
     Eigen::VectorXd x = Eigen::VectorXd::Zero(Eigen::Index(b));
+    UpliftCache cache;
 #pragma omp for schedule(dynamic)
     for (std::ptrdiff_t c0 = 0; c0 < n; c0 += kBlock) {
       if (interrupt_requested()) continue;
@@ -144,7 +191,7 @@ store::Grid uplift_merl(const MerlBrdf& rgb, const WavelengthGrid& wavelengths, 
         const auto cell = std::size_t(c);
         if (!rgb.has_data(cell)) continue;
         const Eigen::Vector3d v(rgb.value(0, cell), rgb.value(1, cell), rgb.value(2, cell));
-        const bool changed = method == UpliftMethod::clamp ? uplift.clamped(v, x) : uplift.nonnegative(v, x);
+        const bool changed = method == UpliftMethod::clamp ? uplift.clamped(v, x) : uplift.nonnegative(v, x, &cache);
         ++cells;
         constrained += changed;
         const double err = (a * x - v).cwiseAbs().maxCoeff() / std::max(v.cwiseAbs().maxCoeff(), 1e-300);

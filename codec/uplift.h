@@ -4,6 +4,8 @@
 // non-negative variant that solves the same least squares subject to x >= 0 (bounded least squares).
 #include <Eigen/Core>
 #include <Eigen/Cholesky>
+#include <cstdint>
+#include <vector>
 
 #include "codec/merl.h"
 #include "store/store.h"
@@ -14,6 +16,24 @@ namespace specula::codec {
 /// normal equations); x gets the solution. Throws UsageError on mismatched sizes.
 void nnls_normal(const Eigen::Ref<const Eigen::MatrixXd>& gram, const Eigen::Ref<const Eigen::VectorXd>& g,
                  Eigen::Ref<Eigen::VectorXd> x);
+
+/// Solutions of the bounded problem for recently met active sets, reused when their optimality conditions
+/// hold for a new RGB (neighbouring cells of a BRDF share them); one per thread.
+class UpliftCache {
+ public:
+  std::size_t hits() const { return hits_; }
+  std::size_t misses() const { return misses_; }
+
+ private:
+  friend class Uplift;
+  struct Entry {
+    std::uint64_t passive = 0;
+    Eigen::Matrix<double, Eigen::Dynamic, 3> x;  // x = x * rgb (zero rows outside the passive set)
+    Eigen::Matrix<double, Eigen::Dynamic, 3> w;  // gradient A^T rgb - G x = w * rgb
+  };
+  std::vector<Entry> entries_;  // most recent first
+  std::size_t hits_ = 0, misses_ = 0;
+};
 
 /// Eq A.3 for one set of RGB weights and one alpha; solving is thread-safe.
 class Uplift {
@@ -28,8 +48,9 @@ class Uplift {
   void solve(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x) const;
   /// Appendix A as published: solve(), then negative values set to 0; returns true when any were.
   bool clamped(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x) const;
-  /// The least squares of eq A.3 subject to x >= 0; returns true when a bound is active.
-  bool nonnegative(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x) const;
+  /// The least squares of eq A.3 subject to x >= 0; returns true when a bound is active. A cache (one per
+  /// thread) lets it reuse the active sets of earlier calls.
+  bool nonnegative(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x, UpliftCache* cache = nullptr) const;
 
  private:
   double alpha_;

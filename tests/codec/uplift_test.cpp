@@ -141,6 +141,37 @@ TEST(Uplift, NonNegativeIsTheBoundedLeastSquaresOptimum) {
   }
 }
 
+// Reusing active sets gives the same optimum as solving afresh, over a sweep of saturated colours where
+// neighbours share active sets (hits) and some do not (misses).
+TEST(Uplift, ActiveSetCacheGivesTheSameOptimum) {
+  const auto a = weights31();
+  const Uplift up(a, 1e-2);
+  UpliftCache cache;
+  int constrained = 0;
+  for (int i = 0; i < 600; ++i) {
+    const double h = 6.0 * i / 600, f = h - std::floor(h);
+    Eigen::Vector3d rgb;
+    switch (int(h)) {  // hue wheel at full saturation, with a little white
+      case 0: rgb << 1, f, 0; break;
+      case 1: rgb << 1 - f, 1, 0; break;
+      case 2: rgb << 0, 1, f; break;
+      case 3: rgb << 0, 1 - f, 1; break;
+      case 4: rgb << f, 0, 1; break;
+      default: rgb << 1, 0, 1 - f; break;
+    }
+    rgb = (rgb.array() * 0.9 + 0.02).matrix() * (0.5 + 0.001 * i);
+    Eigen::VectorXd x(31), y(31);
+    const bool c1 = up.nonnegative(rgb, x, &cache);
+    const bool c2 = up.nonnegative(rgb, y);
+    ASSERT_EQ(c1, c2) << i;
+    constrained += c1;
+    ASSERT_LT((x - y).cwiseAbs().maxCoeff(), 1e-9 * std::max(1.0, y.cwiseAbs().maxCoeff())) << i;
+  }
+  EXPECT_GT(constrained, 100);
+  EXPECT_GT(cache.hits(), cache.misses());
+  EXPECT_GT(cache.misses(), 1u);
+}
+
 // Brute force over every active set of a small random problem: the feasible least-squares solution with
 // the lowest residual is the bounded optimum.
 TEST(Uplift, NnlsMatchesBruteForce) {
