@@ -37,6 +37,9 @@ codec::MerlBrdf load_rgb(const RenderOptions& o) {
       !std::filesystem::exists(in)) {
     grid = store::Store::open(o.input.substr(0, colon)).read_grid(o.input.substr(colon + 1));
   } else {
+    if (in.extension() == ".h5")
+      throw UsageError("render: " + o.input + " is a store; name the grid as " + o.input + ":GRID (see `specula ls " +
+                       o.input + "`)");
     grid = codec::read_grid_file(in);
   }
   const auto weights = codec::rgb_weights(grid.wavelengths, load_illuminant(o.illuminant, grid.wavelengths));
