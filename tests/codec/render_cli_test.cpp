@@ -50,6 +50,10 @@ TEST(RenderCli, GridFileStoreGridAndBinaryAgree) {
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.output.find("--light THETA,PHI"), std::string::npos) << bad.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
+  const test::RunResult bare = test::run_specula("-q render '" + (dir / "s.h5").string() + "' -o '" + (dir / "x.png").string() + "'");
+  EXPECT_EQ(bare.status, 1);
+  EXPECT_NE(bare.output.find("s.h5:GRID"), std::string::npos) << bare.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
 }
 
 }  // namespace
