@@ -16,5 +16,7 @@ void setup_project(CLI::App& app);
 void setup_plot_basis(CLI::App& app);
 void setup_compare_bases(CLI::App& app);
 void setup_nmf(CLI::App& app);
+void setup_uplift(CLI::App& app);
+void setup_render(CLI::App& app);
 
 }  // namespace specula::app

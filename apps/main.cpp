@@ -29,6 +29,8 @@ int main(int argc, char** argv) {
   specula::app::setup_plot_basis(app);
   specula::app::setup_compare_bases(app);
   specula::app::setup_nmf(app);
+  specula::app::setup_uplift(app);
+  specula::app::setup_render(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

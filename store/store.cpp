@@ -10,9 +10,11 @@
 #include <sstream>
 
 #include "core/atomic_file.h"
+#include "core/brdf_geometry.h"
 #include "core/error.h"
 #include "core/interrupt.h"
 #include "core/progress.h"
+#include "core/text.h"
 
 namespace specula::store {
 namespace {
@@ -125,7 +127,7 @@ h5::Id vlen_string_type(std::string_view ctx) {
   return t;
 }
 
-WavelengthGrid read_grid(hid_t group, const std::string& ctx) {
+WavelengthGrid read_wavelengths(hid_t group, const std::string& ctx) {
   return WavelengthGrid(h5::read_vector(group, "wavelengths", ctx), ctx + ": wavelengths");
 }
 
@@ -144,6 +146,21 @@ std::size_t attr_size(hid_t obj, const std::string& name, const std::string& ctx
 }  // namespace
 
 namespace {
+double read_double_attr(hid_t obj, const std::string& name, const std::string& ctx) {
+  if (!h5::has_attr(obj, name)) throw InputError(ctx + ": attribute '" + name + "' is missing");
+  h5::Id attr(h5::check(H5Aopen(obj, name.c_str(), H5P_DEFAULT), ctx, "cannot open attribute " + name));
+  h5::Id type(h5::check(H5Aget_type(attr), ctx, "H5Aget_type"));
+  if (H5Tget_class(type) != H5T_FLOAT && H5Tget_class(type) != H5T_INTEGER)
+    throw InputError(ctx + ": attribute '" + name + "' is not a number");
+  double v = 0;
+  h5::check(H5Aread(attr, H5T_NATIVE_DOUBLE, &v), ctx, "cannot read attribute " + name);
+  return v;
+}
+
+constexpr hsize_t kGridDims[3] = {brdf::kMerlThetaH, brdf::kMerlThetaD, brdf::kMerlPhiD};
+// Chunks of (1 band, 16 theta_h, 90 theta_d, 180 phi_d) float32: about 1 MiB.
+constexpr hsize_t kGridChunkThetaH = 16;
+
 Eigen::VectorXd to_vector(const std::vector<double>& v) {
   return Eigen::Map<const Eigen::VectorXd>(v.data(), Eigen::Index(v.size()));
 }
@@ -260,7 +277,7 @@ ImageInfo Store::image_info(const std::string& name) const {
   info.height = dims[0];
   info.width = dims[1];
   info.bands = dims[2];
-  info.wavelengths = read_grid(g, ctx);
+  info.wavelengths = read_wavelengths(g, ctx);
   if (info.wavelengths.size() != info.bands)
     throw InputError(ctx + ": cube has " + std::to_string(info.bands) + " bands but wavelengths lists " +
                      std::to_string(info.wavelengths.size()));
@@ -290,7 +307,7 @@ CollectionInfo Store::collection_info(const std::string& name) const {
   if (dims.size() != 2) throw InputError(ctx + "/spectra: expected 2 dimensions (spectra, bands)");
   info.size = dims[0];
   info.bands = dims[1];
-  info.wavelengths = read_grid(g, ctx);
+  info.wavelengths = read_wavelengths(g, ctx);
   if (info.wavelengths.size() != info.bands) throw InputError(ctx + ": spectra and wavelengths disagree on band count");
   info.units = h5::has_attr(g, "units") ? h5::read_string_attr(g, "units", ctx) : "unknown";
   info.chunk_rows = chunk_rows_of(ds, ctx);
@@ -314,7 +331,7 @@ SamplesInfo Store::samples_info(const std::string& name) const {
     throw InputError(ctx + ": angles must be N x 4 and values N x B with the same N");
   info.size = dims[0];
   info.bands = dims[1];
-  info.wavelengths = read_grid(g, ctx);
+  info.wavelengths = read_wavelengths(g, ctx);
   if (info.wavelengths.size() != info.bands) throw InputError(ctx + ": values and wavelengths disagree on band count");
   info.units = h5::has_attr(g, "units") ? h5::read_string_attr(g, "units", ctx) : "unknown";
   info.provenance = read_provenance(g, ctx);
@@ -381,7 +398,7 @@ Basis Store::read_basis(const std::string& name) const {
   b.n = std::uint64_t(std::max(0LL, h5::read_int_attr(g, "n", ctx)));
   b.source = h5::has_attr(g, "source") ? h5::read_string_attr(g, "source", ctx) : "";
   b.provenance = read_provenance(g, ctx);
-  b.wavelengths = read_grid(g, ctx);
+  b.wavelengths = read_wavelengths(g, ctx);
   b.components = h5::read_matrix(g, "components", ctx);
   if (b.components.cols() != Eigen::Index(b.wavelengths.size()))
     throw InputError(ctx + ": components have " + std::to_string(b.components.cols()) + " bands, wavelengths " +
@@ -399,6 +416,48 @@ Basis Store::read_basis(const std::string& name) const {
     throw InputError(ctx + ": mean has " + std::to_string(b.mean.size()) + " entries for " +
                      std::to_string(b.components.cols()) + " bands");
   return b;
+}
+
+GridInfo Store::grid_info(const std::string& name) const {
+  const std::string path = "/grids/" + name;
+  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(file(), path))
+    throw InputError(label() + ": no grid '" + name + "' (grids: " + join(grids()) + ")");
+  const std::string ctx = label() + ": " + path;
+  h5::Id g = open_group(file(), path, ctx);
+  GridInfo info;
+  info.name = name;
+  h5::Id ds = open_dataset(g, "brdf", ctx);
+  const auto dims = h5::shape(ds, ctx);
+  if (dims.size() != 4 || dims[1] != kGridDims[0] || dims[2] != kGridDims[1] || dims[3] != kGridDims[2])
+    throw InputError(ctx + "/brdf: expected shape (bands, 90, 90, 180), the MERL layout");
+  info.bands = dims[0];
+  info.wavelengths = read_wavelengths(g, ctx);
+  if (info.wavelengths.size() != info.bands)
+    throw InputError(ctx + ": brdf has " + std::to_string(info.bands) + " bands but wavelengths lists " +
+                     std::to_string(info.wavelengths.size()));
+  info.scale = read_double_attr(g, "scale", ctx);
+  if (!std::isfinite(info.scale) || info.scale <= 0)
+    throw InputError(ctx + ": attribute 'scale' is " + num(info.scale) + "; it must be finite and positive");
+  info.units = h5::has_attr(g, "units") ? h5::read_string_attr(g, "units", ctx) : "unknown";
+  info.compression = compression_of(ds, ctx);
+  info.provenance = read_provenance(g, ctx);
+  return info;
+}
+
+Grid Store::read_grid(const std::string& name) const {
+  const GridInfo info = grid_info(name);
+  const std::string ctx = label() + ": /grids/" + name;
+  h5::Id g = open_group(file(), "/grids/" + name, ctx);
+  Grid grid;
+  grid.wavelengths = info.wavelengths;
+  grid.scale = info.scale;
+  grid.units = info.units;
+  grid.provenance = info.provenance;
+  grid.brdf.resize(info.bands * brdf::kMerlCells);
+  h5::Id ds = open_dataset(g, "brdf", ctx);
+  if (!grid.brdf.empty())
+    h5::check(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, grid.brdf.data()), ctx, "cannot read brdf");
+  return grid;
 }
 
 void Store::read_samples(const std::string& name, std::size_t first, std::size_t count, std::span<double> angles,
@@ -689,6 +748,51 @@ void StoreWriter::add_basis(const std::string& name, const Basis& basis) {
   vec("weights", basis.weights);
   if (basis.covariance.size()) h5::write_matrix(g, "covariance", basis.covariance, ctx);
   if (basis.second_moment.size()) h5::write_matrix(g, "second_moment", basis.second_moment, ctx);
+}
+
+void StoreWriter::add_grid(const std::string& name, const Grid& grid) {
+  const std::string ctx = label() + ": /grids/" + name;
+  const std::string src = grid.provenance.source_file.empty() ? name : grid.provenance.source_file;
+  const std::size_t b = grid.bands();
+  if (b == 0) throw UsageError(ctx + ": a grid needs at least one wavelength");
+  if (grid.brdf.size() != b * brdf::kMerlCells)
+    throw UsageError(ctx + ": brdf holds " + std::to_string(grid.brdf.size()) + " values; " + std::to_string(b) +
+                     " bands x 90 x 90 x 180 need " + std::to_string(b * brdf::kMerlCells));
+  if (!std::isfinite(grid.scale) || grid.scale <= 0)
+    throw InputError(src + ": grid scale is " + num(grid.scale) + "; it must be finite and positive");
+  for (std::size_t i = 0; i < grid.brdf.size(); ++i)
+    if (!std::isfinite(grid.brdf[i]))
+      throw InputError(src + ": non-finite BRDF value at band " + std::to_string(i / brdf::kMerlCells) + ", cell " +
+                       std::to_string(i % brdf::kMerlCells) + "; use a negative value for cells without data");
+  check_name("grid", "/grids", name);
+  const std::string path = "/grids/" + name;
+  try {
+    h5::Id g = create_group(file_, path, ctx);
+    h5::write_attr(g, "kind", std::string_view("grid"), ctx);
+    h5::write_attr(g, "units", std::string_view(grid.units), ctx);
+    h5::write_attr(g, "scale", grid.scale, ctx);
+    h5::write_attr(g, "layout", std::string_view("merl"), ctx);
+    write_provenance(g, grid.provenance, options_.command_line, ctx);
+    write_grid(g, grid.wavelengths, ctx);
+    const hsize_t dims[4] = {b, kGridDims[0], kGridDims[1], kGridDims[2]};
+    const hsize_t chunk[4] = {1, kGridChunkThetaH, kGridDims[1], kGridDims[2]};
+    h5::Id space(h5::check(H5Screate_simple(4, dims, nullptr), ctx, "H5Screate_simple"));
+    h5::Id dcpl = chunked_dcpl(chunk, options_.compression, ctx);
+    h5::Id ds(h5::check(H5Dcreate2(g, "brdf", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx,
+                        "cannot create brdf"));
+    h5::write_attr(ds, "axes", std::string_view("band,theta_h,theta_d,phi_d"), ctx);
+    Progress progress("writing " + name, b);
+    for (hsize_t k = 0; k < b; ++k) {
+      check_interrupt();
+      const hsize_t start[4] = {k, 0, 0, 0}, count[4] = {1, kGridDims[0], kGridDims[1], kGridDims[2]};
+      write_hyperslab(ds, H5T_NATIVE_FLOAT, start, count, grid.brdf.data() + k * brdf::kMerlCells, ctx);
+      progress.advance();
+    }
+  } catch (...) {
+    if (h5::exists(file_, path)) H5Ldelete(file_, path.c_str(), H5P_DEFAULT);
+    H5Eclear2(H5E_DEFAULT);
+    throw;
+  }
 }
 
 void StoreWriter::create_samples(const std::string& name, const WavelengthGrid& wavelengths, const std::string& units,

@@ -61,6 +61,29 @@ struct SamplesInfo {
   Provenance provenance;
 };
 
+/// A B-band BRDF in the MERL half/difference layout: brdf is bands x 90 x 90 x 180 float32 (band slowest,
+/// phi_d fastest, the cell order of core/brdf_geometry.h); a negative value means no data; value * scale is in 1/sr.
+struct Grid {
+  WavelengthGrid wavelengths;
+  double scale = 1.0;
+  std::vector<float> brdf;
+  std::string units = "1/sr";
+  Provenance provenance;
+
+  std::size_t bands() const { return wavelengths.size(); }
+};
+
+/// What a store knows about one BRDF grid without reading its values.
+struct GridInfo {
+  std::string name;
+  std::size_t bands = 0;
+  WavelengthGrid wavelengths;
+  double scale = 1.0;
+  std::string units;
+  std::string compression;
+  Provenance provenance;
+};
+
 /// A store opened read-only. Copies share the open file.
 class Store {
  public:
@@ -86,6 +109,10 @@ class Store {
   CollectionInfo collection_info(const std::string& name) const;
   /// Metadata of samples `name`; throws InputError listing them when absent.
   SamplesInfo samples_info(const std::string& name) const;
+  /// Metadata of grid `name`; throws InputError listing the grids when absent or malformed.
+  GridInfo grid_info(const std::string& name) const;
+  /// The whole grid (bands x 90 x 90 x 180 values) in memory.
+  Grid read_grid(const std::string& name) const;
   /// The whole image in memory (for export and previews; analysis streams with BlockReader instead).
   Cube read_image(const std::string& name) const;
   /// The whole collection in memory.
@@ -125,6 +152,8 @@ class StoreWriter {
   void add_collection(const std::string& name, const Collection& collection);
   /// Adds basis `name` (float64 datasets; empty members are not written).
   void add_basis(const std::string& name, const Basis& basis);
+  /// Adds BRDF grid `name` (chunked, compressed); throws InputError on NaN/Inf or a bad scale, UsageError on sizes.
+  void add_grid(const std::string& name, const Grid& grid);
   /// Creates an empty extendible set of scattered BRDF samples.
   void create_samples(const std::string& name, const WavelengthGrid& wavelengths, const std::string& units,
                       const Provenance& provenance);

@@ -1,0 +1,89 @@
+// specula render: a sphere under one directional light, from an RGB MERL .binary, a spectral grid file or a
+// store grid (STORE.h5:NAME, rendered through the CIE CMFs under --illuminant); sRGB PNG and linear EXR.
+#include <fmt/format.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "codec/merl.h"
+#include "codec/render.h"
+#include "codec/spectral_grid.h"
+#include "core/colour.h"
+#include "core/error.h"
+#include "store/io/exr.h"
+#include "store/io/png_stack.h"
+#include "store/store.h"
+
+namespace specula::app {
+namespace {
+
+struct RenderOptions {
+  std::string input;
+  std::string output;
+  std::size_t size = 256;
+  std::vector<double> light = {45, 135};
+  std::string illuminant = "D65";
+  double exposure = 0;
+};
+
+codec::MerlBrdf load_rgb(const RenderOptions& o) {
+  const std::filesystem::path in(o.input);
+  if (in.extension() == ".binary") return codec::read_merl(in);
+  store::Grid grid;
+  const auto colon = o.input.rfind(':');
+  if (colon != std::string::npos && colon > 0 && std::filesystem::is_regular_file(o.input.substr(0, colon)) &&
+      !std::filesystem::exists(in)) {
+    grid = store::Store::open(o.input.substr(0, colon)).read_grid(o.input.substr(colon + 1));
+  } else {
+    if (in.extension() == ".h5")
+      throw UsageError("render: " + o.input + " is a store; name the grid as " + o.input + ":GRID (see `specula ls " +
+                       o.input + "`)");
+    grid = codec::read_grid_file(in);
+  }
+  const auto weights = codec::rgb_weights(grid.wavelengths, load_illuminant(o.illuminant, grid.wavelengths));
+  return codec::grid_to_merl(grid, weights).brdf;
+}
+
+void run_render(const RenderOptions& o) {
+  if (o.light.size() != 2 || !(o.light[0] >= 0 && o.light[0] < 90) || !std::isfinite(o.light[1]))
+    throw UsageError("render: --light THETA,PHI in degrees with 0 <= THETA < 90 (angle from the viewer)");
+  if (!(std::abs(o.exposure) <= 64)) throw UsageError("render: --exposure must be between -64 and 64 stops");
+  std::filesystem::path png(o.output);
+  if (png.extension() != ".png") throw UsageError("render: -o must name a .png file (the EXR is written beside it)");
+  const std::filesystem::path exr = std::filesystem::path(png).replace_extension(".exr");
+  const codec::MerlBrdf rgb = load_rgb(o);
+  const double t = o.light[0] * std::numbers::pi / 180, p = o.light[1] * std::numbers::pi / 180;
+  const codec::SphereImage img =
+      codec::render_sphere(rgb, o.size, {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)});
+  const double gain = std::exp2(o.exposure);
+  std::vector<std::uint8_t> srgb(3 * o.size * o.size);
+  for (std::size_t i = 0; i < img.covered.size(); ++i)
+    for (std::size_t c = 0; c < 3; ++c)
+      srgb[3 * i + c] = img.covered[i] ? std::uint8_t(std::lround(255 * srgb_encode(gain * img.linear[3 * i + c]))) : 24;
+  store::write_png_rgb8(png, o.size, o.size, srgb);
+  store::write_exr_rgb(exr, o.size, o.size, img.linear);
+  fmt::print("rendered {} on a {}x{} sphere, light at theta {} phi {} deg: {} and {}\n", o.input, o.size, o.size,
+             o.light[0], o.light[1], png.string(), exr.string());
+}
+
+}  // namespace
+
+void setup_render(CLI::App& app) {
+  auto o = std::make_shared<RenderOptions>();
+  auto* cmd = app.add_subcommand("render", "A sphere under a directional light from a BRDF (sRGB PNG and linear EXR)");
+  cmd->add_option("brdf", o->input, "MERL .binary, spectral grid file, or STORE.h5:GRID")->required();
+  cmd->add_option("-o,--output", o->output, "PNG to write; the linear EXR goes beside it")->required();
+  cmd->add_option("--size", o->size, "Image width and height in pixels")->capture_default_str();
+  cmd->add_option("--light", o->light, "Light direction THETA,PHI in degrees (theta from the viewer)")
+      ->delimiter(',')
+      ->expected(2)
+      ->capture_default_str();
+  cmd->add_option("--illuminant", o->illuminant, "Light SPD for spectral grids: D65, D50, A, E, D<CCT>, blackbody:K or CSV")
+      ->capture_default_str();
+  cmd->add_option("--exposure", o->exposure, "Stops of gain before sRGB encoding of the PNG")->capture_default_str();
+  cmd->callback([o] { run_render(*o); });
+}
+
+}  // namespace specula::app

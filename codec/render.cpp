@@ -1,0 +1,41 @@
+#include "codec/render.h"
+
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "core/error.h"
+
+namespace specula::codec {
+
+SphereImage render_sphere(const MerlBrdf& brdf, std::size_t size, const Eigen::Vector3d& light) {
+  if (size == 0 || size > 16384) throw UsageError("render: size " + std::to_string(size) + " must be 1-16384 pixels");
+  if (!(light.norm() > 0) || !light.allFinite()) throw UsageError("render: the light direction must be a non-zero vector");
+  const Eigen::Vector3d l = light.normalized(), v(0, 0, 1);
+  SphereImage img;
+  img.size = size;
+  img.linear.assign(3 * size * size, 0.0f);
+  img.covered.assign(size * size, 0);
+  for (std::size_t row = 0; row < size; ++row)
+    for (std::size_t col = 0; col < size; ++col) {
+      const double x = (double(col) + 0.5) / double(size) * 2 - 1, y = 1 - (double(row) + 0.5) / double(size) * 2;
+      const double r2 = x * x + y * y;
+      if (r2 >= 1) continue;
+      const std::size_t p = row * size + col;
+      img.covered[p] = 1;
+      const Eigen::Vector3d n(x, y, std::sqrt(1 - r2));
+      // Orthonormal tangent frame (Duff et al. 2017); the BRDF is isotropic, so its orientation is free.
+      const double sign = std::copysign(1.0, n.z()), a = -1 / (sign + n.z()), b = n.x() * n.y() * a;
+      const Eigen::Vector3d t(1 + sign * n.x() * n.x() * a, sign * b, -sign * n.x());
+      const Eigen::Vector3d s(b, sign + n.y() * n.y() * a, -n.y());
+      const Eigen::Vector3d wi(l.dot(t), l.dot(s), l.dot(n)), wo(v.dot(t), v.dot(s), v.dot(n));
+      if (wi.z() <= 0 || wo.z() <= 0) continue;
+      const double ti = std::acos(std::min(1.0, wi.z())), to = std::acos(std::min(1.0, wo.z()));
+      const Eigen::Vector3d f = brdf.lookup({ti, std::atan2(wi.y(), wi.x()), to, std::atan2(wo.y(), wo.x())});
+      for (int c = 0; c < 3; ++c)
+        img.linear[3 * p + std::size_t(c)] = float(std::numbers::pi * std::max(0.0, f[c]) * wi.z());
+    }
+  return img;
+}
+
+}  // namespace specula::codec

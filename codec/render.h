@@ -1,0 +1,26 @@
+#pragma once
+// A quick look at a BRDF: a unit sphere seen orthographically along -z (image rows top to bottom), lit by one
+// directional light, in linear sRGB.
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+#include "codec/merl.h"
+
+namespace specula::codec {
+
+/// A square rendering: linear RGB (3 per pixel, row-major) and which pixels show the sphere.
+struct SphereImage {
+  std::size_t size = 0;
+  std::vector<float> linear;
+  std::vector<std::uint8_t> covered;
+};
+
+/// Renders `brdf` on a sphere of size x size pixels: each pixel centre inside the disc has normal
+/// n = (x, y, sqrt(1 - x^2 - y^2)), the viewer is at +z and the light of irradiance pi (so a white Lambertian
+/// surface facing it is 1) comes from direction `light` (world, normalised here); pixel value
+/// pi * f(wi, wo) * cos(theta_i) with f looked up as BRDFRead.cpp does (no data counts as 0).
+/// Throws UsageError for size 0 or a zero light direction.
+SphereImage render_sphere(const MerlBrdf& brdf, std::size_t size, const Eigen::Vector3d& light);
+
+}  // namespace specula::codec

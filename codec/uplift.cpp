@@ -1,0 +1,208 @@
+#include "codec/uplift.h"
+
+#include <Eigen/QR>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "core/interrupt.h"
+#include "core/text.h"
+
+namespace specula::codec {
+
+void nnls_normal(const Eigen::Ref<const Eigen::MatrixXd>& gram, const Eigen::Ref<const Eigen::VectorXd>& g,
+                 Eigen::Ref<Eigen::VectorXd> x) {
+  const Eigen::Index n = gram.cols();
+  if (gram.rows() != n || g.size() != n || x.size() != n)
+    throw UsageError("nnls: Gram matrix " + std::to_string(gram.rows()) + " x " + std::to_string(n) + ", g " +
+                     std::to_string(g.size()) + ", x " + std::to_string(x.size()) + " do not match");
+  const double tol = 1e-12 * std::max(1.0, g.cwiseAbs().maxCoeff()) * std::max<double>(1.0, double(n));
+  std::vector<char> passive(std::size_t(n), 0);
+  x.setZero();
+  Eigen::VectorXd w = g, s(n);
+  std::vector<Eigen::Index> idx;
+  auto solve_passive = [&] {
+    idx.clear();
+    for (Eigen::Index j = 0; j < n; ++j)
+      if (passive[std::size_t(j)]) idx.push_back(j);
+    const auto k = Eigen::Index(idx.size());
+    Eigen::MatrixXd gp(k, k);
+    Eigen::VectorXd rp(k);
+    for (Eigen::Index a = 0; a < k; ++a) {
+      rp[a] = g[idx[std::size_t(a)]];
+      for (Eigen::Index b = 0; b < k; ++b) gp(a, b) = gram(idx[std::size_t(a)], idx[std::size_t(b)]);
+    }
+    const Eigen::VectorXd sp = gp.ldlt().solve(rp);
+    s.setZero();
+    for (Eigen::Index a = 0; a < k; ++a) s[idx[std::size_t(a)]] = sp[a];
+  };
+  for (int outer = 0; outer < 3 * int(n) + 10; ++outer) {
+    Eigen::Index best = -1;
+    double wmax = tol;
+    for (Eigen::Index j = 0; j < n; ++j)
+      if (!passive[std::size_t(j)] && w[j] > wmax) {
+        wmax = w[j];
+        best = j;
+      }
+    if (best < 0) return;
+    passive[std::size_t(best)] = 1;
+    for (int inner = 0; inner < 3 * int(n) + 10; ++inner) {
+      solve_passive();
+      double step = 1.0;
+      bool feasible = true;
+      for (Eigen::Index j = 0; j < n; ++j)
+        if (passive[std::size_t(j)] && s[j] <= 0) {
+          feasible = false;
+          step = std::min(step, x[j] / (x[j] - s[j]));
+        }
+      if (feasible) break;
+      x += step * (s - x);
+      for (Eigen::Index j = 0; j < n; ++j)
+        if (passive[std::size_t(j)] && x[j] <= tol * 1e-3) {
+          passive[std::size_t(j)] = 0;
+          x[j] = 0;
+        }
+    }
+    for (Eigen::Index j = 0; j < n; ++j) x[j] = passive[std::size_t(j)] ? std::max(0.0, s[j]) : 0.0;
+    w = g - gram * x;
+  }
+}
+
+Uplift::Uplift(const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, double alpha) : alpha_(alpha) {
+  const Eigen::Index b = weights.cols();
+  if (b < 3) throw UsageError("uplift: needs at least 3 bands, got " + std::to_string(b));
+  if (!std::isfinite(alpha) || alpha < 0) throw UsageError("uplift: alpha is " + num(alpha) + "; it must be finite and >= 0");
+  if (!weights.allFinite()) throw UsageError("uplift: the RGB weights hold non-finite values");
+  system_ = Eigen::MatrixXd::Zero(3 + b - 2, b);
+  system_.topRows(3) = weights;
+  for (Eigen::Index r = 0; r + 2 < b; ++r) {
+    system_(3 + r, r) = alpha;
+    system_(3 + r, r + 1) = -2 * alpha;
+    system_(3 + r, r + 2) = alpha;
+  }
+  const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(system_);
+  if (qr.rank() < b)
+    throw UsageError("uplift: eq A.3 is rank deficient (rank " + std::to_string(qr.rank()) + " of " + std::to_string(b) +
+                     "); use alpha > 0 and RGB weights that are not all linear in wavelength");
+  Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(system_.rows(), 3);
+  rhs.topRows(3).setIdentity();
+  solve_ = qr.solve(rhs);
+  gram_ = system_.transpose() * system_;
+  at_ = weights.transpose();
+}
+
+void Uplift::solve(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x) const {
+  if (x.size() != system_.cols())
+    throw UsageError("uplift: output has " + std::to_string(x.size()) + " bands, expected " + std::to_string(system_.cols()));
+  x = solve_ * rgb;
+}
+
+bool Uplift::clamped(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x) const {
+  solve(rgb, x);
+  bool any = false;
+  for (Eigen::Index k = 0; k < x.size(); ++k)
+    if (x[k] < 0) {
+      x[k] = 0;
+      any = true;
+    }
+  return any;
+}
+
+bool Uplift::nonnegative(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x, UpliftCache* cache) const {
+  solve(rgb, x);
+  if (x.minCoeff() >= 0) return false;  // the unconstrained minimiser is feasible, so it is the bounded one
+  const Eigen::VectorXd g = at_ * rgb;
+  const Eigen::Index n = x.size();
+  if (!cache || n > 64) {
+    nnls_normal(gram_, g, x);
+    return true;
+  }
+  // The optimum for a passive set P is linear in rgb; it is the bounded optimum when x >= 0 on P and the
+  // gradient is <= 0 off P (KKT), with nnls_normal's tolerance.
+  const double tol = 1e-12 * std::max(1.0, g.cwiseAbs().maxCoeff()) * std::max<double>(1.0, double(n));
+  const double neg = 1e-12 * std::max(1.0, x.cwiseAbs().maxCoeff());
+  auto& entries = cache->entries_;
+  for (std::size_t e = 0; e < entries.size(); ++e) {
+    const UpliftCache::Entry& entry = entries[e];
+    Eigen::VectorXd cand = entry.x * rgb;
+    if (cand.minCoeff() < -neg) continue;
+    const Eigen::VectorXd w = entry.w * rgb;
+    bool optimal = true;
+    for (Eigen::Index j = 0; j < n && optimal; ++j)
+      if (!(entry.passive >> j & 1)) optimal = w[j] <= tol;
+    if (!optimal) continue;
+    x = cand.cwiseMax(0.0);
+    std::rotate(entries.begin(), entries.begin() + std::ptrdiff_t(e), entries.begin() + std::ptrdiff_t(e) + 1);
+    ++cache->hits_;
+    return true;
+  }
+  ++cache->misses_;
+  nnls_normal(gram_, g, x);
+  UpliftCache::Entry entry;
+  std::vector<Eigen::Index> idx;
+  for (Eigen::Index j = 0; j < n; ++j)
+    if (x[j] > 0) {
+      entry.passive |= std::uint64_t(1) << j;
+      idx.push_back(j);
+    }
+  const auto k = Eigen::Index(idx.size());
+  Eigen::MatrixXd gp(k, k);
+  Eigen::Matrix<double, Eigen::Dynamic, 3> rp(k, 3);
+  for (Eigen::Index a = 0; a < k; ++a) {
+    rp.row(a) = at_.row(idx[std::size_t(a)]);
+    for (Eigen::Index b = 0; b < k; ++b) gp(a, b) = gram_(idx[std::size_t(a)], idx[std::size_t(b)]);
+  }
+  const Eigen::Matrix<double, Eigen::Dynamic, 3> sp = gp.ldlt().solve(rp);
+  entry.x = Eigen::Matrix<double, Eigen::Dynamic, 3>::Zero(n, 3);
+  for (Eigen::Index a = 0; a < k; ++a) entry.x.row(idx[std::size_t(a)]) = sp.row(a);
+  entry.w = at_ - gram_ * entry.x;
+  constexpr std::size_t kEntries = 16;
+  if (entries.size() == kEntries) entries.pop_back();
+  entries.insert(entries.begin(), std::move(entry));
+  return true;
+}
+
+store::Grid uplift_merl(const MerlBrdf& rgb, const WavelengthGrid& wavelengths, const Uplift& uplift,
+                        UpliftMethod method, UpliftReport* report) {
+  const std::size_t b = uplift.bands();
+  if (wavelengths.size() != b)
+    throw UsageError("uplift: " + std::to_string(wavelengths.size()) + " wavelengths for " + std::to_string(b) + " bands");
+  store::Grid grid;
+  grid.wavelengths = wavelengths;
+  grid.scale = 1.0;
+  grid.units = "1/sr";
+  grid.brdf.assign(b * brdf::kMerlCells, -1.0f);
+  const Eigen::MatrixXd a = uplift.system().topRows(3);
+  std::size_t cells = 0, constrained = 0;
+  double max_err = 0;
+  constexpr std::ptrdiff_t kBlock = 4096;
+  const auto n = std::ptrdiff_t(brdf::kMerlCells);
+#pragma omp parallel reduction(+ : cells, constrained) reduction(max : max_err)
+  {
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(Eigen::Index(b));
+    UpliftCache cache;
+#pragma omp for schedule(dynamic)
+    for (std::ptrdiff_t c0 = 0; c0 < n; c0 += kBlock) {
+      if (interrupt_requested()) continue;
+      for (std::ptrdiff_t c = c0; c < std::min(n, c0 + kBlock); ++c) {
+        const auto cell = std::size_t(c);
+        if (!rgb.has_data(cell)) continue;
+        const Eigen::Vector3d v(rgb.value(0, cell), rgb.value(1, cell), rgb.value(2, cell));
+        const bool changed = method == UpliftMethod::clamp ? uplift.clamped(v, x) : uplift.nonnegative(v, x, &cache);
+        ++cells;
+        constrained += changed;
+        const double err = (a * x - v).cwiseAbs().maxCoeff() / std::max(v.cwiseAbs().maxCoeff(), 1e-300);
+        max_err = std::max(max_err, err);
+        for (std::size_t k = 0; k < b; ++k) grid.brdf[k * brdf::kMerlCells + cell] = float(x[Eigen::Index(k)]);
+      }
+    }
+  }
+  check_interrupt();
+  if (report) *report = {cells, constrained, max_err};
+  return grid;
+}
+
+}  // namespace specula::codec

@@ -1,0 +1,60 @@
+#include <gtest/gtest.h>
+
+#include "codec/merl.h"
+#include "codec/spectral_grid.h"
+#include "core/brdf_models.h"
+#include "store/io/png_stack.h"
+#include "test_support.h"
+
+namespace specula::codec {
+namespace {
+
+// The spectral grid file, the same grid in a store, and its RGB export as a .binary render to the same picture.
+TEST(RenderCli, GridFileStoreGridAndBinaryAgree) {
+  test::ScratchDir dir;
+  const WavelengthGrid grid = WavelengthGrid::range(400, 700, 50);
+  Eigen::VectorXd rho_d(7);
+  rho_d << 0.05, 0.1, 0.2, 0.4, 0.6, 0.6, 0.5;  // orange
+  const brdf::Ward ward(grid, rho_d, Eigen::VectorXd::Constant(7, 0.3), Eigen::VectorXd::Constant(7, 0.1));
+  store::Grid g;
+  g.wavelengths = grid;
+  g.brdf.resize(7 * brdf::kMerlCells);
+  brdf::evaluate_grid(ward, g.brdf);
+  write_grid_file(dir / "ward.spgrid", g);
+  {
+    store::StoreWriter w(dir / "s.h5", {.compression = store::Compression::parse("none")});
+    w.add_grid("ward", g);
+    w.commit();
+  }
+  write_merl(dir / "ward.binary", grid_to_merl(g, rgb_weights(grid, illuminant("D65", grid))).brdf);
+  const std::string inputs[] = {(dir / "ward.spgrid").string(), (dir / "s.h5").string() + ":ward",
+                                (dir / "ward.binary").string()};
+  const std::string outputs[] = {"a", "b", "c"};
+  for (int i = 0; i < 3; ++i) {
+    const test::RunResult r = test::run_specula("-q render '" + inputs[i] + "' -o '" + (dir / (outputs[i] + ".png")).string() +
+                                                "' --size 48 --light 30,120");
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_TRUE(std::filesystem::exists(dir / (outputs[i] + ".exr")));
+  }
+  const store::PngImage a = store::read_png(dir / "a.png");
+  EXPECT_EQ(a.width, 48u);
+  EXPECT_EQ(a.height, 48u);
+  EXPECT_EQ(a.channels, 3u);
+  EXPECT_EQ(a.samples, store::read_png(dir / "b.png").samples);
+  EXPECT_EQ(a.samples, store::read_png(dir / "c.png").samples);
+  // Orange: at the lit centre red exceeds blue.
+  const std::size_t centre = 3 * (24 * 48 + 24);
+  EXPECT_GT(a.samples[centre], a.samples[centre + 2]);
+
+  const test::RunResult bad = test::run_specula("-q render '" + inputs[0] + "' -o '" + (dir / "x.png").string() + "' --light 95,0");
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.output.find("--light THETA,PHI"), std::string::npos) << bad.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
+  const test::RunResult bare = test::run_specula("-q render '" + (dir / "s.h5").string() + "' -o '" + (dir / "x.png").string() + "'");
+  EXPECT_EQ(bare.status, 1);
+  EXPECT_NE(bare.output.find("s.h5:GRID"), std::string::npos) << bare.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
+}
+
+}  // namespace
+}  // namespace specula::codec

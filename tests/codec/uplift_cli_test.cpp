@@ -1,0 +1,87 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+
+#include "codec/merl.h"
+#include "codec/spectral_grid.h"
+#include "store/store.h"
+#include "test_support.h"
+
+namespace specula {
+namespace {
+
+constexpr std::size_t N = brdf::kMerlCells;
+
+std::size_t files_in(const std::filesystem::path& dir) {
+  return std::size_t(std::distance(std::filesystem::directory_iterator(dir), std::filesystem::directory_iterator()));
+}
+
+TEST(UpliftCli, TruncatedBinaryIsOneLineAndLeavesNoOutput) {
+  test::ScratchDir dir;
+  const auto in = dir / "red.binary";
+  codec::write_merl(in, codec::MerlBrdf());
+  std::filesystem::resize_file(in, 20000000);
+  for (const std::string& out : {"-o '" + (dir / "out.spgrid").string() + "'",
+                                "--store '" + (dir / "s.h5").string() + "' --name red"}) {
+    const test::RunResult r = test::run_specula("-q uplift '" + in.string() + "' " + out);
+    EXPECT_EQ(r.status, 1) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_EQ(r.output.rfind("specula: ", 0), 0u) << r.output;
+    EXPECT_NE(r.output.find(in.string()), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("20000000 bytes, expected 34992012 bytes"), std::string::npos) << r.output;
+    EXPECT_EQ(files_in(dir.path()), 1u);  // only the input: no output, no temporary
+  }
+}
+
+TEST(UpliftCli, NeedsExactlyOneDestination) {
+  test::ScratchDir dir;
+  const auto in = dir / "a.binary";
+  codec::write_merl(in, codec::MerlBrdf());
+  test::RunResult r = test::run_specula("-q uplift '" + in.string() + "'");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("either -o FILE"), std::string::npos) << r.output;
+  r = test::run_specula("-q uplift '" + in.string() + "' --store '" + (dir / "s.h5").string() + "'");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("--store needs --name"), std::string::npos) << r.output;
+  r = test::run_specula("-q uplift '" + in.string() + "' -o '" + (dir / "x.spgrid").string() + "' --alpha -1");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("alpha is -1"), std::string::npos) << r.output;
+  EXPECT_EQ(files_in(dir.path()), 1u);
+}
+
+// Grey and pastel cells (inside the sRGB gamut) come back to their RGB through export; the file and the
+// store hold the same 31-band grid.
+TEST(UpliftCli, FileAndStoreRoundTripToRgb) {
+  test::ScratchDir dir;
+  codec::MerlBrdf rgb;
+  std::vector<std::size_t> cells;
+  for (std::size_t cell = 5; cell < N; cell += 7919) {
+    const double t = double(cell) / double(N);
+    rgb.set(cell, Eigen::Vector3d(0.2 + 0.3 * t, 0.25, 0.3 - 0.1 * t));
+    cells.push_back(cell);
+  }
+  const auto in = dir / "pastel.binary", out = dir / "pastel.spgrid", st = dir / "s.h5";
+  codec::write_merl(in, rgb);
+  test::RunResult r = test::run_specula("-q uplift '" + in.string() + "' -o '" + out.string() + "' --nonnegative");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("uplifted " + std::to_string(cells.size()) + " cells"), std::string::npos) << r.output;
+  // The store variant on a coarser grid keeps the test fast.
+  r = test::run_specula("-q uplift '" + in.string() + "' --store '" + st.string() + "' --name pastel --wavelengths 400:700:50");
+  ASSERT_EQ(r.status, 0) << r.output;
+
+  const store::Grid g = codec::read_grid_file(out);
+  ASSERT_EQ(g.bands(), 31u);
+  const store::Grid gs = store::Store::open(st).read_grid("pastel");
+  ASSERT_EQ(gs.bands(), 7u);
+  for (const store::Grid* grid : {&g, &gs}) {
+    const codec::RgbExport back =
+        codec::grid_to_merl(*grid, codec::rgb_weights(grid->wavelengths, illuminant("D65", grid->wavelengths)));
+    for (std::size_t cell : cells)
+      for (int c = 0; c < 3; ++c) ASSERT_NEAR(back.brdf.value(c, cell), rgb.value(c, cell), 1e-6) << cell;
+    EXPECT_FALSE(back.brdf.has_data(6));
+  }
+}
+
+}  // namespace
+}  // namespace specula

@@ -1,0 +1,256 @@
+#include "codec/uplift.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/LU>
+#include <Eigen/QR>
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "codec/spectral_grid.h"
+#include "core/error.h"
+#include "test_support.h"
+
+namespace specula::codec {
+namespace {
+
+constexpr std::size_t N = brdf::kMerlCells;
+
+const WavelengthGrid& grid31() {
+  static const WavelengthGrid g = WavelengthGrid::range(400, 700, 10);
+  return g;
+}
+
+// Dynamic-size helpers (GCC 12 misreads fixed 3-vectors under AVX as out-of-bounds reads).
+double max_abs(const Eigen::VectorXd& v) { return v.cwiseAbs().maxCoeff(); }
+
+Eigen::Matrix<double, 3, Eigen::Dynamic> weights31() { return rgb_weights(grid31(), illuminant("D65", grid31())); }
+
+Eigen::MatrixXd second_differences(Eigen::Index b) {
+  Eigen::MatrixXd d = Eigen::MatrixXd::Zero(b - 2, b);
+  for (Eigen::Index r = 0; r + 2 < b; ++r) d.row(r).segment(r, 3) << 1, -2, 1;
+  return d;
+}
+
+// Smooth, positive spectra: a base plus a broad Gaussian bump.
+Eigen::VectorXd smooth_spectrum(double base, double height, double centre, double width) {
+  Eigen::VectorXd x(31);
+  for (Eigen::Index k = 0; k < 31; ++k) {
+    const double t = (grid31()[std::size_t(k)] - centre) / width;
+    x[k] = base + height * std::exp(-t * t);
+  }
+  return x;
+}
+
+// The alpha -> 0 limit of eq A.3, solved independently: minimise |D x|^2 subject to A x = c (KKT system).
+Eigen::VectorXd min_curvature_exact(const Eigen::Matrix<double, 3, Eigen::Dynamic>& a, const Eigen::VectorXd& c) {
+  const Eigen::MatrixXd d = second_differences(31);
+  Eigen::MatrixXd kkt = Eigen::MatrixXd::Zero(34, 34);
+  kkt.topLeftCorner(31, 31) = 2 * d.transpose() * d;
+  kkt.topRightCorner(31, 3) = a.transpose();
+  kkt.bottomLeftCorner(3, 31) = a;
+  Eigen::VectorXd rhs = Eigen::VectorXd::Zero(34);
+  rhs.tail(3) = c;
+  return kkt.fullPivLu().solve(rhs).head(31);
+}
+
+// A spectrum linear in wavelength has no second differences, so if it also matches the RGB it is the exact
+// minimiser of eq A.3 for every alpha (and the system has full rank, so the only one).
+TEST(Uplift, LinearSpectrumIsRecoveredForEveryAlpha) {
+  const auto a = weights31();
+  Eigen::VectorXd lin(31);
+  for (Eigen::Index k = 0; k < 31; ++k) lin[k] = 0.1 + 0.02 * double(k);
+  const Eigen::Vector3d rgb = a * lin;
+  for (double alpha : {1e-4, 1e-2, 1.0, 100.0}) {
+    const Uplift up(a, alpha);
+    Eigen::VectorXd x(31);
+    EXPECT_FALSE(up.clamped(rgb, x));
+    EXPECT_LT((x - lin).cwiseAbs().maxCoeff(), 1e-9) << alpha;
+    EXPECT_FALSE(up.nonnegative(rgb, x));
+    EXPECT_LT((x - lin).cwiseAbs().maxCoeff(), 1e-9) << alpha;
+  }
+}
+
+TEST(Uplift, FeasibleRgbIsReproducedAndTendsToTheMinimumCurvatureSolution) {
+  const auto a = weights31();
+  const Uplift up(a, kDefaultUpliftAlpha);
+  for (const Eigen::VectorXd& s : {smooth_spectrum(0.1, 0.6, 550, 50), smooth_spectrum(0.05, 0.8, 620, 40),
+                                   smooth_spectrum(0.3, 0.4, 460, 70), smooth_spectrum(0.02, 3.0, 500, 80)}) {
+    const Eigen::VectorXd rgb = a * s;
+    Eigen::VectorXd x(31);
+    up.nonnegative(rgb, x);
+    EXPECT_LE(max_abs(a * x - rgb), 1e-6 * max_abs(rgb));
+    const Eigen::VectorXd exact = min_curvature_exact(a, rgb);
+    if (exact.minCoeff() >= 0) {
+      EXPECT_LT((x - exact).cwiseAbs().maxCoeff(), 1e-4 * exact.cwiseAbs().maxCoeff());
+    }
+  }
+}
+
+// Tikhonov: as alpha grows the solution's second differences shrink and its RGB error grows, monotonically.
+TEST(Uplift, SmoothnessGrowsWithAlpha) {
+  const auto a = weights31();
+  const Eigen::MatrixXd d = second_differences(31);
+  const Eigen::Vector3d rgb(0.6, 0.3, 0.1);
+  double last_curv = 1e300, last_err = -1;
+  for (double alpha : {1e-4, 1e-3, 1e-2, 1e-1, 1.0, 10.0}) {
+    const Uplift up(a, alpha);
+    Eigen::VectorXd x(31);
+    up.solve(rgb, x);
+    const double curv = (d * x).norm(), err = (a * x - rgb).norm();
+    EXPECT_LT(curv, last_curv) << alpha;
+    EXPECT_GE(err, last_err) << alpha;
+    last_curv = curv;
+    last_err = err;
+  }
+  EXPECT_GT(last_err, 1e-3);  // at alpha = 10 smoothness wins over fidelity
+}
+
+TEST(Uplift, ClampingIsAppendixA) {
+  const auto a = weights31();
+  const Uplift up(a, 1e-2);
+  const Eigen::Vector3d blue(0.02, 0.03, 0.9);
+  Eigen::VectorXd raw(31), x(31);
+  up.solve(blue, raw);
+  ASSERT_LT(raw.minCoeff(), 0.0);  // a saturated blue needs negative light somewhere
+  EXPECT_TRUE(up.clamped(blue, x));
+  EXPECT_EQ(x, raw.cwiseMax(0.0));
+}
+
+// The bounded solution satisfies the KKT conditions of min |M x - b|^2, x >= 0, and beats clamping.
+TEST(Uplift, NonNegativeIsTheBoundedLeastSquaresOptimum) {
+  const auto a = weights31();
+  const Uplift up(a, 1e-2);
+  const Eigen::MatrixXd& m = up.system();
+  for (const Eigen::Vector3d& rgb : {Eigen::Vector3d(0.02, 0.03, 0.9), Eigen::Vector3d(0.9, 0.05, 0.02),
+                                     Eigen::Vector3d(0.05, 0.8, 0.05)}) {
+    Eigen::VectorXd x(31), xc(31);
+    EXPECT_TRUE(up.nonnegative(rgb, x));
+    up.clamped(rgb, xc);
+    EXPECT_GE(x.minCoeff(), 0.0);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(m.rows());
+    b.head(3) = rgb;
+    const Eigen::VectorXd grad = m.transpose() * (m * x - b);
+    const double tol = 1e-9 * (m.transpose() * b).cwiseAbs().maxCoeff();
+    for (Eigen::Index k = 0; k < 31; ++k) {
+      if (x[k] > 0) EXPECT_NEAR(grad[k], 0.0, tol) << k;
+      else EXPECT_GE(grad[k], -tol) << k;
+    }
+    EXPECT_LE((m * x - b).norm(), (m * xc - b).norm() + 1e-15);
+  }
+}
+
+// Reusing active sets gives the same optimum as solving afresh, over a sweep of saturated colours where
+// neighbours share active sets (hits) and some do not (misses).
+TEST(Uplift, ActiveSetCacheGivesTheSameOptimum) {
+  const auto a = weights31();
+  const Uplift up(a, 1e-2);
+  UpliftCache cache;
+  int constrained = 0;
+  for (int i = 0; i < 600; ++i) {
+    const double h = 6.0 * i / 600, f = h - std::floor(h);
+    Eigen::Vector3d rgb;
+    switch (int(h)) {  // hue wheel at full saturation, with a little white
+      case 0: rgb << 1, f, 0; break;
+      case 1: rgb << 1 - f, 1, 0; break;
+      case 2: rgb << 0, 1, f; break;
+      case 3: rgb << 0, 1 - f, 1; break;
+      case 4: rgb << f, 0, 1; break;
+      default: rgb << 1, 0, 1 - f; break;
+    }
+    rgb = (rgb.array() * 0.9 + 0.02).matrix() * (0.5 + 0.001 * i);
+    Eigen::VectorXd x(31), y(31);
+    const bool c1 = up.nonnegative(rgb, x, &cache);
+    const bool c2 = up.nonnegative(rgb, y);
+    ASSERT_EQ(c1, c2) << i;
+    constrained += c1;
+    ASSERT_LT((x - y).cwiseAbs().maxCoeff(), 1e-9 * std::max(1.0, y.cwiseAbs().maxCoeff())) << i;
+  }
+  EXPECT_GT(constrained, 100);
+  EXPECT_GT(cache.hits(), cache.misses());
+  EXPECT_GT(cache.misses(), 1u);
+}
+
+// Brute force over every active set of a small random problem: the feasible least-squares solution with
+// the lowest residual is the bounded optimum.
+TEST(Uplift, NnlsMatchesBruteForce) {
+  std::mt19937 rng(31);
+  std::normal_distribution<double> g(0, 1);
+  for (int trial = 0; trial < 30; ++trial) {
+    Eigen::MatrixXd m(9, 6);
+    Eigen::VectorXd b(9);
+    for (Eigen::Index i = 0; i < m.size(); ++i) m.data()[i] = g(rng);
+    for (Eigen::Index i = 0; i < b.size(); ++i) b[i] = g(rng);
+    Eigen::VectorXd x(6);
+    nnls_normal(m.transpose() * m, m.transpose() * b, x);
+    double best = 1e300;
+    Eigen::VectorXd best_x;
+    for (int mask = 0; mask < 64; ++mask) {
+      std::vector<Eigen::Index> cols;
+      for (Eigen::Index j = 0; j < 6; ++j)
+        if (mask >> j & 1) cols.push_back(j);
+      Eigen::VectorXd cand = Eigen::VectorXd::Zero(6);
+      if (!cols.empty()) {
+        Eigen::MatrixXd sub(9, Eigen::Index(cols.size()));
+        for (std::size_t c = 0; c < cols.size(); ++c) sub.col(Eigen::Index(c)) = m.col(cols[c]);
+        const Eigen::VectorXd s = sub.colPivHouseholderQr().solve(b);
+        if (s.minCoeff() < 0) continue;
+        for (std::size_t c = 0; c < cols.size(); ++c) cand[cols[c]] = s[Eigen::Index(c)];
+      }
+      const double r = (m * cand - b).norm();
+      if (r < best) {
+        best = r;
+        best_x = cand;
+      }
+    }
+    EXPECT_NEAR((m * x - b).norm(), best, 1e-10) << trial;
+    EXPECT_LT((x - best_x).cwiseAbs().maxCoeff(), 1e-8) << trial;
+  }
+  Eigen::VectorXd x(3);
+  EXPECT_THROW(nnls_normal(Eigen::MatrixXd::Identity(4, 4), Eigen::VectorXd::Zero(4), x), UsageError);
+}
+
+TEST(Uplift, BadParametersAreUsageErrors) {
+  EXPECT_THROW(Uplift(weights31(), -1), UsageError);
+  EXPECT_THROW(Uplift(weights31(), std::nan("")), UsageError);
+  EXPECT_THROW(Uplift(weights31(), 0.0), UsageError);  // 31 unknowns, 3 equations: needs the regulariser
+  EXPECT_THROW(Uplift(Eigen::Matrix<double, 3, 2>::Ones(), 1.0), UsageError);
+}
+
+// A whole MERL BRDF: cells made from smooth spectra come back to the same RGB (through the export path),
+// cells without data stay without data.
+TEST(Uplift, MerlBrdfRoundTripsThroughExport) {
+  const auto a = weights31();
+  MerlBrdf rgb;
+  std::mt19937 rng(41);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<std::size_t> cells;
+  for (std::size_t cell = 0; cell < N; cell += 997) {
+    const Eigen::VectorXd s = smooth_spectrum(0.05 + 0.2 * u(rng), 2 * u(rng), 450 + 200 * u(rng), 40 + 60 * u(rng));
+    const Eigen::VectorXd c = a * s;
+    if (c.minCoeff() <= 0) continue;  // outside the sRGB gamut: a MERL file cannot hold it
+    rgb.set(cell, c);
+    cells.push_back(cell);
+  }
+  const Uplift up(a, kDefaultUpliftAlpha);
+  UpliftReport report;
+  const store::Grid g = uplift_merl(rgb, grid31(), up, UpliftMethod::nonnegative, &report);
+  EXPECT_EQ(report.cells, cells.size());
+  EXPECT_LE(report.max_rgb_error, 1e-6);
+  EXPECT_EQ(g.bands(), 31u);
+  EXPECT_EQ(g.brdf[1], -1.0f);
+  EXPECT_EQ(g.brdf[30 * N + 1], -1.0f);
+  const RgbExport back = grid_to_merl(g, a);
+  EXPECT_EQ(back.clamped, 0u);
+  for (std::size_t cell : cells) {
+    // Relative to the cell's largest channel: the grid holds float32 (about 6e-8 of each band).
+    const double scale = std::max({rgb.value(0, cell), rgb.value(1, cell), rgb.value(2, cell)});
+    for (int c = 0; c < 3; ++c) ASSERT_NEAR(back.brdf.value(c, cell), rgb.value(c, cell), 1e-6 * scale) << cell;
+  }
+  EXPECT_FALSE(back.brdf.has_data(1));
+  EXPECT_THROW(uplift_merl(rgb, WavelengthGrid::range(400, 700, 20), up, UpliftMethod::clamp), UsageError);
+}
+
+}  // namespace
+}  // namespace specula::codec
