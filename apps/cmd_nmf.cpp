@@ -111,12 +111,12 @@ void run_nmf(const NmfCliOptions& o) {
     fmt::print(R"({{"store":{},"basis":{},"output":{},"k":{},"n":{},"bands":{},"rel_error":{},"svd_bound":{},)"
                R"("epochs":{},"converged":{},"seconds":{:.6f},"restarts":[{}],"best_restart":{},"history":{},)"
                R"("history_seconds":{},"passes":{},"resumed":{},"negatives":{},"values":{},"nnls_unconverged":{},)"
-               R"("weights":{},"components":[{}],"threads":{}}})"
+               R"("warmup_epochs":{},"warmup_blocks":{},"warmup_pass_equivalent":{},"weights":{},"components":[{}],"threads":{}}})"
                "\n",
                json_string(s.path().string()), json_string(name), json_string(out), o.k, r.n, reader.bands(),
                r.rel_error, r.svd_bound, best.epochs, best.converged, seconds, restarts, r.best,
                json_history(best.history), json_history(t), r.passes, r.resumed, r.negatives, r.values,
-               r.nnls_unconverged, json_array({r.weights.data(), std::size_t(r.weights.size())}),
+               r.nnls_unconverged, r.warmup_epochs, r.warmup_blocks, r.warmup_pass_equivalent, json_array({r.weights.data(), std::size_t(r.weights.size())}),
                [&] {
                  std::string rows;
                  for (Eigen::Index i = 0; i < best.basis.rows(); ++i) {
@@ -143,6 +143,9 @@ void run_nmf(const NmfCliOptions& o) {
   if (r.negatives)
     fmt::print("clipped {} negative values to zero ({:.4f} % of {})\n", r.negatives,
                100.0 * double(r.negatives) / double(std::max<std::uint64_t>(r.values, 1)), r.values);
+  if (r.warmup_epochs)
+    fmt::print("warm-up: {} epochs on a sample of {} blocks ({:.2f} passes' worth of reading)\n", r.warmup_epochs,
+               r.warmup_blocks, r.warmup_pass_equivalent);
   fmt::print("{} passes over the data in {:.2f} s ({} threads); saved basis '{}' in {}\n", r.passes, seconds,
              omp_get_max_threads(), name, out);
 }

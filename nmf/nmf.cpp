@@ -26,13 +26,15 @@ constexpr std::size_t kTile = 256;
 // Blocks per wave of an epoch: the basis is re-solved after every wave. Fixed, so results do not depend on
 // the thread count.
 constexpr std::size_t kWaveBlocks = 8;
+// At most this many epochs on the warm-up sample.
+constexpr std::size_t kWarmupEpochs = 100;
 
 // Runs fn(block_index, raw, stats) over blocks [first, last) on all threads and returns the per-block
 // statistics summed in block order: the same for any thread count.
 template <class Stats, class Fn>
 Stats reduce_range(const BlockReader& reader, const Stats& zero, std::size_t first, std::size_t last, Progress& progress,
-                   Fn&& fn) {
-  const std::size_t n = last - first;
+                   Fn&& fn, std::size_t stride = 1) {
+  const std::size_t n = (last - first + stride - 1) / stride;
   std::vector<Stats> part(n, zero);
   std::exception_ptr error;
   std::mutex error_mutex;
@@ -43,8 +45,9 @@ Stats reduce_range(const BlockReader& reader, const Stats& zero, std::size_t fir
     for (long long j = 0; j < static_cast<long long>(n); ++j) {
       try {
         check_interrupt();
-        reader.read_raw(first + std::size_t(j), raw);
-        fn(first + std::size_t(j), raw, part[std::size_t(j)]);
+        const std::size_t block = first + std::size_t(j) * stride;
+        reader.read_raw(block, raw);
+        fn(block, raw, part[std::size_t(j)]);
         progress.advance(raw.valid);
       } catch (...) {
         std::lock_guard lock(error_mutex);
@@ -225,7 +228,7 @@ GramStats gram_pass(const BlockReader& reader, Negatives policy) {
 
 // Coefficients of the spectra of blocks [first, last) for `basis` (exact NNLS) and their statistics.
 EpochStats coefficient_pass(const BlockReader& reader, const Eigen::MatrixXd& basis, Negatives policy, std::size_t first,
-                            std::size_t last, Progress& progress) {
+                            std::size_t last, Progress& progress, std::size_t stride = 1) {
   const Eigen::Index k = basis.rows(), b = basis.cols();
   const GramNnls solver(basis * basis.transpose());
   const EpochStats zero{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
@@ -258,7 +261,7 @@ EpochStats coefficient_pass(const BlockReader& reader, const Eigen::MatrixXd& ba
         for (Eigen::Index q = 0; q < k; ++q) out.ctc(p, q) += ctc[std::size_t(p) * kPad + std::size_t(q)];
         for (Eigen::Index j = 0; j < b; ++j) out.ctx(p, j) += ctx[std::size_t(j) * kPad + std::size_t(p)];
       }
-    });
+    }, stride);
   }
   return reduce_range(reader, zero, first, last, progress, [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
     thread_local RowMatrixXd tile, h, c;
@@ -274,7 +277,7 @@ EpochStats coefficient_pass(const BlockReader& reader, const Eigen::MatrixXd& ba
       out.ctx.noalias() += c.transpose() * t;
       out.xx += t.squaredNorm();
     });
-  });
+  }, stride);
 }
 
 // The exact S step: min_{S >= 0} ||X - C S||^2 given C^T C and C^T X, one NNLS per band.
@@ -368,7 +371,7 @@ Eigen::MatrixXd nndsvd_init(const BlockReader& reader, const Eigen::MatrixXd& gr
 std::string fingerprint(const BlockReader& reader, const NmfOptions& o) {
   std::ostringstream f;
   f << "k=" << o.k << " init=" << (o.init == Init::nndsvd ? "nndsvd" : "random") << " seed=" << o.seed
-    << " restarts=" << o.restarts << " negatives=" << (o.negatives == Negatives::clip ? "clip" : "reject")
+    << " restarts=" << o.restarts << " warmup_blocks=" << o.warmup_blocks << " negatives=" << (o.negatives == Negatives::clip ? "clip" : "reject")
     << " bands=" << reader.bands() << " spectra=" << reader.spectra() << " blocks=" << reader.block_count()
     << " sources=";
   for (const auto& n : reader.source_names()) f << n << ",";
@@ -556,19 +559,51 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
         if (seen[w]) t += waves[w];
       return t;
     };
+    // One epoch of block-coordinate descent over the blocks first, first + stride, ... in waves of kWaveBlocks.
+    auto run_epoch = [&](std::vector<EpochStats>& ws, std::vector<char>& on, std::size_t step, Progress& progress) {
+      for (std::size_t w = 0; w < ws.size(); ++w) {
+        const std::size_t first = w * kWaveBlocks * step;
+        const std::size_t last = std::min(reader.block_count(), first + kWaveBlocks * step);
+        ws[w] = coefficient_pass(reader, s, o.negatives, first, last, progress, step);
+        on[w] = 1;
+        result.nnls_unconverged += ws[w].unconverged;
+        EpochStats t{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
+        for (std::size_t v = 0; v < ws.size(); ++v)
+          if (on[v]) t += ws[v];
+        s = solve_basis(t);
+        const Eigen::VectorXd d = normalise_rows(s, rng);
+        for (std::size_t v = 0; v < ws.size(); ++v)
+          if (on[v]) rescale(ws[v], d);
+      }
+    };
+    // Warm-up on a sample of whole blocks (every stride-th, about warmup_blocks of them) when the data is
+    // large: the same descent on the sample until it stalls moves the basis close to its optimum at a small
+    // fraction of a pass, so the full epochs start near it. Skipped on resume.
+    const std::size_t stride = o.warmup_blocks ? reader.block_count() / o.warmup_blocks : 0;
+    if (stride >= 2 && history.empty()) {
+      const std::size_t sample = (reader.block_count() + stride - 1) / stride;
+      std::vector<EpochStats> ws((sample + kWaveBlocks - 1) / kWaveBlocks,
+                                 EpochStats{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)});
+      std::vector<char> on(ws.size(), 0);
+      double prev = std::numeric_limits<double>::infinity();
+      for (std::size_t e = 0; e < kWarmupEpochs; ++e) {
+        Progress progress("nmf: restart " + std::to_string(r + 1) + " warm-up " + std::to_string(e + 1),
+                          reader.spectra() / stride);
+        run_epoch(ws, on, stride, progress);
+        EpochStats t{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
+        for (const auto& x : ws) t += x;
+        const double err = certified_error(t, s);
+        result.warmup_epochs = e + 1;
+        result.warmup_pass_equivalent += double(sample) / double(reader.block_count());
+        if (prev - err <= 1e-4 * err) break;
+        prev = err;
+      }
+      result.warmup_blocks = sample;
+    }
     while (history.size() < o.max_epochs) {
       const std::size_t epoch = history.size() + 1;
       Progress progress("nmf: restart " + std::to_string(r + 1) + " epoch " + std::to_string(epoch), reader.spectra());
-      for (std::size_t w = 0; w < n_waves; ++w) {
-        const std::size_t first = w * kWaveBlocks, last = std::min(reader.block_count(), first + kWaveBlocks);
-        waves[w] = coefficient_pass(reader, s, o.negatives, first, last, progress);
-        seen[w] = 1;
-        result.nnls_unconverged += waves[w].unconverged;
-        s = solve_basis(total_of());
-        const Eigen::VectorXd d = normalise_rows(s, rng);
-        for (std::size_t v = 0; v < n_waves; ++v)
-          if (seen[v]) rescale(waves[v], d);
-      }
+      run_epoch(waves, seen, 1, progress);
       ++result.passes;
       const double err = certified_error(total_of(), s);
       const double prev = history.empty() ? std::numeric_limits<double>::infinity() : history.back();

@@ -41,6 +41,9 @@ struct NmfOptions {
   std::size_t max_epochs = 100;
   double tol = 1e-4;  ///< stop when an epoch lowers the error by less than tol (relative)
   Negatives negatives = Negatives::clip;
+  /// With at least twice this many blocks, each restart first descends on a sample of about this many
+  /// (every stride-th block) until it stalls (at most 100 epochs); 0: no warm-up.
+  std::size_t warmup_blocks = 64;
   /// Written (atomically) after every epoch when not empty; removed by the caller once the basis is saved.
   std::filesystem::path checkpoint;
   bool resume = false;  ///< continue from `checkpoint` (which must exist and match the run)
@@ -71,6 +74,9 @@ struct NmfResult {
   std::size_t passes = 0;        ///< passes over the data in this process (a resumed run counts its own)
   std::uint64_t nnls_unconverged = 0;  ///< coefficient solves that hit the iteration cap (expected 0)
   bool resumed = false;
+  std::size_t warmup_epochs = 0;        ///< epochs on the warm-up sample (large data only; summed over restarts)
+  std::size_t warmup_blocks = 0;        ///< blocks in that sample
+  double warmup_pass_equivalent = 0;   ///< the warm-up's reading, in passes over the whole data
   const RestartResult& best_result() const { return restarts.at(best); }
 };
 

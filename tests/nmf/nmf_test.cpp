@@ -214,3 +214,35 @@ TEST(Nmf, NnlsProjectionMatchesPerSpectrumSolves) {
     EXPECT_LE((c.row(r).transpose() - ref).norm(), 1e-9);
   }
 }
+
+TEST(Nmf, WarmUpOnASampleIsThreadIndependentResumableAndCertified) {
+  ScratchDir dir;
+  // 70000 spectra of 16 bands: 5 blocks; a warm-up sample of every second block.
+  const auto path = make_store(dir, planted_basis(5), 70000, 0.01, 12);
+  NmfOptions o{.k = 5, .max_epochs = 4, .tol = 0, .warmup_blocks = 2};
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const NmfResult one = run(path, o);
+  omp_set_num_threads(2);
+  const NmfResult two = run(path, o);
+  omp_set_num_threads(saved);
+  EXPECT_GT(one.warmup_epochs, 1u);
+  EXPECT_EQ(one.warmup_blocks, 3u);
+  EXPECT_EQ(one.best_result().history, two.best_result().history);
+  EXPECT_TRUE(one.best_result().basis == two.best_result().basis);
+  const auto& h = one.best_result().history;
+  for (std::size_t e = 1; e < h.size(); ++e) EXPECT_LE(h[e], h[e - 1] * (1 + 1e-12));
+  EXPECT_GE(one.rel_error, one.svd_bound);
+
+  o.checkpoint = dir / "warm.ckpt";
+  o.on_epoch = [](const EpochReport& e) {
+    if (e.epoch == 2) request_interrupt();
+  };
+  EXPECT_THROW(run(path, o), Interrupted);
+  clear_interrupt();
+  o.on_epoch = nullptr;
+  o.resume = true;
+  const NmfResult resumed = run(path, o);
+  EXPECT_EQ(resumed.best_result().history, one.best_result().history);
+  EXPECT_TRUE(resumed.best_result().basis == one.best_result().basis);
+}
