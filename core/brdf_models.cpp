@@ -37,6 +37,14 @@ void check_out(std::span<double> out, std::size_t bands) {
                      std::to_string(bands) + " bands");
 }
 
+// Checks out's size; zeroes it and returns false when either direction is below the horizon.
+bool prepare(std::span<double> out, std::size_t bands, const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) {
+  check_out(out, bands);
+  if (wi.z() > 0 && wo.z() > 0) return true;
+  std::fill(out.begin(), out.end(), 0.0);
+  return false;
+}
+
 }  // namespace
 
 SpectralModel::SpectralModel(WavelengthGrid grid) : grid_(std::move(grid)) {
@@ -75,12 +83,8 @@ TorranceSparrow::TorranceSparrow(WavelengthGrid grid, Eigen::VectorXd m, Eigen::
 }
 
 void TorranceSparrow::eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, std::span<double> out) const {
-  check_out(out, bands());
+  if (!prepare(out, bands(), wi, wo)) return;
   const double ci = wi.z(), co = wo.z();
-  if (ci <= 0 || co <= 0) {
-    std::fill(out.begin(), out.end(), 0.0);
-    return;
-  }
   const Eigen::Vector3d h = (wi + wo).normalized();
   const double ch = h.z(), cd = std::min(1.0, wi.dot(h));
   const double theta_d = std::acos(cd);
@@ -102,12 +106,8 @@ Ward::Ward(WavelengthGrid grid, Eigen::VectorXd rho_d, Eigen::VectorXd rho_s, Ei
 }
 
 void Ward::eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, std::span<double> out) const {
-  check_out(out, bands());
+  if (!prepare(out, bands(), wi, wo)) return;
   const double ci = wi.z(), co = wo.z();
-  if (ci <= 0 || co <= 0) {
-    std::fill(out.begin(), out.end(), 0.0);
-    return;
-  }
   const Eigen::Vector3d h = (wi + wo).normalized();
   const double ch = h.z();
   const double tan2 = (1 - ch * ch) / (ch * ch);

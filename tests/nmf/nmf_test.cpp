@@ -66,6 +66,15 @@ NmfResult run(const std::filesystem::path& path, NmfOptions o) {
   return factorize(reader, o);
 }
 
+// The same run on `threads` OpenMP threads.
+NmfResult run_on(int threads, const std::filesystem::path& path, const NmfOptions& o) {
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(threads);
+  NmfResult r = run(path, o);
+  omp_set_num_threads(saved);
+  return r;
+}
+
 }  // namespace
 
 TEST(Nmf, RecoversAPlantedFactorisation) {
@@ -101,12 +110,8 @@ TEST(Nmf, SameResultForOneAndTwoThreads) {
   ScratchDir dir;
   const auto path = make_store(dir, planted_basis(5), 30000, 0.01, 5);
   const NmfOptions o{.k = 5, .max_epochs = 8, .tol = 0};
-  const int saved = omp_get_max_threads();
-  omp_set_num_threads(1);
-  const NmfResult one = run(path, o);
-  omp_set_num_threads(2);
-  const NmfResult two = run(path, o);
-  omp_set_num_threads(saved);
+  const NmfResult one = run_on(1, path, o);
+  const NmfResult two = run_on(2, path, o);
   EXPECT_EQ(one.best_result().history, two.best_result().history);
   EXPECT_TRUE(one.best_result().basis == two.best_result().basis);
   EXPECT_TRUE(one.weights == two.weights);
@@ -220,12 +225,8 @@ TEST(Nmf, WarmUpOnASampleIsThreadIndependentResumableAndCertified) {
   // 70000 spectra of 16 bands: 5 blocks; a warm-up sample of every second block.
   const auto path = make_store(dir, planted_basis(5), 70000, 0.01, 12);
   NmfOptions o{.k = 5, .max_epochs = 4, .tol = 0, .warmup_blocks = 2};
-  const int saved = omp_get_max_threads();
-  omp_set_num_threads(1);
-  const NmfResult one = run(path, o);
-  omp_set_num_threads(2);
-  const NmfResult two = run(path, o);
-  omp_set_num_threads(saved);
+  const NmfResult one = run_on(1, path, o);
+  const NmfResult two = run_on(2, path, o);
   EXPECT_GT(one.warmup_epochs, 1u);
   EXPECT_EQ(one.warmup_blocks, 3u);
   EXPECT_EQ(one.best_result().history, two.best_result().history);
