@@ -72,30 +72,63 @@ Stats reduce_blocks(const BlockReader& reader, const Stats& zero, const std::str
   return total;
 }
 
+// Copies one spectrum of b floats into t as doubles with negatives set to zero; counts non-finite and negative
+// values and adds the sum of squares of the copied values to sq.
+inline void clip_spectrum(const float* x, std::size_t b, double* t, unsigned& bad, unsigned& neg, double& sq) {
+  std::size_t k = 0;
+#if defined(__AVX2__)
+  const __m256 zero = _mm256_setzero_ps();
+  __m256i nbad = _mm256_setzero_si256(), nneg = nbad;
+  __m256d acc = _mm256_setzero_pd();
+  for (; k + 8 <= b; k += 8) {
+    const __m256 v = _mm256_loadu_ps(x + k);
+    const __m256 finite = _mm256_cmp_ps(_mm256_sub_ps(v, v), zero, _CMP_EQ_OQ);  // false for NaN and +-Inf
+    const __m256 negative = _mm256_cmp_ps(v, zero, _CMP_LT_OQ);
+    nbad = _mm256_sub_epi32(nbad, _mm256_castps_si256(_mm256_xor_ps(finite, _mm256_castsi256_ps(_mm256_set1_epi32(-1)))));
+    nneg = _mm256_sub_epi32(nneg, _mm256_castps_si256(negative));
+    const __m256 c = _mm256_max_ps(v, zero);
+    const __m256d lo = _mm256_cvtps_pd(_mm256_castps256_ps128(c)), hi = _mm256_cvtps_pd(_mm256_extractf128_ps(c, 1));
+    _mm256_storeu_pd(t + k, lo);
+    _mm256_storeu_pd(t + k + 4, hi);
+    acc = _mm256_fmadd_pd(lo, lo, _mm256_fmadd_pd(hi, hi, acc));
+  }
+  alignas(32) std::uint32_t cb[8], cn[8];
+  alignas(32) double ca[4];
+  _mm256_store_si256(reinterpret_cast<__m256i*>(cb), nbad);
+  _mm256_store_si256(reinterpret_cast<__m256i*>(cn), nneg);
+  _mm256_store_pd(ca, acc);
+  for (int q = 0; q < 8; ++q) {
+    bad += cb[q];
+    neg += cn[q];
+  }
+  sq += (ca[0] + ca[1]) + (ca[2] + ca[3]);
+#endif
+  for (; k < b; ++k) {
+    const float v = x[k];
+    bad += (v - v) != 0.0f;
+    neg += v < 0.0f;
+    const double d = v < 0.0f ? 0.0 : double(v);
+    t[k] = d;
+    sq += d * d;
+  }
+}
+
 // Calls fn(tile) for the block's valid spectra in tiles of up to kTile rows (double, negatives clipped or
-// refused); returns the number of negative values seen.
+// refused); returns the number of negative values seen and adds the sum of squares of the clipped values to xx.
 template <class Fn>
 std::uint64_t for_each_tile(const BlockReader& reader, std::size_t block, const BlockReader::RawBlock& raw,
-                            Negatives policy, RowMatrixXd& tile, Fn&& fn, std::size_t ld = 0) {
+                            Negatives policy, RowMatrixXd& tile, Fn&& fn, std::size_t ld = 0, double* xx = nullptr) {
   const std::size_t b = reader.bands();
   if (ld < b) ld = b;
   if (std::size_t(tile.rows()) != kTile || std::size_t(tile.cols()) != ld)
     tile = RowMatrixXd::Zero(Eigen::Index(kTile), Eigen::Index(ld));  // columns beyond b stay zero
   std::uint64_t negatives = 0;
+  double sq = 0;
   std::size_t fill = 0;
   for (std::size_t p = 0; p < raw.pixels; ++p) {
     if (!raw.is_valid(p)) continue;
-    const float* x = raw.spectrum(p, b);
-    double* t = tile.data() + fill * ld;
-    int bad = 0;
-    unsigned neg = 0;
-#pragma omp simd reduction(| : bad) reduction(+ : neg)
-    for (std::size_t k = 0; k < b; ++k) {
-      const float v = x[k];
-      bad |= (v - v) != 0.0f;  // NaN or infinite
-      neg += v < 0.0f;
-      t[k] = double(v < 0.0f ? 0.0f : v);
-    }
+    unsigned bad = 0, neg = 0;
+    clip_spectrum(raw.spectrum(p, b), b, tile.data() + fill * ld, bad, neg, sq);
     negatives += neg;
     if (bad || (neg && policy == Negatives::reject)) {
       const std::string where = reader.source_names()[reader.block_source(block)];
@@ -110,6 +143,7 @@ std::uint64_t for_each_tile(const BlockReader& reader, std::size_t block, const 
     }
   }
   if (fill) fn(tile.topRows(Eigen::Index(fill)));
+  if (xx) *xx += sq;
   return negatives;
 }
 
@@ -255,8 +289,7 @@ EpochStats coefficient_pass(const BlockReader& reader, const Eigen::MatrixXd& ba
         }
         outer_accumulate(t.data(), ld, ld, c.data(), n, ctx.data());
         outer_accumulate(c.data(), kPad, kPad, c.data(), n, ctc.data());
-        out.xx += t.squaredNorm();
-      }, ld);
+      }, ld, &out.xx);
       for (Eigen::Index p = 0; p < k; ++p) {
         for (Eigen::Index q = 0; q < k; ++q) out.ctc(p, q) += ctc[std::size_t(p) * kPad + std::size_t(q)];
         for (Eigen::Index j = 0; j < b; ++j) out.ctx(p, j) += ctx[std::size_t(j) * kPad + std::size_t(p)];
@@ -275,8 +308,7 @@ EpochStats coefficient_pass(const BlockReader& reader, const Eigen::MatrixXd& ba
       }
       out.ctc.noalias() += c.transpose() * c;
       out.ctx.noalias() += c.transpose() * t;
-      out.xx += t.squaredNorm();
-    });
+    }, 0, &out.xx);
   }, stride);
 }
 
