@@ -1,6 +1,7 @@
 #include "nmf/nmf.h"
 
 #include <gtest/gtest.h>
+#include <hdf5.h>
 #include <omp.h>
 
 #include <random>
@@ -182,6 +183,61 @@ TEST(Nmf, NegativeValuesAreClippedAndCountedOrRefused) {
   });
   EXPECT_EQ(r.negatives, count);
   EXPECT_THROW(run(path, {.k = 3, .max_epochs = 3, .negatives = Negatives::reject}), InputError);
+}
+
+// Overwrites value (row, band) of collection c's spectra in place, as a writer other than specula could.
+void poke(const std::filesystem::path& path, hsize_t row, hsize_t band, float value) {
+  const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  const hid_t d = H5Dopen2(f, "/collections/c/spectra", H5P_DEFAULT);
+  const hid_t space = H5Dget_space(d);
+  const hsize_t start[2] = {row, band}, count[2] = {1, 1};
+  H5Sselect_hyperslab(space, H5S_SELECT_SET, start, nullptr, count, nullptr);
+  const hid_t mem = H5Screate_simple(2, count, nullptr);
+  const herr_t written = H5Dwrite(d, H5T_NATIVE_FLOAT, mem, space, H5P_DEFAULT, &value);
+  if (written < 0) H5Eprint2(H5E_DEFAULT, stderr);
+  ASSERT_GE(written, 0);
+  H5Sclose(mem);
+  H5Sclose(space);
+  H5Dclose(d);
+  H5Fclose(f);
+}
+
+TEST(Nmf, NonFiniteValuesInAnyBandAreRefused) {
+  ScratchDir dir;
+  // 13 bands: bands 0-7 are converted eight at a time, 8-12 one by one; both paths must catch them.
+  constexpr std::size_t bands = 13, n = 3000;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  store::Collection col;
+  col.wavelengths = WavelengthGrid::range(400, 400 + 10.0 * (bands - 1), 10);
+  col.units = "reflectance";
+  for (std::size_t i = 0; i < n; ++i) col.names.push_back("s" + std::to_string(i));
+  for (std::size_t i = 0; i < n * bands; ++i) col.values.push_back(u(rng));
+  const std::pair<hsize_t, float> cases[] = {{3, std::numeric_limits<float>::quiet_NaN()},
+                                             {11, std::numeric_limits<float>::infinity()},
+                                             {7, -std::numeric_limits<float>::infinity()}};
+  for (const auto& [band, value] : cases) {
+    const auto path = dir / ("bad" + std::to_string(band) + ".h5");
+    store::StoreWriter w(path, {});
+    w.add_collection("c", col);
+    w.commit();
+    EXPECT_NO_THROW(run(path, {.k = 2, .max_epochs = 1}));
+    poke(path, 2500, band, value);
+    try {
+      run(path, {.k = 2, .max_epochs = 1});
+      ADD_FAILURE() << "no error for band " << band;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("non-finite"), std::string::npos) << e.what();
+    }
+  }
+  // Negatives in both paths are clipped and counted.
+  const auto path = dir / "negatives.h5";
+  store::StoreWriter w(path, {});
+  w.add_collection("c", col);
+  w.commit();
+  poke(path, 10, 2, -0.5f);
+  poke(path, 2999, 12, -1e-30f);
+  EXPECT_EQ(run(path, {.k = 2, .max_epochs = 1}).negatives, 2u);
 }
 
 TEST(Nmf, RestartsAreComparedByMatchedComponentAngles) {
