@@ -50,7 +50,8 @@ void unshuffle4(const unsigned char* in, std::size_t n, unsigned char* out) {
 }  // namespace
 
 BlockReader::~BlockReader() {
-  if (fd_ >= 0) ::close(fd_);
+  for (const int fd : fds_)
+    if (fd >= 0) ::close(fd);
 }
 
 bool BlockReader::direct() const {
@@ -60,7 +61,7 @@ bool BlockReader::direct() const {
 }
 
 void BlockReader::map_chunks(SourceData& sd, std::size_t rows) const {
-  const std::string ctx = store_.label();
+  const std::string ctx = stores_[sd.store].label();
   h5::Id dcpl(h5::check(H5Dget_create_plist(sd.cube), ctx, "H5Dget_create_plist"));
   if (H5Pget_layout(dcpl) != H5D_CHUNKED) return;
   const int nf = H5Pget_nfilters(dcpl);
@@ -99,12 +100,12 @@ void BlockReader::map_chunks(SourceData& sd, std::size_t rows) const {
   sd.direct = true;
 }
 
-void BlockReader::pread_all(unsigned char* dst, std::size_t size, std::uint64_t address) const {
+void BlockReader::pread_all(const SourceData& src, unsigned char* dst, std::size_t size, std::uint64_t address) const {
   std::size_t got = 0;
   while (got < size) {
-    const ssize_t n = ::pread(fd_, dst + got, size - got, off_t(address + got));
+    const ssize_t n = ::pread(fds_[src.store], dst + got, size - got, off_t(address + got));
     if (n <= 0)
-      throw LibraryError(store_.label() + ": cannot read chunk at byte " + std::to_string(address) +
+      throw LibraryError(stores_[src.store].label() + ": cannot read chunk at byte " + std::to_string(address) +
                          (n < 0 ? std::string(": ") + std::strerror(errno) : std::string(": file is truncated")));
     got += std::size_t(n);
   }
@@ -123,7 +124,7 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
       const std::size_t nx = std::min(src.chunk_cols, src.width - x0);
       if (ref.size == chunk_values * sizeof(float) && !src.deflate && !src.shuffle && src.chunk_cols == src.width) {
         // Plain whole-row chunk: its first ny rows go straight into the block, without a staging copy.
-        pread_all(reinterpret_cast<unsigned char*>(out + (y0 - row0) * src.width * b), ny * src.width * b * sizeof(float),
+        pread_all(src, reinterpret_cast<unsigned char*>(out + (y0 - row0) * src.width * b), ny * src.width * b * sizeof(float),
                   ref.address);
         continue;
       }
@@ -134,7 +135,7 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
         values = reinterpret_cast<const float*>(plain.data());
       } else {
         packed.resize(ref.size);
-        pread_all(packed.data(), ref.size, ref.address);
+        pread_all(src, packed.data(), ref.size, ref.address);
         const unsigned char* data = packed.data();
         std::size_t size = ref.size;
         const bool deflated = src.deflate && !(ref.filter_mask & (1u << (src.shuffle ? 1 : 0)));
@@ -146,11 +147,11 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
           if (!inflater || libdeflate_zlib_decompress(inflater.get(), data, size, plain.data(), plain.size(), &len) !=
                                LIBDEFLATE_SUCCESS ||
               len != plain.size())
-            throw InputError(store_.label() + ": corrupt compressed chunk at byte " + std::to_string(ref.address));
+            throw InputError(stores_[src.store].label() + ": corrupt compressed chunk at byte " + std::to_string(ref.address));
           data = plain.data();
           size = len;
         } else if (size != plain.size()) {
-          throw InputError(store_.label() + ": chunk at byte " + std::to_string(ref.address) + " has " +
+          throw InputError(stores_[src.store].label() + ": chunk at byte " + std::to_string(ref.address) + " has " +
                            std::to_string(size) + " bytes, expected " + std::to_string(plain.size()));
         }
         if (shuffled) {
@@ -168,49 +169,78 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
 }
 
 BlockReader::BlockReader(const Store& store, const Selection& selection, std::size_t min_block_pixels)
-    : store_(store) {
+    : BlockReader(std::vector<Store>{store}, selection, min_block_pixels) {}
+
+BlockReader::BlockReader(const std::vector<Store>& stores, const Selection& selection, std::size_t min_block_pixels)
+    : stores_(stores) {
+  if (stores_.empty()) throw UsageError("a block reader needs at least one store");
+  if (!selection.collection.empty() && !selection.image_globs.empty())
+    throw UsageError("select either images or a collection, not both");
+  fds_.assign(stores_.size(), -1);
+  try {
+    for (std::size_t i = 0; i < stores_.size(); ++i) add_store(i, selection, min_block_pixels, stores_.size() > 1);
+  } catch (...) {
+    for (const int fd : fds_)
+      if (fd >= 0) ::close(fd);
+    throw;
+  }
+}
+
+void BlockReader::add_store(std::size_t index, const Selection& selection, std::size_t min_block_pixels, bool prefix) {
+  const Store& store = stores_[index];
   const std::string ctx = store.label();
-  fd_ = ::open(store.path().c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd_ < 0) throw LibraryError(ctx + ": cannot open for reading: " + std::strerror(errno));
+  fds_[index] = ::open(store.path().c_str(), O_RDONLY | O_CLOEXEC);
+  if (fds_[index] < 0) throw LibraryError(ctx + ": cannot open for reading: " + std::strerror(errno));
+  const std::string tag = prefix ? ctx + ":" : "";
+  // The first source fixes the grid; every later one must match it.
+  auto check_grid = [&](const WavelengthGrid& grid, const std::string& what) {
+    if (names_.empty()) return;
+    if (!grid.approx_equal(wavelengths_))
+      throw InputError(ctx + ": " + what + " has " + grid.describe() + ", '" + names_.front() + "' has " +
+                       wavelengths_.describe() + "; analyse sources on one wavelength grid together");
+  };
   if (!selection.collection.empty()) {
-    if (!selection.image_globs.empty())
-      throw UsageError("select either images or a collection, not both");
     const CollectionInfo info = store.collection_info(selection.collection);
-    wavelengths_ = info.wavelengths;
-    units_ = info.units;
-    names_ = {info.name};
+    check_grid(info.wavelengths, "collection '" + info.name + "'");
+    if (names_.empty()) {
+      wavelengths_ = info.wavelengths;
+      units_ = info.units;
+    }
     const std::size_t rows_per_block = group_rows(info.chunk_rows ? info.chunk_rows : info.size, 1, min_block_pixels);
     SourceData sd;
+    sd.store = index;
     sd.cube = open_with_cache(store.file(), "/collections/" + info.name + "/spectra",
                               rows_per_block * info.bands * sizeof(float) * 2, ctx);
     sd.width = 1;
     map_chunks(sd, info.size);
+    const std::size_t source = names_.size();
+    names_.push_back(tag + info.name);
     sources_.push_back(std::move(sd));
     for (std::size_t r = 0; r < info.size; r += rows_per_block)
-      blocks_.push_back({0, r, std::min(rows_per_block, info.size - r)});
-    spectra_ = info.size;
-    max_block_ = std::min(rows_per_block, info.size);
+      blocks_.push_back({source, r, std::min(rows_per_block, info.size - r)});
+    spectra_ += info.size;
+    max_block_ = std::max(max_block_, std::min(rows_per_block, info.size));
     return;
   }
+  const std::size_t before = names_.size();
   for (const auto& name : store.images()) {
     if (!matches(selection.image_globs, name)) continue;
     const ImageInfo info = store.image_info(name);
+    check_grid(info.wavelengths, "image '" + name + "'");
     if (names_.empty()) {
       wavelengths_ = info.wavelengths;
       units_ = info.units;
-    } else if (!info.wavelengths.approx_equal(wavelengths_)) {
-      throw InputError(ctx + ": image '" + name + "' has " + info.wavelengths.describe() + ", image '" + names_.front() +
-                       "' has " + wavelengths_.describe() + "; select images on one grid with --images");
     }
     const std::size_t rows_per_block = group_rows(info.chunk_rows, info.width, min_block_pixels);
     const std::size_t cache = rows_per_block * info.width * info.bands * sizeof(float) * 2;
     SourceData sd;
+    sd.store = index;
     sd.cube = open_with_cache(store.file(), "/images/" + name + "/cube", cache, ctx);
     sd.mask = open_with_cache(store.file(), "/images/" + name + "/mask", cache / info.bands + 4096, ctx);
     sd.width = info.width;
     map_chunks(sd, info.height);
     const std::size_t source = names_.size();
-    names_.push_back(name);
+    names_.push_back(tag + name);
     sources_.push_back(std::move(sd));
     for (std::size_t r = 0; r < info.height; r += rows_per_block) {
       const std::size_t rows = std::min(rows_per_block, info.height - r);
@@ -219,18 +249,28 @@ BlockReader::BlockReader(const Store& store, const Selection& selection, std::si
     }
     spectra_ += info.valid_pixels;
   }
-  if (names_.empty()) {
+  if (names_.size() == before) {
     std::string globs;
     for (const auto& g : selection.image_globs) globs += (globs.empty() ? "" : " ") + g;
-    throw InputError(ctx + ": no image matches '" + globs + "' (" + std::to_string(store.images().size()) +
-                     " images in the store; `specula ls " + store.path().string() + "` lists them)");
+    throw InputError(ctx + ": no image matches '" + (globs.empty() ? std::string("*") : globs) + "' (" +
+                     std::to_string(store.images().size()) + " images in the store; `specula ls " +
+                     store.path().string() + "` lists them)");
   }
+}
+
+std::string BlockReader::describe_block(std::size_t i) const {
+  const Block& blk = blocks_.at(i);
+  const SourceData& src = sources_[blk.source];
+  std::string name = names_[blk.source];
+  if (const auto colon = name.find(':'); stores_.size() > 1 && colon != std::string::npos) name = name.substr(colon + 1);
+  return stores_[src.store].label() + ": " + (src.mask.valid() ? "image '" : "collection '") + name + "' " +
+         (src.mask.valid() ? "rows " : "spectra ") + std::to_string(blk.row0) + "-" + std::to_string(blk.row0 + blk.rows - 1);
 }
 
 void BlockReader::read_raw(std::size_t i, RawBlock& out) const {
   const Block& blk = blocks_.at(i);
   const SourceData& src = sources_[blk.source];
-  const std::string ctx = store_.label() + ": " + names_[blk.source];
+  const std::string ctx = stores_[src.store].label() + ": " + names_[blk.source];
   const std::size_t b = bands();
   const std::size_t px = blk.rows * src.width;
   const bool image = src.mask.valid();

@@ -27,6 +27,9 @@ class BlockReader {
   /// Resolves the selection; throws InputError if nothing matches or the sources' wavelength grids differ.
   /// Blocks hold whole chunk rows, grouped until they reach about min_block_pixels pixels.
   BlockReader(const Store& store, const Selection& selection, std::size_t min_block_pixels = 32768);
+  /// The same over several stores read as one database (in the given order): images matching the selection in
+  /// each, or the collection of that name in each; throws InputError if one store has none or grids differ.
+  BlockReader(const std::vector<Store>& stores, const Selection& selection, std::size_t min_block_pixels = 32768);
   BlockReader(const BlockReader&) = delete;
   BlockReader& operator=(const BlockReader&) = delete;
   ~BlockReader();
@@ -41,10 +44,12 @@ class BlockReader {
   std::uint64_t spectra() const { return spectra_; }
   /// Largest number of spectra a block can yield (size output buffers with it).
   std::size_t max_block_spectra() const { return max_block_; }
-  /// Names of the selected images (or the collection).
+  /// Names of the selected images (or the collection); with several stores, prefixed by the store's file name and ':'.
   const std::vector<std::string>& source_names() const { return names_; }
   /// Index into source_names() of block i.
   std::size_t block_source(std::size_t i) const { return blocks_.at(i).source; }
+  /// Where block i lies, for messages: "db.h5: image 'a' rows 0-31" (or "collection 'c' spectra ...").
+  std::string describe_block(std::size_t i) const;
   /// First row (image row or spectrum index) of block i within its source.
   std::size_t block_first_row(std::size_t i) const { return blocks_.at(i).row0; }
 
@@ -73,6 +78,7 @@ class BlockReader {
     unsigned filter_mask = 0;             // bit i set: filter i was skipped for this chunk
   };
   struct SourceData {
+    std::size_t store = 0;  // index into stores_
     h5::Id cube, mask;      // mask invalid for collections
     std::size_t width = 0;  // pixels per row (1 for collections)
     bool direct = false;    // chunk map below is usable (filters: none, or shuffle then deflate)
@@ -80,8 +86,9 @@ class BlockReader {
     std::size_t chunk_rows = 0, chunk_cols = 0, col_chunks = 0;
     std::vector<ChunkRef> chunks;  // row-chunk major
   };
+  void add_store(std::size_t index, const Selection& selection, std::size_t min_block_pixels, bool prefix);
   void map_chunks(SourceData& sd, std::size_t rows) const;
-  void pread_all(unsigned char* dst, std::size_t size, std::uint64_t address) const;
+  void pread_all(const SourceData& src, unsigned char* dst, std::size_t size, std::uint64_t address) const;
   void read_direct(const SourceData& src, std::size_t row0, std::size_t rows, float* out) const;
   struct Block {
     std::size_t source;
@@ -90,8 +97,8 @@ class BlockReader {
   template <class T>
   void read_block(std::size_t i, Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& out) const;
 
-  Store store_;
-  int fd_ = -1;
+  std::vector<Store> stores_;
+  std::vector<int> fds_;
   WavelengthGrid wavelengths_;
   std::string units_;
   std::vector<std::string> names_;
