@@ -154,8 +154,9 @@ Eigen::MatrixXd Moments::second_moment() const {
   return scatter_ / double(n_) + mean_ * mean_.transpose();
 }
 
-Moments stream_moments(const store::BlockReader& reader) {
-  const std::size_t bands = reader.bands(), blocks = reader.block_count();
+Moments stream_moments(const store::BlockReader& reader, const Collective& ranks) {
+  const std::size_t bands = reader.bands();
+  const Share share = share_of(ranks, reader.block_count());
   // A binary counter of partial results: slot l holds the merge of 2^l consecutive blocks, so blocks are
   // always merged in the same tree whatever thread computed them, and at most log2(blocks) slots live.
   std::vector<std::optional<Moments>> slots;
@@ -173,8 +174,8 @@ Moments stream_moments(const store::BlockReader& reader) {
   const std::size_t wave = std::size_t(std::max(1, omp_get_max_threads())) * 8;
   Progress progress("covariance", reader.spectra());
   std::vector<Moments> part;
-  for (std::size_t first = 0; first < blocks; first += wave) {
-    const std::size_t n = std::min(wave, blocks - first);
+  for (std::size_t first = share.first; first < share.last; first += wave) {
+    const std::size_t n = std::min(wave, share.last - first);
     part.assign(n, Moments(bands));
     std::exception_ptr error;
     std::mutex error_mutex;
@@ -186,8 +187,13 @@ Moments stream_moments(const store::BlockReader& reader) {
         try {
           check_interrupt();
           reader.read_raw(first + std::size_t(j), raw);
+          const std::size_t block = first + std::size_t(j);
           part[std::size_t(j)] = block_moments(raw.values.data(), bands, raw.pixels,
                                                raw.mask.empty() ? nullptr : raw.mask.data(), bands);
+          // A NaN or infinity anywhere in the block makes its mean non-finite.
+          if (!part[std::size_t(j)].mean().allFinite() || !part[std::size_t(j)].scatter().allFinite())
+            throw InputError(reader.describe_block(block) +
+                             ": a valid spectrum holds a non-finite value; PCA needs finite data (re-import, or mask the pixel)");
           progress.advance(std::uint64_t(raw.valid));
         } catch (...) {
           std::lock_guard lock(error_mutex);
@@ -201,7 +207,21 @@ Moments stream_moments(const store::BlockReader& reader) {
   Moments total(bands);
   for (std::size_t l = slots.size(); l-- > 0;)
     if (slots[l]) total.merge(*slots[l]);
-  return total;
+  if (ranks.size() == 1) return total;
+  // Every rank's share merged in rank order, on every rank.
+  const std::size_t len = 1 + bands + bands * bands;
+  std::vector<double> mine(len), all(len * std::size_t(ranks.size()));
+  mine[0] = double(total.count());
+  std::copy(total.mean().data(), total.mean().data() + bands, mine.begin() + 1);
+  std::copy(total.scatter().data(), total.scatter().data() + bands * bands, mine.begin() + 1 + std::ptrdiff_t(bands));
+  ranks.allgather(mine, all);
+  Moments merged(bands);
+  for (std::size_t r = 0; r < std::size_t(ranks.size()); ++r) {
+    const double* p = all.data() + r * len;
+    merged.merge_raw(std::uint64_t(p[0]), Eigen::Map<const Eigen::VectorXd>(p + 1, Eigen::Index(bands)),
+                     Eigen::Map<const Eigen::MatrixXd>(p + 1 + bands, Eigen::Index(bands), Eigen::Index(bands)));
+  }
+  return merged;
 }
 
 }  // namespace specula::stats
