@@ -29,12 +29,29 @@ constexpr std::size_t kWaveBlocks = 8;
 // At most this many epochs on the warm-up sample.
 constexpr std::size_t kWarmupEpochs = 100;
 
+// Sums stats over the ranks in rank order: every field is packed into one vector of doubles (counters are
+// exact in a double up to 2^53).
+template <class Stats>
+void sum_over_ranks(const Collective& ranks, Stats& s) {
+  if (ranks.size() == 1) return;
+  std::vector<double> packed;
+  s.fields([&](double* p, std::size_t n) { packed.insert(packed.end(), p, p + n); },
+           [&](std::uint64_t& c) { packed.push_back(double(c)); });
+  sum_in_rank_order(ranks, packed);
+  std::size_t at = 0;
+  s.fields([&](double* p, std::size_t n) { std::copy_n(packed.data() + at, n, p), at += n; },
+           [&](std::uint64_t& c) { c = std::uint64_t(packed[at++]); });
+}
+
 // Runs fn(block_index, raw, stats) over blocks [first, last) on all threads and returns the per-block
-// statistics summed in block order: the same for any thread count.
+// statistics summed in block order: the same for any thread count. Under several ranks each runs a
+// contiguous share of the blocks and the shares' sums are added in rank order.
 template <class Stats, class Fn>
-Stats reduce_range(const BlockReader& reader, const Stats& zero, std::size_t first, std::size_t last, Progress& progress,
-                   Fn&& fn, std::size_t stride = 1) {
-  const std::size_t n = (last - first + stride - 1) / stride;
+Stats reduce_range(const Collective& ranks, const BlockReader& reader, const Stats& zero, std::size_t first,
+                   std::size_t last, Progress& progress, Fn&& fn, std::size_t stride = 1) {
+  const Share share = share_of(ranks, (last - first + stride - 1) / stride);
+  first += share.first * stride;
+  const std::size_t n = share.last - share.first;
   std::vector<Stats> part(n, zero);
   std::exception_ptr error;
   std::mutex error_mutex;
@@ -58,17 +75,19 @@ Stats reduce_range(const BlockReader& reader, const Stats& zero, std::size_t fir
   if (error) std::rethrow_exception(error);
   Stats total = zero;
   for (const auto& p : part) total += p;
+  sum_over_ranks(ranks, total);
   return total;
 }
 
 // The same over every block, in ranges of a few waves so memory does not grow with the number of blocks.
 template <class Stats, class Fn>
-Stats reduce_blocks(const BlockReader& reader, const Stats& zero, const std::string& label, Fn&& fn) {
+Stats reduce_blocks(const Collective& ranks, const BlockReader& reader, const Stats& zero, const std::string& label,
+                    Fn&& fn) {
   Progress progress(label, reader.spectra());
   Stats total = zero;
   const std::size_t blocks = reader.block_count(), step = 4 * kWaveBlocks;
   for (std::size_t first = 0; first < blocks; first += step)
-    total += reduce_range(reader, zero, first, std::min(blocks, first + step), progress, fn);
+    total += reduce_range(ranks, reader, zero, first, std::min(blocks, first + step), progress, fn);
   return total;
 }
 
@@ -131,9 +150,7 @@ std::uint64_t for_each_tile(const BlockReader& reader, std::size_t block, const 
     clip_spectrum(raw.spectrum(p, b), b, tile.data() + fill * ld, bad, neg, sq);
     negatives += neg;
     if (bad || (neg && policy == Negatives::reject)) {
-      const std::string where = reader.source_names()[reader.block_source(block)];
-      throw InputError(where + ": spectrum " + std::to_string(p) + " of the block starting at row " +
-                       std::to_string(reader.block_first_row(block)) +
+      throw InputError(reader.describe_block(block) + ": spectrum " + std::to_string(p) + " of the block" +
                        (bad ? " has a non-finite value; NMF needs finite data (re-import, or mask the pixel)"
                             : " has a negative value; rerun with --negatives clip to clip such values to zero"));
     }
@@ -216,6 +233,12 @@ void outer_accumulate(const double* a, std::size_t lda, std::size_t rows, const 
 struct GramStats {
   Eigen::MatrixXd gram;
   std::uint64_t n = 0, negatives = 0;
+  template <class F, class G>
+  void fields(F&& f, G&& g) {
+    f(gram.data(), std::size_t(gram.size()));
+    g(n);
+    g(negatives);
+  }
   GramStats& operator+=(const GramStats& o) {
     gram += o.gram;
     n += o.n;
@@ -226,6 +249,11 @@ struct GramStats {
 
 struct SignStats {
   Eigen::VectorXd pos, neg;
+  template <class F, class G>
+  void fields(F&& f, G&&) {
+    f(pos.data(), std::size_t(pos.size()));
+    f(neg.data(), std::size_t(neg.size()));
+  }
   SignStats& operator+=(const SignStats& o) {
     pos += o.pos;
     neg += o.neg;
@@ -237,6 +265,13 @@ struct EpochStats {
   Eigen::MatrixXd ctc, ctx;  // C^T C (k x k), C^T X (k x B)
   double xx = 0;
   std::uint64_t unconverged = 0;
+  template <class F, class G>
+  void fields(F&& f, G&& g) {
+    f(ctc.data(), std::size_t(ctc.size()));
+    f(ctx.data(), std::size_t(ctx.size()));
+    f(&xx, 1);
+    g(unconverged);
+  }
   EpochStats& operator+=(const EpochStats& o) {
     ctc += o.ctc;
     ctx += o.ctx;
@@ -246,10 +281,10 @@ struct EpochStats {
   }
 };
 
-GramStats gram_pass(const BlockReader& reader, Negatives policy) {
+GramStats gram_pass(const Collective& ranks, const BlockReader& reader, Negatives policy) {
   const auto b = Eigen::Index(reader.bands());
   GramStats zero{Eigen::MatrixXd::Zero(b, b)};
-  GramStats s = reduce_blocks(reader, zero, "nmf: X^T X", [&](std::size_t i, const BlockReader::RawBlock& raw, GramStats& out) {
+  GramStats s = reduce_blocks(ranks, reader, zero, "nmf: X^T X", [&](std::size_t i, const BlockReader::RawBlock& raw, GramStats& out) {
     thread_local RowMatrixXd tile;
     out.negatives += for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
       out.gram.selfadjointView<Eigen::Lower>().rankUpdate(t.transpose());
@@ -261,7 +296,7 @@ GramStats gram_pass(const BlockReader& reader, Negatives policy) {
 }
 
 // Coefficients of the spectra of blocks [first, last) for `basis` (exact NNLS) and their statistics.
-EpochStats coefficient_pass(const BlockReader& reader, const Eigen::MatrixXd& basis, Negatives policy, std::size_t first,
+EpochStats coefficient_pass(const Collective& ranks, const BlockReader& reader, const Eigen::MatrixXd& basis, Negatives policy, std::size_t first,
                             std::size_t last, Progress& progress, std::size_t stride = 1) {
   const Eigen::Index k = basis.rows(), b = basis.cols();
   const GramNnls solver(basis * basis.transpose());
@@ -272,7 +307,7 @@ EpochStats coefficient_pass(const BlockReader& reader, const Eigen::MatrixXd& ba
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> st =
         Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>::Zero(Eigen::Index(ld), Eigen::Index(kPad));
     st.topLeftCorner(b, k) = basis.transpose();
-    return reduce_range(reader, zero, first, last, progress, [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
+    return reduce_range(ranks, reader, zero, first, last, progress, [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
       thread_local RowMatrixXd tile;
       thread_local std::vector<double> h, c, ctx, ctc;
       h.assign(kTile * kPad, 0.0);
@@ -296,7 +331,7 @@ EpochStats coefficient_pass(const BlockReader& reader, const Eigen::MatrixXd& ba
       }
     }, stride);
   }
-  return reduce_range(reader, zero, first, last, progress, [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
+  return reduce_range(ranks, reader, zero, first, last, progress, [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
     thread_local RowMatrixXd tile, h, c;
     std::uint64_t hint = 0;
     for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
@@ -373,14 +408,14 @@ Eigen::MatrixXd random_init(Eigen::Index k, Eigen::Index b, std::uint64_t seed) 
 // NNDSVD (Boutsidis and Gallopoulos 2008) for the basis factor: the top k right singular vectors v_j of X,
 // each split into its positive and negative parts; the part whose product with the norm of the matching part
 // of u_j = X v_j / sigma_j is larger is kept. The u norms take one more pass.
-Eigen::MatrixXd nndsvd_init(const BlockReader& reader, const Eigen::MatrixXd& gram, Eigen::Index k, Negatives policy,
+Eigen::MatrixXd nndsvd_init(const Collective& ranks, const BlockReader& reader, const Eigen::MatrixXd& gram, Eigen::Index k, Negatives policy,
                             std::uint64_t seed, std::size_t& passes) {
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
   const Eigen::Index b = gram.rows();
   Eigen::MatrixXd v(b, k);
   for (Eigen::Index j = 0; j < k; ++j) v.col(j) = eig.eigenvectors().col(b - 1 - j);
   const SignStats zero{Eigen::VectorXd::Zero(k), Eigen::VectorXd::Zero(k)};
-  const SignStats signs = reduce_blocks(reader, zero, "nmf: nndsvd", [&](std::size_t i, const BlockReader::RawBlock& raw, SignStats& out) {
+  const SignStats signs = reduce_blocks(ranks, reader, zero, "nmf: nndsvd", [&](std::size_t i, const BlockReader::RawBlock& raw, SignStats& out) {
     thread_local RowMatrixXd tile, u;
     for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
       u.noalias() = t * v;
@@ -496,7 +531,7 @@ void nnls_project(const Eigen::MatrixXd& basis, const Eigen::Ref<const RowMatrix
   }
 }
 
-NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
+NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collective& ranks) {
   const auto b = Eigen::Index(reader.bands());
   const auto k = Eigen::Index(o.k);
   if (o.k < 1 || o.k > reader.bands())
@@ -522,7 +557,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
                        "; rerun with the same options, or without --resume to start afresh");
     resumed = true;
   } else {
-    const GramStats g = gram_pass(reader, o.negatives);
+    const GramStats g = gram_pass(ranks, reader, o.negatives);
     ++result.passes;
     cp.fingerprint = print;
     cp.gram = g.gram;
@@ -562,7 +597,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
       if (s.rows() != k || s.cols() != b)
         throw InputError(o.checkpoint.string() + ": checkpoint basis has the wrong shape; delete it and start afresh");
     } else if (r == 0 && o.init == Init::nndsvd) {
-      s = nndsvd_init(reader, cp.gram, k, o.negatives, o.seed, result.passes);
+      s = nndsvd_init(ranks, reader, cp.gram, k, o.negatives, o.seed, result.passes);
     } else {
       s = random_init(k, b, o.seed + r);
     }
@@ -596,7 +631,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
       for (std::size_t w = 0; w < ws.size(); ++w) {
         const std::size_t first = w * kWaveBlocks * step;
         const std::size_t last = std::min(reader.block_count(), first + kWaveBlocks * step);
-        ws[w] = coefficient_pass(reader, s, o.negatives, first, last, progress, step);
+        ws[w] = coefficient_pass(ranks, reader, s, o.negatives, first, last, progress, step);
         on[w] = 1;
         result.nnls_unconverged += ws[w].unconverged;
         EpochStats t{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
@@ -653,7 +688,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
         cp.wave_ctx.row(Eigen::Index(w)) = Eigen::Map<const Eigen::RowVectorXd>(waves[w].ctx.data(), k * b);
         cp.wave_xx[w] = waves[w].xx;
       }
-      if (!o.checkpoint.empty()) save_checkpoint(o.checkpoint, cp);
+      if (!o.checkpoint.empty() && ranks.rank() == 0) save_checkpoint(o.checkpoint, cp);
       if (prev - err <= o.tol * err) {
         converged = true;
         break;
@@ -677,7 +712,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
     cp.wave_ctx.resize(0, 0);
     cp.wave_xx.clear();
     cp.basis = s;
-    if (!o.checkpoint.empty() && r + 1 < o.restarts) save_checkpoint(o.checkpoint, cp);
+    if (!o.checkpoint.empty() && ranks.rank() == 0 && r + 1 < o.restarts) save_checkpoint(o.checkpoint, cp);
   }
   } catch (const Interrupted&) {
     const std::string kept = std::to_string(cp.epoch) + " finished epoch" + (cp.epoch == 1 ? "" : "s") + " of restart " +
@@ -696,7 +731,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o) {
   Progress progress("nmf: certifying pass", reader.spectra());
   EpochStats fin{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
   for (std::size_t first = 0; first < reader.block_count(); first += 4 * kWaveBlocks)
-    fin += coefficient_pass(reader, result.restarts[best].basis, o.negatives, first,
+    fin += coefficient_pass(ranks, reader, result.restarts[best].basis, o.negatives, first,
                             std::min(reader.block_count(), first + 4 * kWaveBlocks), progress);
   ++result.passes;
   result.nnls_unconverged += fin.unconverged;

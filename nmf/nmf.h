@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "core/collective.h"
 #include "store/block_reader.h"
 
 namespace specula::nmf {
@@ -82,7 +83,10 @@ struct NmfResult {
 
 /// Factors the selected spectra. Throws UsageError for bad options, InputError for non-finite data or
 /// (with Negatives::reject) negative values, Interrupted (with what was kept) when a stop is requested.
-NmfResult factorize(const store::BlockReader& reader, const NmfOptions& options);
+/// Under several ranks every rank passes the same reader and options, streams its share of each wave and
+/// gets the same result; only rank 0 writes the checkpoint.
+NmfResult factorize(const store::BlockReader& reader, const NmfOptions& options,
+                    const Collective& ranks = single_process());
 
 /// Mean and largest angle in degrees between matched rows of two bases (rows matched to maximise the summed
 /// cosine similarity: every permutation for k <= 8, greedily above).

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 
+#include "core/collective.h"
 #include "core/colour.h"
 #include "store/block_reader.h"
 
@@ -40,7 +41,9 @@ class Moments {
 };
 
 /// One pass over every block of `reader`: per-block moments merged in block order through a fixed binary
-/// tree, so the result is bit-identical for any thread count; memory O(threads x bands^2), not O(N).
-Moments stream_moments(const store::BlockReader& reader);
+/// tree, so the result is bit-identical for any thread count; memory O(threads x bands^2), not O(N). Under
+/// several ranks each reads a contiguous share of the blocks and the shares are merged in rank order on
+/// every rank (equal to the one-process result up to rounding).
+Moments stream_moments(const store::BlockReader& reader, const Collective& ranks = single_process());
 
 }  // namespace specula::stats
