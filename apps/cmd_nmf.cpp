@@ -8,6 +8,7 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "apps/ranks.h"
 #include "core/error.h"
 #include "nmf/nmf.h"
 #include "store/block_reader.h"
@@ -17,7 +18,7 @@ namespace specula::app {
 namespace {
 
 struct NmfCliOptions {
-  std::string store;
+  std::vector<std::string> stores;
   std::vector<std::string> images;
   std::string collection;
   std::size_t k = 0;
@@ -40,7 +41,7 @@ std::string json_history(const std::vector<double>& v) { return json_array({v.da
 void run_nmf(const NmfCliOptions& o) {
   const std::string name = o.name.empty() ? fmt::format("nmf{}", o.k) : o.name;
   store::validate_name(name, "basis");
-  const std::string out = o.output.empty() ? o.store : o.output;
+  const std::string out = basis_output(o.stores, o.output, "nmf");
   nmf::NmfOptions opt{.k = o.k,
                       .init = nmf::parse_init(o.init),
                       .seed = o.seed,
@@ -51,27 +52,30 @@ void run_nmf(const NmfCliOptions& o) {
                       .checkpoint = o.checkpoint.empty() ? std::filesystem::path(out + ".nmf-" + name + ".checkpoint")
                                                          : std::filesystem::path(o.checkpoint),
                       .resume = o.resume};
-  const store::Store s = store::Store::open(o.store);
+  const std::vector<store::Store> stores = open_stores(o.stores);
+  const store::Store& s = stores.front();
   if (!o.replace && !o.resume) {
     // Refuse before hours of work rather than at the end.
     if (std::filesystem::exists(out)) {
-      const store::Store target = out == o.store ? s : store::Store::open(out);
+      const store::Store target = store::Store::open(out);
       for (const auto& b : target.bases())
         if (b == name)
           throw UsageError(fmt::format("{}: basis {} already exists; choose another --name or give --replace", out, name));
     }
   }
-  const store::BlockReader reader(s, {.image_globs = o.images, .collection = o.collection});
+  const store::BlockReader reader(stores, {.image_globs = o.images, .collection = o.collection});
+  const bool root = ranks().rank() == 0;
   std::vector<nmf::EpochReport> epochs;
   opt.on_epoch = [&](const nmf::EpochReport& e) {
     epochs.push_back(e);
-    if (!o.json)
+    if (!o.json && root)
       fmt::print("restart {} epoch {:>3}: relative error {:.6f}  ({:.1f} s)\n", e.restart + 1, e.epoch, e.rel_error,
                  e.seconds);
     std::fflush(stdout);
   };
   const auto t0 = std::chrono::steady_clock::now();
-  const nmf::NmfResult r = nmf::factorize(reader, opt);
+  const nmf::NmfResult r = nmf::factorize(reader, opt, ranks());
+  if (!root) return;  // rank 0 writes and reports
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const nmf::RestartResult& best = r.best_result();
 
@@ -88,7 +92,8 @@ void run_nmf(const NmfCliOptions& o) {
     basis.source = "images";
     for (const auto& n : reader.source_names()) basis.source += " " + n;
   }
-  basis.provenance.source_file = s.path().string();
+  for (const auto& st : stores)
+    basis.provenance.source_file += (basis.provenance.source_file.empty() ? "" : " ") + st.path().string();
   basis.provenance.importer = fmt::format("nmf k={} init={} seed={} restarts={} rel_error={:.9g} svd_bound={:.9g}",
                                           o.k, o.init, o.seed, o.restarts, r.rel_error, r.svd_bound);
   {
@@ -111,7 +116,7 @@ void run_nmf(const NmfCliOptions& o) {
     fmt::print(R"({{"store":{},"basis":{},"output":{},"k":{},"n":{},"bands":{},"rel_error":{},"svd_bound":{},)"
                R"("epochs":{},"converged":{},"seconds":{:.6f},"restarts":[{}],"best_restart":{},"history":{},)"
                R"("history_seconds":{},"passes":{},"resumed":{},"negatives":{},"values":{},"nnls_unconverged":{},)"
-               R"("warmup_epochs":{},"warmup_blocks":{},"warmup_pass_equivalent":{},"weights":{},"components":[{}],"threads":{}}})"
+               R"("warmup_epochs":{},"warmup_blocks":{},"warmup_pass_equivalent":{},"weights":{},"components":[{}],"threads":{},"ranks":{}}})"
                "\n",
                json_string(s.path().string()), json_string(name), json_string(out), o.k, r.n, reader.bands(),
                r.rel_error, r.svd_bound, best.epochs, best.converged, seconds, restarts, r.best,
@@ -125,7 +130,7 @@ void run_nmf(const NmfCliOptions& o) {
                  }
                  return rows;
                }(),
-               omp_get_max_threads());
+               omp_get_max_threads(), ranks().size());
     return;
   }
   fmt::print("NMF of {} spectra ({}), k = {}: relative error {:.6f} (rank-{} SVD bound {:.6f}, {:+.1f} %) after {} epochs{}\n",
@@ -155,7 +160,7 @@ void run_nmf(const NmfCliOptions& o) {
 void setup_nmf(CLI::App& app) {
   auto o = std::make_shared<NmfCliOptions>();
   auto* cmd = app.add_subcommand("nmf", "Non-negative matrix factorisation of every valid spectrum, out of core (§7.4)");
-  cmd->add_option("store", o->store, "Store file")->required();
+  cmd->add_option("stores", o->stores, "Store file(s); several are analysed as one database (then give -o)")->required();
   cmd->add_option("-k", o->k, "Number of basis spectra")->required()->check(CLI::Range(1, 64));
   cmd->add_option("--images", o->images, "Image name globs (default: every image)");
   cmd->add_option("--collection", o->collection, "Use this collection instead of images");

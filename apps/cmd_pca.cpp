@@ -7,6 +7,7 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "apps/ranks.h"
 #include "core/error.h"
 #include "stats/moments.h"
 #include "stats/pca.h"
@@ -17,7 +18,7 @@ namespace specula::app {
 namespace {
 
 struct PcaOptions {
-  std::string store;
+  std::vector<std::string> stores;
   std::vector<std::string> images;
   std::string collection;
   std::string name = "pca";
@@ -28,15 +29,17 @@ struct PcaOptions {
 };
 
 void run_pca(const PcaOptions& o) {
-  const store::Store s = store::Store::open(o.store);
-  const store::BlockReader reader(s, {.image_globs = o.images, .collection = o.collection});
+  const std::string out = basis_output(o.stores, o.output, "pca");
+  const std::vector<store::Store> stores = open_stores(o.stores);
+  const store::Store& s = stores.front();
+  const store::BlockReader reader(stores, {.image_globs = o.images, .collection = o.collection});
   if (o.k > reader.bands())
     throw UsageError(fmt::format("-k {}: the data has {} bands", o.k, reader.bands()));
   if (reader.spectra() < 2)
     throw InputError(fmt::format("{}: the selection holds {} valid spectra; PCA needs at least two", s.label(),
                                  reader.spectra()));
   const auto t0 = std::chrono::steady_clock::now();
-  const stats::Moments moments = stats::stream_moments(reader);
+  const stats::Moments moments = stats::stream_moments(reader, ranks());
   const auto t1 = std::chrono::steady_clock::now();
   store::Basis basis = stats::pca_basis(moments, reader.wavelengths(), o.k);
   const double stream_seconds = std::chrono::duration<double>(t1 - t0).count();
@@ -49,10 +52,11 @@ void run_pca(const PcaOptions& o) {
     for (const auto& n : reader.source_names()) source += " " + n;
   }
   basis.source = source;
-  basis.provenance.source_file = s.path().string();
+  for (const auto& st : stores)
+    basis.provenance.source_file += (basis.provenance.source_file.empty() ? "" : " ") + st.path().string();
   basis.provenance.importer = "pca";
+  if (ranks().rank() != 0) return;  // rank 0 writes and reports
 
-  const std::string out = o.output.empty() ? o.store : o.output;
   store::StoreWriter writer(out, {.compression = {}, .replace = o.replace, .command_line = command_line()});
   writer.add_basis(o.name, basis);
   writer.commit();
@@ -61,13 +65,14 @@ void run_pca(const PcaOptions& o) {
     const Eigen::VectorXd& ev = basis.eigenvalues;
     fmt::print(R"({{"store":{},"basis":{},"output":{},"n":{},"bands":{},"wavelengths":{},"mean":{},"eigenvalues":{},)"
                R"("explained_variance_ratio":{},"components":{},"seconds":{:.6f},"stream_seconds":{:.6f},)"
-               R"("spectra_per_s":{:.0f},"threads":{}}})"
+               R"("spectra_per_s":{:.0f},"threads":{},"ranks":{}}})"
                "\n",
                json_string(s.path().string()), json_string(o.name), json_string(out), basis.n, basis.bands(),
                json_array(basis.wavelengths.values()), json_array({basis.mean.data(), std::size_t(basis.mean.size())}),
                json_array({ev.data(), std::size_t(ev.size())}),
                json_array({basis.explained_variance_ratio.data(), std::size_t(basis.explained_variance_ratio.size())}),
-               basis.k(), seconds, stream_seconds, double(basis.n) / stream_seconds, omp_get_max_threads());
+               basis.k(), seconds, stream_seconds, double(basis.n) / stream_seconds, omp_get_max_threads(),
+               ranks().size());
     return;
   }
   fmt::print("PCA of {} spectra ({}) from {} in {:.3f} s ({:.1f} M spectra/s, {} threads)\n", basis.n,
@@ -88,7 +93,7 @@ void run_pca(const PcaOptions& o) {
 void setup_pca(CLI::App& app) {
   auto o = std::make_shared<PcaOptions>();
   auto* cmd = app.add_subcommand("pca", "Principal components of every valid spectrum, in one exact streaming pass");
-  cmd->add_option("store", o->store, "Store file")->required();
+  cmd->add_option("stores", o->stores, "Store file(s); several are analysed as one database (then give -o)")->required();
   cmd->add_option("--images", o->images, "Image name globs (default: every image)");
   cmd->add_option("--collection", o->collection, "Use this collection instead of images");
   cmd->add_option("--name", o->name, "Name of the basis to save")->capture_default_str();

@@ -182,4 +182,17 @@ std::string json_array(std::span<const double> v) {
   return out + "]";
 }
 
+std::vector<store::Store> open_stores(const std::vector<std::string>& paths) {
+  std::vector<store::Store> stores;
+  for (const auto& p : paths) stores.push_back(store::Store::open(p));
+  return stores;
+}
+
+std::string basis_output(const std::vector<std::string>& inputs, const std::string& output, const std::string& command) {
+  if (!output.empty()) return output;
+  if (inputs.size() == 1) return inputs.front();
+  throw UsageError(command + ": " + std::to_string(inputs.size()) +
+                   " input stores; name the store to save the basis in with -o");
+}
+
 }  // namespace specula::app

@@ -13,6 +13,7 @@
 
 #include "core/colour.h"
 #include "store/cube.h"
+#include "store/store.h"
 
 namespace specula::app {
 
@@ -65,5 +66,11 @@ std::optional<double> parse_exposure(const std::string& spec);
 std::string json_string(std::string_view s);
 /// JSON array of numbers (shortest round-trip formatting).
 std::string json_array(std::span<const double> v);
+
+/// Opens every store named (at least one); an analysis over several reads them as one database.
+std::vector<store::Store> open_stores(const std::vector<std::string>& paths);
+/// Where a basis learned from `inputs` is saved: `output` if given, else the only input; several inputs
+/// without -o are a UsageError naming `command`.
+std::string basis_output(const std::vector<std::string>& inputs, const std::string& output, const std::string& command);
 
 }  // namespace specula::app

@@ -2,15 +2,51 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <string>
 #include <string_view>
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "apps/ranks.h"
 #include "core/error.h"
 #include "core/interrupt.h"
 #include "core/progress.h"
 
+namespace {
+
+// One line on stderr (prefixed with the rank when several processes run); then every rank stops.
+int fail(int code, const std::string& message) {
+  std::fprintf(stderr, "specula: %s%s\n", specula::app::rank_prefix().c_str(), message.c_str());
+  std::fflush(stderr);
+  specula::app::abort_ranks(code);
+  return code;
+}
+
+int run(CLI::App& app, int argc, char** argv) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    if (code != 0) specula::app::abort_ranks(code);
+    return code;
+  } catch (const specula::Interrupted& e) {
+    if (std::string_view(e.what()) == "interrupted") return fail(130, "interrupted; unfinished outputs were discarded");
+    return fail(130, e.what());
+  } catch (const specula::Error& e) {
+    return fail(1, e.what());
+  } catch (const std::bad_alloc&) {
+    return fail(1, "out of memory");
+  } catch (const std::exception& e) {
+    return fail(3, std::string("internal error: ") + e.what());
+  }
+  return 0;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  specula::app::start_ranks(argc, argv);
+  if (specula::app::ranks().rank() != 0) specula::set_progress_quiet(true);
   specula::app::set_command_line(argc, argv);
   specula::install_interrupt_handlers();
   CLI::App app{"specula " SPECULA_VERSION ": spectral images, BRDFs and learned spectral bases in HDF5 stores"};
@@ -31,25 +67,7 @@ int main(int argc, char** argv) {
   specula::app::setup_nmf(app);
   specula::app::setup_uplift(app);
   specula::app::setup_render(app);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  } catch (const specula::Interrupted& e) {
-    if (std::string_view(e.what()) == "interrupted")
-      std::fprintf(stderr, "specula: interrupted; unfinished outputs were discarded\n");
-    else
-      std::fprintf(stderr, "specula: %s\n", e.what());
-    return 130;
-  } catch (const specula::Error& e) {
-    std::fprintf(stderr, "specula: %s\n", e.what());
-    return 1;
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "specula: out of memory\n");
-    return 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "specula: internal error: %s\n", e.what());
-    return 3;
-  }
-  return 0;
+  const int code = run(app, argc, argv);
+  specula::app::stop_ranks();
+  return code;
 }
