@@ -26,6 +26,7 @@ struct NmfCliOptions {
   std::uint64_t seed = 0;
   std::size_t restarts = 1;
   std::size_t max_epochs = 100;
+  std::size_t wave_blocks = 8;
   double tol = 1e-4;
   std::string negatives = "clip";
   std::string name;
@@ -49,6 +50,7 @@ void run_nmf(const NmfCliOptions& o) {
                       .max_epochs = o.max_epochs,
                       .tol = o.tol,
                       .negatives = nmf::parse_negatives(o.negatives),
+                      .wave_blocks = o.wave_blocks,
                       .checkpoint = o.checkpoint.empty() ? std::filesystem::path(out + ".nmf-" + name + ".checkpoint")
                                                          : std::filesystem::path(o.checkpoint),
                       .resume = o.resume};
@@ -173,6 +175,11 @@ void setup_nmf(CLI::App& app) {
   cmd->add_option("--max-epochs", o->max_epochs, "Passes over the data per restart at most")
       ->capture_default_str()
       ->check(CLI::Range(1, 100000));
+  cmd->add_option("--wave-blocks", o->wave_blocks,
+                  "Blocks per basis update; results depend on it (not on threads or ranks): under MPI use at least "
+                  "ranks x threads")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000000));
   cmd->add_option("--tol", o->tol, "Stop when an epoch lowers the relative error by less than this fraction")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));

@@ -23,9 +23,8 @@ namespace {
 using store::BlockReader;
 constexpr std::size_t kTile = 256;
 
-// Blocks per wave of an epoch: the basis is re-solved after every wave. Fixed, so results do not depend on
-// the thread count.
-constexpr std::size_t kWaveBlocks = 8;
+// Blocks per range of a pass that needs no basis updates (memory per thread grows with it).
+constexpr std::size_t kRangeBlocks = 32;
 // At most this many epochs on the warm-up sample.
 constexpr std::size_t kWarmupEpochs = 100;
 
@@ -79,16 +78,23 @@ Stats reduce_range(const Collective& ranks, const BlockReader& reader, const Sta
   return total;
 }
 
-// The same over every block, in ranges of a few waves so memory does not grow with the number of blocks.
+// The same over every block: each rank takes a contiguous share of all blocks and reduces it in ranges of
+// kRangeBlocks (so memory does not grow with the number of blocks); the shares are then added in rank order.
+template <class Stats, class Fn>
+Stats reduce_all(const Collective& ranks, const BlockReader& reader, const Stats& zero, Progress& progress, Fn&& fn) {
+  Stats total = zero;
+  const Share share = share_of(ranks, reader.block_count());
+  for (std::size_t first = share.first; first < share.last; first += kRangeBlocks)
+    total += reduce_range(single_process(), reader, zero, first, std::min(share.last, first + kRangeBlocks), progress, fn);
+  sum_over_ranks(ranks, total);
+  return total;
+}
+
 template <class Stats, class Fn>
 Stats reduce_blocks(const Collective& ranks, const BlockReader& reader, const Stats& zero, const std::string& label,
                     Fn&& fn) {
   Progress progress(label, reader.spectra());
-  Stats total = zero;
-  const std::size_t blocks = reader.block_count(), step = 4 * kWaveBlocks;
-  for (std::size_t first = 0; first < blocks; first += step)
-    total += reduce_range(ranks, reader, zero, first, std::min(blocks, first + step), progress, fn);
-  return total;
+  return reduce_all(ranks, reader, zero, progress, fn);
 }
 
 // Copies one spectrum of b floats into t as doubles with negatives set to zero; counts non-finite and negative
@@ -438,7 +444,7 @@ Eigen::MatrixXd nndsvd_init(const Collective& ranks, const BlockReader& reader, 
 std::string fingerprint(const BlockReader& reader, const NmfOptions& o) {
   std::ostringstream f;
   f << "k=" << o.k << " init=" << (o.init == Init::nndsvd ? "nndsvd" : "random") << " seed=" << o.seed
-    << " restarts=" << o.restarts << " warmup_blocks=" << o.warmup_blocks << " negatives=" << (o.negatives == Negatives::clip ? "clip" : "reject")
+    << " restarts=" << o.restarts << " warmup_blocks=" << o.warmup_blocks << " wave_blocks=" << o.wave_blocks << " negatives=" << (o.negatives == Negatives::clip ? "clip" : "reject")
     << " bands=" << reader.bands() << " spectra=" << reader.spectra() << " blocks=" << reader.block_count()
     << " sources=";
   for (const auto& n : reader.source_names()) f << n << ",";
@@ -539,6 +545,8 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
                      " components (the data has " + std::to_string(reader.bands()) + " bands)");
   if (o.restarts < 1 || o.restarts > 1000) throw UsageError("--restarts " + std::to_string(o.restarts) + ": give 1 to 1000");
   if (o.max_epochs < 1) throw UsageError("--max-epochs must be at least 1");
+  if (o.wave_blocks < 1 || o.wave_blocks > 1000000)
+    throw UsageError("--wave-blocks " + std::to_string(o.wave_blocks) + ": give 1 to 1000000 blocks per basis update");
   if (!(o.tol >= 0) || !std::isfinite(o.tol)) throw UsageError("--tol must be a finite number >= 0");
   if (reader.spectra() == 0) throw InputError("the selection holds no valid spectra");
   if (o.resume && o.checkpoint.empty()) throw UsageError("--resume needs a checkpoint path");
@@ -586,7 +594,8 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
     rr.converged = cp.done_converged[r] != 0;
     result.restarts.push_back(std::move(rr));
   }
-  const std::size_t n_waves = (reader.block_count() + kWaveBlocks - 1) / kWaveBlocks;
+  const std::size_t wave = o.wave_blocks;
+  const std::size_t n_waves = (reader.block_count() + wave - 1) / wave;
   try {
   for (std::size_t r = cp.restart; r < o.restarts; ++r) {
     Eigen::MatrixXd s;
@@ -626,11 +635,11 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
         if (seen[w]) t += waves[w];
       return t;
     };
-    // One epoch of block-coordinate descent over the blocks first, first + stride, ... in waves of kWaveBlocks.
+    // One epoch of block-coordinate descent over the blocks first, first + stride, ... in waves of `wave` blocks.
     auto run_epoch = [&](std::vector<EpochStats>& ws, std::vector<char>& on, std::size_t step, Progress& progress) {
       for (std::size_t w = 0; w < ws.size(); ++w) {
-        const std::size_t first = w * kWaveBlocks * step;
-        const std::size_t last = std::min(reader.block_count(), first + kWaveBlocks * step);
+        const std::size_t first = w * wave * step;
+        const std::size_t last = std::min(reader.block_count(), first + wave * step);
         ws[w] = coefficient_pass(ranks, reader, s, o.negatives, first, last, progress, step);
         on[w] = 1;
         result.nnls_unconverged += ws[w].unconverged;
@@ -649,7 +658,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
     const std::size_t stride = o.warmup_blocks ? reader.block_count() / o.warmup_blocks : 0;
     if (stride >= 2 && history.empty()) {
       const std::size_t sample = (reader.block_count() + stride - 1) / stride;
-      std::vector<EpochStats> ws((sample + kWaveBlocks - 1) / kWaveBlocks,
+      std::vector<EpochStats> ws((sample + wave - 1) / wave,
                                  EpochStats{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)});
       std::vector<char> on(ws.size(), 0);
       double prev = std::numeric_limits<double>::infinity();
@@ -730,9 +739,11 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
   // each component.
   Progress progress("nmf: certifying pass", reader.spectra());
   EpochStats fin{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
-  for (std::size_t first = 0; first < reader.block_count(); first += 4 * kWaveBlocks)
-    fin += coefficient_pass(ranks, reader, result.restarts[best].basis, o.negatives, first,
-                            std::min(reader.block_count(), first + 4 * kWaveBlocks), progress);
+  const Share share = share_of(ranks, reader.block_count());
+  for (std::size_t first = share.first; first < share.last; first += kRangeBlocks)
+    fin += coefficient_pass(single_process(), reader, result.restarts[best].basis, o.negatives, first,
+                            std::min(share.last, first + kRangeBlocks), progress);
+  sum_over_ranks(ranks, fin);
   ++result.passes;
   result.nnls_unconverged += fin.unconverged;
   result.rel_error = certified_error(fin, result.restarts[best].basis);

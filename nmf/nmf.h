@@ -45,6 +45,9 @@ struct NmfOptions {
   /// With at least twice this many blocks, each restart first descends on a sample of about this many
   /// (every stride-th block) until it stalls (at most 100 epochs); 0: no warm-up.
   std::size_t warmup_blocks = 64;
+  /// Blocks per wave: the basis is re-solved after every wave. Results depend on it, not on threads or ranks;
+  /// a wave's blocks are what the threads of all ranks share, so use at least ranks x threads on clusters.
+  std::size_t wave_blocks = 8;
   /// Written (atomically) after every epoch when not empty; removed by the caller once the basis is saved.
   std::filesystem::path checkpoint;
   bool resume = false;  ///< continue from `checkpoint` (which must exist and match the run)
