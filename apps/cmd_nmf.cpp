@@ -42,7 +42,7 @@ std::string json_history(const std::vector<double>& v) { return json_array({v.da
 void run_nmf(const NmfCliOptions& o) {
   const std::string name = o.name.empty() ? fmt::format("nmf{}", o.k) : o.name;
   store::validate_name(name, "basis");
-  const std::string out = basis_output(o.stores, o.output, "nmf");
+  const std::string out = basis_output(o.stores, o.output);
   nmf::NmfOptions opt{.k = o.k,
                       .init = nmf::parse_init(o.init),
                       .seed = o.seed,
@@ -162,7 +162,7 @@ void run_nmf(const NmfCliOptions& o) {
 void setup_nmf(CLI::App& app) {
   auto o = std::make_shared<NmfCliOptions>();
   auto* cmd = app.add_subcommand("nmf", "Non-negative matrix factorisation of every valid spectrum, out of core (§7.4)");
-  cmd->add_option("stores", o->stores, "Store file(s); several are analysed as one database (then give -o)")->required();
+  cmd->add_option("stores", o->stores, "Store file(s); several are analysed as one database")->required();
   cmd->add_option("-k", o->k, "Number of basis spectra")->required()->check(CLI::Range(1, 64));
   cmd->add_option("--images", o->images, "Image name globs (default: every image)");
   cmd->add_option("--collection", o->collection, "Use this collection instead of images");
@@ -186,7 +186,7 @@ void setup_nmf(CLI::App& app) {
   cmd->add_option("--negatives", o->negatives, "Values below zero: clip (to zero, counted and reported) or reject")
       ->capture_default_str();
   cmd->add_option("--name", o->name, "Name of the basis to save (default: nmf<K>)");
-  cmd->add_option("-o,--output", o->output, "Store to save the basis in (default: the input store)");
+  cmd->add_option("-o,--output", o->output, "Store to save the basis in (default: the first input store)");
   cmd->add_option("--checkpoint", o->checkpoint, "Checkpoint file (default: <output>.nmf-<name>.checkpoint)");
   cmd->add_flag("--resume", o->resume, "Continue an interrupted run from its checkpoint");
   cmd->add_flag("--replace", o->replace, "Replace a basis of the same name");

@@ -29,7 +29,7 @@ struct PcaOptions {
 };
 
 void run_pca(const PcaOptions& o) {
-  const std::string out = basis_output(o.stores, o.output, "pca");
+  const std::string out = basis_output(o.stores, o.output);
   const std::vector<store::Store> stores = open_stores(o.stores);
   const store::Store& s = stores.front();
   const store::BlockReader reader(stores, {.image_globs = o.images, .collection = o.collection});
@@ -93,11 +93,11 @@ void run_pca(const PcaOptions& o) {
 void setup_pca(CLI::App& app) {
   auto o = std::make_shared<PcaOptions>();
   auto* cmd = app.add_subcommand("pca", "Principal components of every valid spectrum, in one exact streaming pass");
-  cmd->add_option("stores", o->stores, "Store file(s); several are analysed as one database (then give -o)")->required();
+  cmd->add_option("stores", o->stores, "Store file(s); several are analysed as one database")->required();
   cmd->add_option("--images", o->images, "Image name globs (default: every image)");
   cmd->add_option("--collection", o->collection, "Use this collection instead of images");
   cmd->add_option("--name", o->name, "Name of the basis to save")->capture_default_str();
-  cmd->add_option("-o,--output", o->output, "Store to save the basis in (default: the input store)");
+  cmd->add_option("-o,--output", o->output, "Store to save the basis in (default: the first input store)");
   cmd->add_option("-k", o->k, "Components to keep (default: all)");
   cmd->add_flag("--json", o->json, "Print one JSON object (n, bands, wavelengths, mean, eigenvalues, ...)");
   cmd->add_flag("--replace", o->replace, "Replace a basis of the same name");

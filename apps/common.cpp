@@ -188,11 +188,10 @@ std::vector<store::Store> open_stores(const std::vector<std::string>& paths) {
   return stores;
 }
 
-std::string basis_output(const std::vector<std::string>& inputs, const std::string& output, const std::string& command) {
+std::string basis_output(const std::vector<std::string>& inputs, const std::string& output) {
   if (!output.empty()) return output;
-  if (inputs.size() == 1) return inputs.front();
-  throw UsageError(command + ": " + std::to_string(inputs.size()) +
-                   " input stores; name the store to save the basis in with -o");
+  if (inputs.empty()) throw UsageError("no input store given");
+  return inputs.front();
 }
 
 }  // namespace specula::app

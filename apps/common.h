@@ -69,8 +69,7 @@ std::string json_array(std::span<const double> v);
 
 /// Opens every store named (at least one); an analysis over several reads them as one database.
 std::vector<store::Store> open_stores(const std::vector<std::string>& paths);
-/// Where a basis learned from `inputs` is saved: `output` if given, else the only input; several inputs
-/// without -o are a UsageError naming `command`.
-std::string basis_output(const std::vector<std::string>& inputs, const std::string& output, const std::string& command);
+/// Where a basis learned from `inputs` is saved: `output` if given, else the first input store.
+std::string basis_output(const std::vector<std::string>& inputs, const std::string& output);
 
 }  // namespace specula::app

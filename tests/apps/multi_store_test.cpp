@@ -68,24 +68,25 @@ TEST(MultiStore, NmfOfSeveralStoresEqualsNmfOfOneStoreWithTheirImages) {
   EXPECT_LT((s.read_basis("s").components - s.read_basis("w").components).norm(), 1e-12);
 }
 
-TEST(MultiStore, MisusesAreOneLineErrorsThatWriteNothing) {
+TEST(MultiStore, TheBasisGoesToTheFirstStoreAndAnotherGridIsAOneLineError) {
   test::ScratchDir dir;
   make_split_database(dir);
   const std::string a = "'" + (dir / "a.h5").string() + "'", b = "'" + (dir / "b.h5").string() + "'";
-  const std::string before = test::read_bytes(dir / "a.h5");
-  // Several inputs and no -o: which store should get the basis?
-  for (const char* cmd : {"pca", "nmf -k 2"}) {
-    auto r = run_specula(std::string("-q ") + cmd + " " + a + " " + b);
-    EXPECT_EQ(r.status, 1) << r.output;
-    EXPECT_NE(r.output.find("-o"), std::string::npos) << r.output;
-    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
-  }
+  // Several inputs and no -o: the basis goes into the first store, the others are not touched.
+  const std::string b_before = test::read_bytes(dir / "b.h5");
+  auto saved = run_specula("-q pca " + a + " " + b + " --name both");
+  ASSERT_EQ(saved.status, 0) << saved.output;
+  EXPECT_EQ(store::Store::open(dir / "a.h5").read_basis("both").n,
+            store::Store::open(dir / "all.h5").image_info("a_synth0").valid_pixels +
+                store::Store::open(dir / "all.h5").image_info("a_synth1").valid_pixels +
+                store::Store::open(dir / "all.h5").image_info("b_synth0").valid_pixels);
+  EXPECT_EQ(test::read_bytes(dir / "b.h5"), b_before);
   // A store on another wavelength grid.
   const auto odd = dir / "odd.h5";
   ASSERT_EQ(run_specula("-q synth-db -o '" + odd.string() + "' --images 1 --size 20x20 --wavelengths 400:700:20").status, 0);
   auto r = run_specula("-q pca " + a + " '" + odd.string() + "' -o '" + (dir / "x.h5").string() + "'");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("odd.h5"), std::string::npos) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "x.h5"));
-  EXPECT_EQ(test::read_bytes(dir / "a.h5"), before);
 }
