@@ -29,19 +29,8 @@ struct RenderOptions {
 };
 
 codec::MerlBrdf load_rgb(const RenderOptions& o) {
-  const std::filesystem::path in(o.input);
-  if (in.extension() == ".binary") return codec::read_merl(in);
-  store::Grid grid;
-  const auto colon = o.input.rfind(':');
-  if (colon != std::string::npos && colon > 0 && std::filesystem::is_regular_file(o.input.substr(0, colon)) &&
-      !std::filesystem::exists(in)) {
-    grid = store::Store::open(o.input.substr(0, colon)).read_grid(o.input.substr(colon + 1));
-  } else {
-    if (in.extension() == ".h5")
-      throw UsageError("render: " + o.input + " is a store; name the grid as " + o.input + ":GRID (see `specula ls " +
-                       o.input + "`)");
-    grid = codec::read_grid_file(in);
-  }
+  if (std::filesystem::path(o.input).extension() == ".binary") return codec::read_merl(o.input);
+  const store::Grid grid = load_grid(o.input, "render");
   const auto weights = codec::rgb_weights(grid.wavelengths, load_illuminant(o.illuminant, grid.wavelengths));
   return codec::grid_to_merl(grid, weights).brdf;
 }

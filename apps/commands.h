@@ -18,5 +18,9 @@ void setup_compare_bases(CLI::App& app);
 void setup_nmf(CLI::App& app);
 void setup_uplift(CLI::App& app);
 void setup_render(CLI::App& app);
+void setup_encode(CLI::App& app);
+void setup_brdf_diff(CLI::App& app);
+void setup_synth_brdf(CLI::App& app);
+void setup_decode(CLI::App& app);
 
 }  // namespace specula::app

@@ -6,6 +6,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "codec/merl.h"
+#include "codec/spectral_grid.h"
 #include "core/cie.h"
 #include "core/error.h"
 
@@ -192,6 +194,49 @@ std::string basis_output(const std::vector<std::string>& inputs, const std::stri
   if (!output.empty()) return output;
   if (inputs.empty()) throw UsageError("no input store given");
   return inputs.front();
+}
+
+namespace {
+// "path.h5:name" where path.h5 exists (or, when writing, ends in .h5) and the whole spec is not a file.
+std::optional<std::pair<std::string, std::string>> store_spec(const std::string& spec, bool writing) {
+  const auto colon = spec.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == spec.size()) return std::nullopt;
+  const std::string file = spec.substr(0, colon);
+  if (std::filesystem::exists(spec)) return std::nullopt;
+  if (std::filesystem::is_regular_file(file) || (writing && std::filesystem::path(file).extension() == ".h5"))
+    return std::pair{file, spec.substr(colon + 1)};
+  return std::nullopt;
+}
+}  // namespace
+
+store::Grid load_grid(const std::string& spec, const std::string& command) {
+  if (const auto s = store_spec(spec, false)) return store::Store::open(s->first).read_grid(s->second);
+  const std::filesystem::path in(spec);
+  if (in.extension() == ".h5")
+    throw UsageError(command + ": " + spec + " is a store; name the grid as " + spec + ":GRID (see `specula ls " + spec + "`)");
+  return codec::read_grid_file(in);
+}
+
+std::string save_grid(const store::Grid& grid, const std::string& spec, bool replace, const std::string& command) {
+  if (const auto s = store_spec(spec, true)) {
+    store::StoreWriter w(s->first, {.compression = {}, .replace = replace, .command_line = command_line()});
+    w.add_grid(s->second, grid);
+    w.commit();
+    return "grid '" + s->second + "' in " + s->first;
+  }
+  const std::filesystem::path out(spec);
+  if (out.extension() == ".binary") {
+    const auto weights = codec::rgb_weights(grid.wavelengths, illuminant("D65", grid.wavelengths));
+    const auto rgb = codec::grid_to_merl(grid, weights);
+    codec::write_merl(out, rgb.brdf);
+    return "RGB MERL file " + spec + (rgb.clamped ? " (" + std::to_string(rgb.clamped) + " out-of-gamut values clamped)" : "");
+  }
+  if (out.extension() == ".h5")
+    throw UsageError(command + ": name the grid to write as " + spec + ":NAME");
+  if (out.extension() != ".spgrid")
+    throw UsageError(command + ": " + spec + ": write STORE.h5:NAME, a .spgrid exchange file or an RGB .binary");
+  codec::write_grid_file(out, grid);
+  return "spectral grid file " + spec;
 }
 
 }  // namespace specula::app

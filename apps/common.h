@@ -72,4 +72,10 @@ std::vector<store::Store> open_stores(const std::vector<std::string>& paths);
 /// Where a basis learned from `inputs` is saved: `output` if given, else the first input store.
 std::string basis_output(const std::vector<std::string>& inputs, const std::string& output);
 
+/// A spectral BRDF grid named as STORE.h5:GRID or a grid exchange file (.spgrid); `command` prefixes usage errors.
+store::Grid load_grid(const std::string& spec, const std::string& command);
+/// Saves `grid` as STORE.h5:NAME (a transaction; --replace semantics from `replace`), a .spgrid file, or an RGB
+/// MERL .binary (through the CIE 1931 CMFs under D65); returns a description of what was written.
+std::string save_grid(const store::Grid& grid, const std::string& spec, bool replace, const std::string& command);
+
 }  // namespace specula::app

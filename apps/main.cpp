@@ -67,6 +67,10 @@ int main(int argc, char** argv) {
   specula::app::setup_nmf(app);
   specula::app::setup_uplift(app);
   specula::app::setup_render(app);
+  specula::app::setup_encode(app);
+  specula::app::setup_brdf_diff(app);
+  specula::app::setup_synth_brdf(app);
+  specula::app::setup_decode(app);
   const int code = run(app, argc, argv);
   specula::app::stop_ranks();
   return code;

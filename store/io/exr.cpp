@@ -252,6 +252,45 @@ Cube read_spectral_exr(const fs::path& path) {
   });
 }
 
+std::vector<float> read_exr_rgb(const fs::path& path, std::size_t& width, std::size_t& height) {
+  return exr_reading(path, [&] {
+    Imf::InputFile file(path.c_str());
+    const Imf::Header& header = file.header();
+    for (const char* c : {"R", "G", "B"})
+      if (!header.channels().findChannel(c))
+        throw InputError(path.string() + ": no '" + c + "' channel; an RGB EXR needs R, G and B");
+    const Imath::Box2i window = header.dataWindow();
+    const long long w = static_cast<long long>(window.max.x) - window.min.x + 1;
+    const long long h = static_cast<long long>(window.max.y) - window.min.y + 1;
+    if (w <= 0 || h <= 0 || double(w) * double(h) > 0x1p28)
+      throw InputError(path.string() + ": OpenEXR data window " + std::to_string(w) + " x " + std::to_string(h) +
+                       " is empty or too large for an environment map");
+    width = std::size_t(w);
+    height = std::size_t(h);
+    std::vector<float> rgb(3 * width * height);
+    Imf::FrameBuffer frame;
+    const char* names[3] = {"R", "G", "B"};
+    for (std::size_t c = 0; c < 3; ++c)
+      frame.insert(names[c], Imf::Slice::Make(Imf::FLOAT, rgb.data() + c, window, 3 * sizeof(float), 3 * sizeof(float) * width));
+    file.setFrameBuffer(frame);
+    file.readPixels(window.min.y, window.max.y);
+    for (std::size_t i = 0; i < rgb.size(); ++i)
+      if (!std::isfinite(rgb[i]))
+        throw InputError(path.string() + ": pixel (" + std::to_string(i / 3 % width) + ", " +
+                         std::to_string(i / 3 / width) + ") holds a non-finite value");
+    return rgb;
+  });
+}
+
+bool exr_is_spectral(const fs::path& path) {
+  return exr_reading(path, [&] {
+    Imf::InputFile file(path.c_str());
+    for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it)
+      if (parse_spectral_channel(it.name())) return true;
+    return false;
+  });
+}
+
 void write_spectral_exr(const fs::path& path, const Cube& cube) {
   check_dimensions(path, cube.width, cube.height);
   if (cube.bands == 0 || cube.wavelengths.size() != cube.bands ||

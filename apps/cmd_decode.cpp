@@ -1,0 +1,56 @@
+// specula decode: a .spc file (docs/codec-format.md) back into a spectral grid, a store grid or an RGB .binary.
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <chrono>
+
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "codec/spc.h"
+#include "store/store.h"
+
+namespace specula::app {
+namespace {
+
+struct DecodeOptions {
+  std::string input;
+  std::string output;
+  bool replace = false;
+  bool json = false;
+};
+
+void run_decode(const DecodeOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto bytes = codec::read_spc_file(o.input);
+  const auto t1 = std::chrono::steady_clock::now();
+  const store::Grid grid = codec::decode_spc(bytes, std::filesystem::path(o.input).filename().string());
+  const auto t2 = std::chrono::steady_clock::now();
+  const std::string what = save_grid(grid, o.output, o.replace, "decode");
+  const double decode_s = std::chrono::duration<double>(t2 - t1).count();
+  const double out_mb = double(grid.brdf.size()) * 4 / 1e6;
+  if (o.json) {
+    fmt::print(R"({{"input":{},"output":{},"input_bytes":{},"output_bytes_float32":{},"decode_seconds":{:.6f},)"
+               R"("decode_mb_per_s":{:.1f},"seconds":{:.6f},"threads":{}}})"
+               "\n",
+               json_string(o.input), json_string(o.output), bytes.size(), grid.brdf.size() * 4, decode_s,
+               out_mb / decode_s, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+               omp_get_max_threads());
+    return;
+  }
+  fmt::print("decoded {} into {}: {:.0f} MB of float32 in {:.3f} s ({:.0f} MB/s)\n", o.input, what, out_mb, decode_s,
+             out_mb / decode_s);
+}
+
+}  // namespace
+
+void setup_decode(CLI::App& app) {
+  auto o = std::make_shared<DecodeOptions>();
+  auto* cmd = app.add_subcommand("decode", "Decode a .spc file into a spectral grid");
+  cmd->add_option("spc", o->input, ".spc file")->required();
+  cmd->add_option("-o,--output", o->output, "STORE.h5:GRID, a .spgrid file, or an RGB .binary (CIE 1931, D65)")->required();
+  cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
+  cmd->add_flag("--json", o->json, "Print one JSON object (sizes, decode seconds and MB/s)");
+  cmd->callback([o] { run_decode(*o); });
+}
+
+}  // namespace specula::app

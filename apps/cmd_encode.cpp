@@ -1,0 +1,89 @@
+// specula encode: a spectral BRDF grid coded onto a spectral basis (.spc, docs/codec-format.md).
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <chrono>
+
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "codec/spc.h"
+#include "core/error.h"
+#include "store/store.h"
+
+namespace specula::app {
+namespace {
+
+struct EncodeOptions {
+  std::string input;
+  std::string basis;
+  std::size_t k = 0;
+  double max_error = 0.01;
+  double magnitude_scale = 0;
+  int level = 9;
+  std::string output;
+  bool json = false;
+};
+
+codec::SpcBasis load_basis(const EncodeOptions& o, const store::Grid& grid) {
+  if (o.basis == "self") return codec::self_basis(grid, o.k);
+  const auto colon = o.basis.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == o.basis.size())
+    throw UsageError("encode: --basis takes STORE.h5:BASIS (a PCA or NMF basis learned by specula) or 'self', not '" +
+                     o.basis + "'");
+  const store::Store s = store::Store::open(o.basis.substr(0, colon));
+  return codec::coding_basis(s.read_basis(o.basis.substr(colon + 1)), o.k, s.label() + ":" + o.basis.substr(colon + 1));
+}
+
+void run_encode(const EncodeOptions& o) {
+  if (std::filesystem::path(o.output).extension() != ".spc")
+    throw UsageError("encode: -o must name a .spc file, not '" + o.output + "'");
+  const auto t0 = std::chrono::steady_clock::now();
+  const store::Grid grid = load_grid(o.input, "encode");
+  const codec::SpcBasis basis = load_basis(o, grid);
+  codec::SpcReport rep;
+  const auto bytes = codec::encode_spc(grid, basis,
+                                       {.max_error = o.max_error, .magnitude_scale = o.magnitude_scale, .zstd_level = o.level},
+                                       &rep, o.input);
+  codec::write_spc_file(o.output, bytes);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double ratio = double(rep.input_bytes) / double(rep.output_bytes);
+  if (o.json) {
+    fmt::print(R"({{"input":{},"output":{},"basis":{},"k":{},"max_error":{},"input_bytes":{},"output_bytes":{},)"
+               R"("ratio":{:.3f},"bits_per_cell":{:.4f},"valid_cells":{},"seconds":{:.6f},"encode_mb_per_s":{:.1f},)"
+               R"("rms_error":{},"max_abs_error":{},"max_shape_residual":{},"max_quantisation_error":{},)"
+               R"("magnitude_scale":{},"threads":{}}})"
+               "\n",
+               json_string(o.input), json_string(o.output), json_string(basis.reference), basis.k(), o.max_error,
+               rep.input_bytes, rep.output_bytes, ratio, 8.0 * double(rep.output_bytes) / double(rep.valid_cells ? rep.valid_cells : 1),
+               rep.valid_cells, seconds, double(rep.input_bytes) / 1e6 / seconds, rep.rms_error, rep.max_abs_error,
+               rep.max_shape_residual, rep.max_quantisation_error, rep.magnitude_scale, omp_get_max_threads());
+    return;
+  }
+  fmt::print("encoded {} ({} valid cells) on {} with k = {}: {} bytes, {:.1f}x smaller than float64, in {:.2f} s\n",
+             o.input, rep.valid_cells, basis.reference, basis.k(), rep.output_bytes, ratio, seconds);
+  fmt::print("error: RMS {:.4g} 1/sr, max {:.4g} 1/sr; shape: basis residual up to {:.4g}, quantisation up to {:.4g} (bound {})\n",
+             rep.rms_error, rep.max_abs_error, rep.max_shape_residual, rep.max_quantisation_error, o.max_error);
+}
+
+}  // namespace
+
+void setup_encode(CLI::App& app) {
+  auto o = std::make_shared<EncodeOptions>();
+  auto* cmd = app.add_subcommand("encode", "Code a spectral BRDF grid onto a spectral basis (.spc)");
+  cmd->add_option("brdf", o->input, "Spectral grid: STORE.h5:GRID or a .spgrid file")->required();
+  cmd->add_option("--basis", o->basis, "STORE.h5:BASIS (PCA or NMF) or 'self' (fitted to the grid)")->required();
+  cmd->add_option("-k", o->k, "Basis spectra per cell")->required()->check(CLI::Range(1, 1024));
+  cmd->add_option("--max-error", o->max_error,
+                  "Error target E: magnitude within E (m + s), normalised shape within E per band of its projection")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-9, 1.0));
+  cmd->add_option("--magnitude-scale", o->magnitude_scale, "s of the mapping log(1 + m / s), in the grid's stored units (0: a tenth of the median magnitude)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1e30));
+  cmd->add_option("--level", o->level, "zstd level")->capture_default_str()->check(CLI::Range(1, 19));
+  cmd->add_option("-o,--output", o->output, ".spc file to write")->required();
+  cmd->add_flag("--json", o->json, "Print one JSON object (input_bytes, output_bytes, ratio, seconds, errors)");
+  cmd->callback([o] { run_encode(*o); });
+}
+
+}  // namespace specula::app

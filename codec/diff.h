@@ -1,0 +1,33 @@
+#pragma once
+// How far apart two spectral BRDF grids are: in value over the grid, and as seen rendered on a sphere.
+#include <cstdint>
+#include <vector>
+
+#include "codec/environment.h"
+#include "store/store.h"
+
+namespace specula::codec {
+
+struct DiffOptions {
+  std::size_t size = 128;  ///< sphere size in pixels for the rendered comparison
+};
+
+/// Differences over cells valid (every band >= 0) in both grids, values times their scale (1/sr):
+/// rms = sqrt(mean over cells and bands of (a - b)^2); max_abs = max |a - b|;
+/// rel_rms_cos = sqrt(sum w (a - b)^2 / sum w a^2) with w = cos(theta_i) cos(theta_o) at the cell centre
+/// (0 below the horizon), so grazing cells, which a rendering barely shows, weigh little;
+/// de00_*: CIEDE2000 per sphere pixel between a and b rendered under the same environment (render_spheres),
+/// both converted to CIELAB against the white of that rendering (a white Lambertian facing the viewer).
+struct GridDiff {
+  std::uint64_t cells = 0;           ///< valid in both
+  std::uint64_t only_a = 0, only_b = 0;  ///< valid in one grid only (not in the value metrics)
+  double rms = 0, max_abs = 0, rel_rms_cos = 0;
+  double de00_mean = 0, de00_p95 = 0, de00_max = 0;
+  SphereRenders renders;             ///< the two renderings compared
+  std::vector<float> de00;           ///< per pixel (0 off the sphere)
+};
+
+/// Compares a (the reference) with b; InputError if their wavelength grids differ (naming both).
+GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environment& env, const DiffOptions& options = {});
+
+}  // namespace specula::codec

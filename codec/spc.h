@@ -1,0 +1,75 @@
+#pragma once
+// The .spc codec for spectral BRDF grids (docs/codec-format.md). Every valid cell's spectrum x is split into a
+// magnitude m (its band mean) and a shape r = x / m; m is coded as log(1 + m / s) (a dynamic-range mapping
+// after Nielsen et al. 2015), r by its k coefficients on an orthonormal spectral basis (learned from a
+// database, or fitted to the grid itself). Both are quantised uniformly with steps derived from one error
+// target, predicted from their neighbours along phi_d and theta_d (integers, so prediction loses nothing),
+// and entropy-coded with zstd. The container is self-describing and ends with a CRC-32 over every byte.
+#include <Eigen/Core>
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "store/basis.h"
+#include "store/store.h"
+
+namespace specula::codec {
+
+/// Magic bytes that open a .spc file.
+inline constexpr char kSpcMagic[8] = {'S', 'P', 'E', 'C', 'U', 'S', 'P', 'C'};
+/// Version of the .spc format this specula writes and the newest it reads.
+inline constexpr std::uint32_t kSpcVersion = 1;
+
+/// k orthonormal spectra (rows) on a wavelength grid, and where they came from.
+struct SpcBasis {
+  WavelengthGrid wavelengths;
+  Eigen::MatrixXd rows;   ///< k x B, orthonormal
+  std::string reference;  ///< e.g. "db.h5:pca6" or "self"
+  std::size_t k() const { return std::size_t(rows.rows()); }
+};
+
+/// The coding basis of a learned store basis: PCA -> the span of its mean and first k - 1 components, NMF ->
+/// the span of its first k components, orthonormalised. Throws UsageError unless 1 <= k <= what it holds.
+SpcBasis coding_basis(const store::Basis& basis, std::size_t k, const std::string& reference);
+/// The top k eigenvectors of the uncentred second moment of the grid's shapes r = x / mean(x) over valid
+/// cells with a non-zero magnitude. Throws UsageError unless 1 <= k <= bands, InputError if no cell qualifies.
+SpcBasis self_basis(const store::Grid& grid, std::size_t k);
+
+struct SpcOptions {
+  /// Error target E > 0: |m' - m| <= E (m + s) for the magnitude and |r'_b - r_k,b| <= E per band for the
+  /// shape (r_k: the shape's projection onto the basis).
+  double max_error = 0.01;
+  /// s of the magnitude mapping in the grid's stored units; 0: a tenth of the median valid magnitude.
+  double magnitude_scale = 0;
+  int zstd_level = 9;  ///< 1..19
+};
+
+/// What encoding measured.
+struct SpcReport {
+  std::uint64_t input_bytes = 0;    ///< the grid as float64 (bands x 1,458,000 x 8), as MERL stores RGB
+  std::uint64_t output_bytes = 0;
+  std::uint64_t valid_cells = 0;
+  double magnitude_scale = 0, magnitude_step = 0, shape_step = 0;
+  double max_abs_error = 0;         ///< max over valid cells and bands of |x' - x| (scaled units, 1/sr)
+  double rms_error = 0;             ///< RMS of x' - x over valid cells and bands (1/sr)
+  double max_shape_residual = 0;    ///< max over cells and bands of |r - r_k|: what the basis cannot express
+  double max_quantisation_error = 0;  ///< max over cells and bands of |r' - r_k| (at most max_error)
+};
+
+/// Encodes `grid` on `basis` (same wavelengths, else InputError naming both) into .spc bytes; the same
+/// bytes for any thread count. Throws UsageError for a bad option.
+std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& options,
+                                     SpcReport* report = nullptr, const std::string& source = "");
+/// Decodes .spc bytes; every field and the CRC are checked, and a problem is an InputError starting with `label`.
+store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& label);
+/// The basis a .spc file was coded with (checked as decode_spc does).
+SpcBasis spc_basis(std::span<const std::uint8_t> bytes, const std::string& label);
+
+/// Writes bytes through a temporary renamed over `path`.
+void write_spc_file(const std::filesystem::path& path, std::span<const std::uint8_t> bytes);
+/// Reads a whole .spc file (InputError if missing or unreadable).
+std::vector<std::uint8_t> read_spc_file(const std::filesystem::path& path);
+
+}  // namespace specula::codec
