@@ -7,6 +7,7 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "codec/environment.h"
 #include "codec/merl.h"
 #include "codec/render.h"
 #include "codec/spectral_grid.h"
@@ -26,6 +27,7 @@ struct RenderOptions {
   std::vector<double> light = {45, 135};
   std::string illuminant = "D65";
   double exposure = 0;
+  std::string env;
 };
 
 codec::MerlBrdf load_rgb(const RenderOptions& o) {
@@ -42,6 +44,33 @@ void run_render(const RenderOptions& o) {
   std::filesystem::path png(o.output);
   if (png.extension() != ".png") throw UsageError("render: -o must name a .png file (the EXR is written beside it)");
   const std::filesystem::path exr = std::filesystem::path(png).replace_extension(".exr");
+  if (!o.env.empty()) {
+    if (std::filesystem::path(o.input).extension() == ".binary")
+      throw UsageError("render: --env lights spectral grids; make one from " + o.input + " with `specula uplift` first");
+    const store::Grid grid = load_grid(o.input, "render");
+    const codec::Environment env =
+        o.env == "default" ? codec::default_environment(grid.wavelengths) : codec::read_environment(o.env, grid.wavelengths);
+    const codec::SphereRenders r = codec::render_spheres({&grid}, env, o.size);
+    // Linear sRGB with the environment's white (a white Lambertian facing the viewer) adapted to D65 and at 1.
+    const Eigen::Matrix3d m = xyz_to_linear_srgb() *
+                              bradford_adaptation(r.white / r.white.y(), Eigen::Vector3d(0.95047, 1.0, 1.08883)) /
+                              r.white.y();
+    std::vector<float> linear(3 * o.size * o.size, 0.0f);
+    for (std::size_t i = 0; i < r.covered.size(); ++i) {
+      const Eigen::Vector3d c = m * Eigen::Vector3d(r.xyz[0][3 * i], r.xyz[0][3 * i + 1], r.xyz[0][3 * i + 2]);
+      for (std::size_t k = 0; k < 3; ++k) linear[3 * i + k] = float(c[Eigen::Index(k)]);
+    }
+    const double gain = std::exp2(o.exposure);
+    std::vector<std::uint8_t> srgb(3 * o.size * o.size);
+    for (std::size_t i = 0; i < r.covered.size(); ++i)
+      for (std::size_t c = 0; c < 3; ++c)
+        srgb[3 * i + c] = r.covered[i] ? std::uint8_t(std::lround(255 * srgb_encode(gain * linear[3 * i + c]))) : 24;
+    store::write_png_rgb8(png, o.size, o.size, srgb);
+    store::write_exr_rgb(exr, o.size, o.size, linear);
+    fmt::print("rendered {} on a {}x{} sphere under {}: {} and {}\n", o.input, o.size, o.size, env.description,
+               png.string(), exr.string());
+    return;
+  }
   const codec::MerlBrdf rgb = load_rgb(o);
   const double t = o.light[0] * std::numbers::pi / 180, p = o.light[1] * std::numbers::pi / 180;
   const codec::SphereImage img =
@@ -71,6 +100,8 @@ void setup_render(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--illuminant", o->illuminant, "Light SPD for spectral grids: D65, D50, A, E, D<CCT>, blackbody:K or CSV")
       ->capture_default_str();
+  cmd->add_option("--env", o->env,
+                  "Light a spectral grid by an environment instead: 'default' (built-in sky, ground, sun) or a lat-long EXR");
   cmd->add_option("--exposure", o->exposure, "Stops of gain before sRGB encoding of the PNG")->capture_default_str();
   cmd->callback([o] { run_render(*o); });
 }

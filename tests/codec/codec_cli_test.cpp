@@ -1,0 +1,113 @@
+// The codec end to end: synth-brdf, encode (self and store bases), decode (file, store, .binary), brdf-diff,
+// render under an environment, and the one-line errors that leave every file as it was.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+
+#include "codec/spectral_grid.h"
+#include "store/store.h"
+#include "test_support.h"
+
+namespace specula::codec {
+namespace {
+
+using test::run_specula;
+
+double json_number(const std::string& json, const std::string& key) {
+  const auto at = json.find("\"" + key + "\":");
+  if (at == std::string::npos) return std::nan("");
+  return std::stod(json.substr(at + key.size() + 3));
+}
+
+std::string q(const std::filesystem::path& p) { return "'" + p.string() + "'"; }
+
+TEST(CodecCli, EncodeDecodeAndDiffAGridWithItsOwnBasisAndWithALearnedOne) {
+  test::ScratchDir dir;
+  const auto grid = dir / "gold.spgrid", spc = dir / "gold.spc", back = dir / "back.spgrid";
+  auto r = run_specula("synth-brdf gold --wavelengths 420:720:30 -o " + q(grid));
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run_specula("encode " + q(grid) + " --basis self -k 3 --max-error 0.005 -o " + q(spc) + " --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* key : {"input_bytes", "output_bytes", "ratio", "seconds", "rms_error", "max_abs_error"})
+    EXPECT_FALSE(std::isnan(json_number(r.output, key))) << key << ": " << r.output;
+  EXPECT_EQ(json_number(r.output, "input_bytes"), 11.0 * brdf::kMerlCells * 8);
+  EXPECT_EQ(json_number(r.output, "output_bytes"), double(std::filesystem::file_size(spc)));
+  EXPECT_GT(json_number(r.output, "ratio"), 50);
+  r = run_specula("decode " + q(spc) + " -o " + q(back));
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run_specula("brdf-diff " + q(grid) + " " + q(back) + " --size 48 --json --panel " + q(dir / "panel.png"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* key : {"rms", "max_abs", "rel_rms_cos", "de00_mean", "de00_p95"})
+    EXPECT_FALSE(std::isnan(json_number(r.output, key))) << key << ": " << r.output;
+  EXPECT_LT(json_number(r.output, "de00_mean"), 0.5) << r.output;
+  EXPECT_LT(json_number(r.output, "rel_rms_cos"), 0.02) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "panel.png"));
+  // The decoded grid read back independently: every cell valid where the original is.
+  const store::Grid a = read_grid_file(grid), b = read_grid_file(back);
+  for (std::size_t c = 0; c < brdf::kMerlCells; c += 101) EXPECT_EQ(a.brdf[c] < 0, b.brdf[c] < 0) << c;
+
+  // A basis learned from a database on the same bands, into a store and out as an RGB .binary.
+  const auto db = dir / "db.h5";
+  ASSERT_EQ(run_specula("-q synth-db -o " + q(db) + " --images 1 --size 40x50 --wavelengths 420:720:30").status, 0);
+  ASSERT_EQ(run_specula("-q pca " + q(db) + " --name pca").status, 0);
+  r = run_specula("encode " + q(grid) + " --basis " + q(db) + ":pca -k 4 -o " + q(dir / "db.spc") + " --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run_specula("decode " + q(dir / "db.spc") + " -o " + q(db) + ":gold");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(store::Store::open(db).grid_info("gold").bands, 11u);
+  r = run_specula("decode " + q(dir / "db.spc") + " -o " + q(dir / "gold.binary"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(std::filesystem::file_size(dir / "gold.binary"), 12 + 3 * 8 * brdf::kMerlCells);
+  r = run_specula("render " + q(back) + " --env default --size 32 -o " + q(dir / "env.png"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "env.exr"));
+}
+
+TEST(CodecCli, BadInputIsOneLineAndLeavesFilesAlone) {
+  test::ScratchDir dir;
+  const auto grid = dir / "m.spgrid", spc = dir / "m.spc";
+  ASSERT_EQ(run_specula("synth-brdf green-matte --wavelengths 420:720:60 -o " + q(grid)).status, 0);
+  ASSERT_EQ(run_specula("encode " + q(grid) + " --basis self -k 1 -o " + q(spc)).status, 0);
+  const std::string before = test::read_bytes(spc);
+  auto one_line = [](const test::RunResult& r) { return std::count(r.output.begin(), r.output.end(), '\n') == 1; };
+  // A corrupt .spc.
+  std::string bytes = before;
+  bytes[bytes.size() / 2] ^= 0x40;
+  { std::ofstream(dir / "bad.spc", std::ios::binary) << bytes; }
+  auto r = run_specula("decode " + q(dir / "bad.spc") + " -o " + q(dir / "out.spgrid"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_TRUE(one_line(r)) << r.output;
+  EXPECT_NE(r.output.find("bad.spc"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "out.spgrid"));
+  // A truncated one.
+  { std::ofstream(dir / "short.spc", std::ios::binary) << before.substr(0, 50); }
+  r = run_specula("decode " + q(dir / "short.spc") + " -o " + q(dir / "out.spgrid"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("truncated"), std::string::npos) << r.output;
+  // A basis on other wavelengths, a bad -k, a bad --max-error, a store without a grid name: the .spc is untouched.
+  const auto db = dir / "db.h5";
+  ASSERT_EQ(run_specula("-q synth-db -o " + q(db) + " --images 1 --size 20x20").status, 0);
+  ASSERT_EQ(run_specula("-q pca " + q(db) + " --name pca").status, 0);
+  for (const std::string& args : {"--basis " + q(db) + ":pca -k 3", std::string("--basis self -k 9"),
+                                  std::string("--basis self -k 1 --max-error 2"), std::string("--basis nowhere -k 1")}) {
+    r = run_specula("encode " + q(grid) + " " + args + " -o " + q(spc));
+    EXPECT_NE(r.status, 0) << args;
+    EXPECT_TRUE(one_line(r)) << args << ": " << r.output;
+  }
+  r = run_specula("encode " + q(grid) + " --basis " + q(db) + ":pca -k 3 -o " + q(spc));
+  EXPECT_NE(r.output.find("420-720 nm step 60"), std::string::npos) << r.output;
+  EXPECT_EQ(test::read_bytes(spc), before);
+  r = run_specula("brdf-diff " + q(grid) + " " + q(db));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find(":GRID"), std::string::npos) << r.output;
+  r = run_specula("brdf-diff " + q(grid) + " " + q(grid) + " --size 2");
+  EXPECT_EQ(r.status, 1) << r.output;
+  r = run_specula("synth-brdf velvet -o " + q(dir / "v.spgrid"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("red-plastic"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace specula::codec

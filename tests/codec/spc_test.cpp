@@ -1,0 +1,194 @@
+#include "codec/spc.h"
+
+#include <gtest/gtest.h>
+#include <omp.h>
+#include <zlib.h>
+
+#include <cmath>
+#include <cstring>
+#include <random>
+
+#include "core/brdf_models.h"
+#include "core/error.h"
+#include "test_support.h"
+
+namespace specula::codec {
+namespace {
+
+constexpr std::size_t N = brdf::kMerlCells;
+const WavelengthGrid kGrid = WavelengthGrid::range(420, 720, 50);  // 7 bands keep the tests fast
+
+store::Grid grid_of(const brdf::SpectralModel& model) {
+  store::Grid g;
+  g.wavelengths = model.wavelengths();
+  g.brdf.resize(model.bands() * N);
+  brdf::evaluate_grid(model, g.brdf);
+  return g;
+}
+
+Eigen::VectorXd ramp(double a, double b) { return Eigen::VectorXd::LinSpaced(Eigen::Index(kGrid.size()), a, b); }
+
+const store::Grid& ward() {
+  static const store::Grid g = grid_of(brdf::Ward(kGrid, ramp(0.05, 0.4), ramp(0.3, 0.05), Eigen::VectorXd::Constant(7, 0.1)));
+  return g;
+}
+const store::Grid& torrance() {
+  static const store::Grid g =
+      grid_of(brdf::TorranceSparrow(kGrid, Eigen::VectorXd::Constant(7, 0.15), ramp(1.55, 1.45), ramp(0.5, 0.1)));
+  return g;
+}
+
+// The bound of spc.h, checked value by value: |x' - x| <= |m' - m| |r'_b| + m (E + |r_b - r_k,b|), with
+// |m' - m| <= E (m + s); float32 output adds a relative 1e-6.
+void expect_within_bound(const store::Grid& in, const SpcBasis& basis, double e, const SpcOptions& o) {
+  SpcReport rep;
+  const auto bytes = encode_spc(in, basis, o, &rep);
+  const store::Grid out = decode_spc(bytes, "test.spc");
+  ASSERT_EQ(out.brdf.size(), in.brdf.size());
+  EXPECT_LE(rep.max_quantisation_error, e * (1 + 1e-9));
+  const double s = rep.magnitude_scale;
+  const std::size_t b = in.bands();
+  std::size_t checked = 0;
+  for (std::size_t c = 0; c < N; c += 7) {
+    if (in.brdf[c] < 0) {
+      EXPECT_LT(out.brdf[c], 0) << c;
+      continue;
+    }
+    Eigen::VectorXd x(static_cast<Eigen::Index>(b)), y(static_cast<Eigen::Index>(b));
+    for (std::size_t k = 0; k < b; ++k) x[Eigen::Index(k)] = in.brdf[k * N + c], y[Eigen::Index(k)] = out.brdf[k * N + c];
+    const double m = x.mean(), mq = y.mean();
+    if (m == 0) {
+      EXPECT_EQ(y.norm(), 0) << c;
+      continue;
+    }
+    const Eigen::VectorXd r = x / m;
+    const Eigen::VectorXd rk = basis.rows.transpose() * (basis.rows * r);
+    const double dm = e * (m + s) * (1 + 1e-9);
+    for (std::size_t k = 0; k < b; ++k) {
+      const double rb = std::abs(rk[Eigen::Index(k)]) + e;  // |r'_b| <= |r_k,b| + E
+      const double bound = dm * rb + m * (e + std::abs(r[Eigen::Index(k)] - rk[Eigen::Index(k)]));
+      ASSERT_LE(std::abs(y[Eigen::Index(k)] - x[Eigen::Index(k)]), bound + 1e-6 * std::abs(x[Eigen::Index(k)]) + 1e-30)
+          << "cell " << c << " band " << k << " m " << m << " m' " << mq;
+    }
+    ++checked;
+  }
+  EXPECT_GT(checked, 10000u);
+}
+
+TEST(Spc, ALambertianGridOnItsOwnShapeIsReproducedWithinTheMagnitudeBound) {
+  const store::Grid g = grid_of(brdf::Lambertian(kGrid, ramp(0.1, 0.6)));
+  const SpcBasis basis = self_basis(g, 1);
+  for (const double e : {1e-4, 1e-2}) expect_within_bound(g, basis, e, {.max_error = e});
+}
+
+TEST(Spc, TheStatedBoundHoldsOnWardAndTorranceSparrowGrids) {
+  for (const store::Grid* g : {&ward(), &torrance()}) {
+    expect_within_bound(*g, self_basis(*g, 3), 0.01, {.max_error = 0.01});
+    expect_within_bound(*g, self_basis(*g, 2), 0.003, {.max_error = 0.003, .magnitude_scale = 0.5});
+  }
+}
+
+TEST(Spc, SmallerErrorsCostMoreBytes) {
+  const SpcBasis basis = self_basis(ward(), 3);
+  std::size_t previous = 0;
+  for (const double e : {0.1, 0.01, 0.001}) {
+    SpcReport rep;
+    const auto bytes = encode_spc(ward(), basis, {.max_error = e}, &rep);
+    EXPECT_GT(bytes.size(), previous) << e;
+    EXPECT_EQ(rep.output_bytes, bytes.size());
+    EXPECT_EQ(rep.input_bytes, 7u * N * 8);
+    previous = bytes.size();
+  }
+}
+
+TEST(Spc, BytesDoNotDependOnTheThreadCount) {
+  const SpcBasis basis = self_basis(torrance(), 3);
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const auto one = encode_spc(torrance(), basis, {.max_error = 0.01});
+  const store::Grid d1 = decode_spc(one, "one");
+  omp_set_num_threads(2);
+  const auto two = encode_spc(torrance(), basis, {.max_error = 0.01});
+  const store::Grid d2 = decode_spc(two, "two");
+  omp_set_num_threads(threads);
+  EXPECT_EQ(one, two);
+  EXPECT_EQ(d1.brdf, d2.brdf);
+}
+
+TEST(Spc, ALearnedBasisIsOrthonormalisedOverItsMeanAndComponents) {
+  store::Basis pca;
+  pca.method = "pca";
+  pca.wavelengths = kGrid;
+  pca.mean = ramp(0.2, 0.5);
+  pca.components = Eigen::MatrixXd::Zero(2, 7);
+  pca.components(0, 0) = 1;
+  pca.components(1, 6) = 1;
+  const SpcBasis b = coding_basis(pca, 3, "db.h5:pca");
+  EXPECT_LT((b.rows * b.rows.transpose() - Eigen::MatrixXd::Identity(3, 3)).norm(), 1e-12);
+  // The mean lies in the span.
+  EXPECT_LT((b.rows.transpose() * (b.rows * pca.mean) - pca.mean).norm(), 1e-12);
+  EXPECT_THROW(coding_basis(pca, 4, "db.h5:pca"), UsageError);
+  store::Basis nmf = pca;
+  nmf.method = "nmf";
+  EXPECT_EQ(coding_basis(nmf, 2, "db.h5:nmf").k(), 2u);
+  EXPECT_THROW(coding_basis(nmf, 3, "db.h5:nmf"), UsageError);
+}
+
+TEST(Spc, MismatchedWavelengthsAndBadOptionsAreRefused) {
+  SpcBasis other = self_basis(ward(), 2);
+  other.wavelengths = WavelengthGrid::range(400, 700, 50);
+  other.reference = "db.h5:pca";
+  const std::string text = test::input_error_text([&] { encode_spc(ward(), other, {}); });
+  EXPECT_NE(text.find("db.h5:pca"), std::string::npos) << text;
+  EXPECT_NE(text.find("420-720"), std::string::npos) << text;
+  const SpcBasis basis = self_basis(ward(), 2);
+  EXPECT_THROW(encode_spc(ward(), basis, {.max_error = 0}), UsageError);
+  EXPECT_THROW(encode_spc(ward(), basis, {.max_error = std::nan("")}), UsageError);
+  EXPECT_THROW(encode_spc(ward(), basis, {.max_error = 0.01, .zstd_level = 0}), UsageError);
+  EXPECT_THROW(self_basis(ward(), 0), UsageError);
+  store::Grid bad = ward();
+  bad.brdf[12345] = std::nanf("");
+  EXPECT_THROW(encode_spc(bad, basis, {}), InputError);
+}
+
+std::vector<std::uint8_t> with_crc(std::vector<std::uint8_t> b) {
+  const uLong crc = crc32(crc32(0L, Z_NULL, 0), b.data(), uInt(b.size() - 4));
+  const auto c = std::uint32_t(crc);
+  std::memcpy(b.data() + b.size() - 4, &c, 4);
+  return b;
+}
+
+TEST(Spc, CorruptOrTruncatedFilesFailCleanly) {
+  const auto good = encode_spc(ward(), self_basis(ward(), 2), {.max_error = 0.01});
+  std::mt19937_64 rng(5);
+  for (int trial = 0; trial < 200; ++trial) {
+    auto b = good;
+    b[rng() % b.size()] ^= std::uint8_t(1u << (rng() % 8));
+    EXPECT_THROW(decode_spc(b, "bad.spc"), InputError) << trial;
+  }
+  for (std::size_t n : {std::size_t(0), std::size_t(7), std::size_t(20), std::size_t(100), good.size() / 2, good.size() - 1}) {
+    const std::vector<std::uint8_t> b(good.begin(), good.begin() + std::ptrdiff_t(n));
+    EXPECT_THROW(decode_spc(b, "short.spc"), InputError) << n;
+  }
+  // Consistent CRC but impossible fields: still one clear error each.
+  auto newer = good;
+  newer[8] = 99;
+  EXPECT_NE(test::input_error_text([&] { decode_spc(newer, "new.spc"); }).find("version 99"), std::string::npos);
+  auto k_too_big = good;
+  k_too_big[16] = 200;  // k > bands
+  EXPECT_NE(test::input_error_text([&] { decode_spc(with_crc(k_too_big), "k.spc"); }).find("k = 200"), std::string::npos);
+  auto bad_step = good;
+  const double negative = -1;
+  std::memcpy(bad_step.data() + 28, &negative, 8);  // magnitude scale
+  EXPECT_NE(test::input_error_text([&] { decode_spc(with_crc(bad_step), "s.spc"); }).find("magnitude scale"),
+            std::string::npos);
+  auto trailing = good;
+  trailing.insert(trailing.end() - 4, 3, 0);
+  EXPECT_NE(test::input_error_text([&] { decode_spc(with_crc(trailing), "t.spc"); }).find("unexpected bytes"),
+            std::string::npos);
+  EXPECT_NE(test::input_error_text([&] { decode_spc(std::vector<std::uint8_t>(40, 7), "x.spc"); }).find("magic"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace specula::codec
