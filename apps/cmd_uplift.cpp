@@ -11,6 +11,7 @@
 #include "codec/spectral_grid.h"
 #include "codec/uplift.h"
 #include "core/error.h"
+#include "store/io/exr.h"
 #include "store/store.h"
 
 namespace specula::app {
@@ -28,7 +29,45 @@ struct UpliftOptions {
   bool replace = false;
 };
 
+// An RGB lat-long environment map (linear sRGB primaries) to a spectral EXR of emission: each pixel by the same
+// least squares, with an equal-energy white so that RGB (1, 1, 1) becomes a flat spectrum.
+void uplift_environment(const UpliftOptions& o) {
+  if (o.output.empty() || std::filesystem::path(o.output).extension() != ".exr")
+    throw UsageError("uplift: an EXR environment map is written as a spectral EXR: give -o OUT.exr");
+  const WavelengthGrid grid = WavelengthGrid::parse(o.wavelengths);
+  const codec::Uplift uplift(codec::rgb_weights(grid, Eigen::VectorXd::Ones(Eigen::Index(grid.size()))), o.alpha);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::size_t w = 0, h = 0;
+  const std::vector<float> rgb = store::read_exr_rgb(o.input, w, h);
+  for (std::size_t i = 0; i < rgb.size(); ++i)
+    if (rgb[i] < 0)
+      throw InputError(fmt::format("{}: pixel ({}, {}) has a negative channel; radiance must be non-negative", o.input,
+                                   i / 3 % w, i / 3 / w));
+  store::Cube cube;
+  cube.wavelengths = grid;
+  cube.resize(h, w, grid.size());
+  cube.units = "radiance";
+  std::size_t constrained = 0;
+#pragma omp parallel reduction(+ : constrained)
+  {
+    codec::UpliftCache cache;
+    Eigen::VectorXd x(static_cast<Eigen::Index>(grid.size()));
+#pragma omp for schedule(dynamic, 64)
+    for (long long p = 0; p < static_cast<long long>(w * h); ++p) {
+      const Eigen::Vector3d c(rgb[3 * std::size_t(p)], rgb[3 * std::size_t(p) + 1], rgb[3 * std::size_t(p) + 2]);
+      constrained += o.nonnegative ? uplift.nonnegative(c, x, &cache) : uplift.clamped(c, x);
+      for (std::size_t k = 0; k < grid.size(); ++k) cube.data[std::size_t(p) * grid.size() + k] = float(x[Eigen::Index(k)]);
+    }
+  }
+  store::write_spectral_exr(o.output, cube);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  fmt::print("uplifted the {}x{} environment {} to {} ({}, alpha {}, {}) in {:.2f} s; {} pixels {}\n", w, h, o.input,
+             o.output, grid.describe(), o.alpha, o.nonnegative ? "non-negative" : "clamped", seconds, constrained,
+             o.nonnegative ? "met the bound x >= 0" : "had negative values clamped");
+}
+
 void run_uplift(const UpliftOptions& o) {
+  if (std::filesystem::path(o.input).extension() == ".exr") return uplift_environment(o);
   if (o.output.empty() == o.store.empty())
     throw UsageError("uplift: give either -o FILE (a grid file) or --store STORE --name NAME, not both or neither");
   if (!o.store.empty() && o.name.empty()) throw UsageError("uplift: --store needs --name for the grid");
@@ -64,8 +103,9 @@ void run_uplift(const UpliftOptions& o) {
 
 void setup_uplift(CLI::App& app) {
   auto o = std::make_shared<UpliftOptions>();
-  auto* cmd = app.add_subcommand("uplift", "RGB MERL BRDF (.binary) to a spectral grid by regularised least squares (Appendix A)");
-  cmd->add_option("input", o->input, "MERL .binary file")->required();
+  auto* cmd = app.add_subcommand(
+      "uplift", "RGB MERL BRDF (.binary) or RGB EXR environment map to spectra by regularised least squares (Appendix A)");
+  cmd->add_option("input", o->input, "MERL .binary file, or an RGB EXR environment map (written as a spectral EXR)")->required();
   cmd->add_option("-o,--output", o->output, "Spectral grid file to write (docs/grid-format.md)");
   cmd->add_option("--store", o->store, "Store to add the grid to instead (created if absent)");
   cmd->add_option("--name", o->name, "Grid name in the store");

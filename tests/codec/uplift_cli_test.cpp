@@ -5,6 +5,7 @@
 
 #include "codec/merl.h"
 #include "codec/spectral_grid.h"
+#include "store/io/exr.h"
 #include "store/store.h"
 #include "test_support.h"
 
@@ -81,6 +82,44 @@ TEST(UpliftCli, FileAndStoreRoundTripToRgb) {
       for (int c = 0; c < 3; ++c) ASSERT_NEAR(back.brdf.value(c, cell), rgb.value(c, cell), 1e-6) << cell;
     EXPECT_FALSE(back.brdf.has_data(6));
   }
+}
+
+// An RGB environment map becomes a spectral EXR of emission whose RGB (equal-energy white) is the input.
+TEST(UpliftCli, AnRgbEnvironmentMapBecomesASpectralExrWithTheSameRgb) {
+  test::ScratchDir dir;
+  std::vector<float> rgb;
+  for (std::size_t p = 0; p < 16 * 8; ++p)
+    for (const float v : {0.2f + 0.01f * float(p % 16), 0.4f, 0.3f + 0.02f * float(p / 16)}) rgb.push_back(v);
+  store::write_exr_rgb(dir / "sky.exr", 16, 8, rgb);
+  std::size_t w = 0, h = 0;
+  const std::vector<float> stored = store::read_exr_rgb(dir / "sky.exr", w, h);  // as rounded to half floats
+  auto r = test::run_specula("uplift '" + (dir / "sky.exr").string() + "' -o '" + (dir / "sky-spectral.exr").string() +
+                             "' --nonnegative --wavelengths 400:700:10");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const store::Cube cube = store::read_spectral_exr(dir / "sky-spectral.exr");
+  ASSERT_EQ(cube.bands, 31u);
+  EXPECT_EQ(cube.units, "radiance");
+  const auto weights = codec::rgb_weights(cube.wavelengths, Eigen::VectorXd::Ones(31));
+  for (std::size_t p = 0; p < 16 * 8; ++p) {
+    const Eigen::Map<const Eigen::VectorXf> s(cube.data.data() + p * 31, 31);
+    const Eigen::Vector3d back = weights * s.cast<double>();
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(back[c], stored[3 * p + std::size_t(c)], 1e-5) << p;
+    EXPECT_GE(s.minCoeff(), 0.0f);
+  }
+  // The spectral map lights a rendering.
+  ASSERT_EQ(test::run_specula("synth-brdf green-matte --wavelengths 400:700:10 -o '" + (dir / "g.spgrid").string() + "'").status, 0);
+  r = test::run_specula("render '" + (dir / "g.spgrid").string() + "' --size 16 --env '" + (dir / "sky-spectral.exr").string() +
+                        "' -o '" + (dir / "g.png").string() + "'");
+  EXPECT_EQ(r.status, 0) << r.output;
+  // A negative pixel, or a non-EXR output: one line, nothing written.
+  rgb[7] = -0.5f;
+  store::write_exr_rgb(dir / "bad.exr", 16, 8, rgb);
+  r = test::run_specula("uplift '" + (dir / "bad.exr").string() + "' -o '" + (dir / "bad-s.exr").string() + "'");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("bad.exr"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad-s.exr"));
+  r = test::run_specula("uplift '" + (dir / "sky.exr").string() + "' -o '" + (dir / "sky.spgrid").string() + "'");
+  EXPECT_EQ(r.status, 1) << r.output;
 }
 
 }  // namespace
