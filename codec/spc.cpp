@@ -522,7 +522,8 @@ store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& l
   g.provenance.source_file = p.source;
   g.provenance.importer = "decode " + p.reference;
   g.brdf.assign(cd.bands * kMerlCells, -1.0f);
-#pragma omp parallel
+  bool finite = true;
+#pragma omp parallel reduction(&& : finite)
   {
     std::vector<std::int32_t> q(channels * kSlab, 0);
     std::vector<double> shape(cd.bands);
@@ -542,10 +543,15 @@ store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& l
                                  std::uint32_t(unplane(res[ch].data(), n_valid, widths[ch], at++)));
           }
       }
-      for (std::size_t i = 0; i < kSlab; ++i)
-        if (vs[i]) reconstruct(cd, q[i], q.data() + kSlab + i, kSlab, shape.data(), g.brdf.data() + base + i, kMerlCells);
+      for (std::size_t i = 0; i < kSlab; ++i) {
+        if (!vs[i]) continue;
+        reconstruct(cd, q[i], q.data() + kSlab + i, kSlab, shape.data(), g.brdf.data() + base + i, kMerlCells);
+        for (std::size_t b = 0; b < cd.bands; ++b) finite = finite && std::isfinite(g.brdf[b * kMerlCells + base + i]);
+      }
     }
   }
+  if (!finite)
+    throw InputError(label + ": .spc codes decode to values beyond float range; the file was not written by specula encode");
   return g;
 }
 
@@ -562,6 +568,9 @@ void write_spc_file(const std::filesystem::path& path, std::span<const std::uint
 std::vector<std::uint8_t> read_spc_file(const std::filesystem::path& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw InputError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
+  std::error_code ec;
+  if (const auto size = std::filesystem::file_size(path, ec); !ec && size > (std::uintmax_t(1) << 32))
+    throw InputError(path.string() + ": " + std::to_string(size) + " bytes is far more than any .spc file holds");
   std::vector<std::uint8_t> b((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   return b;
 }
