@@ -4,6 +4,8 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "codec/merl.h"
+#include "codec/spectral_grid.h"
 #include "core/error.h"
 #include "store/io/csv.h"
 #include "store/io/envi.h"
@@ -38,6 +40,25 @@ std::string format_of(const ExportOptions& o) {
 
 void run_export(const ExportOptions& o) {
   const store::Store s = store::Store::open(o.store);
+  const auto grids = s.grids();
+  if (std::find(grids.begin(), grids.end(), o.object) != grids.end()) {
+    // A spectral BRDF grid: an RGB MERL .binary seen under --illuminant, or the grid exchange file.
+    const store::Grid grid = s.read_grid(o.object);
+    const std::string ext = std::filesystem::path(o.output).extension().string();
+    if (ext == ".binary") {
+      const auto weights = codec::rgb_weights(grid.wavelengths, load_illuminant(o.preview.illuminant, grid.wavelengths));
+      const codec::RgbExport rgb = codec::grid_to_merl(grid, weights);
+      codec::write_merl(o.output, rgb.brdf);
+      fmt::print("wrote {} (RGB under {}; {} out-of-gamut channel values clamped to 0)\n", o.output,
+                 o.preview.illuminant, rgb.clamped);
+    } else if (ext == ".spgrid") {
+      codec::write_grid_file(o.output, grid);
+      fmt::print("wrote {}\n", o.output);
+    } else {
+      throw UsageError(s.label() + ": '" + o.object + "' is a BRDF grid; export it as an RGB MERL .binary or a .spgrid file");
+    }
+    return;
+  }
   const std::string format = format_of(o);
   const auto collections = s.collections();
   if (std::find(collections.begin(), collections.end(), o.object) != collections.end()) {
@@ -76,8 +97,8 @@ void setup_export(CLI::App& app) {
   auto o = std::make_shared<ExportOptions>();
   auto* cmd = app.add_subcommand("export", "Write an object as spectral EXR, ENVI, CSV, or an sRGB preview (PNG, linear EXR)");
   cmd->add_option("store", o->store, "Store file")->required();
-  cmd->add_option("object", o->object, "Image or collection name")->required();
-  cmd->add_option("-o,--output", o->output, "Output file; the extension picks the format (.exr .hdr .png .csv)")->required();
+  cmd->add_option("object", o->object, "Image, collection or BRDF grid name")->required();
+  cmd->add_option("-o,--output", o->output, "Output file; the extension picks the format (.exr .hdr .png .csv; .binary .spgrid for grids)")->required();
   cmd->add_option("--format", o->format, "auto, exr (spectral), envi, png (sRGB 8-bit), rgb-exr (linear sRGB), csv")
       ->check(CLI::IsMember({"auto", "exr", "envi", "png", "rgb-exr", "csv"}))
       ->capture_default_str();
