@@ -17,6 +17,7 @@ struct EncodeOptions {
   std::string input;
   std::string basis;
   std::size_t k = 0;
+  std::size_t extra = 0;
   double max_error = 0.01;
   double magnitude_scale = 0;
   int level = 9;
@@ -25,13 +26,18 @@ struct EncodeOptions {
 };
 
 codec::SpcBasis load_basis(const EncodeOptions& o, const store::Grid& grid) {
-  if (o.basis == "self") return codec::self_basis(grid, o.k);
+  if (o.basis == "self") {
+    if (o.extra) throw UsageError("encode: --extra extends a learned basis; with --basis self raise -k instead");
+    return codec::self_basis(grid, o.k);
+  }
   const auto colon = o.basis.rfind(':');
   if (colon == std::string::npos || colon == 0 || colon + 1 == o.basis.size())
     throw UsageError("encode: --basis takes STORE.h5:BASIS (a PCA or NMF basis learned by specula) or 'self', not '" +
                      o.basis + "'");
   const store::Store s = store::Store::open(o.basis.substr(0, colon));
-  return codec::coding_basis(s.read_basis(o.basis.substr(colon + 1)), o.k, s.label() + ":" + o.basis.substr(colon + 1));
+  const codec::SpcBasis learned =
+      codec::coding_basis(s.read_basis(o.basis.substr(colon + 1)), o.k, s.label() + ":" + o.basis.substr(colon + 1));
+  return codec::augment_basis(learned, grid, o.extra);
 }
 
 void run_encode(const EncodeOptions& o) {
@@ -73,6 +79,9 @@ void setup_encode(CLI::App& app) {
   cmd->add_option("brdf", o->input, "Spectral grid: STORE.h5:GRID or a .spgrid file")->required();
   cmd->add_option("--basis", o->basis, "STORE.h5:BASIS (PCA or NMF) or 'self' (fitted to the grid)")->required();
   cmd->add_option("-k", o->k, "Basis spectra per cell")->required()->check(CLI::Range(1, 1024));
+  cmd->add_option("--extra", o->extra,
+                  "Spectra fitted to what a learned basis leaves of the grid, added to its k (they travel in the file)")
+      ->capture_default_str();
   cmd->add_option("--max-error", o->max_error,
                   "Error target E: magnitude within E (m + s), normalised shape within E per band of its projection")
       ->capture_default_str();

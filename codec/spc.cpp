@@ -244,10 +244,12 @@ SpcBasis coding_basis(const store::Basis& basis, std::size_t k, const std::strin
   return {basis.wavelengths, q.transpose(), reference};
 }
 
-SpcBasis self_basis(const store::Grid& grid, std::size_t k) {
+namespace {
+// Second moment of the grid's shapes r = x / mean(x) after removing their projection on `remove` (k x B, may
+// be empty), over valid cells with a non-zero magnitude; the cell count in n.
+Eigen::MatrixXd shape_moment(const store::Grid& grid, const Eigen::MatrixXd& remove, std::uint64_t& n) {
   const std::size_t b = grid.bands();
-  if (k < 1 || k > b) throw UsageError("-k " + std::to_string(k) + ": give 1 to " + std::to_string(b) + " for a self basis");
-  if (grid.brdf.size() != b * kMerlCells) throw UsageError("self_basis: grid values do not match bands x 90 x 90 x 180");
+  if (grid.brdf.size() != b * kMerlCells) throw UsageError("basis fit: grid values do not match bands x 90 x 90 x 180");
   std::vector<Eigen::MatrixXd> part(kMerlThetaH, Eigen::MatrixXd::Zero(Eigen::Index(b), Eigen::Index(b)));
   std::vector<std::uint64_t> count(kMerlThetaH, 0);
 #pragma omp parallel for schedule(dynamic, 1)
@@ -264,25 +266,66 @@ SpcBasis self_basis(const store::Grid& grid, std::size_t k) {
       }
       if (!valid || !(m > 0) || !std::isfinite(m)) continue;
       r *= double(b) / m;
+      if (remove.rows() > 0) r -= remove.transpose() * (remove * r);
       part[std::size_t(h)].selfadjointView<Eigen::Lower>().rankUpdate(r);
       ++count[std::size_t(h)];
     }
   }
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(Eigen::Index(b), Eigen::Index(b));
-  std::uint64_t n = 0;
+  n = 0;
   for (int h = 0; h < kMerlThetaH; ++h) g += part[std::size_t(h)], n += count[std::size_t(h)];
-  if (n == 0) throw InputError("the grid has no valid cell with a non-zero spectrum to fit a basis to");
   g.triangularView<Eigen::StrictlyUpper>() = g.transpose();
+  return g;
+}
+
+// The top k eigenvectors of symmetric g as rows, each with its largest entry positive.
+Eigen::MatrixXd top_rows(const Eigen::MatrixXd& g, std::size_t k) {
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(g);
-  Eigen::MatrixXd rows(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(b));
+  const Eigen::Index b = g.rows();
+  Eigen::MatrixXd rows(static_cast<Eigen::Index>(k), b);
   for (std::size_t j = 0; j < k; ++j) {
-    Eigen::VectorXd v = eig.eigenvectors().col(Eigen::Index(b - 1 - j));
+    Eigen::VectorXd v = eig.eigenvectors().col(b - 1 - Eigen::Index(j));
     Eigen::Index at;
     v.cwiseAbs().maxCoeff(&at);
-    if (v[at] < 0) v = -v;  // a deterministic sign
+    if (v[at] < 0) v = -v;
     rows.row(Eigen::Index(j)) = v.transpose();
   }
-  return {grid.wavelengths, rows, "self"};
+  return rows;
+}
+}  // namespace
+
+SpcBasis self_basis(const store::Grid& grid, std::size_t k) {
+  const std::size_t b = grid.bands();
+  if (k < 1 || k > b) throw UsageError("-k " + std::to_string(k) + ": give 1 to " + std::to_string(b) + " for a self basis");
+  std::uint64_t n = 0;
+  const Eigen::MatrixXd g = shape_moment(grid, Eigen::MatrixXd(0, Eigen::Index(b)), n);
+  if (n == 0) throw InputError("the grid has no valid cell with a non-zero spectrum to fit a basis to");
+  return {grid.wavelengths, top_rows(g, k), "self"};
+}
+
+SpcBasis augment_basis(const SpcBasis& basis, const store::Grid& grid, std::size_t extra) {
+  const std::size_t b = grid.bands();
+  if (basis.rows.cols() != Eigen::Index(b) || !basis.wavelengths.approx_equal(grid.wavelengths))
+    throw InputError("the grid has " + grid.wavelengths.describe() + ", basis " + basis.reference + " has " +
+                     basis.wavelengths.describe() + "; code a grid with a basis on its own wavelengths");
+  if (basis.k() + extra > b)
+    throw UsageError("--extra " + std::to_string(extra) + ": with k = " + std::to_string(basis.k()) + " at most " +
+                     std::to_string(b - basis.k()) + " more spectra fit in " + std::to_string(b) + " bands");
+  if (extra == 0) return basis;
+  std::uint64_t n = 0;
+  const Eigen::MatrixXd g = shape_moment(grid, basis.rows, n);
+  if (n == 0) throw InputError("the grid has no valid cell with a non-zero spectrum to fit a basis to");
+  SpcBasis out = basis;
+  out.rows.conservativeResize(Eigen::Index(basis.k() + extra), Eigen::NoChange);
+  out.rows.bottomRows(Eigen::Index(extra)) = top_rows(g, extra);
+  // Re-orthonormalise against rounding (the new rows are orthogonal to the old in exact arithmetic).
+  const Eigen::HouseholderQR<Eigen::MatrixXd> qr(out.rows.transpose());
+  Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(Eigen::Index(b), out.rows.rows());
+  for (Eigen::Index j = 0; j < q.cols(); ++j)
+    if (q.col(j).dot(out.rows.row(j).transpose()) < 0) q.col(j) = -q.col(j);
+  out.rows = q.transpose();
+  out.reference = basis.reference + "+" + std::to_string(extra);
+  return out;
 }
 
 std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& o,

@@ -33,6 +33,9 @@ struct SpcBasis {
 /// The coding basis of a learned store basis: PCA -> the span of its mean and first k - 1 components, NMF ->
 /// the span of its first k components, orthonormalised. Throws UsageError unless 1 <= k <= what it holds.
 SpcBasis coding_basis(const store::Basis& basis, std::size_t k, const std::string& reference);
+/// `basis` extended by the top `extra` eigenvectors of the second moment of what it leaves of the grid's shapes
+/// (r minus its projection), so a learned basis can fit a material outside its database; reference gets "+extra".
+SpcBasis augment_basis(const SpcBasis& basis, const store::Grid& grid, std::size_t extra);
 /// The top k eigenvectors of the uncentred second moment of the grid's shapes r = x / mean(x) over valid
 /// cells with a non-zero magnitude. Throws UsageError unless 1 <= k <= bands, InputError if no cell qualifies.
 SpcBasis self_basis(const store::Grid& grid, std::size_t k);

@@ -134,6 +134,28 @@ TEST(Spc, ALearnedBasisIsOrthonormalisedOverItsMeanAndComponents) {
   EXPECT_THROW(coding_basis(nmf, 3, "db.h5:nmf"), UsageError);
 }
 
+// A flat learned basis cannot express a coloured Lambertian's shape; one fitted extra spectrum can, exactly.
+TEST(Spc, AnAugmentedLearnedBasisFitsAShapeOutsideItsSpan) {
+  store::Basis flat;
+  flat.method = "nmf";
+  flat.wavelengths = kGrid;
+  flat.components = Eigen::MatrixXd::Ones(1, 7);
+  const SpcBasis learned = coding_basis(flat, 1, "db.h5:flat");
+  const store::Grid g = grid_of(brdf::Lambertian(kGrid, ramp(0.1, 0.6)));
+  SpcReport before, after;
+  encode_spc(g, learned, {.max_error = 0.001}, &before);
+  const SpcBasis more = augment_basis(learned, g, 1);
+  EXPECT_EQ(more.k(), 2u);
+  EXPECT_EQ(more.reference, "db.h5:flat+1");
+  EXPECT_LT((more.rows * more.rows.transpose() - Eigen::MatrixXd::Identity(2, 2)).norm(), 1e-12);
+  EXPECT_LT((more.rows.row(0) - learned.rows.row(0)).norm(), 1e-12);  // the learned spectrum is kept
+  encode_spc(g, more, {.max_error = 0.001}, &after);
+  EXPECT_GT(before.max_shape_residual, 0.1);
+  EXPECT_LT(after.max_shape_residual, 1e-9);
+  EXPECT_THROW(augment_basis(learned, g, 7), UsageError);
+  EXPECT_EQ(augment_basis(learned, g, 0).k(), 1u);
+}
+
 TEST(Spc, MismatchedWavelengthsAndBadOptionsAreRefused) {
   SpcBasis other = self_basis(ward(), 2);
   other.wavelengths = WavelengthGrid::range(400, 700, 50);
