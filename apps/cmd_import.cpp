@@ -8,6 +8,7 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "core/error.h"
+#include "store/io/brdf_irregular.h"
 #include "store/io/csv.h"
 #include "store/io/envi.h"
 #include "store/io/exr.h"
@@ -47,8 +48,9 @@ std::string detect_format(const std::filesystem::path& p) {
   if (ext == ".png") return "png";
   if (ext == ".exr") return "exr";
   if (ext == ".csv") return "csv";
+  if (ext == ".brdf") return "brdf";
   throw UsageError(p.string() + ": cannot tell the format from the extension '" + ext +
-                   "'; pass --format envi|mat|png|exr|csv");
+                   "'; pass --format envi|mat|png|exr|csv|brdf");
 }
 
 // Resamples every spectrum of `values` (count x from.size()) onto `to`, refusing extrapolation.
@@ -162,6 +164,21 @@ void run_import(const ImportOptions& o) {
       col.provenance.importer = "csv";
       writer.add_collection(name, col);
       report.push_back(fmt::format("imported collection {}: {} spectra, {}", name, col.size(), col.wavelengths.describe()));
+      continue;
+    }
+    if (item.format == "brdf") {
+      // Scattered BRDF samples (pbrt-v2's irregular format), optionally resampled to --wavelengths.
+      store::IrregularBrdf b = store::read_brdf_irregular(first);
+      if (!target.empty() && !target.approx_equal(b.wavelengths)) {
+        b.values = resample(b.values, b.size(), b.wavelengths, target, src);
+        b.wavelengths = target;
+      }
+      store::Provenance prov;
+      prov.source_file = src;
+      prov.importer = "brdf-irregular";
+      writer.create_samples(name, b.wavelengths, o.units.empty() ? "1/sr" : o.units, prov);
+      writer.append_samples(name, b.angles, b.values);
+      report.push_back(fmt::format("imported samples {}: {} scattered BRDF samples, {}", name, b.size(), b.wavelengths.describe()));
       continue;
     }
     store::Cube cube;
