@@ -1,0 +1,63 @@
+// Cornell samples imported, resampled onto the grid and cross-validated from the command line; bad input is
+// one line and leaves the store alone.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+
+#include "store/store.h"
+#include "test_support.h"
+
+namespace specula {
+namespace {
+
+using test::run_specula;
+
+TEST(ResampleCli, CornellSamplesResampleOntoTheGridAndCrossValidate) {
+  SPECULA_REQUIRE_SHARED();
+  test::ScratchDir dir;
+  const auto db = dir / "cornell.h5";
+  const auto data = test::shared_dir() / "data/brdf/cornell";
+  auto r = run_specula("import '" + (data / "garnet_red.brdf").string() + "' '" + (data / "cayman.brdf").string() +
+                       "' -o '" + db.string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const store::Store s = store::Store::open(db);
+  EXPECT_EQ(s.samples_info("garnet_red").size, 1439u);
+  r = run_specula("resample '" + db.string() + "' garnet_red -o '" + db.string() + ":garnet_red' -k 16 --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* key : {"\"samples\":1439", "\"cells\":1458000", "\"valid_cells\":", "\"seconds\":"})
+    EXPECT_NE(r.output.find(key), std::string::npos) << key << ": " << r.output;
+  const store::Grid g = store::Store::open(db).read_grid("garnet_red");
+  std::size_t valid = 0;
+  for (std::size_t c = 0; c < 1458000; ++c) valid += g.brdf[c] >= 0;
+  EXPECT_GT(valid, 100000u);
+  EXPECT_NE(r.output.find("\"valid_cells\":" + std::to_string(valid)), std::string::npos) << r.output;
+  r = run_specula("eval-resample '" + db.string() + "' garnet_red --holdout 0.1 -k 1,16 --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  // 3 mappings x (k = 1 nearest; k = 16 mean and Shepard), inside one object.
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '{'), 1 + 3 * 3) << r.output;
+}
+
+TEST(ResampleCli, BadInputIsOneLineAndLeavesTheStoreAlone) {
+  test::ScratchDir dir;
+  const auto db = dir / "s.h5";
+  { std::ofstream(dir / "ok.brdf") << "2\n400 500\n0.5 0 0.5 3.1 1 2\n0.4 0 0.6 3.0 1 2\n0.3 0 0.2 1.0 3 4\n"; }
+  { std::ofstream(dir / "cut.brdf") << "2\n400 500\n0.5 0 0.5 3.1 1\n"; }
+  ASSERT_EQ(run_specula("import '" + (dir / "ok.brdf").string() + "' -o '" + db.string() + "'").status, 0);
+  const std::string before = test::read_bytes(db);
+  for (const std::string& args :
+       {"import '" + (dir / "cut.brdf").string() + "' -o '" + db.string() + "'",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --mapping polar",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k 0",
+        "resample '" + db.string() + "' missing -o '" + db.string() + ":g'",
+        "eval-resample '" + db.string() + "' ok --holdout 1.5"}) {
+    const auto r = run_specula(args);
+    EXPECT_EQ(r.status, 1) << args << ": " << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << args << ": " << r.output;
+  }
+  EXPECT_EQ(test::read_bytes(db), before);
+}
+
+}  // namespace
+}  // namespace specula
