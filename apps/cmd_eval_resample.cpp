@@ -29,7 +29,8 @@ struct EvalResampleOptions {
 struct Row {
   std::string mapping, weights;
   std::size_t k = 0;
-  double rel_rms = 0;  // sqrt(sum (pred - true)^2 / sum true^2) over predicted held-out samples and bands
+  double rel_rms = 0;     // sqrt(sum (pred - true)^2 / sum true^2) over predicted held-out samples and bands
+  double median_rel = 0;  // median over held-out samples of |pred - true| / |true| (spectra as vectors)
   std::size_t predicted = 0;
 };
 
@@ -68,25 +69,35 @@ void run_eval_resample(const EvalResampleOptions& o) {
         double err = 0, ref = 0;
         std::size_t predicted = 0;
         std::vector<float> out(b);
+        std::vector<double> per_sample;
         for (std::size_t j = 0; j < held; ++j) {
           const double* a = test_a.data() + 4 * j;
           if (!r.predict({a[0], a[1], a[2], a[3]}, out)) continue;
           ++predicted;
+          double e2 = 0, t2 = 0;
           for (std::size_t q = 0; q < b; ++q) {
             const double t = test_v[j * b + q], e = double(out[q]) - t;
-            err += e * e;
-            ref += t * t;
+            e2 += e * e;
+            t2 += t * t;
           }
+          err += e2;
+          ref += t2;
+          if (t2 > 0) per_sample.push_back(std::sqrt(e2 / t2));
         }
         rows.push_back({std::string(acquire::mapping_name(mapping)), k == 1 ? "nearest"
                                                                             : weights == acquire::Weights::mean ? "mean" : "shepard",
-                        k, ref > 0 ? std::sqrt(err / ref) : 0.0, predicted});
+                        k, ref > 0 ? std::sqrt(err / ref) : 0.0, 0.0, predicted});
+        if (!per_sample.empty()) {
+          std::nth_element(per_sample.begin(), per_sample.begin() + std::ptrdiff_t(per_sample.size() / 2), per_sample.end());
+          rows.back().median_rel = per_sample[per_sample.size() / 2];
+        }
       }
   if (o.json) {
     std::string list;
     for (const auto& r : rows)
-      list += fmt::format(R"({}{{"mapping":{},"k":{},"weights":{},"rel_rms":{},"predicted":{}}})", list.empty() ? "" : ",",
-                          json_string(r.mapping), r.k, json_string(r.weights), r.rel_rms, r.predicted);
+      list += fmt::format(R"({}{{"mapping":{},"k":{},"weights":{},"rel_rms":{},"median_rel":{},"predicted":{}}})",
+                          list.empty() ? "" : ",", json_string(r.mapping), r.k, json_string(r.weights), r.rel_rms,
+                          r.median_rel, r.predicted);
     fmt::print(R"({{"samples":{},"held_out":{},"seed":{},"results":[{}]}})"
                "\n",
                info.size, held, o.seed, list);
@@ -94,8 +105,9 @@ void run_eval_resample(const EvalResampleOptions& o) {
   }
   fmt::print("{}: {} samples, {} held out (seed {}); relative RMS error of the held-out spectra:\n", o.samples, info.size,
              held, o.seed);
-  fmt::print("| mapping | k | weights | relative RMS |\n|---|---|---|---|\n");
-  for (const auto& r : rows) fmt::print("| {} | {} | {} | {:.4f} |\n", r.mapping, r.k, r.weights, r.rel_rms);
+  fmt::print("| mapping | k | weights | relative RMS | median relative error |\n|---|---|---|---|---|\n");
+  for (const auto& r : rows)
+    fmt::print("| {} | {} | {} | {:.4f} | {:.4f} |\n", r.mapping, r.k, r.weights, r.rel_rms, r.median_rel);
 }
 
 }  // namespace
