@@ -26,8 +26,7 @@ struct BrdfDiffOptions {
 // sRGB of an XYZ rendering, the white mapped to 1 after adaptation to D65; off-sphere pixels dark grey.
 void paint(const codec::SphereRenders& r, const std::vector<float>& xyz, std::vector<std::uint8_t>& rgb, std::size_t stride,
            std::size_t x0) {
-  const Eigen::Vector3d d65(0.95047, 1.0, 1.08883);
-  const Eigen::Matrix3d m = xyz_to_linear_srgb() * bradford_adaptation(r.white / r.white.y(), d65) / r.white.y();
+  const Eigen::Matrix3d m = rendering_to_linear_srgb(r.white);
   for (std::size_t y = 0; y < r.size; ++y)
     for (std::size_t x = 0; x < r.size; ++x) {
       const std::size_t p = y * r.size + x;

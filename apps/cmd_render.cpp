@@ -52,9 +52,7 @@ void run_render(const RenderOptions& o) {
         o.env == "default" ? codec::default_environment(grid.wavelengths) : codec::read_environment(o.env, grid.wavelengths);
     const codec::SphereRenders r = codec::render_spheres({&grid}, env, o.size);
     // Linear sRGB with the environment's white (a white Lambertian facing the viewer) adapted to D65 and at 1.
-    const Eigen::Matrix3d m = xyz_to_linear_srgb() *
-                              bradford_adaptation(r.white / r.white.y(), Eigen::Vector3d(0.95047, 1.0, 1.08883)) /
-                              r.white.y();
+    const Eigen::Matrix3d m = rendering_to_linear_srgb(r.white);
     std::vector<float> linear(3 * o.size * o.size, 0.0f);
     for (std::size_t i = 0; i < r.covered.size(); ++i) {
       const Eigen::Vector3d c = m * Eigen::Vector3d(r.xyz[0][3 * i], r.xyz[0][3 * i + 1], r.xyz[0][3 * i + 2]);

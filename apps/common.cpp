@@ -239,4 +239,9 @@ std::string save_grid(const store::Grid& grid, const std::string& spec, bool rep
   return "spectral grid file " + spec;
 }
 
+Eigen::Matrix3d rendering_to_linear_srgb(const Eigen::Vector3d& white) {
+  const Eigen::Vector3d d65(0.95047, 1.0, 1.08883);
+  return xyz_to_linear_srgb() * bradford_adaptation(white / white.y(), d65) / white.y();
+}
+
 }  // namespace specula::app

@@ -78,4 +78,7 @@ store::Grid load_grid(const std::string& spec, const std::string& command);
 /// MERL .binary (through the CIE 1931 CMFs under D65); returns a description of what was written.
 std::string save_grid(const store::Grid& grid, const std::string& spec, bool replace, const std::string& command);
 
+/// XYZ of a rendering to linear sRGB: its white (XYZ) adapted to D65 (Bradford) and mapped to luminance 1.
+Eigen::Matrix3d rendering_to_linear_srgb(const Eigen::Vector3d& white);
+
 }  // namespace specula::app

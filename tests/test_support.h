@@ -2,6 +2,7 @@
 // Helpers shared by the tests: the optional ../shared data, scratch directories, running the CLI.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -72,9 +73,9 @@ struct RunResult {
   std::string output;
 };
 
-/// Runs `args` (a shell command line, already quoted) with the specula binary prepended.
-inline RunResult run_specula(const std::string& args) {
-  std::string cmd = std::string("'") + SPECULA_BINARY + "' " + args + " 2>&1";
+/// Runs a shell command line (already quoted), capturing stdout and stderr together.
+inline RunResult run_shell(const std::string& command) {
+  const std::string cmd = command + " 2>&1";
   RunResult r;
   FILE* pipe = ::popen(cmd.c_str(), "r");
   if (!pipe) return r;
@@ -84,6 +85,17 @@ inline RunResult run_specula(const std::string& args) {
   int st = ::pclose(pipe);
   r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
   return r;
+}
+
+/// Runs `args` (a shell command line, already quoted) with the specula binary prepended.
+inline RunResult run_specula(const std::string& args) { return run_shell(std::string("'") + SPECULA_BINARY + "' " + args); }
+
+/// The number after "key": in a one-line JSON object, or NaN when the key is absent.
+inline double json_number(const std::string& json, const std::string& key) {
+  const std::string pattern = "\"" + key + "\":";
+  const auto at = json.find(pattern);
+  if (at == std::string::npos) return std::nan("");
+  return std::stod(json.substr(at + pattern.size()));
 }
 
 }  // namespace specula::test

@@ -18,26 +18,12 @@ namespace {
 
 // Loopback only, more ranks than cores allowed, one OpenMP thread per rank; root allowed (CI runs as root).
 test::RunResult mpirun(int np, const std::string& args) {
-  const std::string cmd = "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 '" +
-                          std::string(SPECULA_MPIEXEC) + "' -np " + std::to_string(np) +
-                          " --oversubscribe --bind-to none --mca btl self,vader --mca btl_vader_single_copy_mechanism none"
-                          " -x OMP_NUM_THREADS=1 '" + SPECULA_BINARY + "' " + args + " 2>&1";
-  test::RunResult r;
-  FILE* pipe = ::popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, pipe)) > 0) r.output.append(buf, n);
-  const int st = ::pclose(pipe);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-  return r;
+  return test::run_shell("OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 '" + std::string(SPECULA_MPIEXEC) +
+                         "' -np " + std::to_string(np) +
+                         " --oversubscribe --bind-to none --mca btl self,vader --mca btl_vader_single_copy_mechanism none"
+                         " -x OMP_NUM_THREADS=1 '" + SPECULA_BINARY + "' " + args);
 }
 
-double json_number(const std::string& json, const std::string& key) {
-  const auto at = json.find("\"" + key + "\":");
-  if (at == std::string::npos) return std::nan("");
-  return std::stod(json.substr(at + key.size() + 3));
-}
 
 // Three 150x220 images: several blocks each, so every rank count splits the waves differently.
 std::filesystem::path make_db(const test::ScratchDir& dir) {
@@ -58,7 +44,7 @@ TEST(Mpi, PcaOnOneTwoAndThreeRanksMatchesOneProcess) {
     const std::string name = "p" + std::to_string(np);
     r = mpirun(np, "-q pca '" + db.string() + "' -o '" + out.string() + "' --name " + name + " --json");
     ASSERT_EQ(r.status, 0) << r.output;
-    EXPECT_EQ(json_number(r.output, "ranks"), np) << r.output;
+    EXPECT_EQ(test::json_number(r.output, "ranks"), np) << r.output;
     const store::Store s = store::Store::open(out);
     const store::Basis one = s.read_basis("p0"), many = s.read_basis(name);
     EXPECT_EQ(many.n, one.n);
@@ -82,8 +68,8 @@ TEST(Mpi, NmfOnOneTwoAndThreeRanksMatchesOneProcess) {
     ASSERT_EQ(r.status, 0) << r.output;
     // One JSON line: only rank 0 reports.
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
-    EXPECT_NEAR(json_number(r.output, "rel_error"), json_number(one.output, "rel_error"),
-                1e-12 * json_number(one.output, "rel_error"));
+    EXPECT_NEAR(test::json_number(r.output, "rel_error"), test::json_number(one.output, "rel_error"),
+                1e-12 * test::json_number(one.output, "rel_error"));
     const store::Store s = store::Store::open(out);
     const Eigen::MatrixXd a = s.read_basis("n0").components, b = s.read_basis(name).components;
     EXPECT_LT((a - b).norm(), 1e-12 * a.norm()) << np;

@@ -28,11 +28,6 @@ void make_split_database(const test::ScratchDir& dir) {
   w.commit();
 }
 
-double json_number(const std::string& json, const std::string& key) {
-  const auto at = json.find("\"" + key + "\":");
-  if (at == std::string::npos) return std::nan("");
-  return std::stod(json.substr(at + key.size() + 3));
-}
 
 }  // namespace
 
@@ -61,9 +56,9 @@ TEST(MultiStore, NmfOfSeveralStoresEqualsNmfOfOneStoreWithTheirImages) {
   ASSERT_EQ(split.status, 0) << split.output;
   auto whole = run_specula("-q nmf '" + (dir / "all.h5").string() + "' --name w" + common);
   ASSERT_EQ(whole.status, 0) << whole.output;
-  EXPECT_EQ(json_number(split.output, "n"), json_number(whole.output, "n"));
-  EXPECT_NEAR(json_number(split.output, "rel_error"), json_number(whole.output, "rel_error"),
-              1e-12 * json_number(whole.output, "rel_error"));
+  EXPECT_EQ(test::json_number(split.output, "n"), test::json_number(whole.output, "n"));
+  EXPECT_NEAR(test::json_number(split.output, "rel_error"), test::json_number(whole.output, "rel_error"),
+              1e-12 * test::json_number(whole.output, "rel_error"));
   const store::Store s = store::Store::open(dir / "bases.h5");
   EXPECT_LT((s.read_basis("s").components - s.read_basis("w").components).norm(), 1e-12);
 }

@@ -27,12 +27,6 @@ struct Fixture {
   std::string quoted() const { return "'" + db.string() + "'"; }
 };
 
-double number(const std::string& json, const std::string& key) {
-  const std::string pattern = "\"" + key + "\":";
-  const auto at = json.find(pattern);
-  if (at == std::string::npos) return std::nan("");
-  return std::stod(json.substr(at + pattern.size()));
-}
 
 std::size_t lines(const std::string& s) { return std::size_t(std::count(s.begin(), s.end(), '\n')); }
 
@@ -45,7 +39,7 @@ TEST(NmfCli, JsonReportsTheFitAndTheBasisProjectsTheImageWithTheSameError) {
   for (const char* key : {"\"k\":4", "\"n\":", "\"rel_error\":", "\"epochs\":", "\"seconds\":", "\"restarts\":[",
                           "\"basis\":\"nmf4\"", "\"svd_bound\":", "\"mean_angle_deg\":", "\"negatives\":"})
     EXPECT_NE(r.output.find(key), std::string::npos) << key << " in " << r.output;
-  const double rel = number(r.output, "rel_error"), bound = number(r.output, "svd_bound");
+  const double rel = test::json_number(r.output, "rel_error"), bound = test::json_number(r.output, "svd_bound");
   EXPECT_GT(rel, 0);
   EXPECT_GE(rel, bound);
   EXPECT_LT(rel, 0.2);
@@ -56,7 +50,7 @@ TEST(NmfCli, JsonReportsTheFitAndTheBasisProjectsTheImageWithTheSameError) {
   EXPECT_EQ(b.method, "nmf");
   EXPECT_EQ(b.k(), 4u);
   EXPECT_GE(b.components.minCoeff(), 0.0);
-  EXPECT_EQ(b.n, std::uint64_t(number(r.output, "n")));
+  EXPECT_EQ(b.n, std::uint64_t(test::json_number(r.output, "n")));
   const auto info = run_specula("info " + f.quoted() + " nmf4 --json");
   ASSERT_EQ(info.status, 0) << info.output;
   EXPECT_NE(info.output.find("\"method\":\"nmf\""), std::string::npos) << info.output;
@@ -70,7 +64,7 @@ TEST(NmfCli, JsonReportsTheFitAndTheBasisProjectsTheImageWithTheSameError) {
   EXPECT_TRUE(std::filesystem::exists(out / "error-k4.png"));
   EXPECT_TRUE(std::filesystem::exists(out / "preview-k4.png"));
   EXPECT_TRUE(std::filesystem::exists(out / "reconstruction-k4.exr"));
-  const double rms = number(p.output, "rms");
+  const double rms = test::json_number(p.output, "rms");
   const store::Cube cube = s.read_image("synth0");
   double xx = 0;
   std::size_t valid = 0;
@@ -119,7 +113,7 @@ TEST(NmfCli, InterruptedRunKeepsItsCheckpointAndResumes) {
   r = run_specula("nmf " + f.quoted() + " -k 3 --tol 0.5 --max-epochs 100000 --checkpoint '" + ckpt + "' --resume --json --quiet");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("\"resumed\":true"), std::string::npos) << r.output;
-  EXPECT_GE(number(r.output, "epochs"), 2.0);  // the epochs before the interruption count
+  EXPECT_GE(test::json_number(r.output, "epochs"), 2.0);  // the epochs before the interruption count
   EXPECT_FALSE(std::filesystem::exists(ckpt));
   EXPECT_EQ(store::Store::open(f.db).bases().size(), 1u);
 }

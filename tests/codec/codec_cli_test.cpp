@@ -15,11 +15,6 @@ namespace {
 
 using test::run_specula;
 
-double json_number(const std::string& json, const std::string& key) {
-  const auto at = json.find("\"" + key + "\":");
-  if (at == std::string::npos) return std::nan("");
-  return std::stod(json.substr(at + key.size() + 3));
-}
 
 std::string q(const std::filesystem::path& p) { return "'" + p.string() + "'"; }
 
@@ -31,18 +26,18 @@ TEST(CodecCli, EncodeDecodeAndDiffAGridWithItsOwnBasisAndWithALearnedOne) {
   r = run_specula("encode " + q(grid) + " --basis self -k 3 --max-error 0.005 -o " + q(spc) + " --json");
   ASSERT_EQ(r.status, 0) << r.output;
   for (const char* key : {"input_bytes", "output_bytes", "ratio", "seconds", "rms_error", "max_abs_error"})
-    EXPECT_FALSE(std::isnan(json_number(r.output, key))) << key << ": " << r.output;
-  EXPECT_EQ(json_number(r.output, "input_bytes"), 11.0 * brdf::kMerlCells * 8);
-  EXPECT_EQ(json_number(r.output, "output_bytes"), double(std::filesystem::file_size(spc)));
-  EXPECT_GT(json_number(r.output, "ratio"), 50);
+    EXPECT_FALSE(std::isnan(test::json_number(r.output, key))) << key << ": " << r.output;
+  EXPECT_EQ(test::json_number(r.output, "input_bytes"), 11.0 * brdf::kMerlCells * 8);
+  EXPECT_EQ(test::json_number(r.output, "output_bytes"), double(std::filesystem::file_size(spc)));
+  EXPECT_GT(test::json_number(r.output, "ratio"), 50);
   r = run_specula("decode " + q(spc) + " -o " + q(back));
   ASSERT_EQ(r.status, 0) << r.output;
   r = run_specula("brdf-diff " + q(grid) + " " + q(back) + " --size 48 --json --panel " + q(dir / "panel.png"));
   ASSERT_EQ(r.status, 0) << r.output;
   for (const char* key : {"rms", "max_abs", "rel_rms_cos", "de00_mean", "de00_p95"})
-    EXPECT_FALSE(std::isnan(json_number(r.output, key))) << key << ": " << r.output;
-  EXPECT_LT(json_number(r.output, "de00_mean"), 0.5) << r.output;
-  EXPECT_LT(json_number(r.output, "rel_rms_cos"), 0.02) << r.output;
+    EXPECT_FALSE(std::isnan(test::json_number(r.output, key))) << key << ": " << r.output;
+  EXPECT_LT(test::json_number(r.output, "de00_mean"), 0.5) << r.output;
+  EXPECT_LT(test::json_number(r.output, "rel_rms_cos"), 0.02) << r.output;
   EXPECT_TRUE(std::filesystem::exists(dir / "panel.png"));
   // The decoded grid read back independently: every cell valid where the original is.
   const store::Grid a = read_grid_file(grid), b = read_grid_file(back);
