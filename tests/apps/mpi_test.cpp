@@ -13,7 +13,6 @@
 using namespace specula;
 using specula::test::run_specula;
 
-#ifdef SPECULA_MPIEXEC
 namespace {
 
 // Loopback only, more ranks than cores allowed, one OpenMP thread per rank; root allowed (CI runs as root).
@@ -106,8 +105,3 @@ TEST(Mpi, AFailureOnOneRankStopsEveryRankWithItsMessageAndWritesNothing) {
   }
   EXPECT_EQ(test::read_bytes(db), before);
 }
-#else
-TEST(Mpi, NeedsAnMpiBuild) {
-  GTEST_SKIP() << "built without SPECULA_MPI: configure with -DSPECULA_MPI=ON (scripts/test builds build-mpi and runs these)";
-}
-#endif
