@@ -1,5 +1,7 @@
 #include "codec/environment.h"
 
+#include <omp.h>
+
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -264,7 +266,7 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
     std::uint32_t light;
     float weight;  // the light's mean cosine
   };
-  constexpr std::size_t kBucketShift = 8, kBuckets = (brdf::kMerlCells >> kBucketShift) + 1;
+  constexpr std::size_t kBucketShift = 8, kBuckets = (brdf::kMerlCells >> kBucketShift) + 1, kChunk = 4096;
   const std::size_t rows_per_block = std::clamp<std::size_t>((std::size_t(1) << 21) / (size * (nl / 2 + 1)), 1, size);
   std::vector<std::vector<Pair>> row_pairs(rows_per_block);
   std::vector<Pair> sorted;
@@ -310,13 +312,23 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
     for (std::size_t r = 0; r < rows; ++r)
       for (const Pair& p : row_pairs[r]) sorted[start[p.cell >> kBucketShift]++] = p;
     acc.assign(grids.size() * b * pixels, 0.0);
-#pragma omp parallel for schedule(dynamic, 1)
-    for (long long gk = 0; gk < static_cast<long long>(grids.size() * b); ++gk) {
-      const std::size_t g = std::size_t(gk) / b, k = std::size_t(gk) % b;
-      const float* plane = grids[g]->brdf.data() + k * brdf::kMerlCells;
-      const double* power = lights.power.data() + k * nl;
-      double* a = acc.data() + std::size_t(gk) * pixels;
-      for (const Pair& p : sorted) a[p.pixel] += double(std::max(plane[p.cell], 0.0f)) * power[p.light] * double(p.weight);
+    // Each thread owns a fixed share of the (grid, band) planes and walks the pairs in cache-sized chunks,
+    // every chunk through all its planes, so the pairs come from memory once per thread, not once per plane.
+    const std::size_t tasks = grids.size() * b;
+#pragma omp parallel
+    {
+      const auto threads = std::size_t(omp_get_num_threads()), me = std::size_t(omp_get_thread_num());
+      for (std::size_t c0 = 0; c0 < sorted.size(); c0 += kChunk) {
+        const Pair* first = sorted.data() + c0;
+        const Pair* last = sorted.data() + std::min(sorted.size(), c0 + kChunk);
+        for (std::size_t gk = me; gk < tasks; gk += threads) {
+          const float* plane = grids[gk / b]->brdf.data() + (gk % b) * brdf::kMerlCells;
+          const double* power = lights.power.data() + (gk % b) * nl;
+          double* a = acc.data() + gk * pixels;
+          for (const Pair* p = first; p != last; ++p)
+            a[p->pixel] += double(std::max(plane[p->cell], 0.0f)) * power[p->light] * double(p->weight);
+        }
+      }
     }
     for (std::size_t g = 0; g < grids.size(); ++g)
       for (std::size_t i = 0; i < pixels; ++i) {
