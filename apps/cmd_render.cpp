@@ -50,6 +50,8 @@ void run_render(const RenderOptions& o) {
     const codec::Environment env =
         o.env == "default" ? codec::default_environment(grid.wavelengths) : codec::read_environment(o.env, grid.wavelengths);
     const codec::SphereRenders r = codec::render_spheres({&grid}, env, o.size);
+    if (!(r.white.y() > 0))
+      throw InputError("render: " + env.description + " sends no light to a surface facing the viewer; nothing maps to white");
     // Linear sRGB with the environment's white (a white Lambertian facing the viewer) adapted to D65 and at 1.
     const Eigen::Matrix3d m = rendering_to_linear_srgb(r.white);
     std::vector<float> linear(3 * o.size * o.size, 0.0f);

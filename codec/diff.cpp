@@ -90,6 +90,9 @@ GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environmen
 
   d.renders = render_spheres({&a, &b}, env, o.size);
   const auto& r = d.renders;
+  if (!(r.white.y() > 0))
+    throw InputError("environment " + env.description +
+                     " sends no light to a surface facing the viewer, so there is no white for CIELAB; light the front");
   d.de00.assign(r.size * r.size, 0.0f);
   std::vector<float> values;
   for (std::size_t p = 0; p < r.size * r.size; ++p) {

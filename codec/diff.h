@@ -32,7 +32,8 @@ struct GridDiff {
   std::vector<float> de00;           ///< per pixel (0 off the sphere)
 };
 
-/// Compares a (the reference) with b; InputError if their wavelength grids differ (naming both).
+/// Compares a (the reference) with b; InputError if their wavelength grids differ (naming both) or if env gives
+/// no white (no light on a surface facing the viewer).
 GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environment& env, const DiffOptions& options = {});
 
 }  // namespace specula::codec

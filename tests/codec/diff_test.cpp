@@ -132,6 +132,11 @@ TEST(Diff, MismatchedWavelengthsNameBothGrids) {
   EXPECT_NE(text.find("400-700"), std::string::npos) << text;
   EXPECT_NE(text.find("420-720"), std::string::npos) << text;
   EXPECT_THROW(diff_grids(ward(), ward(), default_environment(kGrid), {.size = 2}), UsageError);
+  // Light from behind only: no white to measure colour against.
+  Environment back = uniform_environment(kGrid, Eigen::VectorXd::Zero(7));
+  back.sun_direction = {0, 0, -1};
+  back.sun_irradiance = Eigen::VectorXd::Ones(7);
+  EXPECT_NE(test::input_error_text([&] { diff_grids(ward(), ward(), back, {.size = 16}); }).find("no light"), std::string::npos);
 }
 
 }  // namespace
