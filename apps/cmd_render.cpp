@@ -1,5 +1,6 @@
 // specula render: a sphere under one directional light, from an RGB MERL .binary, a spectral grid file or a
-// store grid (STORE.h5:NAME, rendered through the CIE CMFs under --illuminant); sRGB PNG and linear EXR.
+// store grid (STORE.h5:NAME, rendered through the CIE CMFs under --illuminant); or, with --env, a spectral
+// rendering under an environment (an RGB .binary uplifted first); sRGB PNG and linear EXR.
 #include <fmt/format.h>
 
 #include <cmath>
@@ -45,12 +46,12 @@ void run_render(const RenderOptions& o) {
   if (png.extension() != ".png") throw UsageError("render: -o must name a .png file (the EXR is written beside it)");
   const std::filesystem::path exr = std::filesystem::path(png).replace_extension(".exr");
   if (!o.env.empty()) {
-    if (std::filesystem::path(o.input).extension() == ".binary")
-      throw UsageError("render: --env lights spectral grids; make one from " + o.input + " with `specula uplift` first");
-    const store::Grid grid = load_grid(o.input, "render");
+    const store::Grid grid = load_grid(o.input, "render", default_uplift_wavelengths());
     const codec::Environment env =
         o.env == "default" ? codec::default_environment(grid.wavelengths) : codec::read_environment(o.env, grid.wavelengths);
     const codec::SphereRenders r = codec::render_spheres({&grid}, env, o.size);
+    if (!(r.white.y() > 0))
+      throw InputError("render: " + env.description + " sends no light to a surface facing the viewer; nothing maps to white");
     // Linear sRGB with the environment's white (a white Lambertian facing the viewer) adapted to D65 and at 1.
     const Eigen::Matrix3d m = rendering_to_linear_srgb(r.white);
     std::vector<float> linear(3 * o.size * o.size, 0.0f);
@@ -65,8 +66,9 @@ void run_render(const RenderOptions& o) {
         srgb[3 * i + c] = r.covered[i] ? std::uint8_t(std::lround(255 * srgb_encode(gain * linear[3 * i + c]))) : 24;
     store::write_png_rgb8(png, o.size, o.size, srgb);
     store::write_exr_rgb(exr, o.size, o.size, linear);
-    fmt::print("rendered {} on a {}x{} sphere under {}: {} and {}\n", o.input, o.size, o.size, env.description,
-               png.string(), exr.string());
+    fmt::print("rendered {}{} on a {}x{} sphere under {}: {} and {}\n", o.input,
+               grid.provenance.importer == "uplift-clamp" ? " (uplifted to " + grid.wavelengths.describe() + ")" : "",
+               o.size, o.size, env.description, png.string(), exr.string());
     return;
   }
   const codec::MerlBrdf rgb = load_rgb(o);
@@ -99,7 +101,7 @@ void setup_render(CLI::App& app) {
   cmd->add_option("--illuminant", o->illuminant, "Light SPD for spectral grids: D65, D50, A, E, D<CCT>, blackbody:K or CSV")
       ->capture_default_str();
   cmd->add_option("--env", o->env,
-                  "Light a spectral grid by an environment instead: 'default' (built-in sky, ground, sun) or a lat-long EXR");
+                  "Light by a spectral environment instead: 'default' (built-in sky, ground, sun) or a lat-long EXR (spectral or RGB); a .binary is uplifted to 400-700 nm step 10");
   cmd->add_option("--exposure", o->exposure, "Stops of gain before sRGB encoding of the PNG")->capture_default_str();
   cmd->callback([o] { run_render(*o); });
 }

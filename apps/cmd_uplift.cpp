@@ -50,13 +50,15 @@ void uplift_environment(const UpliftOptions& o) {
   std::size_t constrained = 0;
 #pragma omp parallel reduction(+ : constrained)
   {
-    codec::UpliftCache cache;
     Eigen::VectorXd x(static_cast<Eigen::Index>(grid.size()));
-#pragma omp for schedule(dynamic, 64)
-    for (long long p = 0; p < static_cast<long long>(w * h); ++p) {
-      const Eigen::Vector3d c(rgb[3 * std::size_t(p)], rgb[3 * std::size_t(p) + 1], rgb[3 * std::size_t(p) + 2]);
-      constrained += o.nonnegative ? uplift.nonnegative(c, x, &cache) : uplift.clamped(c, x);
-      for (std::size_t k = 0; k < grid.size(); ++k) cube.data[std::size_t(p) * grid.size() + k] = float(x[Eigen::Index(k)]);
+#pragma omp for schedule(dynamic, 1)
+    for (long long y = 0; y < static_cast<long long>(h); ++y) {
+      codec::UpliftCache cache;  // one per row, so the output does not depend on the thread count
+      for (std::size_t p = std::size_t(y) * w; p < (std::size_t(y) + 1) * w; ++p) {
+        const Eigen::Vector3d c(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]);
+        constrained += o.nonnegative ? uplift.nonnegative(c, x, &cache) : uplift.clamped(c, x);
+        for (std::size_t k = 0; k < grid.size(); ++k) cube.data[p * grid.size() + k] = float(x[Eigen::Index(k)]);
+      }
     }
   }
   store::write_spectral_exr(o.output, cube);

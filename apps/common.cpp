@@ -8,6 +8,7 @@
 
 #include "codec/merl.h"
 #include "codec/spectral_grid.h"
+#include "codec/uplift.h"
 #include "core/cie.h"
 #include "core/error.h"
 
@@ -209,13 +210,24 @@ std::optional<std::pair<std::string, std::string>> store_spec(const std::string&
 }
 }  // namespace
 
-store::Grid load_grid(const std::string& spec, const std::string& command) {
+store::Grid load_grid(const std::string& spec, const std::string& command, const std::optional<WavelengthGrid>& uplift_onto) {
   if (const auto s = store_spec(spec, false)) return store::Store::open(s->first).read_grid(s->second);
   const std::filesystem::path in(spec);
   if (in.extension() == ".h5")
     throw UsageError(command + ": " + spec + " is a store; name the grid as " + spec + ":GRID (see `specula ls " + spec + "`)");
+  if (in.extension() == ".binary") {
+    if (!uplift_onto)
+      throw UsageError(command + ": " + spec + " is an RGB MERL file; make a spectral grid of it with `specula uplift` first");
+    const codec::Uplift uplift(codec::rgb_weights(*uplift_onto, illuminant("D65", *uplift_onto)), codec::kDefaultUpliftAlpha);
+    store::Grid g = codec::uplift_merl(codec::read_merl(in), *uplift_onto, uplift, codec::UpliftMethod::clamp);
+    g.provenance.source_file = spec;
+    g.provenance.importer = "uplift-clamp";
+    return g;
+  }
   return codec::read_grid_file(in);
 }
+
+WavelengthGrid default_uplift_wavelengths() { return WavelengthGrid::range(400, 700, 10); }
 
 std::string save_grid(const store::Grid& grid, const std::string& spec, bool replace, const std::string& command) {
   if (const auto s = store_spec(spec, true)) {

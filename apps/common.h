@@ -73,7 +73,12 @@ std::vector<store::Store> open_stores(const std::vector<std::string>& paths);
 std::string basis_output(const std::vector<std::string>& inputs, const std::string& output);
 
 /// A spectral BRDF grid named as STORE.h5:GRID or a grid exchange file (.spgrid); `command` prefixes usage errors.
-store::Grid load_grid(const std::string& spec, const std::string& command);
+/// With `uplift_onto`, an RGB MERL .binary is accepted too, uplifted onto those bands as `specula uplift` does by
+/// default (Appendix A under D65, default alpha, clamped); without, a .binary is a UsageError saying so.
+store::Grid load_grid(const std::string& spec, const std::string& command,
+                      const std::optional<WavelengthGrid>& uplift_onto = std::nullopt);
+/// The bands an RGB .binary is uplifted onto when nothing else decides them: 400-700 nm step 10, as `specula uplift`.
+WavelengthGrid default_uplift_wavelengths();
 /// Saves `grid` as STORE.h5:NAME (a transaction; --replace semantics from `replace`), a .spgrid file, or an RGB
 /// MERL .binary (through the CIE 1931 CMFs under D65); returns a description of what was written.
 std::string save_grid(const store::Grid& grid, const std::string& spec, bool replace, const std::string& command);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "core/brdf_geometry.h"
 #include "core/colour.h"
@@ -17,32 +18,68 @@ GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environmen
   if (a.brdf.size() != bands * cells || b.brdf.size() != bands * cells)
     throw UsageError("diff: grid values do not match bands x 90 x 90 x 180");
   GridDiff d;
+  // Fixed blocks of cells summed in order: the sums do not depend on the thread count. Within a block the
+  // bands run outermost so that each band plane is read sequentially.
+  constexpr std::size_t kBlock = 8100;
+  const std::size_t blocks = (cells + kBlock - 1) / kBlock;
+  std::vector<double> sq_b(blocks, 0), wsq_b(blocks, 0), wref_b(blocks, 0), mx_b(blocks, 0);
+  std::vector<std::uint64_t> both_b(blocks, 0), only_a_b(blocks, 0), only_b_b(blocks, 0);
+#pragma omp parallel
+  {
+    std::vector<std::uint8_t> va(kBlock), vb(kBlock);
+    std::vector<double> w(kBlock);
+#pragma omp for schedule(dynamic, 4)
+    for (long long blk = 0; blk < static_cast<long long>(blocks); ++blk) {
+      const std::size_t c0 = std::size_t(blk) * kBlock, n = std::min(kBlock, cells - c0);
+      std::fill(va.begin(), va.end(), 1);
+      std::fill(vb.begin(), vb.end(), 1);
+      for (std::size_t k = 0; k < bands; ++k) {
+        const float* pa = a.brdf.data() + k * cells + c0;
+        const float* pb = b.brdf.data() + k * cells + c0;
+        for (std::size_t i = 0; i < n; ++i) {
+          va[i] &= pa[i] >= 0;
+          vb[i] &= pb[i] >= 0;
+        }
+      }
+      for (std::size_t i = 0; i < n; ++i) {
+        if (va[i] != vb[i]) {
+          only_a_b[std::size_t(blk)] += va[i];
+          only_b_b[std::size_t(blk)] += vb[i];
+        }
+        va[i] &= vb[i];
+        both_b[std::size_t(blk)] += va[i];
+        const brdf::StdAngles ang = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(c0 + i)));
+        w[i] = std::max(0.0, std::cos(ang.theta_i)) * std::max(0.0, std::cos(ang.theta_o));
+      }
+      double sq = 0, wsq = 0, wref = 0, mx = 0;
+      for (std::size_t k = 0; k < bands; ++k) {
+        const float* pa = a.brdf.data() + k * cells + c0;
+        const float* pb = b.brdf.data() + k * cells + c0;
+        for (std::size_t i = 0; i < n; ++i) {
+          if (!va[i]) continue;
+          const double x = double(pa[i]) * a.scale, y = double(pb[i]) * b.scale, e = x - y;
+          sq += e * e;
+          wsq += w[i] * e * e;
+          wref += w[i] * x * x;
+          mx = std::max(mx, std::abs(e));
+        }
+      }
+      sq_b[std::size_t(blk)] = sq;
+      wsq_b[std::size_t(blk)] = wsq;
+      wref_b[std::size_t(blk)] = wref;
+      mx_b[std::size_t(blk)] = mx;
+    }
+  }
   double sq = 0, wsq = 0, wref = 0, mx = 0;
   std::uint64_t both = 0, only_a = 0, only_b = 0;
-#pragma omp parallel for schedule(static) reduction(+ : sq, wsq, wref, both, only_a, only_b) reduction(max : mx)
-  for (long long c = 0; c < static_cast<long long>(cells); ++c) {
-    bool va = true, vb = true;
-    for (std::size_t k = 0; k < bands; ++k) {
-      va &= a.brdf[k * cells + std::size_t(c)] >= 0;
-      vb &= b.brdf[k * cells + std::size_t(c)] >= 0;
-    }
-    if (va != vb) {
-      only_a += va;
-      only_b += vb;
-      continue;
-    }
-    if (!va) continue;
-    ++both;
-    const brdf::StdAngles ang = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(std::size_t(c))));
-    const double w = std::max(0.0, std::cos(ang.theta_i)) * std::max(0.0, std::cos(ang.theta_o));
-    for (std::size_t k = 0; k < bands; ++k) {
-      const double x = a.brdf[k * cells + std::size_t(c)] * a.scale, y = b.brdf[k * cells + std::size_t(c)] * b.scale;
-      const double e = x - y;
-      sq += e * e;
-      wsq += w * e * e;
-      wref += w * x * x;
-      mx = std::max(mx, std::abs(e));
-    }
+  for (std::size_t i = 0; i < blocks; ++i) {
+    sq += sq_b[i];
+    wsq += wsq_b[i];
+    wref += wref_b[i];
+    mx = std::max(mx, mx_b[i]);
+    both += both_b[i];
+    only_a += only_a_b[i];
+    only_b += only_b_b[i];
   }
   d.cells = both;
   d.only_a = only_a;
@@ -53,6 +90,9 @@ GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environmen
 
   d.renders = render_spheres({&a, &b}, env, o.size);
   const auto& r = d.renders;
+  if (!(r.white.y() > 0))
+    throw InputError("environment " + env.description +
+                     " sends no light to a surface facing the viewer, so there is no white for CIELAB; light the front");
   d.de00.assign(r.size * r.size, 0.0f);
   std::vector<float> values;
   for (std::size_t p = 0; p < r.size * r.size; ++p) {

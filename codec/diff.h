@@ -12,12 +12,17 @@ struct DiffOptions {
   std::size_t size = 128;  ///< sphere size in pixels for the rendered comparison
 };
 
-/// Differences over cells valid (every band >= 0) in both grids, values times their scale (1/sr):
+/// Differences over the cells valid (every band >= 0) in both grids, values times their scale (1/sr); cells
+/// valid in one grid only are counted (only_a, only_b) but enter no value metric:
 /// rms = sqrt(mean over cells and bands of (a - b)^2); max_abs = max |a - b|;
-/// rel_rms_cos = sqrt(sum w (a - b)^2 / sum w a^2) with w = cos(theta_i) cos(theta_o) at the cell centre
-/// (0 below the horizon), so grazing cells, which a rendering barely shows, weigh little;
-/// de00_*: CIEDE2000 per sphere pixel between a and b rendered under the same environment (render_spheres),
-/// both converted to CIELAB against the white of that rendering (a white Lambertian facing the viewer).
+/// rel_rms_cos = sqrt(sum w (a - b)^2 / sum w a^2) over cells and bands, w = max(0, cos theta_i) max(0, cos theta_o)
+/// at the cell centre (brdf::merl_cell_centre), so grazing cells, which a rendering barely shows, weigh little
+/// (0 if both sums are 0, infinity if only the reference's is);
+/// de00_*: a and b rendered on the same sphere under the same environment (render_spheres), each pixel's XYZ
+/// converted to CIELAB with the reference white of that rendering (a white Lambertian facing the viewer under
+/// the same light: L* = 100 there, the same for both images, so no separate exposure), CIEDE2000 per sphere
+/// pixel; de00_mean the mean, de00_p95 the value of rank ceil(0.95 n) among the n sorted pixel values, de00_max
+/// the largest.
 struct GridDiff {
   std::uint64_t cells = 0;           ///< valid in both
   std::uint64_t only_a = 0, only_b = 0;  ///< valid in one grid only (not in the value metrics)
@@ -27,7 +32,8 @@ struct GridDiff {
   std::vector<float> de00;           ///< per pixel (0 off the sphere)
 };
 
-/// Compares a (the reference) with b; InputError if their wavelength grids differ (naming both).
+/// Compares a (the reference) with b; InputError if their wavelength grids differ (naming both) or if env gives
+/// no white (no light on a surface facing the viewer).
 GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environment& env, const DiffOptions& options = {});
 
 }  // namespace specula::codec

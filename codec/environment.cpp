@@ -1,8 +1,12 @@
 #include "codec/environment.h"
 
+#include <omp.h>
+
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <sstream>
 
 #include "codec/spectral_grid.h"
 #include "codec/uplift.h"
@@ -10,52 +14,104 @@
 #include "core/cie.h"
 #include "core/colour.h"
 #include "core/error.h"
+#include "core/interrupt.h"
 #include "store/io/exr.h"
 
 namespace specula::codec {
 namespace {
 
 using std::numbers::pi;
-constexpr std::size_t kDirsW = 32, kDirsH = 16;  // the environment's directions used for shading
 
-Eigen::Vector3d lat_long_direction(double theta, double phi) {
-  return {std::sin(theta) * std::sin(phi), std::cos(theta), std::sin(theta) * std::cos(phi)};
-}
-
-// The environment averaged over kDirsH x kDirsW regions (weighted by solid angle): each region's centre
-// direction and its radiance times solid angle.
-struct Lights {
-  std::vector<Eigen::Vector3d> dir;
-  Eigen::MatrixXd power;  // bands x directions: L * d_omega
-};
-
-Lights downsample(const Environment& env) {
-  const std::size_t b = env.wavelengths.size();
-  Lights l;
-  l.power = Eigen::MatrixXd::Zero(Eigen::Index(b), Eigen::Index(kDirsW * kDirsH));
-  Eigen::VectorXd weight = Eigen::VectorXd::Zero(Eigen::Index(kDirsW * kDirsH));
-  for (std::size_t y = 0; y < env.height; ++y) {
-    const double theta = pi * (double(y) + 0.5) / double(env.height);
-    const double d_omega = std::sin(theta) * (pi / double(env.height)) * (2 * pi / double(env.width));
-    const std::size_t ry = y * kDirsH / env.height;
-    for (std::size_t x = 0; x < env.width; ++x) {
-      const std::size_t j = ry * kDirsW + x * kDirsW / env.width;
-      const float* px = env.radiance.data() + (y * env.width + x) * b;
-      for (std::size_t k = 0; k < b; ++k) l.power(Eigen::Index(k), Eigen::Index(j)) += d_omega * px[k];
-      weight[Eigen::Index(j)] += d_omega;
+// Exact solid angle and first moment (the integral of d over the pixel) of each row and column factor of a
+// lat-long map: pixel (x, y) has solid angle row.omega[y] * col.dphi[x] and moment
+// (row.s2[y] * col.dcos[x], row.dsin2[y] * col.dphi[x], row.s2[y] * col.dsin[x]).
+struct LatLongGeometry {
+  std::vector<double> omega, s2, dsin2;  // per row: cos t0 - cos t1, int sin^2, (sin^2 t1 - sin^2 t0) / 2
+  std::vector<double> dphi, dcos, dsin;  // per column: p1 - p0, cos p0 - cos p1, sin p1 - sin p0
+  LatLongGeometry(std::size_t width, std::size_t height) {
+    for (std::size_t y = 0; y < height; ++y) {
+      const double t0 = pi * double(y) / double(height), t1 = pi * double(y + 1) / double(height);
+      omega.push_back(std::cos(t0) - std::cos(t1));
+      s2.push_back((t1 - t0) / 2 - (std::sin(2 * t1) - std::sin(2 * t0)) / 4);
+      dsin2.push_back((std::sin(t1) * std::sin(t1) - std::sin(t0) * std::sin(t0)) / 2);
+    }
+    for (std::size_t x = 0; x < width; ++x) {
+      const double p0 = 2 * pi * double(x) / double(width), p1 = 2 * pi * double(x + 1) / double(width);
+      dphi.push_back(p1 - p0);
+      dcos.push_back(std::cos(p0) - std::cos(p1));
+      dsin.push_back(std::sin(p1) - std::sin(p0));
     }
   }
-  for (std::size_t ry = 0; ry < kDirsH; ++ry)
-    for (std::size_t rx = 0; rx < kDirsW; ++rx)
-      l.dir.push_back(lat_long_direction(pi * (double(ry) + 0.5) / kDirsH, 2 * pi * (double(rx) + 0.5) / kDirsW));
+  double solid_angle(std::size_t x, std::size_t y) const { return omega[y] * dphi[x]; }
+  Eigen::Vector3d moment(std::size_t x, std::size_t y) const {
+    return {s2[y] * dcos[x], dsin2[y] * dphi[x], s2[y] * dsin[x]};
+  }
+};
+
+// The environment as point lights: each region of the map (kEnvironmentRegionsW x kEnvironmentRegionsH, fewer
+// for a smaller map) becomes one light in the direction of its mean vector m (the solid-angle average of its
+// directions) with power the integral of L over it; a surface of normal n sees the region's mean cosine n . m
+// (exact when the region lies wholly above its horizon). The sun is one more light with |m| = 1.
+struct Lights {
+  std::size_t count = 0;
+  std::vector<Eigen::Vector3d> dir;  // unit
+  std::vector<double> length;        // |m|
+  std::vector<double> power;         // band-major: power[k * count + j]
+};
+
+Lights make_lights(const Environment& env) {
+  const std::size_t b = env.wavelengths.size();
+  const std::size_t rw = std::min(kEnvironmentRegionsW, env.width), rh = std::min(kEnvironmentRegionsH, env.height);
+  const LatLongGeometry geo(env.width, env.height);
+  std::vector<double> omega(rw * rh, 0.0);
+  std::vector<Eigen::Vector3d> moment(rw * rh, Eigen::Vector3d::Zero());
+  Eigen::MatrixXd power = Eigen::MatrixXd::Zero(Eigen::Index(b), Eigen::Index(rw * rh));
+  for (std::size_t y = 0; y < env.height; ++y)
+    for (std::size_t x = 0; x < env.width; ++x) {
+      const std::size_t j = (y * rh / env.height) * rw + x * rw / env.width;
+      const double d_omega = geo.solid_angle(x, y);
+      omega[j] += d_omega;
+      moment[j] += geo.moment(x, y);
+      const float* px = env.radiance.data() + (y * env.width + x) * b;
+      for (std::size_t k = 0; k < b; ++k) power(Eigen::Index(k), Eigen::Index(j)) += d_omega * double(px[k]);
+    }
+  std::vector<std::size_t> keep;
+  for (std::size_t j = 0; j < rw * rh; ++j)
+    if (power.col(Eigen::Index(j)).maxCoeff() > 0) keep.push_back(j);
+  const bool sun = env.sun_irradiance.size() == Eigen::Index(b) && env.sun_irradiance.maxCoeff() > 0;
+  Lights l;
+  l.count = keep.size() + (sun ? 1 : 0);
+  l.power.resize(b * l.count);
+  for (std::size_t i = 0; i < keep.size(); ++i) {
+    const Eigen::Vector3d m = moment[keep[i]] / omega[keep[i]];
+    l.dir.push_back(m.normalized());
+    l.length.push_back(m.norm());
+    for (std::size_t k = 0; k < b; ++k) l.power[k * l.count + i] = power(Eigen::Index(k), Eigen::Index(keep[i]));
+  }
+  if (sun) {
+    l.dir.push_back(env.sun_direction.normalized());
+    l.length.push_back(1.0);
+    for (std::size_t k = 0; k < b; ++k) l.power[k * l.count + keep.size()] = env.sun_irradiance[Eigen::Index(k)];
+  }
   return l;
 }
 
-void check_radiance(const std::vector<float>& v, const std::string& label) {
-  for (std::size_t i = 0; i < v.size(); ++i)
-    if (!(v[i] >= 0) || !std::isfinite(v[i]))
-      throw InputError(label + ": environment value " + std::to_string(i) + " is " + std::to_string(v[i]) +
-                       "; radiance must be finite and non-negative");
+std::string pixel_name(std::size_t index, std::size_t per_pixel, std::size_t width) {
+  const std::size_t p = index / per_pixel;
+  return "pixel (" + std::to_string(p % width) + ", " + std::to_string(p / width) + ")";
+}
+
+std::string num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+// The smallest factor dividing both sides that brings a map to at most 256 x 128 pixels (1 if none does).
+std::size_t reduction_factor(std::size_t w, std::size_t h) {
+  for (std::size_t f = std::max<std::size_t>({1, (w + 255) / 256, (h + 127) / 128}); f <= std::min(w, h); ++f)
+    if (w % f == 0 && h % f == 0) return f;
+  return 1;
 }
 
 }  // namespace
@@ -92,14 +148,40 @@ Environment default_environment(const WavelengthGrid& grid) {
   return e;
 }
 
+Environment uniform_environment(const WavelengthGrid& grid, const Eigen::VectorXd& radiance) {
+  if (radiance.size() != Eigen::Index(grid.size()))
+    throw UsageError("uniform_environment: " + std::to_string(radiance.size()) + " radiance values for " +
+                     std::to_string(grid.size()) + " bands");
+  if (!(radiance.minCoeff() >= 0) || !radiance.allFinite())
+    throw UsageError("uniform_environment: radiance must be finite and non-negative");
+  Environment e;
+  e.wavelengths = grid;
+  e.width = 2 * kEnvironmentRegionsW;
+  e.height = 2 * kEnvironmentRegionsH;
+  e.radiance.reserve(e.width * e.height * grid.size());
+  for (std::size_t p = 0; p < e.width * e.height; ++p)
+    for (Eigen::Index k = 0; k < radiance.size(); ++k) e.radiance.push_back(float(radiance[k]));
+  e.sun_irradiance.resize(0);
+  e.description = "uniform";
+  return e;
+}
+
 Environment read_environment(const std::filesystem::path& path, const WavelengthGrid& grid) {
   const std::string label = path.string();
   Environment e;
   e.wavelengths = grid;
+  e.sun_irradiance.resize(0);
   e.description = label;
   const std::size_t b = grid.size();
   if (store::exr_is_spectral(path)) {
     const store::Cube cube = store::read_spectral_exr(path);
+    if (cube.units == "reflectance")
+      throw InputError(label + ": holds reflectance (T.* channels); an environment is emission, S0.* channels");
+    for (std::size_t i = 0; i < cube.data.size(); ++i)
+      if (!(cube.data[i] >= 0) || !std::isfinite(cube.data[i]))
+        throw InputError(label + ": " + pixel_name(i, cube.bands, cube.width) + " at " +
+                         num(cube.wavelengths[i % cube.bands]) + " nm is " + num(cube.data[i]) +
+                         "; radiance must be finite and non-negative");
     const Eigen::MatrixXd r = resample_matrix(cube.wavelengths, grid, label);
     e.width = cube.width;
     e.height = cube.height;
@@ -108,41 +190,52 @@ Environment read_environment(const std::filesystem::path& path, const Wavelength
       const Eigen::Map<const Eigen::VectorXf> s(cube.data.data() + p * cube.bands, Eigen::Index(cube.bands));
       Eigen::Map<Eigen::VectorXf>(e.radiance.data() + p * b, Eigen::Index(b)) = (r * s.cast<double>()).cast<float>();
     }
-    check_radiance(e.radiance, label);
     return e;
   }
   std::size_t w = 0, h = 0;
-  const std::vector<float> rgb = store::read_exr_rgb(path, w, h);
-  check_radiance(rgb, label);
+  const std::vector<float> rgb = store::read_exr_rgb(path, w, h);  // refuses non-finite values
+  for (std::size_t i = 0; i < rgb.size(); ++i)
+    if (!(rgb[i] >= 0))
+      throw InputError(label + ": " + pixel_name(i, 3, w) + " has " + "RGB"[i % 3] + " = " + num(rgb[i]) +
+                       "; radiance must be non-negative");
   const Uplift up(rgb_weights(grid, Eigen::VectorXd::Ones(Eigen::Index(b))), kDefaultUpliftAlpha);
-  // Uplift the 32 x 16 averages, not every pixel: shading only sees those, and Appendix A is per colour.
-  e.width = kDirsW;
-  e.height = kDirsH;
-  std::vector<double> sum(3 * kDirsW * kDirsH, 0), weight(kDirsW * kDirsH, 0);
-  for (std::size_t y = 0; y < h; ++y) {
-    const double s = std::sin(pi * (double(y) + 0.5) / double(h));
-    for (std::size_t x = 0; x < w; ++x) {
-      const std::size_t j = (y * kDirsH / h) * kDirsW + x * kDirsW / w;
-      for (std::size_t c = 0; c < 3; ++c) sum[3 * j + c] += s * rgb[3 * (y * w + x) + c];
-      weight[j] += s;
+  // Every pixel uplifted, then box-filtered by f x f with exact solid-angle weights: the integral over each
+  // output pixel is the integral of the uplifted full-resolution map, at a fraction of its memory.
+  const std::size_t f = reduction_factor(w, h);
+  e.width = w / f;
+  e.height = h / f;
+  e.radiance.assign(e.width * e.height * b, 0.0f);
+  const LatLongGeometry geo(w, h);
+#pragma omp parallel
+  {
+    Eigen::VectorXd x(static_cast<Eigen::Index>(b)), sum(static_cast<Eigen::Index>(b));
+#pragma omp for schedule(dynamic, 1)
+    for (long long oy = 0; oy < static_cast<long long>(e.height); ++oy) {
+      if (interrupt_requested()) continue;
+      UpliftCache cache;  // one per output row, so the result does not depend on the thread count
+      for (std::size_t ox = 0; ox < e.width; ++ox) {
+        sum.setZero();
+        double omega = 0;
+        for (std::size_t y = std::size_t(oy) * f; y < (std::size_t(oy) + 1) * f; ++y)
+          for (std::size_t xx = ox * f; xx < (ox + 1) * f; ++xx) {
+            const float* c = rgb.data() + 3 * (y * w + xx);
+            up.nonnegative(Eigen::Vector3d(c[0], c[1], c[2]), x, &cache);
+            sum += geo.solid_angle(xx, y) * x;
+            omega += geo.solid_angle(xx, y);
+          }
+        for (std::size_t k = 0; k < b; ++k)
+          e.radiance[(std::size_t(oy) * e.width + ox) * b + k] = float(sum[Eigen::Index(k)] / omega);
+      }
     }
   }
-  e.radiance.resize(kDirsW * kDirsH * b);
-  Eigen::VectorXd x(static_cast<Eigen::Index>(b));
-  UpliftCache cache;
-  for (std::size_t j = 0; j < kDirsW * kDirsH; ++j) {
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    if (weight[j] > 0) c = Eigen::Vector3d(sum[3 * j], sum[3 * j + 1], sum[3 * j + 2]) / weight[j];
-    up.nonnegative(c, x, &cache);
-    for (std::size_t k = 0; k < b; ++k) e.radiance[j * b + k] = float(x[Eigen::Index(k)]);
-  }
+  check_interrupt();
   return e;
 }
 
 SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const Environment& env, std::size_t size) {
   if (size < 8 || size > 4096) throw UsageError("sphere size " + std::to_string(size) + ": give 8 to 4096 pixels");
   const std::size_t b = env.wavelengths.size();
-  if (env.radiance.size() != env.width * env.height * b || env.width == 0)
+  if (env.width == 0 || env.height == 0 || env.radiance.size() != env.width * env.height * b)
     throw UsageError("render: environment buffers do not match its size");
   for (const auto* g : grids) {
     if (!g->wavelengths.approx_equal(env.wavelengths))
@@ -150,59 +243,103 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
                        "; render on the grid's own wavelengths");
     if (g->brdf.size() != b * brdf::kMerlCells) throw UsageError("render: grid values do not match bands x 90 x 90 x 180");
   }
-  const Lights lights = downsample(env);
-  const bool sun = env.sun_irradiance.size() == Eigen::Index(b);
+  const Lights lights = make_lights(env);
+  const std::size_t nl = lights.count;
   const SpectrumToXyz to_xyz(env.wavelengths, SpectrumKind::radiance, Eigen::VectorXd::Ones(Eigen::Index(b)));
   const Eigen::Matrix<double, 3, Eigen::Dynamic>& w = to_xyz.weights();
   SphereRenders out;
   out.size = size;
   out.covered.assign(size * size, 0);
   out.xyz.assign(grids.size(), std::vector<float>(3 * size * size, 0.0f));
-  // White: a Lambertian surface of albedo 1 facing the viewer, f = 1 / pi.
+  // White: a Lambertian surface of albedo 1 (f = 1 / pi) facing the viewer, by the same quadrature.
   Eigen::VectorXd white_l = Eigen::VectorXd::Zero(Eigen::Index(b));
-  for (std::size_t j = 0; j < lights.dir.size(); ++j)
-    if (lights.dir[j].z() > 0) white_l += lights.power.col(Eigen::Index(j)) * lights.dir[j].z() / pi;
-  if (sun && env.sun_direction.z() > 0) white_l += env.sun_irradiance * env.sun_direction.z() / pi;
+  for (std::size_t j = 0; j < nl; ++j)
+    if (lights.dir[j].z() > 0)
+      for (std::size_t k = 0; k < b; ++k)
+        white_l[Eigen::Index(k)] += lights.power[k * nl + j] * lights.length[j] * lights.dir[j].z() / pi;
   out.white = w * white_l;
-#pragma omp parallel
-  {
-    Eigen::MatrixXd l(static_cast<Eigen::Index>(b), static_cast<Eigen::Index>(grids.size()));
-#pragma omp for schedule(dynamic, 4)
-    for (long long py = 0; py < static_cast<long long>(size); ++py) {
+  // Blocks of image rows: every (pixel, light) pair's cell, sorted by cell (counting sort on buckets of 256
+  // cells, stable), so that each band plane of a grid is swept once per block in increasing address order.
+  // Each pixel's sum runs in that fixed order, so the result does not depend on the thread count.
+  struct Pair {
+    std::uint32_t cell, pixel;  // pixel within the block
+    std::uint32_t light;
+    float weight;  // the light's mean cosine
+  };
+  constexpr std::size_t kBucketShift = 8, kBuckets = (brdf::kMerlCells >> kBucketShift) + 1, kChunk = 4096;
+  const std::size_t rows_per_block = std::clamp<std::size_t>((std::size_t(1) << 21) / (size * (nl / 2 + 1)), 1, size);
+  std::vector<std::vector<Pair>> row_pairs(rows_per_block);
+  std::vector<Pair> sorted;
+  std::vector<std::uint32_t> start(kBuckets + 1);
+  std::vector<double> acc;
+  for (std::size_t row0 = 0; row0 < size; row0 += rows_per_block) {
+    check_interrupt();
+    const std::size_t rows = std::min(rows_per_block, size - row0), pixels = rows * size;
+#pragma omp parallel for schedule(dynamic, 1)
+    for (long long r = 0; r < static_cast<long long>(rows); ++r) {
+      std::vector<Pair>& pairs = row_pairs[std::size_t(r)];
+      pairs.clear();
+      const std::size_t py = row0 + std::size_t(r);
       for (std::size_t px = 0; px < size; ++px) {
         const double x = 2 * (double(px) + 0.5) / double(size) - 1, y = 1 - 2 * (double(py) + 0.5) / double(size);
         if (x * x + y * y >= 1) continue;
+        out.covered[py * size + px] = 1;
         const Eigen::Vector3d n(x, y, std::sqrt(1 - x * x - y * y));
         // Any tangent frame will do: the grids are isotropic.
-        const Eigen::Vector3d t = (std::abs(n.y()) < 0.9 ? Eigen::Vector3d::UnitY().cross(n) : Eigen::Vector3d::UnitX().cross(n)).normalized();
+        const Eigen::Vector3d t =
+            (std::abs(n.y()) < 0.9 ? Eigen::Vector3d::UnitY().cross(n) : Eigen::Vector3d::UnitX().cross(n)).normalized();
         const Eigen::Vector3d s = n.cross(t);
-        auto local = [&](const Eigen::Vector3d& d) { return Eigen::Vector3d(d.dot(t), d.dot(s), d.dot(n)); };
-        const Eigen::Vector3d wo = local(Eigen::Vector3d::UnitZ());
-        l.setZero();
-        auto add = [&](const Eigen::Vector3d& world, const double* power, std::ptrdiff_t stride) {
-          const Eigen::Vector3d wi = local(world);
-          if (wi.z() <= 0 || wo.z() <= 0) return;
+        const Eigen::Vector3d wo(t.z(), s.z(), n.z());
+        for (std::size_t j = 0; j < nl; ++j) {
+          const Eigen::Vector3d& d = lights.dir[j];
+          const double c = n.dot(d);
+          if (c <= 0) continue;
+          const Eigen::Vector3d wi(t.dot(d), s.dot(d), c);
           const std::size_t cell = brdf::merl_index(brdf::merl_cell(brdf::half_diff(wi, wo)));
-          for (std::size_t g = 0; g < grids.size(); ++g) {
-            const store::Grid& grid = *grids[g];
-            for (std::size_t k = 0; k < b; ++k) {
-              const float f = grid.brdf[k * brdf::kMerlCells + cell];
-              if (f > 0) l(Eigen::Index(k), Eigen::Index(g)) += double(f) * grid.scale * power[std::ptrdiff_t(k) * stride] * wi.z();
-            }
-          }
-        };
-        for (std::size_t j = 0; j < lights.dir.size(); ++j)
-          add(lights.dir[j], lights.power.data() + j * b, 1);
-        if (sun) add(env.sun_direction, env.sun_irradiance.data(), 1);
-        const std::size_t p = std::size_t(py) * size + px;
-        out.covered[p] = 1;
-        for (std::size_t g = 0; g < grids.size(); ++g) {
-          const Eigen::Vector3d xyz = w * l.col(Eigen::Index(g));
-          for (std::size_t c = 0; c < 3; ++c) out.xyz[g][3 * p + c] = float(xyz[Eigen::Index(c)]);
+          pairs.push_back({std::uint32_t(cell), std::uint32_t(std::size_t(r) * size + px), std::uint32_t(j),
+                           float(c * lights.length[j])});
         }
       }
     }
+    std::fill(start.begin(), start.end(), 0u);
+    std::size_t total = 0;
+    for (std::size_t r = 0; r < rows; ++r) {
+      total += row_pairs[r].size();
+      for (const Pair& p : row_pairs[r]) ++start[(p.cell >> kBucketShift) + 1];
+    }
+    for (std::size_t i = 1; i <= kBuckets; ++i) start[i] += start[i - 1];
+    sorted.resize(total);
+    for (std::size_t r = 0; r < rows; ++r)
+      for (const Pair& p : row_pairs[r]) sorted[start[p.cell >> kBucketShift]++] = p;
+    acc.assign(grids.size() * b * pixels, 0.0);
+    // Each thread owns a fixed share of the (grid, band) planes and walks the pairs in cache-sized chunks,
+    // every chunk through all its planes, so the pairs come from memory once per thread, not once per plane.
+    const std::size_t tasks = grids.size() * b;
+#pragma omp parallel
+    {
+      const auto threads = std::size_t(omp_get_num_threads()), me = std::size_t(omp_get_thread_num());
+      for (std::size_t c0 = 0; c0 < sorted.size(); c0 += kChunk) {
+        const Pair* first = sorted.data() + c0;
+        const Pair* last = sorted.data() + std::min(sorted.size(), c0 + kChunk);
+        for (std::size_t gk = me; gk < tasks; gk += threads) {
+          const float* plane = grids[gk / b]->brdf.data() + (gk % b) * brdf::kMerlCells;
+          const double* power = lights.power.data() + (gk % b) * nl;
+          double* a = acc.data() + gk * pixels;
+          for (const Pair* p = first; p != last; ++p)
+            a[p->pixel] += double(std::max(plane[p->cell], 0.0f)) * power[p->light] * double(p->weight);
+        }
+      }
+    }
+    for (std::size_t g = 0; g < grids.size(); ++g)
+      for (std::size_t i = 0; i < pixels; ++i) {
+        const std::size_t pix = row0 * size + i;
+        if (!out.covered[pix]) continue;
+        Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
+        for (std::size_t k = 0; k < b; ++k) xyz += w.col(Eigen::Index(k)) * acc[(g * b + k) * pixels + i];
+        for (std::size_t c = 0; c < 3; ++c) out.xyz[g][3 * pix + c] = float(grids[g]->scale * xyz[Eigen::Index(c)]);
+      }
   }
+  check_interrupt();
   return out;
 }
 

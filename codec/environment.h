@@ -1,11 +1,13 @@
 #pragma once
 // Spectral lighting for judging BRDFs by eye: a latitude-longitude environment plus an optional sun, and a
 // sphere rendered under it from a spectral grid. World frame as codec/render.h: the viewer looks along -z,
-// image x to the right, y up. Lat-long row 0 looks up (+y); the polar angle theta runs from +y, the azimuth
-// phi around +y from +z towards +x: d = (sin theta sin phi, cos theta, sin theta cos phi).
+// image x to the right, y up. Pixel (x, y) of a W x H lat-long map covers the polar angle theta in
+// [y, y + 1] pi / H, measured from +y (row 0 looks up), and the azimuth phi in [x, x + 1] 2 pi / W, measured
+// around +y from +z (towards the viewer) through +x: d = (sin theta sin phi, cos theta, sin theta cos phi).
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "core/wavelengths.h"
@@ -16,18 +18,26 @@ namespace specula::codec {
 struct Environment {
   WavelengthGrid wavelengths;
   std::size_t width = 0, height = 0;
-  std::vector<float> radiance;         ///< height x width x bands, relative spectral radiance
+  std::vector<float> radiance;         ///< height x width x bands, spectral radiance (relative units)
   Eigen::Vector3d sun_direction{0, 1, 0};
   Eigen::VectorXd sun_irradiance;      ///< bands values at normal incidence; empty: no sun
   std::string description;
 };
 
+/// The renderer's direction set: an environment is integrated over at most this many regions (fewer for a
+/// smaller map), each a block of whole map pixels.
+inline constexpr std::size_t kEnvironmentRegionsW = 64, kEnvironmentRegionsH = 32;
+
 /// The built-in environment on `grid`: a CIE daylight sky of 12000 K brightening towards the zenith, a green-brown
 /// ground lit by daylight, and a 5500 K daylight sun at (-0.45, 0.6, 0.66) carrying most of the irradiance.
 Environment default_environment(const WavelengthGrid& grid);
-/// A lat-long OpenEXR: spectral (Fichet et al. 2021 channels, interpolated onto `grid`) or RGB (linear sRGB
-/// primaries, each pixel uplifted by Appendix A's non-negative least squares as emission with an equal-energy
-/// white); negative or non-finite pixels are an InputError naming the file.
+/// Radiance `radiance` (one value per band of `grid`, finite, >= 0, else UsageError) from every direction, no sun.
+Environment uniform_environment(const WavelengthGrid& grid, const Eigen::VectorXd& radiance);
+/// A lat-long OpenEXR: spectral (Fichet et al. 2021 emissive S0.* channels, interpolated onto `grid`; the map
+/// kept as is) or RGB (linear sRGB primaries; every pixel uplifted by Appendix A's non-negative least squares
+/// as emission with an equal-energy white, then box-filtered with exact solid-angle weights by the smallest
+/// factor dividing both sides that leaves at most 256 x 128 pixels). InputError naming the file for negative or
+/// non-finite values, reflectance (T.*) channels, or wavelengths not covering `grid`.
 Environment read_environment(const std::filesystem::path& path, const WavelengthGrid& grid);
 
 /// Spheres rendered under one environment: per grid, per pixel XYZ (3 floats, rows top to bottom), which pixels
@@ -39,9 +49,13 @@ struct SphereRenders {
   Eigen::Vector3d white = Eigen::Vector3d::Zero();
 };
 
-/// Renders each grid on a size x size sphere under `env`: L = sum over the environment (averaged to 32 x 16
-/// directions) of f L_env cos(theta_i) d_omega, plus f E_sun cos(theta_sun); f looked up from the grid's cell as
-/// MERL's BRDFRead.cpp does (no data counts as 0), value * scale. Grids must share env's wavelengths (InputError).
+/// Renders each grid on a size x size sphere (8 to 4096, else UsageError) under `env`, one sample at each pixel
+/// centre (normal n, viewer +z): L = sum over regions j of f(d_j, wo) P_j (n . m_j) + f(sun, wo) E_sun (n . sun),
+/// over lights with n . d > 0, where region j (see kEnvironmentRegionsW) has power P_j = integral of L_env
+/// d_omega, mean vector m_j = (integral of d d_omega) / (its solid angle), direction d_j = m_j / |m_j|; f looked
+/// up in the grid's cell as MERL's BRDFRead.cpp does (no data counts as 0), value * scale; XYZ by the CIE 1931
+/// 2 degree CMFs. Deterministic and independent of the thread count. Grids must share env's wavelengths
+/// (InputError).
 SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const Environment& env, std::size_t size);
 
 }  // namespace specula::codec

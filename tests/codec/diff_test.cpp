@@ -1,6 +1,7 @@
 #include "codec/diff.h"
 
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <cmath>
 #include <numbers>
@@ -10,7 +11,6 @@
 #include "core/brdf_models.h"
 #include "core/colour.h"
 #include "core/error.h"
-#include "store/io/exr.h"
 #include "test_support.h"
 
 namespace specula::codec {
@@ -31,16 +31,6 @@ const store::Grid& ward() {
   static const store::Grid g = grid_of(brdf::Ward(kGrid, Eigen::VectorXd::LinSpaced(7, 0.05, 0.4),
                                                   Eigen::VectorXd::Constant(7, 0.1), Eigen::VectorXd::Constant(7, 0.1)));
   return g;
-}
-
-Environment uniform(const Eigen::VectorXd& l) {
-  Environment e;
-  e.wavelengths = kGrid;
-  e.width = 64;
-  e.height = 32;
-  for (std::size_t p = 0; p < e.width * e.height; ++p)
-    for (Eigen::Index k = 0; k < l.size(); ++k) e.radiance.push_back(float(l[k]));
-  return e;
 }
 
 TEST(Diff, IdenticalGridsDifferByNothing) {
@@ -79,70 +69,74 @@ TEST(Diff, AScaledGridHasTheScaleAsItsRelativeErrorAndClosedFormRms) {
   EXPECT_LT(d.de00_mean, 1);
 }
 
-// A Lambertian surface under uniform radiance L reflects rho * L wherever it faces: the integral of
-// cos(theta) over the hemisphere is pi. The 32 x 16 direction quadrature (regions of 11.25 degrees whose
-// horizon cuts are counted whole or not at all) keeps that integral within a few per cent.
-TEST(Environment, ALambertianSphereUnderUniformLightShowsRhoTimesL) {
-  const Eigen::VectorXd rho = Eigen::VectorXd::LinSpaced(7, 0.2, 0.8), l = Eigen::VectorXd::LinSpaced(7, 1.0, 2.0);
-  const store::Grid g = grid_of(brdf::Lambertian(kGrid, rho));
-  const SphereRenders r = render_spheres({&g}, uniform(l), 64);
-  const SpectrumToXyz to_xyz(kGrid, SpectrumKind::radiance, Eigen::VectorXd::Ones(7));
-  const Eigen::Vector3d expect = to_xyz.weights() * rho.cwiseProduct(l);
-  std::size_t checked = 0;
-  for (std::size_t p = 0; p < 64 * 64; ++p) {
-    if (!r.covered[p]) continue;
-    const double y = (p / 64 + 0.5) / 32 - 1, x = (p % 64 + 0.5) / 32 - 1;
-    if (x * x + y * y > 0.9) continue;  // the rim's cells are half below the horizon
-    for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.xyz[0][3 * p + std::size_t(c)], expect[c], 0.04 * expect[c]) << p;
-    ++checked;
+// Cells valid in one grid only are counted and left out of every value metric.
+TEST(Diff, CellsValidInOneGridOnlyAreCountedNotCompared) {
+  store::Grid b = ward();
+  std::uint64_t cut = 0;
+  for (std::size_t c = 0; c < N; c += 997) {
+    if (b.brdf[c] < 0) continue;
+    ++cut;
+    b.brdf[c] = -1.0f;  // one band without data makes the whole cell invalid
+    b.brdf[3 * N + c] = 1e6f;  // and what the other bands hold no longer matters
   }
-  EXPECT_GT(checked, 2500u);
-  // The white is a Lambertian of albedo 1 facing the viewer: the same quadrature, rho = 1.
-  const Eigen::Vector3d white = to_xyz.weights() * l;
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.white[c], white[c], 0.04 * white[c]);
+  const GridDiff d = diff_grids(ward(), b, uniform_environment(kGrid, Eigen::VectorXd::Ones(7)), {.size = 16});
+  EXPECT_EQ(d.only_a, cut);
+  EXPECT_EQ(d.only_b, 0u);
+  EXPECT_EQ(d.rms, 0);
+  EXPECT_EQ(d.max_abs, 0);
+  EXPECT_EQ(d.rel_rms_cos, 0);
+  const GridDiff r = diff_grids(b, ward(), uniform_environment(kGrid, Eigen::VectorXd::Ones(7)), {.size = 16});
+  EXPECT_EQ(r.only_b, cut);
+  EXPECT_EQ(r.cells, d.cells);
 }
 
-TEST(Environment, AnRgbExrIsUpliftedToSpectraThatGiveItsRgbBack) {
-  test::ScratchDir dir;
-  const auto path = dir / "env.exr";
-  std::vector<float> rgb;
-  for (std::size_t p = 0; p < 64 * 32; ++p)
-    for (const float v : {0.3f + 0.001f * float(p % 64), 0.5f, 0.2f}) rgb.push_back(v);
-  store::write_exr_rgb(path, 64, 32, rgb);
-  std::size_t w = 0, h = 0;
-  const std::vector<float> stored = store::read_exr_rgb(path, w, h);  // half floats as written
-  const Environment e = read_environment(path, WavelengthGrid::range(420, 720, 10));
-  ASSERT_EQ(e.width, 32u);
-  ASSERT_EQ(e.height, 16u);
-  const auto weights = rgb_weights(e.wavelengths, Eigen::VectorXd::Ones(31));
-  // Region (0, 0) averages pixels 0-1 of rows 0-1: their RGB, weighted by sin(theta) of each row.
-  Eigen::Vector3d expect = Eigen::Vector3d::Zero();
-  double wsum = 0;
-  for (std::size_t y = 0; y < 2; ++y) {
-    const double s = std::sin(std::numbers::pi * (double(y) + 0.5) / 32);
-    for (std::size_t x = 0; x < 2; ++x) {
-      for (int c = 0; c < 3; ++c) expect[c] += s * stored[3 * (y * 64 + x) + std::size_t(c)];
-      wsum += s;
-    }
-  }
-  expect /= wsum;
-  const Eigen::Map<const Eigen::VectorXf> spectrum(e.radiance.data(), 31);
-  EXPECT_LT((weights * spectrum.cast<double>() - expect).cwiseAbs().maxCoeff(), 1e-6);
-  EXPECT_GE(spectrum.minCoeff(), 0.0f);
+// Two grey Lambertians under uniform light: the viewer-facing pixel of an odd-sized sphere is exact (see
+// environment_test.cpp), so its CIELAB is L* = 116 (rho)^(1/3) - 16, a* = b* = 0 against the white, and its
+// CIEDE2000 is that of the two greys.
+TEST(Diff, TwoGreysDifferAsTheirLightnessesPredict) {
+  const store::Grid a = grid_of(brdf::Lambertian(kGrid, Eigen::VectorXd::Constant(7, 0.5)));
+  const store::Grid b = grid_of(brdf::Lambertian(kGrid, Eigen::VectorXd::Constant(7, 0.4)));
+  const GridDiff d = diff_grids(a, b, uniform_environment(kGrid, Eigen::VectorXd::LinSpaced(7, 1, 3)), {.size = 33});
+  const double la = 116 * std::cbrt(0.5) - 16, lb = 116 * std::cbrt(0.4) - 16;
+  const double expect = ciede2000(Eigen::Vector3d(la, 0, 0), Eigen::Vector3d(lb, 0, 0));
+  EXPECT_NEAR(d.de00[33 * 33 / 2], expect, 2e-3);
+  EXPECT_GT(expect, 4);
+  EXPECT_LE(d.de00_mean, d.de00_p95);
+  EXPECT_LE(d.de00_p95, d.de00_max);
+  // rel_rms_cos of a constant ratio is that ratio's distance from 1; rms and max are the albedo step / pi.
+  EXPECT_NEAR(d.rel_rms_cos, 0.2, 1e-6);
+  EXPECT_NEAR(d.max_abs, 0.1 / std::numbers::pi, 1e-7);
+  EXPECT_NEAR(d.rms, 0.1 / std::numbers::pi, 1e-7);
 }
 
-TEST(Environment, BadEnvironmentsAndMismatchedGridsAreRefused) {
-  test::ScratchDir dir;
-  const auto path = dir / "neg.exr";
-  std::vector<float> rgb(3 * 8 * 4, 0.5f);
-  rgb[5] = -1;
-  store::write_exr_rgb(path, 8, 4, rgb);
-  EXPECT_NE(test::input_error_text([&] { read_environment(path, kGrid); }).find("neg.exr"), std::string::npos);
-  EXPECT_THROW(read_environment(dir / "missing.exr", kGrid), InputError);
+TEST(Diff, ResultsDoNotDependOnTheThreadCount) {
+  store::Grid b = ward();
+  for (std::size_t i = 0; i < b.brdf.size(); i += 7)
+    if (b.brdf[i] >= 0) b.brdf[i] *= 1.003f;
+  const Environment env = default_environment(kGrid);
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const GridDiff one = diff_grids(ward(), b, env, {.size = 24});
+  omp_set_num_threads(3);
+  const GridDiff three = diff_grids(ward(), b, env, {.size = 24});
+  omp_set_num_threads(threads);
+  EXPECT_EQ(one.rms, three.rms);
+  EXPECT_EQ(one.rel_rms_cos, three.rel_rms_cos);
+  EXPECT_EQ(one.max_abs, three.max_abs);
+  EXPECT_EQ(one.de00, three.de00);
+}
+
+TEST(Diff, MismatchedWavelengthsNameBothGrids) {
   const store::Grid g = grid_of(brdf::Lambertian(WavelengthGrid::range(400, 700, 50), Eigen::VectorXd::Constant(7, 0.5)));
-  EXPECT_THROW(render_spheres({&g}, default_environment(kGrid), 32), InputError);
-  EXPECT_THROW(diff_grids(g, ward(), default_environment(kGrid)), InputError);
-  EXPECT_THROW(render_spheres({&ward()}, default_environment(kGrid), 4), UsageError);
+  const std::string text = test::input_error_text([&] { diff_grids(g, ward(), default_environment(kGrid)); });
+  EXPECT_NE(text.find("400-700"), std::string::npos) << text;
+  EXPECT_NE(text.find("420-720"), std::string::npos) << text;
+  EXPECT_THROW(diff_grids(ward(), ward(), default_environment(kGrid), {.size = 2}), UsageError);
+  // Light from behind only: no white to measure colour against.
+  Environment back = uniform_environment(kGrid, Eigen::VectorXd::Zero(7));
+  back.sun_direction = {0, 0, -1};
+  back.sun_irradiance = Eigen::VectorXd::Ones(7);
+  EXPECT_NE(test::input_error_text([&] { diff_grids(ward(), ward(), back, {.size = 16}); }).find("no light"), std::string::npos);
 }
 
 }  // namespace

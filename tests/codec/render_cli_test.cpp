@@ -1,8 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "codec/merl.h"
 #include "codec/spectral_grid.h"
 #include "core/brdf_models.h"
+#include "store/io/exr.h"
 #include "store/io/png_stack.h"
 #include "test_support.h"
 
@@ -54,6 +57,47 @@ TEST(RenderCli, GridFileStoreGridAndBinaryAgree) {
   EXPECT_EQ(bare.status, 1);
   EXPECT_NE(bare.output.find("s.h5:GRID"), std::string::npos) << bare.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
+}
+
+// Under an environment: a grey Lambertian in a uniform white RGB map (uplifted to a flat spectrum) shows its
+// albedo in the linear EXR, since the rendering's white (a white Lambertian facing the viewer) maps to 1; the
+// viewer-facing pixel of an odd-sized sphere is exact (see environment_test.cpp), the rest within the
+// quadrature's 3.8 %. An RGB .binary is uplifted first; a bad map is one line and writes nothing.
+TEST(RenderCli, UnderAnEnvironmentAGreyShowsItsAlbedo) {
+  test::ScratchDir dir;
+  const WavelengthGrid grid = WavelengthGrid::range(400, 700, 10);
+  store::Grid g;
+  g.wavelengths = grid;
+  g.brdf.resize(31 * brdf::kMerlCells);
+  brdf::evaluate_grid(brdf::Lambertian(grid, Eigen::VectorXd::Constant(31, 0.5)), g.brdf);
+  write_grid_file(dir / "grey.spgrid", g);
+  write_merl(dir / "grey.binary", grid_to_merl(g, rgb_weights(grid, illuminant("D65", grid))).brdf);
+  store::write_exr_rgb(dir / "white.exr", 16, 8, std::vector<float>(3 * 16 * 8, 1.0f));
+  for (const char* input : {"grey.spgrid", "grey.binary"}) {
+    const auto r = test::run_specula("render '" + (dir / input).string() + "' --env '" + (dir / "white.exr").string() +
+                                     "' --size 33 -o '" + (dir / "g.png").string() + "'");
+    ASSERT_EQ(r.status, 0) << r.output;
+    std::size_t w = 0, h = 0;
+    const std::vector<float> linear = store::read_exr_rgb(dir / "g.exr", w, h);
+    ASSERT_EQ(w, 33u);
+    const std::size_t centre = 3 * (16 * 33 + 16);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(linear[centre + std::size_t(c)], 0.5, 2e-3) << input;  // half floats
+    for (std::size_t p = 0; p < 33 * 33; ++p) {
+      const double x = (double(p % 33) + 0.5) / 16.5 - 1, y = (double(p / 33) + 0.5) / 16.5 - 1;
+      if (x * x + y * y >= 0.9) continue;
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(linear[3 * p + std::size_t(c)], 0.5, 0.5 * 0.039) << input << " " << p;
+    }
+  }
+  std::vector<float> bad(3 * 16 * 8, 1.0f);
+  bad[40] = -2;
+  store::write_exr_rgb(dir / "bad.exr", 16, 8, bad);
+  const auto r = test::run_specula("render '" + (dir / "grey.spgrid").string() + "' --env '" + (dir / "bad.exr").string() +
+                                   "' -o '" + (dir / "x.png").string() + "'");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  EXPECT_NE(r.output.find("bad.exr: pixel (13, 0)"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.exr"));
 }
 
 }  // namespace
