@@ -334,6 +334,7 @@ SamplesInfo Store::samples_info(const std::string& name) const {
   info.wavelengths = read_wavelengths(g, ctx);
   if (info.wavelengths.size() != info.bands) throw InputError(ctx + ": values and wavelengths disagree on band count");
   info.units = h5::has_attr(g, "units") ? h5::read_string_attr(g, "units", ctx) : "unknown";
+  info.chunk_rows = chunk_rows_of(values, ctx);
   info.provenance = read_provenance(g, ctx);
   return info;
 }
@@ -464,15 +465,15 @@ void Store::read_samples(const std::string& name, std::size_t first, std::size_t
                          std::span<float> values) const {
   const SamplesInfo info = samples_info(name);
   const std::string ctx = label() + ": /samples/" + name;
-  if (first + count > info.size || angles.size() != count * 4 || values.size() != count * info.bands)
+  const bool want_angles = !angles.empty(), want_values = !values.empty();
+  if (first > info.size || count > info.size - first || (want_angles && angles.size() != count * 4) ||
+      (want_values && values.size() != count * info.bands))
     throw UsageError(ctx + ": read_samples range or buffer sizes are wrong");
   if (count == 0) return;
   h5::Id g = open_group(file(), "/samples/" + name, ctx);
-  h5::Id a = open_dataset(g, "angles", ctx);
-  h5::Id v = open_dataset(g, "values", ctx);
   const hsize_t s2[2] = {first, 0}, ca[2] = {count, 4}, cv[2] = {count, info.bands};
-  read_hyperslab(a, H5T_NATIVE_DOUBLE, s2, ca, angles.data(), ctx);
-  read_hyperslab(v, H5T_NATIVE_FLOAT, s2, cv, values.data(), ctx);
+  if (want_angles) read_hyperslab(open_dataset(g, "angles", ctx), H5T_NATIVE_DOUBLE, s2, ca, angles.data(), ctx);
+  if (want_values) read_hyperslab(open_dataset(g, "values", ctx), H5T_NATIVE_FLOAT, s2, cv, values.data(), ctx);
 }
 
 // ---------------------------------------------------------------- StoreWriter
