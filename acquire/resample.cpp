@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <exception>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -12,15 +13,18 @@
 #include "core/error.h"
 #include "core/interrupt.h"
 #include "core/progress.h"
+#include "store/block_reader.h"
 #include "store/store.h"
 
 namespace specula::acquire {
 namespace {
 
-// Mapped points, three floats each; after the tree is built they are stored in the tree's leaf order.
+// Mapped points, three floats each, for nanoflann: while a slab's tree is built it sees only that slab;
+// afterwards every tree reads the whole array by position.
 struct Cloud {
-  std::vector<float> xyz;
-  std::size_t kdtree_get_point_count() const { return xyz.size() / 3; }
+  const float* xyz = nullptr;
+  std::size_t count = 0;
+  std::size_t kdtree_get_point_count() const { return count; }
   float kdtree_get_pt(std::uint32_t i, std::size_t d) const { return xyz[3 * std::size_t(i) + d]; }
   template <class Box>
   bool kdtree_get_bbox(Box&) const {
@@ -30,6 +34,12 @@ struct Cloud {
 
 using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud, float, std::uint32_t>, Cloud,
                                                    3, std::uint32_t>;
+using KnnResult = nanoflann::KNNResultSet<float, std::uint32_t>;
+
+// The points are cut into slabs along one axis and every slab gets its own tree, so that the trees are built on
+// all threads. The number of slabs depends on the number of points only: the same trees, neighbours and ties
+// for any thread count.
+std::size_t slab_count(std::size_t n) { return std::clamp<std::size_t>(n >> 20, 1, 8); }
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -193,8 +203,11 @@ StoreSamples::StoreSamples(const store::Store& store, std::string name)
   const store::SamplesInfo info = store_->samples_info(name_);
   size_ = info.size;
   bands_ = info.bands;
-  const std::size_t chunk = std::max<std::size_t>(1, info.chunk_rows);
-  block_rows_ = std::max<std::size_t>(1, (std::size_t(32) << 20) / (4 * bands_ * chunk)) * chunk;
+  // One reader block per storage chunk (a contiguous dataset is read through HDF5 in blocks of 2^16 rows).
+  reader_rows_ = info.chunk_rows ? info.chunk_rows : std::size_t(1) << 16;
+  if (info.chunk_rows)
+    reader_ = std::make_unique<store::BlockReader>(*store_, store::Selection{.samples = name_}, info.chunk_rows);
+  block_rows_ = std::max<std::size_t>(1, (std::size_t(32) << 20) / (4 * bands_ * reader_rows_)) * reader_rows_;
 }
 
 StoreSamples::~StoreSamples() = default;
@@ -204,15 +217,42 @@ void StoreSamples::read_angles(std::size_t first, std::size_t count, std::span<d
 }
 
 void StoreSamples::read_values(std::size_t first, std::size_t count, std::span<float> out) const {
-  store_->read_samples(name_, first, count, {}, out);
+  if (first > size_ || count > size_ - first || out.size() != count * bands_)
+    throw UsageError("StoreSamples::read_values: bad range");
+  if (!reader_ || first % reader_rows_ != 0 || (count % reader_rows_ != 0 && first + count != size_)) {
+    store_->read_samples(name_, first, count, {}, out);
+    return;
+  }
+  // Whole reader blocks: decoded on every thread at once.
+  const std::size_t b0 = first / reader_rows_, nb = (count + reader_rows_ - 1) / reader_rows_;
+  std::exception_ptr error;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long long i = 0; i < static_cast<long long>(nb); ++i) {
+    try {
+      thread_local store::BlockReader::RawBlock raw;
+      reader_->read_raw(b0 + std::size_t(i), raw);
+      std::copy(raw.values.begin(), raw.values.end(), out.begin() + std::ptrdiff_t(std::size_t(i) * reader_rows_ * bands_));
+    } catch (...) {
+#pragma omp critical(specula_store_samples_error)
+      if (!error) error = std::current_exception();
+    }
+  }
+  if (error) std::rethrow_exception(error);
 }
 
 // ------------------------------------------------------------------ tree
 
 struct SampleTree::Index {
-  Cloud cloud;
-  std::vector<std::uint32_t> sample;  // leaf-order position -> sample index
-  std::unique_ptr<KdTree> tree;
+  struct Slab {
+    Cloud cloud;
+    std::unique_ptr<KdTree> tree;
+    float low = 0, high = 0;  // the slab's extent along the cut axis
+  };
+  std::vector<float> xyz;             // slab by slab, each in its tree's leaf order
+  std::vector<std::uint32_t> sample;  // position -> sample index
+  int axis = 0;
+  std::vector<float> cuts;            // slab s holds cuts[s - 1] <= x[axis] < cuts[s]
+  std::vector<std::unique_ptr<Slab>> slabs;
 };
 
 SampleTree::SampleTree(const SampleSource& src, Mapping m) : mapping_(m), n_(src.size()), index_(std::make_unique<Index>()) {
@@ -238,36 +278,112 @@ SampleTree::SampleTree(const SampleSource& src, Mapping m) : mapping_(m), n_(src
       progress.advance(r);
     }
   }
-  index_->cloud.xyz = std::move(xyz);
-  index_->tree = std::make_unique<KdTree>(3, index_->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
-  // Store the points in leaf order, so that a leaf's points are contiguous in memory, and make the tree's
-  // permutation the identity.
-  auto& order = index_->tree->vAcc;
-  std::vector<float> sorted(3 * n_);
-#pragma omp parallel for schedule(static)
-  for (long long j = 0; j < static_cast<long long>(n_); ++j)
-    for (std::size_t d = 0; d < 3; ++d) sorted[3 * std::size_t(j) + d] = index_->cloud.xyz[3 * std::size_t(order[std::size_t(j)]) + d];
-  index_->cloud.xyz = std::move(sorted);
-  index_->sample = std::move(order);
-  order.resize(n_);
-  std::iota(order.begin(), order.end(), std::uint32_t(0));
+  Index& ix = *index_;
+  const std::size_t slabs = slab_count(n_);
+  ix.sample.resize(n_);
+  std::vector<std::size_t> offset(slabs + 1, 0);
+  if (slabs == 1) {
+    ix.xyz = std::move(xyz);
+    std::iota(ix.sample.begin(), ix.sample.end(), std::uint32_t(0));
+    offset[1] = n_;
+  } else {
+    // Cut along the widest axis at quantiles of a regular subsample; a stable scatter keeps input order in a slab.
+    Eigen::Array3f lo = Eigen::Array3f::Constant(std::numeric_limits<float>::max()), hi = -lo;
+    for (std::size_t i = 0; i < n_; ++i)
+      for (int d = 0; d < 3; ++d) {
+        lo[d] = std::min(lo[d], xyz[3 * i + std::size_t(d)]);
+        hi[d] = std::max(hi[d], xyz[3 * i + std::size_t(d)]);
+      }
+    (hi - lo).maxCoeff(&ix.axis);
+    const std::size_t axis = std::size_t(ix.axis), stride = std::max<std::size_t>(1, n_ / 65536);
+    std::vector<float> pick;
+    for (std::size_t i = 0; i < n_; i += stride) pick.push_back(xyz[3 * i + axis]);
+    std::sort(pick.begin(), pick.end());
+    for (std::size_t s = 1; s < slabs; ++s) ix.cuts.push_back(pick[s * pick.size() / slabs]);
+    std::vector<std::uint8_t> slab_of(n_);
+    for (std::size_t i = 0; i < n_; ++i) {
+      slab_of[i] = std::uint8_t(std::upper_bound(ix.cuts.begin(), ix.cuts.end(), xyz[3 * i + axis]) - ix.cuts.begin());
+      ++offset[slab_of[i] + 1];
+    }
+    for (std::size_t s = 0; s < slabs; ++s) offset[s + 1] += offset[s];
+    ix.xyz.resize(3 * n_);
+    std::vector<std::size_t> next(offset.begin(), offset.end() - 1);
+    for (std::size_t i = 0; i < n_; ++i) {
+      const std::size_t to = next[slab_of[i]]++;
+      std::copy_n(xyz.begin() + std::ptrdiff_t(3 * i), 3, ix.xyz.begin() + std::ptrdiff_t(3 * to));
+      ix.sample[to] = std::uint32_t(i);
+    }
+  }
+  xyz = {};
+  for (std::size_t s = 0; s < slabs; ++s) {
+    auto slab = std::make_unique<Index::Slab>();
+    slab->low = s == 0 ? -std::numeric_limits<float>::infinity() : ix.cuts[s - 1];
+    slab->high = s + 1 == slabs ? std::numeric_limits<float>::infinity() : ix.cuts[s];
+    ix.slabs.push_back(std::move(slab));
+  }
+  // Each slab's tree, built on its own thread; then its points stored in leaf order (a leaf's points contiguous
+  // in memory) and the tree's permutation made the positions themselves.
+  std::exception_ptr error;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long long si = 0; si < static_cast<long long>(slabs); ++si) {
+    try {
+      const std::size_t s = std::size_t(si), first = offset[s], count = offset[s + 1] - offset[s];
+      Index::Slab& slab = *ix.slabs[s];
+      slab.cloud = {ix.xyz.data() + 3 * first, count};
+      if (count == 0) continue;
+      slab.tree = std::make_unique<KdTree>(3, slab.cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+      auto& order = slab.tree->vAcc;
+      std::vector<float> points(ix.xyz.begin() + std::ptrdiff_t(3 * first), ix.xyz.begin() + std::ptrdiff_t(3 * (first + count)));
+      std::vector<std::uint32_t> ids(ix.sample.begin() + std::ptrdiff_t(first), ix.sample.begin() + std::ptrdiff_t(first + count));
+      for (std::size_t j = 0; j < count; ++j) {
+        std::copy_n(points.begin() + std::ptrdiff_t(3 * std::size_t(order[j])), 3, ix.xyz.begin() + std::ptrdiff_t(3 * (first + j)));
+        ix.sample[first + j] = ids[order[j]];
+        order[j] = std::uint32_t(first + j);
+      }
+    } catch (...) {
+#pragma omp critical(specula_sample_tree_error)
+      if (!error) error = std::current_exception();
+    }
+  }
+  if (error) std::rethrow_exception(error);
+  for (auto& slab : ix.slabs) slab->cloud = {ix.xyz.data(), n_};
 }
 
 SampleTree::~SampleTree() = default;
 
 void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out) const {
+  const Index& ix = *index_;
   const Eigen::Vector3f q = mapped(mapping_, at);
   k = std::min(k, n_);
   out.index.resize(k);
   out.dist2.resize(k);
-  const std::size_t found = index_->tree->knnSearch(q.data(), k, out.index.data(), out.dist2.data());
+  KnnResult result(k);
+  result.init(out.index.data(), out.dist2.data());
+  // The query's own slab first, then the others outwards while they can still hold a nearer point.
+  const auto slabs = static_cast<std::ptrdiff_t>(ix.slabs.size());
+  const float x = q[ix.axis];
+  const std::ptrdiff_t own = std::upper_bound(ix.cuts.begin(), ix.cuts.end(), x) - ix.cuts.begin();
+  auto search = [&](std::ptrdiff_t s) {
+    const auto& slab = *ix.slabs[std::size_t(s)];
+    if (slab.tree) slab.tree->findNeighbors(result, q.data(), nanoflann::SearchParams());
+  };
+  search(own);
+  for (std::ptrdiff_t left = own - 1, right = own + 1; left >= 0 || right < slabs;) {
+    const float gl = left >= 0 ? x - ix.slabs[std::size_t(left)]->high : std::numeric_limits<float>::infinity();
+    const float gr = right < slabs ? ix.slabs[std::size_t(right)]->low - x : std::numeric_limits<float>::infinity();
+    const bool go_left = gl <= gr;
+    const float gap = go_left ? gl : gr;
+    if (result.full() && gap * gap > result.worstDist()) break;
+    search(go_left ? left-- : right++);
+  }
+  const std::size_t found = result.size();
   out.index.resize(found);
   out.dist2.resize(found);
   out.gap = std::numeric_limits<double>::infinity();
   if (found == 0) return;
-  const float* p = index_->cloud.xyz.data() + 3 * std::size_t(out.index[0]);
+  const float* p = ix.xyz.data() + 3 * std::size_t(out.index[0]);
   out.gap = config_distance(at, unmap(mapping_, Eigen::Vector3d(p[0], p[1], p[2])), mapping_is_reciprocal(mapping_));
-  for (auto& i : out.index) i = index_->sample[i];
+  for (auto& i : out.index) i = ix.sample[i];
 }
 
 // ------------------------------------------------------------------ weights and reconstruction

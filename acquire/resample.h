@@ -21,6 +21,7 @@
 
 namespace specula::store {
 class Store;
+class BlockReader;
 }
 
 namespace specula::acquire {
@@ -79,7 +80,8 @@ class MemorySamples final : public SampleSource {
   std::size_t bands_;
 };
 
-/// Samples `name` of a store, read in blocks of whole storage chunks (about 32 MiB of values).
+/// Samples `name` of a store, read in blocks of whole storage chunks (about 32 MiB of values); the chunks of a
+/// block are decompressed on all threads (store/block_reader.h).
 class StoreSamples final : public SampleSource {
  public:
   /// InputError (listing the samples) when the store has no samples `name`.
@@ -93,8 +95,9 @@ class StoreSamples final : public SampleSource {
 
  private:
   std::unique_ptr<store::Store> store_;
+  std::unique_ptr<store::BlockReader> reader_;
   std::string name_;
-  std::size_t size_ = 0, bands_ = 0, block_rows_ = 0;
+  std::size_t size_ = 0, bands_ = 0, block_rows_ = 0, reader_rows_ = 0;
 };
 
 /// The k nearest samples of a query and how far the nearest one is.

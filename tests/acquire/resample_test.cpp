@@ -73,6 +73,37 @@ TEST(Resampler, NeighboursEqualABruteForceSearch) {
   }
 }
 
+// Millions of samples are cut into slabs with a tree each, searched outwards from the query's own slab.
+TEST(Resampler, NeighboursOfManySamplesInSlabsEqualABruteForceSearch) {
+  const std::size_t n = 3200000;
+  std::mt19937_64 rng(9);
+  std::vector<double> angles(4 * n);
+  std::vector<float> values(n, 0.0f);
+  std::vector<Eigen::Vector3f> points(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto a = random_angles(rng);
+    std::copy_n(&a.theta_i, 4, angles.begin() + std::ptrdiff_t(4 * i));
+    points[i] = map_angles(Mapping::standard, a).cast<float>();
+  }
+  const Resampler r(angles, values, 1, {.k = 40});
+  Neighbours nb;
+  std::vector<float> d2(n);
+  for (int q = 0; q < 60; ++q) {
+    // Queries along the widest axis (phi_d) from end to end, so that many lie near a cut between slabs.
+    const brdf::StdAngles at{0.3 + 0.01 * q, 0.0, 1.1 - 0.012 * q, pi * (q + 0.5) / 60};
+    r.neighbours(at, nb);
+    const Eigen::Vector3f p = map_angles(Mapping::standard, at).cast<float>();
+    for (std::size_t i = 0; i < n; ++i) d2[i] = (points[i] - p).squaredNorm();
+    std::vector<float> sorted = d2;
+    std::nth_element(sorted.begin(), sorted.begin() + 39, sorted.end());
+    const float kth = sorted[39];
+    ASSERT_EQ(nb.index.size(), 40u);
+    EXPECT_NEAR(nb.dist2.back(), kth, 1e-6f * kth);
+    for (std::size_t j = 0; j < 40; ++j) EXPECT_LE(d2[nb.index[j]], kth * (1 + 1e-6f)) << q;
+    EXPECT_TRUE(std::is_sorted(nb.dist2.begin(), nb.dist2.end()));
+  }
+}
+
 TEST(Resampler, ShepardAndMeanWeightsInClosedForm) {
   std::vector<float> w(3);
   neighbour_weights(Weights::mean, 1, std::vector<float>{1, 4, 9}, w);
