@@ -30,19 +30,28 @@ struct SynthSamplesOptions {
   acquire::ScanRig rig;
   std::string wavelengths = "420:720:10";
   std::uint64_t seed = 1;
+  double noise = 0;
   std::string compression = "deflate";
   bool replace = false;
   bool json = false;
 };
 
-// Evaluates the model at n configurations in parallel (the models are read-only).
-void evaluate(const brdf::SpectralModel& model, std::span<const double> angles, std::span<float> values) {
+// Evaluates the model at n configurations in parallel (the models are read-only), each value times
+// (1 + noise N(0, 1)) with a generator seeded from the seed and the batch's index, whatever the thread count.
+void evaluate(const brdf::SpectralModel& model, std::span<const double> angles, std::span<float> values, double noise,
+              std::uint64_t seed, std::uint64_t batch) {
   const std::size_t n = angles.size() / 4, b = model.bands();
   const std::size_t piece = 4096;
 #pragma omp parallel for schedule(dynamic, 1)
   for (long long p = 0; p < static_cast<long long>((n + piece - 1) / piece); ++p) {
     const std::size_t first = std::size_t(p) * piece, count = std::min(piece, n - first);
-    brdf::evaluate_at(model, angles.subspan(4 * first, 4 * count), values.subspan(b * first, b * count));
+    const auto v = values.subspan(b * first, b * count);
+    brdf::evaluate_at(model, angles.subspan(4 * first, 4 * count), v);
+    if (noise > 0) {
+      std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull ^ (batch << 24) ^ std::uint64_t(p));
+      std::normal_distribution<float> g(0.0f, float(noise));
+      for (float& x : v) x *= 1 + g(rng);
+    }
   }
 }
 
@@ -57,6 +66,7 @@ void run_synth_samples(const SynthSamplesOptions& o) {
     throw UsageError("--geometry '" + o.geometry + "': use scan (the reference's rig) or random");
   if (o.geometry == "random" && (o.count == 0 || o.count > (std::size_t(1) << 32) - 2))
     throw UsageError("--geometry random needs -n, 1 to 2^32 - 2 samples");
+  if (!(o.noise >= 0 && o.noise <= 1)) throw UsageError("--noise must be a relative standard deviation from 0 to 1");
   const WavelengthGrid g = WavelengthGrid::parse(o.wavelengths);
   const auto model = brdf::make_material(o.material, g);
   const std::size_t b = g.size();
@@ -65,8 +75,8 @@ void run_synth_samples(const SynthSamplesOptions& o) {
                                    .replace = o.replace,
                                    .command_line = command_line()});
   store::Provenance prov;
-  prov.importer = fmt::format("synth-samples {} ({}) at {} configurations", o.material,
-                              brdf::material_catalogue().at(o.material), o.geometry);
+  prov.importer = fmt::format("synth-samples {} ({}) at {} configurations, noise {}", o.material,
+                              brdf::material_catalogue().at(o.material), o.geometry, o.noise);
   writer.create_samples(name, g, "1/sr", prov);
   std::vector<double> angles;
   std::vector<float> values;
@@ -96,7 +106,7 @@ void run_synth_samples(const SynthSamplesOptions& o) {
         angles.resize(4 * kept);
       }
       values.resize(angles.size() / 4 * b);
-      evaluate(*model, angles, values);
+      evaluate(*model, angles, values, o.noise, o.seed, j);
       writer.append_samples(name, angles, values);
       written += angles.size() / 4;
       progress.advance();
@@ -118,7 +128,7 @@ void run_synth_samples(const SynthSamplesOptions& o) {
         angles[4 * i + 3] = 2 * std::numbers::pi * u(rng) - std::numbers::pi;
       }
       values.resize(n * b);
-      evaluate(*model, angles, values);
+      evaluate(*model, angles, values, o.noise, o.seed, first / block);
       writer.append_samples(name, angles, values);
       written += n;
       progress.advance(n);
@@ -157,7 +167,8 @@ void setup_synth_samples(CLI::App& app) {
   cmd->add_option("--first-light", o->rig.first_light_deg, "scan: degrees between the camera and the first light")
       ->capture_default_str();
   cmd->add_option("--wavelengths", o->wavelengths, "Band grid FIRST:LAST:STEP")->capture_default_str();
-  cmd->add_option("--seed", o->seed, "random: seed")->capture_default_str();
+  cmd->add_option("--noise", o->noise, "Relative Gaussian noise on every value (e.g. 0.02)")->capture_default_str();
+  cmd->add_option("--seed", o->seed, "Seed of the random configurations and the noise")->capture_default_str();
   cmd->add_option("--compression", o->compression, "none, deflate or deflate:LEVEL")->capture_default_str();
   cmd->add_flag("--replace", o->replace, "Replace samples of the same name");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, bands, pixels, lights, bytes, seconds)");
