@@ -392,12 +392,19 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
   const std::size_t n = dist2.size();
   if (out.size() != n) throw UsageError("neighbour_weights: out must have one weight per neighbour");
   if (n == 0) return;
-  std::vector<double> raw(n, 1.0);
+  // Raw weights in double, written to out only once normalised.
+  thread_local std::vector<double> raw;
+  raw.assign(n, 1.0);
   if (w == Weights::shepard) {
     std::size_t at_zero = 0;
     for (const float d : dist2) at_zero += d == 0;
-    for (std::size_t j = 0; j < n; ++j)
-      raw[j] = at_zero ? (dist2[j] == 0 ? 1.0 : 0.0) : std::pow(double(dist2[j]), -0.5 * power);
+    for (std::size_t j = 0; j < n; ++j) {
+      const double d2 = dist2[j];
+      if (at_zero) raw[j] = d2 == 0 ? 1.0 : 0.0;
+      else if (power == 1) raw[j] = 1 / std::sqrt(d2);
+      else if (power == 2) raw[j] = 1 / d2;
+      else raw[j] = std::pow(d2, -0.5 * power);
+    }
   }
   double sum = 0;
   for (const double r : raw) sum += r;

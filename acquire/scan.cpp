@@ -13,13 +13,13 @@ namespace specula::acquire {
 using std::numbers::pi;
 
 namespace {
-Eigen::Vector3d sphere_centre(const ScanRig& rig) { return {rig.off_axis, 0.0, rig.distance}; }
+Eigen::Vector3d sphere_centre(const ScanRig& rig) { return {rig.off_axis, rig.off_axis_y, rig.distance}; }
 }  // namespace
 
 void check_rig(const ScanRig& rig) {
   if (!(rig.focal_px > 0) || !(rig.sphere_px >= 1) || !(rig.sphere_px <= 100000))
     throw UsageError("scan rig: the focal length must be positive and the sphere 1 to 100000 pixels across");
-  if (!(rig.distance > 0) || !std::isfinite(rig.off_axis) || !(rig.light_distance > 0))
+  if (!(rig.distance > 0) || !std::isfinite(rig.off_axis) || !std::isfinite(rig.off_axis_y) || !(rig.light_distance > 0))
     throw UsageError("scan rig: distances must be positive");
   const double r = sphere_radius(rig);
   if (sphere_centre(rig).norm() <= 1.05 * r) throw UsageError("scan rig: the camera is inside or on the sphere");

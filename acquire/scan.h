@@ -18,6 +18,7 @@ struct ScanRig {
   double sphere_px = 200;             ///< the sphere's diameter on the image, about (pixels)
   double distance = 1.0;              ///< camera to sphere centre (m)
   double off_axis = 0.03;             ///< sphere centre's offset from the optical axis along x (m)
+  double off_axis_y = 0.011;          ///< and along y, so that the image is not mirror-symmetric about the arc's plane
   double light_distance = 1.0;        ///< arc radius: light to sphere centre (m)
   double first_light_deg = 10;        ///< angle between the first light and the camera, seen from the sphere
   double light_step_deg = 1;          ///< arc step
