@@ -66,6 +66,7 @@ void run_synth_samples(const SynthSamplesOptions& o) {
     throw UsageError("--geometry '" + o.geometry + "': use scan (the reference's rig) or random");
   if (o.geometry == "random" && (o.count == 0 || o.count > (std::size_t(1) << 32) - 2))
     throw UsageError("--geometry random needs -n, 1 to 2^32 - 2 samples");
+  if (o.geometry == "scan") acquire::check_rig(o.rig);
   if (!(o.noise >= 0 && o.noise <= 1)) throw UsageError("--noise must be a relative standard deviation from 0 to 1");
   const WavelengthGrid g = WavelengthGrid::parse(o.wavelengths);
   const auto model = brdf::make_material(o.material, g);

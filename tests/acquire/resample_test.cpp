@@ -9,6 +9,7 @@
 #include <random>
 
 #include "core/error.h"
+#include "core/interrupt.h"
 #include "store/store.h"
 #include "test_support.h"
 
@@ -297,6 +298,16 @@ TEST(Resampler, CellsFarFromEverySampleHaveNoData) {
     EXPECT_GT(valid, 100u);
     EXPECT_EQ(std::count(grid.begin(), grid.end(), -1.0f), std::ptrdiff_t(brdf::kMerlCells - valid));
   }
+}
+
+TEST(Resampler, AnInterruptStopsTheGrid) {
+  const Samples s = random_samples(5000, 2, 11);
+  const MemorySamples src(s.angles, s.values, 2);
+  std::vector<float> grid(2 * brdf::kMerlCells);
+  request_interrupt();
+  EXPECT_THROW(resample_grid(src, {}, grid), Interrupted);
+  clear_interrupt();
+  EXPECT_GT(resample_grid(src, {.k = 4}, grid).valid_cells, 0u);
 }
 
 TEST(Resampler, BadOptionsAreRefused) {
