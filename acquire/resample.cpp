@@ -1,60 +1,168 @@
 #include "acquire/resample.h"
 
 #include <nanoflann.hpp>
+#include <omp.h>
 
 #include <algorithm>
+#include <chrono>
+#include <exception>
 #include <cmath>
-#include <numbers>
-#include <string>
+#include <limits>
+#include <numeric>
 
 #include "core/error.h"
+#include "core/interrupt.h"
+#include "core/progress.h"
+#include "store/block_reader.h"
+#include "store/store.h"
 
 namespace specula::acquire {
 namespace {
 
-using std::numbers::pi;
-
-// |phi_o - phi_i| folded into [0, pi]: an isotropic BRDF depends on the azimuth difference only, and on its sign
-// not at all.
-double phi_diff(double phi_i, double phi_o) {
-  double d = std::fmod(std::abs(phi_o - phi_i), 2 * pi);
-  return d > pi ? 2 * pi - d : d;
-}
-
+// Mapped points, three floats each, for nanoflann: while a slab's tree is built it sees only that slab;
+// afterwards every tree reads the whole array by position.
 struct Cloud {
-  std::vector<double> xyz;  // n x 3
-  std::size_t kdtree_get_point_count() const { return xyz.size() / 3; }
-  double kdtree_get_pt(std::size_t i, std::size_t d) const { return xyz[3 * i + d]; }
+  const float* xyz = nullptr;
+  std::size_t count = 0;
+  std::size_t kdtree_get_point_count() const { return count; }
+  float kdtree_get_pt(std::uint32_t i, std::size_t d) const { return xyz[3 * std::size_t(i) + d]; }
   template <class Box>
   bool kdtree_get_bbox(Box&) const {
     return false;
   }
 };
 
-using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>, Cloud, 3, std::size_t>;
+using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud, float, std::uint32_t>, Cloud,
+                                                   3, std::uint32_t>;
+using KnnResult = nanoflann::KNNResultSet<float, std::uint32_t>;
 
-}  // namespace
+// The points are cut into slabs along one axis and every slab gets its own tree, so that the trees are built on
+// all threads. The number of slabs depends on the number of points only: the same trees, neighbours and ties
+// for any thread count.
+std::size_t slab_count(std::size_t n) { return std::clamp<std::size_t>(n >> 20, 1, 8); }
 
-struct Resampler::Tree {
-  Cloud cloud;
-  std::unique_ptr<KdTree> index;
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+Eigen::Vector3f mapped(Mapping m, const IsoAngles& a) { return map_angles(m, a).cast<float>(); }
+
+// Neighbours of a query, their weights, reordered by sample index so that every band is accumulated in the same
+// order wherever the values come from (memory or blocks of a file).
+struct WeightedNeighbours {
+  Neighbours nb;
+  std::vector<float> w;
+  std::vector<std::pair<std::uint32_t, float>> by_sample;
+
+  // False when the query has no support.
+  bool find(const SampleTree& tree, const IsoAngles& at, const ResampleOptions& o) {
+    tree.nearest(at, o.k, nb);
+    if (nb.index.empty() || !(nb.gap <= o.max_gap)) return false;
+    w.resize(nb.index.size());
+    neighbour_weights(o.weights, o.power, nb.dist2, w);
+    by_sample.resize(nb.index.size());
+    for (std::size_t j = 0; j < nb.index.size(); ++j) by_sample[j] = {nb.index[j], w[j]};
+    std::sort(by_sample.begin(), by_sample.end());
+    return true;
+  }
 };
 
-Mapping parse_mapping(std::string_view name) {
-  if (name == "standard") return Mapping::standard;
-  if (name == "marschner") return Mapping::marschner;
-  if (name == "halfdiff") return Mapping::halfdiff;
-  throw UsageError("--mapping '" + std::string(name) + "': use standard (M_s), marschner (M_m) or halfdiff (M_h)");
+std::vector<std::uint32_t> physical_cells() {
+  std::vector<std::uint32_t> cells;
+  for (std::size_t c = 0; c < brdf::kMerlCells; ++c)
+    if (brdf::merl_cell_valid(brdf::merl_cell(c))) cells.push_back(std::uint32_t(c));
+  return cells;
 }
 
-std::string_view mapping_name(Mapping m) {
-  switch (m) {
-    case Mapping::standard: return "standard";
-    case Mapping::marschner: return "marschner";
-    case Mapping::halfdiff: return "halfdiff";
+using ValueReader = std::function<void(std::size_t first, std::size_t count, std::span<float> out)>;
+
+// The second half of resample_grid: neighbours of every cell in passes of at most max_entries entries, values
+// streamed once per pass.
+GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const ValueReader& read, std::size_t block_rows,
+               const ResampleOptions& o, std::span<float> grid) {
+  check_options(o);
+  if (o.mapping != tree.mapping()) throw UsageError("resample: the options' mapping differs from the tree's");
+  if (bands == 0 || grid.size() != bands * brdf::kMerlCells)
+    throw UsageError("resample: the grid must hold bands x 90 x 90 x 180 values");
+  GridStats stats;
+  stats.samples = n;
+  std::fill(grid.begin(), grid.end(), -1.0f);
+  const std::vector<std::uint32_t> cells = physical_cells();
+  const std::size_t k = std::min(o.k, n);
+  const std::size_t per_pass = std::max<std::size_t>(1, o.max_entries / k);
+  block_rows = std::max<std::size_t>(1, block_rows);
+  std::vector<std::uint32_t> count, cursor, sample;
+  std::vector<float> weight, block;
+  std::vector<double> acc;
+  for (std::size_t first = 0; first < cells.size(); first += per_pass) {
+    const std::size_t m = std::min(per_pass, cells.size() - first);
+    ++stats.passes;
+    count.assign(m, 0);
+    sample.resize(m * k);
+    weight.resize(m * k);
+    auto t0 = std::chrono::steady_clock::now();
+    {
+      Progress progress("finding neighbours", m);
+      const std::size_t batch = 1 << 15;
+      for (std::size_t b0 = 0; b0 < m; b0 += batch) {
+        check_interrupt();
+        const std::size_t b1 = std::min(m, b0 + batch);
+#pragma omp parallel
+        {
+          WeightedNeighbours wn;
+#pragma omp for schedule(dynamic, 256)
+          for (long long i = static_cast<long long>(b0); i < static_cast<long long>(b1); ++i) {
+            const std::size_t c = std::size_t(i);
+            const brdf::StdAngles centre = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[first + c])));
+            if (!wn.find(tree, iso_angles(centre), o)) continue;
+            count[c] = std::uint32_t(wn.by_sample.size());
+            for (std::size_t j = 0; j < wn.by_sample.size(); ++j) {
+              sample[c * k + j] = wn.by_sample[j].first;
+              weight[c * k + j] = wn.by_sample[j].second;
+            }
+          }
+        }
+        progress.advance(b1 - b0);
+      }
+    }
+    stats.query_seconds += seconds_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    acc.assign(m * bands, 0.0);
+    cursor.assign(m, 0);
+    {
+      Progress progress("averaging", n);
+      for (std::size_t s0 = 0; s0 < n; s0 += block_rows) {
+        check_interrupt();
+        const std::size_t rows = std::min(block_rows, n - s0);
+        block.resize(rows * bands);
+        read(s0, rows, block);
+        const auto s1 = std::uint32_t(s0 + rows);
+#pragma omp parallel for schedule(dynamic, 4096)
+        for (long long i = 0; i < static_cast<long long>(m); ++i) {
+          const std::size_t c = std::size_t(i);
+          std::uint32_t j = cursor[c];
+          double* a = acc.data() + c * bands;
+          for (; j < count[c] && sample[c * k + j] < s1; ++j) {
+            const float* v = block.data() + (sample[c * k + j] - s0) * bands;
+            const double w = weight[c * k + j];
+            for (std::size_t q = 0; q < bands; ++q) a[q] += w * double(v[q]);
+          }
+          cursor[c] = j;
+        }
+        progress.advance(rows);
+      }
+    }
+    for (std::size_t c = 0; c < m; ++c) {
+      if (count[c] == 0) continue;
+      ++stats.valid_cells;
+      for (std::size_t q = 0; q < bands; ++q) grid[q * brdf::kMerlCells + cells[first + c]] = float(acc[c * bands + q]);
+    }
+    stats.average_seconds += seconds_since(t0);
   }
-  return "?";
+  return stats;
 }
+
+}  // namespace
 
 Weights parse_weights(std::string_view name) {
   if (name == "mean") return Weights::mean;
@@ -62,96 +170,311 @@ Weights parse_weights(std::string_view name) {
   throw UsageError("--weights '" + std::string(name) + "': use shepard (eqs 5.9-5.10) or mean");
 }
 
-Eigen::Vector3d map_angles(Mapping m, const brdf::StdAngles& a) {
-  const double pd = phi_diff(a.phi_i, a.phi_o);
-  switch (m) {
-    case Mapping::standard: return {a.theta_i, a.theta_o, pd};
-    case Mapping::marschner:
-      return {std::sin(a.theta_i) * std::sin(a.theta_o), pd / pi, std::cos(a.theta_i) * std::cos(a.theta_o)};
-    case Mapping::halfdiff: {
-      const brdf::HalfDiff h = brdf::half_diff(brdf::StdAngles{a.theta_i, 0.0, a.theta_o, pd});
-      return {h.theta_h, h.theta_d, phi_diff(0.0, h.phi_d) > pi / 2 ? pi - phi_diff(0.0, h.phi_d) : phi_diff(0.0, h.phi_d)};
+std::string_view weights_name(Weights w) { return w == Weights::mean ? "mean" : "shepard"; }
+
+void check_options(const ResampleOptions& o) {
+  if (o.k < 1 || o.k > 100000) throw UsageError("-k " + std::to_string(o.k) + ": give 1 to 100000 neighbours");
+  if (!(o.power >= 0) || !std::isfinite(o.power))
+    throw UsageError("--power " + std::to_string(o.power) + ": Shepard's power must be a finite number >= 0");
+  if (!(o.max_gap > 0)) throw UsageError("--max-gap: the largest gap must be positive");
+  if (o.max_entries == 0) throw UsageError("resample: max_entries must be positive");
+}
+
+// ------------------------------------------------------------------ sources
+
+MemorySamples::MemorySamples(std::span<const double> angles, std::span<const float> values, std::size_t bands)
+    : angles_(angles), values_(values), bands_(bands) {
+  if (bands == 0 || angles.size() % 4 != 0 || values.size() != angles.size() / 4 * bands)
+    throw UsageError("resample: angles must be n x 4 and values n x bands");
+}
+
+void MemorySamples::read_angles(std::size_t first, std::size_t count, std::span<double> out) const {
+  if (first + count > size() || out.size() != 4 * count) throw UsageError("MemorySamples::read_angles: bad range");
+  std::copy_n(angles_.begin() + std::ptrdiff_t(4 * first), 4 * count, out.begin());
+}
+
+void MemorySamples::read_values(std::size_t first, std::size_t count, std::span<float> out) const {
+  if (first + count > size() || out.size() != bands_ * count) throw UsageError("MemorySamples::read_values: bad range");
+  std::copy_n(values_.begin() + std::ptrdiff_t(bands_ * first), bands_ * count, out.begin());
+}
+
+StoreSamples::StoreSamples(const store::Store& store, std::string name)
+    : store_(std::make_unique<store::Store>(store)), name_(std::move(name)) {
+  const store::SamplesInfo info = store_->samples_info(name_);
+  size_ = info.size;
+  bands_ = info.bands;
+  // One reader block per storage chunk (a contiguous dataset is read through HDF5 in blocks of 2^16 rows).
+  reader_rows_ = info.chunk_rows ? info.chunk_rows : std::size_t(1) << 16;
+  if (info.chunk_rows)
+    reader_ = std::make_unique<store::BlockReader>(*store_, store::Selection{.samples = name_}, info.chunk_rows);
+  block_rows_ = std::max<std::size_t>(1, (std::size_t(32) << 20) / (4 * bands_ * reader_rows_)) * reader_rows_;
+}
+
+StoreSamples::~StoreSamples() = default;
+
+void StoreSamples::read_angles(std::size_t first, std::size_t count, std::span<double> out) const {
+  store_->read_samples(name_, first, count, out, {});
+}
+
+void StoreSamples::read_values(std::size_t first, std::size_t count, std::span<float> out) const {
+  if (first > size_ || count > size_ - first || out.size() != count * bands_)
+    throw UsageError("StoreSamples::read_values: bad range");
+  if (!reader_ || first % reader_rows_ != 0 || (count % reader_rows_ != 0 && first + count != size_)) {
+    store_->read_samples(name_, first, count, {}, out);
+    return;
+  }
+  // Whole reader blocks: decoded on every thread at once.
+  const std::size_t b0 = first / reader_rows_, nb = (count + reader_rows_ - 1) / reader_rows_;
+  std::exception_ptr error;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long long i = 0; i < static_cast<long long>(nb); ++i) {
+    try {
+      thread_local store::BlockReader::RawBlock raw;
+      reader_->read_raw(b0 + std::size_t(i), raw);
+      std::copy(raw.values.begin(), raw.values.end(), out.begin() + std::ptrdiff_t(std::size_t(i) * reader_rows_ * bands_));
+    } catch (...) {
+#pragma omp critical(specula_store_samples_error)
+      if (!error) error = std::current_exception();
     }
   }
-  return {};
+  if (error) std::rethrow_exception(error);
+}
+
+// ------------------------------------------------------------------ tree
+
+struct SampleTree::Index {
+  struct Slab {
+    Cloud cloud;
+    std::unique_ptr<KdTree> tree;
+    float low = 0, high = 0;  // the slab's extent along the cut axis
+  };
+  std::vector<float> xyz;             // slab by slab, each in its tree's leaf order
+  std::vector<std::uint32_t> sample;  // position -> sample index
+  int axis = 0;
+  std::vector<float> cuts;            // slab s holds cuts[s - 1] <= x[axis] < cuts[s]
+  std::vector<std::unique_ptr<Slab>> slabs;
+};
+
+SampleTree::SampleTree(const SampleSource& src, Mapping m) : mapping_(m), n_(src.size()), index_(std::make_unique<Index>()) {
+  if (n_ == 0) throw InputError("no samples to resample");
+  if (n_ >= std::numeric_limits<std::uint32_t>::max())
+    throw InputError(std::to_string(n_) + " samples: at most 2^32 - 2 can be resampled at once; split them");
+  std::vector<float> xyz(3 * n_);
+  {
+    Progress progress("mapping samples", n_);
+    std::vector<double> angles;
+    const std::size_t rows = src.block_rows();
+    for (std::size_t s0 = 0; s0 < n_; s0 += rows) {
+      check_interrupt();
+      const std::size_t r = std::min(rows, n_ - s0);
+      angles.resize(4 * r);
+      src.read_angles(s0, r, angles);
+#pragma omp parallel for schedule(static)
+      for (long long i = 0; i < static_cast<long long>(r); ++i) {
+        const double* a = angles.data() + 4 * i;
+        const Eigen::Vector3f p = mapped(m, iso_angles({a[0], a[1], a[2], a[3]}));
+        for (std::size_t d = 0; d < 3; ++d) xyz[3 * (s0 + std::size_t(i)) + d] = p[Eigen::Index(d)];
+      }
+      progress.advance(r);
+    }
+  }
+  Index& ix = *index_;
+  const std::size_t slabs = slab_count(n_);
+  ix.sample.resize(n_);
+  std::vector<std::size_t> offset(slabs + 1, 0);
+  if (slabs == 1) {
+    ix.xyz = std::move(xyz);
+    std::iota(ix.sample.begin(), ix.sample.end(), std::uint32_t(0));
+    offset[1] = n_;
+  } else {
+    // Cut along the widest axis at quantiles of a regular subsample; a stable scatter keeps input order in a slab.
+    Eigen::Array3f lo = Eigen::Array3f::Constant(std::numeric_limits<float>::max()), hi = -lo;
+    for (std::size_t i = 0; i < n_; ++i)
+      for (int d = 0; d < 3; ++d) {
+        lo[d] = std::min(lo[d], xyz[3 * i + std::size_t(d)]);
+        hi[d] = std::max(hi[d], xyz[3 * i + std::size_t(d)]);
+      }
+    (hi - lo).maxCoeff(&ix.axis);
+    const std::size_t axis = std::size_t(ix.axis), stride = std::max<std::size_t>(1, n_ / 65536);
+    std::vector<float> pick;
+    for (std::size_t i = 0; i < n_; i += stride) pick.push_back(xyz[3 * i + axis]);
+    std::sort(pick.begin(), pick.end());
+    for (std::size_t s = 1; s < slabs; ++s) ix.cuts.push_back(pick[s * pick.size() / slabs]);
+    std::vector<std::uint8_t> slab_of(n_);
+    for (std::size_t i = 0; i < n_; ++i) {
+      slab_of[i] = std::uint8_t(std::upper_bound(ix.cuts.begin(), ix.cuts.end(), xyz[3 * i + axis]) - ix.cuts.begin());
+      ++offset[slab_of[i] + 1];
+    }
+    for (std::size_t s = 0; s < slabs; ++s) offset[s + 1] += offset[s];
+    ix.xyz.resize(3 * n_);
+    std::vector<std::size_t> next(offset.begin(), offset.end() - 1);
+    for (std::size_t i = 0; i < n_; ++i) {
+      const std::size_t to = next[slab_of[i]]++;
+      std::copy_n(xyz.begin() + std::ptrdiff_t(3 * i), 3, ix.xyz.begin() + std::ptrdiff_t(3 * to));
+      ix.sample[to] = std::uint32_t(i);
+    }
+  }
+  xyz = {};
+  for (std::size_t s = 0; s < slabs; ++s) {
+    auto slab = std::make_unique<Index::Slab>();
+    slab->low = s == 0 ? -std::numeric_limits<float>::infinity() : ix.cuts[s - 1];
+    slab->high = s + 1 == slabs ? std::numeric_limits<float>::infinity() : ix.cuts[s];
+    ix.slabs.push_back(std::move(slab));
+  }
+  // Each slab's tree, built on its own thread; then its points stored in leaf order (a leaf's points contiguous
+  // in memory) and the tree's permutation made the positions themselves.
+  std::exception_ptr error;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long long si = 0; si < static_cast<long long>(slabs); ++si) {
+    try {
+      const std::size_t s = std::size_t(si), first = offset[s], count = offset[s + 1] - offset[s];
+      Index::Slab& slab = *ix.slabs[s];
+      slab.cloud = {ix.xyz.data() + 3 * first, count};
+      if (count == 0) continue;
+      slab.tree = std::make_unique<KdTree>(3, slab.cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+      auto& order = slab.tree->vAcc;
+      std::vector<float> points(ix.xyz.begin() + std::ptrdiff_t(3 * first), ix.xyz.begin() + std::ptrdiff_t(3 * (first + count)));
+      std::vector<std::uint32_t> ids(ix.sample.begin() + std::ptrdiff_t(first), ix.sample.begin() + std::ptrdiff_t(first + count));
+      for (std::size_t j = 0; j < count; ++j) {
+        std::copy_n(points.begin() + std::ptrdiff_t(3 * std::size_t(order[j])), 3, ix.xyz.begin() + std::ptrdiff_t(3 * (first + j)));
+        ix.sample[first + j] = ids[order[j]];
+        order[j] = std::uint32_t(first + j);
+      }
+    } catch (...) {
+#pragma omp critical(specula_sample_tree_error)
+      if (!error) error = std::current_exception();
+    }
+  }
+  if (error) std::rethrow_exception(error);
+  for (auto& slab : ix.slabs) slab->cloud = {ix.xyz.data(), n_};
+}
+
+SampleTree::~SampleTree() = default;
+
+void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out) const {
+  const Index& ix = *index_;
+  const Eigen::Vector3f q = mapped(mapping_, at);
+  k = std::min(k, n_);
+  out.index.resize(k);
+  out.dist2.resize(k);
+  KnnResult result(k);
+  result.init(out.index.data(), out.dist2.data());
+  // The query's own slab first, then the others outwards while they can still hold a nearer point.
+  const auto slabs = static_cast<std::ptrdiff_t>(ix.slabs.size());
+  const float x = q[ix.axis];
+  const std::ptrdiff_t own = std::upper_bound(ix.cuts.begin(), ix.cuts.end(), x) - ix.cuts.begin();
+  auto search = [&](std::ptrdiff_t s) {
+    const auto& slab = *ix.slabs[std::size_t(s)];
+    if (slab.tree) slab.tree->findNeighbors(result, q.data(), nanoflann::SearchParams());
+  };
+  search(own);
+  for (std::ptrdiff_t left = own - 1, right = own + 1; left >= 0 || right < slabs;) {
+    const float gl = left >= 0 ? x - ix.slabs[std::size_t(left)]->high : std::numeric_limits<float>::infinity();
+    const float gr = right < slabs ? ix.slabs[std::size_t(right)]->low - x : std::numeric_limits<float>::infinity();
+    const bool go_left = gl <= gr;
+    const float gap = go_left ? gl : gr;
+    if (result.full() && gap * gap > result.worstDist()) break;
+    search(go_left ? left-- : right++);
+  }
+  const std::size_t found = result.size();
+  out.index.resize(found);
+  out.dist2.resize(found);
+  out.gap = std::numeric_limits<double>::infinity();
+  if (found == 0) return;
+  const float* p = ix.xyz.data() + 3 * std::size_t(out.index[0]);
+  out.gap = config_distance(at, unmap(mapping_, Eigen::Vector3d(p[0], p[1], p[2])), mapping_is_reciprocal(mapping_));
+  for (auto& i : out.index) i = ix.sample[i];
+}
+
+// ------------------------------------------------------------------ weights and reconstruction
+
+void neighbour_weights(Weights w, double power, std::span<const float> dist2, std::span<float> out) {
+  const std::size_t n = dist2.size();
+  if (out.size() != n) throw UsageError("neighbour_weights: out must have one weight per neighbour");
+  if (n == 0) return;
+  // Raw weights in double, written to out only once normalised.
+  thread_local std::vector<double> raw;
+  raw.assign(n, 1.0);
+  if (w == Weights::shepard) {
+    std::size_t at_zero = 0;
+    for (const float d : dist2) at_zero += d == 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      const double d2 = dist2[j];
+      if (at_zero) raw[j] = d2 == 0 ? 1.0 : 0.0;
+      else if (power == 1) raw[j] = 1 / std::sqrt(d2);
+      else if (power == 2) raw[j] = 1 / d2;
+      else raw[j] = std::pow(d2, -0.5 * power);
+    }
+  }
+  double sum = 0;
+  for (const double r : raw) sum += r;
+  for (std::size_t j = 0; j < n; ++j) out[j] = float(raw[j] / sum);
+}
+
+GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o, std::span<float> grid) {
+  if (tree.size() != src.size()) throw UsageError("resample: the tree was built over other samples");
+  return fill(
+      tree, src.size(), src.bands(),
+      [&src](std::size_t first, std::size_t count, std::span<float> out) { src.read_values(first, count, out); },
+      src.block_rows(), o, grid);
+}
+
+GridStats resample_grid(const SampleSource& src, const ResampleOptions& o, std::span<float> grid) {
+  check_options(o);
+  if (grid.size() != src.bands() * brdf::kMerlCells)
+    throw UsageError("resample: the grid must hold bands x 90 x 90 x 180 values");
+  const auto t0 = std::chrono::steady_clock::now();
+  const SampleTree tree(src, o.mapping);
+  const double tree_seconds = seconds_since(t0);
+  GridStats stats = resample_grid(tree, src, o, grid);
+  stats.tree_seconds = tree_seconds;
+  return stats;
 }
 
 Resampler::Resampler(std::span<const double> angles, std::span<const float> values, std::size_t bands,
                      const ResampleOptions& o)
-    : n_(angles.size() / 4), bands_(bands), o_(o), angles_(angles), values_(values) {
-  if (o.k < 1 || o.k > 100000) throw UsageError("-k " + std::to_string(o.k) + ": give 1 to 100000 neighbours");
-  if (!(o.power >= 0) || !std::isfinite(o.power)) throw UsageError("--power must be a finite number >= 0");
-  if (!(o.max_gap > 0)) throw UsageError("the largest gap must be positive");
-  if (bands == 0 || angles.size() % 4 != 0 || values.size() != n_ * bands)
-    throw UsageError("resample: angles must be n x 4 and values n x bands");
-  if (n_ == 0) throw InputError("no samples to resample");
-  tree_ = std::make_unique<Tree>();
-  tree_->cloud.xyz.resize(3 * n_);
-#pragma omp parallel for schedule(static)
-  for (long long i = 0; i < static_cast<long long>(n_); ++i) {
-    const double* a = angles.data() + 4 * i;
-    const Eigen::Vector3d p = map_angles(o.mapping, {a[0], a[1], a[2], a[3]});
-    for (int d = 0; d < 3; ++d) tree_->cloud.xyz[3 * std::size_t(i) + std::size_t(d)] = p[d];
-  }
-  tree_->index = std::make_unique<KdTree>(3, tree_->cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    : values_(values), bands_(bands), o_(o) {
+  check_options(o);
+  const MemorySamples src(angles, values, bands);
+  tree_ = std::make_shared<const SampleTree>(src, o.mapping);
 }
 
-Resampler::~Resampler() = default;
-
-void Resampler::neighbours(const brdf::StdAngles& at, std::vector<std::size_t>& index, std::vector<double>& dist2) const {
-  const Eigen::Vector3d q = map_angles(o_.mapping, at);
-  const std::size_t k = std::min(o_.k, n_);
-  index.resize(k);
-  dist2.resize(k);
-  const std::size_t found = tree_->index->knnSearch(q.data(), k, index.data(), dist2.data());
-  index.resize(found);
-  dist2.resize(found);
+Resampler::Resampler(std::shared_ptr<const SampleTree> tree, std::span<const float> values, std::size_t bands,
+                     const ResampleOptions& o)
+    : tree_(std::move(tree)), values_(values), bands_(bands), o_(o) {
+  check_options(o);
+  if (!tree_ || o.mapping != tree_->mapping()) throw UsageError("resample: the options' mapping differs from the tree's");
+  if (bands == 0 || values.size() != tree_->size() * bands) throw UsageError("resample: values must be n x bands");
 }
 
-bool Resampler::predict(const brdf::StdAngles& at, std::span<float> out) const {
-  thread_local std::vector<std::size_t> index;
-  thread_local std::vector<double> dist2;
+bool Resampler::predict(const IsoAngles& at, std::span<float> out) const {
+  if (out.size() != bands_) throw UsageError("Resampler::predict: out must hold one value per band");
+  thread_local WeightedNeighbours wn;
   thread_local std::vector<double> acc;
-  neighbours(at, index, dist2);
-  if (index.empty()) return false;
-  // Support: the nearest sample within max_gap in (theta_i, theta_o, phi_d), whatever the mapping.
-  const double* a = angles_.data() + 4 * index[0];
-  const double dt = a[0] - at.theta_i, dto = a[2] - at.theta_o, dp = phi_diff(a[1], a[3]) - phi_diff(at.phi_i, at.phi_o);
-  if (std::sqrt(dt * dt + dto * dto + dp * dp) > o_.max_gap) return false;
+  if (!wn.find(*tree_, at, o_)) return false;
   acc.assign(bands_, 0.0);
-  double wsum = 0;
-  // Shepard: w = 1 / d^p (eq 5.10); a sample at distance 0 takes all the weight.
-  if (o_.weights == Weights::shepard && dist2[0] == 0) {
-    for (std::size_t k = 0; k < bands_; ++k) out[k] = values_[index[0] * bands_ + k];
-    return true;
+  for (const auto& [s, w] : wn.by_sample) {
+    const float* v = values_.data() + std::size_t(s) * bands_;
+    for (std::size_t q = 0; q < bands_; ++q) acc[q] += double(w) * double(v[q]);
   }
-  for (std::size_t j = 0; j < index.size(); ++j) {
-    const double w = o_.weights == Weights::mean ? 1.0 : std::pow(dist2[j], -0.5 * o_.power);
-    const float* v = values_.data() + index[j] * bands_;
-    for (std::size_t k = 0; k < bands_; ++k) acc[k] += w * double(v[k]);
-    wsum += w;
-  }
-  for (std::size_t k = 0; k < bands_; ++k) out[k] = float(acc[k] / wsum);
+  for (std::size_t q = 0; q < bands_; ++q) out[q] = float(acc[q]);
   return true;
 }
 
+bool Resampler::predict(const brdf::StdAngles& at, std::span<float> out) const { return predict(iso_angles(at), out); }
+
+void Resampler::neighbours(const brdf::StdAngles& at, Neighbours& out) const { tree_->nearest(iso_angles(at), o_.k, out); }
+
 std::size_t Resampler::fill_grid(std::span<float> grid) const {
-  const std::size_t cells = brdf::kMerlCells;
-  if (grid.size() != bands_ * cells) throw UsageError("resample: the grid must hold bands x 90 x 90 x 180 values");
-  std::size_t valid = 0;
-#pragma omp parallel reduction(+ : valid)
-  {
-    std::vector<float> out(bands_);
-#pragma omp for schedule(dynamic, 1024)
-    for (long long c = 0; c < static_cast<long long>(cells); ++c) {
-      const brdf::MerlCell cell = brdf::merl_cell(std::size_t(c));
-      bool ok = brdf::merl_cell_valid(cell);
-      if (ok) ok = predict(brdf::std_angles(brdf::merl_cell_centre(cell)), out);
-      for (std::size_t k = 0; k < bands_; ++k) grid[k * cells + std::size_t(c)] = ok ? out[k] : -1.0f;
-      valid += ok;
-    }
-  }
-  return valid;
+  const std::size_t b = bands_;
+  const auto values = values_;
+  return fill(
+             *tree_, tree_->size(), b,
+             [values, b](std::size_t first, std::size_t count, std::span<float> out) {
+               std::copy_n(values.begin() + std::ptrdiff_t(first * b), count * b, out.begin());
+             },
+             std::size_t(1) << 16, o_, grid)
+      .valid_cells;
 }
 
 }  // namespace specula::acquire

@@ -1,71 +1,179 @@
 #pragma once
-// Scattered BRDF samples onto the MERL grid (reference §5.3): the samples' angles mapped into a 3D space
-// (M_s standard, M_m Marschner eq 5.8, M_h Rusinkiewicz half/difference), a kd-tree over them (nanoflann),
-// and at every query (a grid cell's centre, or any angles) the k nearest samples combined with one set of
-// weights for every band: their mean, or Shepard's inverse distances to the power p (eqs 5.9-5.10).
-#include <Eigen/Core>
+// Scattered BRDF samples onto the MERL grid (reference §5.3, algorithm 3D_BRDF_Resample): the samples'
+// configurations mapped into 3D (acquire/mapping.h), a kd-tree over them (nanoflann), and at every query (a
+// grid cell's centre, or any configuration) the k nearest samples combined with one set of weights for every
+// band: their mean, or Shepard's inverse distances to the power p (eqs 5.9-5.10).
+//
+// Out of core: a grid is filled in two streams over the samples. The angles are read in blocks and mapped
+// into the tree (16 bytes per sample); the neighbours and weights of the cells are found; then the values are
+// read in blocks and each cell accumulates its neighbours' values as their block passes. Only the mapped
+// points, the neighbour lists and the grid are held, never the sample values as a whole.
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
+#include "acquire/mapping.h"
 #include "core/brdf_geometry.h"
+
+namespace specula::store {
+class Store;
+class BlockReader;
+}
 
 namespace specula::acquire {
 
-enum class Mapping { standard, marschner, halfdiff };
 enum class Weights { mean, shepard };
 
-/// Parses "standard", "marschner" or "halfdiff"; UsageError with the choices otherwise.
-Mapping parse_mapping(std::string_view name);
-std::string_view mapping_name(Mapping m);
-/// Parses "mean" or "shepard"; UsageError otherwise.
+/// Parses "mean" or "shepard"; UsageError naming the choices otherwise.
 Weights parse_weights(std::string_view name);
-
-/// The point of an isotropic configuration under mapping m (radians): M_s (theta_i, theta_o, phi_d),
-/// M_m (sin theta_i sin theta_o, phi_d / pi, cos theta_i cos theta_o), M_h (theta_h, theta_d, phi_d of the
-/// half vector frame); phi_d folded into [0, pi] in every case.
-Eigen::Vector3d map_angles(Mapping m, const brdf::StdAngles& a);
+/// "mean" or "shepard".
+std::string_view weights_name(Weights w);
 
 struct ResampleOptions {
   Mapping mapping = Mapping::standard;
   std::size_t k = 32;
   Weights weights = Weights::shepard;
   double power = 1;
-  /// A grid cell is left without data when its nearest sample is farther than this in (theta_i, theta_o,
-  /// phi_d) (radians, Euclidean), whatever the mapping.
+  /// A query has no support (a cell is left without data) when its nearest sample is farther than this in
+  /// config_distance (about radians; reciprocal as the mapping).
   double max_gap = 0.15;
+  /// Neighbour entries (cells x k, 8 bytes each) held at once while filling a grid; more cells take further
+  /// passes over the sample values.
+  std::size_t max_entries = std::size_t(64) << 20;
 };
 
-/// A kd-tree over n samples; the samples' values stay with the caller and must outlive it.
+/// UsageError stating the rule when k is not 1 to 100000, power not finite and >= 0, max_gap not positive or
+/// max_entries 0.
+void check_options(const ResampleOptions& o);
+
+/// Scattered samples that can be read in blocks: size() samples of bands() values each.
+class SampleSource {
+ public:
+  virtual ~SampleSource() = default;
+  virtual std::size_t size() const = 0;
+  virtual std::size_t bands() const = 0;
+  /// Angles of samples [first, first + count) into out (count x 4: theta_i, phi_i, theta_o, phi_o, radians).
+  virtual void read_angles(std::size_t first, std::size_t count, std::span<double> out) const = 0;
+  /// Values of samples [first, first + count) into out (count x bands()).
+  virtual void read_values(std::size_t first, std::size_t count, std::span<float> out) const = 0;
+  /// Samples per read that suit the source.
+  virtual std::size_t block_rows() const { return std::size_t(1) << 16; }
+};
+
+/// Samples held by the caller (who keeps them alive): angles n x 4, values n x bands.
+class MemorySamples final : public SampleSource {
+ public:
+  /// UsageError when the sizes disagree or bands is 0.
+  MemorySamples(std::span<const double> angles, std::span<const float> values, std::size_t bands);
+  std::size_t size() const override { return angles_.size() / 4; }
+  std::size_t bands() const override { return bands_; }
+  void read_angles(std::size_t first, std::size_t count, std::span<double> out) const override;
+  void read_values(std::size_t first, std::size_t count, std::span<float> out) const override;
+
+ private:
+  std::span<const double> angles_;
+  std::span<const float> values_;
+  std::size_t bands_;
+};
+
+/// Samples `name` of a store, read in blocks of whole storage chunks (about 32 MiB of values); the chunks of a
+/// block are decompressed on all threads (store/block_reader.h).
+class StoreSamples final : public SampleSource {
+ public:
+  /// InputError (listing the samples) when the store has no samples `name`.
+  StoreSamples(const store::Store& store, std::string name);
+  ~StoreSamples() override;
+  std::size_t size() const override { return size_; }
+  std::size_t bands() const override { return bands_; }
+  void read_angles(std::size_t first, std::size_t count, std::span<double> out) const override;
+  void read_values(std::size_t first, std::size_t count, std::span<float> out) const override;
+  std::size_t block_rows() const override { return block_rows_; }
+
+ private:
+  std::unique_ptr<store::Store> store_;
+  std::unique_ptr<store::BlockReader> reader_;
+  std::string name_;
+  std::size_t size_ = 0, bands_ = 0, block_rows_ = 0, reader_rows_ = 0;
+};
+
+/// The k nearest samples of a query and how far the nearest one is.
+struct Neighbours {
+  std::vector<std::uint32_t> index;  ///< sample indices, nearest first
+  std::vector<float> dist2;          ///< squared distances in the mapped space
+  double gap = 0;                    ///< config_distance from the query to the nearest sample (reciprocal as the mapping)
+};
+
+/// A kd-tree (nanoflann) over the mapped configurations of a source's samples: 16 bytes per sample.
+class SampleTree {
+ public:
+  /// Reads the angles of src in blocks and builds the tree; InputError for no samples or 2^32 or more.
+  SampleTree(const SampleSource& src, Mapping m);
+  ~SampleTree();
+  SampleTree(const SampleTree&) = delete;
+  SampleTree& operator=(const SampleTree&) = delete;
+
+  Mapping mapping() const { return mapping_; }
+  std::size_t size() const { return n_; }
+  /// The min(k, size()) nearest samples of `at` into out (ties in an order fixed by the tree).
+  void nearest(const IsoAngles& at, std::size_t k, Neighbours& out) const;
+
+ private:
+  struct Index;
+  Mapping mapping_;
+  std::size_t n_ = 0;
+  std::unique_ptr<Index> index_;
+};
+
+/// Normalised weights (summing to 1) of neighbours at squared mapped distances dist2 (ascending) into out:
+/// equal for mean; for Shepard d^-p (eq 5.10), with the samples at distance 0, if any, sharing all the weight.
+void neighbour_weights(Weights w, double power, std::span<const float> dist2, std::span<float> out);
+
+/// Timing and counts of one grid reconstruction.
+struct GridStats {
+  std::size_t samples = 0, valid_cells = 0, passes = 0;
+  double tree_seconds = 0, query_seconds = 0, average_seconds = 0;
+};
+
+/// Every physically valid MERL cell's centre reconstructed from src into grid (bands x 90 x 90 x 180, band
+/// slowest); cells below the horizon or without support get -1. Streams src twice (angles, then values once per
+/// pass of at most o.max_entries neighbour entries); OpenMP over cells, the same grid for any thread count;
+/// progress shown, Interrupted between blocks. UsageError for a grid of the wrong size or bad options.
+GridStats resample_grid(const SampleSource& src, const ResampleOptions& o, std::span<float> grid);
+/// resample_grid with a tree already built over src (o.mapping must be the tree's).
+GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o, std::span<float> grid);
+
+/// Reconstruction at any configuration from samples in memory (the caller keeps the values alive).
 class Resampler {
  public:
-  /// angles: n x 4 (theta_i, phi_i, theta_o, phi_o, radians); values: n x bands. UsageError for bad options
-  /// (k = 0, p < 0 or not finite) or sizes, InputError for no samples.
+  /// Builds a tree over angles (n x 4, radians); values n x bands. UsageError for bad options or sizes,
+  /// InputError for no samples.
   Resampler(std::span<const double> angles, std::span<const float> values, std::size_t bands, const ResampleOptions& o);
-  ~Resampler();
-  Resampler(const Resampler&) = delete;
-  Resampler& operator=(const Resampler&) = delete;
+  /// Shares a tree built over the same samples (o.mapping must be the tree's), so that k and weights can vary cheaply.
+  Resampler(std::shared_ptr<const SampleTree> tree, std::span<const float> values, std::size_t bands,
+            const ResampleOptions& o);
 
-  std::size_t size() const { return n_; }
+  std::size_t size() const { return tree_->size(); }
   std::size_t bands() const { return bands_; }
-  /// The prediction at `at` into out (bands values); false (and out untouched) when the nearest sample is
-  /// farther than max_gap.
+  const ResampleOptions& options() const { return o_; }
+  /// The reconstruction at `at` into out (bands values), exactly as resample_grid computes a cell; false (out
+  /// untouched) without support.
   bool predict(const brdf::StdAngles& at, std::span<float> out) const;
-  /// The k nearest samples of `at` (indices, nearest first) and their squared mapped distances.
-  void neighbours(const brdf::StdAngles& at, std::vector<std::size_t>& index, std::vector<double>& dist2) const;
-  /// Every physically valid MERL cell's centre predicted into grid (bands x 90 x 90 x 180, band slowest); cells
-  /// without support or below the horizon get -1. OpenMP over cells; the same for any thread count. Returns
-  /// the number of cells with data.
+  /// predict at an isotropic configuration.
+  bool predict(const IsoAngles& at, std::span<float> out) const;
+  /// The k nearest samples of `at`.
+  void neighbours(const brdf::StdAngles& at, Neighbours& out) const;
+  /// resample_grid over these samples; returns the number of cells with data.
   std::size_t fill_grid(std::span<float> grid) const;
 
  private:
-  struct Tree;
-  std::size_t n_ = 0, bands_ = 0;
-  ResampleOptions o_;
-  std::span<const double> angles_;
+  std::shared_ptr<const SampleTree> tree_;
   std::span<const float> values_;
-  std::unique_ptr<Tree> tree_;
+  std::size_t bands_;
+  ResampleOptions o_;
 };
 
 }  // namespace specula::acquire

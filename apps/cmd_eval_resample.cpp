@@ -6,12 +6,15 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <memory>
 #include <random>
 
 #include "acquire/resample.h"
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "core/error.h"
+#include "core/interrupt.h"
+#include "core/progress.h"
 #include "store/store.h"
 
 namespace specula::app {
@@ -61,37 +64,56 @@ void run_eval_resample(const EvalResampleOptions& o) {
     v.insert(v.end(), values.begin() + std::ptrdiff_t(i * b), values.begin() + std::ptrdiff_t((i + 1) * b));
   }
   std::vector<Row> rows;
-  for (const auto mapping : {acquire::Mapping::standard, acquire::Mapping::marschner, acquire::Mapping::halfdiff})
+  const std::size_t configs = 3 * o.k.size();
+  Progress progress("cross-validating", configs * held);
+  for (const auto mapping : {acquire::Mapping::standard, acquire::Mapping::marschner, acquire::Mapping::halfdiff}) {
+    const acquire::MemorySamples train(train_a, train_v, b);
+    const auto tree = std::make_shared<const acquire::SampleTree>(train, mapping);
     for (const auto k : o.k)
       for (const auto weights : {acquire::Weights::mean, acquire::Weights::shepard}) {
         if (k == 1 && weights == acquire::Weights::shepard) continue;  // one neighbour: the same prediction
-        const acquire::Resampler r(train_a, train_v, b, {.mapping = mapping, .k = k, .weights = weights, .max_gap = 10});
+        // No support limit: every held-out sample is predicted from its k nearest, however far.
+        const acquire::Resampler r(tree, train_v, b, {.mapping = mapping, .k = k, .weights = weights, .max_gap = 10});
+        std::vector<double> e2(held, -1), t2(held, 0);
+#pragma omp parallel
+        {
+          std::vector<float> out(b);
+#pragma omp for schedule(dynamic, 16)
+          for (long long jj = 0; jj < static_cast<long long>(held); ++jj) {
+            const std::size_t j = std::size_t(jj);
+            const double* a = test_a.data() + 4 * j;
+            if (!r.predict(brdf::StdAngles{a[0], a[1], a[2], a[3]}, out)) continue;
+            double se = 0, st = 0;
+            for (std::size_t q = 0; q < b; ++q) {
+              const double t = test_v[j * b + q], e = double(out[q]) - t;
+              se += e * e;
+              st += t * t;
+            }
+            e2[j] = se;
+            t2[j] = st;
+          }
+        }
+        check_interrupt();
+        progress.advance(k == 1 ? 2 * held : held);
         double err = 0, ref = 0;
         std::size_t predicted = 0;
-        std::vector<float> out(b);
         std::vector<double> per_sample;
         for (std::size_t j = 0; j < held; ++j) {
-          const double* a = test_a.data() + 4 * j;
-          if (!r.predict({a[0], a[1], a[2], a[3]}, out)) continue;
+          if (e2[j] < 0) continue;
           ++predicted;
-          double e2 = 0, t2 = 0;
-          for (std::size_t q = 0; q < b; ++q) {
-            const double t = test_v[j * b + q], e = double(out[q]) - t;
-            e2 += e * e;
-            t2 += t * t;
-          }
-          err += e2;
-          ref += t2;
-          if (t2 > 0) per_sample.push_back(std::sqrt(e2 / t2));
+          err += e2[j];
+          ref += t2[j];
+          if (t2[j] > 0) per_sample.push_back(std::sqrt(e2[j] / t2[j]));
         }
-        rows.push_back({std::string(acquire::mapping_name(mapping)), k == 1 ? "nearest"
-                                                                            : weights == acquire::Weights::mean ? "mean" : "shepard",
-                        k, ref > 0 ? std::sqrt(err / ref) : 0.0, 0.0, predicted});
+        rows.push_back({std::string(acquire::mapping_name(mapping)),
+                        k == 1 ? "nearest" : std::string(acquire::weights_name(weights)), k,
+                        ref > 0 ? std::sqrt(err / ref) : 0.0, 0.0, predicted});
         if (!per_sample.empty()) {
           std::nth_element(per_sample.begin(), per_sample.begin() + std::ptrdiff_t(per_sample.size() / 2), per_sample.end());
           rows.back().median_rel = per_sample[per_sample.size() / 2];
         }
       }
+  }
   if (o.json) {
     std::string list;
     for (const auto& r : rows)

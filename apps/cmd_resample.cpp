@@ -3,7 +3,9 @@
 #include <fmt/format.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <numbers>
 
 #include "acquire/resample.h"
@@ -28,40 +30,59 @@ struct ResampleCliOptions {
   bool json = false;
 };
 
+// What save_grid would refuse after the work, refused before it: an output that is neither STORE.h5:NAME, a
+// .spgrid nor a .binary, a bad grid name, or a grid of that name already in the store without --replace.
+void check_output(const std::string& spec, bool replace) {
+  const std::filesystem::path out(spec);
+  if (out.extension() == ".spgrid" || out.extension() == ".binary") return;
+  const auto colon = spec.rfind(':');
+  const std::filesystem::path file = colon == std::string::npos ? out : std::filesystem::path(spec.substr(0, colon));
+  if (colon == std::string::npos || file.extension() != ".h5")
+    throw UsageError("resample: " + spec + ": write STORE.h5:NAME, a .spgrid exchange file or an RGB .binary");
+  const std::string name = spec.substr(colon + 1);
+  store::validate_name(name, "grid");
+  if (!replace && std::filesystem::exists(file)) {
+    const auto grids = store::Store::open(file).grids();
+    if (std::find(grids.begin(), grids.end(), name) != grids.end())
+      throw InputError(file.filename().string() + ": grid '" + name + "' exists already; choose another name or pass --replace");
+  }
+}
+
 void run_resample(const ResampleCliOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
+  if (!(o.max_gap_deg > 0 && o.max_gap_deg <= 180)) throw UsageError("--max-gap: give degrees in (0, 180]");
   const acquire::ResampleOptions ro{.mapping = acquire::parse_mapping(o.mapping),
                                     .k = o.k,
                                     .weights = acquire::parse_weights(o.weights),
                                     .power = o.power,
                                     .max_gap = o.max_gap_deg * std::numbers::pi / 180};
-  if (!(o.max_gap_deg > 0 && o.max_gap_deg <= 180)) throw UsageError("--max-gap: give degrees in (0, 180]");
+  acquire::check_options(ro);
+  check_output(o.output, o.replace);
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
-  std::vector<double> angles(4 * info.size);
-  std::vector<float> values(info.size * info.bands);
-  s.read_samples(o.samples, 0, info.size, angles, values);
-  const acquire::Resampler r(angles, values, info.bands, ro);
+  const acquire::StoreSamples src(s, o.samples);
   store::Grid grid;
   grid.wavelengths = info.wavelengths;
   grid.units = info.units;
   grid.brdf.resize(info.bands * brdf::kMerlCells);
-  const std::size_t valid = r.fill_grid(grid.brdf);
+  const acquire::GridStats stats = acquire::resample_grid(src, ro, grid.brdf);
   grid.provenance.source_file = o.store + ":" + o.samples;
-  grid.provenance.importer =
-      fmt::format("resample mapping={} k={} weights={} power={}", o.mapping, o.k, o.weights, o.power);
+  grid.provenance.importer = fmt::format("resample mapping={} k={} weights={} power={} max_gap_deg={}", o.mapping, o.k,
+                                         o.weights, o.power, o.max_gap_deg);
   const std::string what = save_grid(grid, o.output, o.replace, "resample");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
-    fmt::print(R"({{"samples":{},"cells":{},"valid_cells":{},"seconds":{:.6f},"mapping":{},"k":{},"weights":{},)"
+    fmt::print(R"({{"samples":{},"bands":{},"cells":{},"valid_cells":{},"seconds":{:.6f},"tree_seconds":{:.6f},)"
+               R"("query_seconds":{:.6f},"average_seconds":{:.6f},"passes":{},"mapping":{},"k":{},"weights":{},)"
                R"("power":{},"output":{},"threads":{}}})"
                "\n",
-               info.size, brdf::kMerlCells, valid, seconds, json_string(o.mapping), o.k, json_string(o.weights), o.power,
-               json_string(o.output), omp_get_max_threads());
+               info.size, info.bands, brdf::kMerlCells, stats.valid_cells, seconds, stats.tree_seconds,
+               stats.query_seconds, stats.average_seconds, stats.passes, json_string(o.mapping), o.k,
+               json_string(o.weights), o.power, json_string(o.output), omp_get_max_threads());
     return;
   }
   fmt::print("resampled {} samples of {} onto {} of {} cells ({} mapping, k = {}, {} weights) in {:.2f} s: {}\n", info.size,
-             o.samples, valid, brdf::kMerlCells, o.mapping, o.k, o.weights, seconds, what);
+             o.samples, stats.valid_cells, brdf::kMerlCells, o.mapping, o.k, o.weights, seconds, what);
 }
 
 }  // namespace

@@ -174,8 +174,8 @@ BlockReader::BlockReader(const Store& store, const Selection& selection, std::si
 BlockReader::BlockReader(const std::vector<Store>& stores, const Selection& selection, std::size_t min_block_pixels)
     : stores_(stores) {
   if (stores_.empty()) throw UsageError("a block reader needs at least one store");
-  if (!selection.collection.empty() && !selection.image_globs.empty())
-    throw UsageError("select either images or a collection, not both");
+  if (int(!selection.collection.empty()) + int(!selection.image_globs.empty()) + int(!selection.samples.empty()) > 1)
+    throw UsageError("select images, a collection or samples, only one of them");
   fds_.assign(stores_.size(), -1);
   try {
     for (std::size_t i = 0; i < stores_.size(); ++i) add_store(i, selection, min_block_pixels, stores_.size() > 1);
@@ -199,9 +199,21 @@ void BlockReader::add_store(std::size_t index, const Selection& selection, std::
       throw InputError(ctx + ": " + what + " has " + grid.describe() + ", '" + names_.front() + "' has " +
                        wavelengths_.describe() + "; analyse sources on one wavelength grid together");
   };
-  if (!selection.collection.empty()) {
-    const CollectionInfo info = store.collection_info(selection.collection);
-    check_grid(info.wavelengths, "collection '" + info.name + "'");
+  if (!selection.collection.empty() || !selection.samples.empty()) {
+    const bool samples = !selection.samples.empty();
+    CollectionInfo info;
+    if (samples) {
+      const SamplesInfo si = store.samples_info(selection.samples);
+      info.name = si.name;
+      info.size = si.size;
+      info.bands = si.bands;
+      info.wavelengths = si.wavelengths;
+      info.units = si.units;
+      info.chunk_rows = si.chunk_rows;
+    } else {
+      info = store.collection_info(selection.collection);
+    }
+    check_grid(info.wavelengths, (samples ? "samples '" : "collection '") + info.name + "'");
     if (names_.empty()) {
       wavelengths_ = info.wavelengths;
       units_ = info.units;
@@ -209,7 +221,8 @@ void BlockReader::add_store(std::size_t index, const Selection& selection, std::
     const std::size_t rows_per_block = group_rows(info.chunk_rows ? info.chunk_rows : info.size, 1, min_block_pixels);
     SourceData sd;
     sd.store = index;
-    sd.cube = open_with_cache(store.file(), "/collections/" + info.name + "/spectra",
+    sd.kind = samples ? "samples" : "collection";
+    sd.cube = open_with_cache(store.file(), (samples ? "/samples/" : "/collections/") + info.name + (samples ? "/values" : "/spectra"),
                               rows_per_block * info.bands * sizeof(float) * 2, ctx);
     sd.width = 1;
     map_chunks(sd, info.size);
@@ -235,6 +248,7 @@ void BlockReader::add_store(std::size_t index, const Selection& selection, std::
     const std::size_t cache = rows_per_block * info.width * info.bands * sizeof(float) * 2;
     SourceData sd;
     sd.store = index;
+    sd.kind = "image";
     sd.cube = open_with_cache(store.file(), "/images/" + name + "/cube", cache, ctx);
     sd.mask = open_with_cache(store.file(), "/images/" + name + "/mask", cache / info.bands + 4096, ctx);
     sd.width = info.width;
@@ -263,8 +277,8 @@ std::string BlockReader::describe_block(std::size_t i) const {
   const SourceData& src = sources_[blk.source];
   std::string name = names_[blk.source];
   if (const auto colon = name.find(':'); stores_.size() > 1 && colon != std::string::npos) name = name.substr(colon + 1);
-  return stores_[src.store].label() + ": " + (src.mask.valid() ? "image '" : "collection '") + name + "' " +
-         (src.mask.valid() ? "rows " : "spectra ") + std::to_string(blk.row0) + "-" + std::to_string(blk.row0 + blk.rows - 1);
+  return stores_[src.store].label() + ": " + src.kind + " '" + name + "' " + (src.mask.valid() ? "rows " : "spectra ") +
+         std::to_string(blk.row0) + "-" + std::to_string(blk.row0 + blk.rows - 1);
 }
 
 void BlockReader::read_raw(std::size_t i, RawBlock& out) const {

@@ -16,10 +16,12 @@
 
 namespace specula::store {
 
-/// Which spectra to stream: images whose names match any glob (all images when empty), or one collection.
+/// Which spectra to stream: images whose names match any glob (all images when empty), one collection, or the
+/// values of one set of scattered BRDF samples.
 struct Selection {
   std::vector<std::string> image_globs;
   std::string collection;
+  std::string samples;
 };
 
 class BlockReader {
@@ -79,7 +81,8 @@ class BlockReader {
   };
   struct SourceData {
     std::size_t store = 0;  // index into stores_
-    h5::Id cube, mask;      // mask invalid for collections
+    h5::Id cube, mask;      // mask invalid for collections and samples
+    std::string kind;       // "image", "collection" or "samples"
     std::size_t width = 0;  // pixels per row (1 for collections)
     bool direct = false;    // chunk map below is usable (filters: none, or shuffle then deflate)
     bool shuffle = false, deflate = false;

@@ -3,6 +3,7 @@
 #include <omp.h>
 #include <libdeflate.h>
 
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
@@ -334,6 +335,7 @@ SamplesInfo Store::samples_info(const std::string& name) const {
   info.wavelengths = read_wavelengths(g, ctx);
   if (info.wavelengths.size() != info.bands) throw InputError(ctx + ": values and wavelengths disagree on band count");
   info.units = h5::has_attr(g, "units") ? h5::read_string_attr(g, "units", ctx) : "unknown";
+  info.chunk_rows = chunk_rows_of(values, ctx);
   info.provenance = read_provenance(g, ctx);
   return info;
 }
@@ -464,15 +466,15 @@ void Store::read_samples(const std::string& name, std::size_t first, std::size_t
                          std::span<float> values) const {
   const SamplesInfo info = samples_info(name);
   const std::string ctx = label() + ": /samples/" + name;
-  if (first + count > info.size || angles.size() != count * 4 || values.size() != count * info.bands)
+  const bool want_angles = !angles.empty(), want_values = !values.empty();
+  if (first > info.size || count > info.size - first || (want_angles && angles.size() != count * 4) ||
+      (want_values && values.size() != count * info.bands))
     throw UsageError(ctx + ": read_samples range or buffer sizes are wrong");
   if (count == 0) return;
   h5::Id g = open_group(file(), "/samples/" + name, ctx);
-  h5::Id a = open_dataset(g, "angles", ctx);
-  h5::Id v = open_dataset(g, "values", ctx);
   const hsize_t s2[2] = {first, 0}, ca[2] = {count, 4}, cv[2] = {count, info.bands};
-  read_hyperslab(a, H5T_NATIVE_DOUBLE, s2, ca, angles.data(), ctx);
-  read_hyperslab(v, H5T_NATIVE_FLOAT, s2, cv, values.data(), ctx);
+  if (want_angles) read_hyperslab(open_dataset(g, "angles", ctx), H5T_NATIVE_DOUBLE, s2, ca, angles.data(), ctx);
+  if (want_values) read_hyperslab(open_dataset(g, "values", ctx), H5T_NATIVE_FLOAT, s2, cv, values.data(), ctx);
 }
 
 // ---------------------------------------------------------------- StoreWriter
@@ -517,53 +519,46 @@ void StoreWriter::check_name(const std::string& kind, const std::string& group, 
 }
 
 namespace {
-// Writes a shuffle+deflate cube by compressing its chunks in parallel and handing them to
-// H5Dwrite_chunk, instead of HDF5 compressing one chunk at a time; the bytes are what HDF5's own
-// filters would store. Masked pixels are stored as zeros.
-void write_cube_deflated(hid_t ds, const Cube& cube, std::size_t ch, std::size_t cw, int level, const std::string& ctx) {
-  const std::size_t b = cube.bands, h = cube.height, w = cube.width;
-  const std::size_t row_chunks = (h + ch - 1) / ch, col_chunks = (w + cw - 1) / cw;
-  const std::size_t chunk_bytes = ch * cw * b * sizeof(float);
+// HDF5's shuffle then deflate filters applied to `elems` floats with libdeflate (the same zlib stream, several times
+// faster) into dst; returns the compressed size (0 on failure). Thread-safe.
+std::size_t shuffle_deflate(const float* plain, std::size_t elems, int level, std::vector<unsigned char>& dst) {
+  thread_local std::vector<unsigned char> shuffled;
+  const std::size_t bytes = elems * sizeof(float);
+  shuffled.resize(bytes);
+  const auto* src = reinterpret_cast<const unsigned char*>(plain);
+  for (std::size_t e = 0; e < elems; ++e)
+    for (std::size_t byte = 0; byte < 4; ++byte) shuffled[byte * elems + e] = src[e * 4 + byte];
+  thread_local std::unique_ptr<libdeflate_compressor, void (*)(libdeflate_compressor*)> compressor(
+      nullptr, libdeflate_free_compressor);
+  thread_local int compressor_level = -1;
+  if (!compressor || compressor_level != level) {
+    compressor.reset(libdeflate_alloc_compressor(level));
+    compressor_level = level;
+  }
+  if (!compressor) return 0;
+  dst.resize(libdeflate_zlib_compress_bound(compressor.get(), bytes));
+  return libdeflate_zlib_compress(compressor.get(), shuffled.data(), bytes, dst.data(), dst.size());
+}
+
+// Compresses `chunks` chunks in parallel batches, fill(k, plain) giving chunk k's values and offset(k) its
+// position, and hands them to H5Dwrite_chunk in order.
+template <class Fill, class Offset>
+void write_chunks_deflated(hid_t ds, std::size_t chunks, std::size_t chunk_elems, int level, const std::string& ctx,
+                           Fill&& fill, Offset&& offset) {
   const std::size_t batch = std::size_t(std::max(1, omp_get_max_threads())) * 4;
   std::vector<std::vector<unsigned char>> out(batch);
   std::vector<std::size_t> out_size(batch);
   std::exception_ptr error;
-  Progress progress("writing " + ctx, row_chunks * col_chunks);
-  for (std::size_t first = 0; first < row_chunks * col_chunks; first += batch) {
+  Progress progress("writing " + ctx, chunks);
+  for (std::size_t first = 0; first < chunks; first += batch) {
     check_interrupt();
-    const std::size_t n = std::min(batch, row_chunks * col_chunks - first);
+    const std::size_t n = std::min(batch, chunks - first);
 #pragma omp parallel for schedule(dynamic, 1)
     for (long long j = 0; j < static_cast<long long>(n); ++j) {
-      const std::size_t k = first + std::size_t(j), r = k / col_chunks, c = k % col_chunks;
       thread_local std::vector<float> plain;
-      thread_local std::vector<unsigned char> shuffled;
-      plain.assign(ch * cw * b, 0.0f);
-      const std::size_t y0 = r * ch, x0 = c * cw;
-      const std::size_t ny = std::min(ch, h - y0), nx = std::min(cw, w - x0);
-      for (std::size_t y = 0; y < ny; ++y)
-        for (std::size_t x = 0; x < nx; ++x) {
-          const std::size_t p = (y0 + y) * w + x0 + x;
-          if (cube.mask.empty() || cube.mask[p])
-            std::copy_n(cube.data.data() + p * b, b, plain.data() + (y * cw + x) * b);
-        }
-      const std::size_t elems = plain.size();
-      shuffled.resize(chunk_bytes);
-      const auto* src = reinterpret_cast<const unsigned char*>(plain.data());
-      for (std::size_t e = 0; e < elems; ++e)
-        for (std::size_t byte = 0; byte < 4; ++byte) shuffled[byte * elems + e] = src[e * 4 + byte];
-      // libdeflate writes the same zlib stream format as HDF5's deflate filter, several times faster.
-      thread_local std::unique_ptr<libdeflate_compressor, void (*)(libdeflate_compressor*)> compressor(
-          nullptr, libdeflate_free_compressor);
-      thread_local int compressor_level = -1;
-      if (!compressor || compressor_level != level) {
-        compressor.reset(libdeflate_alloc_compressor(level));
-        compressor_level = level;
-      }
-      auto& dst = out[std::size_t(j)];
-      dst.resize(libdeflate_zlib_compress_bound(compressor.get(), chunk_bytes));
-      const std::size_t len = compressor ? libdeflate_zlib_compress(compressor.get(), shuffled.data(), chunk_bytes,
-                                                                    dst.data(), dst.size())
-                                         : 0;
+      plain.assign(chunk_elems, 0.0f);
+      fill(first + std::size_t(j), plain);
+      const std::size_t len = shuffle_deflate(plain.data(), chunk_elems, level, out[std::size_t(j)]);
       if (len == 0) {
 #pragma omp critical
         if (!error) error = std::make_exception_ptr(LibraryError(ctx + ": libdeflate failed to compress a chunk"));
@@ -572,13 +567,33 @@ void write_cube_deflated(hid_t ds, const Cube& cube, std::size_t ch, std::size_t
     }
     if (error) std::rethrow_exception(error);
     for (std::size_t j = 0; j < n; ++j) {
-      const std::size_t k = first + j;
-      const hsize_t offset[3] = {(k / col_chunks) * ch, (k % col_chunks) * cw, 0};
+      const auto at = offset(first + j);
       maybe_fail_write(ctx);
-      h5::check(H5Dwrite_chunk(ds, H5P_DEFAULT, 0, offset, out_size[j], out[j].data()), ctx, "cannot write chunk");
+      h5::check(H5Dwrite_chunk(ds, H5P_DEFAULT, 0, at.data(), out_size[j], out[j].data()), ctx, "cannot write chunk");
     }
     progress.advance(n);
   }
+}
+
+// Writes a shuffle+deflate cube chunk by chunk (write_chunks_deflated); the bytes are what HDF5's own filters
+// would store. Masked pixels are stored as zeros.
+void write_cube_deflated(hid_t ds, const Cube& cube, std::size_t ch, std::size_t cw, int level, const std::string& ctx) {
+  const std::size_t b = cube.bands, h = cube.height, w = cube.width;
+  const std::size_t row_chunks = (h + ch - 1) / ch, col_chunks = (w + cw - 1) / cw;
+  write_chunks_deflated(
+      ds, row_chunks * col_chunks, ch * cw * b, level, ctx,
+      [&](std::size_t k, std::vector<float>& plain) {
+        const std::size_t r = k / col_chunks, c = k % col_chunks;
+        const std::size_t y0 = r * ch, x0 = c * cw;
+        const std::size_t ny = std::min(ch, h - y0), nx = std::min(cw, w - x0);
+        for (std::size_t y = 0; y < ny; ++y)
+          for (std::size_t x = 0; x < nx; ++x) {
+            const std::size_t p = (y0 + y) * w + x0 + x;
+            if (cube.mask.empty() || cube.mask[p])
+              std::copy_n(cube.data.data() + p * b, b, plain.data() + (y * cw + x) * b);
+          }
+      },
+      [&](std::size_t k) { return std::array<hsize_t, 3>{(k / col_chunks) * ch, (k % col_chunks) * cw, 0}; });
 }
 }  // namespace
 
@@ -781,12 +796,28 @@ void StoreWriter::add_grid(const std::string& name, const Grid& grid) {
     h5::Id ds(h5::check(H5Dcreate2(g, "brdf", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx,
                         "cannot create brdf"));
     h5::write_attr(ds, "axes", std::string_view("band,theta_h,theta_d,phi_d"), ctx);
-    Progress progress("writing " + name, b);
-    for (hsize_t k = 0; k < b; ++k) {
-      check_interrupt();
-      const hsize_t start[4] = {k, 0, 0, 0}, count[4] = {1, kGridDims[0], kGridDims[1], kGridDims[2]};
-      write_hyperslab(ds, H5T_NATIVE_FLOAT, start, count, grid.brdf.data() + k * brdf::kMerlCells, ctx);
-      progress.advance();
+    if (options_.compression.kind == Compression::Kind::deflate) {
+      // Chunks of kGridChunkThetaH theta_h rows of one band, compressed on every thread.
+      const std::size_t row = std::size_t(kGridDims[1] * kGridDims[2]);
+      const std::size_t per_band = (kGridDims[0] + kGridChunkThetaH - 1) / kGridChunkThetaH;
+      write_chunks_deflated(
+          ds, b * per_band, kGridChunkThetaH * row, options_.compression.level, ctx,
+          [&](std::size_t k, std::vector<float>& plain) {
+            const std::size_t band = k / per_band, h0 = (k % per_band) * kGridChunkThetaH;
+            const std::size_t rows = std::min<std::size_t>(kGridChunkThetaH, kGridDims[0] - h0);
+            std::copy_n(grid.brdf.data() + band * brdf::kMerlCells + h0 * row, rows * row, plain.data());
+          },
+          [&](std::size_t k) {
+            return std::array<hsize_t, 4>{k / per_band, (k % per_band) * kGridChunkThetaH, 0, 0};
+          });
+    } else {
+      Progress progress("writing " + name, b);
+      for (hsize_t k = 0; k < b; ++k) {
+        check_interrupt();
+        const hsize_t start[4] = {k, 0, 0, 0}, count[4] = {1, kGridDims[0], kGridDims[1], kGridDims[2]};
+        write_hyperslab(ds, H5T_NATIVE_FLOAT, start, count, grid.brdf.data() + k * brdf::kMerlCells, ctx);
+        progress.advance();
+      }
     }
   } catch (...) {
     if (h5::exists(file_, path)) H5Ldelete(file_, path.c_str(), H5P_DEFAULT);

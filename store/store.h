@@ -58,6 +58,7 @@ struct SamplesInfo {
   std::size_t size = 0, bands = 0;
   WavelengthGrid wavelengths;
   std::string units;
+  std::size_t chunk_rows = 0;  ///< samples per storage chunk of the values (read in multiples of it)
   Provenance provenance;
 };
 
@@ -119,7 +120,8 @@ class Store {
   Collection read_collection(const std::string& name) const;
   /// Basis `name`; throws InputError listing the bases when absent or malformed.
   Basis read_basis(const std::string& name) const;
-  /// Rows [first, first + count) of samples `name`: angles (count x 4, radians) and values (count x B).
+  /// Rows [first, first + count) of samples `name`: angles (count x 4, radians) and values (count x B); an
+  /// empty span skips that dataset.
   void read_samples(const std::string& name, std::size_t first, std::size_t count, std::span<double> angles,
                     std::span<float> values) const;
 

@@ -41,6 +41,12 @@ class Tokens {
     return true;
   }
   std::string where() const { return path_.string() + " line " + std::to_string(number_); }
+  std::size_t line() const { return number_; }
+  /// True when the current line holds another token.
+  bool more_on_line() {
+    while (pos_ < line_.size() && std::isspace(static_cast<unsigned char>(line_[pos_]))) ++pos_;
+    return pos_ < line_.size();
+  }
 
  private:
   std::filesystem::path path_;
@@ -65,14 +71,28 @@ IrregularBrdf read_brdf_irregular(const std::filesystem::path& path) {
   out.wavelengths = WavelengthGrid(nm, path.string());
   const std::size_t per = 4 + bands;
   std::vector<double> sample(per);
+  // Every sample is one line of 4 + bands numbers, so that a missing or extra value is caught where it is.
   for (;;) {
-    std::size_t got = 0;
-    for (; got < per; ++got)
-      if (!t.next(sample[got], got < 4 ? "an angle" : "a BRDF value")) break;
-    if (got == 0) break;
-    if (got < per)
-      throw InputError(t.where() + ": sample " + std::to_string(out.size() + 1) + " is truncated: " + std::to_string(got) +
-                       " numbers of " + std::to_string(per) + " (4 angles and " + std::to_string(bands) + " values)");
+    double first = 0;
+    if (!t.next(first, "an angle")) break;
+    const std::size_t line = t.line();
+    sample[0] = first;
+    std::size_t got = 1;
+    while (got < per && t.more_on_line()) {
+      t.next(sample[got], got < 4 ? "an angle" : "a BRDF value");
+      ++got;
+    }
+    if (got < per || t.more_on_line()) {
+      std::size_t extra = 0;
+      double ignored = 0;
+      while (t.more_on_line()) {
+        t.next(ignored, "a BRDF value");
+        ++extra;
+      }
+      throw InputError(path.string() + " line " + std::to_string(line) + ": sample " + std::to_string(out.size() + 1) +
+                       " has " + std::to_string(got + extra) + " numbers; expected " + std::to_string(per) + " (4 angles and " +
+                       std::to_string(bands) + " values, one sample per line)");
+    }
     for (const std::size_t polar : {std::size_t(0), std::size_t(2)})
       if (sample[polar] < 0 || sample[polar] > std::numbers::pi / 2 + 1e-9)
         throw InputError(t.where() + ": polar angle " + std::to_string(sample[polar]) +

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 
 #include "store/store.h"
@@ -39,15 +40,74 @@ TEST(ResampleCli, CornellSamplesResampleOntoTheGridAndCrossValidate) {
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '{'), 1 + 3 * 3) << r.output;
 }
 
+TEST(ResampleCli, SimulatedScanSamplesResampleIntoAStoreOrAGridFile) {
+  test::ScratchDir dir;
+  const auto db = dir / "scan.h5";
+  auto q = [](const std::filesystem::path& p) { return "'" + p.string() + "'"; };
+  auto r = run_specula("synth-samples study-ward --sphere-px 40 --lights 50 --light-step 3 --wavelengths 500:600:50 "
+                       "--noise 0.01 -o " + q(db) + ":scan --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const double n = test::json_number(r.output, "samples");
+  EXPECT_GT(n, 20000);
+  EXPECT_EQ(store::Store::open(db).samples_info("scan").size, std::size_t(n));
+  EXPECT_EQ(store::Store::open(db).samples_info("scan").bands, 3u);
+  // -n thins evenly to exactly n.
+  r = run_specula("synth-samples study-ward --sphere-px 40 --lights 50 -n 5000 -o " + q(db) + ":thin --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(test::json_number(r.output, "samples"), 5000);
+  r = run_specula("resample " + q(db) + " scan -o " + q(dir / "g.spgrid") + " -k 8 --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* key : {"samples", "cells", "valid_cells", "seconds", "tree_seconds", "passes"})
+    EXPECT_FALSE(std::isnan(test::json_number(r.output, key))) << key << ": " << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "g.spgrid"));
+  r = run_specula("resample " + q(db) + " scan -o " + q(db) + ":g --mapping marschner -k 8 --weights mean");
+  ASSERT_EQ(r.status, 0) << r.output;
+  // The same name again without --replace is refused before any work, and the store is kept.
+  const std::string before = test::read_bytes(db);
+  r = run_specula("resample " + q(db) + " scan -o " + q(db) + ":g");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("--replace"), std::string::npos) << r.output;
+  EXPECT_EQ(test::read_bytes(db), before);
+  r = run_specula("resample " + q(db) + " scan -o " + q(db) + ":g --replace --power 2");
+  EXPECT_EQ(r.status, 0) << r.output;
+}
+
+TEST(ResampleCli, TheStudyPrintsEveryMappingKAndWeighting) {
+  test::ScratchDir dir;
+  const auto r = run_specula("resample-study --sphere-px 40 --lights 60 -k 1,4 --render-size 32 --json --out '" +
+                             (dir / "study").string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  // Two materials x 3 mappings x (k = 1; k = 4 mean and Shepard).
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '{'), 1 + 2 + 2 * 9) << r.output;
+  EXPECT_GT(test::json_number(r.output, "grid_l1"), 0) << r.output;
+  for (const char* f : {"study-ts-renders.png", "study-ward-renders.png", "study-ts-incidence.png"})
+    EXPECT_TRUE(std::filesystem::exists(dir / "study" / f)) << f;
+}
+
 TEST(ResampleCli, BadInputIsOneLineAndLeavesTheStoreAlone) {
   test::ScratchDir dir;
   const auto db = dir / "s.h5";
   { std::ofstream(dir / "ok.brdf") << "2\n400 500\n0.5 0 0.5 3.1 1 2\n0.4 0 0.6 3.0 1 2\n0.3 0 0.2 1.0 3 4\n"; }
   { std::ofstream(dir / "cut.brdf") << "2\n400 500\n0.5 0 0.5 3.1 1\n"; }
+  { std::ofstream(dir / "nan.brdf") << "2\n400 500\n0.5 0 0.5 3.1 1 nan\n"; }
+  { std::ofstream(dir / "count.brdf") << "3\n400 500 600\n0.5 0 0.5 3.1 1 2 3\n0.5 0 0.5 3.1 1 2\n"; }
   ASSERT_EQ(run_specula("import '" + (dir / "ok.brdf").string() + "' -o '" + db.string() + "'").status, 0);
   const std::string before = test::read_bytes(db);
   for (const std::string& args :
        {"import '" + (dir / "cut.brdf").string() + "' -o '" + db.string() + "'",
+        "import '" + (dir / "nan.brdf").string() + "' -o '" + db.string() + "'",
+        "import '" + (dir / "count.brdf").string() + "' -o '" + db.string() + "'",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --weights median",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --power -1",
+        "resample '" + db.string() + "' ok -o '" + (dir / "g.txt").string() + "'",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":bad/name'",
+        "eval-resample '" + db.string() + "' ok -k 0",
+        "synth-samples velvet -o '" + db.string() + ":s'",
+        "synth-samples study-ts --geometry random -o '" + db.string() + ":s'",
+        "synth-samples study-ts --sphere-px 0 -o '" + db.string() + ":s'",
+        "synth-samples study-ts -o '" + (dir / "s.txt").string() + "'",
+        std::string("resample-study -k 0"),
+        std::string("resample-study --material velvet"),
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --mapping polar",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k 0",
         "resample '" + db.string() + "' missing -o '" + db.string() + ":g'",

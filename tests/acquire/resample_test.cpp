@@ -1,6 +1,7 @@
 #include "acquire/resample.h"
 
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -8,148 +9,320 @@
 #include <random>
 
 #include "core/error.h"
+#include "core/interrupt.h"
+#include "store/store.h"
+#include "test_support.h"
 
 namespace specula::acquire {
 namespace {
 
 using std::numbers::pi;
 
+constexpr Mapping kAll[] = {Mapping::standard, Mapping::marschner, Mapping::halfdiff};
+
 brdf::StdAngles random_angles(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> t(0, pi / 2 - 0.01), p(-pi, pi);
   return {t(rng), p(rng), t(rng), p(rng)};
 }
 
-TEST(Mapping, IsotropyAndReciprocity) {
-  std::mt19937_64 rng(1);
-  for (int i = 0; i < 200; ++i) {
-    const brdf::StdAngles a = random_angles(rng);
-    const double turn = 0.37 * i;
-    const brdf::StdAngles rotated{a.theta_i, a.phi_i + turn, a.theta_o, a.phi_o + turn};
-    const brdf::StdAngles mirrored{a.theta_i, -a.phi_i, a.theta_o, -a.phi_o};
-    const brdf::StdAngles swapped{a.theta_o, a.phi_o, a.theta_i, a.phi_i};  // Helmholtz reciprocity
-    for (const Mapping m : {Mapping::standard, Mapping::marschner, Mapping::halfdiff}) {
-      EXPECT_LT((map_angles(m, rotated) - map_angles(m, a)).norm(), 1e-12) << mapping_name(m);
-      EXPECT_LT((map_angles(m, mirrored) - map_angles(m, a)).norm(), 1e-12) << mapping_name(m);
-    }
-    // M_m (eqs 5.6-5.7) and M_h identify reciprocal configurations; M_s does not.
-    EXPECT_LT((map_angles(Mapping::marschner, swapped) - map_angles(Mapping::marschner, a)).norm(), 1e-12);
-    EXPECT_LT((map_angles(Mapping::halfdiff, swapped) - map_angles(Mapping::halfdiff, a)).norm(), 1e-9);
-    if (std::abs(a.theta_i - a.theta_o) > 1e-3) {
-      EXPECT_GT((map_angles(Mapping::standard, swapped) - map_angles(Mapping::standard, a)).norm(), 1e-4);
-    }
+struct Samples {
+  std::vector<double> angles;
+  std::vector<float> values;
+  std::size_t size() const { return angles.size() / 4; }
+  brdf::StdAngles at(std::size_t i) const { return {angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]}; }
+};
+
+// n random samples with `bands` values that vary smoothly with the configuration.
+Samples random_samples(std::size_t n, std::size_t bands, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  Samples s;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto a = random_angles(rng);
+    s.angles.insert(s.angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
+    for (std::size_t q = 0; q < bands; ++q)
+      s.values.push_back(float(1 + std::cos(a.theta_i + 0.1 * double(q)) * std::cos(a.theta_o) + 0.1 * std::cos(a.phi_o - a.phi_i)));
   }
-  EXPECT_THROW(parse_mapping("polar"), UsageError);
-  EXPECT_THROW(parse_weights("median"), UsageError);
+  return s;
 }
 
 TEST(Resampler, NeighboursEqualABruteForceSearch) {
-  std::mt19937_64 rng(2);
-  std::vector<double> angles;
-  std::vector<float> values;
-  for (int i = 0; i < 3000; ++i) {
-    const auto a = random_angles(rng);
-    angles.insert(angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
-    values.push_back(float(i));
-  }
-  for (const Mapping m : {Mapping::standard, Mapping::marschner, Mapping::halfdiff}) {
-    const Resampler r(angles, values, 1, {.mapping = m, .k = 7});
-    std::vector<std::size_t> index;
-    std::vector<double> dist2;
-    for (int q = 0; q < 50; ++q) {
+  const Samples s = random_samples(4000, 1, 5);
+  std::mt19937_64 rng(6);
+  for (const Mapping m : kAll) {
+    const Resampler r(s.angles, s.values, 1, {.mapping = m, .k = 9});
+    Neighbours nb;
+    for (int q = 0; q < 60; ++q) {
       const auto at = random_angles(rng);
-      r.neighbours(at, index, dist2);
-      std::vector<std::pair<double, std::size_t>> all;
+      r.neighbours(at, nb);
+      std::vector<std::pair<double, std::uint32_t>> all;
       const Eigen::Vector3d p = map_angles(m, at);
-      for (std::size_t i = 0; i < 3000; ++i)
-        all.push_back({(map_angles(m, {angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]}) - p).squaredNorm(), i});
+      for (std::size_t i = 0; i < s.size(); ++i) all.push_back({(map_angles(m, s.at(i)) - p).squaredNorm(), std::uint32_t(i)});
       std::sort(all.begin(), all.end());
-      ASSERT_EQ(index.size(), 7u);
-      for (std::size_t j = 0; j < 7; ++j) EXPECT_NEAR(dist2[j], all[j].first, 1e-12) << mapping_name(m);
-      for (std::size_t j = 0; j < 6; ++j) EXPECT_EQ(index[j], all[j].second) << mapping_name(m);  // ties aside
+      ASSERT_EQ(nb.index.size(), 9u);
+      for (std::size_t j = 0; j < 9; ++j) {
+        // Distances agree to float rounding; indices too unless two distances are that close.
+        EXPECT_NEAR(nb.dist2[j], all[j].first, 1e-6 * (1 + all[j].first)) << mapping_name(m);
+        const bool tie = (j > 0 && all[j].first - all[j - 1].first < 1e-5) || all[j + 1].first - all[j].first < 1e-5;
+        if (!tie) {
+          EXPECT_EQ(nb.index[j], all[j].second) << mapping_name(m) << " neighbour " << j;
+        }
+      }
+      // The gap is the configuration distance to the nearest (to it or its reciprocal configuration, as the mapping).
+      const IsoAngles a = iso_angles(at), b = iso_angles(s.at(nb.index[0]));
+      EXPECT_NEAR(nb.gap, config_distance(a, b, mapping_is_reciprocal(m)), 1e-3);
     }
   }
 }
 
+// Millions of samples are cut into slabs with a tree each, searched outwards from the query's own slab.
+TEST(Resampler, NeighboursOfManySamplesInSlabsEqualABruteForceSearch) {
+  const std::size_t n = 3200000;
+  std::mt19937_64 rng(9);
+  std::vector<double> angles(4 * n);
+  std::vector<float> values(n, 0.0f);
+  std::vector<Eigen::Vector3f> points(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto a = random_angles(rng);
+    std::copy_n(&a.theta_i, 4, angles.begin() + std::ptrdiff_t(4 * i));
+    points[i] = map_angles(Mapping::standard, a).cast<float>();
+  }
+  const Resampler r(angles, values, 1, {.k = 40});
+  Neighbours nb;
+  std::vector<float> d2(n);
+  for (int q = 0; q < 60; ++q) {
+    // Queries along the widest axis (phi_d) from end to end, so that many lie near a cut between slabs.
+    const brdf::StdAngles at{0.3 + 0.01 * q, 0.0, 1.1 - 0.012 * q, pi * (q + 0.5) / 60};
+    r.neighbours(at, nb);
+    const Eigen::Vector3f p = map_angles(Mapping::standard, at).cast<float>();
+    for (std::size_t i = 0; i < n; ++i) d2[i] = (points[i] - p).squaredNorm();
+    std::vector<float> sorted = d2;
+    std::nth_element(sorted.begin(), sorted.begin() + 39, sorted.end());
+    const float kth = sorted[39];
+    ASSERT_EQ(nb.index.size(), 40u);
+    EXPECT_NEAR(nb.dist2.back(), kth, 1e-6f * kth);
+    for (std::size_t j = 0; j < 40; ++j) EXPECT_LE(d2[nb.index[j]], kth * (1 + 1e-6f)) << q;
+    EXPECT_TRUE(std::is_sorted(nb.dist2.begin(), nb.dist2.end()));
+  }
+}
+
+TEST(Resampler, ShepardAndMeanWeightsInClosedForm) {
+  std::vector<float> w(3);
+  neighbour_weights(Weights::mean, 1, std::vector<float>{1, 4, 9}, w);
+  for (const float x : w) EXPECT_FLOAT_EQ(x, 1.0f / 3);
+  // p = 1: 1/d = 1, 1/2, 1/3 over their sum 11/6.
+  neighbour_weights(Weights::shepard, 1, std::vector<float>{1, 4, 9}, w);
+  EXPECT_FLOAT_EQ(w[0], 6.0f / 11);
+  EXPECT_FLOAT_EQ(w[1], 3.0f / 11);
+  EXPECT_FLOAT_EQ(w[2], 2.0f / 11);
+  // p = 2: 1/d^2 = 1, 1/4, 1/9 over 49/36.
+  neighbour_weights(Weights::shepard, 2, std::vector<float>{1, 4, 9}, w);
+  EXPECT_FLOAT_EQ(w[1], 9.0f / 49);
+  // Samples at distance 0 share everything.
+  neighbour_weights(Weights::shepard, 1, std::vector<float>{0, 0, 9}, w);
+  EXPECT_EQ(w, (std::vector<float>{0.5f, 0.5f, 0.0f}));
+  // p = 0 is the mean.
+  neighbour_weights(Weights::shepard, 0, std::vector<float>{1, 4, 9}, w);
+  EXPECT_FLOAT_EQ(w[2], 1.0f / 3);
+}
+
 TEST(Resampler, SamplesAtCellCentresAreReproducedExactlyWithOneNeighbour) {
-  std::vector<double> angles;
-  std::vector<float> values;
+  Samples s;
   std::vector<std::size_t> cells;
   for (std::size_t c = 0; c < brdf::kMerlCells; c += 97) {
     const brdf::MerlCell cell = brdf::merl_cell(c);
     if (!brdf::merl_cell_valid(cell)) continue;
     const brdf::StdAngles a = brdf::std_angles(brdf::merl_cell_centre(cell));
-    angles.insert(angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
-    values.push_back(float(c) * 0.5f);
-    values.push_back(float(c) * 0.25f);
+    s.angles.insert(s.angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
+    s.values.push_back(float(c) * 0.5f + 0.1f);
+    s.values.push_back(float(c) * 0.25f + 0.3f);
     cells.push_back(c);
   }
   for (const Weights w : {Weights::mean, Weights::shepard}) {
-    const Resampler r(angles, values, 2, {.mapping = Mapping::standard, .k = 1, .weights = w, .max_gap = 10});
+    const Resampler r(s.angles, s.values, 2, {.mapping = Mapping::standard, .k = 1, .weights = w, .max_gap = 10});
     std::vector<float> grid(2 * brdf::kMerlCells);
     r.fill_grid(grid);
     for (std::size_t j = 0; j < cells.size(); ++j) {
-      ASSERT_EQ(grid[cells[j]], values[2 * j]) << cells[j];
-      ASSERT_EQ(grid[brdf::kMerlCells + cells[j]], values[2 * j + 1]) << cells[j];
+      ASSERT_EQ(grid[cells[j]], s.values[2 * j]) << cells[j];
+      ASSERT_EQ(grid[brdf::kMerlCells + cells[j]], s.values[2 * j + 1]) << cells[j];
     }
   }
+  // M_m and M_h send reciprocal configurations to one point, and some cell centres are (nearly) reciprocal to
+  // others: there the cell gets the value of a sample whose mapped point is the same in float precision.
+  for (const Mapping m : {Mapping::marschner, Mapping::halfdiff}) {
+    const Resampler r(s.angles, s.values, 2, {.mapping = m, .k = 1, .max_gap = 10});
+    std::vector<float> grid(2 * brdf::kMerlCells);
+    r.fill_grid(grid);
+    std::size_t own = 0;
+    for (std::size_t j = 0; j < cells.size(); ++j) {
+      if (grid[cells[j]] == s.values[2 * j]) {
+        ++own;
+        ASSERT_EQ(grid[brdf::kMerlCells + cells[j]], s.values[2 * j + 1]);
+        continue;
+      }
+      const auto other = std::size_t(std::find(s.values.begin(), s.values.end(), grid[cells[j]]) - s.values.begin()) / 2;
+      ASSERT_LT(other, cells.size()) << mapping_name(m) << " cell " << cells[j];
+      ASSERT_EQ((map_angles(m, s.at(other)).cast<float>() - map_angles(m, s.at(j)).cast<float>()).norm(), 0.0f)
+          << mapping_name(m) << " cell " << cells[j];
+    }
+    EXPECT_GT(own, cells.size() * 99 / 100) << mapping_name(m);
+  }
+  // Shepard with more neighbours still returns a sample that sits exactly on the query.
+  const Resampler r(s.angles, s.values, 2, {.k = 8, .weights = Weights::shepard});
+  std::vector<float> out(2);
+  ASSERT_TRUE(r.predict(s.at(5), out));
+  EXPECT_EQ(out[0], s.values[10]);
 }
 
 // Shepard weights are a convex combination: a constant is reproduced exactly, and a field linear in the
 // mapped coordinates is reproduced to within its gradient times the distance of the farthest neighbour used.
 TEST(Resampler, ShepardReproducesConstantsAndLinearFieldsToInterpolationAccuracy) {
   std::mt19937_64 rng(3);
-  std::vector<double> angles;
-  std::vector<float> values;
   const Eigen::Vector3d grad(0.3, -0.2, 0.1);
-  for (int i = 0; i < 20000; ++i) {
-    const auto a = random_angles(rng);
-    angles.insert(angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
-    values.push_back(2.5f);
-    values.push_back(float(1 + grad.dot(map_angles(Mapping::standard, a))));
-  }
-  const Resampler r(angles, values, 2, {.mapping = Mapping::standard, .k = 16, .weights = Weights::shepard, .power = 2});
-  std::vector<float> out(2);
-  std::vector<std::size_t> index;
-  std::vector<double> dist2;
-  std::uniform_real_distribution<double> t(0.2, 1.2), p(0.3, 2.8);
-  for (int q = 0; q < 300; ++q) {
-    const brdf::StdAngles at{t(rng), 0.0, t(rng), p(rng)};
-    ASSERT_TRUE(r.predict(at, out));
-    EXPECT_NEAR(out[0], 2.5f, 1e-6);
-    r.neighbours(at, index, dist2);
-    const double reach = std::sqrt(dist2.back());
-    EXPECT_LE(std::abs(out[1] - (1 + grad.dot(map_angles(Mapping::standard, at)))), grad.norm() * reach + 1e-6);
+  for (const Mapping m : kAll) {
+    Samples s;
+    for (int i = 0; i < 20000; ++i) {
+      const auto a = random_angles(rng);
+      s.angles.insert(s.angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
+      s.values.push_back(2.5f);
+      s.values.push_back(float(1 + grad.dot(map_angles(m, a))));
+    }
+    const Resampler r(s.angles, s.values, 2, {.mapping = m, .k = 16, .weights = Weights::shepard, .power = 2});
+    std::vector<float> out(2);
+    Neighbours nb;
+    std::uniform_real_distribution<double> t(0.2, 1.2), p(0.3, 2.8);
+    double worst = 0, mean_err = 0;
+    for (int q = 0; q < 300; ++q) {
+      const brdf::StdAngles at{t(rng), 0.0, t(rng), p(rng)};
+      ASSERT_TRUE(r.predict(at, out)) << mapping_name(m);
+      EXPECT_NEAR(out[0], 2.5f, 2e-6);
+      r.neighbours(at, nb);
+      const double reach = std::sqrt(double(nb.dist2.back()));
+      const double err = std::abs(out[1] - (1 + grad.dot(map_angles(m, at))));
+      EXPECT_LE(err, grad.norm() * reach + 1e-5) << mapping_name(m);
+      worst = std::max(worst, reach);
+      mean_err += err / 300;
+    }
+    // And the interpolation is far better than that bound on average (a sign that the weights are inverse
+    // distances and not, say, uniform over a biased neighbourhood).
+    EXPECT_LT(mean_err, 0.5 * grad.norm() * worst) << mapping_name(m);
   }
 }
 
-TEST(Resampler, CellsFarFromEverySampleHaveNoDataAndBadOptionsAreRefused) {
-  std::vector<double> angles = {0.5, 0.0, 0.5, pi};
-  std::vector<float> values = {1.0f};
-  const Resampler r(angles, values, 1, {.k = 1, .max_gap = 0.1});
-  std::vector<float> grid(brdf::kMerlCells);
-  const std::size_t valid = r.fill_grid(grid);
-  // Independently: a cell has data exactly when it is above the horizon and its centre lies within 0.1 rad
-  // of the sample in (theta_i, theta_o, |phi_o - phi_i| folded to [0, pi]).
-  std::size_t expect = 0;
-  for (std::size_t c = 0; c < brdf::kMerlCells; ++c) {
-    const brdf::MerlCell cell = brdf::merl_cell(c);
-    bool ok = brdf::merl_cell_valid(cell);
-    if (ok) {
-      const brdf::StdAngles a = brdf::std_angles(brdf::merl_cell_centre(cell));
-      double pd = std::fmod(std::abs(a.phi_o - a.phi_i), 2 * pi);
-      if (pd > pi) pd = 2 * pi - pd;
-      ok = std::hypot(a.theta_i - 0.5, a.theta_o - 0.5, pd - pi) <= 0.1;
+TEST(Resampler, GridIsPredictAtEveryCellCentreForAnyPassCountAndThreadCount) {
+  const Samples s = random_samples(30000, 3, 7);
+  for (const Mapping m : kAll) {
+    const ResampleOptions o{.mapping = m, .k = 6, .weights = Weights::shepard, .max_gap = 0.12};
+    const Resampler r(s.angles, s.values, 3, o);
+    std::vector<float> one(3 * brdf::kMerlCells);
+    const std::size_t valid = r.fill_grid(one);
+    EXPECT_GT(valid, 100000u);
+    // The streaming grid in many passes over the values (small blocks, few entries per pass) and on one thread.
+    const MemorySamples src(s.angles, s.values, 3);
+    std::vector<float> many(3 * brdf::kMerlCells);
+    ResampleOptions small = o;
+    small.max_entries = 100003;
+    const int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const GridStats st = resample_grid(src, small, many);
+    omp_set_num_threads(threads);
+    EXPECT_GT(st.passes, 5u);
+    EXPECT_EQ(st.valid_cells, valid);
+    ASSERT_TRUE(one == many) << mapping_name(m);
+    // Spot checks against predict at cell centres.
+    std::vector<float> out(3);
+    std::size_t checked = 0;
+    for (std::size_t c = 0; c < brdf::kMerlCells; c += 1013) {
+      const brdf::MerlCell cell = brdf::merl_cell(c);
+      const bool has = brdf::merl_cell_valid(cell) && r.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), out);
+      ASSERT_EQ(one[c] >= 0, has) << c;
+      if (!has) continue;
+      ++checked;
+      for (std::size_t q = 0; q < 3; ++q) ASSERT_EQ(one[q * brdf::kMerlCells + c], out[q]) << c;
     }
-    expect += ok;
-    ASSERT_EQ(grid[c] == 1.0f, ok) << c;
+    EXPECT_GT(checked, 100u);
   }
-  EXPECT_EQ(valid, expect);
-  EXPECT_GT(valid, 0u);
-  EXPECT_EQ(std::count(grid.begin(), grid.end(), -1.0f), std::ptrdiff_t(brdf::kMerlCells - valid));
+}
+
+TEST(Resampler, StoreSamplesGiveTheSameGridAsMemory) {
+  test::ScratchDir dir;
+  const Samples s = random_samples(50000, 4, 8);
+  {
+    store::StoreWriter w(dir / "s.h5", {});
+    w.create_samples("scan", WavelengthGrid::parse("400:700:100"), "1/sr", {});
+    // Appended in uneven batches, as a capture would.
+    w.append_samples("scan", std::span(s.angles).subspan(0, 4 * 12345), std::span(s.values).subspan(0, 4 * 12345));
+    w.append_samples("scan", std::span(s.angles).subspan(4 * 12345), std::span(s.values).subspan(4 * 12345));
+    w.commit();
+  }
+  const store::Store st = store::Store::open(dir / "s.h5");
+  const StoreSamples src(st, "scan");
+  EXPECT_EQ(src.size(), 50000u);
+  EXPECT_EQ(src.bands(), 4u);
+  EXPECT_EQ(src.block_rows() % st.samples_info("scan").chunk_rows, 0u);
+  const ResampleOptions o{.k = 12};
+  std::vector<float> a(4 * brdf::kMerlCells), b(4 * brdf::kMerlCells);
+  const GridStats stats = resample_grid(src, o, a);
+  EXPECT_EQ(stats.samples, 50000u);
+  Resampler(s.angles, s.values, 4, o).fill_grid(b);
+  EXPECT_TRUE(a == b);
+  EXPECT_THROW(StoreSamples(st, "missing"), InputError);
+}
+
+TEST(Resampler, CellsFarFromEverySampleHaveNoData) {
+  // One sample at theta_i = 0.5, theta_o = 0.3, phi_d = pi: a cell has data exactly when it is above the
+  // horizon and its centre lies within 0.1 of it in config_distance (tested against brute force in
+  // mapping_test); for the reciprocal mappings the swapped configuration counts too.
+  const std::vector<double> angles = {0.5, 0.0, 0.3, pi};
+  const std::vector<float> values = {1.0f};
+  const IsoAngles sample{0.5, 0.3, pi};
+  for (const Mapping m : kAll) {
+    const Resampler r(angles, values, 1, {.mapping = m, .k = 1, .max_gap = 0.1});
+    std::vector<float> grid(brdf::kMerlCells);
+    const std::size_t valid = r.fill_grid(grid);
+    std::size_t expect = 0, swapped = 0;
+    for (std::size_t c = 0; c < brdf::kMerlCells; ++c) {
+      const brdf::MerlCell cell = brdf::merl_cell(c);
+      bool ok = false;
+      if (brdf::merl_cell_valid(cell)) {
+        const IsoAngles a = iso_angles(brdf::std_angles(brdf::merl_cell_centre(cell)));
+        const bool direct = config_distance(a, sample, false) <= 0.1;
+        const bool either = config_distance(a, sample, true) <= 0.1;
+        ok = m == Mapping::standard ? direct : either;
+        swapped += either && !direct;
+      }
+      expect += ok;
+      ASSERT_EQ(grid[c] == 1.0f, ok) << mapping_name(m) << " cell " << c;
+    }
+    EXPECT_EQ(valid, expect);
+    EXPECT_GT(swapped, 0u);
+    EXPECT_GT(valid, 100u);
+    EXPECT_EQ(std::count(grid.begin(), grid.end(), -1.0f), std::ptrdiff_t(brdf::kMerlCells - valid));
+  }
+}
+
+TEST(Resampler, AnInterruptStopsTheGrid) {
+  const Samples s = random_samples(5000, 2, 11);
+  const MemorySamples src(s.angles, s.values, 2);
+  std::vector<float> grid(2 * brdf::kMerlCells);
+  request_interrupt();
+  EXPECT_THROW(resample_grid(src, {}, grid), Interrupted);
+  clear_interrupt();
+  EXPECT_GT(resample_grid(src, {.k = 4}, grid).valid_cells, 0u);
+}
+
+TEST(Resampler, BadOptionsAreRefused) {
+  const std::vector<double> angles = {0.5, 0.0, 0.5, pi};
+  const std::vector<float> values = {1.0f};
   EXPECT_THROW(Resampler(angles, values, 1, {.k = 0}), UsageError);
   EXPECT_THROW(Resampler(angles, values, 1, {.power = -1}), UsageError);
+  EXPECT_THROW(Resampler(angles, values, 1, {.power = std::nan("")}), UsageError);
+  EXPECT_THROW(Resampler(angles, values, 1, {.max_gap = 0}), UsageError);
   EXPECT_THROW(Resampler(angles, values, 2, {}), UsageError);
-  EXPECT_THROW(Resampler({}, {}, 1, {}), InputError);
+  EXPECT_THROW(Resampler(std::span<const double>(), std::span<const float>(), 1, {}), InputError);
+  EXPECT_THROW(parse_weights("median"), UsageError);
+  const Resampler r(angles, values, 1, {});
+  std::vector<float> small(10);
+  EXPECT_THROW(r.fill_grid(small), UsageError);
 }
 
 }  // namespace

@@ -126,6 +126,37 @@ TEST(BlockReader, SelectsByGlobOrCollectionAndRejectsMixedGrids) {
   EXPECT_EQ(m(2, 1), 6.0f);
 }
 
+TEST(BlockReader, StreamsTheValuesOfScatteredSamples) {
+  test::ScratchDir dir;
+  const auto path = dir / "s.h5";
+  const std::size_t n = 200000, b = 3;
+  std::vector<double> angles(4 * n, 0.5);
+  std::vector<float> values(n * b);
+  for (std::size_t i = 0; i < values.size(); ++i) values[i] = float(i % 9973) * 0.25f;
+  {
+    StoreWriter w(path, {});
+    w.create_samples("scan", WavelengthGrid({500, 600, 700}), "1/sr", {});
+    w.append_samples("scan", angles, values);
+    w.commit();
+  }
+  const Store s = Store::open(path);
+  BlockReader reader(s, Selection{.samples = "scan"}, s.samples_info("scan").chunk_rows);
+  EXPECT_TRUE(reader.direct());
+  EXPECT_GT(reader.block_count(), 1u);
+  EXPECT_EQ(reader.spectra(), n);
+  std::vector<float> got;
+  BlockReader::RawBlock raw;
+  for (std::size_t i = 0; i < reader.block_count(); ++i) {
+    reader.read_raw(i, raw);
+    EXPECT_EQ(raw.valid, raw.pixels);
+    got.insert(got.end(), raw.values.begin(), raw.values.end());
+  }
+  EXPECT_TRUE(got == values);
+  EXPECT_NE(reader.describe_block(1).find("samples 'scan'"), std::string::npos) << reader.describe_block(1);
+  EXPECT_THROW(BlockReader(s, Selection{.collection = "c", .samples = "scan"}), UsageError);
+  EXPECT_THROW(BlockReader(s, Selection{.samples = "other"}), InputError);
+}
+
 TEST(BlockReader, ErrorsInsideTheStreamAreRethrown) {
   test::ScratchDir dir;
   auto path = dir / "s.h5";

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <sstream>
 
 #include "core/error.h"
 #include "test_support.h"
@@ -15,7 +16,7 @@ void write(const std::filesystem::path& p, const std::string& text) { std::ofstr
 TEST(BrdfIrregular, ReadsTheCornellLayout) {
   test::ScratchDir dir;
   write(dir / "a.brdf", "# num wls\n3\n\n# wls\n400 500\n600\n# samples\n0.5 0 0.25 3.14159 0.1 0.2 0.3\n"
-                        "0.1 0.2 0.3 0.4 1 2 3 # trailing comment\n");
+                        "\n0.1 0.2 0.3 0.4 1 2 3 # trailing comment\n");
   const IrregularBrdf b = read_brdf_irregular(dir / "a.brdf");
   ASSERT_EQ(b.size(), 2u);
   EXPECT_EQ(b.wavelengths.size(), 3u);
@@ -38,10 +39,38 @@ TEST(BrdfIrregular, TheRealCornellFileMatchesItsFirstLineReadByHand) {
   EXPECT_FLOAT_EQ(b.values[30], 0.000008f);
 }
 
+// Independently: every Cornell file read line by line with a string stream; the lines of 35 numbers are the
+// samples, and the reader must give each of them, in order.
+TEST(BrdfIrregular, EveryCornellFileMatchesALineByLineReading) {
+  SPECULA_REQUIRE_SHARED();
+  for (const char* name : {"acryl_blue", "cayman", "garnet_red", "krylon_blue", "mystique"}) {
+    const auto path = test::shared_dir() / "data/brdf/cornell" / (std::string(name) + ".brdf");
+    std::ifstream in(path);
+    std::vector<std::vector<double>> rows;
+    for (std::string line; std::getline(in, line);) {
+      if (line.empty() || line[0] == '#') continue;
+      std::istringstream ss(line);
+      std::vector<double> row;
+      for (double v; ss >> v;) row.push_back(v);
+      if (row.size() == 35) rows.push_back(row);
+    }
+    const IrregularBrdf b = read_brdf_irregular(path);
+    ASSERT_EQ(b.size(), rows.size()) << name;
+    ASSERT_EQ(b.wavelengths.size(), 31u);
+    EXPECT_EQ(b.wavelengths[30], 700);
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      for (std::size_t a = 0; a < 4; ++a) ASSERT_EQ(b.angles[4 * i + a], rows[i][a]) << name << " sample " << i;
+      for (std::size_t k = 0; k < 31; ++k) ASSERT_EQ(b.values[31 * i + k], float(rows[i][4 + k])) << name << " sample " << i;
+    }
+  }
+}
+
 TEST(BrdfIrregular, BadFilesNameTheLineAndTheRule) {
   test::ScratchDir dir;
   const std::pair<const char*, const char*> cases[] = {
-      {"2\n400 500\n0.1 0 0.2 0 1\n", "truncated"},
+      {"2\n400 500\n0.1 0 0.2 0 1\n", "has 5 numbers; expected 6"},
+      {"2\n400 500\n0.1 0 0.2 0 1 2\n0.1 0 0.2 0 1 2 3\n0.1 0 0.2 0 1 2\n", "line 4: sample 2 has 7 numbers"},
+      {"2\n400 500\n0.1 0 0.2 0 1\n2 0.1 0 0.2 0 1 2\n", "line 3: sample 1 has 5 numbers"},
       {"2\n400 500\n0.1 0 0.2 0 1 x\n", "'x'"},
       {"2\n400 500\n0.1 0 0.2 0 1 nan\n", "'nan'"},
       {"2\n400 500\n2.0 0 0.2 0 1 1\n", "outside [0, pi/2]"},

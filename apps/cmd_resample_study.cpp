@@ -1,0 +1,204 @@
+// specula resample-study: the reference's evaluation of resampling (§5.4, figures 5.9-5.17). The study's
+// Torrance-Sparrow and Ward materials are sampled at the configurations of a simulated scan (acquire/scan.h),
+// reconstructed on the MERL grid for each mapping, k and weighting, rendered on a sphere under one directional
+// light and compared with the analytic model per pixel. Prints the tables; --out adds the renders (one PNG
+// sheet per material) and the incidence-plane plot of figure 5.17.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+
+#include "acquire/scan.h"
+#include "acquire/study.h"
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "apps/gnuplot.h"
+#include "core/brdf_materials.h"
+#include "core/error.h"
+#include "core/interrupt.h"
+#include "store/io/png_stack.h"
+
+namespace specula::app {
+namespace {
+
+using std::numbers::pi;
+
+struct ResampleStudyOptions {
+  std::vector<std::string> materials = {"study-ts", "study-ward"};
+  acquire::ScanRig rig;
+  std::vector<std::size_t> ks = {1, 16, 64, 256};
+  std::size_t render_size = 200;
+  std::vector<double> light = {45, 135};
+  double max_gap_deg = 8.6;
+  std::size_t plot_k = 32;
+  std::string out;
+  bool json = false;
+};
+
+std::string row_label(const acquire::StudyResult& r) {
+  const char* m = r.mapping == acquire::Mapping::standard ? "M_s" : r.mapping == acquire::Mapping::marschner ? "M_m" : "M_h";
+  return r.k == 1 ? std::string(m) : fmt::format("{}, {}", m, r.weights == acquire::Weights::mean ? "Avg." : "Weighted Avg.");
+}
+
+// One sheet: the truth, the model sampled at cell centres, then every reconstruction, in rows of `per_row`,
+// tone-mapped alike (the truth's brightest pixel as white, gamma 2.2), grey as the material is.
+void write_sheet(const std::filesystem::path& path, const acquire::StudyOutput& s, std::size_t per_row) {
+  std::vector<const acquire::SphereRender*> panels = {&s.truth, &s.grid_truth};
+  for (const auto& r : s.renders) panels.push_back(&r);
+  const std::size_t size = s.truth.size, cols = per_row, rows = (panels.size() + cols - 1) / cols;
+  double white = 1e-9;
+  for (std::size_t p = 0; p < s.truth.value.size(); ++p)
+    if (s.truth.covered[p]) white = std::max(white, s.truth.value[p]);
+  const std::size_t w = cols * size, h = rows * size;
+  std::vector<std::uint8_t> rgb(3 * w * h, 32);
+  for (std::size_t i = 0; i < panels.size(); ++i) {
+    const std::size_t x0 = (i % cols) * size, y0 = (i / cols) * size;
+    for (std::size_t p = 0; p < size * size; ++p) {
+      if (!panels[i]->covered[p]) continue;
+      const double v = std::pow(std::clamp(panels[i]->value[p] / white, 0.0, 1.0), 1 / 2.2);
+      const auto g = std::uint8_t(std::lround(255 * v));
+      const std::size_t at = 3 * ((y0 + p / size) * w + x0 + p % size);
+      rgb[at] = rgb[at + 1] = rgb[at + 2] = g;
+    }
+  }
+  store::write_png_rgb8(path, w, h, rgb);
+}
+
+// Figure 5.17: samples within 2 degrees of theta_i = 45 degrees and of the incidence plane (cube root of the BRDF
+// against the signed outgoing angle: positive towards the mirror direction), the reconstruction (M_s, k, Shepard)
+// looked up in the grid along the plane, and the model.
+void incidence_plot(const std::filesystem::path& path, const std::string& material, const brdf::SpectralModel& model,
+                    std::span<const double> angles, std::span<const float> values, std::size_t k, double max_gap) {
+  const auto gnuplot = find_gnuplot();
+  if (gnuplot.empty()) throw UsageError("resample-study: --out draws the incidence-plane plot with gnuplot; install it");
+  const double ti = pi / 4, eps = 2 * pi / 180;
+  std::string script = "$S << EOD\n";
+  for (std::size_t i = 0; i < angles.size() / 4; ++i) {
+    const acquire::IsoAngles a = acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
+    if (std::abs(a.theta_i - ti) > eps || (a.phi_d > eps && a.phi_d < pi - eps)) continue;
+    const double x = (a.phi_d > pi / 2 ? 1 : -1) * a.theta_o * 180 / pi;
+    script += fmt::format("{:.3f} {:.5g}\n", x, std::cbrt(std::max(0.0f, values[i])));
+  }
+  script += "EOD\n$R << EOD\n";
+  const acquire::Resampler r(angles, values, 1, {.k = k, .weights = acquire::Weights::shepard, .max_gap = max_gap});
+  std::vector<double> f(1);
+  for (int deg10 = -895; deg10 <= 895; deg10 += 5) {
+    const double to = std::abs(deg10) / 10.0 * pi / 180;
+    const acquire::IsoAngles a{ti, to, deg10 > 0 ? pi : 0.0};
+    // The grid's value: the reconstruction at the centre of the cell the lookup reads.
+    const brdf::MerlCell cell = brdf::merl_cell(std::size_t(acquire::merl_lookup_cell(a)));
+    float v = 0;
+    const bool has = r.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), std::span<float>(&v, 1));
+    model.eval(brdf::StdAngles{ti, 0.0, to, a.phi_d}, f);
+    script += fmt::format("{:.1f} {} {:.5g}\n", deg10 / 10.0, has ? fmt::format("{:.5g}", std::cbrt(std::max(0.0f, v))) : "NaN",
+                          std::cbrt(f[0]));
+  }
+  script += "EOD\n";
+  script += "set grid\nset key top left\nset xlabel 'theta_o (degrees; negative: same side as the light)'\n";
+  script += "set ylabel 'cube root of the BRDF (1/sr)'\nset xrange [-90:90]\n";
+  script += "set title " +
+            gnuplot_quote(fmt::format("{}: incidence plane at theta_i = 45 deg, samples within 2 deg; "
+                                      "M_s, k = {}, Shepard (grid lookup)",
+                                      material, k)) +
+            " noenhanced\n";
+  script += "plot $S using 1:2 with points pt 7 ps 0.4 lc rgb '#808080' title 'samples', "
+            "$R using 1:3 with lines lw 2 lc rgb '#2060c0' title 'model', "
+            "$R using 1:2 with lines lw 2 lc rgb '#d04020' title 'reconstruction'\n";
+  plot_png(gnuplot, path, gnuplot_png_terminal(1000, 600), script);
+}
+
+void run_resample_study(const ResampleStudyOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (o.light.size() != 2 || !(o.light[0] >= 0 && o.light[0] < 90) || !std::isfinite(o.light[1]))
+    throw UsageError("resample-study: --light THETA,PHI in degrees with 0 <= THETA < 90 (angle from the viewer)");
+  if (!(o.max_gap_deg > 0 && o.max_gap_deg <= 180)) throw UsageError("--max-gap: give degrees in (0, 180]");
+  if (o.render_size < 8 || o.render_size > 2048) throw UsageError("--render-size: give 8 to 2048 pixels");
+  for (const auto k : o.ks)
+    if (k < 1 || k > 100000) throw UsageError("-k: every value must be 1 to 100000");
+  const WavelengthGrid band({550.0});
+  for (const auto& m : o.materials) brdf::make_material(m, band);
+  acquire::StudyOptions so;
+  so.ks = o.ks;
+  so.render_size = o.render_size;
+  const double lt = o.light[0] * pi / 180, lp = o.light[1] * pi / 180;
+  so.light = brdf::direction(lt, lp);
+  so.max_gap = o.max_gap_deg * pi / 180;
+  if (!o.out.empty()) std::filesystem::create_directories(o.out);
+
+  const std::vector<acquire::ScanPixel> pixels = acquire::scan_pixels(o.rig);
+  std::vector<double> angles;
+  for (std::size_t j = 0; j < o.rig.lights; ++j) acquire::scan_light(o.rig, pixels, j, angles);
+  const std::size_t n = angles.size() / 4;
+  std::string json;
+  for (const auto& name : o.materials) {
+    check_interrupt();
+    const auto model = brdf::make_material(name, band);
+    std::vector<float> values(n);
+    brdf::evaluate_at(*model, angles, values);
+    const acquire::StudyOutput s = acquire::resampling_study(*model, 0, angles, values, so);
+    if (!o.out.empty()) {
+      write_sheet(std::filesystem::path(o.out) / (name + "-renders.png"), s, 2 * o.ks.size() - 1);
+      incidence_plot(std::filesystem::path(o.out) / (name + "-incidence.png"), name, *model, angles, values, o.plot_k,
+                     so.max_gap);
+    }
+    if (o.json) {
+      std::string rows;
+      for (const auto& r : s.rows)
+        rows += fmt::format(R"({}{{"mapping":{},"k":{},"weights":{},"l1":{},"max_error":{},"pixels_without_data":{}}})",
+                            rows.empty() ? "" : ",", json_string(acquire::mapping_name(r.mapping)), r.k,
+                            json_string(r.k == 1 ? "nearest" : acquire::weights_name(r.weights)), r.l1, r.max_error,
+                            r.pixels_without_data);
+      json += fmt::format(R"({}{{"material":{},"description":{},"samples":{},"grid_l1":{},"rows":[{}]}})",
+                          json.empty() ? "" : ",", json_string(name), json_string(brdf::material_catalogue().at(name)), n,
+                          s.grid_l1, rows);
+      continue;
+    }
+    fmt::print("{} ({}): {} scan samples ({} sphere pixels x {} lights), {}x{} render, light at theta {} phi {} deg\n",
+               name, brdf::material_catalogue().at(name), n, pixels.size(), o.rig.lights, o.render_size, o.render_size,
+               o.light[0], o.light[1]);
+    fmt::print("the model at cell centres (grid quantisation alone): average L1 error per pixel {:.6f}\n\n", s.grid_l1);
+    for (const std::size_t k : o.ks) {
+      fmt::print("| {} k = {} | avg. L1 error per pixel | max | pixels without data |\n|---|---|---|---|\n", name, k);
+      for (const auto& r : s.rows)
+        if (r.k == k)
+          fmt::print("| {} | {:.6f} | {:.4f} | {} |\n", row_label(r), r.l1, r.max_error, r.pixels_without_data);
+      fmt::print("\n");
+    }
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (o.json) {
+    fmt::print(R"({{"samples":{},"render_size":{},"materials":[{}],"seconds":{:.3f}}})"
+               "\n",
+               n, o.render_size, json, seconds);
+    return;
+  }
+  fmt::print("{:.1f} s{}\n", seconds, o.out.empty() ? "" : "; renders and incidence-plane plots in " + o.out);
+}
+
+}  // namespace
+
+void setup_resample_study(CLI::App& app) {
+  auto o = std::make_shared<ResampleStudyOptions>();
+  auto* cmd = app.add_subcommand("resample-study",
+                                 "The reference's resampling study (§5.4): scan samples of analytic BRDFs reconstructed per "
+                                 "mapping, k and weighting, rendered and compared");
+  cmd->add_option("--material", o->materials, "Materials (see synth-samples)")->delimiter(',')->capture_default_str();
+  cmd->add_option("-k", o->ks, "Neighbour counts")->delimiter(',')->capture_default_str();
+  cmd->add_option("--sphere-px", o->rig.sphere_px, "Scan: the sphere's diameter on the image (pixels)")->capture_default_str();
+  cmd->add_option("--lights", o->rig.lights, "Scan: light positions on the arc")->capture_default_str();
+  cmd->add_option("--render-size", o->render_size, "Rendered sphere's size (pixels)")->capture_default_str();
+  cmd->add_option("--light", o->light, "Render light THETA,PHI in degrees (theta from the viewer)")
+      ->delimiter(',')
+      ->capture_default_str();
+  cmd->add_option("--max-gap", o->max_gap_deg, "Cells farther than this from every sample have no data (degrees)")
+      ->capture_default_str();
+  cmd->add_option("--plot-k", o->plot_k, "k of the incidence-plane plot (M_s, Shepard)")->capture_default_str();
+  cmd->add_option("--out", o->out, "Directory for the render sheets and incidence-plane plots (PNG)");
+  cmd->add_flag("--json", o->json, "Print one JSON object with every result");
+  cmd->callback([o] { run_resample_study(*o); });
+}
+
+}  // namespace specula::app

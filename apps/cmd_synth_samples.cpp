@@ -1,0 +1,179 @@
+// specula synth-samples: scattered spectral BRDF samples of an analytic material (core/brdf_materials.h) at the
+// configurations of a simulated scan of the reference's rig (acquire/scan.h) or at random ones, appended to a
+// store in batches as a capture would be. Ground truth for resampling tests, the study and the benchmark.
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <numbers>
+#include <random>
+
+#include "acquire/scan.h"
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "core/brdf_materials.h"
+#include "core/error.h"
+#include "core/interrupt.h"
+#include "core/progress.h"
+#include "store/store.h"
+
+namespace specula::app {
+namespace {
+
+struct SynthSamplesOptions {
+  std::string material;
+  std::string output;
+  std::string geometry = "scan";
+  std::size_t count = 0;
+  acquire::ScanRig rig;
+  std::string wavelengths = "420:720:10";
+  std::uint64_t seed = 1;
+  double noise = 0;
+  std::string compression = "deflate";
+  bool replace = false;
+  bool json = false;
+};
+
+// Evaluates the model at n configurations in parallel (the models are read-only), each value times
+// (1 + noise N(0, 1)) with a generator seeded from the seed and the batch's index, whatever the thread count.
+void evaluate(const brdf::SpectralModel& model, std::span<const double> angles, std::span<float> values, double noise,
+              std::uint64_t seed, std::uint64_t batch) {
+  const std::size_t n = angles.size() / 4, b = model.bands();
+  const std::size_t piece = 4096;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long long p = 0; p < static_cast<long long>((n + piece - 1) / piece); ++p) {
+    const std::size_t first = std::size_t(p) * piece, count = std::min(piece, n - first);
+    const auto v = values.subspan(b * first, b * count);
+    brdf::evaluate_at(model, angles.subspan(4 * first, 4 * count), v);
+    if (noise > 0) {
+      std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull ^ (batch << 24) ^ std::uint64_t(p));
+      std::normal_distribution<float> g(0.0f, float(noise));
+      for (float& x : v) x *= 1 + g(rng);
+    }
+  }
+}
+
+void run_synth_samples(const SynthSamplesOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto colon = o.output.rfind(':');
+  if (colon == std::string::npos || std::filesystem::path(o.output.substr(0, colon)).extension() != ".h5")
+    throw UsageError("synth-samples: -o " + o.output + ": write the samples as STORE.h5:NAME");
+  const std::string file = o.output.substr(0, colon), name = o.output.substr(colon + 1);
+  store::validate_name(name, "samples");
+  if (o.geometry != "scan" && o.geometry != "random")
+    throw UsageError("--geometry '" + o.geometry + "': use scan (the reference's rig) or random");
+  if (o.geometry == "random" && (o.count == 0 || o.count > (std::size_t(1) << 32) - 2))
+    throw UsageError("--geometry random needs -n, 1 to 2^32 - 2 samples");
+  if (o.geometry == "scan") acquire::check_rig(o.rig);
+  if (!(o.noise >= 0 && o.noise <= 1)) throw UsageError("--noise must be a relative standard deviation from 0 to 1");
+  const WavelengthGrid g = WavelengthGrid::parse(o.wavelengths);
+  const auto model = brdf::make_material(o.material, g);
+  const std::size_t b = g.size();
+
+  store::StoreWriter writer(file, {.compression = store::Compression::parse(o.compression),
+                                   .replace = o.replace,
+                                   .command_line = command_line()});
+  store::Provenance prov;
+  prov.importer = fmt::format("synth-samples {} ({}) at {} configurations, noise {}", o.material,
+                              brdf::material_catalogue().at(o.material), o.geometry, o.noise);
+  writer.create_samples(name, g, "1/sr", prov);
+  std::vector<double> angles;
+  std::vector<float> values;
+  std::size_t written = 0, pixels = 0;
+  if (o.geometry == "scan") {
+    const std::vector<acquire::ScanPixel> px = acquire::scan_pixels(o.rig);
+    pixels = px.size();
+    // With -n, every lit sample is counted first and the scan thinned evenly to n.
+    std::size_t total = 0;
+    if (o.count) {
+      for (std::size_t j = 0; j < o.rig.lights; ++j) {
+        angles.clear();
+        total += acquire::scan_light(o.rig, px, j, angles);
+      }
+    }
+    Progress progress("synth-samples", o.rig.lights);
+    std::size_t seen = 0;
+    for (std::size_t j = 0; j < o.rig.lights; ++j) {
+      check_interrupt();
+      angles.clear();
+      const std::size_t n = acquire::scan_light(o.rig, px, j, angles);
+      if (o.count && o.count < total) {
+        std::size_t kept = 0;
+        for (std::size_t i = 0; i < n; ++i, ++seen)
+          if ((seen + 1) * o.count / total > seen * o.count / total)
+            std::copy_n(angles.begin() + std::ptrdiff_t(4 * i), 4, angles.begin() + std::ptrdiff_t(4 * kept++));
+        angles.resize(4 * kept);
+      }
+      values.resize(angles.size() / 4 * b);
+      evaluate(*model, angles, values, o.noise, o.seed, j);
+      writer.append_samples(name, angles, values);
+      written += angles.size() / 4;
+      progress.advance();
+    }
+  } else {
+    const std::size_t block = std::size_t(1) << 20;
+    Progress progress("synth-samples", o.count);
+    for (std::size_t first = 0; first < o.count; first += block) {
+      check_interrupt();
+      const std::size_t n = std::min(block, o.count - first);
+      // Directions uniform over the hemisphere's solid angle; one generator per block, seeded from its index.
+      std::mt19937_64 rng(o.seed * 0x9E3779B97F4A7C15ull + first / block);
+      std::uniform_real_distribution<double> u(0, 1);
+      angles.resize(4 * n);
+      for (std::size_t i = 0; i < n; ++i) {
+        angles[4 * i] = std::acos(u(rng));
+        angles[4 * i + 1] = 2 * std::numbers::pi * u(rng) - std::numbers::pi;
+        angles[4 * i + 2] = std::acos(u(rng));
+        angles[4 * i + 3] = 2 * std::numbers::pi * u(rng) - std::numbers::pi;
+      }
+      values.resize(n * b);
+      evaluate(*model, angles, values, o.noise, o.seed, first / block);
+      writer.append_samples(name, angles, values);
+      written += n;
+      progress.advance(n);
+    }
+  }
+  writer.commit();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (o.json) {
+    fmt::print(R"({{"samples":{},"bands":{},"pixels":{},"lights":{},"bytes":{},"seconds":{:.3f},"output":{}}})"
+               "\n",
+               written, b, pixels, o.geometry == "scan" ? o.rig.lights : 0, written * (32 + 4 * b), seconds,
+               json_string(o.output));
+    return;
+  }
+  fmt::print("wrote {} samples of {} ({}) at {} configurations{} to {} in {:.1f} s\n", written, o.material, g.describe(),
+             o.geometry, o.geometry == "scan" ? fmt::format(" ({} sphere pixels x {} lights)", pixels, o.rig.lights) : "",
+             o.output, seconds);
+}
+
+}  // namespace
+
+void setup_synth_samples(CLI::App& app) {
+  auto o = std::make_shared<SynthSamplesOptions>();
+  auto* cmd = app.add_subcommand("synth-samples",
+                                 "Scattered samples of an analytic BRDF at a simulated scan's (or random) configurations");
+  std::string help = "Material:";
+  for (const auto& [n, d] : brdf::material_catalogue()) help += " " + n + " (" + d + ");";
+  cmd->add_option("material", o->material, help)->required();
+  cmd->add_option("-o,--output", o->output, "STORE.h5:NAME")->required();
+  cmd->add_option("--geometry", o->geometry, "scan (the reference's rig, computed directly) or random (uniform)")
+      ->capture_default_str();
+  cmd->add_option("-n", o->count, "random: number of samples; scan: thin evenly to at most this many");
+  cmd->add_option("--sphere-px", o->rig.sphere_px, "scan: the sphere's diameter on the image (pixels)")->capture_default_str();
+  cmd->add_option("--lights", o->rig.lights, "scan: light positions on the arc")->capture_default_str();
+  cmd->add_option("--light-step", o->rig.light_step_deg, "scan: degrees between light positions")->capture_default_str();
+  cmd->add_option("--first-light", o->rig.first_light_deg, "scan: degrees between the camera and the first light")
+      ->capture_default_str();
+  cmd->add_option("--wavelengths", o->wavelengths, "Band grid FIRST:LAST:STEP")->capture_default_str();
+  cmd->add_option("--noise", o->noise, "Relative Gaussian noise on every value (e.g. 0.02)")->capture_default_str();
+  cmd->add_option("--seed", o->seed, "Seed of the random configurations and the noise")->capture_default_str();
+  cmd->add_option("--compression", o->compression, "none, deflate or deflate:LEVEL")->capture_default_str();
+  cmd->add_flag("--replace", o->replace, "Replace samples of the same name");
+  cmd->add_flag("--json", o->json, "Print one JSON object (samples, bands, pixels, lights, bytes, seconds)");
+  cmd->callback([o] { run_synth_samples(*o); });
+}
+
+}  // namespace specula::app

@@ -1,0 +1,121 @@
+#include "acquire/mapping.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "core/error.h"
+
+namespace specula::acquire {
+namespace {
+
+using std::numbers::pi;
+
+brdf::StdAngles random_angles(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> t(0, pi / 2 - 0.01), p(-pi, pi);
+  return {t(rng), p(rng), t(rng), p(rng)};
+}
+
+constexpr Mapping kAll[] = {Mapping::standard, Mapping::marschner, Mapping::halfdiff};
+
+TEST(Mapping, IsotropyTurningAndMirroringBothAzimuthsChangesNothing) {
+  std::mt19937_64 rng(1);
+  for (int i = 0; i < 300; ++i) {
+    const brdf::StdAngles a = random_angles(rng);
+    const double turn = 0.37 * i - 40;
+    const brdf::StdAngles turned{a.theta_i, a.phi_i + turn, a.theta_o, a.phi_o + turn};
+    const brdf::StdAngles mirrored{a.theta_i, -a.phi_i, a.theta_o, -a.phi_o};
+    for (const Mapping m : kAll) {
+      EXPECT_LT((map_angles(m, turned) - map_angles(m, a)).norm(), 1e-9) << mapping_name(m);
+      EXPECT_LT((map_angles(m, mirrored) - map_angles(m, a)).norm(), 1e-9) << mapping_name(m);
+    }
+    // Eq 5.6: phi_d and phi_d + 2 pi j are the same configuration.
+    const IsoAngles iso = iso_angles(a);
+    EXPECT_NEAR(iso.phi_d, phi_difference(a.phi_i + 2 * pi * (i % 5 - 2), a.phi_o), 1e-9);
+    EXPECT_GE(iso.phi_d, 0);
+    EXPECT_LE(iso.phi_d, pi);
+  }
+}
+
+TEST(Mapping, MarschnerAndHalfDiffIdentifyReciprocalConfigurationsAndStandardDoesNot) {
+  std::mt19937_64 rng(2);
+  for (int i = 0; i < 300; ++i) {
+    const brdf::StdAngles a = random_angles(rng);
+    const brdf::StdAngles swapped{a.theta_o, a.phi_o, a.theta_i, a.phi_i};  // eq 5.7
+    // Eq 5.8 written out independently.
+    const double pd = std::acos(std::cos(a.phi_o - a.phi_i));
+    const Eigen::Vector3d mm(std::sin(a.theta_i) * std::sin(a.theta_o), pd / pi, std::cos(a.theta_i) * std::cos(a.theta_o));
+    EXPECT_LT((map_angles(Mapping::marschner, a) - mm).norm(), 1e-9);
+    EXPECT_LT((map_angles(Mapping::marschner, swapped) - map_angles(Mapping::marschner, a)).norm(), 1e-12);
+    EXPECT_LT((map_angles(Mapping::halfdiff, swapped) - map_angles(Mapping::halfdiff, a)).norm(), 1e-9);
+    EXPECT_TRUE(mapping_is_reciprocal(Mapping::marschner));
+    EXPECT_TRUE(mapping_is_reciprocal(Mapping::halfdiff));
+    EXPECT_FALSE(mapping_is_reciprocal(Mapping::standard));
+    if (std::abs(a.theta_i - a.theta_o) > 1e-3) {
+      EXPECT_GT((map_angles(Mapping::standard, swapped) - map_angles(Mapping::standard, a)).norm(), 1e-4);
+    }
+  }
+}
+
+TEST(Mapping, HalfDiffPointIsTheMerlHalfAngleAndDifferenceAngle) {
+  std::mt19937_64 rng(3);
+  for (int i = 0; i < 100; ++i) {
+    const brdf::StdAngles a = random_angles(rng);
+    const brdf::HalfDiff h = brdf::half_diff(a);
+    const Eigen::Vector3d p = map_angles(Mapping::halfdiff, a);
+    EXPECT_NEAR(p[0], h.theta_h, 1e-9);
+    EXPECT_NEAR(p[1], h.theta_d, 1e-9);
+    // phi_d folded by mirroring and reciprocity: |sin| and |cos| of the MERL phi_d are kept.
+    EXPECT_NEAR(std::sin(p[2]), std::abs(std::sin(h.phi_d)), 1e-9);
+    EXPECT_NEAR(std::cos(p[2]), std::abs(std::cos(h.phi_d)), 1e-9);
+  }
+}
+
+TEST(Mapping, UnmapGivesAnEquivalentConfiguration) {
+  std::mt19937_64 rng(4);
+  for (int i = 0; i < 300; ++i) {
+    const IsoAngles a = iso_angles(random_angles(rng));
+    for (const Mapping m : kAll) {
+      const IsoAngles back = unmap(m, map_angles(m, a));
+      EXPECT_LT(config_distance(a, back, mapping_is_reciprocal(m)), 1e-6) << mapping_name(m);
+      EXPECT_LT((map_angles(m, back) - map_angles(m, a)).norm(), 1e-6) << mapping_name(m);
+    }
+  }
+  EXPECT_THROW(parse_mapping("polar"), UsageError);
+  EXPECT_EQ(parse_mapping("halfdiff"), Mapping::halfdiff);
+}
+
+// Brute force: turn b's directions about the normal in small steps (and mirror, and swap them) and keep the
+// least sqrt(|wi_a - wi_b|^2 + |wo_a - wo_b|^2).
+double brute_distance(const IsoAngles& a, const IsoAngles& b, bool reciprocal) {
+  const Eigen::Vector3d ai = brdf::direction(a.theta_i, 0.3), ao = brdf::direction(a.theta_o, 0.3 + a.phi_d);
+  double best = 1e9;
+  for (int swap = 0; swap < (reciprocal ? 2 : 1); ++swap)
+    for (const double sign : {1.0, -1.0})
+      for (int s = 0; s < 20000; ++s) {
+        const double psi = 2 * pi * s / 20000;
+        const double ti = swap ? b.theta_o : b.theta_i, to = swap ? b.theta_i : b.theta_o;
+        const Eigen::Vector3d bi = brdf::direction(ti, psi), bo = brdf::direction(to, psi + sign * b.phi_d);
+        best = std::min(best, std::sqrt((ai - bi).squaredNorm() + (ao - bo).squaredNorm()));
+      }
+  return best;
+}
+
+TEST(Mapping, ConfigDistanceIsTheLeastDistanceOverTurnsMirrorsAndSwaps) {
+  std::mt19937_64 rng(5);
+  for (int i = 0; i < 40; ++i) {
+    const IsoAngles a = iso_angles(random_angles(rng)), b = iso_angles(random_angles(rng));
+    for (const bool rec : {false, true}) EXPECT_NEAR(config_distance(a, b, rec), brute_distance(a, b, rec), 2e-4);
+  }
+  // Closed forms: theta_i alone differing by d is a chord 2 sin(d / 2); at theta_i = 0 phi_d means nothing;
+  // the swapped configuration is at distance 0 only when reciprocity is allowed.
+  EXPECT_NEAR(config_distance({0.4, 0.7, 1.0}, {0.5, 0.7, 1.0}, false), 2 * std::sin(0.05), 1e-9);
+  EXPECT_NEAR(config_distance({0.0, 0.7, 0.3}, {0.0, 0.7, 2.9}, false), 0, 1e-7);
+  EXPECT_GT(config_distance({0.2, 0.7, 1.0}, {0.7, 0.2, 1.0}, false), 0.4);
+  EXPECT_NEAR(config_distance({0.2, 0.7, 1.0}, {0.7, 0.2, 1.0}, true), 0, 1e-7);
+}
+
+}  // namespace
+}  // namespace specula::acquire
