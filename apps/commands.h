@@ -23,6 +23,7 @@ void setup_resample(CLI::App& app);
 void setup_eval_resample(CLI::App& app);
 void setup_synth_samples(CLI::App& app);
 void setup_resample_study(CLI::App& app);
+void setup_view(CLI::App& app);
 void setup_brdf_diff(CLI::App& app);
 void setup_synth_brdf(CLI::App& app);
 void setup_decode(CLI::App& app);

@@ -358,6 +358,34 @@ Cube Store::read_image(const std::string& name) const {
   return c;
 }
 
+bool Store::read_pixel(const std::string& name, std::size_t x, std::size_t y, std::span<float> out) const {
+  const ImageInfo info = image_info(name);
+  const std::string ctx = label() + ": /images/" + name;
+  if (x >= info.width || y >= info.height)
+    throw UsageError(ctx + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is outside the " +
+                     std::to_string(info.width) + " x " + std::to_string(info.height) + " image");
+  if (out.size() != info.bands)
+    throw UsageError(ctx + ": a pixel has " + std::to_string(info.bands) + " bands, the buffer " + std::to_string(out.size()));
+  h5::Id g = open_group(file(), "/images/" + name, ctx);
+  {
+    h5::Id cube = open_dataset(g, "cube", ctx);
+    h5::Id space(h5::check(H5Dget_space(cube), ctx, "cannot get the cube's dataspace"));
+    const hsize_t start[3] = {y, x, 0}, count[3] = {1, 1, info.bands};
+    h5::check(H5Sselect_hyperslab(space, H5S_SELECT_SET, start, nullptr, count, nullptr), ctx, "cannot select a pixel");
+    h5::Id memory(h5::check(H5Screate_simple(1, &count[2], nullptr), ctx, "cannot create a dataspace"));
+    h5::check(H5Dread(cube, H5T_NATIVE_FLOAT, memory, space, H5P_DEFAULT, out.data()), ctx, "cannot read a pixel");
+  }
+  h5::Id mask = open_dataset(g, "mask", ctx);
+  h5::Id space(h5::check(H5Dget_space(mask), ctx, "cannot get the mask's dataspace"));
+  const hsize_t start[2] = {y, x}, count[2] = {1, 1};
+  h5::check(H5Sselect_hyperslab(space, H5S_SELECT_SET, start, nullptr, count, nullptr), ctx, "cannot select a pixel");
+  const hsize_t one = 1;
+  h5::Id memory(h5::check(H5Screate_simple(1, &one, nullptr), ctx, "cannot create a dataspace"));
+  std::uint8_t valid = 0;
+  h5::check(H5Dread(mask, H5T_NATIVE_UINT8, memory, space, H5P_DEFAULT, &valid), ctx, "cannot read the mask");
+  return valid != 0;
+}
+
 Collection Store::read_collection(const std::string& name) const {
   const CollectionInfo info = collection_info(name);
   const std::string ctx = label() + ": /collections/" + name;

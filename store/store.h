@@ -116,6 +116,9 @@ class Store {
   Grid read_grid(const std::string& name) const;
   /// The whole image in memory (for export and previews; analysis streams with BlockReader instead).
   Cube read_image(const std::string& name) const;
+  /// Spectrum of pixel (x, y) of image `name` into out (bands values, read alone); false when masked.
+  /// UsageError when x, y lie outside the image or out has the wrong size.
+  bool read_pixel(const std::string& name, std::size_t x, std::size_t y, std::span<float> out) const;
   /// The whole collection in memory.
   Collection read_collection(const std::string& name) const;
   /// Basis `name`; throws InputError listing the bases when absent or malformed.

@@ -15,6 +15,8 @@ Cube read_png_stack(const std::vector<std::filesystem::path>& files, const Wavel
 /// Writes 8-bit RGB (rgb.size() == 3 * width * height, row-major) atomically.
 void write_png_rgb8(const std::filesystem::path& path, std::size_t width, std::size_t height,
                     std::span<const std::uint8_t> rgb);
+/// 8-bit RGB (rgb.size() == 3 * width * height, row-major) encoded as PNG bytes in memory (fast deflate level).
+std::vector<std::uint8_t> encode_png_rgb8(std::size_t width, std::size_t height, std::span<const std::uint8_t> rgb);
 /// Writes a 16-bit grayscale PNG (value.size() == width * height) atomically.
 void write_png_gray16(const std::filesystem::path& path, std::size_t width, std::size_t height,
                       std::span<const std::uint16_t> value);

@@ -65,6 +65,30 @@ TEST(Store, ImageRoundTripKeepsValuesMaskAndMetadata) {
       EXPECT_EQ(r.data[p * 5 + k], c.mask[p] ? c.data[p * 5 + k] : 0.0f);
 }
 
+TEST(Store, ReadPixelEqualsTheWholeImageAtEveryPixel) {
+  test::ScratchDir dir;
+  const auto path = dir / "s.h5";
+  const Cube c = make_cube(19, 13, 7, 4, true);
+  {
+    StoreWriter w(path, {});
+    w.add_image("scene", c);
+    w.commit();
+  }
+  const Store s = Store::open(path);
+  const Cube whole = s.read_image("scene");
+  std::vector<float> v(7);
+  for (std::size_t y = 0; y < 19; ++y)
+    for (std::size_t x = 0; x < 13; ++x) {
+      EXPECT_EQ(s.read_pixel("scene", x, y, v), c.mask[y * 13 + x] != 0) << x << "," << y;
+      for (std::size_t b = 0; b < 7; ++b) EXPECT_EQ(v[b], whole.pixel(y, x)[b]) << x << "," << y << " " << b;
+    }
+  EXPECT_THROW(s.read_pixel("scene", 13, 0, v), UsageError);
+  EXPECT_THROW(s.read_pixel("scene", 0, 19, v), UsageError);
+  std::vector<float> short_buffer(6);
+  EXPECT_THROW(s.read_pixel("scene", 0, 0, short_buffer), UsageError);
+  EXPECT_THROW(s.read_pixel("nope", 0, 0, v), InputError);
+}
+
 TEST(Store, CollectionAndSamplesRoundTrip) {
   test::ScratchDir dir;
   auto path = dir / "s.h5";

@@ -156,6 +156,22 @@ TEST(PngRoundTrip, Rgb8) {
     EXPECT_EQ(entry.path().filename(), "rgb.png") << "temporary left behind";
 }
 
+TEST(PngRoundTrip, Rgb8InMemory) {
+  ScratchDir dir;
+  const std::size_t w = 41, h = 17;
+  std::mt19937 rng(12);
+  std::vector<std::uint8_t> rgb(3 * w * h);
+  for (auto& v : rgb) v = static_cast<std::uint8_t>(rng());
+  const std::vector<std::uint8_t> bytes = encode_png_rgb8(w, h, rgb);
+  std::ofstream(dir / "m.png", std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  const PngImage img = read_png(dir / "m.png");
+  ASSERT_EQ(img.width, w);
+  ASSERT_EQ(img.height, h);
+  ASSERT_EQ(img.channels, 3u);
+  EXPECT_TRUE(std::equal(rgb.begin(), rgb.end(), img.samples.begin(), img.samples.end()));
+  EXPECT_THROW(encode_png_rgb8(w, h, std::span<const std::uint8_t>(rgb).first(10)), UsageError);
+}
+
 TEST(PngRoundTrip, Gray16) {
   ScratchDir dir;
   const std::size_t w = 19, h = 31;
