@@ -24,6 +24,8 @@ void setup_eval_resample(CLI::App& app);
 void setup_synth_samples(CLI::App& app);
 void setup_resample_study(CLI::App& app);
 void setup_view(CLI::App& app);
+void setup_simulate_capture(CLI::App& app);
+void setup_acquire(CLI::App& app);
 void setup_brdf_diff(CLI::App& app);
 void setup_synth_brdf(CLI::App& app);
 void setup_decode(CLI::App& app);

@@ -73,6 +73,8 @@ int main(int argc, char** argv) {
   specula::app::setup_synth_samples(app);
   specula::app::setup_resample_study(app);
   specula::app::setup_view(app);
+  specula::app::setup_simulate_capture(app);
+  specula::app::setup_acquire(app);
   specula::app::setup_brdf_diff(app);
   specula::app::setup_synth_brdf(app);
   specula::app::setup_decode(app);

@@ -1,0 +1,174 @@
+#include "acquire/capture.h"
+
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <set>
+#include <tuple>
+
+#include "core/atomic_file.h"
+#include "core/error.h"
+
+namespace specula::acquire {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+std::string kind_name(ImageKind k) {
+  switch (k) {
+    case ImageKind::scene: return "scene";
+    case ImageKind::silhouette: return "silhouette";
+    case ImageKind::mirror: return "mirror";
+    case ImageKind::flat: return "flat";
+    case ImageKind::target: return "target";
+  }
+  return "?";
+}
+
+ImageKind parse_kind(const std::string& name, const std::string& context) {
+  for (const ImageKind k : {ImageKind::scene, ImageKind::silhouette, ImageKind::mirror, ImageKind::flat, ImageKind::target})
+    if (kind_name(k) == name) return k;
+  throw InputError(context + ": unknown image kind '" + name + "' (scene, silhouette, mirror, flat, target)");
+}
+
+void write_manifest(const fs::path& dir, const Capture& c) {
+  json j;
+  j["format"] = kCaptureFormat;
+  j["version"] = kCaptureVersion;
+  j["description"] = c.description;
+  j["camera"] = {{"width", c.width}, {"height", c.height}, {"bit_depth", c.bit_depth}, {"focal_px", c.focal_px},
+                 {"cx", c.cx}, {"cy", c.cy}};
+  j["bands_nm"] = c.bands;
+  j["light_angles_deg"] = c.light_angles_deg;
+  j["light_spectrum"] = {{"nm", c.light_spectrum_nm}, {"value", c.light_spectrum}};
+  j["targets"] = json::array();
+  for (const auto& t : c.targets) j["targets"].push_back({{"name", t.name}, {"reflectance", t.reflectance}});
+  j["images"] = json::array();
+  for (const auto& im : c.images) {
+    json e = {{"file", im.file}, {"kind", kind_name(im.kind)}, {"exposure_s", im.exposure_s}};
+    if (im.light >= 0) e["light"] = im.light;
+    if (im.band >= 0) e["band"] = im.band;
+    if (im.target >= 0) e["target"] = im.target;
+    j["images"].push_back(e);
+  }
+  if (c.truth)
+    j["truth"] = {{"sphere_centre_m", c.truth->sphere_centre}, {"sphere_radius_m", c.truth->sphere_radius},
+                  {"light_dirs", c.truth->light_dirs}, {"material", c.truth->material}};
+  AtomicOutput out(dir / "manifest.json");
+  {
+    std::ofstream f(out.temp_path());
+    f << j.dump(1) << "\n";
+    if (!f) throw LibraryError(out.temp_path().string() + ": cannot write the manifest");
+  }
+  out.commit();
+}
+
+namespace {
+
+template <class T>
+T field(const json& j, const char* key, const std::string& ctx) {
+  if (!j.contains(key)) throw InputError(ctx + ": missing \"" + key + "\"");
+  try {
+    return j.at(key).get<T>();
+  } catch (const json::exception&) {
+    throw InputError(ctx + ": \"" + key + "\" has the wrong type");
+  }
+}
+
+}  // namespace
+
+Capture read_manifest(const fs::path& dir) {
+  const fs::path path = dir / "manifest.json";
+  const std::string ctx = path.string();
+  std::ifstream f(path);
+  if (!f) throw InputError(ctx + ": cannot open the capture's manifest (is " + dir.string() + " a capture directory?)");
+  json j;
+  try {
+    j = json::parse(f);
+  } catch (const json::parse_error& e) {
+    throw InputError(ctx + ": not valid JSON (" + std::string(e.what()) + ")");
+  }
+  if (!j.is_object() || field<std::string>(j, "format", ctx) != kCaptureFormat)
+    throw InputError(ctx + ": not a specula capture manifest (\"format\" must be \"" + kCaptureFormat + "\")");
+  const int version = field<int>(j, "version", ctx);
+  if (version < 1 || version > kCaptureVersion)
+    throw InputError(ctx + ": capture format version " + std::to_string(version) + "; this specula reads 1 to " +
+                     std::to_string(kCaptureVersion));
+  Capture c;
+  c.description = j.value("description", "");
+  const json cam = field<json>(j, "camera", ctx);
+  c.width = field<int>(cam, "width", ctx + " camera");
+  c.height = field<int>(cam, "height", ctx + " camera");
+  c.bit_depth = field<int>(cam, "bit_depth", ctx + " camera");
+  c.focal_px = field<double>(cam, "focal_px", ctx + " camera");
+  c.cx = field<double>(cam, "cx", ctx + " camera");
+  c.cy = field<double>(cam, "cy", ctx + " camera");
+  if (c.width <= 0 || c.height <= 0 || c.width > 65536 || c.height > 65536)
+    throw InputError(ctx + ": camera size must be 1 to 65536 pixels a side");
+  if (c.bit_depth < 8 || c.bit_depth > 16) throw InputError(ctx + ": camera bit_depth must be 8 to 16");
+  if (!(c.focal_px > 0)) throw InputError(ctx + ": camera focal_px must be positive");
+  c.bands = field<std::vector<double>>(j, "bands_nm", ctx);
+  if (c.bands.empty()) throw InputError(ctx + ": \"bands_nm\" is empty");
+  for (std::size_t i = 1; i < c.bands.size(); ++i)
+    if (!(c.bands[i] > c.bands[i - 1])) throw InputError(ctx + ": \"bands_nm\" must increase");
+  c.light_angles_deg = field<std::vector<double>>(j, "light_angles_deg", ctx);
+  const json spd = field<json>(j, "light_spectrum", ctx);
+  c.light_spectrum_nm = field<std::vector<double>>(spd, "nm", ctx + " light_spectrum");
+  c.light_spectrum = field<std::vector<double>>(spd, "value", ctx + " light_spectrum");
+  if (c.light_spectrum_nm.size() != c.light_spectrum.size() || c.light_spectrum.size() < 2)
+    throw InputError(ctx + ": \"light_spectrum\" needs as many values as wavelengths, at least 2");
+  for (const json& t : field<json>(j, "targets", ctx)) {
+    CaptureTarget target{field<std::string>(t, "name", ctx + " target"), field<std::vector<double>>(t, "reflectance", ctx + " target")};
+    if (target.reflectance.size() != c.bands.size())
+      throw InputError(ctx + ": target '" + target.name + "' has " + std::to_string(target.reflectance.size()) +
+                       " reflectance values for " + std::to_string(c.bands.size()) + " bands");
+    c.targets.push_back(std::move(target));
+  }
+  std::set<std::tuple<int, int, double>> scene_exposures;
+  for (const json& e : field<json>(j, "images", ctx)) {
+    CaptureImage im;
+    im.file = field<std::string>(e, "file", ctx + " image");
+    const std::string ictx = ctx + ": image '" + im.file + "'";
+    im.kind = parse_kind(field<std::string>(e, "kind", ictx), ictx);
+    im.exposure_s = field<double>(e, "exposure_s", ictx);
+    im.light = e.value("light", -1);
+    im.band = e.value("band", -1);
+    im.target = e.value("target", -1);
+    if (im.file.empty() || fs::path(im.file).is_absolute() || im.file.find("..") != std::string::npos)
+      throw InputError(ictx + ": the file must be a path inside the capture directory");
+    if (!(im.exposure_s > 0)) throw InputError(ictx + ": exposure_s must be positive");
+    const bool needs_light = im.kind == ImageKind::scene || im.kind == ImageKind::mirror;
+    const bool needs_band = im.kind == ImageKind::scene || im.kind == ImageKind::flat || im.kind == ImageKind::target;
+    if (needs_light != (im.light >= 0) || im.light >= int(c.light_angles_deg.size()))
+      throw InputError(ictx + ": light " + std::to_string(im.light) + " is not one of the " +
+                       std::to_string(c.light_angles_deg.size()) + " light positions a " + kind_name(im.kind) + " image needs");
+    if (needs_band != (im.band >= 0) || im.band >= int(c.bands.size()))
+      throw InputError(ictx + ": band " + std::to_string(im.band) + " is not one of the " + std::to_string(c.bands.size()) +
+                       " bands a " + kind_name(im.kind) + " image needs");
+    if ((im.kind == ImageKind::target) != (im.target >= 0) || im.target >= int(c.targets.size()))
+      throw InputError(ictx + ": target " + std::to_string(im.target) + " is not one of the " + std::to_string(c.targets.size()) + " targets");
+    if (!fs::is_regular_file(dir / im.file)) throw InputError(ictx + ": file is missing from " + dir.string());
+    if (im.kind == ImageKind::scene && !scene_exposures.insert({im.light, im.band, im.exposure_s}).second)
+      throw InputError(ictx + ": a second image for the same light, band and exposure");
+    c.images.push_back(std::move(im));
+  }
+  for (int l = 0; l < int(c.light_angles_deg.size()); ++l)
+    for (int b = 0; b < int(c.bands.size()); ++b) {
+      const auto it = scene_exposures.lower_bound({l, b, 0.0});
+      if (it == scene_exposures.end() || std::get<0>(*it) != l || std::get<1>(*it) != b)
+        throw InputError(ctx + ": no scene exposure for light " + std::to_string(l) + " at " +
+                         std::to_string(int(c.bands[std::size_t(b)])) + " nm");
+    }
+  if (j.contains("truth")) {
+    const json& t = j["truth"];
+    CaptureTruth truth;
+    truth.sphere_centre = field<std::vector<double>>(t, "sphere_centre_m", ctx + " truth");
+    truth.sphere_radius = field<double>(t, "sphere_radius_m", ctx + " truth");
+    truth.light_dirs = field<std::vector<std::vector<double>>>(t, "light_dirs", ctx + " truth");
+    truth.material = t.value("material", "");
+    c.truth = truth;
+  }
+  return c;
+}
+
+}  // namespace specula::acquire

@@ -1,0 +1,336 @@
+#include "acquire/simulate.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <random>
+
+#include "core/brdf_materials.h"
+#include "core/cie.h"
+#include "core/error.h"
+#include "store/io/png_stack.h"
+
+namespace specula::acquire {
+
+namespace fs = std::filesystem;
+using std::numbers::pi;
+
+namespace {
+
+std::vector<double> default_bands() {
+  std::vector<double> b;
+  for (int nm = 420; nm <= 720; nm += 10) b.push_back(nm);
+  return b;
+}
+
+// The fine grid the simulator integrates on (nm): passbands, light and BRDF are all sampled on it.
+std::vector<double> fine_grid() {
+  std::vector<double> nm;
+  for (double l = 380; l <= 780.001; l += 2) nm.push_back(l);
+  return nm;
+}
+
+// A smooth CCD quantum efficiency times optics transmission (relative), peaking near 550 nm.
+double quantum_efficiency(double nm) { return 0.25 + 0.6 * std::exp(-std::pow((nm - 550) / 140, 2)); }
+
+// Five diffuse targets of smooth known reflectance, as the reference's Labsphere set (red, green, blue, yellow,
+// white).
+std::vector<CaptureTarget> default_targets(const std::vector<double>& bands) {
+  auto logistic = [](double nm, double edge, double width) { return 1 / (1 + std::exp(-(nm - edge) / width)); };
+  std::vector<CaptureTarget> t = {{"red", {}}, {"green", {}}, {"blue", {}}, {"yellow", {}}, {"white", {}}};
+  for (const double nm : bands) {
+    t[0].reflectance.push_back(0.05 + 0.8 * logistic(nm, 600, 12));
+    t[1].reflectance.push_back(0.05 + 0.45 * std::exp(-std::pow((nm - 530) / 40, 2)));
+    t[2].reflectance.push_back(0.05 + 0.5 * std::exp(-std::pow((nm - 450) / 45, 2)));
+    t[3].reflectance.push_back(0.06 + 0.8 * logistic(nm, 520, 15));
+    t[4].reflectance.push_back(0.98);
+  }
+  return t;
+}
+
+// Interpolates a target's per-band reflectance onto the fine grid (held constant outside the bands).
+double interpolate(const std::vector<double>& x, const std::vector<double>& y, double at) {
+  if (at <= x.front()) return y.front();
+  if (at >= x.back()) return y.back();
+  const auto i = std::size_t(std::upper_bound(x.begin(), x.end(), at) - x.begin());
+  const double t = (at - x[i - 1]) / (x[i] - x[i - 1]);
+  return y[i - 1] + t * (y[i] - y[i - 1]);
+}
+
+// The camera: rate (DN/s, before bias) to a 12-bit value at exposure t, with shot and read noise and clipping.
+struct Sensor {
+  const SimulatorOptions& o;
+  int max_dn;
+  std::uint16_t expose(double rate, double t, std::mt19937_64& rng) const {
+    double dn = o.dark_dn + rate * t;
+    if (o.noise) {
+      const double electrons = std::max(0.0, rate * t) * o.electrons_per_dn;
+      const double sigma = std::sqrt(electrons / (o.electrons_per_dn * o.electrons_per_dn) + o.read_noise_dn * o.read_noise_dn);
+      dn += std::normal_distribution<double>(0.0, sigma)(rng);
+    }
+    return std::uint16_t(std::clamp(std::lround(dn), 0L, long(max_dn)));
+  }
+};
+
+}  // namespace
+
+void check_simulator(const SimulatorOptions& o) {
+  if (o.width < 16 || o.height < 16 || o.width > 8192 || o.height > 8192)
+    throw UsageError("simulate-capture: the image must be 16 to 8192 pixels a side");
+  check_rig(o.rig);
+  if (o.rig.sphere_px > 0.9 * std::min(o.width, o.height))
+    throw UsageError(fmt::format("simulate-capture: a sphere {} px across does not fit on a {} x {} image", o.rig.sphere_px,
+                                 o.width, o.height));
+  for (std::size_t i = 0; i < o.bands.size(); ++i)
+    if (!(o.bands[i] >= 400 && o.bands[i] <= 740) || (i && !(o.bands[i] > o.bands[i - 1])))
+      throw UsageError("simulate-capture: bands must increase within 400-740 nm");
+  if (o.exposures_s.empty()) throw UsageError("simulate-capture: give at least one exposure");
+  for (const double t : o.exposures_s)
+    if (!(t >= 1e-6 && t <= 60)) throw UsageError("simulate-capture: exposures must be 1 us to 60 s");
+  if (!(o.fwhm_blue_nm > 0) || !(o.fwhm_red_nm > 0) || !(o.light_kelvin >= 1000 && o.light_kelvin <= 20000))
+    throw UsageError("simulate-capture: passband widths must be positive and the light 1000-20000 K");
+  if (!(o.brightness > 0) || !(o.read_noise_dn >= 0) || !(o.electrons_per_dn > 0) || !(o.dark_dn >= 0) ||
+      !(o.vignetting >= 0 && o.vignetting < 1))
+    throw UsageError("simulate-capture: brightness and gain must be positive, noise and bias >= 0, vignetting in [0, 1)");
+  if (!brdf::material_catalogue().count(o.material))
+    throw UsageError("simulate-capture: unknown material '" + o.material + "' (see specula synth-brdf --help)");
+}
+
+std::vector<std::vector<double>> simulated_response(const SimulatorOptions& o, const std::vector<double>& nm) {
+  const std::vector<double> bands = o.bands.empty() ? default_bands() : o.bands;
+  std::vector<std::vector<double>> r(bands.size(), std::vector<double>(nm.size(), 0.0));
+  const double step = nm.size() > 1 ? nm[1] - nm[0] : 1;
+  for (std::size_t j = 0; j < bands.size(); ++j) {
+    if (o.passband == Passband::delta) {
+      const auto k = std::size_t(std::lround((bands[j] - nm.front()) / step));
+      if (k < nm.size()) r[j][k] = quantum_efficiency(bands[j]) / step;
+      continue;
+    }
+    const double fwhm = o.fwhm_blue_nm + (o.fwhm_red_nm - o.fwhm_blue_nm) * std::clamp((bands[j] - 420) / 300, 0.0, 1.0);
+    const double sigma = fwhm / (2 * std::sqrt(2 * std::log(2.0)));
+    for (std::size_t k = 0; k < nm.size(); ++k)
+      r[j][k] = quantum_efficiency(nm[k]) * std::exp(-0.5 * std::pow((nm[k] - bands[j]) / sigma, 2)) / (sigma * std::sqrt(2 * pi));
+  }
+  return r;
+}
+
+Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
+  check_simulator(opt);
+  SimulatorOptions o = opt;
+  if (o.bands.empty()) o.bands = default_bands();
+  {
+    const std::vector<ScanPixel> probe = scan_pixels(o.rig);
+    const double px = o.width / 2.0, py = o.height / 2.0;
+    for (const ScanPixel& p : probe)
+      if (p.x + px < 0 || p.x + px >= o.width || p.y + py < 0 || p.y + py >= o.height)
+        throw UsageError("simulate-capture: the sphere falls off the image; enlarge the image or bring the sphere to the axis");
+  }
+  if (fs::exists(dir) && !fs::is_empty(dir))
+    throw UsageError("simulate-capture: " + dir.string() + " exists and is not empty; name a new directory");
+  fs::create_directories(dir);
+
+  const std::vector<double> nm = fine_grid();
+  const double dl = nm[1] - nm[0];
+  const WavelengthGrid fine(nm);
+  const Eigen::VectorXd light = blackbody(o.light_kelvin, fine);
+  const auto response = simulated_response(o, nm);
+  const std::size_t B = o.bands.size(), L = nm.size();
+  // band_weight[j][k] = L(k) R_j(k) dl / Z, with Z making the strongest band of a white Lambertian (pi f = 1) 1.
+  std::vector<std::vector<double>> w(B, std::vector<double>(L));
+  double z = 0;
+  for (std::size_t j = 0; j < B; ++j) {
+    double s = 0;
+    for (std::size_t k = 0; k < L; ++k) s += (w[j][k] = light[Eigen::Index(k)] * response[j][k] * dl);
+    z = std::max(z, s);
+  }
+  for (auto& row : w)
+    for (double& v : row) v /= z;
+  const auto material = brdf::make_material(o.material, fine);
+
+  const int W = o.width, H = o.height;
+  const double cx = W / 2.0, cy = H / 2.0;
+  const Sensor sensor{o, (1 << 12) - 1};
+  auto vignette = [&](int u, int v) {
+    const double dx = (u + 0.5 - cx) / cx, dy = (v + 0.5 - cy) / cy;
+    return 1 - o.vignetting * (dx * dx + dy * dy) / 2;
+  };
+  // The scan geometry puts pixel x at image column x + cx (principal point at the image centre).
+  ScanRig rig = o.rig;
+  const std::vector<ScanPixel> pixels = scan_pixels(rig);
+  const Eigen::Vector3d centre(rig.off_axis, rig.off_axis_y, rig.distance);
+  const double radius = sphere_radius(rig);
+
+  Capture cap;
+  cap.width = W;
+  cap.height = H;
+  cap.bit_depth = 12;
+  cap.focal_px = rig.focal_px;
+  cap.cx = cx;
+  cap.cy = cy;
+  cap.bands = o.bands;
+  for (std::size_t l = 0; l < rig.lights; ++l) cap.light_angles_deg.push_back(rig.first_light_deg + double(l) * rig.light_step_deg);
+  cap.light_spectrum_nm = nm;
+  cap.light_spectrum.assign(light.data(), light.data() + light.size());
+  cap.targets = default_targets(o.bands);
+  cap.description = fmt::format("simulated: {} sphere, {} lights, {} bands, {} exposures, {} passbands{}", o.material, rig.lights, B,
+                                o.exposures_s.size(), o.passband == Passband::delta ? "delta" : "Gaussian",
+                                o.noise ? ", noisy" : ", noise-free");
+  CaptureTruth truth;
+  truth.sphere_centre = {centre.x(), centre.y(), centre.z()};
+  truth.sphere_radius = radius;
+  truth.material = o.material;
+  for (std::size_t l = 0; l < rig.lights; ++l) {
+    const Eigen::Vector3d d = (light_position(rig, l) - centre).normalized();
+    truth.light_dirs.push_back({d.x(), d.y(), d.z()});
+  }
+  cap.truth = truth;
+
+  // Every image is a job with its own seed, so the files do not depend on the thread count.
+  struct Job {
+    CaptureImage image;
+    std::uint64_t seed;
+  };
+  std::vector<Job> jobs;
+  auto add = [&](ImageKind kind, int light_index, int band, int target, double t, const std::string& file) {
+    CaptureImage im{file, kind, light_index, band, target, t};
+    jobs.push_back({im, std::uint64_t(o.seed) * 1000003ull + jobs.size()});
+  };
+  add(ImageKind::silhouette, -1, -1, -1, 0.05, "silhouette.png");
+  for (std::size_t l = 0; l < rig.lights; ++l) add(ImageKind::mirror, int(l), -1, -1, 0.01, fmt::format("mirror/L{:03}.png", l));
+  for (std::size_t j = 0; j < B; ++j) add(ImageKind::flat, -1, int(j), -1, 0.05, fmt::format("flat/B{:03}.png", int(o.bands[j])));
+  for (std::size_t t = 0; t < cap.targets.size(); ++t)
+    for (std::size_t j = 0; j < B; ++j)
+      for (const double e : {0.02, 0.05})
+        add(ImageKind::target, -1, int(j), int(t), e, fmt::format("target/{}/B{:03}-{:g}ms.png", cap.targets[t].name, int(o.bands[j]), e * 1000));
+  for (std::size_t l = 0; l < rig.lights; ++l)
+    for (std::size_t j = 0; j < B; ++j)
+      for (const double e : o.exposures_s)
+        add(ImageKind::scene, int(l), int(j), -1, e, fmt::format("scene/L{:03}/B{:03}-{:g}ms.png", l, int(o.bands[j]), e * 1000));
+  for (const char* sub : {"mirror", "flat", "target", "scene"}) fs::create_directories(dir / sub);
+  for (const auto& t : cap.targets) fs::create_directories(dir / "target" / t.name);
+  for (std::size_t l = 0; l < rig.lights; ++l) fs::create_directories(dir / "scene" / fmt::format("L{:03}", l));
+
+  // The rate of every sphere pixel in every band (DN/s at the brightness scale) for light l: bands x H x W.
+  auto light_rates = [&](std::size_t l) {
+    const Eigen::Vector3d lp = light_position(rig, l);
+    std::vector<float> rate(B * std::size_t(W) * std::size_t(H), 0.0f);
+    std::exception_ptr failed;
+#pragma omp parallel
+    {
+      std::vector<double> f(L);
+      brdf::StdAngles a;
+#pragma omp for schedule(static)
+      for (long long i = 0; i < static_cast<long long>(pixels.size()); ++i) {
+        try {
+          const ScanPixel& p = pixels[std::size_t(i)];
+          if (!scan_angles(p, lp, a)) continue;
+          material->eval(a, f);
+          const double d = (lp - p.point).norm();
+          const double geometry = std::cos(a.theta_i) * std::pow(rig.light_distance / d, 2) * pi;
+          const int u = int(p.x + cx), v = int(p.y + cy);
+          const double s = vignette(u, v);
+          for (std::size_t j = 0; j < B; ++j) {
+            double sum = 0;
+            for (std::size_t k = 0; k < L; ++k) sum += w[j][k] * f[k];
+            rate[j * std::size_t(W * H) + std::size_t(v * W + u)] = float(o.brightness * s * geometry * sum);
+          }
+        } catch (...) {
+#pragma omp critical
+          if (!failed) failed = std::current_exception();
+        }
+      }
+    }
+    if (failed) std::rethrow_exception(failed);
+    return rate;
+  };
+  std::exception_ptr error;
+  std::vector<float> scene_rate;
+
+  // Silhouette coverage by 4 x 4 supersampling of the sphere's disc, for edges with sub-pixel information.
+  std::vector<float> coverage(std::size_t(W * H), 0.0f);
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u) {
+      int hits = 0;
+      for (int sy = 0; sy < 4; ++sy)
+        for (int sx = 0; sx < 4; ++sx) {
+          const Eigen::Vector3d d = Eigen::Vector3d((u + (sx + 0.5) / 4 - cx) / rig.focal_px, (v + (sy + 0.5) / 4 - cy) / rig.focal_px, 1).normalized();
+          const double b = d.dot(centre);
+          hits += b * b - centre.squaredNorm() + radius * radius > 0;
+        }
+      coverage[std::size_t(v * W + u)] = float(hits / 16.0);
+    }
+
+  auto render = [&](std::size_t first, std::size_t last) {
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long long i = static_cast<long long>(first); i < static_cast<long long>(last); ++i) {
+    try {
+      const Job& job = jobs[std::size_t(i)];
+      const CaptureImage& im = job.image;
+      std::mt19937_64 rng(job.seed);
+      std::vector<std::uint16_t> img(std::size_t(W * H));
+      for (int v = 0; v < H; ++v)
+        for (int u = 0; u < W; ++u) {
+          const std::size_t p = std::size_t(v * W + u);
+          double rate = 0;
+          switch (im.kind) {
+            case ImageKind::scene: rate = scene_rate[std::size_t(im.band) * std::size_t(W * H) + p]; break;
+            case ImageKind::silhouette: rate = 60000 * vignette(u, v) * (1 - coverage[p]) + 300 * coverage[p]; break;
+            case ImageKind::flat: {
+              double sum = 0;
+              for (double x : w[std::size_t(im.band)]) sum += x;
+              rate = 50000 * vignette(u, v) * sum;
+              break;
+            }
+            case ImageKind::target: {
+              double sum = 0;
+              for (std::size_t k = 0; k < L; ++k)
+                sum += w[std::size_t(im.band)][k] * interpolate(o.bands, cap.targets[std::size_t(im.target)].reflectance, nm[k]);
+              rate = o.brightness * 2 * vignette(u, v) * sum;
+              break;
+            }
+            case ImageKind::mirror: {
+              // A mirror sphere in the same place: the light's reflection is a small bright spot (a 0.25-degree
+              // source), found by supersampling where the reflected view ray points at the light.
+              if (coverage[p] <= 0) break;
+              const Eigen::Vector3d lp = light_position(rig, std::size_t(im.light));
+              double sum = 0;
+              for (int sy = 0; sy < 4; ++sy)
+                for (int sx = 0; sx < 4; ++sx) {
+                  const Eigen::Vector3d d =
+                      Eigen::Vector3d((u + (sx + 0.5) / 4 - cx) / rig.focal_px, (v + (sy + 0.5) / 4 - cy) / rig.focal_px, 1).normalized();
+                  const double b = d.dot(centre), disc = b * b - centre.squaredNorm() + radius * radius;
+                  if (disc <= 0) continue;
+                  const Eigen::Vector3d x = (b - std::sqrt(disc)) * d, n = (x - centre) / radius;
+                  const Eigen::Vector3d r = d - 2 * d.dot(n) * n;
+                  const double angle = std::acos(std::clamp(r.dot((lp - x).normalized()), -1.0, 1.0)) * 180 / pi;
+                  sum += std::exp(-0.5 * std::pow(angle / 0.25, 2));
+                }
+              rate = 300000 * sum / 16;
+              break;
+            }
+          }
+          img[p] = sensor.expose(rate, im.exposure_s, rng);
+        }
+      store::write_png_gray16(dir / im.file, std::size_t(W), std::size_t(H), img);
+    } catch (...) {
+#pragma omp critical
+      if (!error) error = std::current_exception();
+    }
+  }
+  if (error) std::rethrow_exception(error);
+  };
+  // Calibration images first, then the scene light by light (one light's rates in memory at a time).
+  const std::size_t per_light = B * o.exposures_s.size(), scene_first = jobs.size() - rig.lights * per_light;
+  render(0, scene_first);
+  for (std::size_t l = 0; l < rig.lights; ++l) {
+    scene_rate = light_rates(l);
+    render(scene_first + l * per_light, scene_first + (l + 1) * per_light);
+  }
+  for (const Job& j : jobs) cap.images.push_back(j.image);
+  write_manifest(dir, cap);
+  return cap;
+}
+
+}  // namespace specula::acquire

@@ -1,0 +1,50 @@
+#pragma once
+// A simulator of the reference's rig (§4.1, §5.1): a pinhole camera (12-bit monochrome, exposure bracketing, shot
+// and read noise, saturation, vignetting) behind a liquid-crystal tunable filter, a sphere of an analytic
+// spectral BRDF slightly off the optical axis, a tungsten-halogen point light moved on an arc. It writes a capture
+// directory (acquire/capture.h) with scene, backlit silhouette, mirror-sphere, flat-field and diffuse-target
+// images, and the ground truth in the manifest.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "acquire/capture.h"
+#include "acquire/scan.h"
+
+namespace specula::acquire {
+
+/// The LCTF passband of each tuning wavelength.
+enum class Passband { delta, gaussian };
+
+struct SimulatorOptions {
+  std::string material = "red-plastic";  ///< a name of core/brdf_materials.h
+  int width = 256, height = 256;
+  ScanRig rig;                           ///< geometry; rig.sphere_px sets the sphere's size on the image
+  std::vector<double> bands;             ///< tuning wavelengths (nm); empty: 420 to 720 every 10
+  std::vector<double> exposures_s = {1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0, 3.0, 8.0};  ///< 100 us to 8 s
+  Passband passband = Passband::gaussian;
+  double fwhm_blue_nm = 10, fwhm_red_nm = 20;  ///< Gaussian FWHM at 420 nm, growing linearly to this at 720 nm
+  double light_kelvin = 3200;                  ///< tungsten-halogen, as a blackbody
+  double brightness = 20000;   ///< DN/s from a white Lambertian facing light and camera in the strongest band
+  double read_noise_dn = 1.5;  ///< Gaussian read noise (DN)
+  double electrons_per_dn = 4; ///< shot noise: Poisson in electrons (approximated as Gaussian)
+  double dark_dn = 8;          ///< offset every pixel carries (bias)
+  double vignetting = 0.25;    ///< fraction of light lost at the image corner (S = 1 - v (r / r_corner)^2)
+  bool noise = true;
+  unsigned seed = 1;
+  int threads_hint = 0;        ///< unused by results: the images do not depend on the thread count
+};
+
+/// UsageError stating the rule for a bad option (sizes, bands, exposures, noise, an unknown material, a sphere
+/// that does not fit on the image).
+void check_simulator(const SimulatorOptions& o);
+
+/// Simulates every image into `dir` (created; must be empty or absent) and writes its manifest with the truth.
+/// Deterministic for a seed, whatever the thread count. Returns the manifest.
+Capture simulate_capture(const SimulatorOptions& o, const std::filesystem::path& dir);
+
+/// The relative spectral response R_j on `nm` (rows: bands) for the options' passband model and camera
+/// (LCTF transmission times a smooth quantum efficiency), as the simulator uses it.
+std::vector<std::vector<double>> simulated_response(const SimulatorOptions& o, const std::vector<double>& nm);
+
+}  // namespace specula::acquire

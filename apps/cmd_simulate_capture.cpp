@@ -1,0 +1,83 @@
+// specula simulate-capture: a capture directory of the reference's rig (acquire/simulate.h) with known truth:
+// scene exposures per light and band, silhouette, mirror sphere, flat fields and diffuse targets, as 16-bit PNGs
+// and manifest.json (docs/capture-format.md). Real captures in the same layout go through `specula acquire`.
+#include <fmt/format.h>
+
+#include <chrono>
+#include <filesystem>
+
+#include "acquire/simulate.h"
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "core/atomic_file.h"
+#include "core/error.h"
+#include "core/wavelengths.h"
+
+namespace specula::app {
+namespace {
+
+struct SimulateCaptureOptions {
+  acquire::SimulatorOptions sim;
+  std::string output;
+  std::string size = "256x256";
+  std::string bands = "420:720:10";
+  std::string passband = "gaussian";
+  bool no_noise = false;
+  bool json = false;
+};
+
+void run_simulate_capture(SimulateCaptureOptions o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  int w = 0, h = 0;
+  if (std::sscanf(o.size.c_str(), "%dx%d", &w, &h) != 2) throw UsageError("simulate-capture: --size is WIDTHxHEIGHT, e.g. 256x256");
+  o.sim.width = w;
+  o.sim.height = h;
+  const WavelengthGrid bands = WavelengthGrid::parse(o.bands);
+  o.sim.bands.assign(bands.values().begin(), bands.values().end());
+  if (o.passband != "gaussian" && o.passband != "delta") throw UsageError("simulate-capture: --passband is gaussian or delta");
+  o.sim.passband = o.passband == "delta" ? acquire::Passband::delta : acquire::Passband::gaussian;
+  o.sim.noise = !o.no_noise;
+  // The sphere sits a little off the optical axis (5 % and 2 % of its image diameter), as on the real rig.
+  o.sim.rig.off_axis = 0.05 * o.sim.rig.sphere_px / o.sim.rig.focal_px * o.sim.rig.distance;
+  o.sim.rig.off_axis_y = 0.02 * o.sim.rig.sphere_px / o.sim.rig.focal_px * o.sim.rig.distance;
+  acquire::check_simulator(o.sim);
+  // Written under a temporary name and renamed, so an interrupted run leaves no half capture behind.
+  const std::filesystem::path out(o.output);
+  if (std::filesystem::exists(out)) throw UsageError("simulate-capture: " + o.output + " exists; name a new directory");
+  const std::filesystem::path temp = out.string() + ".partial";
+  std::filesystem::remove_all(temp);
+  const acquire::Capture c = acquire::simulate_capture(o.sim, temp);
+  std::filesystem::rename(temp, out);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (o.json) {
+    fmt::print("{{\"output\":{},\"images\":{},\"width\":{},\"height\":{},\"lights\":{},\"bands\":{},\"seconds\":{:.3f}}}\n",
+               json_string(o.output), c.images.size(), c.width, c.height, c.light_angles_deg.size(), c.bands.size(), seconds);
+    return;
+  }
+  fmt::print("wrote {} images ({}) into {} in {:.1f} s\n", c.images.size(), c.description, o.output, seconds);
+}
+
+}  // namespace
+
+void setup_simulate_capture(CLI::App& app) {
+  auto o = std::make_shared<SimulateCaptureOptions>();
+  auto* cmd = app.add_subcommand("simulate-capture", "Simulate a capture of the reference's BRDF rig, with known truth");
+  cmd->add_option("--material", o->sim.material, "The sphere's material (see synth-brdf)")->capture_default_str();
+  cmd->add_option("-o,--output", o->output, "New capture directory")->required();
+  cmd->add_option("--size", o->size, "Sensor WIDTHxHEIGHT (pixels)")->capture_default_str();
+  cmd->add_option("--sphere-px", o->sim.rig.sphere_px, "The sphere's diameter on the image (pixels)")->capture_default_str();
+  cmd->add_option("--focal", o->sim.rig.focal_px, "Focal length (pixels)")->capture_default_str();
+  cmd->add_option("--lights", o->sim.rig.lights, "Light positions on the arc")->capture_default_str();
+  cmd->add_option("--light-step", o->sim.rig.light_step_deg, "Arc step (degrees)")->capture_default_str();
+  cmd->add_option("--first-light", o->sim.rig.first_light_deg, "First light's angle from the camera (degrees)")->capture_default_str();
+  cmd->add_option("--bands", o->bands, "LCTF tuning wavelengths (first:last:step or a list, nm)")->capture_default_str();
+  cmd->add_option("--exposures", o->sim.exposures_s, "Exposure times (seconds)")->delimiter(',')->capture_default_str();
+  cmd->add_option("--passband", o->passband, "LCTF passband model: gaussian (widening to the red) or delta")->capture_default_str();
+  cmd->add_option("--brightness", o->sim.brightness, "DN/s of a white Lambertian facing light and camera")->capture_default_str();
+  cmd->add_option("--seed", o->sim.seed, "Noise seed")->capture_default_str();
+  cmd->add_flag("--no-noise", o->no_noise, "Noise-free sensor (still quantised to 12 bits and clipped)");
+  cmd->add_flag("--json", o->json, "Print one JSON object");
+  cmd->callback([o] { run_simulate_capture(*o); });
+}
+
+}  // namespace specula::app
