@@ -38,9 +38,12 @@ void write_manifest(const fs::path& dir, const Capture& c) {
   j["description"] = c.description;
   j["camera"] = {{"width", c.width}, {"height", c.height}, {"bit_depth", c.bit_depth}, {"focal_px", c.focal_px},
                  {"cx", c.cx}, {"cy", c.cy}};
+  j["rig"] = {{"sphere_radius_m", c.sphere_radius_m}, {"light_distance_m", c.light_distance_m}};
   j["bands_nm"] = c.bands;
   j["light_angles_deg"] = c.light_angles_deg;
   j["light_spectrum"] = {{"nm", c.light_spectrum_nm}, {"value", c.light_spectrum}};
+  j["lctf_transmission"] = json::array();
+  for (std::size_t b = 0; b < c.lctf_nm.size(); ++b) j["lctf_transmission"].push_back({{"nm", c.lctf_nm[b]}, {"value", c.lctf_value[b]}});
   j["targets"] = json::array();
   for (const auto& t : c.targets) j["targets"].push_back({{"name", t.name}, {"reflectance", t.reflectance}});
   j["images"] = json::array();
@@ -107,6 +110,12 @@ Capture read_manifest(const fs::path& dir) {
     throw InputError(ctx + ": camera size must be 1 to 65536 pixels a side");
   if (c.bit_depth < 8 || c.bit_depth > 16) throw InputError(ctx + ": camera bit_depth must be 8 to 16");
   if (!(c.focal_px > 0)) throw InputError(ctx + ": camera focal_px must be positive");
+  if (j.contains("rig")) {
+    c.sphere_radius_m = j["rig"].value("sphere_radius_m", 0.0);
+    c.light_distance_m = j["rig"].value("light_distance_m", 0.0);
+    if (!(c.sphere_radius_m >= 0) || !(c.light_distance_m >= 0))
+      throw InputError(ctx + ": rig sphere_radius_m and light_distance_m must be >= 0 (0: unknown)");
+  }
   c.bands = field<std::vector<double>>(j, "bands_nm", ctx);
   if (c.bands.empty()) throw InputError(ctx + ": \"bands_nm\" is empty");
   for (std::size_t i = 1; i < c.bands.size(); ++i)
@@ -117,6 +126,17 @@ Capture read_manifest(const fs::path& dir) {
   c.light_spectrum = field<std::vector<double>>(spd, "value", ctx + " light_spectrum");
   if (c.light_spectrum_nm.size() != c.light_spectrum.size() || c.light_spectrum.size() < 2)
     throw InputError(ctx + ": \"light_spectrum\" needs as many values as wavelengths, at least 2");
+  if (j.contains("lctf_transmission")) {
+    for (const json& t : j["lctf_transmission"]) {
+      c.lctf_nm.push_back(field<std::vector<double>>(t, "nm", ctx + " lctf_transmission"));
+      c.lctf_value.push_back(field<std::vector<double>>(t, "value", ctx + " lctf_transmission"));
+      if (c.lctf_nm.back().size() != c.lctf_value.back().size() || c.lctf_nm.back().size() < 2)
+        throw InputError(ctx + ": each \"lctf_transmission\" curve needs as many values as wavelengths, at least 2");
+    }
+    if (!c.lctf_nm.empty() && c.lctf_nm.size() != c.bands.size())
+      throw InputError(ctx + ": \"lctf_transmission\" has " + std::to_string(c.lctf_nm.size()) + " curves for " +
+                       std::to_string(c.bands.size()) + " bands");
+  }
   for (const json& t : field<json>(j, "targets", ctx)) {
     CaptureTarget target{field<std::string>(t, "name", ctx + " target"), field<std::vector<double>>(t, "reflectance", ctx + " target")};
     if (target.reflectance.size() != c.bands.size())

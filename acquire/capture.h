@@ -45,9 +45,13 @@ struct Capture {
   int bit_depth = 12;                ///< values in the PNGs are 0 .. 2^bit_depth - 1
   double focal_px = 0;               ///< pinhole intrinsics: focal length and principal point (pixels)
   double cx = 0, cy = 0;
+  double sphere_radius_m = 0;        ///< the sample sphere's known radius (0: unknown; the fit then uses 1)
+  double light_distance_m = 0;       ///< the arc's radius, light to sphere centre (0: a distant light)
   std::vector<double> bands;         ///< LCTF tuning wavelengths (nm)
   std::vector<double> light_angles_deg;  ///< arc angle of each light position (from the camera, seen from the sphere)
   std::vector<double> light_spectrum_nm, light_spectrum;  ///< the light's relative spectrum, tabulated
+  /// The LCTF's tabulated transmission per band (manufacturer's data; optional, the factored model needs it).
+  std::vector<std::vector<double>> lctf_nm, lctf_value;
   std::vector<CaptureTarget> targets;
   std::vector<CaptureImage> images;
   std::optional<CaptureTruth> truth;

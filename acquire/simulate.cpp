@@ -170,10 +170,26 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   cap.cx = cx;
   cap.cy = cy;
   cap.bands = o.bands;
+  cap.sphere_radius_m = sphere_radius(rig);
+  cap.light_distance_m = rig.light_distance;
   for (std::size_t l = 0; l < rig.lights; ++l) cap.light_angles_deg.push_back(rig.first_light_deg + double(l) * rig.light_step_deg);
   cap.light_spectrum_nm = nm;
   cap.light_spectrum.assign(light.data(), light.data() + light.size());
   cap.targets = default_targets(o.bands);
+  // The manufacturer's transmission data: the passbands without the camera's quantum efficiency.
+  for (std::size_t j = 0; j < B; ++j) {
+    std::vector<double> tn, tv;
+    for (std::size_t k = 0; k < L; ++k) {
+      const double t = response[j][k] / quantum_efficiency(nm[k]);
+      if (t > 1e-6 * (*std::max_element(response[j].begin(), response[j].end()) / quantum_efficiency(o.bands[j])) ||
+          std::abs(nm[k] - o.bands[j]) <= 2) {
+        tn.push_back(nm[k]);
+        tv.push_back(o.passband == Passband::delta ? std::max(0.0, 1 - std::abs(nm[k] - o.bands[j]) / 2) : t);
+      }
+    }
+    cap.lctf_nm.push_back(tn);
+    cap.lctf_value.push_back(tv);
+  }
   cap.description = fmt::format("simulated: {} sphere, {} lights, {} bands, {} exposures, {} passbands{}", o.material, rig.lights, B,
                                 o.exposures_s.size(), o.passband == Passband::delta ? "delta" : "Gaussian",
                                 o.noise ? ", noisy" : ", noise-free");
@@ -199,10 +215,11 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   };
   add(ImageKind::silhouette, -1, -1, -1, 0.05, "silhouette.png");
   for (std::size_t l = 0; l < rig.lights; ++l) add(ImageKind::mirror, int(l), -1, -1, 0.01, fmt::format("mirror/L{:03}.png", l));
-  for (std::size_t j = 0; j < B; ++j) add(ImageKind::flat, -1, int(j), -1, 0.05, fmt::format("flat/B{:03}.png", int(o.bands[j])));
+  for (std::size_t j = 0; j < B; ++j)
+    for (const double e : {0.02, 0.05}) add(ImageKind::flat, -1, int(j), -1, e, fmt::format("flat/B{:03}-{:g}ms.png", int(o.bands[j]), e * 1000));
   for (std::size_t t = 0; t < cap.targets.size(); ++t)
     for (std::size_t j = 0; j < B; ++j)
-      for (const double e : {0.02, 0.05})
+      for (const double e : {0.02, 0.1, 0.5, 2.0})
         add(ImageKind::target, -1, int(j), int(t), e, fmt::format("target/{}/B{:03}-{:g}ms.png", cap.targets[t].name, int(o.bands[j]), e * 1000));
   for (std::size_t l = 0; l < rig.lights; ++l)
     for (std::size_t j = 0; j < B; ++j)
@@ -287,27 +304,27 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
               double sum = 0;
               for (std::size_t k = 0; k < L; ++k)
                 sum += w[std::size_t(im.band)][k] * interpolate(o.bands, cap.targets[std::size_t(im.target)].reflectance, nm[k]);
-              rate = o.brightness * 2 * vignette(u, v) * sum;
+              rate = o.brightness * vignette(u, v) * sum;
               break;
             }
             case ImageKind::mirror: {
-              // A mirror sphere in the same place: the light's reflection is a small bright spot (a 0.25-degree
-              // source), found by supersampling where the reflected view ray points at the light.
+              // A mirror sphere in the same place: the light's reflection is a small bright spot (a source of
+              // 1 degree), found by 8 x 8 supersampling where the reflected view ray points at the light.
               if (coverage[p] <= 0) break;
               const Eigen::Vector3d lp = light_position(rig, std::size_t(im.light));
               double sum = 0;
-              for (int sy = 0; sy < 4; ++sy)
-                for (int sx = 0; sx < 4; ++sx) {
+              for (int sy = 0; sy < 8; ++sy)
+                for (int sx = 0; sx < 8; ++sx) {
                   const Eigen::Vector3d d =
-                      Eigen::Vector3d((u + (sx + 0.5) / 4 - cx) / rig.focal_px, (v + (sy + 0.5) / 4 - cy) / rig.focal_px, 1).normalized();
+                      Eigen::Vector3d((u + (sx + 0.5) / 8 - cx) / rig.focal_px, (v + (sy + 0.5) / 8 - cy) / rig.focal_px, 1).normalized();
                   const double b = d.dot(centre), disc = b * b - centre.squaredNorm() + radius * radius;
                   if (disc <= 0) continue;
                   const Eigen::Vector3d x = (b - std::sqrt(disc)) * d, n = (x - centre) / radius;
                   const Eigen::Vector3d r = d - 2 * d.dot(n) * n;
                   const double angle = std::acos(std::clamp(r.dot((lp - x).normalized()), -1.0, 1.0)) * 180 / pi;
-                  sum += std::exp(-0.5 * std::pow(angle / 0.25, 2));
+                  sum += std::exp(-0.5 * std::pow(angle / 1.0, 2));
                 }
-              rate = 300000 * sum / 16;
+              rate = 300000 * sum / 64;
               break;
             }
           }

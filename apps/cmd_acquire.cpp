@@ -1,13 +1,22 @@
 // specula acquire STEP: the pipeline from a capture directory (docs/capture-format.md) to scattered BRDF samples,
-// one subcommand per step, each recording its result in a store. Steps so far: hdr.
+// one subcommand per step, each recording its result in a store: hdr (HDR images per light), calibrate (spatial,
+// spectral, sphere and lights under /acquire/NAME), samples (scattered samples from a stored calibration), run
+// (calibrate and samples in one go). --plots draws the incidence-plane plots (figures 5.5-5.7) and the spectral
+// calibration comparison (figures 4.6-4.9).
 #include <fmt/format.h>
 
 #include <array>
 #include <chrono>
 #include <filesystem>
+#include <numbers>
 
 #include "acquire/capture.h"
 #include "acquire/hdr.h"
+#include "acquire/mapping.h"
+#include "acquire/pipeline.h"
+#include "acquire/scan.h"
+#include "apps/gnuplot.h"
+#include "core/brdf_materials.h"
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "core/error.h"
@@ -90,6 +99,256 @@ void run_acquire_hdr(const AcquireHdrOptions& o) {
   for (std::size_t s = 0; s < counts.size(); ++s) fmt::print("  {:<11} {}\n", kStatusNames[s], counts[s]);
 }
 
+
+struct AcquireOptions {
+  std::string capture;
+  std::string output;             // STORE.h5[:NAME]
+  std::string calibration;        // samples: the stored calibration's name (default: NAME)
+  std::string spectral = "delta";
+  std::string plots;
+  std::vector<double> plot_theta = {30, 45, 60};
+  double plot_band_nm = 0;
+  bool replace = false;
+  bool json = false;
+};
+
+std::pair<std::string, std::string> split_output(const std::string& spec, const std::string& fallback) {
+  const auto colon = spec.rfind(':');
+  if (colon != std::string::npos && colon > 1) return {spec.substr(0, colon), spec.substr(colon + 1)};
+  return {spec, fallback};
+}
+
+std::string vec_json(const Eigen::Vector3d& v) { return fmt::format("[{},{},{}]", v.x(), v.y(), v.z()); }
+
+// Figures 4.6-4.9: each target's known reflectance against the delta and factored recoveries.
+void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::path& dir, const acquire::Calibration& c) {
+  std::string script;
+  for (std::size_t t = 0; t < c.targets.size(); ++t) {
+    script += fmt::format("$T{} << EOD\n", t);
+    const auto& r = c.targets[t];
+    for (Eigen::Index b = 0; b < r.truth.size(); ++b)
+      script += fmt::format("{} {} {} {}\n", c.spectral.bands[std::size_t(b)], r.truth[b], r.delta[b],
+                            r.factored.size() ? fmt::format("{}", r.factored[b]) : std::string("NaN"));
+    script += "EOD\n";
+  }
+  const std::size_t n = c.targets.size(), cols = std::min<std::size_t>(n, 3), rows = (n + cols - 1) / cols;
+  script += fmt::format("set multiplot layout {},{}\nset grid\nset key bottom right\nset xlabel 'wavelength (nm)'\nset yrange [0:1.1]\n", rows, cols);
+  for (std::size_t t = 0; t < n; ++t) {
+    const auto& r = c.targets[t];
+    script += "set title " +
+              gnuplot_quote(fmt::format("{} ({}): RMS delta {:.4f}{}", r.name, r.held_out ? "held out" : "fitted", r.rms_delta,
+                                        r.rms_factored >= 0 ? fmt::format(", factored {:.4f}", r.rms_factored) : std::string())) +
+              " noenhanced\n";
+    script += fmt::format("plot $T{0} using 1:2 with lines lw 2 lc rgb '#222222' title 'known', "
+                          "$T{0} using 1:3 with linespoints pt 7 ps 0.5 lc rgb '#d04020' title 'delta', "
+                          "$T{0} using 1:4 with linespoints pt 5 ps 0.5 lc rgb '#2060c0' title 'factored'\n",
+                          t);
+  }
+  script += "unset multiplot\n";
+  plot_png(gnuplot, dir / "spectral-calibration.png", gnuplot_png_terminal(int(cols) * 420, int(rows) * 320), script);
+}
+
+// Figures 5.5-5.7: cube root of the samples within 2 degrees of the incidence plane at theta_i, at one band; with
+// a simulated capture's material, its model along the plane too.
+void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem::path& dir, const store::Store& s,
+                    const std::string& name, const acquire::Capture& cap, const AcquireOptions& o) {
+  using std::numbers::pi;
+  const store::SamplesInfo info = s.samples_info(name);
+  std::size_t band = info.bands / 2;
+  if (o.plot_band_nm > 0) {
+    band = 0;
+    for (std::size_t b = 1; b < info.bands; ++b)
+      if (std::abs(info.wavelengths[b] - o.plot_band_nm) < std::abs(info.wavelengths[band] - o.plot_band_nm)) band = b;
+  }
+  std::unique_ptr<brdf::SpectralModel> model;
+  if (cap.truth && brdf::material_catalogue().count(cap.truth->material)) model = brdf::make_material(cap.truth->material, info.wavelengths);
+  const double eps = 2 * pi / 180;
+  std::vector<std::string> points(o.plot_theta.size());
+  const std::size_t block = 1 << 16;
+  std::vector<double> angles;
+  std::vector<float> values;
+  for (std::size_t first = 0; first < info.size; first += block) {
+    const std::size_t n = std::min(block, info.size - first);
+    angles.resize(4 * n);
+    values.resize(n * info.bands);
+    s.read_samples(name, first, n, angles, values);
+    for (std::size_t i = 0; i < n; ++i) {
+      const acquire::IsoAngles a = acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
+      if (a.phi_d > eps && a.phi_d < pi - eps) continue;
+      for (std::size_t k = 0; k < o.plot_theta.size(); ++k)
+        if (std::abs(a.theta_i - o.plot_theta[k] * pi / 180) <= eps)
+          points[k] += fmt::format("{:.3f} {:.5g}\n", (a.phi_d > pi / 2 ? 1 : -1) * a.theta_o * 180 / pi,
+                                   std::cbrt(std::max(0.0f, values[i * info.bands + band])));
+    }
+  }
+  for (std::size_t k = 0; k < o.plot_theta.size(); ++k) {
+    std::string script = "$S << EOD\n" + points[k] + "EOD\n";
+    if (model) {
+      script += "$M << EOD\n";
+      std::vector<double> f(info.bands);
+      for (int d10 = -895; d10 <= 895; d10 += 5) {
+        model->eval(brdf::StdAngles{o.plot_theta[k] * pi / 180, 0.0, std::abs(d10) / 10.0 * pi / 180, d10 > 0 ? pi : 0.0}, f);
+        script += fmt::format("{:.1f} {:.5g}\n", d10 / 10.0, std::cbrt(std::max(0.0, f[band])));
+      }
+      script += "EOD\n";
+    }
+    script += "set grid\nset key top left\nset xrange [-90:90]\nset xlabel 'theta_o (degrees; negative: the light''s side)'\n";
+    script += "set ylabel 'cube root of the BRDF (1/sr)'\n";
+    script += "set title " + gnuplot_quote(fmt::format("{}: incidence plane at theta_i = {} deg, {} nm, samples within 2 deg", name,
+                                                       o.plot_theta[k], info.wavelengths[band])) + " noenhanced\n";
+    script += "plot $S using 1:2 with points pt 7 ps 0.5 lc rgb '#d04020' title 'samples'";
+    if (model) script += ", $M using 1:2 with lines lw 2 lc rgb '#2060c0' title " + gnuplot_quote("model (" + cap.truth->material + ")");
+    script += "\n";
+    plot_png(gnuplot, dir / fmt::format("incidence-theta{:g}.png", o.plot_theta[k]), gnuplot_png_terminal(900, 560), script);
+  }
+}
+
+// With a simulated capture's material: the median of |sample / model - 1| and of sample / model over every band
+// of every sample whose model value is above 1e-3 (streamed).
+std::pair<double, double> truth_error(const store::Store& s, const std::string& name, const acquire::Capture& cap) {
+  if (!cap.truth || !brdf::material_catalogue().count(cap.truth->material)) return {-1, -1};
+  const store::SamplesInfo info = s.samples_info(name);
+  const auto model = brdf::make_material(cap.truth->material, info.wavelengths);
+  std::vector<double> err, ratio, f(info.bands), angles;
+  std::vector<float> values;
+  const std::size_t block = 1 << 16;
+  for (std::size_t first = 0; first < info.size; first += block) {
+    const std::size_t n = std::min(block, info.size - first);
+    angles.resize(4 * n);
+    values.resize(n * info.bands);
+    s.read_samples(name, first, n, angles, values);
+    for (std::size_t i = 0; i < n; ++i) {
+      model->eval(brdf::StdAngles{angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]}, f);
+      for (std::size_t b = 0; b < info.bands; ++b)
+        if (f[b] > 1e-3) {
+          ratio.push_back(values[i * info.bands + b] / f[b]);
+          err.push_back(std::abs(ratio.back() - 1));
+        }
+    }
+  }
+  if (err.empty()) return {-1, -1};
+  auto median = [](std::vector<double>& v) {
+    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  return {median(err), median(ratio)};
+}
+
+void print_calibration(const acquire::Capture& cap, const acquire::Calibration& c) {
+  fmt::print("circle: centre ({:.2f}, {:.2f}) px, radius {:.2f} px; sphere: centre ({:.4f}, {:.4f}, {:.4f}) m, radius {:.4f} m\n", c.circle.cx,
+             c.circle.cy, c.circle.r, c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z(), c.sphere.radius);
+  std::size_t seen = 0;
+  for (const double w : c.light_confidence) seen += w > 0;
+  fmt::print("lights: {} on the arc, {} placed from mirror highlights\n", c.light_dirs.size(), seen);
+  fmt::print("spectral model: {} (fitted on targets", c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored");
+  for (const auto& t : c.targets)
+    if (!t.held_out) fmt::print(" {}", t.name);
+  fmt::print(")\n  target      RMS delta   RMS factored (eq 4.8)\n");
+  for (const auto& t : c.targets)
+    fmt::print("  {:<10}  {:.5f}     {}{}\n", t.name, t.rms_delta, t.rms_factored >= 0 ? fmt::format("{:.5f}", t.rms_factored) : "-",
+               t.held_out ? "" : "   (fitted)");
+  (void)cap;
+}
+
+// Mean and largest angle between the calibrated and the true light directions, when the manifest has the truth.
+std::pair<double, double> light_error(const acquire::Capture& cap, const acquire::Calibration& c) {
+  if (!cap.truth || cap.truth->light_dirs.size() != c.light_dirs.size()) return {-1, -1};
+  double sum = 0, worst = 0;
+  for (std::size_t l = 0; l < c.light_dirs.size(); ++l) {
+    const auto& t = cap.truth->light_dirs[l];
+    const double a = std::acos(std::clamp(c.light_dirs[l].dot(Eigen::Vector3d(t[0], t[1], t[2]).normalized()), -1.0, 1.0)) * 180 / std::numbers::pi;
+    sum += a;
+    worst = std::max(worst, a);
+  }
+  return {sum / double(c.light_dirs.size()), worst};
+}
+
+std::string calibration_json(const acquire::Capture& cap, const acquire::Calibration& c) {
+  std::string targets;
+  for (const auto& t : c.targets)
+    targets += fmt::format("{}{{\"name\":{},\"held_out\":{},\"rms_delta\":{},\"rms_factored\":{}}}", targets.empty() ? "" : ",",
+                           json_string(t.name), t.held_out ? "true" : "false", t.rms_delta, t.rms_factored);
+  const auto [mean, worst] = light_error(cap, c);
+  return fmt::format("\"circle\":{{\"cx\":{},\"cy\":{},\"r\":{}}},\"sphere\":{{\"centre\":{},\"radius\":{}}},\"targets\":[{}]{}",
+                     c.circle.cx, c.circle.cy, c.circle.r, vec_json(c.sphere.centre), c.sphere.radius, targets,
+                     mean >= 0 ? fmt::format(",\"light_dir_error_deg\":{},\"light_dir_error_max_deg\":{}", mean, worst) : std::string());
+}
+
+void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const acquire::Capture cap = acquire::read_manifest(o.capture);
+  acquire::PipelineOptions po;
+  po.spectral = acquire::parse_spectral_model(o.spectral);
+  const auto [store_path, name] = split_output(o.output, "scan");
+  store::validate_name(name, "samples");
+  std::filesystem::path gnuplot;
+  if (!o.plots.empty()) {
+    gnuplot = find_gnuplot();
+    if (gnuplot.empty()) throw UsageError("acquire: --plots draws with gnuplot; install it (Debian: gnuplot-nox)");
+    for (const double t : o.plot_theta)
+      if (!(t >= 0 && t < 90)) throw UsageError("acquire: --plot-theta values must be 0 to 90 degrees");
+  }
+  acquire::Calibration c;
+  if (calibrate) {
+    c = acquire::calibrate_capture(cap, o.capture, po);
+  } else {
+    c = acquire::read_calibration(store::Store::open(store_path), o.calibration.empty() ? name : o.calibration);
+    if (c.spectral.bands != cap.bands)
+      throw InputError(store_path + ": the stored calibration has " + std::to_string(c.spectral.bands.size()) + " bands, the capture " +
+                       std::to_string(cap.bands.size()));
+  }
+  acquire::ExtractResult r;
+  {
+    store::StoreWriter writer(store_path, {.replace = o.replace, .command_line = command_line()});
+    if (calibrate) acquire::write_calibration(writer, name, c);
+    if (extract) r = acquire::extract_samples(cap, o.capture, c, po, writer, name);
+    writer.commit();
+  }
+  if (!o.plots.empty()) {
+    std::filesystem::create_directories(o.plots);
+    if (calibrate) plot_targets(gnuplot, o.plots, c);
+    if (extract) plot_incidence(gnuplot, o.plots, store::Store::open(store_path), name, cap, o);
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto [truth_err, truth_ratio] = extract ? truth_error(store::Store::open(store_path), name, cap) : std::pair{-1.0, -1.0};
+  if (o.json) {
+    std::string rejected;
+    for (std::size_t k = 0; k < r.rejected.size(); ++k)
+      rejected += fmt::format("{}\"{}\":{}", k ? "," : "", acquire::kRejectNames[k], r.rejected[k]);
+    fmt::print("{{\"samples\":{},\"sphere_pixels\":{},\"rejected\":{{{}}},{}{},\"seconds\":{:.3f}}}\n", r.samples, r.sphere_pixels,
+               rejected, calibration_json(cap, c),
+               truth_err >= 0 ? fmt::format(",\"truth_median_rel_error\":{},\"truth_median_ratio\":{}", truth_err, truth_ratio) : std::string(),
+               seconds);
+    return;
+  }
+  if (calibrate) print_calibration(cap, c);
+  if (const auto [mean, worst] = light_error(cap, c); mean >= 0)
+    fmt::print("light directions against the manifest's truth: mean {:.3f} deg, largest {:.3f} deg\n", mean, worst);
+  if (extract) {
+    fmt::print("{} samples from {} sphere pixels x {} lights into {}:{}; rejected:", r.samples, r.sphere_pixels, cap.light_angles_deg.size(),
+               store_path, name);
+    for (std::size_t k = 0; k < r.rejected.size(); ++k) fmt::print(" {} {}", acquire::kRejectNames[k], r.rejected[k]);
+    fmt::print("\n");
+    if (truth_err >= 0)
+      fmt::print("against the simulated material: median relative error {:.4f}, median sample / model {:.4f}\n", truth_err, truth_ratio);
+  }
+  fmt::print("{:.1f} s{}\n", seconds, o.plots.empty() ? "" : "; plots in " + o.plots);
+}
+
+void add_pipeline_options(CLI::App* cmd, AcquireOptions& o, bool calibrates, bool extracts) {
+  cmd->add_option("capture", o.capture, "Capture directory (manifest.json)")->required();
+  cmd->add_option("-o,--output", o.output, "STORE.h5[:NAME] (NAME: the samples and calibration; default scan)")->required();
+  if (calibrates) cmd->add_option("--spectral-model", o.spectral, "delta (eq 4.4) or factored (eq 4.6)")->capture_default_str();
+  if (!calibrates) cmd->add_option("--calibration", o.calibration, "Stored calibration to use (default: NAME)");
+  cmd->add_option("--plots", o.plots, "Directory for PNG figures");
+  if (extracts) {
+    cmd->add_option("--plot-theta", o.plot_theta, "theta_i of the incidence-plane plots (degrees)")->delimiter(',')->capture_default_str();
+    cmd->add_option("--plot-band", o.plot_band_nm, "Wavelength of the incidence-plane plots (nm; default the middle band)");
+  }
+  cmd->add_flag("--replace", o.replace, "Replace samples or a calibration of the same name");
+  cmd->add_flag("--json", o.json, "Print one JSON object");
+}
+
 }  // namespace
 
 void setup_acquire(CLI::App& app) {
@@ -105,6 +364,19 @@ void setup_acquire(CLI::App& app) {
   hdr->add_flag("--replace", o->replace, "Replace images of the same names");
   hdr->add_flag("--json", o->json, "Print one JSON object");
   hdr->callback([o] { run_acquire_hdr(*o); });
+
+  auto cal = std::make_shared<AcquireOptions>();
+  auto* c = cmd->add_subcommand("calibrate", "Spatial, spectral, sphere and light calibration, stored under /acquire/NAME");
+  add_pipeline_options(c, *cal, true, false);
+  c->callback([cal] { run_acquire(*cal, true, false); });
+  auto smp = std::make_shared<AcquireOptions>();
+  auto* s = cmd->add_subcommand("samples", "Scattered BRDF samples from the capture with a stored calibration");
+  add_pipeline_options(s, *smp, false, true);
+  s->callback([smp] { run_acquire(*smp, false, true); });
+  auto run = std::make_shared<AcquireOptions>();
+  auto* r = cmd->add_subcommand("run", "Every step: calibrate, then extract the samples");
+  add_pipeline_options(r, *run, true, true);
+  r->callback([run] { run_acquire(*run, true, true); });
 }
 
 }  // namespace specula::app

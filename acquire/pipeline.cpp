@@ -1,0 +1,322 @@
+#include "acquire/pipeline.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "acquire/scan.h"
+#include "core/error.h"
+#include "core/interrupt.h"
+#include "core/progress.h"
+#include "store/h5.h"
+#include "store/io/png_stack.h"
+
+namespace specula::acquire {
+
+namespace fs = std::filesystem;
+using std::numbers::pi;
+
+namespace {
+
+GreyImage load_grey(const Capture& cap, const fs::path& dir, const std::string& file) {
+  const fs::path p = dir / file;
+  const store::PngImage png = store::read_png(p);
+  if (png.channels != 1 || png.width != std::size_t(cap.width) || png.height != std::size_t(cap.height))
+    throw InputError(p.string() + ": " + std::to_string(png.width) + " x " + std::to_string(png.height) + " with " +
+                     std::to_string(png.channels) + " channels; the manifest says grey " + std::to_string(cap.width) + " x " +
+                     std::to_string(cap.height));
+  return {cap.width, cap.height, std::vector<float>(png.samples.begin(), png.samples.end())};
+}
+
+const CaptureImage& only_image(const Capture& cap, ImageKind kind, int light, const fs::path& dir) {
+  for (const auto& im : cap.images)
+    if (im.kind == kind && (light < 0 || im.light == light)) return im;
+  throw InputError((dir / "manifest.json").string() + ": no " + kind_name(kind) + " image" +
+                   (light >= 0 ? " for light " + std::to_string(light) : std::string()));
+}
+
+}  // namespace
+
+HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, int light, int target, int band, const HdrOptions& o) {
+  std::vector<std::vector<std::uint16_t>> pixels;
+  std::vector<double> times;
+  for (const auto& im : cap.images) {
+    if (im.kind != kind || im.band != band || (kind == ImageKind::scene && im.light != light) ||
+        (kind == ImageKind::target && im.target != target))
+      continue;
+    const store::PngImage png = store::read_png(dir / im.file);
+    if (png.channels != 1 || png.width != std::size_t(cap.width) || png.height != std::size_t(cap.height))
+      throw InputError((dir / im.file).string() + ": not a grey " + std::to_string(cap.width) + " x " + std::to_string(cap.height) + " image");
+    pixels.push_back(png.samples);
+    times.push_back(im.exposure_s);
+  }
+  if (pixels.empty())
+    throw InputError((dir / "manifest.json").string() + ": no " + kind_name(kind) + " exposures for band " + std::to_string(band));
+  std::vector<std::span<const std::uint16_t>> views(pixels.begin(), pixels.end());
+  return merge_exposures(views, times, cap.bit_depth, o);
+}
+
+Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const PipelineOptions& o) {
+  Calibration c;
+  const std::size_t B = cap.bands.size(), P = std::size_t(cap.width) * std::size_t(cap.height);
+  // Spatial response from the flat fields' HDR rates.
+  std::vector<GreyImage> flats;
+  for (std::size_t b = 0; b < B; ++b) {
+    const HdrImage h = merge_series(cap, dir, ImageKind::flat, -1, -1, int(b), o.hdr);
+    flats.push_back({cap.width, cap.height, h.rate});
+  }
+  c.spatial = spatial_response(flats);
+
+  // Targets: the mean flat-corrected rate over the central tenth of the image.
+  const std::size_t T = cap.targets.size();
+  if (T == 0) throw InputError((dir / "manifest.json").string() + ": no diffuse targets for spectral calibration");
+  Eigen::MatrixXd measured(static_cast<Eigen::Index>(T), static_cast<Eigen::Index>(B));
+  Eigen::MatrixXd reflectance(static_cast<Eigen::Index>(T), static_cast<Eigen::Index>(B));
+  const int u0 = int(cap.width * 0.45), u1 = int(cap.width * 0.55) + 1, v0 = int(cap.height * 0.45), v1 = int(cap.height * 0.55) + 1;
+  for (std::size_t t = 0; t < T; ++t)
+    for (std::size_t b = 0; b < B; ++b) {
+      const HdrImage h = merge_series(cap, dir, ImageKind::target, -1, int(t), int(b), o.hdr);
+      double sum = 0;
+      int n = 0;
+      for (int v = v0; v < v1; ++v)
+        for (int u = u0; u < u1; ++u) {
+          const std::size_t p = std::size_t(v) * std::size_t(cap.width) + std::size_t(u);
+          if (h.status[p] == HdrStatus::saturated) continue;
+          sum += h.rate[p] / c.spatial.value[p];
+          ++n;
+        }
+      if (n == 0) throw InputError(dir.string() + ": target '" + cap.targets[t].name + "' is saturated at " + std::to_string(int(cap.bands[b])) + " nm");
+      measured(Eigen::Index(t), Eigen::Index(b)) = sum / n;
+      reflectance(Eigen::Index(t), Eigen::Index(b)) = cap.targets[t].reflectance[b];
+    }
+  std::vector<Eigen::Index> fit_rows;
+  for (std::size_t t = 0; t < T; ++t)
+    if (std::find(o.fit_targets.begin(), o.fit_targets.end(), cap.targets[t].name) != o.fit_targets.end()) fit_rows.push_back(Eigen::Index(t));
+  if (fit_rows.empty()) throw UsageError("spectral calibration: none of the fitting targets is in the capture");
+  const Eigen::MatrixXd fit_h = measured(fit_rows, Eigen::all), fit_r = reflectance(fit_rows, Eigen::all);
+  const Tabulated light{cap.light_spectrum_nm, cap.light_spectrum};
+  const SpectralCalibration delta = fit_delta(cap.bands, light, fit_h, fit_r);
+  std::optional<SpectralCalibration> factored;
+  if (!cap.lctf_nm.empty()) {
+    std::vector<Tabulated> trans;
+    for (std::size_t b = 0; b < B; ++b) trans.push_back({cap.lctf_nm[b], cap.lctf_value[b]});
+    factored = fit_factored(cap.bands, light, trans, fit_h, fit_r);
+  }
+  if (o.spectral == SpectralModel::factored && !factored)
+    throw InputError((dir / "manifest.json").string() + ": the factored model needs \"lctf_transmission\" data");
+  c.spectral = o.spectral == SpectralModel::factored ? *factored : delta;
+  for (std::size_t t = 0; t < T; ++t) {
+    TargetReport r;
+    r.name = cap.targets[t].name;
+    r.held_out = std::find(fit_rows.begin(), fit_rows.end(), Eigen::Index(t)) == fit_rows.end();
+    r.truth = reflectance.row(Eigen::Index(t)).transpose();
+    const Eigen::VectorXd h = measured.row(Eigen::Index(t)).transpose();
+    r.delta = delta.recovery * h;
+    r.rms_delta = spectral_rms(r.delta, r.truth);
+    if (factored) {
+      r.factored = factored->recovery * h;
+      r.rms_factored = spectral_rms(r.factored, r.truth);
+    }
+    c.targets.push_back(std::move(r));
+  }
+
+  // Geometry: circle (eq 5.1), sphere (eq 5.2).
+  const GreyImage sil = load_grey(cap, dir, only_image(cap, ImageKind::silhouette, -1, dir).file);
+  try {
+    c.circle = detect_circle(sil);
+  } catch (const InputError& e) {
+    throw InputError((dir / only_image(cap, ImageKind::silhouette, -1, dir).file).string() + ": " + e.what());
+  }
+  const Pinhole camera{cap.focal_px, cap.cx, cap.cy};
+  c.sphere = fit_sphere(c.circle, camera, cap.sphere_radius_m > 0 ? cap.sphere_radius_m : 1.0, cap.width, cap.height);
+  c.light_distance = cap.light_distance_m;
+
+  // Lights: each mirror highlight (eq 5.3), then the arc through them.
+  const std::size_t L = cap.light_angles_deg.size();
+  std::vector<Eigen::Vector3d> measured_dirs(L, Eigen::Vector3d::UnitZ());
+  c.light_confidence.assign(L, 0.0);
+  for (std::size_t l = 0; l < L; ++l) {
+    const CaptureImage* im = nullptr;
+    for (const auto& x : cap.images)
+      if (x.kind == ImageKind::mirror && x.light == int(l)) im = &x;
+    if (!im) continue;
+    try {
+      double w = 0;
+      measured_dirs[l] = light_direction(load_grey(cap, dir, im->file), camera, c.sphere, c.light_distance, &w);
+      c.light_confidence[l] = w;
+    } catch (const InputError&) {
+      // No highlight (the light behind the sphere): the arc places it.
+    }
+  }
+  std::vector<double> weights(L);
+  for (std::size_t l = 0; l < L; ++l) weights[l] = c.light_confidence[l] * c.light_confidence[l];
+  if (std::count_if(weights.begin(), weights.end(), [](double w) { return w > 0; }) < 2)
+    throw InputError(dir.string() + ": fewer than two mirror images show the light's highlight; the lights cannot be placed");
+  c.light_dirs = fit_light_arc(measured_dirs, weights, cap.light_angles_deg);
+  (void)P;
+  return c;
+}
+
+ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Calibration& c, const PipelineOptions& o,
+                              store::StoreWriter& out, const std::string& name) {
+  const std::size_t B = cap.bands.size(), W = std::size_t(cap.width), H = std::size_t(cap.height);
+  const Pinhole camera{cap.focal_px, cap.cx, cap.cy};
+  // Pixels wholly on the sphere (4 x 4 samples inside), with their point, normal and view.
+  std::vector<ScanPixel> pixels;
+  for (int v = 0; v < int(H); ++v)
+    for (int u = 0; u < int(W); ++u) {
+      bool all = true;
+      double t;
+      for (int k = 0; k < 16 && all; ++k) all = c.sphere.hit(camera.ray(u + (k % 4 + 0.5) / 4, v + (k / 4 + 0.5) / 4), t);
+      if (!all) continue;
+      const Eigen::Vector3d d = camera.ray(u + 0.5, v + 0.5);
+      c.sphere.hit(d, t);
+      const Eigen::Vector3d x = t * d;
+      pixels.push_back({u, v, x, (x - c.sphere.centre).normalized(), -d});
+    }
+  ExtractResult r;
+  r.sphere_pixels = pixels.size();
+  store::Provenance prov;
+  prov.source_file = dir.string();
+  prov.importer = "acquire";
+  out.create_samples(name, WavelengthGrid(cap.bands), "1/sr", prov);
+  const std::size_t L = cap.light_angles_deg.size();
+  Progress progress("samples", L);
+  std::vector<double> angles;
+  std::vector<float> values;
+  std::vector<std::uint8_t> saturated(W * H);
+  for (std::size_t l = 0; l < L; ++l) {
+    check_interrupt();
+    std::vector<HdrImage> hdr;
+    for (std::size_t b = 0; b < B; ++b) hdr.push_back(merge_series(cap, dir, ImageKind::scene, int(l), -1, int(b), o.hdr));
+    std::fill(saturated.begin(), saturated.end(), 0);
+    for (std::size_t b = 0; b < B; ++b) {
+      std::size_t on_sphere = 0;
+      for (const ScanPixel& px : pixels) {
+        const std::size_t p = std::size_t(px.y) * W + std::size_t(px.x);
+        if (hdr[b].status[p] == HdrStatus::saturated) saturated[p] = 1, ++on_sphere;
+      }
+      if (!pixels.empty() && on_sphere == pixels.size())
+        throw InputError(dir.string() + ": light " + std::to_string(l) + " at " + std::to_string(int(cap.bands[b])) +
+                         " nm is saturated on the whole sphere even at the shortest exposure; capture shorter exposures");
+    }
+    for (std::size_t p = 0; p < W * H; ++p)
+      for (std::size_t b = 0; b < B && !saturated[p]; ++b)
+        if (hdr[b].status[p] == HdrStatus::saturated) saturated[p] = 1;
+    const Eigen::Vector3d light = c.light_distance > 0 ? Eigen::Vector3d(c.sphere.centre + c.light_distance * c.light_dirs[l])
+                                                       : Eigen::Vector3d(c.sphere.centre + 1e6 * c.light_dirs[l]);
+    angles.clear();
+    values.clear();
+    Eigen::VectorXd h(static_cast<Eigen::Index>(B));
+    for (const ScanPixel& px : pixels) {
+      const std::size_t p = std::size_t(px.y) * W + std::size_t(px.x);
+      brdf::StdAngles a;
+      if (!scan_angles(px, light, a)) {
+        ++r.rejected[std::size_t(Reject::shadowed)];
+        continue;
+      }
+      if (saturated[p]) {
+        ++r.rejected[std::size_t(Reject::saturated)];
+        continue;
+      }
+      bool bloom = false;
+      for (int dv = -o.bloom_px; dv <= o.bloom_px && !bloom; ++dv)
+        for (int du = -o.bloom_px; du <= o.bloom_px && !bloom; ++du) {
+          const int u = px.x + du, v = px.y + dv;
+          bloom = u >= 0 && v >= 0 && u < int(W) && v < int(H) && saturated[std::size_t(v) * W + std::size_t(u)];
+        }
+      if (bloom) {
+        ++r.rejected[std::size_t(Reject::bloom)];
+        continue;
+      }
+      Reject why = Reject::count;
+      for (std::size_t b = 0; b < B && why == Reject::count; ++b) {
+        const HdrStatus s = hdr[b].status[p];
+        if (s == HdrStatus::low_signal) why = Reject::low_signal;
+        else if (s == HdrStatus::nonlinear) why = Reject::nonlinear;
+        h[Eigen::Index(b)] = hdr[b].rate[p] / c.spatial.value[p];
+      }
+      if (why != Reject::count) {
+        ++r.rejected[std::size_t(why)];
+        continue;
+      }
+      // Irradiance: pi cos(theta_i) (D / d)^2 relative to a surface facing the light at the arc's radius, the
+      // targets' geometry (a distant light: pi cos(theta_i)).
+      const double d = (light - px.point).norm();
+      const double g = pi * std::cos(a.theta_i) * (c.light_distance > 0 ? std::pow(c.light_distance / d, 2) : 1.0);
+      const Eigen::VectorXd f = c.spectral.recovery * h / g;
+      angles.insert(angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
+      for (Eigen::Index b = 0; b < f.size(); ++b) values.push_back(float(f[b]));
+      ++r.samples;
+    }
+    if (!angles.empty()) out.append_samples(name, angles, values);
+    progress.advance();
+  }
+  return r;
+}
+
+void write_calibration(store::StoreWriter& out, const std::string& name, const Calibration& c) {
+  store::validate_name(name, "calibration");
+  const std::string ctx = out.label() + ": /acquire/" + name;
+  namespace h5 = store::h5;
+  if (!h5::exists(out.file(), "/acquire"))
+    h5::Id(h5::check(H5Gcreate2(out.file(), "/acquire", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx, "cannot create /acquire"));
+  if (h5::exists(out.file(), "/acquire/" + name)) {
+    if (!out.options().replace) throw InputError(ctx + " exists; pass --replace to overwrite it");
+    h5::check(H5Ldelete(out.file(), ("/acquire/" + name).c_str(), H5P_DEFAULT), ctx, "cannot replace it");
+  }
+  h5::Id g(h5::check(H5Gcreate2(out.file(), ("/acquire/" + name).c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx, "cannot create"));
+  Eigen::MatrixXd s(c.spatial.height, c.spatial.width);
+  for (int v = 0; v < c.spatial.height; ++v)
+    for (int u = 0; u < c.spatial.width; ++u) s(v, u) = c.spatial.at(u, v);
+  h5::write_matrix(g, "spatial_response", s, ctx);
+  h5::write_matrix(g, "spectral_recovery", c.spectral.recovery, ctx);
+  h5::write_vector(g, "spectral_scale", std::span<const double>(c.spectral.scale.data(), std::size_t(c.spectral.scale.size())), ctx);
+  h5::write_vector(g, "bands_nm", c.spectral.bands, ctx);
+  h5::write_attr(g, "spectral_model", std::string_view(c.spectral.model == SpectralModel::delta ? "delta" : "factored"), ctx);
+  const std::vector<double> circle = {c.circle.cx, c.circle.cy, c.circle.r};
+  h5::write_vector(g, "circle_px", circle, ctx);
+  const std::vector<double> sphere = {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z(), c.sphere.radius};
+  h5::write_vector(g, "sphere_m", sphere, ctx);
+  Eigen::MatrixXd lights(Eigen::Index(c.light_dirs.size()), 3);
+  for (std::size_t l = 0; l < c.light_dirs.size(); ++l) lights.row(Eigen::Index(l)) = c.light_dirs[l].transpose();
+  h5::write_matrix(g, "light_dirs", lights, ctx);
+  h5::write_vector(g, "light_confidence", c.light_confidence, ctx);
+  const std::vector<double> distance = {c.light_distance};
+  h5::write_vector(g, "light_distance_m", distance, ctx);
+  store::Provenance p;
+  p.importer = "acquire calibrate";
+  store::write_provenance(g, p, out.options().command_line, ctx);
+}
+
+Calibration read_calibration(const store::Store& in, const std::string& name) {
+  namespace h5 = store::h5;
+  const std::string path = "/acquire/" + name, ctx = in.label() + ": " + path;
+  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(in.file(), "/acquire") || !h5::exists(in.file(), path))
+    throw InputError(in.label() + ": no calibration '" + name + "' (run specula acquire calibrate first)");
+  h5::Id g(h5::check(H5Gopen2(in.file(), path.c_str(), H5P_DEFAULT), ctx, "cannot open"));
+  Calibration c;
+  const Eigen::MatrixXd s = h5::read_matrix(g, "spatial_response", ctx);
+  c.spatial = {int(s.cols()), int(s.rows()), std::vector<float>(std::size_t(s.size()))};
+  for (Eigen::Index v = 0; v < s.rows(); ++v)
+    for (Eigen::Index u = 0; u < s.cols(); ++u) c.spatial.value[std::size_t(v * s.cols() + u)] = float(s(v, u));
+  c.spectral.recovery = h5::read_matrix(g, "spectral_recovery", ctx);
+  const std::vector<double> scale = h5::read_vector(g, "spectral_scale", ctx);
+  c.spectral.scale = Eigen::Map<const Eigen::VectorXd>(scale.data(), Eigen::Index(scale.size()));
+  c.spectral.bands = h5::read_vector(g, "bands_nm", ctx);
+  c.spectral.model = h5::read_string_attr(g, "spectral_model", ctx) == "factored" ? SpectralModel::factored : SpectralModel::delta;
+  const std::vector<double> circle = h5::read_vector(g, "circle_px", ctx), sphere = h5::read_vector(g, "sphere_m", ctx);
+  if (circle.size() != 3 || sphere.size() != 4 || c.spectral.recovery.rows() != Eigen::Index(c.spectral.bands.size()))
+    throw InputError(ctx + ": malformed calibration");
+  c.circle = {circle[0], circle[1], circle[2]};
+  c.sphere = {Eigen::Vector3d(sphere[0], sphere[1], sphere[2]), sphere[3]};
+  const Eigen::MatrixXd lights = h5::read_matrix(g, "light_dirs", ctx);
+  for (Eigen::Index l = 0; l < lights.rows(); ++l) c.light_dirs.push_back(lights.row(l).transpose());
+  c.light_confidence = h5::read_vector(g, "light_confidence", ctx);
+  const std::vector<double> distance = h5::read_vector(g, "light_distance_m", ctx);
+  if (distance.size() != 1) throw InputError(ctx + ": malformed light_distance_m");
+  c.light_distance = distance[0];
+  return c;
+}
+
+}  // namespace specula::acquire

@@ -1,0 +1,76 @@
+#pragma once
+// From a capture directory to scattered BRDF samples (reference chapters 4-5): calibrate (spatial response,
+// spectral model, the sphere's circle and placement, light directions), then extract: per light position, HDR
+// merge of every band, spectral recovery, division by irradiance and cos(theta_i), rejection of shadowed,
+// saturated, bloomed, low-signal and non-linear pixels, and the samples appended to the store light by light.
+#include <Eigen/Core>
+#include <array>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "acquire/calibrate.h"
+#include "acquire/capture.h"
+#include "acquire/hdr.h"
+#include "acquire/spectral.h"
+#include "store/store.h"
+
+namespace specula::acquire {
+
+struct PipelineOptions {
+  HdrOptions hdr;
+  SpectralModel spectral = SpectralModel::delta;
+  std::vector<std::string> fit_targets = {"blue", "white"};  ///< as the reference; the rest are held out
+  int bloom_px = 2;          ///< pixels within this distance of a saturated one are rejected
+};
+
+/// One target's recovered reflectance under both models against its known reflectance (eq 4.8).
+struct TargetReport {
+  std::string name;
+  bool held_out = false;
+  Eigen::VectorXd truth, delta, factored;  ///< factored empty when the capture has no LCTF transmission data
+  double rms_delta = 0, rms_factored = -1;
+};
+
+/// Everything calibration finds.
+struct Calibration {
+  GreyImage spatial;                       ///< S(x, y), 1 at the centre
+  SpectralCalibration spectral;            ///< the model used for recovery
+  std::vector<TargetReport> targets;
+  Circle circle;
+  Sphere sphere;
+  std::vector<Eigen::Vector3d> light_dirs;  ///< from the sphere's centre, one per light position (arc fit)
+  std::vector<double> light_confidence;     ///< 0 where the mirror image had no usable highlight
+  double light_distance = 0;                ///< 0: distant lights
+};
+
+/// Calibrates from the capture's flat, target, silhouette and mirror images. InputError naming the image for a
+/// capture that lacks them or shows nothing usable.
+Calibration calibrate_capture(const Capture& capture, const std::filesystem::path& dir, const PipelineOptions& o);
+
+/// Why a (pixel, light) gave no sample.
+enum class Reject { shadowed, saturated, bloom, low_signal, nonlinear, count };
+inline constexpr std::array<const char*, 5> kRejectNames = {"shadowed", "saturated", "bloom", "low_signal", "nonlinear"};
+
+struct ExtractResult {
+  std::uint64_t samples = 0;
+  std::array<std::uint64_t, std::size_t(Reject::count)> rejected{};
+  std::uint64_t sphere_pixels = 0;  ///< pixels wholly on the sphere (edge pixels are never used)
+};
+
+/// Extracts samples light by light into samples `name` of the open transaction (created here; B bands of the
+/// capture, units 1/sr relative to the targets' scale). One light's images in memory at a time; checks for
+/// interruption between lights.
+ExtractResult extract_samples(const Capture& capture, const std::filesystem::path& dir, const Calibration& c,
+                              const PipelineOptions& o, store::StoreWriter& out, const std::string& name);
+
+/// Writes the calibration under /acquire/<name> in the transaction (spatial response, recovery matrix, circle,
+/// sphere, light directions, target reports) and reads it back.
+void write_calibration(store::StoreWriter& out, const std::string& name, const Calibration& c);
+Calibration read_calibration(const store::Store& in, const std::string& name);
+
+/// The directory's scene/flat/target exposure series of one (kind, light or target, band), merged.
+HdrImage merge_series(const Capture& capture, const std::filesystem::path& dir, ImageKind kind, int light, int target, int band,
+                      const HdrOptions& o);
+
+}  // namespace specula::acquire

@@ -1,0 +1,153 @@
+// The acquisition pipeline on simulated captures with known truth: noise-free samples within 1 % (median
+// relative) of the analytic BRDF at their angles, noisy samples unbiased, the calibration stored and read back
+// unchanged, and broken captures refused with one line.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "acquire/pipeline.h"
+#include "acquire/simulate.h"
+#include "core/brdf_materials.h"
+#include "store/io/png_stack.h"
+#include "store/store.h"
+#include "test_support.h"
+
+using namespace specula;
+using namespace specula::acquire;
+
+namespace {
+
+SimulatorOptions rig(bool noise) {
+  SimulatorOptions o;
+  o.width = o.height = 128;
+  o.rig.sphere_px = 90;
+  o.rig.off_axis = 0.05 * 90 / 2000.0;
+  o.rig.off_axis_y = 0.02 * 90 / 2000.0;
+  o.rig.lights = 6;
+  o.rig.light_step_deg = 25;
+  o.bands = {450, 550, 650};
+  o.passband = Passband::delta;
+  o.noise = noise;
+  return o;
+}
+
+// Ratios sample / model over every band of every sample (model values above 1e-3 of the largest).
+std::vector<double> ratios(const std::filesystem::path& store, const std::string& material) {
+  const store::Store s = store::Store::open(store);
+  const store::SamplesInfo info = s.samples_info("scan");
+  std::vector<double> angles(4 * info.size);
+  std::vector<float> values(info.size * info.bands);
+  s.read_samples("scan", 0, info.size, angles, values);
+  const auto model = brdf::make_material(material, info.wavelengths);
+  std::vector<double> f(info.bands), r;
+  for (std::size_t i = 0; i < info.size; ++i) {
+    model->eval(brdf::StdAngles{angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]}, f);
+    for (std::size_t b = 0; b < info.bands; ++b)
+      if (f[b] > 1e-3) r.push_back(values[i * info.bands + b] / f[b]);
+  }
+  return r;
+}
+
+double median(std::vector<double> v) {
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+ExtractResult run(const SimulatorOptions& o, const std::filesystem::path& dir, Calibration* out = nullptr) {
+  const Capture cap = simulate_capture(o, dir / "cap");
+  const Capture back = read_manifest(dir / "cap");
+  const Calibration c = calibrate_capture(back, dir / "cap", {});
+  store::StoreWriter w(dir / "s.h5", {});
+  write_calibration(w, "scan", c);
+  const ExtractResult r = extract_samples(back, dir / "cap", c, {}, w, "scan");
+  w.commit();
+  if (out) *out = c;
+  return r;
+}
+
+TEST(Pipeline, NoiseFreeSamplesMatchTheAnalyticBrdf) {
+  test::ScratchDir dir;
+  const ExtractResult r = run(rig(false), dir.path());
+  EXPECT_GT(r.samples, 10000u);
+  EXPECT_GT(r.rejected[std::size_t(Reject::shadowed)], 0u);
+  std::vector<double> err;
+  for (const double x : ratios(dir / "s.h5", "red-plastic")) err.push_back(std::abs(x - 1));
+  ASSERT_GT(err.size(), 30000u);
+  EXPECT_LT(median(err), 0.01);
+}
+
+TEST(Pipeline, NoisySamplesAreUnbiased) {
+  test::ScratchDir dir;
+  run(rig(true), dir.path());
+  const std::vector<double> r = ratios(dir / "s.h5", "red-plastic");
+  ASSERT_GT(r.size(), 30000u);
+  EXPECT_NEAR(median(r), 1.0, 0.01);
+}
+
+TEST(Pipeline, CalibrationIsStoredAndReadBackUnchanged) {
+  test::ScratchDir dir;
+  Calibration c;
+  run(rig(false), dir.path(), &c);
+  const Calibration back = read_calibration(store::Store::open(dir / "s.h5"), "scan");
+  EXPECT_EQ(back.spatial.value, c.spatial.value);
+  EXPECT_EQ(back.spectral.recovery, c.spectral.recovery);
+  EXPECT_EQ(back.sphere.centre, c.sphere.centre);
+  EXPECT_EQ(back.circle.r, c.circle.r);
+  ASSERT_EQ(back.light_dirs.size(), c.light_dirs.size());
+  for (std::size_t l = 0; l < c.light_dirs.size(); ++l) EXPECT_EQ(back.light_dirs[l], c.light_dirs[l]);
+  EXPECT_THROW(read_calibration(store::Store::open(dir / "s.h5"), "other"), InputError);
+}
+
+TEST(Pipeline, BrokenCapturesAreRefusedWithOneLine) {
+  test::ScratchDir dir;
+  simulate_capture(rig(false), dir / "sat");
+  const Capture sat = read_manifest(dir / "sat");
+  // Every exposure of light 1 at 550 nm saturated, as a capture with too long exposures would be.
+  const std::vector<std::uint16_t> white(128 * 128, 4095);
+  for (const auto& im : sat.images)
+    if (im.kind == ImageKind::scene && im.light == 1 && im.band == 1) store::write_png_gray16(dir / "sat" / im.file, 128, 128, white);
+  const Calibration c = calibrate_capture(sat, dir / "sat", {});
+  store::StoreWriter w(dir / "x.h5", {});
+  try {
+    extract_samples(sat, dir / "sat", c, {}, w, "scan");
+    ADD_FAILURE() << "an all-saturated capture was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("light 1 at 550 nm is saturated on the whole sphere"), std::string::npos) << e.what();
+  }
+  // A silhouette without a sphere.
+  simulate_capture(rig(false), dir / "cap");
+  const std::vector<std::uint16_t> board(128 * 128, 3000);
+  store::write_png_gray16(dir / "cap" / "silhouette.png", 128, 128, board);
+  try {
+    calibrate_capture(read_manifest(dir / "cap"), dir / "cap", {});
+    ADD_FAILURE() << "a silhouette without a sphere was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("silhouette.png"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no dark sphere"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Pipeline, RunPrintsTheIssuesJsonKeys) {
+  test::ScratchDir dir;
+  ASSERT_EQ(test::run_specula("simulate-capture --size 128x128 --sphere-px 90 --lights 5 --light-step 25 --bands 500,600 -o '" +
+                              (dir / "cap").string() + "'")
+                .status,
+            0);
+  const auto r = test::run_specula("acquire run '" + (dir / "cap").string() + "' -o '" + (dir / "s.h5").string() + ":red' --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* key : {"\"samples\"", "\"rejected\"", "\"shadowed\"", "\"saturated\"", "\"bloom\"", "\"low_signal\"", "\"sphere\"",
+                          "\"circle\"", "\"light_dir_error_deg\"", "\"seconds\""})
+    EXPECT_NE(r.output.find(key), std::string::npos) << key << " not in " << r.output;
+  EXPECT_LT(test::json_number(r.output, "light_dir_error_max_deg"), 0.25);
+  EXPECT_GT(test::json_number(r.output, "samples"), 1000);
+  const store::Store s = store::Store::open(dir / "s.h5");
+  EXPECT_EQ(s.samples(), std::vector<std::string>{"red"});
+  // A second run without --replace refuses and leaves the store as it was.
+  const std::string before = test::read_bytes(dir / "s.h5");
+  const auto again = test::run_specula("acquire run '" + (dir / "cap").string() + "' -o '" + (dir / "s.h5").string() + ":red'");
+  EXPECT_EQ(again.status, 1) << again.output;
+  EXPECT_EQ(test::read_bytes(dir / "s.h5"), before);
+}
+
+}  // namespace
