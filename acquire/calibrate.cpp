@@ -166,22 +166,25 @@ Sphere fit_sphere(const Circle& circle, const Pinhole& camera, double radius, in
       for (int sx = 0; sx < 4; ++sx) k += inside(u + (sx + 0.5) / 4, v + (sy + 0.5) / 4);
     return k / 16.0;
   };
+  // Only a ring of pixels around the circle can disagree for spheres near the start: XOR is summed there.
+  std::vector<std::pair<int, int>> ring;
   std::vector<double> disc;
   for (int v = v0; v < v1; ++v)
-    for (int u = u0; u < u1; ++u)
+    for (int u = u0; u < u1; ++u) {
+      if (std::abs(std::hypot(u + 0.5 - circle.cx, v + 0.5 - circle.cy) - circle.r) > 4) continue;
+      ring.emplace_back(u, v);
       disc.push_back(coverage(u, v, [&](double x, double y) { return std::hypot(x - circle.cx, y - circle.cy) < circle.r; }));
+    }
   auto objective = [&](const Eigen::VectorXd& c) {
     const Sphere s{Eigen::Vector3d(c[0], c[1], c[2]), radius};
     double sum = 0;
-    std::size_t i = 0;
-    for (int v = v0; v < v1; ++v)
-      for (int u = u0; u < u1; ++u) {
-        const double traced = coverage(u, v, [&](double x, double y) {
-          double t;
-          return s.hit(camera.ray(x, y), t);
-        });
-        sum += std::abs(traced - disc[i++]);
-      }
+    for (std::size_t i = 0; i < ring.size(); ++i) {
+      const double traced = coverage(ring[i].first, ring[i].second, [&](double x, double y) {
+        double t;
+        return s.hit(camera.ray(x, y), t);
+      });
+      sum += std::abs(traced - disc[i]);
+    }
     return sum;
   };
   const Eigen::Vector3d start = distance * axis;

@@ -38,18 +38,29 @@ const CaptureImage& only_image(const Capture& cap, ImageKind kind, int light, co
 }  // namespace
 
 HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, int light, int target, int band, const HdrOptions& o) {
-  std::vector<std::vector<std::uint16_t>> pixels;
-  std::vector<double> times;
-  for (const auto& im : cap.images) {
-    if (im.kind != kind || im.band != band || (kind == ImageKind::scene && im.light != light) ||
-        (kind == ImageKind::target && im.target != target))
-      continue;
-    const store::PngImage png = store::read_png(dir / im.file);
-    if (png.channels != 1 || png.width != std::size_t(cap.width) || png.height != std::size_t(cap.height))
-      throw InputError((dir / im.file).string() + ": not a grey " + std::to_string(cap.width) + " x " + std::to_string(cap.height) + " image");
-    pixels.push_back(png.samples);
-    times.push_back(im.exposure_s);
+  std::vector<const CaptureImage*> files;
+  for (const auto& im : cap.images)
+    if (im.kind == kind && im.band == band && (kind != ImageKind::scene || im.light == light) && (kind != ImageKind::target || im.target == target))
+      files.push_back(&im);
+  // The exposures are decoded on all threads; an error names its file.
+  std::vector<std::vector<std::uint16_t>> pixels(files.size());
+  std::vector<double> times(files.size());
+  std::exception_ptr error;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (long long i = 0; i < static_cast<long long>(files.size()); ++i) {
+    try {
+      const CaptureImage& im = *files[std::size_t(i)];
+      store::PngImage png = store::read_png(dir / im.file);
+      if (png.channels != 1 || png.width != std::size_t(cap.width) || png.height != std::size_t(cap.height))
+        throw InputError((dir / im.file).string() + ": not a grey " + std::to_string(cap.width) + " x " + std::to_string(cap.height) + " image");
+      pixels[std::size_t(i)] = std::move(png.samples);
+      times[std::size_t(i)] = im.exposure_s;
+    } catch (...) {
+#pragma omp critical
+      if (!error) error = std::current_exception();
+    }
   }
+  if (error) std::rethrow_exception(error);
   if (pixels.empty())
     throw InputError((dir / "manifest.json").string() + ": no " + kind_name(kind) + " exposures for band " + std::to_string(band));
   std::vector<std::span<const std::uint16_t>> views(pixels.begin(), pixels.end());

@@ -7,6 +7,7 @@
 #include <numbers>
 #include <random>
 
+#include "core/brdf_geometry.h"
 #include "core/brdf_materials.h"
 #include "core/cie.h"
 #include "core/error.h"
@@ -74,7 +75,53 @@ struct Sensor {
   }
 };
 
+class GridMaterial final : public brdf::SpectralModel {
+ public:
+  GridMaterial(std::shared_ptr<const store::Grid> grid, WavelengthGrid target) : SpectralModel(std::move(target)), grid_(std::move(grid)) {
+    const WavelengthGrid& from = grid_->wavelengths;
+    for (std::size_t k = 0; k < bands(); ++k) {
+      const double l = wavelengths()[k];
+      std::size_t a = 0, b = 0;
+      double t = 0;
+      if (l <= from.front()) {
+        a = b = 0;
+      } else if (l >= from.back()) {
+        a = b = from.size() - 1;
+      } else {
+        b = std::size_t(std::upper_bound(from.values().begin(), from.values().end(), l) - from.values().begin());
+        a = b - 1;
+        t = (l - from[a]) / (from[b] - from[a]);
+      }
+      lo_.push_back(a), hi_.push_back(b), t_.push_back(t);
+    }
+  }
+  using SpectralModel::eval;
+  void eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, std::span<double> out) const override {
+    std::fill(out.begin(), out.end(), 0.0);
+    if (wi.z() <= 0 || wo.z() <= 0) return;
+    const brdf::StdAngles a{std::acos(std::min(1.0, wi.z())), std::atan2(wi.y(), wi.x()), std::acos(std::min(1.0, wo.z())),
+                            std::atan2(wo.y(), wo.x())};
+    const std::size_t cell = brdf::merl_index(brdf::merl_cell(a));
+    for (std::size_t k = 0; k < out.size(); ++k) {
+      const double va = std::max(0.0f, grid_->brdf[lo_[k] * brdf::kMerlCells + cell]);
+      const double vb = std::max(0.0f, grid_->brdf[hi_[k] * brdf::kMerlCells + cell]);
+      out[k] = grid_->scale * ((1 - t_[k]) * va + t_[k] * vb);
+    }
+  }
+
+ private:
+  std::shared_ptr<const store::Grid> grid_;
+  std::vector<std::size_t> lo_, hi_;
+  std::vector<double> t_;
+};
+
 }  // namespace
+
+std::unique_ptr<brdf::SpectralModel> grid_material(std::shared_ptr<const store::Grid> grid, const WavelengthGrid& target) {
+  if (!grid || grid->brdf.size() != grid->bands() * brdf::kMerlCells || grid->bands() == 0)
+    throw UsageError("grid_material: a grid of bands x 90 x 90 x 180 values");
+  return std::make_unique<GridMaterial>(std::move(grid), target);
+}
 
 void check_simulator(const SimulatorOptions& o) {
   if (o.width < 16 || o.height < 16 || o.width > 8192 || o.height > 8192)
@@ -94,7 +141,7 @@ void check_simulator(const SimulatorOptions& o) {
   if (!(o.brightness > 0) || !(o.read_noise_dn >= 0) || !(o.electrons_per_dn > 0) || !(o.dark_dn >= 0) ||
       !(o.vignetting >= 0 && o.vignetting < 1))
     throw UsageError("simulate-capture: brightness and gain must be positive, noise and bias >= 0, vignetting in [0, 1)");
-  if (!brdf::material_catalogue().count(o.material))
+  if (!o.grid && !brdf::material_catalogue().count(o.material))
     throw UsageError("simulate-capture: unknown material '" + o.material + "' (see specula synth-brdf --help)");
 }
 
@@ -147,7 +194,7 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   }
   for (auto& row : w)
     for (double& v : row) v /= z;
-  const auto material = brdf::make_material(o.material, fine);
+  const auto material = o.grid ? grid_material(o.grid, fine) : brdf::make_material(o.material, fine);
 
   const int W = o.width, H = o.height;
   const double cx = W / 2.0, cy = H / 2.0;
@@ -264,6 +311,13 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   };
   std::exception_ptr error;
   std::vector<float> scene_rate;
+  // What a flat field and each target send through each band (the same at every pixel but for vignetting).
+  std::vector<double> flat_sum(B, 0.0), target_sum(cap.targets.size() * B, 0.0);
+  for (std::size_t j = 0; j < B; ++j) {
+    for (std::size_t k = 0; k < L; ++k) flat_sum[j] += w[j][k];
+    for (std::size_t t = 0; t < cap.targets.size(); ++t)
+      for (std::size_t k = 0; k < L; ++k) target_sum[t * B + j] += w[j][k] * interpolate(o.bands, cap.targets[t].reflectance, nm[k]);
+  }
 
   // Silhouette coverage by 4 x 4 supersampling of the sphere's disc, for edges with sub-pixel information.
   std::vector<float> coverage(std::size_t(W * H), 0.0f);
@@ -294,19 +348,10 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
           switch (im.kind) {
             case ImageKind::scene: rate = scene_rate[std::size_t(im.band) * std::size_t(W * H) + p]; break;
             case ImageKind::silhouette: rate = 60000 * vignette(u, v) * (1 - coverage[p]) + 300 * coverage[p]; break;
-            case ImageKind::flat: {
-              double sum = 0;
-              for (double x : w[std::size_t(im.band)]) sum += x;
-              rate = 50000 * vignette(u, v) * sum;
+            case ImageKind::flat: rate = 50000 * vignette(u, v) * flat_sum[std::size_t(im.band)]; break;
+            case ImageKind::target:
+              rate = o.brightness * vignette(u, v) * target_sum[std::size_t(im.target) * B + std::size_t(im.band)];
               break;
-            }
-            case ImageKind::target: {
-              double sum = 0;
-              for (std::size_t k = 0; k < L; ++k)
-                sum += w[std::size_t(im.band)][k] * interpolate(o.bands, cap.targets[std::size_t(im.target)].reflectance, nm[k]);
-              rate = o.brightness * vignette(u, v) * sum;
-              break;
-            }
             case ImageKind::mirror: {
               // A mirror sphere in the same place: the light's reflection is a small bright spot (a source of
               // 1 degree), found by 8 x 8 supersampling where the reflected view ray points at the light.
@@ -330,7 +375,7 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
           }
           img[p] = sensor.expose(rate, im.exposure_s, rng);
         }
-      store::write_png_gray16(dir / im.file, std::size_t(W), std::size_t(H), img);
+      store::write_png_gray16(dir / im.file, std::size_t(W), std::size_t(H), img, true);
     } catch (...) {
 #pragma omp critical
       if (!error) error = std::current_exception();

@@ -8,8 +8,12 @@
 #include <string>
 #include <vector>
 
+#include <memory>
+
 #include "acquire/capture.h"
 #include "acquire/scan.h"
+#include "core/brdf_models.h"
+#include "store/store.h"
 
 namespace specula::acquire {
 
@@ -17,7 +21,8 @@ namespace specula::acquire {
 enum class Passband { delta, gaussian };
 
 struct SimulatorOptions {
-  std::string material = "red-plastic";  ///< a name of core/brdf_materials.h
+  std::string material = "red-plastic";  ///< a name of core/brdf_materials.h (ignored when grid is set)
+  std::shared_ptr<const store::Grid> grid;  ///< a spectral grid to image instead (MERL layout); material names it
   int width = 256, height = 256;
   ScanRig rig;                           ///< geometry; rig.sphere_px sets the sphere's size on the image
   std::vector<double> bands;             ///< tuning wavelengths (nm); empty: 420 to 720 every 10
@@ -42,6 +47,10 @@ void check_simulator(const SimulatorOptions& o);
 /// Simulates every image into `dir` (created; must be empty or absent) and writes its manifest with the truth.
 /// Deterministic for a seed, whatever the thread count. Returns the manifest.
 Capture simulate_capture(const SimulatorOptions& o, const std::filesystem::path& dir);
+
+/// A spectral grid as an analytic-style model on `target` wavelengths: looked up as MERL's BRDFRead.cpp does
+/// (no data counts as 0), value * scale, linearly interpolated between the grid's bands and held constant beyond.
+std::unique_ptr<brdf::SpectralModel> grid_material(std::shared_ptr<const store::Grid> grid, const WavelengthGrid& target);
 
 /// The relative spectral response R_j on `nm` (rows: bands) for the options' passband model and camera
 /// (LCTF transmission times a smooth quantum efficiency), as the simulator uses it.

@@ -15,6 +15,7 @@
 #include "acquire/mapping.h"
 #include "acquire/pipeline.h"
 #include "acquire/scan.h"
+#include "acquire/simulate.h"
 #include "apps/gnuplot.h"
 #include "core/brdf_materials.h"
 #include "apps/commands.h"
@@ -206,9 +207,18 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
 // With a simulated capture's material: the median of |sample / model - 1| and of sample / model over every band
 // of every sample whose model value is above 1e-3 (streamed).
 std::pair<double, double> truth_error(const store::Store& s, const std::string& name, const acquire::Capture& cap) {
-  if (!cap.truth || !brdf::material_catalogue().count(cap.truth->material)) return {-1, -1};
+  if (!cap.truth || cap.truth->material.empty()) return {-1, -1};
   const store::SamplesInfo info = s.samples_info(name);
-  const auto model = brdf::make_material(cap.truth->material, info.wavelengths);
+  std::unique_ptr<brdf::SpectralModel> model;
+  if (brdf::material_catalogue().count(cap.truth->material)) {
+    model = brdf::make_material(cap.truth->material, info.wavelengths);
+  } else {
+    try {
+      model = acquire::grid_material(std::make_shared<const store::Grid>(load_grid(cap.truth->material, "acquire")), info.wavelengths);
+    } catch (const std::exception&) {
+      return {-1, -1};  // the simulated grid is no longer where the manifest says
+    }
+  }
   std::vector<double> err, ratio, f(info.bands), angles;
   std::vector<float> values;
   const std::size_t block = 1 << 16;
@@ -289,6 +299,7 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
       if (!(t >= 0 && t < 90)) throw UsageError("acquire: --plot-theta values must be 0 to 90 degrees");
   }
   acquire::Calibration c;
+  const auto t_cal = std::chrono::steady_clock::now();
   if (calibrate) {
     c = acquire::calibrate_capture(cap, o.capture, po);
   } else {
@@ -297,6 +308,8 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
       throw InputError(store_path + ": the stored calibration has " + std::to_string(c.spectral.bands.size()) + " bands, the capture " +
                        std::to_string(cap.bands.size()));
   }
+  const double calibrate_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cal).count();
+  const auto t_ext = std::chrono::steady_clock::now();
   acquire::ExtractResult r;
   {
     store::StoreWriter writer(store_path, {.replace = o.replace, .command_line = command_line()});
@@ -304,6 +317,7 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
     if (extract) r = acquire::extract_samples(cap, o.capture, c, po, writer, name);
     writer.commit();
   }
+  const double extract_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_ext).count();
   if (!o.plots.empty()) {
     std::filesystem::create_directories(o.plots);
     if (calibrate) plot_targets(gnuplot, o.plots, c);
@@ -315,10 +329,10 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
     std::string rejected;
     for (std::size_t k = 0; k < r.rejected.size(); ++k)
       rejected += fmt::format("{}\"{}\":{}", k ? "," : "", acquire::kRejectNames[k], r.rejected[k]);
-    fmt::print("{{\"samples\":{},\"sphere_pixels\":{},\"rejected\":{{{}}},{}{},\"seconds\":{:.3f}}}\n", r.samples, r.sphere_pixels,
+    fmt::print("{{\"samples\":{},\"sphere_pixels\":{},\"rejected\":{{{}}},{}{}{},\"seconds\":{:.3f}}}\n", r.samples, r.sphere_pixels,
                rejected, calibration_json(cap, c),
                truth_err >= 0 ? fmt::format(",\"truth_median_rel_error\":{},\"truth_median_ratio\":{}", truth_err, truth_ratio) : std::string(),
-               seconds);
+               fmt::format(",\"calibrate_seconds\":{:.3f},\"extract_seconds\":{:.3f}", calibrate_seconds, extract_seconds), seconds);
     return;
   }
   if (calibrate) print_calibration(cap, c);

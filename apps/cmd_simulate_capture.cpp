@@ -10,6 +10,7 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "core/atomic_file.h"
+#include "core/brdf_materials.h"
 #include "core/error.h"
 #include "core/wavelengths.h"
 
@@ -40,6 +41,10 @@ void run_simulate_capture(SimulateCaptureOptions o) {
   // The sphere sits a little off the optical axis (5 % and 2 % of its image diameter), as on the real rig.
   o.sim.rig.off_axis = 0.05 * o.sim.rig.sphere_px / o.sim.rig.focal_px * o.sim.rig.distance;
   o.sim.rig.off_axis_y = 0.02 * o.sim.rig.sphere_px / o.sim.rig.focal_px * o.sim.rig.distance;
+  // A store grid (STORE.h5:GRID), a .spgrid or an RGB MERL .binary (uplifted) instead of a named material.
+  if (!brdf::material_catalogue().count(o.sim.material) &&
+      (o.sim.material.find(':') != std::string::npos || o.sim.material.ends_with(".spgrid") || o.sim.material.ends_with(".binary")))
+    o.sim.grid = std::make_shared<const store::Grid>(load_grid(o.sim.material, "simulate-capture"));
   acquire::check_simulator(o.sim);
   // Written under a temporary name and renamed, so an interrupted run leaves no half capture behind.
   const std::filesystem::path out(o.output);
@@ -62,7 +67,8 @@ void run_simulate_capture(SimulateCaptureOptions o) {
 void setup_simulate_capture(CLI::App& app) {
   auto o = std::make_shared<SimulateCaptureOptions>();
   auto* cmd = app.add_subcommand("simulate-capture", "Simulate a capture of the reference's BRDF rig, with known truth");
-  cmd->add_option("--material", o->sim.material, "The sphere's material (see synth-brdf)")->capture_default_str();
+  cmd->add_option("--material", o->sim.material, "The sphere's material: a name (see synth-brdf), STORE.h5:GRID, .spgrid or .binary")
+      ->capture_default_str();
   cmd->add_option("-o,--output", o->output, "New capture directory")->required();
   cmd->add_option("--size", o->size, "Sensor WIDTHxHEIGHT (pixels)")->capture_default_str();
   cmd->add_option("--sphere-px", o->sim.rig.sphere_px, "The sphere's diameter on the image (pixels)")->capture_default_str();

@@ -166,14 +166,14 @@ void check_size(const fs::path& path, std::size_t width, std::size_t height, std
 }
 
 void write_png(const fs::path& path, std::size_t width, std::size_t height, int bit_depth, int color_type,
-               std::vector<png_bytep>& rows) {
+               std::vector<png_bytep>& rows, bool fast = false) {
   AtomicOutput out(path);
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(out.temp_path().c_str(), "wb"), std::fclose);
   if (!file) throw LibraryError(out.temp_path().string() + ": cannot create file: " + std::strerror(errno));
   {
     WriteHandle handle(path, file.get());
     if (!png_step_write(handle.get(), static_cast<png_uint_32>(width), static_cast<png_uint_32>(height),
-                        bit_depth, color_type, rows.data()))
+                        bit_depth, color_type, rows.data(), fast))
       throw LibraryError(path.string() + ": libpng failed to write: " + handle.get()->message);
   }
   if (std::fflush(file.get()) != 0 || std::ferror(file.get()))
@@ -305,7 +305,7 @@ std::vector<std::uint8_t> encode_png_rgb8(std::size_t width, std::size_t height,
 }
 
 void write_png_gray16(const fs::path& path, std::size_t width, std::size_t height,
-                      std::span<const std::uint16_t> value) {
+                      std::span<const std::uint16_t> value, bool fast) {
   check_size(path, width, height, value.size(), 1);
   std::vector<unsigned char> big_endian(value.size() * 2);
   for (std::size_t i = 0; i < value.size(); ++i) {
@@ -314,7 +314,7 @@ void write_png_gray16(const fs::path& path, std::size_t width, std::size_t heigh
   }
   std::vector<png_bytep> rows(height);
   for (std::size_t y = 0; y < height; ++y) rows[y] = big_endian.data() + y * width * 2;
-  write_png(path, width, height, 16, PNG_COLOR_TYPE_GRAY, rows);
+  write_png(path, width, height, 16, PNG_COLOR_TYPE_GRAY, rows, fast);
 }
 
 Cube read_png_stack(const std::vector<fs::path>& files, const WavelengthGrid& wavelengths) {

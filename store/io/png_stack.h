@@ -17,9 +17,9 @@ void write_png_rgb8(const std::filesystem::path& path, std::size_t width, std::s
                     std::span<const std::uint8_t> rgb);
 /// 8-bit RGB (rgb.size() == 3 * width * height, row-major) encoded as PNG bytes in memory (fast deflate level).
 std::vector<std::uint8_t> encode_png_rgb8(std::size_t width, std::size_t height, std::span<const std::uint8_t> rgb);
-/// Writes a 16-bit grayscale PNG (value.size() == width * height) atomically.
+/// Writes a 16-bit grayscale PNG (value.size() == width * height) atomically; fast trades size for speed.
 void write_png_gray16(const std::filesystem::path& path, std::size_t width, std::size_t height,
-                      std::span<const std::uint16_t> value);
+                      std::span<const std::uint16_t> value, bool fast = false);
 /// A decoded PNG: channels 1..4, bit depth 8 or 16 (samples widened to uint16).
 struct PngImage {
   std::size_t width = 0, height = 0, channels = 0;

@@ -151,3 +151,21 @@ TEST(Pipeline, RunPrintsTheIssuesJsonKeys) {
 }
 
 }  // namespace
+
+namespace {
+
+// A spectral grid as the sphere's material: the pipeline recovers the grid's values at the samples' angles.
+TEST(Pipeline, GridMaterialIsRecovered) {
+  test::ScratchDir dir;
+  const std::string store = (dir / "m.h5").string();
+  ASSERT_EQ(test::run_specula("synth-brdf green-matte -o '" + store + ":g'").status, 0);
+  const auto sim = test::run_specula("simulate-capture --material '" + store + ":g' --size 128x128 --sphere-px 90 --lights 5 "
+                                     "--light-step 25 --bands 450,550,650 --passband delta --no-noise -o '" + (dir / "cap").string() + "'");
+  ASSERT_EQ(sim.status, 0) << sim.output;
+  const auto r = test::run_specula("acquire run '" + (dir / "cap").string() + "' -o '" + (dir / "s.h5").string() + "' --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_LT(test::json_number(r.output, "truth_median_rel_error"), 0.01) << r.output;
+  EXPECT_NEAR(test::json_number(r.output, "truth_median_ratio"), 1.0, 0.01) << r.output;
+}
+
+}  // namespace
