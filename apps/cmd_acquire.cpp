@@ -149,6 +149,33 @@ void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::p
   plot_png(gnuplot, dir / "spectral-calibration.png", gnuplot_png_terminal(int(cols) * 420, int(rows) * 320), script);
 }
 
+// Calls fn(angles, values) for every sample of `name`, read in blocks (angles: 4 values, values: bands).
+template <class Fn>
+void for_each_sample(const store::Store& s, const std::string& name, Fn&& fn) {
+  const store::SamplesInfo info = s.samples_info(name);
+  const std::size_t block = 1 << 16;
+  std::vector<double> angles;
+  std::vector<float> values;
+  for (std::size_t first = 0; first < info.size; first += block) {
+    const std::size_t n = std::min(block, info.size - first);
+    angles.resize(4 * n);
+    values.resize(n * info.bands);
+    s.read_samples(name, first, n, angles, values);
+    for (std::size_t i = 0; i < n; ++i) fn(&angles[4 * i], &values[i * info.bands]);
+  }
+}
+
+// A simulated capture's material on `wavelengths` (a named material or the grid it was simulated from), or null.
+std::unique_ptr<brdf::SpectralModel> truth_model(const acquire::Capture& cap, const WavelengthGrid& wavelengths) {
+  if (!cap.truth || cap.truth->material.empty()) return nullptr;
+  if (brdf::material_catalogue().count(cap.truth->material)) return brdf::make_material(cap.truth->material, wavelengths);
+  try {
+    return acquire::grid_material(std::make_shared<const store::Grid>(load_grid(cap.truth->material, "acquire")), wavelengths);
+  } catch (const std::exception&) {
+    return nullptr;  // the simulated grid is no longer where the manifest says
+  }
+}
+
 // Figures 5.5-5.7: cube root of the samples within 2 degrees of the incidence plane at theta_i, at one band; with
 // a simulated capture's material, its model along the plane too.
 void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem::path& dir, const store::Store& s,
@@ -161,27 +188,16 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
     for (std::size_t b = 1; b < info.bands; ++b)
       if (std::abs(info.wavelengths[b] - o.plot_band_nm) < std::abs(info.wavelengths[band] - o.plot_band_nm)) band = b;
   }
-  std::unique_ptr<brdf::SpectralModel> model;
-  if (cap.truth && brdf::material_catalogue().count(cap.truth->material)) model = brdf::make_material(cap.truth->material, info.wavelengths);
+  const auto model = truth_model(cap, info.wavelengths);
   const double eps = 2 * pi / 180;
   std::vector<std::string> points(o.plot_theta.size());
-  const std::size_t block = 1 << 16;
-  std::vector<double> angles;
-  std::vector<float> values;
-  for (std::size_t first = 0; first < info.size; first += block) {
-    const std::size_t n = std::min(block, info.size - first);
-    angles.resize(4 * n);
-    values.resize(n * info.bands);
-    s.read_samples(name, first, n, angles, values);
-    for (std::size_t i = 0; i < n; ++i) {
-      const acquire::IsoAngles a = acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
-      if (a.phi_d > eps && a.phi_d < pi - eps) continue;
-      for (std::size_t k = 0; k < o.plot_theta.size(); ++k)
-        if (std::abs(a.theta_i - o.plot_theta[k] * pi / 180) <= eps)
-          points[k] += fmt::format("{:.3f} {:.5g}\n", (a.phi_d > pi / 2 ? 1 : -1) * a.theta_o * 180 / pi,
-                                   std::cbrt(std::max(0.0f, values[i * info.bands + band])));
-    }
-  }
+  for_each_sample(s, name, [&](const double* angles, const float* values) {
+    const acquire::IsoAngles a = acquire::iso_angles({angles[0], angles[1], angles[2], angles[3]});
+    if (a.phi_d > eps && a.phi_d < pi - eps) return;
+    for (std::size_t k = 0; k < o.plot_theta.size(); ++k)
+      if (std::abs(a.theta_i - o.plot_theta[k] * pi / 180) <= eps)
+        points[k] += fmt::format("{:.3f} {:.5g}\n", (a.phi_d > pi / 2 ? 1 : -1) * a.theta_o * 180 / pi, std::cbrt(std::max(0.0f, values[band])));
+  });
   for (std::size_t k = 0; k < o.plot_theta.size(); ++k) {
     std::string script = "$S << EOD\n" + points[k] + "EOD\n";
     if (model) {
@@ -198,7 +214,7 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
     script += "set title " + gnuplot_quote(fmt::format("{}: incidence plane at theta_i = {} deg, {} nm, samples within 2 deg", name,
                                                        o.plot_theta[k], info.wavelengths[band])) + " noenhanced\n";
     script += "plot $S using 1:2 with points pt 7 ps 0.5 lc rgb '#d04020' title 'samples'";
-    if (model) script += ", $M using 1:2 with lines lw 2 lc rgb '#2060c0' title " + gnuplot_quote("model (" + cap.truth->material + ")");
+    if (model) script += ", $M using 1:2 with lines lw 2 lc rgb '#2060c0' title " + gnuplot_quote("model (" + cap.truth->material + ")") + " noenhanced";
     script += "\n";
     plot_png(gnuplot, dir / fmt::format("incidence-theta{:g}.png", o.plot_theta[k]), gnuplot_png_terminal(900, 560), script);
   }
@@ -207,35 +223,18 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
 // With a simulated capture's material: the median of |sample / model - 1| and of sample / model over every band
 // of every sample whose model value is above 1e-3 (streamed).
 std::pair<double, double> truth_error(const store::Store& s, const std::string& name, const acquire::Capture& cap) {
-  if (!cap.truth || cap.truth->material.empty()) return {-1, -1};
   const store::SamplesInfo info = s.samples_info(name);
-  std::unique_ptr<brdf::SpectralModel> model;
-  if (brdf::material_catalogue().count(cap.truth->material)) {
-    model = brdf::make_material(cap.truth->material, info.wavelengths);
-  } else {
-    try {
-      model = acquire::grid_material(std::make_shared<const store::Grid>(load_grid(cap.truth->material, "acquire")), info.wavelengths);
-    } catch (const std::exception&) {
-      return {-1, -1};  // the simulated grid is no longer where the manifest says
-    }
-  }
-  std::vector<double> err, ratio, f(info.bands), angles;
-  std::vector<float> values;
-  const std::size_t block = 1 << 16;
-  for (std::size_t first = 0; first < info.size; first += block) {
-    const std::size_t n = std::min(block, info.size - first);
-    angles.resize(4 * n);
-    values.resize(n * info.bands);
-    s.read_samples(name, first, n, angles, values);
-    for (std::size_t i = 0; i < n; ++i) {
-      model->eval(brdf::StdAngles{angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]}, f);
-      for (std::size_t b = 0; b < info.bands; ++b)
-        if (f[b] > 1e-3) {
-          ratio.push_back(values[i * info.bands + b] / f[b]);
-          err.push_back(std::abs(ratio.back() - 1));
-        }
-    }
-  }
+  const auto model = truth_model(cap, info.wavelengths);
+  if (!model) return {-1, -1};
+  std::vector<double> err, ratio, f(info.bands);
+  for_each_sample(s, name, [&](const double* angles, const float* values) {
+    model->eval(brdf::StdAngles{angles[0], angles[1], angles[2], angles[3]}, f);
+    for (std::size_t b = 0; b < info.bands; ++b)
+      if (f[b] > 1e-3) {
+        ratio.push_back(values[b] / f[b]);
+        err.push_back(std::abs(ratio.back() - 1));
+      }
+  });
   if (err.empty()) return {-1, -1};
   auto median = [](std::vector<double>& v) {
     std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());

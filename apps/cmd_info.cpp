@@ -1,6 +1,7 @@
 // specula info and specula ls: what a store holds, for people (text) and programs (--json).
 #include <fmt/format.h>
 
+#include "acquire/pipeline.h"
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "core/error.h"
@@ -62,6 +63,15 @@ void list_objects(const store::Store& s, bool json) {
   for (const auto& n : s.samples()) rows.push_back(json ? samples_json(s.samples_info(n)) : samples_line(s.samples_info(n)));
   for (const auto& n : s.grids()) rows.push_back(json ? fmt::format(R"({{"kind":"grid","name":{}}})", json_string(n)) : "grid        " + n);
   for (const auto& n : s.bases()) rows.push_back(json ? fmt::format(R"({{"kind":"basis","name":{}}})", json_string(n)) : "basis       " + n);
+  if (store::h5::exists(s.file(), "/acquire"))
+    for (const auto& n : store::h5::list(s.file(), "/acquire")) {
+      const acquire::Calibration c = acquire::read_calibration(s, n);
+      const char* model = c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored";
+      rows.push_back(json ? fmt::format(R"({{"kind":"calibration","name":{},"spectral_model":"{}","lights":{}}})", json_string(n), model,
+                                        c.light_dirs.size())
+                          : fmt::format("calibration {:<24} {} spectral model, {} lights, sphere {:.4f} m at {:.4f} m", n, model,
+                                        c.light_dirs.size(), c.sphere.radius, c.sphere.centre.norm()));
+    }
   if (json) {
     fmt::print("[");
     for (std::size_t i = 0; i < rows.size(); ++i) fmt::print("{}{}", i ? "," : "", rows[i]);

@@ -80,6 +80,11 @@ void setup_simulate_capture(CLI::App& app) {
   cmd->add_option("--exposures", o->sim.exposures_s, "Exposure times (seconds)")->delimiter(',')->capture_default_str();
   cmd->add_option("--passband", o->passband, "LCTF passband model: gaussian (widening to the red) or delta")->capture_default_str();
   cmd->add_option("--brightness", o->sim.brightness, "DN/s of a white Lambertian facing light and camera")->capture_default_str();
+  cmd->add_option("--light-kelvin", o->sim.light_kelvin, "The light's colour temperature (a blackbody)")->capture_default_str();
+  cmd->add_option("--fwhm", o->sim.fwhm_blue_nm, "Passband FWHM at 420 nm (nm)")->capture_default_str();
+  cmd->add_option("--fwhm-red", o->sim.fwhm_red_nm, "Passband FWHM at 720 nm (nm)")->capture_default_str();
+  cmd->add_option("--read-noise", o->sim.read_noise_dn, "Read noise (DN)")->capture_default_str();
+  cmd->add_option("--vignetting", o->sim.vignetting, "Fraction of light lost at the image corner")->capture_default_str();
   cmd->add_option("--seed", o->sim.seed, "Noise seed")->capture_default_str();
   cmd->add_flag("--no-noise", o->no_noise, "Noise-free sensor (still quantised to 12 bits and clipped)");
   cmd->add_flag("--json", o->json, "Print one JSON object");

@@ -11,6 +11,7 @@
 #include "acquire/pipeline.h"
 #include "acquire/simulate.h"
 #include "store/io/png_stack.h"
+#include "small_rig.h"
 #include "test_support.h"
 
 using namespace specula;
@@ -31,16 +32,9 @@ struct Simulated {
   Pinhole camera;
   Sphere truth;
   explicit Simulated(bool noise, double sphere_px = 90) {
-    SimulatorOptions o;
-    o.width = o.height = 128;
-    o.rig.sphere_px = sphere_px;
-    o.rig.off_axis = 0.05 * sphere_px / 2000.0;
-    o.rig.off_axis_y = 0.02 * sphere_px / 2000.0;
-    o.rig.lights = 6;
-    o.rig.light_step_deg = 25;  // up to 135 degrees: beyond, the mirror highlight leaves the visible sphere
-    o.bands = {500, 600};
+    // Up to 135 degrees: beyond, the mirror highlight leaves the visible sphere.
+    SimulatorOptions o = test::small_rig(128, sphere_px, 6, 25, {500, 600}, noise);
     o.exposures_s = {0.01, 0.1};
-    o.noise = noise;
     cap = simulate_capture(o, dir / "cap");
     camera = {cap.focal_px, cap.cx, cap.cy};
     truth = {Eigen::Vector3d(cap.truth->sphere_centre[0], cap.truth->sphere_centre[1], cap.truth->sphere_centre[2]), cap.truth->sphere_radius};

@@ -11,6 +11,7 @@
 #include "core/brdf_materials.h"
 #include "store/io/png_stack.h"
 #include "store/store.h"
+#include "small_rig.h"
 #include "test_support.h"
 
 using namespace specula;
@@ -19,16 +20,8 @@ using namespace specula::acquire;
 namespace {
 
 SimulatorOptions rig(bool noise) {
-  SimulatorOptions o;
-  o.width = o.height = 128;
-  o.rig.sphere_px = 90;
-  o.rig.off_axis = 0.05 * 90 / 2000.0;
-  o.rig.off_axis_y = 0.02 * 90 / 2000.0;
-  o.rig.lights = 6;
-  o.rig.light_step_deg = 25;
-  o.bands = {450, 550, 650};
+  SimulatorOptions o = test::small_rig(128, 90, 6, 25, {450, 550, 650}, noise);
   o.passband = Passband::delta;
-  o.noise = noise;
   return o;
 }
 

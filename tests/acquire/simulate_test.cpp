@@ -11,6 +11,7 @@
 #include "acquire/hdr.h"
 #include "acquire/simulate.h"
 #include "store/io/png_stack.h"
+#include "small_rig.h"
 #include "test_support.h"
 
 using namespace specula;
@@ -19,16 +20,8 @@ using namespace specula::acquire;
 namespace {
 
 SimulatorOptions small(bool noise) {
-  SimulatorOptions o;
-  o.width = o.height = 96;
-  o.rig.sphere_px = 60;
-  o.rig.off_axis = 0.05 * 60 / 2000.0;
-  o.rig.off_axis_y = 0.02 * 60 / 2000.0;
-  o.rig.lights = 3;
-  o.rig.light_step_deg = 40;
-  o.bands = {450, 550, 650};
+  SimulatorOptions o = test::small_rig(96, 60, 3, 40, {450, 550, 650}, noise);
   o.exposures_s = {1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1, 3};
-  o.noise = noise;
   return o;
 }
 

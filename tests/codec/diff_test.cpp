@@ -11,21 +11,15 @@
 #include "core/brdf_models.h"
 #include "core/colour.h"
 #include "core/error.h"
+#include "grid_fixture.h"
 #include "test_support.h"
 
 namespace specula::codec {
 namespace {
 
 constexpr std::size_t N = brdf::kMerlCells;
-const WavelengthGrid kGrid = WavelengthGrid::range(420, 720, 50);
-
-store::Grid grid_of(const brdf::SpectralModel& model) {
-  store::Grid g;
-  g.wavelengths = model.wavelengths();
-  g.brdf.resize(model.bands() * N);
-  brdf::evaluate_grid(model, g.brdf);
-  return g;
-}
+const WavelengthGrid& kGrid = test::kCodecBands;
+using test::grid_of;
 
 const store::Grid& ward() {
   static const store::Grid g = grid_of(brdf::Ward(kGrid, Eigen::VectorXd::LinSpaced(7, 0.05, 0.4),

@@ -15,6 +15,7 @@
 #include "core/colour.h"
 #include "core/error.h"
 #include "store/io/exr.h"
+#include "grid_fixture.h"
 #include "test_support.h"
 
 namespace specula::codec {
@@ -22,15 +23,8 @@ namespace {
 
 using std::numbers::pi;
 constexpr std::size_t N = brdf::kMerlCells;
-const WavelengthGrid kGrid = WavelengthGrid::range(420, 720, 50);
-
-store::Grid grid_of(const brdf::SpectralModel& model) {
-  store::Grid g;
-  g.wavelengths = model.wavelengths();
-  g.brdf.resize(model.bands() * N);
-  brdf::evaluate_grid(model, g.brdf);
-  return g;
-}
+const WavelengthGrid& kGrid = test::kCodecBands;
+using test::grid_of;
 
 Eigen::Vector3d xyz_at(const SphereRenders& r, std::size_t g, std::size_t p) {
   return {r.xyz[g][3 * p], r.xyz[g][3 * p + 1], r.xyz[g][3 * p + 2]};

@@ -10,21 +10,15 @@
 
 #include "core/brdf_models.h"
 #include "core/error.h"
+#include "grid_fixture.h"
 #include "test_support.h"
 
 namespace specula::codec {
 namespace {
 
 constexpr std::size_t N = brdf::kMerlCells;
-const WavelengthGrid kGrid = WavelengthGrid::range(420, 720, 50);  // 7 bands keep the tests fast
-
-store::Grid grid_of(const brdf::SpectralModel& model) {
-  store::Grid g;
-  g.wavelengths = model.wavelengths();
-  g.brdf.resize(model.bands() * N);
-  brdf::evaluate_grid(model, g.brdf);
-  return g;
-}
+const WavelengthGrid& kGrid = test::kCodecBands;
+using test::grid_of;
 
 Eigen::VectorXd ramp(double a, double b) { return Eigen::VectorXd::LinSpaced(Eigen::Index(kGrid.size()), a, b); }
 

@@ -1,15 +1,11 @@
 // Opens the viewer in headless Chromium, shows image NAME, hovers pixel (X, Y) and prints what the page plotted
 // as JSON: {"pixel": "x,y", "points": [[nm, value], ...]}. Optionally writes a screenshot.
 // Usage: node hover.mjs URL NAME X Y [SCREENSHOT.png]
-import { chromium } from "playwright-core";
+import { launch } from "./launch.mjs";
 
 const [url, name, xs, ys, shot] = process.argv.slice(2);
 const x = Number(xs), y = Number(ys);
-const browser = await chromium.launch({
-  executablePath: process.env.CHROMIUM || "/usr/bin/chromium",
-  args: ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-quic",
-         "--no-first-run", "--disable-component-update", "--disable-sync"],
-});
+const browser = await launch();
 try {
   const page = await browser.newPage({ viewport: { width: 1400, height: 900 } });
   const errors = [];
