@@ -37,14 +37,11 @@ const CaptureImage& only_image(const Capture& cap, ImageKind kind, int light, co
 
 }  // namespace
 
-HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, int light, int target, int band, const HdrOptions& o) {
-  std::vector<const CaptureImage*> files;
-  for (const auto& im : cap.images)
-    if (im.kind == kind && im.band == band && (kind != ImageKind::scene || im.light == light) && (kind != ImageKind::target || im.target == target))
-      files.push_back(&im);
-  // The exposures are decoded on all threads; an error names its file.
+namespace {
+
+// Decodes `files` (all of one size) on all threads; an error names its file.
+std::vector<std::vector<std::uint16_t>> decode_all(const Capture& cap, const fs::path& dir, const std::vector<const CaptureImage*>& files) {
   std::vector<std::vector<std::uint16_t>> pixels(files.size());
-  std::vector<double> times(files.size());
   std::exception_ptr error;
 #pragma omp parallel for schedule(dynamic, 1)
   for (long long i = 0; i < static_cast<long long>(files.size()); ++i) {
@@ -54,17 +51,54 @@ HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, i
       if (png.channels != 1 || png.width != std::size_t(cap.width) || png.height != std::size_t(cap.height))
         throw InputError((dir / im.file).string() + ": not a grey " + std::to_string(cap.width) + " x " + std::to_string(cap.height) + " image");
       pixels[std::size_t(i)] = std::move(png.samples);
-      times[std::size_t(i)] = im.exposure_s;
     } catch (...) {
 #pragma omp critical
       if (!error) error = std::current_exception();
     }
   }
   if (error) std::rethrow_exception(error);
-  if (pixels.empty())
+  return pixels;
+}
+
+HdrImage merge_files(const Capture& cap, const fs::path& dir, const std::vector<const CaptureImage*>& files,
+                     const std::vector<std::vector<std::uint16_t>>& pixels, ImageKind kind, int band, const HdrOptions& o) {
+  if (files.empty())
     throw InputError((dir / "manifest.json").string() + ": no " + kind_name(kind) + " exposures for band " + std::to_string(band));
   std::vector<std::span<const std::uint16_t>> views(pixels.begin(), pixels.end());
+  std::vector<double> times;
+  for (const auto* im : files) times.push_back(im->exposure_s);
   return merge_exposures(views, times, cap.bit_depth, o);
+}
+
+bool in_series(const CaptureImage& im, ImageKind kind, int light, int target, int band) {
+  return im.kind == kind && (band < 0 || im.band == band) && (kind != ImageKind::scene || im.light == light) &&
+         (kind != ImageKind::target || im.target == target);
+}
+
+// Every band of one light position, merged; the light's images are decoded as one batch on all threads.
+std::vector<HdrImage> merge_light(const Capture& cap, const fs::path& dir, int light, const HdrOptions& o) {
+  std::vector<const CaptureImage*> files;
+  for (const auto& im : cap.images)
+    if (in_series(im, ImageKind::scene, light, -1, -1)) files.push_back(&im);
+  auto pixels = decode_all(cap, dir, files);
+  std::vector<HdrImage> out;
+  for (int b = 0; b < int(cap.bands.size()); ++b) {
+    std::vector<const CaptureImage*> f;
+    std::vector<std::vector<std::uint16_t>> p;
+    for (std::size_t i = 0; i < files.size(); ++i)
+      if (files[i]->band == b) f.push_back(files[i]), p.push_back(std::move(pixels[i]));
+    out.push_back(merge_files(cap, dir, f, p, ImageKind::scene, b, o));
+  }
+  return out;
+}
+
+}  // namespace
+
+HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, int light, int target, int band, const HdrOptions& o) {
+  std::vector<const CaptureImage*> files;
+  for (const auto& im : cap.images)
+    if (in_series(im, kind, light, target, band)) files.push_back(&im);
+  return merge_files(cap, dir, files, decode_all(cap, dir, files), kind, band, o);
 }
 
 Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const PipelineOptions& o) {
@@ -198,8 +232,7 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
   std::vector<std::uint8_t> saturated(W * H);
   for (std::size_t l = 0; l < L; ++l) {
     check_interrupt();
-    std::vector<HdrImage> hdr;
-    for (std::size_t b = 0; b < B; ++b) hdr.push_back(merge_series(cap, dir, ImageKind::scene, int(l), -1, int(b), o.hdr));
+    const std::vector<HdrImage> hdr = merge_light(cap, dir, int(l), o.hdr);
     std::fill(saturated.begin(), saturated.end(), 0);
     for (std::size_t b = 0; b < B; ++b) {
       std::size_t on_sphere = 0;
