@@ -55,6 +55,17 @@ std::string samples_line(const store::SamplesInfo& s) {
   return fmt::format("samples     {:<24} {} samples  {}  {}", s.name, s.size, s.wavelengths.describe(), s.units);
 }
 
+std::string coefficients_json(const store::CoefficientsInfo& c) {
+  return fmt::format(R"({{"kind":"coefficients","name":{},"image":{},"basis":{},"method":{},"height":{},"width":{},"k":{},)"
+                     R"("valid_pixels":{},"provenance":{}}})",
+                     json_string(c.name), json_string(c.image), json_string(c.basis), json_string(c.method), c.height,
+                     c.width, c.k, c.valid_pixels, provenance_json(c.provenance));
+}
+std::string coefficients_line(const store::CoefficientsInfo& c) {
+  return fmt::format("coefficients {:<23} {}x{}  {} {} coefficients of image {} on basis {}  [{}]", c.name, c.height,
+                     c.width, c.k, c.method, c.image, c.basis, c.compression);
+}
+
 void list_objects(const store::Store& s, bool json) {
   std::vector<std::string> rows;
   for (const auto& n : s.images()) rows.push_back(json ? image_json(s.image_info(n)) : image_line(s.image_info(n)));
@@ -63,6 +74,8 @@ void list_objects(const store::Store& s, bool json) {
   for (const auto& n : s.samples()) rows.push_back(json ? samples_json(s.samples_info(n)) : samples_line(s.samples_info(n)));
   for (const auto& n : s.grids()) rows.push_back(json ? fmt::format(R"({{"kind":"grid","name":{}}})", json_string(n)) : "grid        " + n);
   for (const auto& n : s.bases()) rows.push_back(json ? fmt::format(R"({{"kind":"basis","name":{}}})", json_string(n)) : "basis       " + n);
+  for (const auto& n : s.coefficients())
+    rows.push_back(json ? coefficients_json(s.coefficients_info(n)) : coefficients_line(s.coefficients_info(n)));
   if (store::h5::exists(s.file(), "/acquire"))
     for (const auto& n : store::h5::list(s.file(), "/acquire")) {
       const acquire::Calibration c = acquire::read_calibration(s, n);
@@ -103,7 +116,8 @@ void run_info(const InfoOptions& o) {
     return;
   }
   std::string name = o.object;
-  for (const char* prefix : {"images/", "collections/", "samples/", "bases/", "/images/", "/collections/", "/samples/", "/bases/"})
+  for (const char* prefix : {"images/", "collections/", "samples/", "bases/", "coefficients/", "/images/", "/collections/",
+                             "/samples/", "/bases/", "/coefficients/"})
     if (name.rfind(prefix, 0) == 0) name = name.substr(std::string(prefix).size());
   auto has = [](const std::vector<std::string>& v, const std::string& n) { return std::find(v.begin(), v.end(), n) != v.end(); };
   if (has(s.images(), name)) {
@@ -133,6 +147,10 @@ void run_info(const InfoOptions& o) {
     fmt::print("basis {}: {}, {} components on {}, learned from {} spectra\n  source {}\n  fit {}\n  created {} by: {}\n",
                name, b.method, b.k(), b.wavelengths.describe(), b.n, b.source, b.provenance.importer,
                b.provenance.created_utc, b.provenance.command_line);
+  } else if (has(s.coefficients(), name)) {
+    const auto c = s.coefficients_info(name);
+    if (o.json) return fmt::print("{}\n", coefficients_json(c));
+    fmt::print("{}\n  created {} by: {}\n", coefficients_line(c), c.provenance.created_utc, c.provenance.command_line);
   } else {
     throw InputError(s.label() + ": no object '" + o.object + "'; `specula ls " + s.path().string() + "` lists them");
   }
@@ -144,7 +162,7 @@ void setup_info(CLI::App& app) {
   auto o = std::make_shared<InfoOptions>();
   auto* cmd = app.add_subcommand("info", "Describe a store, or one object in it");
   cmd->add_option("store", o->store, "Store file")->required();
-  cmd->add_option("object", o->object, "Object name (image, collection, samples or basis)");
+  cmd->add_option("object", o->object, "Object name (image, collection, samples, basis or coefficient map)");
   cmd->add_flag("--json", o->json, "Print JSON");
   cmd->callback([o] { run_info(*o); });
 }

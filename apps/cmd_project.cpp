@@ -8,6 +8,7 @@
 #include <cmath>
 #include <memory>
 
+#include "apps/canvas.h"
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "core/error.h"
@@ -37,87 +38,13 @@ struct ProjectOptions {
   bool json = false;
 };
 
-using Rgb = std::array<std::uint8_t, 3>;
-
-
-constexpr Rgb kInk{40, 40, 40}, kMaskedGrey{160, 160, 160};
-
-// A 5x7 bitmap font for the labels: each row is 5 bits, the leftmost pixel in bit 4.
-struct Glyph {
-  char c;
-  std::array<std::uint8_t, 7> rows;
-};
-constexpr Glyph kFont[] = {
-    {'0', {0x0E, 0x11, 0x13, 0x15, 0x19, 0x11, 0x0E}}, {'1', {0x04, 0x0C, 0x04, 0x04, 0x04, 0x04, 0x0E}},
-    {'2', {0x0E, 0x11, 0x01, 0x02, 0x04, 0x08, 0x1F}}, {'3', {0x1F, 0x02, 0x04, 0x02, 0x01, 0x11, 0x0E}},
-    {'4', {0x02, 0x06, 0x0A, 0x12, 0x1F, 0x02, 0x02}}, {'5', {0x1F, 0x10, 0x1E, 0x01, 0x01, 0x11, 0x0E}},
-    {'6', {0x06, 0x08, 0x10, 0x1E, 0x11, 0x11, 0x0E}}, {'7', {0x1F, 0x01, 0x02, 0x04, 0x08, 0x08, 0x08}},
-    {'8', {0x0E, 0x11, 0x11, 0x0E, 0x11, 0x11, 0x0E}}, {'9', {0x0E, 0x11, 0x11, 0x0F, 0x01, 0x02, 0x0C}},
-    {'.', {0x00, 0x00, 0x00, 0x00, 0x00, 0x0C, 0x0C}}, {'-', {0x00, 0x00, 0x00, 0x1F, 0x00, 0x00, 0x00}},
-    {'+', {0x00, 0x04, 0x04, 0x1F, 0x04, 0x04, 0x00}}, {'=', {0x00, 0x00, 0x1F, 0x00, 0x1F, 0x00, 0x00}},
-    {'L', {0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x1F}}, {'a', {0x00, 0x00, 0x0E, 0x01, 0x0F, 0x11, 0x0F}},
-    {'e', {0x00, 0x00, 0x0E, 0x11, 0x1F, 0x10, 0x0E}}, {'g', {0x00, 0x0F, 0x11, 0x11, 0x0F, 0x01, 0x0E}},
-    {'i', {0x04, 0x00, 0x0C, 0x04, 0x04, 0x04, 0x0E}}, {'k', {0x10, 0x10, 0x12, 0x14, 0x18, 0x14, 0x12}},
-    {'l', {0x0C, 0x04, 0x04, 0x04, 0x04, 0x04, 0x0E}}, {'m', {0x00, 0x00, 0x1A, 0x15, 0x15, 0x11, 0x11}},
-    {'n', {0x00, 0x00, 0x16, 0x19, 0x11, 0x11, 0x11}}, {'o', {0x00, 0x00, 0x0E, 0x11, 0x11, 0x11, 0x0E}},
-    {'r', {0x00, 0x00, 0x16, 0x19, 0x10, 0x10, 0x10}}, {'s', {0x00, 0x00, 0x0F, 0x10, 0x0E, 0x01, 0x1E}},
-    {'x', {0x00, 0x00, 0x11, 0x0A, 0x04, 0x0A, 0x11}},
-};
-
-// An RGB8 picture on a white background with drawing helpers; s is the font's pixel size.
-struct Canvas {
-  std::size_t width, height;
-  std::vector<std::uint8_t> rgb;
-  Canvas(std::size_t w, std::size_t h) : width(w), height(h), rgb(3 * w * h, 255) {}
-
-  void put(std::size_t x, std::size_t y, Rgb c) {
-    if (x < width && y < height) std::copy(c.begin(), c.end(), rgb.begin() + std::ptrdiff_t(3 * (y * width + x)));
-  }
-  void fill(std::size_t x0, std::size_t y0, std::size_t w, std::size_t h, Rgb c) {
-    for (std::size_t y = y0; y < y0 + h; ++y)
-      for (std::size_t x = x0; x < x0 + w; ++x) put(x, y, c);
-  }
-  void blit(std::size_t x0, std::size_t y0, std::size_t w, std::size_t h, const std::vector<std::uint8_t>& src) {
-    for (std::size_t y = 0; y < h; ++y)
-      for (std::size_t x = 0; x < w; ++x) {
-        const std::uint8_t* p = src.data() + 3 * (y * w + x);
-        put(x0 + x, y0 + y, {p[0], p[1], p[2]});
-      }
-  }
-  void text(std::size_t x0, std::size_t y0, std::string_view s, std::size_t scale) {
-    for (char ch : s) {
-      const auto* g = std::find_if(std::begin(kFont), std::end(kFont), [ch](const Glyph& f) { return f.c == ch; });
-      if (g != std::end(kFont))
-        for (std::size_t r = 0; r < 7; ++r)
-          for (std::size_t col = 0; col < 5; ++col)
-            if (g->rows[r] & (0x10 >> col)) fill(x0 + col * scale, y0 + r * scale, scale, scale, kInk);
-      x0 += 6 * scale;
-    }
-  }
-};
-
-std::size_t text_width(std::string_view s, std::size_t scale) { return s.empty() ? 0 : (6 * s.size() - 1) * scale; }
-
-std::string number_label(double v) { return v == 0 ? std::string("0") : fmt::format("{:.3g}", v); }
-
-// Font pixel size for pictures of width w: 1 below 250 pixels, growing to 4 for large images.
-std::size_t font_scale(std::size_t w) { return std::clamp<std::size_t>(w / 250 + 1, 1, 4); }
-
-// The narrowest colour bar that still fits "0", "L2 error" and the maximum's label under it.
-std::size_t bar_min_width(double max_value, std::size_t s) {
-  return text_width("L2 error", s) + 2 * text_width(number_label(max_value), s) + 12 * s;
+// A horizontal colour bar of the error ramp from 0 to max_value at (x, y), labelled under its ends.
+void error_bar(Canvas& c, std::size_t x, std::size_t y, std::size_t w, double max_value, std::size_t s) {
+  colour_bar(c, x, y, w, heat, "L2 error", "0", number_label(max_value), s);
 }
-std::size_t bar_height(std::size_t s) { return 6 * s + 2 + 2 * s + 7 * s; }
 
-// A horizontal colour bar from 0 to max_value at (x, y), labelled under its ends.
-void colour_bar(Canvas& c, std::size_t x, std::size_t y, std::size_t w, double max_value, std::size_t s) {
-  c.fill(x, y, w, 6 * s + 2, kInk);
-  for (std::size_t i = 0; i + 2 < w; ++i) c.fill(x + 1 + i, y + 1, 1, 6 * s, heat(double(i) / double(std::max<std::size_t>(1, w - 3))));
-  const std::size_t ty = y + 6 * s + 2 + 2 * s;
-  const std::string hi = number_label(max_value);
-  c.text(x, ty, "0", s);
-  c.text(x + (w - text_width("L2 error", s)) / 2, ty, "L2 error", s);
-  c.text(x + w - text_width(hi, s), ty, hi, s);
+std::size_t error_bar_min_width(double max_value, std::size_t s) {
+  return bar_min_width("L2 error", "0", number_label(max_value), s);
 }
 
 std::vector<std::uint8_t> error_rgb(const std::vector<float>& err, const Cube& cube, double max_value) {
@@ -132,10 +59,10 @@ std::vector<std::uint8_t> error_rgb(const std::vector<float>& err, const Cube& c
 // The error map of one reconstruction above its colour bar (0 to the largest valid error).
 void write_error_png(const fs::path& path, const std::vector<float>& err, const Cube& cube, double max_value) {
   const std::size_t s = font_scale(cube.width), pad = 4 * s;
-  const std::size_t inner = std::max(cube.width, bar_min_width(max_value, s));
+  const std::size_t inner = std::max(cube.width, error_bar_min_width(max_value, s));
   Canvas c(inner + 2 * pad, pad + cube.height + pad + bar_height(s) + pad);
   c.blit(pad + (inner - cube.width) / 2, pad, cube.width, cube.height, error_rgb(err, cube, max_value));
-  colour_bar(c, pad, pad + cube.height + pad, inner, max_value, s);
+  error_bar(c, pad, pad + cube.height + pad, inner, max_value, s);
   store::write_png_rgb8(path, c.width, c.height, c.rgb);
 }
 
@@ -159,7 +86,7 @@ void write_panel(const fs::path& path, const Cube& cube, const std::vector<std::
     rms_labels.push_back("rms " + number_label(r.rms));
     col = std::max({col, text_width(rms_labels.back(), s), text_width(fmt::format("k={}", r.k), s)});
   }
-  const std::size_t bar_w_min = bar_min_width(shared, s);
+  const std::size_t bar_w_min = error_bar_min_width(shared, s);
   if (n * col + (n - 1) * pad < bar_w_min) col = (bar_w_min - (n - 1) * pad + n - 1) / n;
   const std::size_t top = pad + line, bottom = top + h + pad;
   const std::size_t bar_y = bottom + h + s + line + pad;
@@ -175,7 +102,7 @@ void write_panel(const fs::path& path, const Cube& cube, const std::vector<std::
     c.blit(centred(i + 1, w), bottom, w, h, error_rgb(results[i].error, cube, shared));
     c.text(centred(i + 1, text_width(rms_labels[i], s)), bottom + h + 2 * s, rms_labels[i], s);
   }
-  colour_bar(c, column_x(1), bar_y, n * col + (n - 1) * pad, shared, s);
+  error_bar(c, column_x(1), bar_y, n * col + (n - 1) * pad, shared, s);
   store::write_png_rgb8(path, c.width, c.height, c.rgb);
 }
 

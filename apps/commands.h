@@ -13,6 +13,7 @@ void setup_ls(CLI::App& app);
 void setup_synth_db(CLI::App& app);
 void setup_pca(CLI::App& app);
 void setup_project(CLI::App& app);
+void setup_coefficients(CLI::App& app);
 void setup_plot_basis(CLI::App& app);
 void setup_compare_bases(CLI::App& app);
 void setup_nmf(CLI::App& app);

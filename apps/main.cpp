@@ -62,6 +62,7 @@ int main(int argc, char** argv) {
   specula::app::setup_synth_db(app);
   specula::app::setup_pca(app);
   specula::app::setup_project(app);
+  specula::app::setup_coefficients(app);
   specula::app::setup_plot_basis(app);
   specula::app::setup_compare_bases(app);
   specula::app::setup_nmf(app);

@@ -85,6 +85,20 @@ struct GridInfo {
   Provenance provenance;
 };
 
+/// What a store knows about one coefficient map: the coefficients of an image's pixels on a basis, kept with a
+/// copy of that basis so the map reconstructs its image on its own.
+struct CoefficientsInfo {
+  std::string name;
+  std::string image;   ///< the image the map was computed from
+  std::string basis;   ///< the basis's name in the store when the map was written
+  std::string method;  ///< "pca" (first k components, eq 7.2) or "nmf" (NNLS on all k components)
+  std::size_t height = 0, width = 0, k = 0;
+  std::uint64_t valid_pixels = 0;
+  std::size_t chunk_rows = 0;
+  std::string compression;
+  Provenance provenance;
+};
+
 /// A store opened read-only. Copies share the open file.
 class Store {
  public:
@@ -101,6 +115,7 @@ class Store {
   std::vector<std::string> samples() const;
   std::vector<std::string> grids() const;
   std::vector<std::string> bases() const;
+  std::vector<std::string> coefficients() const;
   /// Format version and provenance attributes of the file root.
   long long format_version() const { return version_; }
 
@@ -123,6 +138,14 @@ class Store {
   Collection read_collection(const std::string& name) const;
   /// Basis `name`; throws InputError listing the bases when absent or malformed.
   Basis read_basis(const std::string& name) const;
+  /// Metadata of coefficient map `name`; throws InputError listing the maps when absent or malformed.
+  CoefficientsInfo coefficients_info(const std::string& name) const;
+  /// The basis stored with coefficient map `name` (its k components, wavelengths and, for PCA, mean).
+  Basis coefficients_basis(const std::string& name) const;
+  /// Rows [y0, y0 + rows) of coefficient map `name`: coefficients (rows x width x k, component fastest; zeros at
+  /// masked pixels) and, when not empty, mask (rows x width, 1 = valid). UsageError on out-of-range rows or sizes.
+  void read_coefficient_rows(const std::string& name, std::size_t y0, std::size_t rows, std::span<float> coefficients,
+                             std::span<std::uint8_t> mask) const;
   /// Rows [first, first + count) of samples `name`: angles (count x 4, radians) and values (count x B); an
   /// empty span skips that dataset.
   void read_samples(const std::string& name, std::size_t first, std::size_t count, std::span<double> angles,
@@ -164,6 +187,13 @@ class StoreWriter {
                       const Provenance& provenance);
   /// Appends n samples: angles (n x 4: theta_i, phi_i, theta_o, phi_o in radians) and values (n x B).
   void append_samples(const std::string& name, std::span<const double> angles, std::span<const float> values);
+  /// Creates coefficient map `name` for the height x width pixels of `image` on `basis` (all its k rows; a copy is
+  /// stored with the map), chunked by chunk_rows whole rows; rows are then written by write_coefficient_rows.
+  void create_coefficients(const std::string& name, const CoefficientsInfo& info, const Basis& basis);
+  /// Writes rows [y0, y0 + rows) of map `name`: coefficients (rows x width x k) and mask (rows x width, 1 = valid);
+  /// masked pixels are stored as zeros. InputError on a non-finite coefficient at a valid pixel.
+  void write_coefficient_rows(const std::string& name, std::size_t y0, std::size_t rows,
+                              std::span<const float> coefficients, std::span<const std::uint8_t> mask);
   /// Makes every change visible at the store's path at once.
   void commit();
 

@@ -298,3 +298,86 @@ TEST(Compression, ParsesTheDocumentedForms) {
   EXPECT_THROW(Compression::parse("deflate:0"), UsageError);
   EXPECT_THROW(Compression::parse("zstd"), UsageError);
 }
+
+// A coefficient map written in row pieces out of order reads back exactly, zeros at masked pixels, with the basis
+// kept beside it; writing before creating, past the last row, a NaN at a valid pixel or over an existing map are
+// refused, and an uncommitted map leaves the store as it was.
+TEST(Store, CoefficientMapsRoundTripInPiecesWithTheirBasis) {
+  test::ScratchDir dir;
+  const auto path = dir / "s.h5";
+  constexpr std::size_t h = 9, w = 5, k = 3, b = 4;
+  Basis basis;
+  basis.method = "pca";
+  basis.wavelengths = WavelengthGrid::range(400, 430, 10);
+  basis.components = Eigen::MatrixXd::Random(k, b);
+  basis.mean = Eigen::VectorXd::LinSpaced(b, 0.1, 0.4);
+  std::vector<float> c(h * w * k);
+  std::vector<std::uint8_t> mask(h * w, 1);
+  for (std::size_t i = 0; i < c.size(); ++i) c[i] = float(i) * 0.25f - 7.0f;
+  for (std::size_t p = 0; p < h * w; p += 4) mask[p] = 0;
+  CoefficientsInfo info;
+  info.image = "scene";
+  info.basis = "b";
+  info.height = h;
+  info.width = w;
+  info.valid_pixels = 33;
+  info.chunk_rows = 4;
+  {
+    StoreWriter wr(path, {});
+    EXPECT_THROW(wr.write_coefficient_rows("m", 0, 1, std::span<const float>(c.data(), w * k),
+                                           std::span<const std::uint8_t>(mask.data(), w)),
+                 UsageError);
+    wr.create_coefficients("m", info, basis);
+    auto rows = [&](std::size_t y0, std::size_t n) {
+      wr.write_coefficient_rows("m", y0, n, std::span<const float>(c.data() + y0 * w * k, n * w * k),
+                                std::span<const std::uint8_t>(mask.data() + y0 * w, n * w));
+    };
+    rows(4, 5);
+    rows(0, 4);
+    EXPECT_THROW(rows(8, 2), UsageError);
+    std::vector<float> bad(c.begin(), c.begin() + std::ptrdiff_t(w * k));
+    bad[k + 1] = std::numeric_limits<float>::infinity();  // pixel 1 is valid
+    EXPECT_THROW(wr.write_coefficient_rows("m", 0, 1, bad, std::span<const std::uint8_t>(mask.data(), w)), InputError);
+    bad[k + 1] = c[k + 1];
+    bad[1] = std::nanf("");  // pixel 0 is masked: stored as zeros
+    wr.write_coefficient_rows("m", 0, 1, bad, std::span<const std::uint8_t>(mask.data(), w));
+    wr.commit();
+  }
+  const Store s = Store::open(path);
+  EXPECT_EQ(s.coefficients(), std::vector<std::string>{"m"});
+  const CoefficientsInfo got = s.coefficients_info("m");
+  EXPECT_EQ(got.image, "scene");
+  EXPECT_EQ(got.basis, "b");
+  EXPECT_EQ(got.method, "pca");
+  EXPECT_EQ(got.height, h);
+  EXPECT_EQ(got.width, w);
+  EXPECT_EQ(got.k, k);
+  EXPECT_EQ(got.valid_pixels, 33u);
+  EXPECT_EQ(got.chunk_rows, 4u);
+  std::vector<float> back(h * w * k);
+  std::vector<std::uint8_t> mback(h * w);
+  s.read_coefficient_rows("m", 0, h, back, mback);
+  EXPECT_EQ(mback, mask);
+  for (std::size_t p = 0; p < h * w; ++p)
+    for (std::size_t j = 0; j < k; ++j) EXPECT_EQ(back[p * k + j], mask[p] ? c[p * k + j] : 0.0f) << p << " " << j;
+  std::vector<float> two(2 * w * k);
+  s.read_coefficient_rows("m", 7, 2, two, {});
+  EXPECT_TRUE(std::equal(two.begin(), two.end(), back.begin() + std::ptrdiff_t(7 * w * k)));
+  EXPECT_THROW(s.read_coefficient_rows("m", 8, 2, two, {}), UsageError);
+  const Basis kept = s.coefficients_basis("m");
+  EXPECT_EQ(kept.components, basis.components);
+  EXPECT_EQ(kept.mean, basis.mean);
+  EXPECT_TRUE(kept.wavelengths.approx_equal(basis.wavelengths));
+  EXPECT_NE(test::input_error_text([&] { s.coefficients_info("nope"); }).find("no coefficient map 'nope' (coefficient maps: m)"),
+            std::string::npos);
+
+  const std::string before = test::read_bytes(path);
+  {
+    StoreWriter wr(path, {});
+    EXPECT_NE(test::input_error_text([&] { wr.create_coefficients("m", info, basis); }).find("exists already"),
+              std::string::npos);
+    info.chunk_rows = 2;
+    wr.create_coefficients("other", info, basis);  // never committed
+  }
+  EXPECT_EQ(test::read_bytes(path), before);
+}

@@ -1,0 +1,277 @@
+// specula coefficients: coefficient maps of chosen images on a PCA basis (eq 7.2) or an NMF basis (exact NNLS),
+// streamed block by block from the store into chunked /coefficients/<name> datasets, with pictures of the maps.
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <memory>
+
+#include "apps/canvas.h"
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "core/error.h"
+#include "core/interrupt.h"
+#include "core/progress.h"
+#include "nmf/nmf.h"
+#include "stats/pca.h"
+#include "store/block_reader.h"
+#include "store/store.h"
+
+namespace specula::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CoefficientsOptions {
+  std::string store;
+  std::string basis;
+  std::vector<std::string> images;
+  long long k = 0;
+  std::string name;
+  std::string plots;
+  bool replace = false;
+  bool json = false;
+};
+
+// What one image's map came to: the reconstruction error of its valid pixels from the coefficients written.
+struct MapResult {
+  std::string name, image;
+  std::size_t height = 0, width = 0;
+  std::uint64_t valid = 0;
+  double sum_sq = 0, err_sq = 0;
+  std::string plot;
+};
+
+// The basis the maps are computed on: PCA truncated to its first k components (with the mean), NMF whole.
+store::Basis projection_basis(const store::Store& s, const CoefficientsOptions& o) {
+  store::Basis b = s.read_basis(o.basis);
+  if (b.method != "pca" && b.method != "nmf")
+    throw InputError(s.label() + ": basis " + o.basis + " has method '" + b.method + "'; coefficient maps need a pca or nmf basis");
+  if (b.method == "pca") {
+    if (b.mean.size() != b.components.cols())
+      throw InputError(s.label() + ": basis " + o.basis + " has no mean; re-learn it with specula pca");
+    const long long k = o.k == 0 ? static_cast<long long>(b.k()) : o.k;
+    if (k < 1 || std::size_t(k) > b.k())
+      throw UsageError(fmt::format("-k {}: basis {} has {} components; give k between 1 and {}", o.k, o.basis, b.k(), b.k()));
+    b.components = b.components.topRows(Eigen::Index(k)).eval();
+  } else if (o.k != 0 && o.k != static_cast<long long>(b.k())) {
+    throw UsageError(fmt::format("-k {}: NMF basis {} has {} components and projects onto all of them; learn a basis "
+                                 "with specula nmf -k {} for {} components",
+                                 o.k, o.basis, b.k(), o.k, o.k));
+  }
+  return b;
+}
+
+// Coefficients of block `spectra` (its valid pixels, n x B) into coef (n x k) and their summed squared error.
+double project_block(const store::Basis& basis, const RowMatrixXd& spectra, RowMatrixXd& coef, RowMatrixXd& recon) {
+  const Eigen::Index n = spectra.rows(), k = Eigen::Index(basis.k());
+  coef.resize(n, k);
+  recon.resize(n, spectra.cols());
+  if (basis.method == "nmf") {
+    nmf::nnls_project(basis.components, spectra, coef);
+    recon.noalias() = coef * basis.components;
+  } else {
+    stats::pca_project(basis, basis.k(), spectra, coef);
+    stats::pca_reconstruct(basis, coef, recon);
+  }
+  return (spectra - recon).squaredNorm();
+}
+
+// One figure per map: its k coefficient images side by side (at most four to a row), each above its own colour
+// bar: NMF coefficients from 0 (black) to their 99th percentile, PCA ones blue-white-red around 0 to +-99th
+// percentile of |c|. Masked pixels are grey.
+void write_plot(const fs::path& path, const store::Store& s, const std::string& name) {
+  const store::CoefficientsInfo info = s.coefficients_info(name);
+  const std::size_t h = info.height, w = info.width, k = info.k;
+  std::vector<float> c(h * w * k);
+  std::vector<std::uint8_t> mask(h * w);
+  s.read_coefficient_rows(name, 0, h, c, mask);
+  const bool nmf = info.method == "nmf";
+  const std::size_t sc = font_scale(w), pad = 4 * sc, gap = 12 * sc, line = 10 * sc;
+  const std::size_t columns = std::min<std::size_t>(k, 4), rows = (k + columns - 1) / columns;
+  std::vector<double> range(k, 0.0);
+  std::size_t panel_w = w;
+  for (std::size_t j = 0; j < k; ++j) {
+    std::vector<float> v;
+    for (std::size_t p = 0; p < h * w; ++p)
+      if (mask[p]) v.push_back(nmf ? c[p * k + j] : std::abs(c[p * k + j]));
+    range[j] = quantile(v, 0.99);
+    const std::string hi = number_label(range[j]), lo = nmf ? "0" : number_label(-range[j]);
+    panel_w = std::max(panel_w, bar_min_width("", lo, hi, sc));
+  }
+  const std::size_t cell_h = line + h + pad + bar_height(sc);
+  Canvas canvas(2 * pad + columns * panel_w + (columns - 1) * gap, pad + rows * (cell_h + pad));
+  for (std::size_t j = 0; j < k; ++j) {
+    const std::size_t x0 = pad + (j % columns) * (panel_w + gap), y0 = pad + (j / columns) * (cell_h + pad);
+    const std::string label = fmt::format("c{}", j + 1);
+    canvas.text(x0 + (panel_w - text_width(label, sc)) / 2, y0, label, sc);
+    std::vector<std::uint8_t> picture(3 * h * w);
+    for (std::size_t p = 0; p < h * w; ++p) {
+      const double r = range[j] > 0 ? range[j] : 1.0;
+      const Rgb col = !mask[p] ? kMaskedGrey : nmf ? heat(c[p * k + j] / r) : diverging(0.5 + 0.5 * c[p * k + j] / r);
+      std::copy(col.begin(), col.end(), picture.begin() + std::ptrdiff_t(3 * p));
+    }
+    canvas.blit(x0 + (panel_w - w) / 2, y0 + line, w, h, picture);
+    const std::string hi = number_label(range[j]), lo = nmf ? "0" : number_label(-range[j]);
+    colour_bar(canvas, x0, y0 + line + h + pad, panel_w, nmf ? std::function<Rgb(double)>(heat) : diverging, "", lo, hi, sc);
+  }
+  canvas.save_png(path);
+}
+
+void run_coefficients(const CoefficientsOptions& o) {
+  const auto start = std::chrono::steady_clock::now();
+  const store::Store s = store::Store::open(o.store);
+  const store::Basis basis = projection_basis(s, o);
+  const store::BlockReader reader(s, {.image_globs = o.images});
+  if (!reader.wavelengths().approx_equal(basis.wavelengths))
+    throw InputError(fmt::format("{}: the images have {}, basis {} has {}; learn a basis on the images' grid", s.label(),
+                                 reader.wavelengths().describe(), o.basis, basis.wavelengths.describe()));
+  const std::vector<std::string>& images = reader.source_names();
+  if (!o.name.empty() && images.size() != 1)
+    throw UsageError(fmt::format("--name {} names one map, but {} images match; leave --name out to get <image>.{}",
+                                 o.name, images.size(), o.basis));
+  std::vector<MapResult> maps(images.size());
+  const auto existing = s.coefficients();
+  for (std::size_t i = 0; i < images.size(); ++i) {
+    maps[i].image = images[i];
+    maps[i].name = o.name.empty() ? images[i] + "." + o.basis : o.name;
+    store::validate_name(maps[i].name, "coefficient map");
+    if (!o.replace && std::find(existing.begin(), existing.end(), maps[i].name) != existing.end())
+      throw UsageError(s.label() + ": coefficient map " + maps[i].name + " exists already; pass --replace or choose --name");
+  }
+  if (!o.plots.empty()) {
+    if (fs::exists(o.plots) && !fs::is_directory(o.plots))
+      throw UsageError("--plots " + o.plots + ": exists and is not a directory");
+  }
+
+  store::StoreWriter writer(o.store, store::WriteOptions{{}, o.replace, command_line()});
+  for (MapResult& m : maps) {
+    const store::ImageInfo info = s.image_info(m.image);
+    m.height = info.height;
+    m.width = info.width;
+    m.valid = info.valid_pixels;
+    store::CoefficientsInfo ci;
+    ci.image = m.image;
+    ci.basis = o.basis;
+    ci.method = basis.method;
+    ci.height = info.height;
+    ci.width = info.width;
+    ci.k = basis.k();
+    ci.valid_pixels = info.valid_pixels;
+    ci.chunk_rows = std::max<std::size_t>(1, info.chunk_rows);
+    ci.provenance = {o.store, basis.method + "-coefficients", command_line(), ""};
+    writer.create_coefficients(m.name, ci, basis);
+  }
+
+  // Blocks are projected in waves on all threads, then written in block order: the output and the error sums do
+  // not depend on the thread count, and memory holds one wave.
+  const std::size_t blocks = reader.block_count(), k = basis.k(), bands = reader.bands();
+  const std::size_t wave = 4 * std::size_t(std::max(1, omp_get_max_threads()));
+  std::vector<store::BlockReader::RawBlock> raw(wave);
+  std::vector<std::vector<float>> out(wave);
+  std::vector<double> sum_sq(wave), err_sq(wave);
+  std::vector<std::uint8_t> ones;
+  Progress progress("coefficients on " + o.basis, blocks);
+  for (std::size_t first = 0; first < blocks; first += wave) {
+    check_interrupt();
+    const long long n = static_cast<long long>(std::min(wave, blocks - first));
+    std::exception_ptr error;
+#pragma omp parallel
+    {
+      RowMatrixXd x, coef, recon;
+#pragma omp for schedule(dynamic, 1)
+      for (long long j = 0; j < n; ++j) {
+        try {
+          const std::size_t b = first + std::size_t(j);
+          store::BlockReader::RawBlock& r = raw[std::size_t(j)];
+          reader.read_raw(b, r);
+          x.resize(Eigen::Index(r.valid), Eigen::Index(bands));
+          for (std::size_t p = 0, v = 0; p < r.pixels; ++p)
+            if (r.is_valid(p))
+              x.row(Eigen::Index(v++)) = Eigen::Map<const Eigen::RowVectorXf>(r.spectrum(p, bands), Eigen::Index(bands)).cast<double>();
+          err_sq[std::size_t(j)] = project_block(basis, x, coef, recon);
+          sum_sq[std::size_t(j)] = x.squaredNorm();
+          std::vector<float>& c = out[std::size_t(j)];
+          c.assign(r.pixels * k, 0.0f);
+          for (std::size_t p = 0, v = 0; p < r.pixels; ++p)
+            if (r.is_valid(p)) {
+              for (std::size_t i = 0; i < k; ++i) c[p * k + i] = float(coef(Eigen::Index(v), Eigen::Index(i)));
+              ++v;
+            }
+        } catch (...) {
+#pragma omp critical(specula_coefficients_error)
+          if (!error) error = std::current_exception();
+        }
+      }
+    }
+    if (error) std::rethrow_exception(error);
+    for (long long j = 0; j < n; ++j) {
+      const std::size_t b = first + std::size_t(j);
+      MapResult& m = maps[reader.block_source(b)];
+      const store::BlockReader::RawBlock& r = raw[std::size_t(j)];
+      std::span<const std::uint8_t> mask(r.mask);
+      if (r.mask.empty()) {
+        ones.assign(r.pixels, 1);
+        mask = ones;
+      }
+      writer.write_coefficient_rows(m.name, reader.block_first_row(b), r.pixels / m.width, out[std::size_t(j)], mask);
+      m.sum_sq += sum_sq[std::size_t(j)];
+      m.err_sq += err_sq[std::size_t(j)];
+    }
+    progress.advance(std::uint64_t(n));
+  }
+  writer.commit();
+
+  if (!o.plots.empty()) {
+    fs::create_directories(o.plots);
+    const store::Store done = store::Store::open(o.store);
+    for (MapResult& m : maps) {
+      m.plot = (fs::path(o.plots) / (m.name + ".png")).string();
+      write_plot(m.plot, done, m.name);
+    }
+  }
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  auto rel = [](const MapResult& m) { return m.sum_sq > 0 ? std::sqrt(m.err_sq / m.sum_sq) : 0.0; };
+  auto rms = [&](const MapResult& m) { return m.valid ? std::sqrt(m.err_sq / (double(m.valid) * double(bands))) : 0.0; };
+  if (o.json) {
+    std::string list;
+    for (const MapResult& m : maps)
+      list += fmt::format(R"({}{{"name":{},"image":{},"height":{},"width":{},"valid_pixels":{},"rel_error":{},"rms":{},"plot":{}}})",
+                          list.empty() ? "" : ",", json_string(m.name), json_string(m.image), m.height, m.width, m.valid,
+                          rel(m), rms(m), m.plot.empty() ? "null" : json_string(m.plot));
+    fmt::print(R"({{"store":{},"basis":{},"method":{},"k":{},"maps":[{}],"seconds":{}}})" "\n", json_string(o.store),
+               json_string(o.basis), json_string(basis.method), k, list, seconds);
+    return;
+  }
+  for (const MapResult& m : maps) {
+    fmt::print("{}: {} x {} x {} coefficients in /coefficients/{} (relative error {:.4g}, rms {:.3g})\n", m.image,
+               m.height, m.width, k, m.name, rel(m), rms(m));
+    if (!m.plot.empty()) fmt::print("wrote {}\n", m.plot);
+  }
+  fmt::print("{} map(s) on {} ({}, k = {}) in {:.2f} s\n", maps.size(), o.basis, basis.method, k, seconds);
+}
+
+}  // namespace
+
+void setup_coefficients(CLI::App& app) {
+  auto o = std::make_shared<CoefficientsOptions>();
+  auto* cmd = app.add_subcommand(
+      "coefficients", "Write the coefficient maps of images on a PCA or NMF basis into the store (chunked), with pictures");
+  cmd->add_option("store", o->store, "Store file (the maps are added to it)")->required();
+  cmd->add_option("--basis", o->basis, "PCA basis (first k components) or NMF basis (NNLS on all components)")->required();
+  cmd->add_option("--images", o->images, "Image name globs (default: every image)");
+  cmd->add_option("-k", o->k, "PCA components to keep (default: all the basis has); NMF: must equal the basis's k")
+      ->check(CLI::Range(1LL, 100000LL));
+  cmd->add_option("--name", o->name, "Name of the map when one image matches (default: <image>.<basis>)");
+  cmd->add_option("--plots", o->plots, "Directory for <map>.png: each coefficient as an image with its colour bar");
+  cmd->add_flag("--replace", o->replace, "Replace maps of the same names");
+  cmd->add_flag("--json", o->json, "Print the result as JSON: maps (name, image, size, rel_error, rms, plot), seconds");
+  cmd->footer("rel_error = ||X - X'||_F / ||X||_F over the image's valid pixels, X' reconstructed from the coefficients "
+              "(double precision, before they are stored as float32); rms = sqrt(mean squared error per band).");
+  cmd->callback([o] { run_coefficients(*o); });
+}
+
+}  // namespace specula::app
