@@ -12,6 +12,7 @@
 #include "apps/canvas.h"
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "apps/ranks.h"
 #include "core/error.h"
 #include "core/interrupt.h"
 #include "core/progress.h"
@@ -122,6 +123,9 @@ void write_plot(const fs::path& path, const store::Store& s, const std::string& 
 }
 
 void run_coefficients(const CoefficientsOptions& o) {
+  if (ranks().size() > 1)
+    throw UsageError(fmt::format("coefficients writes the store from one process; run it without mpirun ({} ranks)",
+                                 ranks().size()));
   const auto start = std::chrono::steady_clock::now();
   const store::Store s = store::Store::open(o.store);
   const store::Basis basis = projection_basis(s, o);
