@@ -418,6 +418,17 @@ Collection Store::read_collection(const std::string& name) const {
   return c;
 }
 
+namespace {
+// The wavelengths and k x B components of a basis group (or of the copy a coefficient map keeps).
+void read_components(hid_t g, const std::string& ctx, Basis& b) {
+  b.wavelengths = read_wavelengths(g, ctx);
+  b.components = h5::read_matrix(g, "components", ctx);
+  if (b.components.cols() != Eigen::Index(b.wavelengths.size()))
+    throw InputError(ctx + ": components have " + std::to_string(b.components.cols()) + " bands, wavelengths " +
+                     std::to_string(b.wavelengths.size()));
+}
+}  // namespace
+
 Basis Store::read_basis(const std::string& name) const {
   const std::string path = "/bases/" + name;
   if (name.empty() || name.find('/') != std::string::npos || !h5::exists(file(), path))
@@ -429,11 +440,7 @@ Basis Store::read_basis(const std::string& name) const {
   b.n = std::uint64_t(std::max(0LL, h5::read_int_attr(g, "n", ctx)));
   b.source = h5::has_attr(g, "source") ? h5::read_string_attr(g, "source", ctx) : "";
   b.provenance = read_provenance(g, ctx);
-  b.wavelengths = read_wavelengths(g, ctx);
-  b.components = h5::read_matrix(g, "components", ctx);
-  if (b.components.cols() != Eigen::Index(b.wavelengths.size()))
-    throw InputError(ctx + ": components have " + std::to_string(b.components.cols()) + " bands, wavelengths " +
-                     std::to_string(b.wavelengths.size()));
+  read_components(g, ctx, b);
   auto vec = [&](const char* nm) {
     return h5::exists(g, nm) ? to_vector(h5::read_vector(g, nm, ctx)) : Eigen::VectorXd();
   };
@@ -491,11 +498,7 @@ Basis Store::coefficients_basis(const std::string& name) const {
   b.method = info.method;
   b.source = "image " + info.image;
   b.provenance = info.provenance;
-  b.wavelengths = read_wavelengths(g, ctx);
-  b.components = h5::read_matrix(g, "components", ctx);
-  if (b.components.cols() != Eigen::Index(b.wavelengths.size()))
-    throw InputError(ctx + ": components have " + std::to_string(b.components.cols()) + " bands, wavelengths " +
-                     std::to_string(b.wavelengths.size()));
+  read_components(g, ctx, b);
   if (h5::exists(g, "mean")) b.mean = to_vector(h5::read_vector(g, "mean", ctx));
   if (info.method == "pca" && b.mean.size() != b.components.cols())
     throw InputError(ctx + ": a PCA map needs a mean of " + std::to_string(b.components.cols()) + " bands");
