@@ -303,13 +303,7 @@ void write_calibration(store::StoreWriter& out, const std::string& name, const C
   store::validate_name(name, "calibration");
   const std::string ctx = out.label() + ": /acquire/" + name;
   namespace h5 = store::h5;
-  if (!h5::exists(out.file(), "/acquire"))
-    h5::Id(h5::check(H5Gcreate2(out.file(), "/acquire", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx, "cannot create /acquire"));
-  if (h5::exists(out.file(), "/acquire/" + name)) {
-    if (!out.options().replace) throw InputError(ctx + " exists; pass --replace to overwrite it");
-    h5::check(H5Ldelete(out.file(), ("/acquire/" + name).c_str(), H5P_DEFAULT), ctx, "cannot replace it");
-  }
-  h5::Id g(h5::check(H5Gcreate2(out.file(), ("/acquire/" + name).c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx, "cannot create"));
+  h5::Id g = out.create_group("acquire", name);
   Eigen::MatrixXd s(c.spatial.height, c.spatial.width);
   for (int v = 0; v < c.spatial.height; ++v)
     for (int u = 0; u < c.spatial.width; ++u) s(v, u) = c.spatial.at(u, v);

@@ -99,16 +99,20 @@ void run_info(const InfoOptions& o) {
   if (o.object.empty()) {
     std::uint64_t spectra = 0;
     for (const auto& n : s.images()) spectra += s.image_info(n).valid_pixels;
-    const auto bytes = std::filesystem::file_size(s.path());
+    const auto bytes = store::store_bytes(s);
     const std::string created = h5::has_attr(s.file(), "created_utc") ? h5::read_string_attr(s.file(), "created_utc", s.label()) : "";
     if (o.json) {
-      fmt::print(R"({{"store":{},"format_version":{},"bytes":{},"created_utc":{},"valid_spectra":{},"objects":)",
-                 json_string(s.path().string()), s.format_version(), bytes, json_string(created), spectra);
+      fmt::print(R"({{"store":{},"format_version":{},"generation":{},"bytes":{},"created_utc":{},"valid_spectra":{},"objects":)",
+                 json_string(s.path().string()), s.format_version(), s.index().generation, bytes, json_string(created),
+                 spectra);
       list_objects(s, true);
       fmt::print("}}\n");
       return;
     }
-    fmt::print("{}: specula store, format version {}, {:.1f} MB, created {}\n", s.path().string(), s.format_version(),
+    fmt::print("{}: specula store, format version {}{}, {:.1f} MB, created {}\n", s.path().string(), s.format_version(),
+               s.format_version() < store::kFormatVersion
+                   ? fmt::format(" (read-only here: `specula upgrade {}` converts it in place)", s.path().string())
+                   : fmt::format(", generation {}", s.index().generation),
                double(bytes) / 1e6, created);
     fmt::print("{} images ({} valid spectra), {} collections, {} sample sets, {} grids, {} bases\n", s.images().size(),
                spectra, s.collections().size(), s.samples().size(), s.grids().size(), s.bases().size());

@@ -30,5 +30,9 @@ void setup_acquire(CLI::App& app);
 void setup_brdf_diff(CLI::App& app);
 void setup_synth_brdf(CLI::App& app);
 void setup_decode(CLI::App& app);
+void setup_rm(CLI::App& app);
+void setup_gc(CLI::App& app);
+void setup_check(CLI::App& app);
+void setup_upgrade(CLI::App& app);
 
 }  // namespace specula::app

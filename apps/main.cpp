@@ -79,6 +79,10 @@ int main(int argc, char** argv) {
   specula::app::setup_brdf_diff(app);
   specula::app::setup_synth_brdf(app);
   specula::app::setup_decode(app);
+  specula::app::setup_rm(app);
+  specula::app::setup_gc(app);
+  specula::app::setup_check(app);
+  specula::app::setup_upgrade(app);
   const int code = run(app, argc, argv);
   specula::app::stop_ranks();
   return code;

@@ -50,8 +50,8 @@ void unshuffle4(const unsigned char* in, std::size_t n, unsigned char* out) {
 }  // namespace
 
 BlockReader::~BlockReader() {
-  for (const int fd : fds_)
-    if (fd >= 0) ::close(fd);
+  for (const auto& s : sources_)
+    if (s.fd >= 0) ::close(s.fd);
 }
 
 bool BlockReader::direct() const {
@@ -97,13 +97,23 @@ void BlockReader::map_chunks(SourceData& sd, std::size_t rows) const {
       ref.size = addr == HADDR_UNDEF ? 0 : size;
       ref.filter_mask = fmask;
     }
+  // The dataset may live in a data file of its own (format 2): read the file HDF5 opened for it.
+  h5::Id file(h5::check(H5Iget_file_id(sd.cube), ctx, "H5Iget_file_id"));
+  void* handle = nullptr;
+  if (H5Fget_vfd_handle(file, H5P_DEFAULT, &handle) < 0 || !handle) {
+    H5Eclear2(H5E_DEFAULT);
+    sd.chunks.clear();
+    return;
+  }
+  sd.fd = ::fcntl(*static_cast<int*>(handle), F_DUPFD_CLOEXEC, 0);
+  if (sd.fd < 0) throw LibraryError(ctx + ": cannot duplicate a file descriptor: " + std::strerror(errno));
   sd.direct = true;
 }
 
 void BlockReader::pread_all(const SourceData& src, unsigned char* dst, std::size_t size, std::uint64_t address) const {
   std::size_t got = 0;
   while (got < size) {
-    const ssize_t n = ::pread(fds_[src.store], dst + got, size - got, off_t(address + got));
+    const ssize_t n = ::pread(src.fd, dst + got, size - got, off_t(address + got));
     if (n <= 0)
       throw LibraryError(stores_[src.store].label() + ": cannot read chunk at byte " + std::to_string(address) +
                          (n < 0 ? std::string(": ") + std::strerror(errno) : std::string(": file is truncated")));
@@ -176,12 +186,11 @@ BlockReader::BlockReader(const std::vector<Store>& stores, const Selection& sele
   if (stores_.empty()) throw UsageError("a block reader needs at least one store");
   if (int(!selection.collection.empty()) + int(!selection.image_globs.empty()) + int(!selection.samples.empty()) > 1)
     throw UsageError("select images, a collection or samples, only one of them");
-  fds_.assign(stores_.size(), -1);
   try {
     for (std::size_t i = 0; i < stores_.size(); ++i) add_store(i, selection, min_block_pixels, stores_.size() > 1);
   } catch (...) {
-    for (const int fd : fds_)
-      if (fd >= 0) ::close(fd);
+    for (const auto& s : sources_)
+      if (s.fd >= 0) ::close(s.fd);
     throw;
   }
 }
@@ -189,8 +198,6 @@ BlockReader::BlockReader(const std::vector<Store>& stores, const Selection& sele
 void BlockReader::add_store(std::size_t index, const Selection& selection, std::size_t min_block_pixels, bool prefix) {
   const Store& store = stores_[index];
   const std::string ctx = store.label();
-  fds_[index] = ::open(store.path().c_str(), O_RDONLY | O_CLOEXEC);
-  if (fds_[index] < 0) throw LibraryError(ctx + ": cannot open for reading: " + std::strerror(errno));
   const std::string tag = prefix ? ctx + ":" : "";
   // The first source fixes the grid; every later one must match it.
   auto check_grid = [&](const WavelengthGrid& grid, const std::string& what) {

@@ -88,6 +88,7 @@ class BlockReader {
     bool shuffle = false, deflate = false;
     std::size_t chunk_rows = 0, chunk_cols = 0, col_chunks = 0;
     std::vector<ChunkRef> chunks;  // row-chunk major
+    int fd = -1;                   // the data file holding the chunks (a duplicate of HDF5's descriptor)
   };
   void add_store(std::size_t index, const Selection& selection, std::size_t min_block_pixels, bool prefix);
   void map_chunks(SourceData& sd, std::size_t rows) const;
@@ -101,7 +102,6 @@ class BlockReader {
   void read_block(std::size_t i, Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& out) const;
 
   std::vector<Store> stores_;
-  std::vector<int> fds_;
   WavelengthGrid wavelengths_;
   std::string units_;
   std::vector<std::string> names_;

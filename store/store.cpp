@@ -7,8 +7,15 @@
 #include <atomic>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <ctime>
+#include <optional>
+#include <set>
 #include <sstream>
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "core/atomic_file.h"
 #include "core/brdf_geometry.h"
@@ -56,14 +63,30 @@ h5::Id chunked_dcpl(std::span<const hsize_t> chunk, const Compression& c, std::s
   return dcpl;
 }
 
-h5::Id create_group(hid_t loc, const std::string& path, std::string_view ctx) {
+h5::Id make_group(hid_t loc, const std::string& path, std::string_view ctx) {
   h5::Id lcpl = create_plist(H5P_LINK_CREATE, ctx);
   h5::check(H5Pset_create_intermediate_group(lcpl, 1), ctx, "H5Pset_create_intermediate_group");
   return h5::Id(h5::check(H5Gcreate2(loc, path.c_str(), lcpl, H5P_DEFAULT, H5P_DEFAULT), ctx, "cannot create " + path));
 }
 
 h5::Id open_group(hid_t loc, const std::string& path, std::string_view ctx) {
-  return h5::Id(h5::check(H5Gopen2(loc, path.c_str(), H5P_DEFAULT), ctx, "cannot open " + path));
+  const hid_t g = H5Gopen2(loc, path.c_str(), H5P_DEFAULT);
+  if (g >= 0) return h5::Id(g);
+  const std::string lib = h5::last_error();
+  H5Eclear2(H5E_DEFAULT);
+  H5L_info_t info{};
+  if (H5Lget_info(loc, path.c_str(), &info, H5P_DEFAULT) >= 0 && info.type == H5L_TYPE_EXTERNAL) {
+    std::vector<char> buf(info.u.val_size + 1, '\0');
+    const char* file = nullptr;
+    const char* object = nullptr;
+    unsigned flags = 0;
+    if (H5Lget_val(loc, path.c_str(), buf.data(), buf.size(), H5P_DEFAULT) >= 0 &&
+        H5Lunpack_elink_val(buf.data(), info.u.val_size, &flags, &file, &object) >= 0 && file)
+      throw InputError(std::string(ctx) + ": its data file " + file +
+                       " cannot be opened (missing or corrupt); `specula check` lists what is damaged (HDF5: " + lib + ")");
+  }
+  H5Eclear2(H5E_DEFAULT);
+  throw LibraryError(std::string(ctx) + ": cannot open " + path + ": " + lib);
 }
 
 h5::Id open_dataset(hid_t loc, const std::string& path, std::string_view ctx) {
@@ -225,19 +248,13 @@ Provenance read_provenance(hid_t obj, std::string_view ctx) {
 
 // ---------------------------------------------------------------- Store
 
-Store Store::open(const std::filesystem::path& path) {
-  h5::quiet_errors();
-  Store s;
-  s.path_ = path;
-  const std::string ctx = s.label();
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw InputError(ctx + ": no such file");
-  if (std::filesystem::is_directory(path, ec)) throw InputError(ctx + ": is a directory, not a store file");
-  const htri_t is = H5Fis_hdf5(path.c_str());
-  if (is <= 0) {
-    H5Eclear2(H5E_DEFAULT);
-    throw InputError(ctx + ": not an HDF5 file, so not a specula store (create one with `specula import` or `specula synth-db`)");
-  }
+struct Store::Snapshot {
+  layout::Index index;
+  layout::ReaderLock lock;
+};
+
+namespace {
+h5::Id open_root(const std::filesystem::path& path, const std::string& ctx) {
   h5::Id fapl = create_plist(H5P_FILE_ACCESS, ctx);
   h5::check(H5Pset_cache(fapl, 0, 521, 16 << 20, 1.0), ctx, "H5Pset_cache");
   const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, fapl);
@@ -246,16 +263,70 @@ Store Store::open(const std::filesystem::path& path) {
     H5Eclear2(H5E_DEFAULT);
     throw InputError(ctx + ": cannot be opened as HDF5, the file is corrupt or truncated (HDF5: " + lib + ")");
   }
-  s.file_ = std::make_shared<h5::Id>(f);
-  if (!h5::has_attr(f, "specula_format") || h5::read_string_attr(f, "specula_format", ctx) != kFormatName)
-    throw InputError(ctx + ": an HDF5 file but not a specula store (no specula_format = \"" + kFormatName +
-                     "\" attribute on /); create stores with `specula import` or `specula synth-db`");
-  s.version_ = h5::read_int_attr(f, "format_version", ctx);
-  if (s.version_ > kFormatVersion)
-    throw InputError(ctx + ": store format version " + std::to_string(s.version_) + " is newer than this specula (" +
-                     SPECULA_VERSION + ") reads (up to " + std::to_string(kFormatVersion) + "); upgrade specula");
-  if (s.version_ < 1) throw InputError(ctx + ": invalid store format version " + std::to_string(s.version_));
-  return s;
+  return h5::Id(f);
+}
+
+// The inode of the file HDF5 opened as `file`, to tell whether the root was replaced since.
+std::pair<dev_t, ino_t> opened_inode(hid_t file, const std::string& ctx) {
+  void* handle = nullptr;
+  h5::check(H5Fget_vfd_handle(file, H5P_DEFAULT, &handle), ctx, "H5Fget_vfd_handle");
+  struct stat st {};
+  if (!handle || ::fstat(*static_cast<int*>(handle), &st) != 0) throw LibraryError(ctx + ": cannot stat the open root");
+  return {st.st_dev, st.st_ino};
+}
+}  // namespace
+
+Store Store::open(const std::filesystem::path& path) {
+  h5::quiet_errors();
+  Store s;
+  s.path_ = path;
+  const std::string ctx = s.label();
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw InputError(ctx + ": no such file");
+  if (std::filesystem::is_directory(path, ec)) throw InputError(ctx + ": is a directory, not a store file");
+  // A reader pins the generation it opened; a commit between opening the root and pinning it makes it try again.
+  for (int attempt = 0;; ++attempt) {
+    const htri_t is = H5Fis_hdf5(path.c_str());
+    if (is <= 0) {
+      H5Eclear2(H5E_DEFAULT);
+      throw InputError(ctx + ": not an HDF5 file, so not a specula store (create one with `specula import` or `specula synth-db`)");
+    }
+    h5::Id f = open_root(path, ctx);
+    if (!h5::has_attr(f, "specula_format") || h5::read_string_attr(f, "specula_format", ctx) != kFormatName)
+      throw InputError(ctx + ": an HDF5 file but not a specula store (no specula_format = \"" + kFormatName +
+                       "\" attribute on /); create stores with `specula import` or `specula synth-db`");
+    s.version_ = h5::read_int_attr(f, "format_version", ctx);
+    if (s.version_ > kFormatVersion)
+      throw InputError(ctx + ": store format version " + std::to_string(s.version_) + " is newer than this specula (" +
+                       SPECULA_VERSION + ") reads (up to " + std::to_string(kFormatVersion) + "); upgrade specula");
+    if (s.version_ < 1) throw InputError(ctx + ": invalid store format version " + std::to_string(s.version_));
+    if (s.version_ == 1) {
+      s.file_ = std::make_shared<h5::Id>(std::move(f));
+      return s;
+    }
+    auto snap = std::make_shared<Snapshot>();
+    snap->index = layout::read_index(f, ctx);
+    snap->lock = layout::ReaderLock(layout::data_dir(path, snap->index), snap->index.generation);
+    struct stat now {};
+    const auto opened = opened_inode(f, ctx);
+    if (attempt < 100 && (::stat(path.c_str(), &now) != 0 || now.st_dev != opened.first || now.st_ino != opened.second))
+      continue;
+    s.file_ = std::make_shared<h5::Id>(std::move(f));
+    s.snapshot_ = std::move(snap);
+    return s;
+  }
+}
+
+bool Store::stale() const {
+  if (!file_) return false;
+  const auto opened = opened_inode(*file_, label());
+  struct stat now {};
+  return ::stat(path_.c_str(), &now) != 0 || now.st_dev != opened.first || now.st_ino != opened.second;
+}
+
+const layout::Index& Store::index() const {
+  static const layout::Index none;
+  return snapshot_ ? snapshot_->index : none;
 }
 
 std::vector<std::string> Store::images() const { return h5::list(file(), "/images"); }
@@ -584,43 +655,137 @@ void Store::read_samples(const std::string& name, std::size_t first, std::size_t
 
 // ---------------------------------------------------------------- StoreWriter
 
-struct StoreWriter::Temp {
-  explicit Temp(const std::filesystem::path& target) : out(target, /*copy_existing=*/true) {}
-  AtomicOutput out;
+struct StoreWriter::State {
+  struct Pending {
+    std::string kind, name, file;  // file: relative to the data directory
+    h5::Id h5;                     // open until the object is complete
+    std::size_t rows_expected = 0, rows_written = 0;  // images filled by write_image_rows
+    std::vector<bool> row_done;
+    std::uint64_t valid = 0;
+  };
+  std::filesystem::path root, data;
+  layout::Index base;  // the committed state when the transaction began
+  bool created_data = false;
+  std::optional<layout::Transaction> tx;
+  std::vector<Pending> pending;
+  std::vector<std::pair<std::string, std::string>> removals;
+  bool committed = false;
+
+  Pending* find(std::string_view kind, std::string_view name) {
+    for (auto& p : pending)
+      if (p.kind == kind && p.name == name) return &p;
+    return nullptr;
+  }
+  void close(std::string_view kind, std::string_view name) {
+    if (Pending* p = find(kind, name)) p->h5 = h5::Id();
+  }
+  void drop(std::string_view kind, std::string_view name) {
+    for (auto it = pending.begin(); it != pending.end(); ++it)
+      if (it->kind == kind && it->name == name) {
+        it->h5 = h5::Id();
+        H5Eclear2(H5E_DEFAULT);
+        std::error_code ec;
+        std::filesystem::remove(data / it->file, ec);
+        pending.erase(it);
+        return;
+      }
+  }
 };
 
 StoreWriter::StoreWriter(const std::filesystem::path& path, WriteOptions options)
-    : target_(path), options_(std::move(options)) {
+    : target_(path), options_(std::move(options)), state_(std::make_unique<State>()) {
   h5::quiet_errors();
   const std::string ctx = label();
-  const bool existed = std::filesystem::exists(path);
-  if (existed) Store::open(path);  // validates: a specula store of a version we can write
-  temp_ = std::make_unique<Temp>(path);
-  h5::Id fapl = create_plist(H5P_FILE_ACCESS, ctx);
-  h5::check(H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG), ctx, "H5Pset_fclose_degree");
-  h5::check(H5Pset_cache(fapl, 0, 521, 16 << 20, 1.0), ctx, "H5Pset_cache");
-  const auto& tmp = temp_->out.temp_path();
-  if (existed) {
-    file_ = h5::Id(h5::check(H5Fopen(tmp.c_str(), H5F_ACC_RDWR, fapl), ctx, "cannot open the store for writing"));
+  State& st = *state_;
+  st.root = path;
+  if (std::filesystem::exists(path)) {
+    const Store s = Store::open(path);  // validates: a specula store of a version we can write
+    if (s.format_version() < 2)
+      throw InputError(ctx + ": store format version " + std::to_string(s.format_version()) +
+                       " (one file) is read-only in this specula; convert it in place with `specula upgrade " +
+                       path.string() + "` (no copy of the data)");
+    st.base = s.index();
+    st.data = s.data_dir();
+    layout::claim_data_dir(path, st.data);
   } else {
-    file_ = h5::Id(h5::check(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), ctx, "cannot create the store"));
-    h5::write_attr(file_, "specula_format", std::string_view(kFormatName), ctx);
-    h5::write_attr(file_, "format_version", kFormatVersion, ctx);
-    h5::write_attr(file_, "specula_version", std::string_view(SPECULA_VERSION), ctx);
-    h5::write_attr(file_, "created_utc", std::string_view(utc_now()), ctx);
+    const auto dir = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
+    if (path.filename().empty()) throw UsageError("store path '" + path.string() + "' names no file");
+    if (!std::filesystem::is_directory(dir)) throw InputError(path.string() + ": directory " + dir.string() + " does not exist");
+    st.data = layout::default_data_dir(path);
+    st.base.data_dir = st.data.filename().string();
+    st.base.created_utc = utc_now();
+    st.created_data = !std::filesystem::exists(st.data);
+  }
+  layout::create_directories_synced(st.data / "objects");
+  st.tx.emplace(st.data);
+  if (st.created_data) layout::claim_data_dir(path, st.data);
+}
+
+StoreWriter::~StoreWriter() {
+  if (!state_) return;
+  State& st = *state_;
+  for (auto& p : st.pending) p.h5 = h5::Id();
+  H5Eclear2(H5E_DEFAULT);
+  std::error_code ec;
+  if (!st.committed)
+    for (const auto& p : st.pending) std::filesystem::remove(st.data / p.file, ec);
+  if (st.tx) st.tx->end();
+  // A store that was never created leaves no directory behind (rmdir fails harmlessly when others use it).
+  if (!st.committed && st.created_data && !std::filesystem::exists(st.root)) {
+    for (const auto kind : layout::kKinds) ::rmdir((st.data / "objects" / std::string(kind)).c_str());
+    ::rmdir((st.data / "objects").c_str());
+    ::rmdir((st.data / "tx").c_str());
+    ::rmdir(st.data.c_str());
   }
 }
 
-StoreWriter::~StoreWriter() = default;
-
-void StoreWriter::check_name(const std::string& kind, const std::string& group, const std::string& name) {
-  validate_name(name, kind);
-  const std::string path = group + "/" + name;
-  if (h5::exists(file_, path)) {
+hid_t StoreWriter::begin(const std::string& kind, const std::string& name, const std::string& what) {
+  validate_name(name, what);
+  if (!state_ || state_->committed) throw UsageError(label() + ": the transaction is already committed");
+  State& st = *state_;
+  if (st.find(kind, name)) {
     if (!options_.replace)
-      throw InputError(label() + ": " + kind + " '" + name + "' exists already; choose another --name or pass --replace");
-    h5::check(H5Ldelete(file_, path.c_str(), H5P_DEFAULT), label(), "cannot remove old " + path);
+      throw InputError(label() + ": " + what + " '" + name + "' is written twice in one transaction");
+    st.drop(kind, name);
   }
+  if (st.base.find(kind, name) && !options_.replace)
+    throw InputError(label() + ": " + what + " '" + name + "' exists already; choose another name or allow replacing it");
+  const std::string rel = layout::object_file(kind, name, st.tx->id());
+  layout::create_directories_synced(st.data / "objects" / kind);
+  const std::string ctx = label() + ": /" + kind + "/" + name;
+  h5::Id fapl = create_plist(H5P_FILE_ACCESS, ctx);
+  h5::check(H5Pset_fclose_degree(fapl, H5F_CLOSE_STRONG), ctx, "H5Pset_fclose_degree");
+  h5::check(H5Pset_cache(fapl, 0, 521, 16 << 20, 1.0), ctx, "H5Pset_cache");
+  const auto file = st.data / rel;
+  h5::Id f(h5::check(H5Fcreate(file.c_str(), H5F_ACC_EXCL, H5P_DEFAULT, fapl), ctx, "cannot create " + file.string()));
+  layout::crash_point("object-created");
+  h5::write_attr(f, "specula_format", std::string_view("specula-object"), ctx);
+  h5::write_attr(f, "format_version", kFormatVersion, ctx);
+  h5::write_attr(f, "kind", std::string_view(kind), ctx);
+  h5::write_attr(f, "name", std::string_view(name), ctx);
+  h5::write_attr(f, "transaction", std::string_view(st.tx->id()), ctx);
+  st.pending.push_back({kind, name, rel, f});
+  return f.get();
+}
+
+hid_t StoreWriter::object_file(const std::string& kind, const std::string& name, const std::string& hint) const {
+  State::Pending* p = state_ ? state_->find(kind, name) : nullptr;
+  if (!p || !p->h5.valid()) throw UsageError(label() + ": /" + kind + "/" + name + ": " + hint);
+  return p->h5.get();
+}
+
+h5::Id StoreWriter::create_group(const std::string& kind, const std::string& name) {
+  if (!layout::is_kind(kind) || kind == "images")
+    throw UsageError(label() + ": '" + kind + "' is not a group for create_group (use acquire, or the add_ functions)");
+  const std::string path = "/" + kind + "/" + name;
+  return make_group(begin(kind, name, kind), path, label() + ": " + path);
+}
+
+void StoreWriter::remove(const std::string& kind, const std::string& name) {
+  if (!layout::is_kind(kind)) throw UsageError(label() + ": '" + kind + "' is not a kind of object");
+  if (!state_->base.find(kind, name))
+    throw InputError(label() + ": no " + kind + " '" + name + "' to remove");
+  state_->removals.emplace_back(kind, name);
 }
 
 namespace {
@@ -703,7 +868,7 @@ void write_cube_deflated(hid_t ds, const Cube& cube, std::size_t ch, std::size_t
 }  // namespace
 
 namespace {
-void write_image_objects(hid_t file_, const std::string& name, const Cube& cube, std::uint64_t valid,
+void write_image_objects(hid_t file, const std::string& name, const Cube& cube, std::uint64_t valid,
                          const WriteOptions& options_, const std::string& ctx);
 }
 
@@ -732,42 +897,56 @@ void StoreWriter::add_image(const std::string& name, const Cube& cube) {
                          std::to_string(p % cube.width) + ", band " + std::to_string(b) +
                          "; mask such pixels (--nan mask) before storing");
   }
-  check_name("image", "/images", name);
+  const hid_t f = begin("images", name, "image");
   try {
-    write_image_objects(file_, name, cube, valid, options_, ctx);
+    write_image_objects(f, name, cube, valid, options_, ctx);
   } catch (...) {
-    // Leave no half-written image in the transaction (a later commit keeps only whole images).
-    const std::string path = "/images/" + name;
-    if (h5::exists(file_, path)) H5Ldelete(file_, path.c_str(), H5P_DEFAULT);
-    H5Eclear2(H5E_DEFAULT);
+    state_->drop("images", name);  // a later commit keeps only whole images
     throw;
   }
+  state_->close("images", name);
 }
 
 namespace {
-void write_image_objects(hid_t file_, const std::string& name, const Cube& cube, std::uint64_t valid,
-                         const WriteOptions& options_, const std::string& ctx) {
-  h5::Id g = create_group(file_, "/images/" + name, ctx);
-  h5::write_attr(g, "kind", std::string_view("image"), ctx);
-  h5::write_attr(g, "units", std::string_view(cube.units), ctx);
-  h5::write_attr(g, "valid_pixels", static_cast<long long>(valid), ctx);
-  write_provenance(g, cube.provenance, options_.command_line, ctx);
-  write_grid(g, cube.wavelengths, ctx);
-  if (!cube.fwhm.empty()) h5::write_vector(g, "fwhm", cube.fwhm, ctx);
+struct ImageDatasets {
+  h5::Id group, cube, mask;
+  hsize_t chunk_rows = 0, chunk_cols = 0;
+};
 
-  const auto [ch, cw] = image_chunk(cube.height, cube.width, cube.bands);
-  const hsize_t dims[3] = {cube.height, cube.width, cube.bands};
-  const hsize_t chunk[3] = {ch, cw, cube.bands};
+// The group, cube and mask datasets of an image, chunked as docs/store-format.md says.
+ImageDatasets create_image_datasets(hid_t file, const std::string& name, std::size_t height, std::size_t width,
+                                    const WavelengthGrid& wavelengths, std::span<const double> fwhm,
+                                    const std::string& units, const Provenance& provenance,
+                                    const WriteOptions& options_, const std::string& ctx) {
+  ImageDatasets d;
+  d.group = make_group(file, "/images/" + name, ctx);
+  h5::Id& g = d.group;
+  h5::write_attr(g, "kind", std::string_view("image"), ctx);
+  h5::write_attr(g, "units", std::string_view(units), ctx);
+  write_provenance(g, provenance, options_.command_line, ctx);
+  write_grid(g, wavelengths, ctx);
+  if (!fwhm.empty()) h5::write_vector(g, "fwhm", fwhm, ctx);
+  const std::size_t bands = wavelengths.size();
+  std::tie(d.chunk_rows, d.chunk_cols) = image_chunk(height, width, bands);
+  const hsize_t dims[3] = {height, width, bands};
+  const hsize_t chunk[3] = {d.chunk_rows, d.chunk_cols, bands};
   h5::Id space(h5::check(H5Screate_simple(3, dims, nullptr), ctx, "H5Screate_simple"));
   h5::Id dcpl = chunked_dcpl(chunk, options_.compression, ctx);
-  h5::Id ds(h5::check(H5Dcreate2(g, "cube", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx, "cannot create cube"));
-  h5::write_attr(ds, "axes", std::string_view("height,width,band"), ctx);
+  d.cube = h5::Id(h5::check(H5Dcreate2(g, "cube", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx, "cannot create cube"));
+  h5::write_attr(d.cube, "axes", std::string_view("height,width,band"), ctx);
+  h5::Id mspace(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
+  h5::Id mdcpl = chunked_dcpl(std::span<const hsize_t>(chunk, 2), options_.compression, ctx);
+  d.mask = h5::Id(h5::check(H5Dcreate2(g, "mask", H5T_STD_U8LE, mspace, H5P_DEFAULT, mdcpl, H5P_DEFAULT), ctx, "cannot create mask"));
+  return d;
+}
 
-  const hsize_t mdims[2] = {cube.height, cube.width};
-  const hsize_t mchunk[2] = {ch, cw};
-  h5::Id mspace(h5::check(H5Screate_simple(2, mdims, nullptr), ctx, "H5Screate_simple"));
-  h5::Id mdcpl = chunked_dcpl(mchunk, options_.compression, ctx);
-  h5::Id mds(h5::check(H5Dcreate2(g, "mask", H5T_STD_U8LE, mspace, H5P_DEFAULT, mdcpl, H5P_DEFAULT), ctx, "cannot create mask"));
+void write_image_objects(hid_t file, const std::string& name, const Cube& cube, std::uint64_t valid,
+                         const WriteOptions& options_, const std::string& ctx) {
+  const ImageDatasets d = create_image_datasets(file, name, cube.height, cube.width, cube.wavelengths, cube.fwhm,
+                                                cube.units, cube.provenance, options_, ctx);
+  h5::write_attr(d.group, "valid_pixels", static_cast<long long>(valid), ctx);
+  const hid_t ds = d.cube, mds = d.mask;
+  const std::size_t ch = d.chunk_rows, cw = d.chunk_cols;
   bool ch_written_by_chunks = false;
 
   if (options_.compression.kind == Compression::Kind::deflate) {
@@ -810,8 +989,7 @@ void StoreWriter::add_collection(const std::string& name, const Collection& col)
     if (!std::isfinite(col.values[i]))
       throw InputError(src + ": non-finite value in spectrum '" + col.names[i / b] + "' at " +
                        std::to_string(col.wavelengths[i % b]) + " nm");
-  check_name("collection", "/collections", name);
-  h5::Id g = create_group(file_, "/collections/" + name, ctx);
+  h5::Id g = make_group(begin("collections", name, "collection"), "/collections/" + name, ctx);
   h5::write_attr(g, "kind", std::string_view("collection"), ctx);
   h5::write_attr(g, "units", std::string_view(col.units), ctx);
   write_provenance(g, col.provenance, options_.command_line, ctx);
@@ -850,8 +1028,7 @@ void StoreWriter::add_basis(const std::string& name, const Basis& basis) {
   check_len(basis.eigenvalues, "eigenvalues");
   check_len(basis.explained_variance_ratio, "explained_variance_ratio");
   if (!basis.components.allFinite()) throw InputError(ctx + ": basis has non-finite components");
-  check_name("basis", "/bases", name);
-  h5::Id g = create_group(file_, "/bases/" + name, ctx);
+  h5::Id g = make_group(begin("bases", name, "basis"), "/bases/" + name, ctx);
   h5::write_attr(g, "kind", std::string_view("basis"), ctx);
   h5::write_attr(g, "method", std::string_view(basis.method), ctx);
   h5::write_attr(g, "n", static_cast<long long>(basis.n), ctx);
@@ -884,10 +1061,9 @@ void StoreWriter::add_grid(const std::string& name, const Grid& grid) {
     if (!std::isfinite(grid.brdf[i]))
       throw InputError(src + ": non-finite BRDF value at band " + std::to_string(i / brdf::kMerlCells) + ", cell " +
                        std::to_string(i % brdf::kMerlCells) + "; use a negative value for cells without data");
-  check_name("grid", "/grids", name);
-  const std::string path = "/grids/" + name;
+  const hid_t f = begin("grids", name, "grid");
   try {
-    h5::Id g = create_group(file_, path, ctx);
+    h5::Id g = make_group(f, "/grids/" + name, ctx);
     h5::write_attr(g, "kind", std::string_view("grid"), ctx);
     h5::write_attr(g, "units", std::string_view(grid.units), ctx);
     h5::write_attr(g, "scale", grid.scale, ctx);
@@ -925,18 +1101,17 @@ void StoreWriter::add_grid(const std::string& name, const Grid& grid) {
       }
     }
   } catch (...) {
-    if (h5::exists(file_, path)) H5Ldelete(file_, path.c_str(), H5P_DEFAULT);
-    H5Eclear2(H5E_DEFAULT);
+    state_->drop("grids", name);
     throw;
   }
+  state_->close("grids", name);
 }
 
 void StoreWriter::create_samples(const std::string& name, const WavelengthGrid& wavelengths, const std::string& units,
                                  const Provenance& provenance) {
   const std::string ctx = label() + ": /samples/" + name;
   if (wavelengths.empty()) throw UsageError(ctx + ": samples need at least one wavelength");
-  check_name("samples", "/samples", name);
-  h5::Id g = create_group(file_, "/samples/" + name, ctx);
+  h5::Id g = make_group(begin("samples", name, "samples"), "/samples/" + name, ctx);
   h5::write_attr(g, "kind", std::string_view("samples"), ctx);
   h5::write_attr(g, "units", std::string_view(units), ctx);
   write_provenance(g, provenance, options_.command_line, ctx);
@@ -958,8 +1133,7 @@ void StoreWriter::create_samples(const std::string& name, const WavelengthGrid& 
 
 void StoreWriter::append_samples(const std::string& name, std::span<const double> angles, std::span<const float> values) {
   const std::string ctx = label() + ": /samples/" + name;
-  if (!h5::exists(file_, "/samples/" + name)) throw UsageError(ctx + ": create_samples first");
-  h5::Id g = open_group(file_, "/samples/" + name, ctx);
+  h5::Id g = open_group(object_file("samples", name, "create_samples first"), "/samples/" + name, ctx);
   h5::Id a = open_dataset(g, "angles", ctx);
   h5::Id v = open_dataset(g, "values", ctx);
   const auto vd = h5::shape(v, ctx);
@@ -991,8 +1165,7 @@ void StoreWriter::create_coefficients(const std::string& name, const Coefficient
     throw UsageError(ctx + ": a PCA basis needs its mean (" + std::to_string(b) + " bands)");
   if (!basis.components.allFinite() || !basis.mean.allFinite()) throw InputError(ctx + ": basis has non-finite values");
   if (info.chunk_rows == 0) throw UsageError(ctx + ": chunk_rows must be at least 1");
-  check_name("coefficient map", "/coefficients", name);
-  h5::Id g = create_group(file_, "/coefficients/" + name, ctx);
+  h5::Id g = make_group(begin("coefficients", name, "coefficient map"), "/coefficients/" + name, ctx);
   h5::write_attr(g, "kind", std::string_view("coefficients"), ctx);
   h5::write_attr(g, "image", std::string_view(info.image), ctx);
   h5::write_attr(g, "basis", std::string_view(info.basis), ctx);
@@ -1020,9 +1193,8 @@ void StoreWriter::create_coefficients(const std::string& name, const Coefficient
 void StoreWriter::write_coefficient_rows(const std::string& name, std::size_t y0, std::size_t rows,
                                          std::span<const float> coefficients, std::span<const std::uint8_t> mask) {
   const std::string path = "/coefficients/" + name, ctx = label() + ": " + path;
-  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(file_, path))
-    throw UsageError(ctx + ": create the map with create_coefficients before writing rows");
-  h5::Id g = open_group(file_, path, ctx);
+  h5::Id g = open_group(object_file("coefficients", name, "create the map with create_coefficients before writing rows"),
+                        path, ctx);
   h5::Id ds = open_dataset(g, "coefficients", ctx);
   const auto dims = h5::shape(ds, ctx);
   const std::size_t width = dims[1], k = dims[2];
@@ -1053,14 +1225,178 @@ void StoreWriter::write_coefficient_rows(const std::string& name, std::size_t y0
                   valid.data(), ctx);
 }
 
+void StoreWriter::create_image(const std::string& name, std::size_t height, std::size_t width,
+                               const WavelengthGrid& wavelengths, std::span<const double> fwhm, const std::string& units,
+                               const Provenance& provenance) {
+  const std::string ctx = label() + ": /images/" + name;
+  const std::string src = provenance.source_file.empty() ? name : provenance.source_file;
+  if (height == 0 || width == 0 || wavelengths.empty())
+    throw InputError(src + ": image is empty (" + std::to_string(height) + "x" + std::to_string(width) + "x" +
+                     std::to_string(wavelengths.size()) + ")");
+  if (!fwhm.empty() && fwhm.size() != wavelengths.size())
+    throw InputError(src + ": " + std::to_string(fwhm.size()) + " FWHM values for " + std::to_string(wavelengths.size()) + " bands");
+  const hid_t f = begin("images", name, "image");
+  try {
+    create_image_datasets(f, name, height, width, wavelengths, fwhm, units, provenance, options_, ctx);
+  } catch (...) {
+    state_->drop("images", name);
+    throw;
+  }
+  State::Pending& p = *state_->find("images", name);
+  p.rows_expected = height;
+  p.row_done.assign(height, false);
+}
+
+void StoreWriter::write_image_rows(const std::string& name, std::size_t y0, std::size_t rows,
+                                   std::span<const float> spectra, std::span<const std::uint8_t> mask) {
+  const std::string path = "/images/" + name, ctx = label() + ": " + path;
+  h5::Id g = open_group(object_file("images", name, "create the image with create_image before writing rows"), path, ctx);
+  State::Pending& p = *state_->find("images", name);
+  h5::Id ds = open_dataset(g, "cube", ctx);
+  const auto dims = h5::shape(ds, ctx);
+  const std::size_t width = dims[1], bands = dims[2];
+  if (p.rows_expected == 0) throw UsageError(ctx + ": write_image_rows fills images made by create_image only");
+  if (rows == 0 || y0 + rows > dims[0])
+    throw UsageError(ctx + ": rows " + std::to_string(y0) + " to " + std::to_string(y0 + rows) + " are outside its " +
+                     std::to_string(dims[0]) + " rows");
+  if (spectra.size() != rows * width * bands || (!mask.empty() && mask.size() != rows * width))
+    throw UsageError(ctx + ": buffers do not match " + std::to_string(rows) + " rows of " + std::to_string(width) +
+                     " x " + std::to_string(bands));
+  std::vector<float> values(spectra.begin(), spectra.end());
+  std::vector<std::uint8_t> valid(rows * width, 1);
+  std::uint64_t count = 0;
+  for (std::size_t q = 0; q < rows * width; ++q) {
+    float* s = values.data() + q * bands;
+    if (!mask.empty() && !mask[q]) {
+      valid[q] = 0;
+      std::fill_n(s, bands, 0.0f);
+      continue;
+    }
+    ++count;
+    for (std::size_t b = 0; b < bands; ++b)
+      if (!std::isfinite(s[b]))
+        throw InputError(ctx + ": non-finite value at row " + std::to_string(y0 + q / width) + ", column " +
+                         std::to_string(q % width) + ", band " + std::to_string(b) + "; mask such pixels before storing");
+  }
+  for (std::size_t y = y0; y < y0 + rows; ++y)
+    if (p.row_done[y]) throw UsageError(ctx + ": row " + std::to_string(y) + " is written twice");
+  const hsize_t start[3] = {y0, 0, 0}, cnt[3] = {rows, width, bands};
+  write_hyperslab(ds, H5T_NATIVE_FLOAT, start, cnt, values.data(), ctx);
+  h5::Id mds = open_dataset(g, "mask", ctx);
+  write_hyperslab(mds, H5T_NATIVE_UINT8, std::span<const hsize_t>(start, 2), std::span<const hsize_t>(cnt, 2),
+                  valid.data(), ctx);
+  for (std::size_t y = y0; y < y0 + rows; ++y) p.row_done[y] = true;
+  p.rows_written += rows;
+  p.valid += count;
+}
+
 void StoreWriter::commit() {
-  if (!temp_) throw UsageError(label() + ": StoreWriter::commit called twice");
-  h5::check(H5Fflush(file_, H5F_SCOPE_GLOBAL), label(), "cannot flush the store");
-  const hid_t f = file_.get();
-  file_ = h5::Id();
-  (void)f;
-  temp_->out.commit();
-  temp_.reset();
+  if (!state_ || state_->committed) throw UsageError(label() + ": StoreWriter::commit called twice");
+  State& st = *state_;
+  const std::string ctx = label();
+  // Images written row by row are complete, or the transaction is wrong.
+  for (auto& p : st.pending) {
+    if (p.rows_expected == 0) continue;
+    if (p.rows_written != p.rows_expected)
+      throw UsageError(ctx + ": /images/" + p.name + ": " + std::to_string(p.rows_written) + " of " +
+                       std::to_string(p.rows_expected) + " rows written; write every row before commit");
+    h5::Id g = open_group(p.h5, "/images/" + p.name, ctx);
+    h5::write_attr(g, "valid_pixels", static_cast<long long>(p.valid), ctx);
+  }
+  // 1. Every data file complete and durable before anything points at it.
+  std::vector<layout::Entry> added;
+  std::set<std::string> dirs;
+  for (auto& p : st.pending) {
+    if (p.h5.valid()) {
+      h5::check(H5Fflush(p.h5, H5F_SCOPE_GLOBAL), ctx, "cannot flush " + p.file);
+      p.h5 = h5::Id();
+    }
+    layout::Entry e{p.kind, p.name, p.file, 0, 0, 0};
+    e.crc32 = layout::file_crc32(st.data / p.file, e.bytes);
+    layout::sync_path(st.data / p.file);
+    dirs.insert(p.kind);
+    added.push_back(std::move(e));
+  }
+  layout::crash_point("data-written");
+  for (const auto& k : dirs) layout::sync_path(st.data / "objects" / k, true);
+  layout::sync_path(st.data / "objects", true);
+  { const int fd = ::open((st.data / "readers").c_str(), O_RDONLY | O_CREAT | O_CLOEXEC, 0644); if (fd >= 0) ::close(fd); }
+  layout::sync_path(st.data, true);
+
+  // 2. Under the commit lock: merge into the state committed meanwhile.
+  layout::FileLock lock(st.data / "commit.lock", true);
+  layout::crash_point("locked");
+  layout::Index cur;
+  if (std::filesystem::exists(st.root)) {
+    h5::Id f = open_root(st.root, ctx);
+    if (!h5::has_attr(f, "format_version") || h5::read_int_attr(f, "format_version", ctx) != kFormatVersion)
+      throw InputError(ctx + ": the store was replaced by a file of another format while this transaction ran; nothing was written");
+    cur = layout::read_index(f, ctx);
+    if (cur.data_dir != st.base.data_dir)
+      throw InputError(ctx + ": another store was created at this path while this transaction ran; nothing was written");
+  } else {
+    cur = st.base;
+    cur.generation = 0;
+    cur.entries.clear();
+  }
+  const long long gen = cur.generation + 1;
+  std::vector<layout::Garbage> garbage;
+  auto unlink_entry = [&](std::string_view kind, std::string_view name) {
+    for (auto it = cur.entries.begin(); it != cur.entries.end(); ++it)
+      if (it->kind == kind && it->name == name) {
+        const layout::Entry old = *it;
+        cur.entries.erase(it);
+        if (!cur.references(old.file)) garbage.push_back({old.file, old.generation, gen});
+        return;
+      }
+  };
+  for (const auto& [kind, name] : st.removals) unlink_entry(kind, name);
+  for (auto& e : added) {
+    if (cur.find(e.kind, e.name)) {
+      if (!options_.replace)
+        throw InputError(ctx + ": " + e.kind + "/" + e.name + " was committed by another writer while this transaction ran; "
+                         "nothing was written (choose another name or allow replacing it)");
+      unlink_entry(e.kind, e.name);
+    }
+    e.generation = gen;
+    cur.entries.push_back(e);
+  }
+  auto order = [](const layout::Entry& e) {
+    return std::find(std::begin(layout::kKinds), std::end(layout::kKinds), e.kind) - std::begin(layout::kKinds);
+  };
+  std::sort(cur.entries.begin(), cur.entries.end(), [&](const layout::Entry& a, const layout::Entry& b) {
+    return std::pair(order(a), a.name) < std::pair(order(b), b.name);
+  });
+  cur.generation = gen;
+
+  // 3. The garbage list first, then the new root, renamed over the old one: the commit point.
+  layout::append_garbage(st.data, garbage);
+  layout::crash_point("garbage-logged");
+  const std::filesystem::path tmp = st.root.string() + ".commit-" + st.tx->id();
+  try {
+    layout::write_root(tmp, cur);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw;
+  }
+  layout::crash_point("root-written");
+  if (::rename(tmp.c_str(), st.root.c_str()) != 0) {
+    const std::string err = std::strerror(errno);
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw LibraryError(ctx + ": cannot rename the new root into place: " + err);
+  }
+  st.committed = true;
+  layout::sync_path(st.root.parent_path().empty() ? std::filesystem::path(".") : st.root.parent_path(), true);
+  layout::crash_point("renamed");
+
+  // 4. Reclaim what no reader can see; a failure here leaves garbage for the next commit, never a lost commit.
+  try {
+    reclaimed_ = layout::collect(st.root, st.data, cur, layout::transactions_in_flight(st.data, st.tx->id()) == 0);
+  } catch (const std::exception&) {
+  }
+  layout::crash_point("collected");
 }
 
 }  // namespace specula::store

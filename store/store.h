@@ -1,7 +1,9 @@
 #pragma once
-// The specula store: one HDF5 file holding hyperspectral images, spectral collections, scattered BRDF
-// samples, BRDF grids and learned bases. Layout: docs/store-format.md. Reading is through Store; every
-// change goes through a StoreWriter transaction that is invisible until commit() (all or nothing).
+// The specula store: a small HDF5 root file (the index, one external link per object) beside a data directory of
+// immutable object files holding hyperspectral images, spectral collections, scattered BRDF samples, BRDF grids,
+// learned bases, coefficient maps and calibrations. Layout and commit protocol: docs/store-format.md. Reading is
+// through Store (one committed state, never blocked); every change goes through a StoreWriter transaction that
+// writes only its own objects and is invisible until commit() (all or nothing, serialised with other writers).
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -14,11 +16,12 @@
 #include "store/basis.h"
 #include "store/cube.h"
 #include "store/h5.h"
+#include "store/layout.h"
 
 namespace specula::store {
 
 inline constexpr const char* kFormatName = "specula-store";
-inline constexpr long long kFormatVersion = 1;
+inline constexpr long long kFormatVersion = 2;
 
 /// Dataset compression for new objects.
 struct Compression {
@@ -99,7 +102,8 @@ struct CoefficientsInfo {
   Provenance provenance;
 };
 
-/// A store opened read-only. Copies share the open file.
+/// A store opened read-only: one committed state, kept readable (its data files are not reclaimed) while any copy of
+/// this object lives. Copies share the open file.
 class Store {
  public:
   /// Opens `path`; throws InputError if it is missing, not HDF5, not a specula store, or of a newer format.
@@ -116,8 +120,14 @@ class Store {
   std::vector<std::string> grids() const;
   std::vector<std::string> bases() const;
   std::vector<std::string> coefficients() const;
-  /// Format version and provenance attributes of the file root.
+  /// Format version of the root: 2 (current), or 1 (a single-file store: readable, written only after upgrade()).
   long long format_version() const { return version_; }
+  /// The committed state this object reads (format 2; empty entries and generation 0 for format 1).
+  const layout::Index& index() const;
+  /// True when a commit replaced the root since this state was opened (open() again to see it).
+  bool stale() const;
+  /// The data directory of a format-2 store.
+  std::filesystem::path data_dir() const { return layout::data_dir(path_, index()); }
 
   /// Metadata of image `name`; throws InputError listing the images when absent.
   ImageInfo image_info(const std::string& name) const;
@@ -152,8 +162,10 @@ class Store {
                     std::span<float> values) const;
 
  private:
+  struct Snapshot;
   std::filesystem::path path_;
   std::shared_ptr<h5::Id> file_;
+  std::shared_ptr<const Snapshot> snapshot_;
   long long version_ = 0;
 };
 
@@ -164,11 +176,11 @@ struct WriteOptions {
   std::string command_line;           ///< recorded as provenance on every object written
 };
 
-/// A transaction on a store: changes go to a private copy that replaces the store only on commit();
-/// an error, Ctrl-C or kill -9 before that leaves the store byte-identical.
+/// A transaction on a store: each object goes to its own new data file; commit() links them all into the root at
+/// once. An error, Ctrl-C or kill -9 before that leaves the store as it was (the files left are reclaimed later).
 class StoreWriter {
  public:
-  /// Starts a transaction on `path`, which is created if absent; an existing file must be a specula store.
+  /// Starts a transaction on `path`, which is created on commit if absent; an existing file must be a format-2 store.
   StoreWriter(const std::filesystem::path& path, WriteOptions options);
   StoreWriter(const StoreWriter&) = delete;
   StoreWriter& operator=(const StoreWriter&) = delete;
@@ -176,6 +188,12 @@ class StoreWriter {
 
   /// Adds image `name` (chunked by rows, compressed); throws InputError on NaN/Inf, size or name problems.
   void add_image(const std::string& name, const Cube& cube);
+  /// Creates image `name` (height x width x wavelengths.size(), chunked as add_image does) to be filled by write_image_rows; fwhm empty or one per band.
+  void create_image(const std::string& name, std::size_t height, std::size_t width, const WavelengthGrid& wavelengths,
+                    std::span<const double> fwhm, const std::string& units, const Provenance& provenance);
+  /// Writes rows [y0, y0 + rows): spectra (rows x width x bands, band fastest) and mask (rows x width, 1 = valid; empty = all valid); InputError on a non-finite value at a valid pixel. Every row must be written before commit().
+  void write_image_rows(const std::string& name, std::size_t y0, std::size_t rows, std::span<const float> spectra,
+                        std::span<const std::uint8_t> mask);
   /// Adds collection `name`.
   void add_collection(const std::string& name, const Collection& collection);
   /// Adds basis `name` (float64 datasets; empty members are not written).
@@ -194,22 +212,50 @@ class StoreWriter {
   /// masked pixels are stored as zeros. InputError on a non-finite coefficient at a valid pixel.
   void write_coefficient_rows(const std::string& name, std::size_t y0, std::size_t rows,
                               std::span<const float> coefficients, std::span<const std::uint8_t> mask);
-  /// Makes every change visible at the store's path at once.
+  /// Starts object `name` of `kind` (a group of layout::kKinds, e.g. "acquire") in its own data file and returns its
+  /// group, for other libraries' object kinds; replaces an existing object only when options().replace.
+  h5::Id create_group(const std::string& kind, const std::string& name);
+  /// Removes object `name` of `kind` on commit; InputError if the store has no such object.
+  void remove(const std::string& kind, const std::string& name);
+  /// Makes every change visible at the store's path at once (waiting for other writers' commits, never for their
+  /// work); InputError when another writer committed an object of the same name meanwhile (and replace is off).
   void commit();
+  /// Objects that commit() removed or replaced and the bytes it reclaimed (valid after commit).
+  const layout::Reclaimed& reclaimed() const { return reclaimed_; }
 
-  /// The open temporary file (for other specula libraries adding their own objects in the same transaction).
-  hid_t file() const { return file_.get(); }
   std::string label() const { return target_.filename().string(); }
   const WriteOptions& options() const { return options_; }
 
  private:
-  void check_name(const std::string& kind, const std::string& group, const std::string& name);
+  struct State;
+  /// The open data file of object (kind, name), started by begin() in this transaction; UsageError otherwise.
+  hid_t object_file(const std::string& kind, const std::string& name, const std::string& hint) const;
+  /// Validates and claims (kind, name) and creates its data file; returns the file.
+  hid_t begin(const std::string& kind, const std::string& name, const std::string& what);
   std::filesystem::path target_;
   WriteOptions options_;
-  struct Temp;
-  std::unique_ptr<Temp> temp_;
-  h5::Id file_;
+  std::unique_ptr<State> state_;
+  layout::Reclaimed reclaimed_;
 };
+
+/// (kind, name) of the object `spec` names in `store`: "kind/name" (kind singular or plural, e.g. image/scene) or a name
+/// that only one kind uses; InputError naming the candidates otherwise.
+std::pair<std::string, std::string> resolve_object(const Store& store, const std::string& spec);
+/// Bytes the store occupies: the root plus every data file it references (each counted once).
+std::uint64_t store_bytes(const Store& store);
+
+/// One problem found by check(): what is wrong, naming the object or file.
+struct Problem {
+  std::string what;
+};
+/// Verifies every object's data file of the store at `path` against its recorded size and checksum, and the root's
+/// links against the index; returns the problems (empty when clean). InputError for a format-1 store.
+std::vector<Problem> check(const std::filesystem::path& path);
+/// Reclaims the space of removed and replaced objects no reader can still see and of abandoned transactions.
+layout::Reclaimed collect_garbage(const std::filesystem::path& path);
+/// Converts a format-1 store at `path` in place, as one transaction (a hard link, no copy, where the file system
+/// allows); InputError when it is not a format-1 store.
+void upgrade(const std::filesystem::path& path);
 
 /// Validates an object name: 1-255 chars of [A-Za-z0-9_.+-], not starting with '.'; throws UsageError.
 void validate_name(const std::string& name, const std::string& kind);

@@ -122,6 +122,12 @@ Service::Service(store::Store store) : store_(std::move(store)) {}
 Response Service::get(const std::string& path, const Query& query) {
   std::lock_guard lock(mutex_);
   try {
+    if (store_.stale()) {  // another process committed: serve the new state from now on
+      store_ = store::Store::open(store_.path());
+      image_.reset();
+      grid_.reset();
+      png_cache_.clear();
+    }
     return dispatch(path, query);
   } catch (const HttpError& e) {
     return {e.status, "text/plain; charset=utf-8", e.what()};

@@ -197,7 +197,7 @@ TEST(CoefficientsCli, InexactNnlsMapsMatchBruteForceAndDoNotDependOnTheThreadCou
   const Eigen::MatrixXd s = planted_basis();
   // Large enough for several blocks of the reader; two of the three planted spectra, so constraints are active.
   const Planted big = planted_image(300, 256, 7, s);
-  const auto one = dir / "one.h5", two = dir / "two.h5";
+  const auto one = dir / "one.h5", two = dir / "copy" / "one.h5";
   store::Basis nmf;
   nmf.method = "nmf";
   nmf.wavelengths = big.cube.wavelengths;
@@ -209,7 +209,9 @@ TEST(CoefficientsCli, InexactNnlsMapsMatchBruteForceAndDoNotDependOnTheThreadCou
     w.add_basis("nmf2", nmf);
     w.commit();
   }
+  std::filesystem::create_directories(dir / "copy");  // a store is copied as its root and data directory together
   std::filesystem::copy_file(one, two);
+  std::filesystem::copy(dir / "one.h5.d", dir / "copy" / "one.h5.d", std::filesystem::copy_options::recursive);
   const auto r1 = test::run_shell("OMP_NUM_THREADS=1 '" SPECULA_BINARY "' coefficients '" + one.string() + "' --basis nmf2 --json");
   const auto r2 = test::run_shell("OMP_NUM_THREADS=2 '" SPECULA_BINARY "' coefficients '" + two.string() + "' --basis nmf2 --json");
   ASSERT_EQ(r1.status, 0) << r1.output;
@@ -269,7 +271,11 @@ TEST(CoefficientsCli, BadRequestsAreOneLineErrorsAndLeaveTheStoreAsItWas) {
   EXPECT_EQ(full.status, 1) << full.output;
   EXPECT_NE(full.output.find("No space left on device"), std::string::npos) << full.output;
   EXPECT_EQ(test::read_bytes(f.db), before);
-  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(f.dir.path()), std::filesystem::directory_iterator()), 1);
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(f.dir.path()), std::filesystem::directory_iterator()), 2)
+      << "something beside the root and its data directory was left";
+  EXPECT_TRUE(std::filesystem::is_empty(f.db.string() + ".d/tx")) << "the failed transaction's lock file was left";
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(f.db.string() + ".d/objects/coefficients"),
+                          std::filesystem::directory_iterator()), 1) << "the failed transaction's data file was left";
   const auto r = run_specula(f.base() + "--basis nmf --images scene-a --replace");
   EXPECT_EQ(r.status, 0) << r.output;
 }

@@ -176,6 +176,11 @@ TEST(ImportCli, KilledOrInterruptedImportLeavesTheStoreAsItWas) {
   test::ScratchDir dir;
   auto store = make_store(dir);
   const std::string before = test::read_bytes(store);
+  const auto images = dir / "db.h5.d" / "objects" / "images";
+  auto data_files = [&] {
+    return std::distance(std::filesystem::directory_iterator(images), std::filesystem::directory_iterator());
+  };
+  const auto committed = data_files();
   for (int sig : {SIGKILL, SIGINT}) {
     const pid_t pid = ::fork();
     if (pid == 0) {
@@ -183,12 +188,11 @@ TEST(ImportCli, KilledOrInterruptedImportLeavesTheStoreAsItWas) {
               "256x256", "--compression", "deflate:9", static_cast<char*>(nullptr));
       ::_exit(127);
     }
-    // Wait until the transaction's temporary file exists, then stop the writer.
+    // Wait until the transaction writes its first data file, then stop the writer.
     bool started = false;
     for (int i = 0; i < 400 && !started; ++i) {
       std::this_thread::sleep_for(std::chrono::milliseconds(25));
-      for (auto& e : std::filesystem::directory_iterator(dir.path()))
-        started = started || e.path().string().find(".tmp-") != std::string::npos;
+      started = data_files() > committed;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     ::kill(pid, sig);
@@ -197,15 +201,18 @@ TEST(ImportCli, KilledOrInterruptedImportLeavesTheStoreAsItWas) {
     ASSERT_TRUE(started);
     if (sig == SIGKILL) {
       EXPECT_EQ(test::read_bytes(store), before) << "kill -9 changed the store";
-      for (auto& e : std::filesystem::directory_iterator(dir.path()))
-        if (e.path().string().find(".tmp-") != std::string::npos) std::filesystem::remove(e.path());
+      EXPECT_GT(data_files(), committed) << "the killed writer's data files are there until collected";
+      ASSERT_EQ(run_specula("gc '" + store.string() + "'").status, 0);
+      EXPECT_EQ(data_files(), committed) << "gc did not reclaim the killed transaction's files";
     } else {
       // Ctrl-C: synth-db keeps the images it finished (possibly none); the store is a valid store either way.
       EXPECT_EQ(WEXITSTATUS(status), 130);
       auto s = store::Store::open(store);
       EXPECT_EQ(s.images().front(), "good");
+      EXPECT_EQ(data_files(), std::ptrdiff_t(s.images().size())) << "an unfinished image's data file was left";
+      EXPECT_TRUE(store::check(store).empty());
       for (auto& e : std::filesystem::directory_iterator(dir.path()))
-        EXPECT_EQ(e.path().string().find(".tmp-"), std::string::npos) << "left behind: " << e.path();
+        EXPECT_EQ(e.path().string().find(".commit-"), std::string::npos) << "left behind: " << e.path();
     }
   }
 }

@@ -64,5 +64,5 @@ TEST(PcaCli, BadSelectionsAreOneLineAndLeaveTheStore) {
   ASSERT_EQ(run_specula("-q pca '" + db.string() + "'").status, 0);
   auto again = run_specula("-q pca '" + db.string() + "'");
   EXPECT_EQ(again.status, 1);
-  EXPECT_NE(again.output.find("--replace"), std::string::npos) << again.output;
+  EXPECT_NE(again.output.find("basis 'pca' exists already"), std::string::npos) << again.output;
 }

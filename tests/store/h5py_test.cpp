@@ -9,7 +9,7 @@
 
 using namespace specula;
 
-TEST(StoreFormat, H5pyReadsAnImageUsingOnlyTheDocumentedLayout) {
+TEST(StoreFormat, H5pyReadsEveryObjectAndVerifiesTheIndexUsingOnlyTheDocumentedLayout) {
   if (std::system("/usr/bin/python3 -c 'import h5py, numpy' >/dev/null 2>&1") != 0)
     GTEST_SKIP() << "Debian's python3-h5py is not installed (scripts/setup-deps installs it)";
   test::ScratchDir dir;
@@ -26,12 +26,27 @@ TEST(StoreFormat, H5pyReadsAnImageUsingOnlyTheDocumentedLayout) {
     w.add_image("scene", c);
     w.commit();
   }
+  {  // a second transaction, so the root links objects of two data files
+    store::StoreWriter w(dir / "db.h5", {});
+    store::Collection col;
+    col.names = {"a", "b", "c"};
+    col.values.assign(3 * 31, 0.25f);
+    col.wavelengths = c.wavelengths;
+    w.add_collection("chips", col);
+    store::Basis basis;
+    basis.method = "pca";
+    basis.wavelengths = c.wavelengths;
+    basis.components = Eigen::MatrixXd::Identity(2, 31);
+    basis.mean = Eigen::VectorXd::Zero(31);
+    w.add_basis("pca", basis);
+    w.commit();
+  }
   std::ofstream(dir / "ref.f32", std::ios::binary)
       .write(reinterpret_cast<const char*>(c.data.data()), std::streamsize(c.data.size() * 4));
   std::ofstream(dir / "mask.u8", std::ios::binary)
       .write(reinterpret_cast<const char*>(c.mask.data()), std::streamsize(c.mask.size()));
   const std::string cmd = "/usr/bin/python3 '" SPECULA_SOURCE_DIR "/tests/store/read_with_h5py.py' '" +
                           (dir / "db.h5").string() + "' scene '" + (dir / "ref.f32").string() + "' '" +
-                          (dir / "mask.u8").string() + "' 130 77 31 2>&1";
+                          (dir / "mask.u8").string() + "' 130 77 31 3 2>&1";
   EXPECT_EQ(std::system(cmd.c_str()), 0);
 }

@@ -211,7 +211,11 @@ TEST(Store, FailedOrAbandonedTransactionLeavesStoreByteIdentical) {
   EXPECT_EQ(test::read_bytes(path), before);
   std::size_t files = 0;
   for (auto& e : std::filesystem::directory_iterator(dir.path())) (void)e, ++files;
-  EXPECT_EQ(files, 1u) << "a temporary file was left behind";
+  EXPECT_EQ(files, 2u) << "a temporary file was left behind beside the root and its data directory";
+  std::size_t data = 0;
+  for (auto& e : std::filesystem::recursive_directory_iterator(dir / "s.h5.d" / "objects"))
+    data += e.is_regular_file() ? 1 : 0;
+  EXPECT_EQ(data, 1u) << "a failed transaction left a data file";
 }
 
 TEST(Store, RejectsFilesThatAreNotSpeculaStores) {

@@ -304,3 +304,36 @@ TEST_F(ViewService, MalformedRequestsGetFourHundredsWithOneLine) {
 }
 
 }  // namespace
+
+TEST(ViewServiceLive, KeepsServingWhileAnotherWriterCommitsAndShowsTheNewState) {
+  test::ScratchDir dir;
+  const auto path = dir / "live.h5";
+  auto image = [](float v) {
+    store::Cube c;
+    c.resize(2, 3, 4);
+    std::fill(c.data.begin(), c.data.end(), v);
+    c.wavelengths = WavelengthGrid::range(450, 600, 50);
+    return c;
+  };
+  {
+    store::StoreWriter w(path, {});
+    w.add_image("a", image(1.0f));
+    w.commit();
+  }
+  view::Service service(store::Store::open(path));
+  const view::Query pixel = {{"name", "a"}, {"x", "1"}, {"y", "1"}};
+  ASSERT_EQ(service.get("/api/image/spectrum", pixel).status, 200);
+  EXPECT_NE(service.get("/api/image/spectrum", pixel).body.find("\"values\":[1,1,1,1]"), std::string::npos);
+  {
+    store::StoreWriter w(path, {.replace = true});
+    w.add_image("a", image(2.0f));
+    w.add_image("b", image(3.0f));
+    w.commit();
+  }
+  const view::Response listing = service.get("/api/store", {});
+  ASSERT_EQ(listing.status, 200);
+  EXPECT_NE(listing.body.find("{\"name\":\"b\""), std::string::npos) << listing.body;
+  const view::Response r = service.get("/api/image/spectrum", pixel);
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_NE(r.body.find("\"values\":[2,2,2,2]"), std::string::npos) << r.body;
+}
