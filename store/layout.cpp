@@ -383,6 +383,8 @@ std::size_t transactions_in_flight(const fs::path& data, std::string_view own) {
 Reclaimed collect(const fs::path& root, const fs::path& data, const Index& current, bool orphans) {
   Reclaimed r;
   const auto list = read_garbage(data);
+  std::set<std::string> referenced;
+  for (const auto& e : current.entries) referenced.insert(e.file);
   std::vector<Garbage> keep;
   std::set<std::string> listed;
   auto remove_file = [&](const fs::path& p) {
@@ -393,7 +395,7 @@ Reclaimed collect(const fs::path& root, const fs::path& data, const Index& curre
     }
   };
   for (const auto& g : list) {
-    if (current.references(g.file) || !listed.insert(g.file).second) continue;
+    if (referenced.count(g.file) || !listed.insert(g.file).second) continue;
     if (readers_in(data, g.from, g.to)) {
       keep.push_back(g);
       ++r.in_use;
@@ -407,7 +409,7 @@ Reclaimed collect(const fs::path& root, const fs::path& data, const Index& curre
          it.increment(ec)) {
       if (!it->is_regular_file()) continue;
       const std::string rel = fs::relative(it->path(), data).string();
-      if (current.references(rel) || listed.count(rel)) continue;
+      if (referenced.count(rel) || listed.count(rel)) continue;
       if (tx_alive(data, tx_of(it->path().filename().string()))) continue;
       remove_file(it->path());
     }
