@@ -9,6 +9,11 @@
 
 namespace specula::acquire {
 
+const char* status_name(HdrStatus s) {
+  static constexpr const char* names[] = {"ok", "single", "saturated", "low_signal", "nonlinear"};
+  return names[std::size_t(s)];
+}
+
 HdrImage merge_exposures(std::span<const std::span<const std::uint16_t>> exposures, std::span<const double> times,
                          int bit_depth, const HdrOptions& o) {
   if (exposures.empty() || exposures.size() != times.size())

@@ -23,6 +23,9 @@ enum class HdrStatus : std::uint8_t {
   nonlinear = 4,   ///< Pearson r below min_pearson
 };
 
+/// "ok", "single", "saturated", "low_signal" or "nonlinear".
+const char* status_name(HdrStatus s);
+
 /// Per pixel: rate (DN/s), status, the fit's Pearson r (1 when fewer than 3 points) and points used.
 struct HdrImage {
   std::size_t pixels = 0;

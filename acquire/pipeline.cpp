@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 
 #include "acquire/scan.h"
@@ -99,6 +100,38 @@ HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, i
   for (const auto& im : cap.images)
     if (in_series(im, kind, light, target, band)) files.push_back(&im);
   return merge_files(cap, dir, files, decode_all(cap, dir, files), kind, band, o);
+}
+
+HdrSummary write_hdr_images(const Capture& cap, const fs::path& dir, const HdrOptions& o, store::StoreWriter& out) {
+  HdrSummary sum;
+  const std::size_t W = std::size_t(cap.width), H = std::size_t(cap.height), B = cap.bands.size();
+  sum.lights = cap.light_angles_deg.size();
+  sum.bands = B;
+  sum.pixels = W * H * sum.lights;
+  Progress progress("hdr", sum.lights);
+  for (std::size_t l = 0; l < sum.lights; ++l) {
+    check_interrupt();
+    store::Cube cube;
+    cube.resize(H, W, B);
+    cube.wavelengths = WavelengthGrid(cap.bands);
+    cube.units = "DN/s";
+    cube.provenance.source_file = dir.string();
+    cube.provenance.importer = "acquire-hdr";
+    cube.mask.assign(H * W, 1);
+    const std::vector<HdrImage> hdr = merge_light(cap, dir, int(l), o);
+    for (std::size_t b = 0; b < B; ++b)
+      for (std::size_t p = 0; p < H * W; ++p) {
+        cube.data[p * B + b] = hdr[b].rate[p];
+        ++sum.status[std::size_t(hdr[b].status[p])];
+        if (hdr[b].status[p] != HdrStatus::ok && hdr[b].status[p] != HdrStatus::single) cube.mask[p] = 0;
+      }
+    for (const auto m : cube.mask) sum.valid_pixels += m;
+    char name[32];
+    std::snprintf(name, sizeof name, "hdr-L%03zu", l);
+    out.add_image(name, cube);
+    progress.advance();
+  }
+  return sum;
 }
 
 Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const PipelineOptions& o) {

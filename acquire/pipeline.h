@@ -69,6 +69,18 @@ ExtractResult extract_samples(const Capture& capture, const std::filesystem::pat
 void write_calibration(store::StoreWriter& out, const std::string& name, const Calibration& c);
 Calibration read_calibration(const store::Store& in, const std::string& name);
 
+/// What the HDR stage merged: pixels per status (HdrStatus order) over every light and band.
+struct HdrSummary {
+  std::size_t lights = 0, bands = 0, pixels = 0;  ///< pixels: width x height x lights
+  std::uint64_t valid_pixels = 0;                 ///< pixels whose every band is ok or single
+  std::array<std::uint64_t, 5> status{};
+};
+
+/// Merges every light's exposure series into image "hdr-L<index>" of the transaction (rates in DN/s in every band; a
+/// pixel is valid when every band is ok or single); one light in memory at a time, interruptible between lights.
+HdrSummary write_hdr_images(const Capture& capture, const std::filesystem::path& dir, const HdrOptions& o,
+                            store::StoreWriter& out);
+
 /// The directory's scene/flat/target exposure series of one (kind, light or target, band), merged.
 HdrImage merge_series(const Capture& capture, const std::filesystem::path& dir, ImageKind kind, int light, int target, int band,
                       const HdrOptions& o);

@@ -16,6 +16,7 @@
 #include "acquire/pipeline.h"
 #include "acquire/scan.h"
 #include "acquire/simulate.h"
+#include "acquire/truth.h"
 #include "apps/gnuplot.h"
 #include "core/brdf_materials.h"
 #include "apps/commands.h"
@@ -37,69 +38,26 @@ struct AcquireHdrOptions {
   bool json = false;
 };
 
-constexpr std::array<const char*, 5> kStatusNames = {"ok", "single", "saturated", "low_signal", "nonlinear"};
-
-// Merges every light's exposure series into one image per light position, "hdr-L<index>": rates (DN/s) in every
-// band; a pixel is valid when every band has a value in the linear range (ok or single).
+// Merges every light's exposure series into one image per light position, "hdr-L<index>".
 void run_acquire_hdr(const AcquireHdrOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   const acquire::Capture cap = acquire::read_manifest(o.capture);
-  const acquire::HdrOptions ho{o.low, o.high, o.min_pearson};
-  const std::size_t W = std::size_t(cap.width), H = std::size_t(cap.height), B = cap.bands.size(), lights = cap.light_angles_deg.size();
-  std::vector<std::vector<std::vector<const acquire::CaptureImage*>>> series(lights, std::vector<std::vector<const acquire::CaptureImage*>>(B));
-  for (const auto& im : cap.images)
-    if (im.kind == acquire::ImageKind::scene) series[std::size_t(im.light)][std::size_t(im.band)].push_back(&im);
   store::StoreWriter writer(o.output, {.replace = o.replace, .command_line = command_line()});
-  std::array<std::uint64_t, 5> counts{};
-  std::uint64_t valid = 0;
-  Progress progress("hdr", lights);
-  for (std::size_t l = 0; l < lights; ++l) {
-    check_interrupt();
-    store::Cube cube;
-    cube.resize(H, W, B);
-    cube.wavelengths = WavelengthGrid(cap.bands);
-    cube.units = "DN/s";
-    cube.provenance.source_file = o.capture;
-    cube.provenance.importer = "acquire-hdr";
-    cube.mask.assign(H * W, 1);
-    for (std::size_t b = 0; b < B; ++b) {
-      std::vector<std::vector<std::uint16_t>> pixels;
-      std::vector<double> times;
-      for (const auto* im : series[l][b]) {
-        const std::filesystem::path file = std::filesystem::path(o.capture) / im->file;
-        const store::PngImage png = store::read_png(file);
-        if (png.width != W || png.height != H || png.channels != 1)
-          throw InputError(file.string() + ": " + std::to_string(png.width) + " x " + std::to_string(png.height) + " x " +
-                           std::to_string(png.channels) + " channels; the manifest says grey " + std::to_string(W) + " x " + std::to_string(H));
-        pixels.push_back(png.samples);
-        times.push_back(im->exposure_s);
-      }
-      std::vector<std::span<const std::uint16_t>> views(pixels.begin(), pixels.end());
-      const acquire::HdrImage hdr = acquire::merge_exposures(views, times, cap.bit_depth, ho);
-      for (std::size_t p = 0; p < H * W; ++p) {
-        cube.data[p * B + b] = hdr.rate[p];
-        ++counts[std::size_t(hdr.status[p])];
-        if (hdr.status[p] != acquire::HdrStatus::ok && hdr.status[p] != acquire::HdrStatus::single) cube.mask[p] = 0;
-      }
-    }
-    for (const auto m : cube.mask) valid += m;
-    writer.add_image(fmt::format("hdr-L{:03}", l), cube);
-    progress.advance();
-  }
+  const acquire::HdrSummary sum = acquire::write_hdr_images(cap, o.capture, {o.low, o.high, o.min_pearson}, writer);
   writer.commit();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  auto name = [](std::size_t s) { return acquire::status_name(acquire::HdrStatus(s)); };
   if (o.json) {
     std::string by;
-    for (std::size_t s = 0; s < counts.size(); ++s) by += fmt::format("{}\"{}\":{}", s ? "," : "", kStatusNames[s], counts[s]);
-    fmt::print("{{\"lights\":{},\"bands\":{},\"pixels\":{},\"valid_pixels\":{},\"status\":{{{}}},\"seconds\":{:.3f}}}\n", lights, B,
-               W * H * lights, valid, by, seconds);
+    for (std::size_t s = 0; s < sum.status.size(); ++s) by += fmt::format("{}\"{}\":{}", s ? "," : "", name(s), sum.status[s]);
+    fmt::print("{{\"lights\":{},\"bands\":{},\"pixels\":{},\"valid_pixels\":{},\"status\":{{{}}},\"seconds\":{:.3f}}}\n",
+               sum.lights, sum.bands, sum.pixels, sum.valid_pixels, by, seconds);
     return;
   }
-  fmt::print("merged {} light positions x {} bands into {} ({} of {} pixels valid in every band) in {:.1f} s\n", lights, B, o.output,
-             valid, W * H * lights, seconds);
-  for (std::size_t s = 0; s < counts.size(); ++s) fmt::print("  {:<11} {}\n", kStatusNames[s], counts[s]);
+  fmt::print("merged {} light positions x {} bands into {} ({} of {} pixels valid in every band) in {:.1f} s\n", sum.lights,
+             sum.bands, o.output, sum.valid_pixels, sum.pixels, seconds);
+  for (std::size_t s = 0; s < sum.status.size(); ++s) fmt::print("  {:<11} {}\n", name(s), sum.status[s]);
 }
-
 
 struct AcquireOptions {
   std::string capture;
@@ -149,22 +107,6 @@ void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::p
   plot_png(gnuplot, dir / "spectral-calibration.png", gnuplot_png_terminal(int(cols) * 420, int(rows) * 320), script);
 }
 
-// Calls fn(angles, values) for every sample of `name`, read in blocks (angles: 4 values, values: bands).
-template <class Fn>
-void for_each_sample(const store::Store& s, const std::string& name, Fn&& fn) {
-  const store::SamplesInfo info = s.samples_info(name);
-  const std::size_t block = 1 << 16;
-  std::vector<double> angles;
-  std::vector<float> values;
-  for (std::size_t first = 0; first < info.size; first += block) {
-    const std::size_t n = std::min(block, info.size - first);
-    angles.resize(4 * n);
-    values.resize(n * info.bands);
-    s.read_samples(name, first, n, angles, values);
-    for (std::size_t i = 0; i < n; ++i) fn(&angles[4 * i], &values[i * info.bands]);
-  }
-}
-
 // A simulated capture's material on `wavelengths` (a named material or the grid it was simulated from), or null.
 std::unique_ptr<brdf::SpectralModel> truth_model(const acquire::Capture& cap, const WavelengthGrid& wavelengths) {
   if (!cap.truth || cap.truth->material.empty()) return nullptr;
@@ -191,7 +133,7 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
   const auto model = truth_model(cap, info.wavelengths);
   const double eps = 2 * pi / 180;
   std::vector<std::string> points(o.plot_theta.size());
-  for_each_sample(s, name, [&](const double* angles, const float* values) {
+  acquire::for_each_sample(s, name, [&](const double* angles, const float* values) {
     const acquire::IsoAngles a = acquire::iso_angles({angles[0], angles[1], angles[2], angles[3]});
     if (a.phi_d > eps && a.phi_d < pi - eps) return;
     for (std::size_t k = 0; k < o.plot_theta.size(); ++k)
@@ -220,33 +162,6 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
   }
 }
 
-// With a simulated capture's material: the median of |sample / model - 1| and of sample / model over every band
-// of the samples whose model value is above 1e-3 (streamed; at most about a million samples, evenly spaced).
-std::pair<double, double> truth_error(const store::Store& s, const std::string& name, const acquire::Capture& cap) {
-  const store::SamplesInfo info = s.samples_info(name);
-  const auto model = truth_model(cap, info.wavelengths);
-  if (!model) return {-1, -1};
-  // Every stride-th sample, so that at most about a million are kept whatever the capture's size.
-  const std::size_t stride = std::max<std::size_t>(1, info.size / 1000000);
-  std::vector<double> err, ratio, f(info.bands);
-  std::size_t index = 0;
-  for_each_sample(s, name, [&](const double* angles, const float* values) {
-    if (index++ % stride != 0) return;
-    model->eval(brdf::StdAngles{angles[0], angles[1], angles[2], angles[3]}, f);
-    for (std::size_t b = 0; b < info.bands; ++b)
-      if (f[b] > 1e-3) {
-        ratio.push_back(values[b] / f[b]);
-        err.push_back(std::abs(ratio.back() - 1));
-      }
-  });
-  if (err.empty()) return {-1, -1};
-  auto median = [](std::vector<double>& v) {
-    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
-    return v[v.size() / 2];
-  };
-  return {median(err), median(ratio)};
-}
-
 void print_calibration(const acquire::Capture& cap, const acquire::Calibration& c) {
   fmt::print("circle: centre ({:.2f}, {:.2f}) px, radius {:.2f} px; sphere: centre ({:.4f}, {:.4f}, {:.4f}) m, radius {:.4f} m\n", c.circle.cx,
              c.circle.cy, c.circle.r, c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z(), c.sphere.radius);
@@ -264,24 +179,12 @@ void print_calibration(const acquire::Capture& cap, const acquire::Calibration& 
 }
 
 // Mean and largest angle between the calibrated and the true light directions, when the manifest has the truth.
-std::pair<double, double> light_error(const acquire::Capture& cap, const acquire::Calibration& c) {
-  if (!cap.truth || cap.truth->light_dirs.size() != c.light_dirs.size()) return {-1, -1};
-  double sum = 0, worst = 0;
-  for (std::size_t l = 0; l < c.light_dirs.size(); ++l) {
-    const auto& t = cap.truth->light_dirs[l];
-    const double a = std::acos(std::clamp(c.light_dirs[l].dot(Eigen::Vector3d(t[0], t[1], t[2]).normalized()), -1.0, 1.0)) * 180 / std::numbers::pi;
-    sum += a;
-    worst = std::max(worst, a);
-  }
-  return {sum / double(c.light_dirs.size()), worst};
-}
-
 std::string calibration_json(const acquire::Capture& cap, const acquire::Calibration& c) {
   std::string targets;
   for (const auto& t : c.targets)
     targets += fmt::format("{}{{\"name\":{},\"held_out\":{},\"rms_delta\":{},\"rms_factored\":{}}}", targets.empty() ? "" : ",",
                            json_string(t.name), t.held_out ? "true" : "false", t.rms_delta, t.rms_factored);
-  const auto [mean, worst] = light_error(cap, c);
+  const auto [mean, worst] = acquire::light_direction_error(cap, c);
   return fmt::format("\"circle\":{{\"cx\":{},\"cy\":{},\"r\":{}}},\"sphere\":{{\"centre\":{},\"radius\":{}}},\"targets\":[{}]{}",
                      c.circle.cx, c.circle.cy, c.circle.r, vec_json(c.sphere.centre), c.sphere.radius, targets,
                      mean >= 0 ? fmt::format(",\"light_dir_error_deg\":{},\"light_dir_error_max_deg\":{}", mean, worst) : std::string());
@@ -327,7 +230,11 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
     if (extract) plot_incidence(gnuplot, o.plots, store::Store::open(store_path), name, cap, o);
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const auto [truth_err, truth_ratio] = extract ? truth_error(store::Store::open(store_path), name, cap) : std::pair{-1.0, -1.0};
+  std::pair<double, double> truth{-1.0, -1.0};
+  if (extract)
+    if (const auto model = truth_model(cap, store::Store::open(store_path).samples_info(name).wavelengths))
+      truth = acquire::sample_error(store::Store::open(store_path), name, *model);
+  const auto [truth_err, truth_ratio] = truth;
   if (o.json) {
     std::string rejected;
     for (std::size_t k = 0; k < r.rejected.size(); ++k)
@@ -339,7 +246,7 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
     return;
   }
   if (calibrate) print_calibration(cap, c);
-  if (const auto [mean, worst] = light_error(cap, c); mean >= 0)
+  if (const auto [mean, worst] = acquire::light_direction_error(cap, c); mean >= 0)
     fmt::print("light directions against the manifest's truth: mean {:.3f} deg, largest {:.3f} deg\n", mean, worst);
   if (extract) {
     fmt::print("{} samples from {} sphere pixels x {} lights into {}:{}; rejected:", r.samples, r.sphere_pixels, cap.light_angles_deg.size(),
