@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "acquire/scan.h"
+#include "core/parallel.h"
 #include "core/error.h"
 #include "core/interrupt.h"
 #include "core/progress.h"
@@ -43,21 +44,13 @@ namespace {
 // Decodes `files` (all of one size) on all threads; an error names its file.
 std::vector<std::vector<std::uint16_t>> decode_all(const Capture& cap, const fs::path& dir, const std::vector<const CaptureImage*>& files) {
   std::vector<std::vector<std::uint16_t>> pixels(files.size());
-  std::exception_ptr error;
-#pragma omp parallel for schedule(dynamic, 1)
-  for (long long i = 0; i < static_cast<long long>(files.size()); ++i) {
-    try {
-      const CaptureImage& im = *files[std::size_t(i)];
-      store::PngImage png = store::read_png(dir / im.file);
-      if (png.channels != 1 || png.width != std::size_t(cap.width) || png.height != std::size_t(cap.height))
-        throw InputError((dir / im.file).string() + ": not a grey " + std::to_string(cap.width) + " x " + std::to_string(cap.height) + " image");
-      pixels[std::size_t(i)] = std::move(png.samples);
-    } catch (...) {
-#pragma omp critical
-      if (!error) error = std::current_exception();
-    }
-  }
-  if (error) std::rethrow_exception(error);
+  parallel_for(files.size(), [&](std::size_t i) {
+    const CaptureImage& im = *files[i];
+    store::PngImage png = store::read_png(dir / im.file);
+    if (png.channels != 1 || png.width != std::size_t(cap.width) || png.height != std::size_t(cap.height))
+      throw InputError((dir / im.file).string() + ": not a grey " + std::to_string(cap.width) + " x " + std::to_string(cap.height) + " image");
+    pixels[i] = std::move(png.samples);
+  });
   return pixels;
 }
 

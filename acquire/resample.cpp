@@ -10,6 +10,7 @@
 #include <limits>
 #include <numeric>
 
+#include "core/parallel.h"
 #include "core/error.h"
 #include "core/interrupt.h"
 #include "core/progress.h"
@@ -225,19 +226,10 @@ void StoreSamples::read_values(std::size_t first, std::size_t count, std::span<f
   }
   // Whole reader blocks: decoded on every thread at once.
   const std::size_t b0 = first / reader_rows_, nb = (count + reader_rows_ - 1) / reader_rows_;
-  std::exception_ptr error;
-#pragma omp parallel for schedule(dynamic, 1)
-  for (long long i = 0; i < static_cast<long long>(nb); ++i) {
-    try {
-      thread_local store::BlockReader::RawBlock raw;
-      reader_->read_raw(b0 + std::size_t(i), raw);
-      std::copy(raw.values.begin(), raw.values.end(), out.begin() + std::ptrdiff_t(std::size_t(i) * reader_rows_ * bands_));
-    } catch (...) {
-#pragma omp critical(specula_store_samples_error)
-      if (!error) error = std::current_exception();
-    }
-  }
-  if (error) std::rethrow_exception(error);
+  parallel_for(nb, [] { return store::BlockReader::RawBlock(); }, [&](std::size_t i, store::BlockReader::RawBlock& raw) {
+    reader_->read_raw(b0 + i, raw);
+    std::copy(raw.values.begin(), raw.values.end(), out.begin() + std::ptrdiff_t(i * reader_rows_ * bands_));
+  });
 }
 
 // ------------------------------------------------------------------ tree
@@ -323,14 +315,11 @@ SampleTree::SampleTree(const SampleSource& src, Mapping m) : mapping_(m), n_(src
   }
   // Each slab's tree, built on its own thread; then its points stored in leaf order (a leaf's points contiguous
   // in memory) and the tree's permutation made the positions themselves.
-  std::exception_ptr error;
-#pragma omp parallel for schedule(dynamic, 1)
-  for (long long si = 0; si < static_cast<long long>(slabs); ++si) {
-    try {
-      const std::size_t s = std::size_t(si), first = offset[s], count = offset[s + 1] - offset[s];
+  parallel_for(slabs, [&](std::size_t s) {
+      const std::size_t first = offset[s], count = offset[s + 1] - offset[s];
       Index::Slab& slab = *ix.slabs[s];
       slab.cloud = {ix.xyz.data() + 3 * first, count};
-      if (count == 0) continue;
+      if (count == 0) return;
       slab.tree = std::make_unique<KdTree>(3, slab.cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
       auto& order = slab.tree->vAcc;
       std::vector<float> points(ix.xyz.begin() + std::ptrdiff_t(3 * first), ix.xyz.begin() + std::ptrdiff_t(3 * (first + count)));
@@ -340,12 +329,7 @@ SampleTree::SampleTree(const SampleSource& src, Mapping m) : mapping_(m), n_(src
         ix.sample[first + j] = ids[order[j]];
         order[j] = std::uint32_t(first + j);
       }
-    } catch (...) {
-#pragma omp critical(specula_sample_tree_error)
-      if (!error) error = std::current_exception();
-    }
-  }
-  if (error) std::rethrow_exception(error);
+  });
   for (auto& slab : ix.slabs) slab->cloud = {ix.xyz.data(), n_};
 }
 

@@ -7,6 +7,7 @@
 #include <numbers>
 #include <random>
 
+#include "core/parallel.h"
 #include "core/brdf_geometry.h"
 #include "core/brdf_materials.h"
 #include "core/cie.h"
@@ -280,16 +281,12 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   auto light_rates = [&](std::size_t l) {
     const Eigen::Vector3d lp = light_position(rig, l);
     std::vector<float> rate(B * std::size_t(W) * std::size_t(H), 0.0f);
-    std::exception_ptr failed;
-#pragma omp parallel
-    {
-      std::vector<double> f(L);
-      brdf::StdAngles a;
-#pragma omp for schedule(static)
-      for (long long i = 0; i < static_cast<long long>(pixels.size()); ++i) {
-        try {
-          const ScanPixel& p = pixels[std::size_t(i)];
-          if (!scan_angles(p, lp, a)) continue;
+    parallel_for(
+        pixels.size(), [&] { return std::vector<double>(L); },
+        [&](std::size_t i, std::vector<double>& f) {
+          const ScanPixel& p = pixels[i];
+          brdf::StdAngles a;
+          if (!scan_angles(p, lp, a)) return;
           material->eval(a, f);
           const double d = (lp - p.point).norm();
           const double geometry = std::cos(a.theta_i) * std::pow(rig.light_distance / d, 2) * pi;
@@ -300,16 +297,10 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
             for (std::size_t k = 0; k < L; ++k) sum += w[j][k] * f[k];
             rate[j * std::size_t(W * H) + std::size_t(v * W + u)] = float(o.brightness * s * geometry * sum);
           }
-        } catch (...) {
-#pragma omp critical
-          if (!failed) failed = std::current_exception();
-        }
-      }
-    }
-    if (failed) std::rethrow_exception(failed);
+        },
+        1024);
     return rate;
   };
-  std::exception_ptr error;
   std::vector<float> scene_rate;
   // What a flat field and each target send through each band (the same at every pixel but for vignetting).
   std::vector<double> flat_sum(B, 0.0), target_sum(cap.targets.size() * B, 0.0);
@@ -334,10 +325,8 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
     }
 
   auto render = [&](std::size_t first, std::size_t last) {
-#pragma omp parallel for schedule(dynamic, 1)
-  for (long long i = static_cast<long long>(first); i < static_cast<long long>(last); ++i) {
-    try {
-      const Job& job = jobs[std::size_t(i)];
+    parallel_for(last - first, [&](std::size_t k) {
+      const Job& job = jobs[first + k];
       const CaptureImage& im = job.image;
       std::mt19937_64 rng(job.seed);
       std::vector<std::uint16_t> img(std::size_t(W * H));
@@ -376,12 +365,7 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
           img[p] = sensor.expose(rate, im.exposure_s, rng);
         }
       store::write_png_gray16(dir / im.file, std::size_t(W), std::size_t(H), img, true);
-    } catch (...) {
-#pragma omp critical
-      if (!error) error = std::current_exception();
-    }
-  }
-  if (error) std::rethrow_exception(error);
+    });
   };
   // Calibration images first, then the scene light by light (one light's rates in memory at a time).
   const std::size_t per_light = B * o.exposures_s.size(), scene_first = jobs.size() - rig.lights * per_light;

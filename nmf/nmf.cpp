@@ -11,6 +11,7 @@
 #include <random>
 #include <sstream>
 
+#include "core/parallel.h"
 #include "core/error.h"
 #include "core/interrupt.h"
 #include "core/progress.h"
@@ -52,26 +53,12 @@ Stats reduce_range(const Collective& ranks, const BlockReader& reader, const Sta
   first += share.first * stride;
   const std::size_t n = share.last - share.first;
   std::vector<Stats> part(n, zero);
-  std::exception_ptr error;
-  std::mutex error_mutex;
-#pragma omp parallel
-  {
-    BlockReader::RawBlock raw;
-#pragma omp for schedule(dynamic, 1)
-    for (long long j = 0; j < static_cast<long long>(n); ++j) {
-      try {
-        check_interrupt();
-        const std::size_t block = first + std::size_t(j) * stride;
-        reader.read_raw(block, raw);
-        fn(block, raw, part[std::size_t(j)]);
-        progress.advance(raw.valid);
-      } catch (...) {
-        std::lock_guard lock(error_mutex);
-        if (!error) error = std::current_exception();
-      }
-    }
-  }
-  if (error) std::rethrow_exception(error);
+  parallel_for(n, [] { return BlockReader::RawBlock(); }, [&](std::size_t j, BlockReader::RawBlock& raw) {
+    const std::size_t block = first + j * stride;
+    reader.read_raw(block, raw);
+    fn(block, raw, part[j]);
+    progress.advance(raw.valid);
+  });
   Stats total = zero;
   for (const auto& p : part) total += p;
   sum_over_ranks(ranks, total);

@@ -8,6 +8,7 @@
 #include <mutex>
 #include <optional>
 
+#include "core/parallel.h"
 #include "core/error.h"
 #include "core/interrupt.h"
 #include "core/progress.h"
@@ -177,31 +178,16 @@ Moments stream_moments(const store::BlockReader& reader, const Collective& ranks
   for (std::size_t first = share.first; first < share.last; first += wave) {
     const std::size_t n = std::min(wave, share.last - first);
     part.assign(n, Moments(bands));
-    std::exception_ptr error;
-    std::mutex error_mutex;
-#pragma omp parallel
-    {
-      store::BlockReader::RawBlock raw;
-#pragma omp for schedule(dynamic, 1)
-      for (long long j = 0; j < static_cast<long long>(n); ++j) {
-        try {
-          check_interrupt();
-          reader.read_raw(first + std::size_t(j), raw);
-          const std::size_t block = first + std::size_t(j);
-          part[std::size_t(j)] = block_moments(raw.values.data(), bands, raw.pixels,
-                                               raw.mask.empty() ? nullptr : raw.mask.data(), bands);
-          // A NaN or infinity anywhere in the block makes its mean non-finite.
-          if (!part[std::size_t(j)].mean().allFinite() || !part[std::size_t(j)].scatter().allFinite())
-            throw InputError(reader.describe_block(block) +
-                             ": a valid spectrum holds a non-finite value; PCA needs finite data (re-import, or mask the pixel)");
-          progress.advance(std::uint64_t(raw.valid));
-        } catch (...) {
-          std::lock_guard lock(error_mutex);
-          if (!error) error = std::current_exception();
-        }
-      }
-    }
-    if (error) std::rethrow_exception(error);
+    parallel_for(n, [] { return store::BlockReader::RawBlock(); }, [&](std::size_t j, store::BlockReader::RawBlock& raw) {
+      const std::size_t block = first + j;
+      reader.read_raw(block, raw);
+      part[j] = block_moments(raw.values.data(), bands, raw.pixels, raw.mask.empty() ? nullptr : raw.mask.data(), bands);
+      // A NaN or infinity anywhere in the block makes its mean non-finite.
+      if (!part[j].mean().allFinite() || !part[j].scatter().allFinite())
+        throw InputError(reader.describe_block(block) +
+                         ": a valid spectrum holds a non-finite value; PCA needs finite data (re-import, or mask the pixel)");
+      progress.advance(std::uint64_t(raw.valid));
+    });
     for (auto& m : part) push(std::move(m));
   }
   Moments total(bands);

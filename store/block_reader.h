@@ -12,6 +12,7 @@
 
 #include "core/colour.h"
 #include "core/interrupt.h"
+#include "core/parallel.h"
 #include "store/store.h"
 
 namespace specula::store {
@@ -118,29 +119,10 @@ class BlockReader {
 template <class T, class Fn>
 void for_each_block(const BlockReader& reader, Fn&& fn) {
   using Matrix = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  const long long n = static_cast<long long>(reader.block_count());
-#pragma omp parallel
-  {
-    Matrix buffer;
-#pragma omp for schedule(dynamic, 1)
-    for (long long i = 0; i < n; ++i) {
-      {
-        std::lock_guard lock(error_mutex);
-        if (error) continue;
-      }
-      try {
-        check_interrupt();
-        reader.read(static_cast<std::size_t>(i), buffer);
-        fn(static_cast<std::size_t>(i), static_cast<const Matrix&>(buffer), omp_get_thread_num());
-      } catch (...) {
-        std::lock_guard lock(error_mutex);
-        if (!error) error = std::current_exception();
-      }
-    }
-  }
-  if (error) std::rethrow_exception(error);
+  parallel_for(reader.block_count(), [] { return Matrix(); }, [&](std::size_t i, Matrix& buffer) {
+    reader.read(i, buffer);
+    fn(i, static_cast<const Matrix&>(buffer), omp_get_thread_num());
+  });
 }
 
 }  // namespace specula::store

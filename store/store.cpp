@@ -17,6 +17,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "core/parallel.h"
 #include "core/atomic_file.h"
 #include "core/brdf_geometry.h"
 #include "core/error.h"
@@ -818,24 +819,16 @@ void write_chunks_deflated(hid_t ds, std::size_t chunks, std::size_t chunk_elems
   const std::size_t batch = std::size_t(std::max(1, omp_get_max_threads())) * 4;
   std::vector<std::vector<unsigned char>> out(batch);
   std::vector<std::size_t> out_size(batch);
-  std::exception_ptr error;
   Progress progress("writing " + ctx, chunks);
   for (std::size_t first = 0; first < chunks; first += batch) {
     check_interrupt();
     const std::size_t n = std::min(batch, chunks - first);
-#pragma omp parallel for schedule(dynamic, 1)
-    for (long long j = 0; j < static_cast<long long>(n); ++j) {
-      thread_local std::vector<float> plain;
+    parallel_for(n, [] { return std::vector<float>(); }, [&](std::size_t j, std::vector<float>& plain) {
       plain.assign(chunk_elems, 0.0f);
-      fill(first + std::size_t(j), plain);
-      const std::size_t len = shuffle_deflate(plain.data(), chunk_elems, level, out[std::size_t(j)]);
-      if (len == 0) {
-#pragma omp critical
-        if (!error) error = std::make_exception_ptr(LibraryError(ctx + ": libdeflate failed to compress a chunk"));
-      }
-      out_size[std::size_t(j)] = len;
-    }
-    if (error) std::rethrow_exception(error);
+      fill(first + j, plain);
+      out_size[j] = shuffle_deflate(plain.data(), chunk_elems, level, out[j]);
+      if (out_size[j] == 0) throw LibraryError(ctx + ": libdeflate failed to compress a chunk");
+    });
     for (std::size_t j = 0; j < n; ++j) {
       const auto at = offset(first + j);
       maybe_fail_write(ctx);

@@ -1,0 +1,65 @@
+// parallel_for: every index once, per-thread state, the first exception rethrown and later items skipped,
+// interruption, and results in per-index slots independent of the thread count.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <numeric>
+#include <stdexcept>
+#include <vector>
+
+#include "core/error.h"
+#include "core/interrupt.h"
+#include "core/parallel.h"
+
+using namespace specula;
+
+TEST(Parallel, EveryIndexOnceWithStatePerThreadAtAnyGrain) {
+  for (const std::size_t grain : {1u, 7u, 1000u}) {
+    std::vector<int> hits(5003, 0);
+    std::atomic<int> states{0};
+    parallel_for(hits.size(), [&] { ++states; return std::vector<int>(3); },
+                 [&](std::size_t i, std::vector<int>& scratch) {
+                   scratch[0] = int(i);
+                   hits[i] += 1 + scratch[0] - int(i);
+                 },
+                 grain);
+    EXPECT_EQ(std::count(hits.begin(), hits.end(), 1), 5003) << grain;
+    EXPECT_LE(states.load(), omp_get_max_threads());
+  }
+}
+
+TEST(Parallel, FirstExceptionIsRethrownAndLaterItemsAreSkipped) {
+  std::atomic<std::size_t> ran{0};
+  try {
+    parallel_for(100000, [&](std::size_t i) {
+      ++ran;
+      if (i == 10) throw InputError("item 10 is bad");
+    });
+    FAIL() << "no exception";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "item 10 is bad");
+  }
+  EXPECT_LT(ran.load(), 100000u) << "items after the failure kept running";
+}
+
+TEST(Parallel, InterruptionStopsTheLoop) {
+  request_interrupt();
+  std::atomic<std::size_t> ran{0};
+  EXPECT_THROW(parallel_for(1000, [&](std::size_t) { ++ran; }), Interrupted);
+  clear_interrupt();
+  EXPECT_EQ(ran.load(), 0u);
+}
+
+TEST(Parallel, SlotsMergedInOrderDoNotDependOnTheThreadCount) {
+  auto sum_with = [](int threads) {
+    omp_set_num_threads(threads);
+    std::vector<double> part(997);
+    parallel_for(part.size(), [&](std::size_t i) { part[i] = 1.0 / double(i + 1); });
+    return std::accumulate(part.begin(), part.end(), 0.0);
+  };
+  const double one = sum_with(1), two = sum_with(2);
+  omp_set_num_threads(omp_get_num_procs());
+  EXPECT_EQ(one, two);
+}
