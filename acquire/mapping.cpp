@@ -16,7 +16,7 @@ Mapping parse_mapping(std::string_view name) {
   if (name == "standard") return Mapping::standard;
   if (name == "marschner") return Mapping::marschner;
   if (name == "halfdiff") return Mapping::halfdiff;
-  throw UsageError("--mapping '" + std::string(name) + "': use standard (M_s), marschner (M_m, eq 5.8) or halfdiff (M_h)");
+  throw UsageError("mapping '" + std::string(name) + "': use standard (M_s), marschner (M_m, eq 5.8) or halfdiff (M_h)");
 }
 
 std::string_view mapping_name(Mapping m) {

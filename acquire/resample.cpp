@@ -168,7 +168,7 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
 Weights parse_weights(std::string_view name) {
   if (name == "mean") return Weights::mean;
   if (name == "shepard") return Weights::shepard;
-  throw UsageError("--weights '" + std::string(name) + "': use shepard (eqs 5.9-5.10) or mean");
+  throw UsageError("weights '" + std::string(name) + "': use shepard (eqs 5.9-5.10) or mean");
 }
 
 std::string_view weights_name(Weights w) { return w == Weights::mean ? "mean" : "shepard"; }
@@ -176,8 +176,8 @@ std::string_view weights_name(Weights w) { return w == Weights::mean ? "mean" : 
 void check_options(const ResampleOptions& o) {
   if (o.k < 1 || o.k > 100000) throw UsageError("-k " + std::to_string(o.k) + ": give 1 to 100000 neighbours");
   if (!(o.power >= 0) || !std::isfinite(o.power))
-    throw UsageError("--power " + std::to_string(o.power) + ": Shepard's power must be a finite number >= 0");
-  if (!(o.max_gap > 0)) throw UsageError("--max-gap: the largest gap must be positive");
+    throw UsageError("power " + std::to_string(o.power) + ": Shepard's power must be a finite number >= 0");
+  if (!(o.max_gap > 0)) throw UsageError("max_gap: the largest gap must be positive");
   if (o.max_entries == 0) throw UsageError("resample: max_entries must be positive");
 }
 

@@ -143,7 +143,7 @@ void check_simulator(const SimulatorOptions& o) {
       !(o.vignetting >= 0 && o.vignetting < 1))
     throw UsageError("simulate-capture: brightness and gain must be positive, noise and bias >= 0, vignetting in [0, 1)");
   if (!o.grid && !brdf::material_catalogue().count(o.material))
-    throw UsageError("simulate-capture: unknown material '" + o.material + "' (see specula synth-brdf --help)");
+    throw UsageError("simulate-capture: unknown material '" + o.material + "' (specula synth-brdf lists the analytic materials)");
 }
 
 std::vector<std::vector<double>> simulated_response(const SimulatorOptions& o, const std::vector<double>& nm) {

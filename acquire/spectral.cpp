@@ -12,7 +12,7 @@ namespace specula::acquire {
 SpectralModel parse_spectral_model(const std::string& name) {
   if (name == "delta") return SpectralModel::delta;
   if (name == "factored") return SpectralModel::factored;
-  throw UsageError("--spectral-model '" + name + "': use delta (eq 4.4) or factored (eq 4.6)");
+  throw UsageError("spectral model '" + name + "': use delta (eq 4.4) or factored (eq 4.6)");
 }
 
 double Tabulated::at(double l) const {

@@ -76,7 +76,15 @@ void run_nmf(const NmfCliOptions& o) {
     std::fflush(stdout);
   };
   const auto t0 = std::chrono::steady_clock::now();
-  const nmf::NmfResult r = nmf::factorize(reader, opt, ranks());
+  const nmf::NmfResult r = [&] {
+    try {
+      return nmf::factorize(reader, opt, ranks());
+    } catch (const Interrupted& e) {
+      throw Interrupted(std::string(e.what()) + (o.checkpoint.empty() && !std::filesystem::exists(opt.checkpoint)
+                                                     ? std::string()
+                                                     : " (the same command with --resume)"));
+    }
+  }();
   if (!root) return;  // rank 0 writes and reports
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const nmf::RestartResult& best = r.best_result();

@@ -117,7 +117,7 @@ Eigen::MatrixXd resample_matrix(const WavelengthGrid& from, const WavelengthGrid
     const double w = to[i];
     if (w < from.front() - tol || w > from.back() + tol)
       throw InputError(std::string(context) + ": " + num(w) + " nm lies outside the data's " + from.describe() +
-                       "; extrapolation is refused, choose --wavelengths inside " + num(from.front()) + "-" +
+                       "; extrapolation is refused, choose target wavelengths inside " + num(from.front()) + "-" +
                        num(from.back()) + " nm");
     std::size_t j = 0;
     while (j + 1 < from.size() && from[j + 1] < w - tol) ++j;

@@ -53,7 +53,7 @@ Checkpoint load_checkpoint(const std::filesystem::path& path) {
   h5::quiet_errors();
   const std::string ctx = path.string();
   if (!std::filesystem::exists(path))
-    throw InputError(ctx + ": no checkpoint to resume from (run without --resume to start afresh)");
+    throw InputError(ctx + ": no checkpoint to resume from (start afresh instead of resuming)");
   if (H5Fis_hdf5(path.c_str()) <= 0)
     throw InputError(ctx + ": not an HDF5 file (a truncated or foreign checkpoint; delete it and start afresh)");
   const hid_t opened = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
@@ -65,7 +65,7 @@ Checkpoint load_checkpoint(const std::filesystem::path& path) {
   const long long version = h5::read_int_attr(file, "format_version", ctx);
   if (version != kVersion)
     throw InputError(ctx + ": checkpoint format version " + std::to_string(version) + ", this specula reads version " +
-                     std::to_string(kVersion) + "; start afresh without --resume");
+                     std::to_string(kVersion) + "; start afresh instead of resuming");
   Checkpoint c;
   auto count = [&](const char* name) {
     const long long v = h5::read_int_attr(file, name, ctx);

@@ -145,7 +145,7 @@ std::uint64_t for_each_tile(const BlockReader& reader, std::size_t block, const 
     if (bad || (neg && policy == Negatives::reject)) {
       throw InputError(reader.describe_block(block) + ": spectrum " + std::to_string(p) + " of the block" +
                        (bad ? " has a non-finite value; NMF needs finite data (re-import, or mask the pixel)"
-                            : " has a negative value; rerun with --negatives clip to clip such values to zero"));
+                            : " has a negative value; rerun with negatives = clip to clip such values to zero"));
     }
     if (++fill == kTile) {
       fn(tile.topRows(Eigen::Index(fill)));
@@ -451,13 +451,13 @@ std::string describe_difference(const std::string& a, const std::string& b) {
 Init parse_init(const std::string& s) {
   if (s == "nndsvd") return Init::nndsvd;
   if (s == "random") return Init::random;
-  throw UsageError("--init '" + s + "': choose nndsvd or random");
+  throw UsageError("init '" + s + "': choose nndsvd or random");
 }
 
 Negatives parse_negatives(const std::string& s) {
   if (s == "clip") return Negatives::clip;
   if (s == "reject") return Negatives::reject;
-  throw UsageError("--negatives '" + s + "': choose clip (clip to zero and count) or reject");
+  throw UsageError("negatives '" + s + "': choose clip (clip to zero and count) or reject");
 }
 
 std::pair<double, double> basis_angles(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
@@ -530,13 +530,13 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
   if (o.k < 1 || o.k > reader.bands())
     throw UsageError("-k " + std::to_string(o.k) + ": give between 1 and " + std::to_string(reader.bands()) +
                      " components (the data has " + std::to_string(reader.bands()) + " bands)");
-  if (o.restarts < 1 || o.restarts > 1000) throw UsageError("--restarts " + std::to_string(o.restarts) + ": give 1 to 1000");
-  if (o.max_epochs < 1) throw UsageError("--max-epochs must be at least 1");
+  if (o.restarts < 1 || o.restarts > 1000) throw UsageError("restarts " + std::to_string(o.restarts) + ": give 1 to 1000");
+  if (o.max_epochs < 1) throw UsageError("max_epochs must be at least 1");
   if (o.wave_blocks < 1 || o.wave_blocks > 1000000)
-    throw UsageError("--wave-blocks " + std::to_string(o.wave_blocks) + ": give 1 to 1000000 blocks per basis update");
-  if (!(o.tol >= 0) || !std::isfinite(o.tol)) throw UsageError("--tol must be a finite number >= 0");
+    throw UsageError("wave_blocks " + std::to_string(o.wave_blocks) + ": give 1 to 1000000 blocks per basis update");
+  if (!(o.tol >= 0) || !std::isfinite(o.tol)) throw UsageError("tol must be a finite number >= 0");
   if (reader.spectra() == 0) throw InputError("the selection holds no valid spectra");
-  if (o.resume && o.checkpoint.empty()) throw UsageError("--resume needs a checkpoint path");
+  if (o.resume && o.checkpoint.empty()) throw UsageError("resume needs a checkpoint path");
   const auto start = std::chrono::steady_clock::now();
   auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
 
@@ -549,7 +549,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
     if (cp.fingerprint != print)
       throw UsageError(o.checkpoint.string() + ": the checkpoint is of another run: " +
                        describe_difference(cp.fingerprint, print) +
-                       "; rerun with the same options, or without --resume to start afresh");
+                       "; rerun with the same options, or start afresh instead of resuming");
     resumed = true;
   } else {
     const GramStats g = gram_pass(ranks, reader, o.negatives);
@@ -715,7 +715,7 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
                              std::to_string(cp.restart + 1);
     throw Interrupted("interrupted; " +
                       (o.checkpoint.empty() ? kept + " were not saved (no checkpoint)"
-                                            : kept + " kept in " + o.checkpoint.string() + ": continue with --resume"));
+                                            : kept + " kept in " + o.checkpoint.string() + ": resume from it to continue"));
   }
   std::size_t best = 0;
   for (std::size_t r = 1; r < result.restarts.size(); ++r)

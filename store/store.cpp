@@ -202,7 +202,7 @@ Compression Compression::parse(std::string_view spec) {
     c.level = spec[8] - '0';
     return c;
   }
-  throw UsageError("--compression '" + std::string(spec) + "': use none, deflate or deflate:LEVEL with LEVEL 1-9");
+  throw UsageError("compression '" + std::string(spec) + "': use none, deflate or deflate:LEVEL with LEVEL 1-9");
 }
 
 std::string Compression::describe() const {
@@ -888,7 +888,7 @@ void StoreWriter::add_image(const std::string& name, const Cube& cube) {
       if (!std::isfinite(s[b]))
         throw InputError(src + ": non-finite value at row " + std::to_string(p / cube.width) + ", column " +
                          std::to_string(p % cube.width) + ", band " + std::to_string(b) +
-                         "; mask such pixels (--nan mask) before storing");
+                         "; mask such pixels before storing (an importer's nan = mask)");
   }
   const hid_t f = begin("images", name, "image");
   try {
