@@ -389,3 +389,39 @@ TEST(StoreLayout, ACopyOfTheRootAloneReadsButRefusesToWrite) {
   EXPECT_EQ(Store::open(moved).collections(), (std::vector<std::string>{"a", "b"}));
   EXPECT_TRUE(check(moved).empty());
 }
+
+TEST(StoreLayout, MalformedRootsAreOneLineErrors) {
+  if (std::system("/usr/bin/python3 -c 'import h5py' >/dev/null 2>&1") != 0)
+    GTEST_SKIP() << "Debian's python3-h5py is not installed (scripts/setup-deps installs it)";
+  test::ScratchDir dir;
+  const fs::path db = dir / "db.h5";
+  {
+    StoreWriter w(db, {});
+    w.add_collection("a", constant_collection(2, 1.0f));
+    w.commit();
+  }
+  const std::string good = test::read_bytes(db);
+  struct Case {
+    std::string python, expect;
+  };
+  const std::vector<Case> cases = {
+      {"del f['index']; f['index'] = 'not json'", "/index is not a valid index"},
+      {"f.attrs['data_dir'] = '../elsewhere'", "is not a directory name"},
+      {"import json; j = json.loads(f['index'][()]); j['objects'][0]['file'] = '../../etc/passwd'; "
+       "del f['index']; f['index'] = json.dumps(j)",
+       "index entry 'collections/a' is malformed"},
+      {"f.attrs['format_version'] = 3", "store format version 3 is newer than this specula"},
+  };
+  for (const Case& c : cases) {
+    std::ofstream(db, std::ios::binary | std::ios::trunc) << good;
+    const std::string cmd = "/usr/bin/python3 -c \"import h5py\nwith h5py.File('" + db.string() + "', 'r+') as f:\n    " +
+                            c.python + "\"";
+    ASSERT_EQ(std::system(cmd.c_str()), 0) << c.python;
+    const std::string err = test::input_error_text([&] { (void)Store::open(db); });
+    EXPECT_NE(err.find("db.h5: "), std::string::npos) << err;
+    EXPECT_NE(err.find(c.expect), std::string::npos) << c.python << ": " << err;
+    const auto r = test::run_specula("ls " + q(db));
+    EXPECT_EQ(r.status, 1) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  }
+}
