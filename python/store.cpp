@@ -3,8 +3,10 @@
 #include <fmt/format.h>
 #include <omp.h>
 
-#include <deque>
-#include <future>
+#include <condition_variable>
+#include <map>
+#include <mutex>
+#include <thread>
 #include <variant>
 
 #include "core/error.h"
@@ -116,81 +118,218 @@ py::array_t<std::uint8_t> mask_array(store::Cube& cube) {
   return adopt(std::move(cube.mask), {py::ssize_t(cube.height), py::ssize_t(cube.width)});
 }
 
-// Block i of a reader, read on a worker thread into a buffer the numpy array then owns.
-using Block = std::variant<std::unique_ptr<RowMatrixXf>, std::unique_ptr<RowMatrixXd>>;
-
-Block read_block(const store::BlockReader& reader, std::size_t i, bool f64) {
-  if (f64) {
-    auto m = std::make_unique<RowMatrixXd>();
-    reader.read(i, *m);
-    return m;
+// Buffers of max_block_spectra x bands values, recycled: a numpy block hands its buffer back when Python frees it,
+// so a streaming pass touches the same few pages instead of faulting in fresh memory for every block.
+template <class T>
+class BufferPool {
+ public:
+  BufferPool(std::size_t capacity, std::size_t keep) : capacity_(capacity), keep_(keep) {}
+  std::vector<T> take() {
+    {
+      std::lock_guard lock(mutex_);
+      if (!free_.empty()) {
+        std::vector<T> v = std::move(free_.back());
+        free_.pop_back();
+        return v;
+      }
+    }
+    std::vector<T> v;
+    v.reserve(capacity_);
+    return v;
   }
-  auto m = std::make_unique<RowMatrixXf>();
-  reader.read(i, *m);
-  return m;
+  void give(std::vector<T>&& v) {
+    std::lock_guard lock(mutex_);
+    if (free_.size() < keep_) free_.push_back(std::move(v));
+  }
+
+ private:
+  std::size_t capacity_, keep_;
+  std::mutex mutex_;
+  std::vector<std::vector<T>> free_;
+};
+
+// What a numpy block owns: its buffer, returned to the pool (if the iterator still lives) when the array dies.
+template <class T>
+struct Pooled {
+  std::vector<T> values;
+  std::weak_ptr<BufferPool<T>> pool;
+  ~Pooled() {
+    if (auto p = pool.lock()) p->give(std::move(values));
+  }
+};
+
+// The valid spectra of a raw block, compacted into out (valid x bands) as BlockReader::read does; BlockReader::read
+// resizes an Eigen matrix (a new allocation per block), which a caller-owned buffer avoids.
+template <class T>
+void compact(const store::BlockReader::RawBlock& raw, std::size_t bands, std::vector<T>& out) {
+  out.resize(raw.valid * bands);
+  T* dst = out.data();
+  for (std::size_t p = 0; p < raw.pixels;) {
+    if (!raw.is_valid(p)) {
+      ++p;
+      continue;
+    }
+    std::size_t q = p + 1;
+    while (q < raw.pixels && raw.is_valid(q)) ++q;
+    const float* src = raw.spectrum(p, bands);
+    dst = std::copy(src, src + (q - p) * bands, dst);
+    p = q;
+  }
 }
 
-py::array block_array(Block b) {
-  return std::visit(
-      [](auto&& m) -> py::array {
-        using T = typename std::decay_t<decltype(*m)>::Scalar;
-        const std::vector<py::ssize_t> shape{py::ssize_t(m->rows()), py::ssize_t(m->cols())};
-        const T* data = m->data();
-        return adopt<T>(std::move(m), data, shape);
-      },
-      std::move(b));
+// The iterator Store.blocks() returns. `depth` worker threads read the next blocks (each into its own raw buffer,
+// then compacted into a pooled buffer) while Python works on the current one; blocks are yielded in order.
+template <class T>
+class BlockStream {
+ public:
+  using Value = T;
+  BlockStream(std::shared_ptr<const store::BlockReader> reader, std::size_t depth)
+      : reader_(std::move(reader)), depth_(std::max<std::size_t>(1, depth)),
+        pool_(std::make_shared<BufferPool<T>>(reader_->max_block_spectra() * reader_->bands(), 2 * depth_ + 2)) {}
+  BlockStream(const BlockStream&) = delete;
+  BlockStream& operator=(const BlockStream&) = delete;
+  ~BlockStream() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    work_.notify_all();
+    for (auto& t : workers_) t.join();
+  }
+
+  /// Block `next` in order, waiting for it with the GIL released; false after the last.
+  bool next(std::vector<T>& out) {
+    const std::size_t n = reader_->block_count();
+    if (yielded_ >= n) return false;
+    if (workers_.empty())
+      for (std::size_t w = 0; w < std::min(depth_, n); ++w) workers_.emplace_back([this] { work(); });
+    std::unique_lock lock(mutex_);
+    done_.wait(lock, [&] { return ready_.count(yielded_) != 0; });
+    Result r = std::move(ready_.at(yielded_));
+    ready_.erase(yielded_);
+    ++yielded_;
+    lock.unlock();
+    work_.notify_all();
+    if (r.error) std::rethrow_exception(r.error);
+    out = std::move(r.values);
+    return true;
+  }
+
+  /// Block i alone, on the calling thread.
+  void read(std::size_t i, std::vector<T>& out) const {
+    store::BlockReader::RawBlock raw;
+    reader_->read_raw(i, raw);
+    out = pool_->take();
+    compact(raw, reader_->bands(), out);
+  }
+
+  const std::shared_ptr<BufferPool<T>>& pool() const { return pool_; }
+
+ private:
+  struct Result {
+    std::vector<T> values;
+    std::exception_ptr error;
+  };
+  void work() {
+    store::BlockReader::RawBlock raw;
+    for (;;) {
+      std::size_t i;
+      {
+        std::unique_lock lock(mutex_);
+        work_.wait(lock, [&] { return stop_ || (issued_ < reader_->block_count() && issued_ < yielded_ + depth_); });
+        if (stop_) return;
+        i = issued_++;
+      }
+      Result r;
+      try {
+        reader_->read_raw(i, raw);
+        r.values = pool_->take();
+        compact(raw, reader_->bands(), r.values);
+      } catch (...) {
+        r.error = std::current_exception();
+      }
+      {
+        std::lock_guard lock(mutex_);
+        ready_.emplace(i, std::move(r));
+      }
+      done_.notify_all();
+    }
+  }
+
+  std::shared_ptr<const store::BlockReader> reader_;
+  std::size_t depth_;
+  std::shared_ptr<BufferPool<T>> pool_;
+  std::vector<std::thread> workers_;
+  std::mutex mutex_;
+  std::condition_variable work_, done_;
+  std::map<std::size_t, Result> ready_;
+  std::size_t issued_ = 0, yielded_ = 0;
+  bool stop_ = false;
+};
+
+template <class T>
+py::array pooled_array(std::vector<T>&& values, std::size_t bands, const std::shared_ptr<BufferPool<T>>& pool) {
+  const std::vector<py::ssize_t> shape{py::ssize_t(values.size() / bands), py::ssize_t(bands)};
+  auto owner = std::make_unique<Pooled<T>>();
+  owner->values = std::move(values);
+  owner->pool = pool;
+  const T* data = owner->values.data();
+  return adopt<T>(std::move(owner), data, shape);
 }
 
-// The iterator Store.blocks() returns: keeps up to `depth` blocks in flight on worker threads, yields them in order.
+// Store.blocks(): a BlockStream of float32 or float64.
 class Blocks {
  public:
-  Blocks(std::shared_ptr<const store::BlockReader> reader, bool f64, std::size_t depth)
-      : reader_(std::move(reader)), f64_(f64), depth_(std::max<std::size_t>(1, depth)) {}
+  Blocks(std::shared_ptr<const store::BlockReader> reader, bool f64, std::size_t depth) : reader_(reader) {
+    if (f64) stream_ = std::make_unique<BlockStream<double>>(reader, depth);
+    else stream_ = std::make_unique<BlockStream<float>>(reader, depth);
+  }
   Blocks(const Blocks&) = delete;
   Blocks& operator=(const Blocks&) = delete;
   ~Blocks() {
     py::gil_scoped_release release;
-    queue_.clear();  // waits for reads in flight
+    stream_ = {};  // joins the workers
   }
 
   py::array next() {
-    if (next_ >= reader_->block_count()) throw py::stop_iteration();
-    Block b;
-    {
-      py::gil_scoped_release release;
-      while (issued_ < reader_->block_count() && queue_.size() < depth_) {
-        const std::size_t i = issued_++;
-        queue_.push_back(std::async(std::launch::async, [r = reader_, i, f = f64_] { return read_block(*r, i, f); }));
-      }
-      std::future<Block> f = std::move(queue_.front());
-      queue_.pop_front();
-      ++next_;
-      b = f.get();
-    }
-    return block_array(std::move(b));
+    return std::visit(
+        [&](auto& s) -> py::array {
+          using T = typename std::decay_t<decltype(*s)>::Value;
+          std::vector<T> values;
+          bool more;
+          {
+            py::gil_scoped_release release;
+            more = s->next(values);
+          }
+          if (!more) throw py::stop_iteration();
+          return pooled_array(std::move(values), reader_->bands(), s->pool());
+        },
+        stream_);
   }
 
   py::array read(std::size_t i) const {
     if (i >= reader_->block_count())
       throw UsageError(fmt::format("read: block {} of {}; give 0 to {}", i, reader_->block_count(),
                                    reader_->block_count() - 1));
-    Block b;
-    {
-      py::gil_scoped_release release;
-      b = read_block(*reader_, i, f64_);
-    }
-    return block_array(std::move(b));
+    return std::visit(
+        [&](auto& s) -> py::array {
+          using T = typename std::decay_t<decltype(*s)>::Value;
+          std::vector<T> values;
+          {
+            py::gil_scoped_release release;
+            s->read(i, values);
+          }
+          return pooled_array(std::move(values), reader_->bands(), s->pool());
+        },
+        stream_);
   }
 
   const store::BlockReader& reader() const { return *reader_; }
-  bool f64() const { return f64_; }
+  bool f64() const { return std::holds_alternative<std::unique_ptr<BlockStream<double>>>(stream_); }
 
  private:
   std::shared_ptr<const store::BlockReader> reader_;
-  bool f64_;
-  std::size_t depth_;
-  std::size_t next_ = 0, issued_ = 0;
-  std::deque<std::future<Block>> queue_;
+  std::variant<std::unique_ptr<BlockStream<float>>, std::unique_ptr<BlockStream<double>>> stream_;
 };
 
 bool is_float64(const py::handle& dtype) {
@@ -370,7 +509,7 @@ void init_store(py::module_& m) {
               reader = std::make_shared<const store::BlockReader>(s, sel, min_block_pixels);
             }
             return std::make_unique<Blocks>(reader, f64,
-                                            prefetch ? *prefetch : std::size_t(std::max(2, omp_get_max_threads())));
+                                            prefetch ? *prefetch : std::size_t(std::max(1, omp_get_max_threads() - 1)));
           },
           py::arg("images") = py::none(), py::arg("collection") = "", py::arg("samples") = "",
           py::arg("dtype") = py::dtype::of<float>(), py::arg("min_block_pixels") = 32768,
