@@ -333,6 +333,7 @@ class Blocks {
 };
 
 bool is_float64(const py::handle& dtype) {
+  if (dtype.is_none()) return false;
   const py::dtype dt = py::dtype::from_args(py::reinterpret_borrow<py::object>(dtype));
   if (dt.is(py::dtype::of<double>()) || dt.equal(py::dtype::of<double>())) return true;
   if (dt.equal(py::dtype::of<float>())) return false;
@@ -512,10 +513,10 @@ void init_store(py::module_& m) {
                                             prefetch ? *prefetch : std::size_t(std::max(1, omp_get_max_threads() - 1)));
           },
           py::arg("images") = py::none(), py::arg("collection") = "", py::arg("samples") = "",
-          py::arg("dtype") = py::dtype::of<float>(), py::arg("min_block_pixels") = 32768,
+          py::arg("dtype") = py::none(), py::arg("min_block_pixels") = 32768,
           py::arg("prefetch") = py::none(),
           "Every valid spectrum of the selected images (globs; all when None), or of one collection or samples set, "
-          "as an iterator of (n, bands) arrays of `dtype` (numpy.float32 or numpy.float64).");
+          "as an iterator of (n, bands) arrays of `dtype` (numpy.float32, the default, or numpy.float64).");
 }
 
 }  // namespace specula::python
