@@ -4,6 +4,7 @@
 #include <omp.h>
 
 #include <condition_variable>
+#include <cstring>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -158,12 +159,11 @@ struct Pooled {
   }
 };
 
-// The valid spectra of a raw block, compacted into out (valid x bands) as BlockReader::read does; BlockReader::read
-// resizes an Eigen matrix (a new allocation per block), which a caller-owned buffer avoids.
+// The valid spectra of a raw block, compacted into out (valid x bands) as BlockReader::read does (which resizes an
+// Eigen matrix, a new allocation per block, where a caller-owned buffer is reused). out may be raw.values itself.
 template <class T>
-void compact(const store::BlockReader::RawBlock& raw, std::size_t bands, std::vector<T>& out) {
-  out.resize(raw.valid * bands);
-  T* dst = out.data();
+void compact(const store::BlockReader::RawBlock& raw, std::size_t bands, T* out) {
+  T* dst = out;
   for (std::size_t p = 0; p < raw.pixels;) {
     if (!raw.is_valid(p)) {
       ++p;
@@ -172,8 +172,33 @@ void compact(const store::BlockReader::RawBlock& raw, std::size_t bands, std::ve
     std::size_t q = p + 1;
     while (q < raw.pixels && raw.is_valid(q)) ++q;
     const float* src = raw.spectrum(p, bands);
-    dst = std::copy(src, src + (q - p) * bands, dst);
+    const std::size_t len = (q - p) * bands;
+    if constexpr (std::is_same_v<T, float>) {
+      if (dst != src) std::memmove(dst, src, len * sizeof(float));  // dst <= src: runs only move forward
+    } else {
+      std::copy(src, src + len, dst);
+    }
+    dst += len;
     p = q;
+  }
+}
+
+// Block i of `reader` into a buffer from `pool`: float32 blocks are read straight into it and compacted in place.
+template <class T>
+std::vector<T> read_pooled(const store::BlockReader& reader, std::size_t i, store::BlockReader::RawBlock& raw,
+                           BufferPool<T>& pool) {
+  std::vector<T> out = pool.take();
+  if constexpr (std::is_same_v<T, float>) {
+    raw.values = std::move(out);
+    reader.read_raw(i, raw);
+    compact(raw, reader.bands(), raw.values.data());
+    raw.values.resize(raw.valid * reader.bands());
+    return std::move(raw.values);
+  } else {
+    reader.read_raw(i, raw);
+    out.resize(raw.valid * reader.bands());
+    compact(raw, reader.bands(), out.data());
+    return out;
   }
 }
 
@@ -218,9 +243,7 @@ class BlockStream {
   /// Block i alone, on the calling thread.
   void read(std::size_t i, std::vector<T>& out) const {
     store::BlockReader::RawBlock raw;
-    reader_->read_raw(i, raw);
-    out = pool_->take();
-    compact(raw, reader_->bands(), out);
+    out = read_pooled(*reader_, i, raw, *pool_);
   }
 
   const std::shared_ptr<BufferPool<T>>& pool() const { return pool_; }
@@ -242,9 +265,7 @@ class BlockStream {
       }
       Result r;
       try {
-        reader_->read_raw(i, raw);
-        r.values = pool_->take();
-        compact(raw, reader_->bands(), r.values);
+        r.values = read_pooled(*reader_, i, raw, *pool_);
       } catch (...) {
         r.error = std::current_exception();
       }
