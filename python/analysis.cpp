@@ -106,18 +106,17 @@ void init_analysis(py::module_& m) {
         if (!name.is_none()) store::validate_name(name.cast<std::string>(), "basis");
         const std::filesystem::path out = output_store(stores, output);
         const store::Selection sel{.image_globs = globs_from(images), .collection = collection};
-        store::Basis basis;
-        {
-          py::gil_scoped_release release;
+        store::Basis basis = interruptible([&] {
           const store::BlockReader reader(stores, sel);
           if (k > reader.bands()) throw UsageError(fmt::format("pca: k = {}: the data has {} bands", k, reader.bands()));
           if (reader.spectra() < 2)
             throw InputError(fmt::format("{}: the selection holds {} valid spectra; PCA needs at least two",
                                          stores.front().label(), reader.spectra()));
           const stats::Moments moments = stats::stream_moments(reader);
-          basis = stats::pca_basis(moments, reader.wavelengths(), k);
-          basis.source = basis_source(reader, collection);
-        }
+          store::Basis b = stats::pca_basis(moments, reader.wavelengths(), k);
+          b.source = basis_source(reader, collection);
+          return b;
+        });
         basis.provenance.source_file = source_files(stores);
         basis.provenance.importer = "pca";
         if (!name.is_none()) save_basis(out, name.cast<std::string>(), basis, replace, "pca");
@@ -173,8 +172,7 @@ void init_analysis(py::module_& m) {
         const store::Selection sel{.image_globs = globs_from(images), .collection = collection};
         store::Basis basis;
         nmf::NmfResult r;
-        {
-          py::gil_scoped_release release;
+        interruptible([&] {
           const store::BlockReader reader(stores, sel);
           r = nmf::factorize(reader, opt);
           basis.method = "nmf";
@@ -184,7 +182,7 @@ void init_analysis(py::module_& m) {
           basis.weights = r.weights;
           basis.second_moment = r.second_moment;
           basis.source = basis_source(reader, collection);
-        }
+        });
         basis.provenance.source_file = source_files(stores);
         basis.provenance.importer = fmt::format("nmf k={} init={} seed={} restarts={} rel_error={:.9g} svd_bound={:.9g}",
                                                 k, init, seed, restarts, r.rel_error, r.svd_bound);

@@ -7,10 +7,15 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <Eigen/Core>
+#include <chrono>
+#include <future>
 #include <memory>
+#include <thread>
+#include <type_traits>
 #include <string>
 #include <vector>
 
+#include "core/interrupt.h"
 #include "core/wavelengths.h"
 #include "store/store.h"
 
@@ -57,6 +62,48 @@ WavelengthGrid grid_from(const py::handle& w, const std::string& what);
 std::vector<store::Store> stores_from(const py::handle& stores);
 /// Image globs from None, one string, or a sequence of strings.
 std::vector<std::string> globs_from(const py::handle& images);
+/// Runs f() on a worker thread while the calling thread, GIL released, waits for it and polls Python's signal
+/// handlers. When one raises (Ctrl-C: KeyboardInterrupt), a stop is requested through core/interrupt.h, f's end
+/// awaited, and the library's Interrupted (specula.Interrupted, a KeyboardInterrupt) or the handler's exception
+/// raised. Call with the GIL held.
+template <class F>
+std::invoke_result_t<F&> interruptible(F&& f) {
+  using R = std::invoke_result_t<F&>;
+  std::packaged_task<R()> task(std::forward<F>(f));
+  std::future<R> result = task.get_future();
+  std::thread worker(std::move(task));
+  bool signalled = false;
+  for (;;) {
+    bool ready;
+    {
+      py::gil_scoped_release release;
+      ready = result.wait_for(std::chrono::milliseconds(50)) == std::future_status::ready;
+    }
+    if (ready) break;
+    if (PyErr_CheckSignals() != 0) {
+      signalled = true;
+      request_interrupt();
+      py::gil_scoped_release release;
+      result.wait();
+      break;
+    }
+  }
+  {
+    py::gil_scoped_release release;
+    worker.join();
+  }
+  if (!signalled) return result.get();
+  clear_interrupt();
+  py::error_already_set signal_error;  // takes the handler's exception
+  try {
+    result.get();
+  } catch (const Interrupted&) {
+    throw;  // the library's message says what was kept
+  } catch (...) {
+  }
+  throw signal_error;
+}
+
 /// The Provenance command line recorded on objects written from Python.
 std::string python_command_line(const std::string& function);
 

@@ -106,7 +106,11 @@ PYBIND11_MODULE(specula, m) {
   }
   sp::library_type = sp::add_exception(m, "LibraryError", sp::error_type,
                                        "HDF5, zstd, the OS or another library reported a failure.");
-  sp::interrupted_type = sp::add_exception(m, "Interrupted", sp::error_type, "The work was asked to stop.");
+  {
+    py::tuple bases = py::make_tuple(py::handle(sp::error_type), py::handle(PyExc_KeyboardInterrupt));
+    sp::interrupted_type = sp::add_exception(m, "Interrupted", bases.ptr(),
+                                             "Ctrl-C stopped the work; the message says what was kept.");
+  }
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);

@@ -141,3 +141,19 @@ def test_nmf_errors_are_the_libraries_messages(db, tmp_path):
 
     with pytest.raises(KeyboardInterrupt):
         specula.nmf(db, 2, collection="chips", on_epoch=stop)
+
+
+def test_ctrl_c_stops_nmf_and_raises_the_librarys_interrupted(db, tmp_path):
+    import os
+    import signal
+
+    def on_epoch(e):
+        if e["epoch"] == 1:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with pytest.raises(specula.Interrupted) as e:
+        specula.nmf(db, 3, max_epochs=100000, tol=0, name="stopped", output=tmp_path / "n.h5", on_epoch=on_epoch)
+    assert isinstance(e.value, KeyboardInterrupt) and isinstance(e.value, specula.Error)
+    assert str(e.value).startswith("interrupted") and "\n" not in str(e.value)
+    assert not (tmp_path / "n.h5").exists()  # nothing half-written
+    assert specula.pca(db, collection="chips").k == 31  # the stop request was cleared
