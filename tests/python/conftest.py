@@ -30,7 +30,8 @@ def cli_error(*args):
 
 @pytest.fixture(scope="session")
 def db(tmp_path_factory):
-    """A store with three synthetic images (masked pixels included), a collection and a set of BRDF samples."""
+    """A store with three synthetic images (masked pixels included), a collection, a set of BRDF samples, a grid, a
+    PCA basis and a coefficient map, all made by the CLI."""
     d = tmp_path_factory.mktemp("db")
     path = d / "db.h5"
     cli("synth-db", "-o", path, "--images", 3, "--size", "37x53", "--seed", 7)
@@ -42,6 +43,9 @@ def db(tmp_path_factory):
             f.write(f"chip{i}," + ",".join(f"{v:.6f}" for v in rng.uniform(0.05, 0.9, nm.size)) + "\n")
     cli("import", d / "chips.csv", "-o", path, "--name", "chips", "--units", "reflectance")
     cli("synth-samples", "red-plastic", "--geometry", "random", "-n", 500, "-o", f"{path}:scan")
+    cli("synth-brdf", "red-plastic", "--wavelengths", "420:720:100", "-o", f"{path}:rp")
+    cli("pca", path, "--name", "pca")
+    cli("coefficients", path, "--basis", "pca", "-k", 4, "--images", "*0", "--name", "coef")
     return path
 
 

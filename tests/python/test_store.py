@@ -15,6 +15,7 @@ def test_lists_objects_as_h5py_sees_them(db):
         assert s.images == sorted(f["images"])
         assert s.collections == ["chips"]
         assert s.samples == ["scan"]
+        assert s.grids == ["rp"] and s.bases == ["pca"] and s.coefficients == ["coef"]
     assert s.format_version == 2
     assert ("collection", "chips") in s.objects()
 
@@ -59,6 +60,39 @@ def test_image_mask_collection_samples_as_arrays(db):
     np.testing.assert_array_equal(v, values)
     a, v = s.samples_data("scan", first=10, count=5)
     np.testing.assert_array_equal(a, angles[10:15])
+
+
+def test_grid_basis_and_coefficient_map_as_h5py_reads_them(db):
+    s = specula.Store(db)
+    with h5py.File(db, "r") as f:
+        brdf = f["grids"]["rp"]["brdf"][...]
+        b = {k: f["bases"]["pca"][k][...] for k in ("components", "mean", "eigenvalues", "covariance", "wavelengths")}
+        coef = f["coefficients"]["coef"]["coefficients"][...]
+        cmask = f["coefficients"]["coef"]["mask"][...]
+        image = f["coefficients"]["coef"].attrs.get("image")
+    g = s.grid("rp")
+    np.testing.assert_array_equal(g.values, brdf)
+    np.testing.assert_array_equal(g.wavelengths, [420, 520, 620, 720])
+    assert s.info("rp")["kind"] == "grid" and s.info("rp")["bands"] == 4
+    basis = s.basis("pca")
+    for k, v in b.items():
+        np.testing.assert_array_equal(getattr(basis, k), v)
+    assert s.info("basis/pca")["method"] == "pca" and s.info("pca")["k"] == 31
+    c, m = s.coefficient_map("coef")
+    np.testing.assert_array_equal(c, coef)
+    np.testing.assert_array_equal(m, cmask)
+    info = s.info("coef")
+    assert info["k"] == 4 and info["basis"] == "pca" and info["method"] == "pca"
+    if image is not None:
+        assert info["image"] == image
+    # The map holds eq 7.2's coefficients of the image's valid pixels on the basis's first 4 components.
+    cube = s.image(info["image"]).astype(np.float64)
+    valid = m.astype(bool)
+    expected = (cube[valid] - basis.mean) @ basis.components[:4].T
+    np.testing.assert_allclose(c[valid], expected, rtol=1e-4, atol=1e-5 * np.abs(expected).max())
+    assert np.all(c[~valid] == 0)
+    cb = s.coefficient_basis("coef")
+    np.testing.assert_array_equal(cb.components, basis.components[:4])
 
 
 def test_blocks_stream_every_valid_spectrum_in_chunk_order(db):
