@@ -54,6 +54,81 @@ py::object optional_matrix(const Eigen::MatrixXd& m) {
   return to_numpy(m);
 }
 
+// Projection of spectra (..., B) onto the first k components of a PCA basis or all of an NMF basis, as
+// apps/cmd_project.cpp does, with its per-spectrum L2 error, rms and max_error over the spectra the mask keeps.
+py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, const py::object& k_arg,
+                     const py::object& mask_arg) {
+  if (basis.method != "pca" && basis.method != "nmf")
+    throw InputError(fmt::format("project: basis has method '{}'; projection needs a pca or nmf basis", basis.method));
+  if (basis.method == "pca" && std::size_t(basis.mean.size()) != basis.bands())
+    throw InputError("project: the pca basis has no mean; re-learn it with specula.pca");
+  std::size_t k = basis.k();
+  if (basis.method == "pca") {
+    if (k_arg.is_none())
+      throw UsageError("project: k is required with a PCA basis (the number of leading components, e.g. 6)");
+    const long long kk = k_arg.cast<long long>();
+    if (kk < 1 || std::size_t(kk) > basis.k())
+      throw UsageError(fmt::format("project: k = {}: the basis has {} components; give k between 1 and {}", kk,
+                                   basis.k(), basis.k()));
+    k = std::size_t(kk);
+  } else if (!k_arg.is_none() && k_arg.cast<long long>() != static_cast<long long>(basis.k())) {
+    throw UsageError(fmt::format("project: k = {}: an NMF basis projects onto all of its {} components; learn a "
+                                 "basis with specula.nmf(k={}) for {} components",
+                                 k_arg.cast<long long>(), basis.k(), k_arg.cast<long long>(), k_arg.cast<long long>()));
+  }
+  const auto spectra = DoubleArray::ensure(spectra_arg);
+  if (!spectra || spectra.ndim() < 1 || std::size_t(spectra.shape(spectra.ndim() - 1)) != basis.bands())
+    throw UsageError(fmt::format("project: spectra must be an array whose last axis has the basis's {} bands",
+                                 basis.bands()));
+  std::vector<py::ssize_t> lead(spectra.shape(), spectra.shape() + spectra.ndim() - 1);
+  py::ssize_t n = 1;
+  for (auto s : lead) n *= s;
+  std::vector<std::uint8_t> mask;
+  if (!mask_arg.is_none()) {
+    const auto ma = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>::ensure(mask_arg);
+    if (!ma || ma.size() != n)
+      throw UsageError(fmt::format("project: mask must have one entry per spectrum ({})", n));
+    mask.assign(ma.data(), ma.data() + n);
+  }
+  const Eigen::Index b = Eigen::Index(basis.bands());
+  std::vector<double> coef(std::size_t(n) * k), recon(std::size_t(n) * std::size_t(b));
+  std::vector<double> error(static_cast<std::size_t>(n));
+  double sum_sq = 0, max_error = 0;
+  std::size_t valid = 0;
+  {
+    py::gil_scoped_release release;
+    const Eigen::Map<const RowMatrixXd> x(spectra.data(), n, b);
+    Eigen::Map<RowMatrixXd> c(coef.data(), n, Eigen::Index(k));
+    Eigen::Map<RowMatrixXd> xr(recon.data(), n, b);
+    if (basis.method == "nmf") {
+      nmf::nnls_project(basis.components, x, c);
+      xr.noalias() = c * basis.components;
+    } else {
+      stats::pca_project(basis, k, x, c);
+      stats::pca_reconstruct(basis, c, xr);
+    }
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double e = (x.row(i) - xr.row(i)).norm();
+      error[std::size_t(i)] = e;
+      if (!mask.empty() && !mask[std::size_t(i)]) continue;
+      sum_sq += e * e;
+      max_error = std::max(max_error, e);
+      ++valid;
+    }
+  }
+  std::vector<py::ssize_t> cshape = lead, rshape = lead;
+  cshape.push_back(py::ssize_t(k));
+  rshape.push_back(py::ssize_t(b));
+  py::dict out;
+  out["k"] = k;
+  out["coefficients"] = adopt(std::move(coef), cshape);
+  out["reconstruction"] = adopt(std::move(recon), rshape);
+  out["error"] = adopt(std::move(error), lead);
+  out["rms"] = valid ? std::sqrt(sum_sq / (double(valid) * double(b))) : std::nan("");
+  out["max_error"] = max_error;
+  return out;
+}
+
 }  // namespace
 
 void init_analysis(py::module_& m) {
@@ -230,81 +305,19 @@ void init_analysis(py::module_& m) {
 
   m.def(
       "project",
-      [](const store::Basis& basis, const py::object& spectra_arg, const py::object& k_arg, const py::object& mask_arg) {
-        if (basis.method != "pca" && basis.method != "nmf")
-          throw InputError(fmt::format("project: basis has method '{}'; projection needs a pca or nmf basis", basis.method));
-        if (basis.method == "pca" && std::size_t(basis.mean.size()) != basis.bands())
-          throw InputError("project: the pca basis has no mean; re-learn it with specula.pca");
-        std::size_t k = basis.k();
-        if (basis.method == "pca") {
-          if (k_arg.is_none())
-            throw UsageError("project: k is required with a PCA basis (the number of leading components, e.g. 6)");
-          const long long kk = k_arg.cast<long long>();
-          if (kk < 1 || std::size_t(kk) > basis.k())
-            throw UsageError(fmt::format("project: k = {}: the basis has {} components; give k between 1 and {}", kk,
-                                         basis.k(), basis.k()));
-          k = std::size_t(kk);
-        } else if (!k_arg.is_none() && k_arg.cast<long long>() != static_cast<long long>(basis.k())) {
-          throw UsageError(fmt::format("project: k = {}: an NMF basis projects onto all of its {} components; learn a "
-                                       "basis with specula.nmf(k={}) for {} components",
-                                       k_arg.cast<long long>(), basis.k(), k_arg.cast<long long>(), k_arg.cast<long long>()));
+      [](const store::Basis& basis, const py::object& spectra, const py::object& k, const py::object& mask) -> py::object {
+        if (py::isinstance<py::list>(k) || py::isinstance<py::tuple>(k)) {
+          py::dict out;  // several k, as the CLI's -k 1,3,6,31
+          for (const auto& one : k) out[one] = project_one(basis, spectra, py::reinterpret_borrow<py::object>(one), mask);
+          return out;
         }
-        const auto spectra = DoubleArray::ensure(spectra_arg);
-        if (!spectra || spectra.ndim() < 1 || std::size_t(spectra.shape(spectra.ndim() - 1)) != basis.bands())
-          throw UsageError(fmt::format("project: spectra must be an array whose last axis has the basis's {} bands",
-                                       basis.bands()));
-        std::vector<py::ssize_t> lead(spectra.shape(), spectra.shape() + spectra.ndim() - 1);
-        py::ssize_t n = 1;
-        for (auto s : lead) n *= s;
-        std::vector<std::uint8_t> mask;
-        if (!mask_arg.is_none()) {
-          const auto ma = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>::ensure(mask_arg);
-          if (!ma || ma.size() != n)
-            throw UsageError(fmt::format("project: mask must have one entry per spectrum ({})", n));
-          mask.assign(ma.data(), ma.data() + n);
-        }
-        const Eigen::Index b = Eigen::Index(basis.bands());
-        std::vector<double> coef(std::size_t(n) * k), recon(std::size_t(n) * std::size_t(b));
-        std::vector<double> error(static_cast<std::size_t>(n));
-        double sum_sq = 0, max_error = 0;
-        std::size_t valid = 0;
-        {
-          py::gil_scoped_release release;
-          const Eigen::Map<const RowMatrixXd> x(spectra.data(), n, b);
-          Eigen::Map<RowMatrixXd> c(coef.data(), n, Eigen::Index(k));
-          Eigen::Map<RowMatrixXd> xr(recon.data(), n, b);
-          if (basis.method == "nmf") {
-            nmf::nnls_project(basis.components, x, c);
-            xr.noalias() = c * basis.components;
-          } else {
-            stats::pca_project(basis, k, x, c);
-            stats::pca_reconstruct(basis, c, xr);
-          }
-          for (Eigen::Index i = 0; i < n; ++i) {
-            const double e = (x.row(i) - xr.row(i)).norm();
-            error[std::size_t(i)] = e;
-            if (!mask.empty() && !mask[std::size_t(i)]) continue;
-            sum_sq += e * e;
-            max_error = std::max(max_error, e);
-            ++valid;
-          }
-        }
-        std::vector<py::ssize_t> cshape = lead, rshape = lead;
-        cshape.push_back(py::ssize_t(k));
-        rshape.push_back(py::ssize_t(b));
-        py::dict out;
-        out["k"] = k;
-        out["coefficients"] = adopt(std::move(coef), cshape);
-        out["reconstruction"] = adopt(std::move(recon), rshape);
-        out["error"] = adopt(std::move(error), lead);
-        out["rms"] = valid ? std::sqrt(sum_sq / (double(valid) * double(b))) : std::nan("");
-        out["max_error"] = max_error;
-        return out;
+        return project_one(basis, spectra, k, mask);
       },
       py::arg("basis"), py::arg("spectra"), py::arg("k") = py::none(), py::arg("mask") = py::none(),
       "Projects spectra (any shape ending in bands) onto a basis as `specula project` does: the first k components of "
       "a PCA basis (eqs 7.2-7.3) or NNLS on every component of an NMF basis. Returns a dict: coefficients, "
-      "reconstruction, error (per-spectrum L2), rms (per band, over spectra the mask keeps) and max_error.");
+      "reconstruction, error (per-spectrum L2), rms (per band, over spectra the mask keeps) and max_error; with a list of "
+      "k (PCA), a dict of those dicts by k.");
 }
 
 }  // namespace specula::python

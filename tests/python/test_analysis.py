@@ -71,6 +71,10 @@ def test_project_pca_is_the_explicit_formula(db):
     valid = mask.astype(bool)
     np.testing.assert_allclose(r["rms"], np.sqrt((err[valid] ** 2).sum() / (valid.sum() * 31)), rtol=1e-10)
     np.testing.assert_allclose(r["max_error"], err[valid].max(), rtol=1e-12)
+    several = specula.project(basis, img, k=[1, 3, 31], mask=mask)  # as the CLI's -k 1,3,31
+    assert sorted(several) == [1, 3, 31]
+    np.testing.assert_array_equal(several[3]["reconstruction"], r["reconstruction"])
+    assert several[1]["rms"] > several[3]["rms"] > several[31]["rms"]
     full = specula.project(basis, x[valid], k=31)
     np.testing.assert_allclose(full["reconstruction"], x[valid], atol=1e-9)  # all components: exact
 
