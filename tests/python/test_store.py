@@ -129,6 +129,11 @@ def test_blocks_float64_selection_and_collection(db):
     assert b.sources == [s.images[0], s.images[2]]
     chips = np.concatenate(list(s.blocks(collection="chips")))
     np.testing.assert_array_equal(chips, s.collection("chips"))
+    with h5py.File(db, "r") as f:
+        values = f["samples"]["scan"]["values"][...]
+    samples = s.blocks(samples="scan", dtype=np.float64)
+    assert samples.bands == values.shape[1] and samples.units == s.info("samples/scan")["units"]
+    np.testing.assert_array_equal(np.concatenate(list(samples)), values.astype(np.float64))
 
 
 def test_blocks_read_from_many_threads_agree(db):
