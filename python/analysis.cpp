@@ -1,0 +1,323 @@
+// specula.Basis, pca(), nmf() and project(): the calls apps/cmd_pca.cpp, cmd_nmf.cpp and cmd_project.cpp make,
+// with the GIL released while they stream, returning numpy results and optionally saving the basis as the CLI does.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include "core/error.h"
+#include "nmf/nmf.h"
+#include "python/common.h"
+#include "stats/moments.h"
+#include "stats/pca.h"
+#include "store/block_reader.h"
+
+namespace specula::python {
+namespace {
+
+// What a basis was learned from, as the CLI records it.
+std::string basis_source(const store::BlockReader& reader, const std::string& collection) {
+  if (!collection.empty()) return "collection " + collection;
+  std::string source = "images";
+  for (const auto& n : reader.source_names()) source += " " + n;
+  return source;
+}
+
+std::string source_files(const std::vector<store::Store>& stores) {
+  std::string files;
+  for (const auto& s : stores) files += (files.empty() ? "" : " ") + s.path().string();
+  return files;
+}
+
+// The store a basis is saved in: `output` when given, else the first input store (as the CLI's basis_output).
+std::filesystem::path output_store(const std::vector<store::Store>& stores, const py::object& output) {
+  if (output.is_none()) return stores.front().path();
+  return py::module_::import("os").attr("fspath")(output).cast<std::string>();
+}
+
+void save_basis(const std::filesystem::path& out, const std::string& name, const store::Basis& basis, bool replace,
+                const std::string& function) {
+  py::gil_scoped_release release;
+  store::StoreWriter writer(out, {.compression = {}, .replace = replace, .command_line = python_command_line(function)});
+  writer.add_basis(name, basis);
+  writer.commit();
+}
+
+py::object optional_vector(const Eigen::VectorXd& v) {
+  if (v.size() == 0) return py::none();
+  return to_numpy(v);
+}
+
+py::object optional_matrix(const Eigen::MatrixXd& m) {
+  if (m.size() == 0) return py::none();
+  return to_numpy(m);
+}
+
+// Projection of spectra (..., B) onto the first k components of a PCA basis or all of an NMF basis, as
+// apps/cmd_project.cpp does, with its per-spectrum L2 error, rms and max_error over the spectra the mask keeps.
+py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, const py::object& k_arg,
+                     const py::object& mask_arg) {
+  if (basis.method != "pca" && basis.method != "nmf")
+    throw InputError(fmt::format("project: basis has method '{}'; projection needs a pca or nmf basis", basis.method));
+  if (basis.method == "pca" && std::size_t(basis.mean.size()) != basis.bands())
+    throw InputError("project: the pca basis has no mean; re-learn it with specula.pca");
+  std::size_t k = basis.k();
+  if (basis.method == "pca") {
+    if (k_arg.is_none())
+      throw UsageError("project: k is required with a PCA basis (the number of leading components, e.g. 6)");
+    const long long kk = k_arg.cast<long long>();
+    if (kk < 1 || std::size_t(kk) > basis.k())
+      throw UsageError(fmt::format("project: k = {}: the basis has {} components; give k between 1 and {}", kk,
+                                   basis.k(), basis.k()));
+    k = std::size_t(kk);
+  } else if (!k_arg.is_none() && k_arg.cast<long long>() != static_cast<long long>(basis.k())) {
+    throw UsageError(fmt::format("project: k = {}: an NMF basis projects onto all of its {} components; learn a "
+                                 "basis with specula.nmf(k={}) for {} components",
+                                 k_arg.cast<long long>(), basis.k(), k_arg.cast<long long>(), k_arg.cast<long long>()));
+  }
+  const auto spectra = DoubleArray::ensure(spectra_arg);
+  if (!spectra || spectra.ndim() < 1 || std::size_t(spectra.shape(spectra.ndim() - 1)) != basis.bands())
+    throw UsageError(fmt::format("project: spectra must be an array whose last axis has the basis's {} bands",
+                                 basis.bands()));
+  std::vector<py::ssize_t> lead(spectra.shape(), spectra.shape() + spectra.ndim() - 1);
+  py::ssize_t n = 1;
+  for (auto s : lead) n *= s;
+  std::vector<std::uint8_t> mask;
+  if (!mask_arg.is_none()) {
+    const auto ma = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>::ensure(mask_arg);
+    if (!ma || ma.size() != n)
+      throw UsageError(fmt::format("project: mask must have one entry per spectrum ({})", n));
+    mask.assign(ma.data(), ma.data() + n);
+  }
+  const Eigen::Index b = Eigen::Index(basis.bands());
+  std::vector<double> coef(std::size_t(n) * k), recon(std::size_t(n) * std::size_t(b));
+  std::vector<double> error(static_cast<std::size_t>(n));
+  double sum_sq = 0, max_error = 0;
+  std::size_t valid = 0;
+  {
+    py::gil_scoped_release release;
+    const Eigen::Map<const RowMatrixXd> x(spectra.data(), n, b);
+    Eigen::Map<RowMatrixXd> c(coef.data(), n, Eigen::Index(k));
+    Eigen::Map<RowMatrixXd> xr(recon.data(), n, b);
+    if (basis.method == "nmf") {
+      nmf::nnls_project(basis.components, x, c);
+      xr.noalias() = c * basis.components;
+    } else {
+      stats::pca_project(basis, k, x, c);
+      stats::pca_reconstruct(basis, c, xr);
+    }
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double e = (x.row(i) - xr.row(i)).norm();
+      error[std::size_t(i)] = e;
+      if (!mask.empty() && !mask[std::size_t(i)]) continue;
+      sum_sq += e * e;
+      max_error = std::max(max_error, e);
+      ++valid;
+    }
+  }
+  std::vector<py::ssize_t> cshape = lead, rshape = lead;
+  cshape.push_back(py::ssize_t(k));
+  rshape.push_back(py::ssize_t(b));
+  py::dict out;
+  out["k"] = k;
+  out["coefficients"] = adopt(std::move(coef), cshape);
+  out["reconstruction"] = adopt(std::move(recon), rshape);
+  out["error"] = adopt(std::move(error), lead);
+  out["rms"] = valid ? std::sqrt(sum_sq / (double(valid) * double(b))) : std::nan("");
+  out["max_error"] = max_error;
+  return out;
+}
+
+}  // namespace
+
+void init_analysis(py::module_& m) {
+  py::class_<store::Basis>(m, "Basis",
+                           "A learned spectral basis: components are rows (k x bands); PCA bases carry mean, "
+                           "eigenvalues, explained variance, covariance; NMF bases weights.")
+      .def(py::init([](const std::string& method, const py::object& wavelengths, const py::object& components,
+                       const py::object& mean, const py::object& weights) {
+             store::Basis b;
+             if (method != "pca" && method != "nmf")
+               throw UsageError(fmt::format("Basis: method '{}': give pca or nmf", method));
+             b.method = method;
+             b.wavelengths = grid_from(wavelengths, "Basis wavelengths");
+             b.components = matrix_from(components, "Basis components");
+             if (std::size_t(b.components.cols()) != b.bands())
+               throw UsageError(fmt::format("Basis: components have {} columns for {} wavelengths",
+                                            b.components.cols(), b.bands()));
+             if (!mean.is_none()) b.mean = vector_from(mean, "Basis mean");
+             if (!weights.is_none()) b.weights = vector_from(weights, "Basis weights");
+             if (method == "pca" && std::size_t(b.mean.size()) != b.bands())
+               throw UsageError(fmt::format("Basis: a pca basis needs a mean of {} values", b.bands()));
+             b.source = "python";
+             return b;
+           }),
+           py::arg("method"), py::arg("wavelengths"), py::arg("components"), py::arg("mean") = py::none(),
+           py::arg("weights") = py::none())
+      .def_readonly("method", &store::Basis::method)
+      .def_readonly("n", &store::Basis::n)
+      .def_readonly("source", &store::Basis::source)
+      .def_property_readonly("k", &store::Basis::k)
+      .def_property_readonly("bands", &store::Basis::bands)
+      .def_property_readonly("wavelengths", [](const store::Basis& b) { return wavelengths_array(b.wavelengths); })
+      .def_property_readonly("components", [](const store::Basis& b) { return to_numpy(b.components); })
+      .def_property_readonly("mean", [](const store::Basis& b) { return optional_vector(b.mean); })
+      .def_property_readonly("eigenvalues", [](const store::Basis& b) { return optional_vector(b.eigenvalues); })
+      .def_property_readonly("explained_variance_ratio",
+                             [](const store::Basis& b) { return optional_vector(b.explained_variance_ratio); })
+      .def_property_readonly("covariance", [](const store::Basis& b) { return optional_matrix(b.covariance); })
+      .def_property_readonly("second_moment", [](const store::Basis& b) { return optional_matrix(b.second_moment); })
+      .def_property_readonly("weights", [](const store::Basis& b) { return optional_vector(b.weights); })
+      .def("__repr__", [](const store::Basis& b) {
+        return fmt::format("<specula.Basis {} k={} {} n={}>", b.method, b.k(), b.wavelengths.describe(), b.n);
+      });
+
+  m.def(
+      "pca",
+      [](const py::object& stores_arg, const py::object& images, const std::string& collection, std::size_t k,
+         const py::object& name, const py::object& output, bool replace) {
+        const std::vector<store::Store> stores = stores_from(stores_arg);
+        if (!name.is_none()) store::validate_name(name.cast<std::string>(), "basis");
+        const std::filesystem::path out = output_store(stores, output);
+        const store::Selection sel{.image_globs = globs_from(images), .collection = collection};
+        store::Basis basis = interruptible([&] {
+          const store::BlockReader reader(stores, sel);
+          if (k > reader.bands()) throw UsageError(fmt::format("pca: k = {}: the data has {} bands", k, reader.bands()));
+          if (reader.spectra() < 2)
+            throw InputError(fmt::format("{}: the selection holds {} valid spectra; PCA needs at least two",
+                                         stores.front().label(), reader.spectra()));
+          const stats::Moments moments = stats::stream_moments(reader);
+          store::Basis b = stats::pca_basis(moments, reader.wavelengths(), k);
+          b.source = basis_source(reader, collection);
+          return b;
+        });
+        basis.provenance.source_file = source_files(stores);
+        basis.provenance.importer = "pca";
+        if (!name.is_none()) save_basis(out, name.cast<std::string>(), basis, replace, "pca");
+        return basis;
+      },
+      py::arg("stores"), py::arg("images") = py::none(), py::arg("collection") = "", py::arg("k") = 0,
+      py::arg("name") = py::none(), py::arg("output") = py::none(), py::arg("replace") = false,
+      "PCA (reference §7.3) of every valid spectrum of the selected images (or a collection) of one or more stores, "
+      "in one exact streaming pass, as `specula pca` does; k = 0 keeps every component. With `name`, the basis is "
+      "also saved in `output` (default: the first store).");
+
+  m.def(
+      "nmf",
+      [](const py::object& stores_arg, std::size_t k, const py::object& images, const std::string& collection,
+         const std::string& init, std::uint64_t seed, std::size_t restarts, std::size_t max_epochs,
+         std::size_t wave_blocks, double tol, const std::string& negatives, const py::object& name,
+         const py::object& output, const py::object& checkpoint, bool resume, bool replace,
+         const py::object& on_epoch) {
+        const std::vector<store::Store> stores = stores_from(stores_arg);
+        const std::optional<std::string> save = name.is_none() ? std::nullopt : std::optional(name.cast<std::string>());
+        if (save) store::validate_name(*save, "basis");
+        const std::filesystem::path out = output_store(stores, output);
+        nmf::NmfOptions opt{.k = k,
+                            .init = nmf::parse_init(init),
+                            .seed = seed,
+                            .restarts = restarts,
+                            .max_epochs = max_epochs,
+                            .tol = tol,
+                            .negatives = nmf::parse_negatives(negatives),
+                            .wave_blocks = wave_blocks,
+                            .resume = resume};
+        if (!checkpoint.is_none())
+          opt.checkpoint = py::module_::import("os").attr("fspath")(checkpoint).cast<std::string>();
+        else if (save)
+          opt.checkpoint = out.string() + ".nmf-" + *save + ".checkpoint";
+        if (save && !replace && !resume && std::filesystem::exists(out)) {
+          const store::Store target = store::Store::open(out);
+          for (const auto& b : target.bases())
+            if (b == *save)
+              throw UsageError(fmt::format("{}: basis {} already exists; choose another name or give replace=True",
+                                           out.string(), *save));
+        }
+        if (!on_epoch.is_none())
+          opt.on_epoch = [on_epoch](const nmf::EpochReport& e) {
+            py::gil_scoped_acquire gil;
+            py::dict d;
+            d["restart"] = e.restart;
+            d["epoch"] = e.epoch;
+            d["rel_error"] = e.rel_error;
+            d["seconds"] = e.seconds;
+            on_epoch(d);
+          };
+        const store::Selection sel{.image_globs = globs_from(images), .collection = collection};
+        store::Basis basis;
+        nmf::NmfResult r;
+        interruptible([&] {
+          const store::BlockReader reader(stores, sel);
+          r = nmf::factorize(reader, opt);
+          basis.method = "nmf";
+          basis.wavelengths = reader.wavelengths();
+          basis.n = r.n;
+          basis.components = r.best_result().basis;
+          basis.weights = r.weights;
+          basis.second_moment = r.second_moment;
+          basis.source = basis_source(reader, collection);
+        });
+        basis.provenance.source_file = source_files(stores);
+        basis.provenance.importer = fmt::format("nmf k={} init={} seed={} restarts={} rel_error={:.9g} svd_bound={:.9g}",
+                                                k, init, seed, restarts, r.rel_error, r.svd_bound);
+        if (save) {
+          save_basis(out, *save, basis, replace, "nmf");
+          std::error_code ec;
+          std::filesystem::remove(opt.checkpoint, ec);
+        }
+        py::dict report;
+        report["rel_error"] = r.rel_error;
+        report["svd_bound"] = r.svd_bound;
+        report["n"] = r.n;
+        report["best_restart"] = r.best;
+        report["epochs"] = r.best_result().epochs;
+        report["converged"] = r.best_result().converged;
+        report["history"] = r.best_result().history;
+        py::list rs;
+        for (const auto& rr : r.restarts) {
+          py::dict d;
+          d["rel_error"] = rr.rel_error;
+          d["epochs"] = rr.epochs;
+          d["converged"] = rr.converged;
+          d["history"] = rr.history;
+          d["mean_angle_deg"] = rr.mean_angle_deg;
+          d["max_angle_deg"] = rr.max_angle_deg;
+          rs.append(d);
+        }
+        report["restarts"] = rs;
+        report["passes"] = r.passes;
+        report["negatives"] = r.negatives;
+        report["values"] = r.values;
+        report["nnls_unconverged"] = r.nnls_unconverged;
+        report["resumed"] = r.resumed;
+        report["warmup_epochs"] = r.warmup_epochs;
+        return py::make_tuple(basis, report);
+      },
+      py::arg("stores"), py::arg("k"), py::arg("images") = py::none(), py::arg("collection") = "",
+      py::arg("init") = "nndsvd", py::arg("seed") = 0, py::arg("restarts") = 1, py::arg("max_epochs") = 100,
+      py::arg("wave_blocks") = 8, py::arg("tol") = 1e-4, py::arg("negatives") = "clip", py::arg("name") = py::none(),
+      py::arg("output") = py::none(), py::arg("checkpoint") = py::none(), py::arg("resume") = false,
+      py::arg("replace") = false, py::arg("on_epoch") = py::none(),
+      "Out-of-core NMF (reference §7.4) of every valid spectrum, as `specula nmf` does: returns (basis, report). With "
+      "`name`, the basis is saved in `output` (default: the first store) and a checkpoint is kept beside it until "
+      "then; on_epoch(dict) is called after every epoch.");
+
+  m.def(
+      "project",
+      [](const store::Basis& basis, const py::object& spectra, const py::object& k, const py::object& mask) -> py::object {
+        if (py::isinstance<py::list>(k) || py::isinstance<py::tuple>(k)) {
+          py::dict out;  // several k, as the CLI's -k 1,3,6,31
+          for (const auto& one : k) out[one] = project_one(basis, spectra, py::reinterpret_borrow<py::object>(one), mask);
+          return out;
+        }
+        return project_one(basis, spectra, k, mask);
+      },
+      py::arg("basis"), py::arg("spectra"), py::arg("k") = py::none(), py::arg("mask") = py::none(),
+      "Projects spectra (any shape ending in bands) onto a basis as `specula project` does: the first k components of "
+      "a PCA basis (eqs 7.2-7.3) or NNLS on every component of an NMF basis. Returns a dict: coefficients, "
+      "reconstruction, error (per-spectrum L2), rms (per band, over spectra the mask keeps) and max_error; with a list of "
+      "k (PCA), a dict of those dicts by k.");
+}
+
+}  // namespace specula::python

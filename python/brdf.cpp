@@ -1,0 +1,362 @@
+// BRDF grids (specula.Grid), their .spgrid and .spc files, MERL .binary files, vectorised lookup at standard angles,
+// and spectra -> XYZ -> sRGB.
+#include <fmt/format.h>
+
+#include <cmath>
+#include <limits>
+
+#include "codec/merl.h"
+#include "codec/spc.h"
+#include "codec/spectral_grid.h"
+#include "core/brdf_geometry.h"
+#include "core/cie.h"
+#include "core/colour.h"
+#include "core/error.h"
+#include "python/common.h"
+
+namespace specula::python {
+namespace {
+
+constexpr py::ssize_t kDims[3] = {brdf::kMerlThetaH, brdf::kMerlThetaD, brdf::kMerlPhiD};
+
+std::string fspath(const py::object& p) { return py::module_::import("os").attr("fspath")(p).cast<std::string>(); }
+
+// The grid's values as a (bands, 90, 90, 180) float32 view that keeps the Grid alive.
+py::array grid_values(py::object self) {
+  auto& g = self.cast<store::Grid&>();
+  return py::array_t<float>({py::ssize_t(g.bands()), kDims[0], kDims[1], kDims[2]}, g.brdf.data(), self);
+}
+
+Observer parse_observer(const std::string& s) {
+  if (s == "cie1931_2deg" || s == "1931") return Observer::cie1931_2deg;
+  if (s == "cie1964_10deg" || s == "1964") return Observer::cie1964_10deg;
+  throw UsageError(fmt::format("observer '{}': give cie1931_2deg or cie1964_10deg", s));
+}
+
+SpectrumKind parse_kind(const std::string& s) {
+  if (s == "reflectance") return SpectrumKind::reflectance;
+  if (s == "radiance") return SpectrumKind::radiance;
+  throw UsageError(fmt::format("kind '{}': give reflectance or radiance", s));
+}
+
+Eigen::VectorXd illuminant_from(const py::object& ill, const WavelengthGrid& grid) {
+  if (py::isinstance<py::str>(ill)) return illuminant(ill.cast<std::string>(), grid);
+  Eigen::VectorXd v = vector_from(ill, "illuminant");
+  if (std::size_t(v.size()) != grid.size())
+    throw UsageError(fmt::format("illuminant: {} values for {} wavelengths", v.size(), grid.size()));
+  return v;
+}
+
+// Spectra (..., B) as float64 rows and their leading shape; UsageError unless the last axis has `bands` entries.
+DoubleArray spectra_rows(const py::object& a, std::size_t bands, std::vector<py::ssize_t>& lead, const char* fn) {
+  auto arr = DoubleArray::ensure(a);
+  if (!arr || arr.ndim() < 1 || std::size_t(arr.shape(arr.ndim() - 1)) != bands)
+    throw UsageError(fmt::format("{}: spectra must be an array whose last axis has the {} wavelengths", fn, bands));
+  lead.assign(arr.shape(), arr.shape() + arr.ndim() - 1);
+  return arr;
+}
+
+ToneMap parse_tone(const std::string& s) {
+  if (s == "clip") return ToneMap::clip;
+  if (s == "reinhard") return ToneMap::reinhard;
+  throw UsageError(fmt::format("tone '{}': give clip or reinhard", s));
+}
+
+// XYZ rows -> (sRGB8, linear RGB) through core's display pipeline.
+py::tuple display(const Eigen::Ref<const RowMatrixX3f>& xyz, const std::vector<py::ssize_t>& lead,
+                  const Eigen::Vector3d& white, const DisplayOptions& o) {
+  const Eigen::Index n = xyz.rows();
+  std::vector<std::uint8_t> srgb(std::size_t(n) * 3);
+  std::vector<float> linear(std::size_t(n) * 3);
+  {
+    py::gil_scoped_release release;
+    xyz_to_display(xyz, white, o, Eigen::Map<RowMatrixX3f>(linear.data(), n, 3), srgb);
+  }
+  std::vector<py::ssize_t> shape = lead;
+  shape.push_back(3);
+  return py::make_tuple(adopt(std::move(srgb), shape), adopt(std::move(linear), shape));
+}
+
+}  // namespace
+
+void init_brdf(py::module_& m) {
+  py::class_<store::Grid>(m, "Grid",
+                          "A spectral BRDF on the MERL grid: values (bands, 90 theta_h, 90 theta_d, 180 phi_d) float32; "
+                          "value * scale is in 1/sr; a negative value means no data.")
+      .def(py::init([](const py::object& wavelengths, const py::object& values, double scale, const std::string& units) {
+             store::Grid g;
+             g.wavelengths = grid_from(wavelengths, "Grid wavelengths");
+             const auto v = FloatArray::ensure(values);
+             if (!v || v.ndim() != 4 || std::size_t(v.shape(0)) != g.bands() || v.shape(1) != kDims[0] ||
+                 v.shape(2) != kDims[1] || v.shape(3) != kDims[2])
+               throw UsageError(fmt::format("Grid: values must be ({}, 90, 90, 180)", g.bands()));
+             g.brdf.assign(v.data(), v.data() + v.size());
+             g.scale = scale;
+             g.units = units;
+             return g;
+           }),
+           py::arg("wavelengths"), py::arg("values"), py::arg("scale") = 1.0, py::arg("units") = "1/sr")
+      .def_property_readonly("values", &grid_values)
+      .def_property_readonly("wavelengths", [](const store::Grid& g) { return wavelengths_array(g.wavelengths); })
+      .def_property_readonly("bands", &store::Grid::bands)
+      .def_readwrite("scale", &store::Grid::scale)
+      .def_readonly("units", &store::Grid::units)
+      .def("__repr__",
+           [](const store::Grid& g) { return fmt::format("<specula.Grid {} scale={}>", g.wavelengths.describe(), g.scale); });
+
+  m.def("read_spgrid", [](const py::object& p) { return codec::read_grid_file(fspath(p)); }, py::arg("path"),
+        "Reads a grid exchange file (.spgrid, docs/grid-format.md).");
+  m.def(
+      "write_spgrid",
+      [](const py::object& p, const store::Grid& g) {
+        const std::string path = fspath(p);
+        py::gil_scoped_release release;
+        codec::write_grid_file(path, g);
+      },
+      py::arg("path"), py::arg("grid"), "Writes a grid exchange file (complete or not at all).");
+
+  m.attr("MERL_SCALE") = py::make_tuple(codec::kMerlScale[0], codec::kMerlScale[1], codec::kMerlScale[2]);
+  m.def(
+      "read_merl",
+      [](const py::object& p, bool scaled) {
+        codec::MerlBrdf b = codec::read_merl(fspath(p));
+        if (scaled)
+          for (int c = 0; c < 3; ++c)
+            for (std::size_t i = 0; i < brdf::kMerlCells; ++i) {
+              double& v = b.raw[std::size_t(c) * brdf::kMerlCells + i];
+              if (v >= 0) v *= codec::kMerlScale[std::size_t(c)];
+            }
+        return adopt(std::move(b.raw), {3, kDims[0], kDims[1], kDims[2]});
+      },
+      py::arg("path"), py::arg("scaled") = false,
+      "A MERL .binary as (3, 90, 90, 180) float64: the stored values (negative: no data), or with scaled=True the "
+      "BRDF in 1/sr (stored value times MERL_SCALE; no-data cells keep their negative value).");
+  m.def(
+      "write_merl",
+      [](const py::object& p, const py::object& values, bool scaled) {
+        const auto v = DoubleArray::ensure(values);
+        if (!v || v.size() != py::ssize_t(3 * brdf::kMerlCells))
+          throw UsageError("write_merl: values must be (3, 90, 90, 180)");
+        codec::MerlBrdf b;
+        b.raw.assign(v.data(), v.data() + v.size());
+        if (scaled)
+          for (int c = 0; c < 3; ++c)
+            for (std::size_t i = 0; i < brdf::kMerlCells; ++i) {
+              double& x = b.raw[std::size_t(c) * brdf::kMerlCells + i];
+              if (x >= 0) x /= codec::kMerlScale[std::size_t(c)];
+            }
+        const std::string path = fspath(p);
+        py::gil_scoped_release release;
+        codec::write_merl(path, b);
+      },
+      py::arg("path"), py::arg("values"), py::arg("scaled") = false,
+      "Writes (3, 90, 90, 180) values as a MERL .binary (stored values, or 1/sr with scaled=True).");
+
+  m.def(
+      "merl_index",
+      [](const py::object& ti, const py::object& pi, const py::object& to, const py::object& po) {
+        const auto a = DoubleArray::ensure(ti), b = DoubleArray::ensure(pi), c = DoubleArray::ensure(to),
+                   d = DoubleArray::ensure(po);
+        if (!a || !b || !c || !d || a.size() != b.size() || a.size() != c.size() || a.size() != d.size())
+          throw UsageError("merl_index: theta_i, phi_i, theta_o, phi_o must be arrays of one size");
+        py::array_t<std::int64_t> out(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()));
+        std::int64_t* o = out.mutable_data();
+        const py::ssize_t n = a.size();
+        {
+          py::gil_scoped_release release;
+          for (py::ssize_t i = 0; i < n; ++i) {
+            const brdf::StdAngles s{a.data()[i], b.data()[i], c.data()[i], d.data()[i]};
+            if (!std::isfinite(s.theta_i) || !std::isfinite(s.phi_i) || !std::isfinite(s.theta_o) || !std::isfinite(s.phi_o))
+              throw UsageError(fmt::format("merl_index: angles of entry {} are not finite", i));
+            o[i] = std::int64_t(brdf::merl_index(brdf::merl_cell(s)));
+          }
+        }
+        return out;
+      },
+      py::arg("theta_i"), py::arg("phi_i"), py::arg("theta_o"), py::arg("phi_o"),
+      "The MERL cell (linear index, phi_d fastest) that BRDFRead.cpp reads for each set of standard angles (radians).");
+  m.def(
+      "brdf_lookup",
+      [](const store::Grid& g, const py::object& ti, const py::object& pi, const py::object& to, const py::object& po) {
+        const auto a = DoubleArray::ensure(ti), b = DoubleArray::ensure(pi), c = DoubleArray::ensure(to),
+                   d = DoubleArray::ensure(po);
+        if (!a || !b || !c || !d || a.size() != b.size() || a.size() != c.size() || a.size() != d.size())
+          throw UsageError("brdf_lookup: theta_i, phi_i, theta_o, phi_o must be arrays of one size");
+        std::vector<py::ssize_t> shape(a.shape(), a.shape() + a.ndim());
+        shape.push_back(py::ssize_t(g.bands()));
+        const py::ssize_t n = a.size();
+        const std::size_t bands = g.bands();
+        std::vector<double> out(std::size_t(n) * bands);
+        {
+          py::gil_scoped_release release;
+          for (py::ssize_t i = 0; i < n; ++i) {
+            const brdf::StdAngles s{a.data()[i], b.data()[i], c.data()[i], d.data()[i]};
+            if (!std::isfinite(s.theta_i) || !std::isfinite(s.phi_i) || !std::isfinite(s.theta_o) || !std::isfinite(s.phi_o))
+              throw UsageError(fmt::format("brdf_lookup: angles of entry {} are not finite", i));
+            const std::size_t cell = brdf::merl_index(brdf::merl_cell(s));
+            for (std::size_t k = 0; k < bands; ++k) {
+              const float v = g.brdf[k * brdf::kMerlCells + cell];
+              out[std::size_t(i) * bands + k] = v < 0 ? std::numeric_limits<double>::quiet_NaN() : double(v) * g.scale;
+            }
+          }
+        }
+        return adopt(std::move(out), shape);
+      },
+      py::arg("grid"), py::arg("theta_i"), py::arg("phi_i"), py::arg("theta_o"), py::arg("phi_o"),
+      "The grid's BRDF (1/sr) at arrays of standard angles (radians), in the cell BRDFRead.cpp reads: shape of the "
+      "angles + (bands,), NaN where the cell holds no data.");
+
+  m.def(
+      "spc_encode",
+      [](const store::Grid& grid, const std::optional<store::Basis>& basis, std::size_t k, std::size_t extra,
+         double max_error, double magnitude_scale, int zstd_level, const std::string& reference) {
+        codec::SpcReport rep;
+        std::vector<std::uint8_t> bytes;
+        std::string ref;
+        {
+          py::gil_scoped_release release;
+          codec::SpcBasis b;
+          if (!basis) {
+            if (extra) throw UsageError("spc_encode: extra extends a learned basis; with no basis raise k instead");
+            b = codec::self_basis(grid, k);
+          } else {
+            b = codec::augment_basis(codec::coding_basis(*basis, k, reference), grid, extra);
+          }
+          ref = b.reference;
+          bytes = codec::encode_spc(grid, b,
+                                    {.max_error = max_error, .magnitude_scale = magnitude_scale, .zstd_level = zstd_level},
+                                    &rep);
+        }
+        py::dict r;
+        r["basis"] = ref;
+        r["input_bytes"] = rep.input_bytes;
+        r["output_bytes"] = rep.output_bytes;
+        r["valid_cells"] = rep.valid_cells;
+        r["magnitude_scale"] = rep.magnitude_scale;
+        r["magnitude_step"] = rep.magnitude_step;
+        r["shape_step"] = rep.shape_step;
+        r["max_abs_error"] = rep.max_abs_error;
+        r["rms_error"] = rep.rms_error;
+        r["max_shape_residual"] = rep.max_shape_residual;
+        r["max_quantisation_error"] = rep.max_quantisation_error;
+        return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()), r);
+      },
+      py::arg("grid"), py::arg("basis") = py::none(), py::arg("k") = 6, py::arg("extra") = 0,
+      py::arg("max_error") = 0.01, py::arg("magnitude_scale") = 0.0, py::arg("zstd_level") = 9,
+      py::arg("reference") = "python",
+      "Encodes a grid as .spc bytes (docs/codec-format.md) as `specula encode` does: on a learned basis (its first k "
+      "as coding_basis takes them, plus `extra` fitted spectra) or, without one, on the grid's own top-k basis. "
+      "Returns (bytes, report).");
+  m.def(
+      "spc_decode",
+      [](const py::object& data) {
+        std::vector<std::uint8_t> bytes;
+        std::string label = "spc bytes";
+        if (py::isinstance<py::bytes>(data) || py::isinstance<py::bytearray>(data) ||
+            py::isinstance<py::memoryview>(data)) {
+          const std::string s = py::bytes(data);
+          bytes.assign(s.begin(), s.end());
+        } else {
+          const std::filesystem::path p = fspath(data);
+          bytes = codec::read_spc_file(p);
+          label = p.filename().string();
+        }
+        py::gil_scoped_release release;
+        return codec::decode_spc(bytes, label);
+      },
+      py::arg("data"), "Decodes .spc bytes, or the .spc file at a path, into a Grid (every field and the CRC checked).");
+  m.def(
+      "write_spc",
+      [](const py::object& p, const py::bytes& data) {
+        const std::string s = data;
+        codec::write_spc_file(fspath(p), std::span(reinterpret_cast<const std::uint8_t*>(s.data()), s.size()));
+      },
+      py::arg("path"), py::arg("data"), "Writes .spc bytes to a file (complete or not at all).");
+
+  m.def("cmf", [](const py::object& w, const std::string& observer) {
+        return to_numpy(Eigen::MatrixXd(cmf(grid_from(w, "wavelengths"), parse_observer(observer))));
+      },
+      py::arg("wavelengths"), py::arg("observer") = "cie1931_2deg",
+      "The CIE colour-matching functions at the wavelengths, (bands, 3): xbar, ybar, zbar.");
+  m.def("illuminant", [](const std::string& name, const py::object& w) {
+        return to_numpy(Eigen::VectorXd(illuminant(name, grid_from(w, "wavelengths"))));
+      },
+      py::arg("name"), py::arg("wavelengths"), "The relative SPD of CIE illuminant D65, D50, A or E at the wavelengths.");
+  m.def(
+      "xyz_weights",
+      [](const py::object& w, const std::string& kind, const py::object& ill, const std::string& observer) {
+        const WavelengthGrid grid = grid_from(w, "wavelengths");
+        const SpectrumToXyz t(grid, parse_kind(kind), illuminant_from(ill, grid), parse_observer(observer));
+        return py::make_tuple(to_numpy(Eigen::MatrixXd(t.weights())), to_numpy(Eigen::VectorXd(t.white())));
+      },
+      py::arg("wavelengths"), py::arg("kind") = "reflectance", py::arg("illuminant") = "D65",
+      py::arg("observer") = "cie1931_2deg", "(W, white): XYZ = W @ spectrum (W is 3 x bands) and the scene white.");
+  m.def(
+      "spectra_to_xyz",
+      [](const py::object& spectra, const py::object& w, const std::string& kind, const py::object& ill,
+         const std::string& observer) {
+        const WavelengthGrid grid = grid_from(w, "wavelengths");
+        const SpectrumToXyz t(grid, parse_kind(kind), illuminant_from(ill, grid), parse_observer(observer));
+        std::vector<py::ssize_t> lead;
+        const auto x = spectra_rows(spectra, grid.size(), lead, "spectra_to_xyz");
+        const Eigen::Index n = x.size() / Eigen::Index(grid.size());
+        std::vector<double> out(std::size_t(n) * 3);
+        {
+          py::gil_scoped_release release;
+          Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(out.data(), n, 3).noalias() =
+              Eigen::Map<const RowMatrixXd>(x.data(), n, Eigen::Index(grid.size())) * t.weights().transpose();
+        }
+        lead.push_back(3);
+        return adopt(std::move(out), lead);
+      },
+      py::arg("spectra"), py::arg("wavelengths"), py::arg("kind") = "reflectance", py::arg("illuminant") = "D65",
+      py::arg("observer") = "cie1931_2deg",
+      "CIE XYZ of spectra (..., bands) by trapezoid quadrature of the CMFs: reflectance lit by the illuminant (a "
+      "perfect white has Y = 1) or radiance (a flat spectrum of 1 has Y = 1).");
+  m.def(
+      "xyz_to_srgb",
+      [](const py::object& xyz, const py::object& white, double exposure, const std::string& tone, bool adapt,
+         bool desaturate) {
+        std::vector<py::ssize_t> lead;
+        const auto x = spectra_rows(xyz, 3, lead, "xyz_to_srgb");
+        const Eigen::Index n = x.size() / 3;
+        const RowMatrixX3f xf = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(x.data(), n, 3)
+                                    .cast<float>();
+        Eigen::Vector3d w(0.95047, 1.0, 1.08883);
+        if (!white.is_none()) {
+          const Eigen::VectorXd v = vector_from(white, "white");
+          if (v.size() != 3) throw UsageError("xyz_to_srgb: white must be 3 values (XYZ)");
+          w = v;
+        }
+        return display(xf, lead, w, {.exposure_stops = exposure, .tone = parse_tone(tone), .adapt_to_d65 = adapt,
+                                     .desaturate = desaturate});
+      },
+      py::arg("xyz"), py::arg("white") = py::none(), py::arg("exposure") = 0.0, py::arg("tone") = "clip",
+      py::arg("adapt") = true, py::arg("desaturate") = true,
+      "Display sRGB of XYZ (..., 3): exposure in stops, tone map, Bradford adaptation from `white` (default D65's "
+      "XYZ), gamut mapping by desaturation. Returns (srgb8 uint8, linear float32), both (..., 3).");
+  m.def(
+      "spectra_to_srgb",
+      [](const py::object& spectra, const py::object& w, const std::string& kind, const py::object& ill,
+         double exposure, const std::string& tone, bool adapt, bool desaturate) {
+        const WavelengthGrid grid = grid_from(w, "wavelengths");
+        const SpectrumToXyz t(grid, parse_kind(kind), illuminant_from(ill, grid));
+        std::vector<py::ssize_t> lead;
+        const auto x = spectra_rows(spectra, grid.size(), lead, "spectra_to_srgb");
+        const Eigen::Index n = x.size() / Eigen::Index(grid.size());
+        RowMatrixX3f xyz(n, 3);
+        {
+          py::gil_scoped_release release;
+          const RowMatrixXf xf = Eigen::Map<const RowMatrixXd>(x.data(), n, Eigen::Index(grid.size())).cast<float>();
+          t.apply(xf, xyz);
+        }
+        return display(xyz, lead, t.white(), {.exposure_stops = exposure, .tone = parse_tone(tone),
+                                              .adapt_to_d65 = adapt, .desaturate = desaturate});
+      },
+      py::arg("spectra"), py::arg("wavelengths"), py::arg("kind") = "reflectance", py::arg("illuminant") = "D65",
+      py::arg("exposure") = 0.0, py::arg("tone") = "clip", py::arg("adapt") = true, py::arg("desaturate") = true,
+      "Display sRGB of spectra (..., bands): spectra_to_xyz then xyz_to_srgb with the scene white. Returns (srgb8, "
+      "linear).");
+}
+
+}  // namespace specula::python

@@ -1,0 +1,159 @@
+"""BRDF grids, .spgrid/.spc/.binary files and lookup, against numpy: a MERL reader written from the format's
+description, BRDFRead.cpp's index arithmetic, and the .spc codec's stated error bound."""
+import numpy as np
+import pytest
+
+from conftest import cli, cli_error
+import specula
+
+CELLS = 90 * 90 * 180
+
+
+@pytest.fixture(scope="module")
+def spgrid(tmp_path_factory):
+    path = tmp_path_factory.mktemp("grid") / "rp.spgrid"
+    cli("synth-brdf", "red-plastic", "--wavelengths", "400:700:100", "-o", path)
+    return path
+
+
+def test_spgrid_read_write_round_trip(spgrid, tmp_path):
+    g = specula.read_spgrid(spgrid)
+    assert g.bands == 4 and g.values.shape == (4, 90, 90, 180) and g.values.dtype == np.float32
+    np.testing.assert_array_equal(g.wavelengths, [400, 500, 600, 700])
+    out = tmp_path / "copy.spgrid"
+    specula.write_spgrid(out, g)
+    h = specula.read_spgrid(out)
+    np.testing.assert_array_equal(h.values, g.values)
+    assert h.scale == g.scale
+    made = specula.Grid([400, 500, 600, 700], g.values * 2, scale=0.5)
+    specula.write_spgrid(out, made)
+    np.testing.assert_array_equal(specula.read_spgrid(out).values, g.values * 2)
+
+
+def test_spgrid_errors(spgrid, tmp_path):
+    bad = tmp_path / "bad.spgrid"
+    bad.write_bytes(spgrid.read_bytes()[:1000])
+    with pytest.raises(specula.InputError) as e:
+        specula.read_spgrid(bad)
+    assert str(e.value) == cli_error("decode", bad, "-o", tmp_path / "x.spgrid") or "bad.spgrid" in str(e.value)
+    with pytest.raises(specula.UsageError, match=r"\(4, 90, 90, 180\)"):
+        specula.Grid([400, 500, 600, 700], np.zeros((3, 90, 90, 180)))
+
+
+def test_merl_round_trip_and_layout(tmp_path):
+    rng = np.random.default_rng(5)
+    raw = rng.uniform(0, 2, (3, 90, 90, 180))
+    raw[:, 0, 0, :10] = -1  # no data
+    path = tmp_path / "m.binary"
+    specula.write_merl(path, raw)
+    data = path.read_bytes()
+    assert len(data) == 12 + 3 * CELLS * 8
+    np.testing.assert_array_equal(np.frombuffer(data[:12], "<i4"), [90, 90, 180])
+    np.testing.assert_array_equal(np.frombuffer(data[12:], "<f8").reshape(3, 90, 90, 180), raw)
+    np.testing.assert_array_equal(specula.read_merl(path), raw)
+    scaled = specula.read_merl(path, scaled=True)
+    s = np.array(specula.MERL_SCALE)[:, None, None, None]
+    np.testing.assert_allclose(scaled, np.where(raw >= 0, raw * s, raw), rtol=1e-15)
+    specula.write_merl(tmp_path / "s.binary", scaled, scaled=True)
+    np.testing.assert_allclose(specula.read_merl(tmp_path / "s.binary"), raw, rtol=1e-14)
+    (tmp_path / "short.binary").write_bytes(data[:-8])
+    with pytest.raises(specula.InputError, match="short.binary") as e:
+        specula.read_merl(tmp_path / "short.binary")
+    assert str(e.value) == cli_error("uplift", tmp_path / "short.binary", "-o", tmp_path / "u.spgrid")
+
+
+def merl_index_numpy(ti, pi, to, po):
+    """BRDFRead.cpp (Matusik et al.): standard angles -> half/difference angles -> cell, in numpy."""
+    def vec(t, p):
+        return np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1)
+
+    def rot(v, axis, a):
+        c, s = np.cos(a)[..., None], np.sin(a)[..., None]
+        return v * c + np.cross(axis, v) * s + axis * (v @ axis)[..., None] * (1 - c)
+
+    wi, wo = vec(ti, pi), vec(to, po)
+    h = (wi + wo) / np.linalg.norm(wi + wo, axis=-1, keepdims=True)
+    th, ph = np.arccos(np.clip(h[..., 2], -1, 1)), np.arctan2(h[..., 1], h[..., 0])
+    d = rot(rot(wi, np.array([0.0, 0, 1]), -ph), np.array([0.0, 1, 0]), -th)
+    td, pd = np.arccos(np.clip(d[..., 2], -1, 1)), np.arctan2(d[..., 1], d[..., 0])
+    ih = np.clip(np.floor(np.sqrt(np.maximum(th, 0) / (np.pi / 2)) * 90), 0, 89).astype(int)
+    ih[th <= 0] = 0
+    idd = np.clip(np.floor(td / (np.pi / 2) * 90), 0, 89).astype(int)
+    pd = np.where(pd < 0, pd + np.pi, pd)
+    ip = np.clip(np.floor(pd / np.pi * 180), 0, 179).astype(int)
+    return ih, idd, ip
+
+
+def test_lookup_is_index_arithmetic_on_the_array(spgrid):
+    g = specula.read_spgrid(spgrid)
+    rng = np.random.default_rng(11)
+    n = 2000
+    ti, to = rng.uniform(0.01, 1.5, n), rng.uniform(0.01, 1.5, n)
+    pi, po = rng.uniform(-np.pi, np.pi, n), rng.uniform(-np.pi, np.pi, n)
+    ih, idd, ip = merl_index_numpy(ti, pi, to, po)
+    idx = specula.merl_index(ti, pi, to, po)
+    expected = ip + 180 * (idd + 90 * ih)
+    # Cells on a floor() boundary may differ by rounding between the two computations: allow a few.
+    assert (idx != expected).sum() <= n // 200
+    ok = idx == expected
+    v = specula.brdf_lookup(g, ti, pi, to, po)
+    assert v.shape == (n, 4)
+    direct = g.values.reshape(4, -1)[:, idx].T.astype(np.float64)
+    np.testing.assert_array_equal(v, np.where(direct < 0, np.nan, direct * g.scale))
+    np.testing.assert_array_equal(np.isnan(v).any(axis=1), (direct < 0).any(axis=1))
+    assert ok.mean() > 0.99
+    two_d = specula.brdf_lookup(g, ti.reshape(40, 50), pi.reshape(40, 50), to.reshape(40, 50), po.reshape(40, 50))
+    np.testing.assert_array_equal(two_d.reshape(n, 4), v)
+    with pytest.raises(specula.UsageError, match="one size"):
+        specula.brdf_lookup(g, ti, pi, to, po[:3])
+    with pytest.raises(specula.UsageError, match="not finite"):
+        specula.merl_index([np.nan], [0.0], [0.1], [0.0])
+
+
+def spc_bound(x, xd, scale_s, e, residual):
+    """The bound of docs/codec-format.md per valid cell and band: |x' - x| <= |m' - m| |r'| + m (E + residual)
+    with |m' - m| <= E (m + s) and |r'| <= |r| + E + residual."""
+    m = x.mean(axis=0)
+    r = np.divide(x, m, out=np.zeros_like(x), where=m > 0)
+    return e * (m + scale_s) * (np.abs(r) + e + residual) + m * (e + residual)
+
+
+@pytest.mark.parametrize("k", [4, 2])
+def test_spc_round_trip_within_its_stated_bound(spgrid, tmp_path, k):
+    g = specula.read_spgrid(spgrid)
+    data, report = specula.spc_encode(g, k=k, max_error=0.01)
+    assert report["output_bytes"] == len(data) and data[:8] == b"SPECUSPC"
+    path = tmp_path / "g.spc"
+    specula.write_spc(path, data)
+    assert path.read_bytes() == data
+    d = specula.spc_decode(path)
+    np.testing.assert_array_equal(d.values, specula.spc_decode(data).values)
+    x = g.values.reshape(4, -1).astype(np.float64)
+    xd = d.values.reshape(4, -1).astype(np.float64)
+    valid = (x >= 0).all(axis=0)
+    np.testing.assert_array_equal((xd >= 0).all(axis=0), valid)
+    x, xd = x[:, valid], xd[:, valid]
+    residual = report["max_shape_residual"]
+    if k == 4:
+        assert residual < 1e-6  # a full basis expresses every shape
+    bound = spc_bound(x, xd, report["magnitude_scale"], 0.01, residual)
+    err = np.abs(xd - x)
+    assert np.all(err <= bound * (1 + 1e-5) + 1e-6 * np.abs(x))
+    np.testing.assert_allclose(report["max_abs_error"], err.max() * g.scale, rtol=1e-4)
+
+
+def test_spc_on_a_learned_basis_and_errors(db, spgrid):
+    g = specula.read_spgrid(spgrid)
+    basis = specula.Basis("nmf", [400, 500, 600, 700], np.eye(4)[:3] + 0.1)
+    data, report = specula.spc_encode(g, basis=basis, k=3, extra=1)
+    assert report["basis"] == "python+1"
+    assert specula.spc_decode(data).bands == 4
+    with pytest.raises(specula.UsageError, match="extra"):
+        specula.spc_encode(g, extra=1)
+    broken = bytearray(data)
+    broken[len(broken) // 2] ^= 0xFF
+    with pytest.raises(specula.InputError, match="^spc bytes"):
+        specula.spc_decode(bytes(broken))
+    wrong = specula.pca(db, collection="chips")
+    with pytest.raises(specula.InputError):
+        specula.spc_encode(g, basis=wrong, k=3)
