@@ -1,4 +1,4 @@
-#include "acquire/calibrate.h"
+#include "specula/acquire/calibrate.h"
 
 #include <Eigen/Geometry>
 #include <Eigen/Cholesky>
@@ -11,7 +11,7 @@
 #include <numeric>
 #include <string>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::acquire {
 

@@ -1,4 +1,4 @@
-#include "acquire/capture.h"
+#include "specula/acquire/capture.h"
 
 #include <nlohmann/json.hpp>
 
@@ -6,8 +6,8 @@
 #include <set>
 #include <tuple>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/error.h"
 
 namespace specula::acquire {
 

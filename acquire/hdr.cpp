@@ -1,11 +1,11 @@
-#include "acquire/hdr.h"
+#include "specula/acquire/hdr.h"
 
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <string>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::acquire {
 

@@ -1,4 +1,4 @@
-#include "acquire/mapping.h"
+#include "specula/acquire/mapping.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <numbers>
 #include <string>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::acquire {
 

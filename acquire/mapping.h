@@ -6,7 +6,7 @@
 #include <Eigen/Core>
 #include <string_view>
 
-#include "core/brdf_geometry.h"
+#include "specula/core/brdf_geometry.h"
 
 namespace specula::acquire {
 

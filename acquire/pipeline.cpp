@@ -1,17 +1,17 @@
-#include "acquire/pipeline.h"
+#include "specula/acquire/pipeline.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
 
-#include "acquire/scan.h"
-#include "core/parallel.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
-#include "store/h5.h"
-#include "store/io/png_stack.h"
+#include "specula/acquire/scan.h"
+#include "specula/core/parallel.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
+#include "specula/store/h5.h"
+#include "specula/store/io/png_stack.h"
 
 namespace specula::acquire {
 

@@ -9,11 +9,11 @@
 #include <string>
 #include <vector>
 
-#include "acquire/calibrate.h"
-#include "acquire/capture.h"
-#include "acquire/hdr.h"
-#include "acquire/spectral.h"
-#include "store/store.h"
+#include "specula/acquire/calibrate.h"
+#include "specula/acquire/capture.h"
+#include "specula/acquire/hdr.h"
+#include "specula/acquire/spectral.h"
+#include "specula/store/store.h"
 
 namespace specula::acquire {
 

@@ -1,4 +1,4 @@
-#include "acquire/resample.h"
+#include "specula/acquire/resample.h"
 
 #include <nanoflann.hpp>
 #include <omp.h>
@@ -10,12 +10,12 @@
 #include <limits>
 #include <numeric>
 
-#include "core/parallel.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
-#include "store/block_reader.h"
-#include "store/store.h"
+#include "specula/core/parallel.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
+#include "specula/store/block_reader.h"
+#include "specula/store/store.h"
 
 namespace specula::acquire {
 namespace {

@@ -16,8 +16,8 @@
 #include <string_view>
 #include <vector>
 
-#include "acquire/mapping.h"
-#include "core/brdf_geometry.h"
+#include "specula/acquire/mapping.h"
+#include "specula/core/brdf_geometry.h"
 
 namespace specula::store {
 class Store;

@@ -1,4 +1,4 @@
-#include "acquire/scan.h"
+#include "specula/acquire/scan.h"
 
 #include <Eigen/Geometry>
 
@@ -6,7 +6,7 @@
 #include <numbers>
 #include <string>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::acquire {
 

@@ -9,7 +9,7 @@
 #include <span>
 #include <vector>
 
-#include "core/brdf_geometry.h"
+#include "specula/core/brdf_geometry.h"
 
 namespace specula::acquire {
 

@@ -1,4 +1,4 @@
-#include "acquire/simulate.h"
+#include "specula/acquire/simulate.h"
 
 #include <fmt/format.h>
 
@@ -7,12 +7,12 @@
 #include <numbers>
 #include <random>
 
-#include "core/parallel.h"
-#include "core/brdf_geometry.h"
-#include "core/brdf_materials.h"
-#include "core/cie.h"
-#include "core/error.h"
-#include "store/io/png_stack.h"
+#include "specula/core/parallel.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/brdf_materials.h"
+#include "specula/core/cie.h"
+#include "specula/core/error.h"
+#include "specula/store/io/png_stack.h"
 
 namespace specula::acquire {
 

@@ -10,10 +10,10 @@
 
 #include <memory>
 
-#include "acquire/capture.h"
-#include "acquire/scan.h"
-#include "core/brdf_models.h"
-#include "store/store.h"
+#include "specula/acquire/capture.h"
+#include "specula/acquire/scan.h"
+#include "specula/core/brdf_models.h"
+#include "specula/store/store.h"
 
 namespace specula::acquire {
 

@@ -1,11 +1,11 @@
-#include "acquire/spectral.h"
+#include "specula/acquire/spectral.h"
 
 #include <Eigen/LU>
 
 #include <algorithm>
 #include <cmath>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::acquire {
 

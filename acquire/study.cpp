@@ -1,4 +1,4 @@
-#include "acquire/study.h"
+#include "specula/acquire/study.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,8 +6,8 @@
 #include <memory>
 #include <numbers>
 
-#include "core/error.h"
-#include "core/interrupt.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
 
 namespace specula::acquire {
 namespace {

@@ -10,8 +10,8 @@
 #include <span>
 #include <vector>
 
-#include "acquire/resample.h"
-#include "core/brdf_models.h"
+#include "specula/acquire/resample.h"
+#include "specula/core/brdf_models.h"
 
 namespace specula::acquire {
 

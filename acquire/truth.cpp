@@ -1,4 +1,4 @@
-#include "acquire/truth.h"
+#include "specula/acquire/truth.h"
 
 #include <algorithm>
 #include <cmath>

@@ -4,10 +4,10 @@
 #include <functional>
 #include <string>
 
-#include "acquire/capture.h"
-#include "acquire/pipeline.h"
-#include "core/brdf_models.h"
-#include "store/store.h"
+#include "specula/acquire/capture.h"
+#include "specula/acquire/pipeline.h"
+#include "specula/core/brdf_models.h"
+#include "specula/store/store.h"
 
 namespace specula::acquire {
 

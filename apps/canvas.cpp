@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "store/io/png_stack.h"
+#include "specula/store/io/png_stack.h"
 
 namespace specula::app {
 namespace {

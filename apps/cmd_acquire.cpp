@@ -10,22 +10,22 @@
 #include <filesystem>
 #include <numbers>
 
-#include "acquire/capture.h"
-#include "acquire/hdr.h"
-#include "acquire/mapping.h"
-#include "acquire/pipeline.h"
-#include "acquire/scan.h"
-#include "acquire/simulate.h"
-#include "acquire/truth.h"
+#include "specula/acquire/capture.h"
+#include "specula/acquire/hdr.h"
+#include "specula/acquire/mapping.h"
+#include "specula/acquire/pipeline.h"
+#include "specula/acquire/scan.h"
+#include "specula/acquire/simulate.h"
+#include "specula/acquire/truth.h"
 #include "apps/gnuplot.h"
-#include "core/brdf_materials.h"
+#include "specula/core/brdf_materials.h"
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

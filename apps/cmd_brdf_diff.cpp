@@ -6,11 +6,11 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "codec/diff.h"
-#include "codec/environment.h"
-#include "core/colour.h"
-#include "core/error.h"
-#include "store/io/png_stack.h"
+#include "specula/codec/diff.h"
+#include "specula/codec/environment.h"
+#include "specula/core/colour.h"
+#include "specula/core/error.h"
+#include "specula/store/io/png_stack.h"
 
 namespace specula::app {
 namespace {

@@ -2,8 +2,8 @@
 #include <fmt/format.h>
 
 #include "apps/commands.h"
-#include "core/error.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

@@ -12,13 +12,13 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/ranks.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
-#include "nmf/nmf.h"
-#include "stats/pca.h"
-#include "store/block_reader.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
+#include "specula/nmf/nmf.h"
+#include "specula/stats/pca.h"
+#include "specula/store/block_reader.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

@@ -9,9 +9,9 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/gnuplot.h"
-#include "core/error.h"
-#include "stats/subspace.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/stats/subspace.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 

@@ -6,8 +6,8 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "codec/spc.h"
-#include "store/store.h"
+#include "specula/codec/spc.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

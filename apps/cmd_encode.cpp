@@ -6,9 +6,9 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "codec/spc.h"
-#include "core/error.h"
-#include "store/store.h"
+#include "specula/codec/spc.h"
+#include "specula/core/error.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

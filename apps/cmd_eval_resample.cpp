@@ -9,13 +9,13 @@
 #include <memory>
 #include <random>
 
-#include "acquire/resample.h"
+#include "specula/acquire/resample.h"
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

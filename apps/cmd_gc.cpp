@@ -2,7 +2,7 @@
 #include <fmt/format.h>
 
 #include "apps/commands.h"
-#include "store/store.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

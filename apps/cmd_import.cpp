@@ -7,14 +7,14 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/error.h"
-#include "store/io/brdf_irregular.h"
-#include "store/io/csv.h"
-#include "store/io/envi.h"
-#include "store/io/exr.h"
-#include "store/io/mat.h"
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/store/io/brdf_irregular.h"
+#include "specula/store/io/csv.h"
+#include "specula/store/io/envi.h"
+#include "specula/store/io/exr.h"
+#include "specula/store/io/mat.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

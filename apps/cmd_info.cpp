@@ -1,12 +1,12 @@
 // specula info and specula ls: what a store holds, for people (text) and programs (--json).
 #include <fmt/format.h>
 
-#include "acquire/pipeline.h"
+#include "specula/acquire/pipeline.h"
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/error.h"
-#include "store/h5.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/store/h5.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace h5 = store::h5;

@@ -9,10 +9,10 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/ranks.h"
-#include "core/error.h"
-#include "nmf/nmf.h"
-#include "store/block_reader.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/nmf/nmf.h"
+#include "specula/store/block_reader.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

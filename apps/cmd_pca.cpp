@@ -8,11 +8,11 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/ranks.h"
-#include "core/error.h"
-#include "stats/moments.h"
-#include "stats/pca.h"
-#include "store/block_reader.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/stats/moments.h"
+#include "specula/stats/pca.h"
+#include "specula/store/block_reader.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

@@ -19,9 +19,9 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/gnuplot.h"
-#include "core/atomic_file.h"
-#include "core/error.h"
-#include "store/store.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/error.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 

@@ -10,12 +10,12 @@
 #include "apps/canvas.h"
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/error.h"
-#include "nmf/nmf.h"
-#include "stats/pca.h"
-#include "store/io/exr.h"
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/nmf/nmf.h"
+#include "specula/stats/pca.h"
+#include "specula/store/io/exr.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

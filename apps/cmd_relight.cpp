@@ -8,9 +8,9 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/error.h"
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

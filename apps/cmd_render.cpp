@@ -8,15 +8,15 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "codec/environment.h"
-#include "codec/merl.h"
-#include "codec/render.h"
-#include "codec/spectral_grid.h"
-#include "core/colour.h"
-#include "core/error.h"
-#include "store/io/exr.h"
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/codec/environment.h"
+#include "specula/codec/merl.h"
+#include "specula/codec/render.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/core/colour.h"
+#include "specula/core/error.h"
+#include "specula/store/io/exr.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

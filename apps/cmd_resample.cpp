@@ -8,11 +8,11 @@
 #include <filesystem>
 #include <numbers>
 
-#include "acquire/resample.h"
+#include "specula/acquire/resample.h"
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/error.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

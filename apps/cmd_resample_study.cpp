@@ -11,15 +11,15 @@
 #include <filesystem>
 #include <numbers>
 
-#include "acquire/scan.h"
-#include "acquire/study.h"
+#include "specula/acquire/scan.h"
+#include "specula/acquire/study.h"
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/gnuplot.h"
-#include "core/brdf_materials.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "store/io/png_stack.h"
+#include "specula/core/brdf_materials.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/store/io/png_stack.h"
 
 namespace specula::app {
 namespace {

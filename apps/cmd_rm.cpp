@@ -3,7 +3,7 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "store/store.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

@@ -6,13 +6,13 @@
 #include <chrono>
 #include <filesystem>
 
-#include "acquire/simulate.h"
+#include "specula/acquire/simulate.h"
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/atomic_file.h"
-#include "core/brdf_materials.h"
-#include "core/error.h"
-#include "core/wavelengths.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/brdf_materials.h"
+#include "specula/core/error.h"
+#include "specula/core/wavelengths.h"
 
 namespace specula::app {
 namespace {

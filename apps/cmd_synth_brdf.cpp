@@ -5,9 +5,9 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/brdf_materials.h"
-#include "core/error.h"
-#include "store/store.h"
+#include "specula/core/brdf_materials.h"
+#include "specula/core/error.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

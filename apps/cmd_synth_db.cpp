@@ -5,11 +5,11 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
-#include "store/store.h"
-#include "store/synth.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
+#include "specula/store/store.h"
+#include "specula/store/synth.h"
 
 namespace specula::app {
 namespace {

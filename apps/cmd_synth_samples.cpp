@@ -10,14 +10,14 @@
 #include <numbers>
 #include <random>
 
-#include "acquire/scan.h"
+#include "specula/acquire/scan.h"
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "core/brdf_materials.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
-#include "store/store.h"
+#include "specula/core/brdf_materials.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

@@ -7,12 +7,12 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "codec/merl.h"
-#include "codec/spectral_grid.h"
-#include "codec/uplift.h"
-#include "core/error.h"
-#include "store/io/exr.h"
-#include "store/store.h"
+#include "specula/codec/merl.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/codec/uplift.h"
+#include "specula/core/error.h"
+#include "specula/store/io/exr.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 namespace {

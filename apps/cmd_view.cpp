@@ -9,7 +9,7 @@
 
 #include "apps/commands.h"
 #include "apps/view/service.h"
-#include "core/error.h"
+#include "specula/core/error.h"
 
 // After Eigen: httplib pulls in <resolv.h>, whose _res macro breaks Eigen headers included after it.
 #include <httplib.h>

@@ -6,11 +6,11 @@
 #include <fstream>
 #include <sstream>
 
-#include "codec/merl.h"
-#include "codec/spectral_grid.h"
-#include "codec/uplift.h"
-#include "core/cie.h"
-#include "core/error.h"
+#include "specula/codec/merl.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/codec/uplift.h"
+#include "specula/core/cie.h"
+#include "specula/core/error.h"
 
 namespace specula::app {
 namespace {

@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "core/colour.h"
-#include "store/cube.h"
-#include "store/store.h"
+#include "specula/core/colour.h"
+#include "specula/store/cube.h"
+#include "specula/store/store.h"
 
 namespace specula::app {
 

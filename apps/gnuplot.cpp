@@ -15,8 +15,8 @@
 #include <cstring>
 #include <sstream>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/error.h"
 
 extern char** environ;
 

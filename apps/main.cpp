@@ -8,9 +8,10 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/ranks.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
+#include "specula/version.h"
 
 namespace {
 

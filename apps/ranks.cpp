@@ -4,7 +4,7 @@
 #include <memory>
 #include <string>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 #ifdef SPECULA_MPI
 #include <mpi.h>

@@ -3,7 +3,7 @@
 // ranks; otherwise the run is one process. Libraries see only core/collective.h.
 #include <string>
 
-#include "core/collective.h"
+#include "specula/core/collective.h"
 
 namespace specula::app {
 

@@ -1,12 +1,12 @@
-#include "codec/diff.h"
+#include "specula/codec/diff.h"
 
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
-#include "core/brdf_geometry.h"
-#include "core/colour.h"
-#include "core/error.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/colour.h"
+#include "specula/core/error.h"
 
 namespace specula::codec {
 

@@ -3,8 +3,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "codec/environment.h"
-#include "store/store.h"
+#include "specula/codec/environment.h"
+#include "specula/store/store.h"
 
 namespace specula::codec {
 

@@ -1,4 +1,4 @@
-#include "codec/environment.h"
+#include "specula/codec/environment.h"
 
 #include <omp.h>
 
@@ -8,14 +8,14 @@
 #include <numbers>
 #include <sstream>
 
-#include "codec/spectral_grid.h"
-#include "codec/uplift.h"
-#include "core/brdf_geometry.h"
-#include "core/cie.h"
-#include "core/colour.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "store/io/exr.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/codec/uplift.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/cie.h"
+#include "specula/core/colour.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/store/io/exr.h"
 
 namespace specula::codec {
 namespace {

@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "core/wavelengths.h"
-#include "store/store.h"
+#include "specula/core/wavelengths.h"
+#include "specula/store/store.h"
 
 namespace specula::codec {
 

@@ -1,4 +1,4 @@
-#include "codec/merl.h"
+#include "specula/codec/merl.h"
 
 #include <bit>
 #include <cmath>
@@ -7,9 +7,9 @@
 #include <fstream>
 #include <string>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
-#include "core/text.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/error.h"
+#include "specula/core/text.h"
 
 namespace specula::codec {
 namespace {

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <vector>
 
-#include "core/brdf_geometry.h"
+#include "specula/core/brdf_geometry.h"
 
 namespace specula::codec {
 

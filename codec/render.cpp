@@ -1,10 +1,10 @@
-#include "codec/render.h"
+#include "specula/codec/render.h"
 
 #include <cmath>
 #include <numbers>
 #include <string>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::codec {
 

@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "codec/merl.h"
+#include "specula/codec/merl.h"
 
 namespace specula::codec {
 

@@ -1,4 +1,4 @@
-#include "codec/spc.h"
+#include "specula/codec/spc.h"
 
 #include <zlib.h>
 #include <zstd.h>
@@ -13,9 +13,9 @@
 #include <fstream>
 #include <limits>
 
-#include "core/atomic_file.h"
-#include "core/brdf_geometry.h"
-#include "core/error.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/error.h"
 
 namespace specula::codec {
 namespace {

@@ -12,8 +12,8 @@
 #include <string>
 #include <vector>
 
-#include "store/basis.h"
-#include "store/store.h"
+#include "specula/store/basis.h"
+#include "specula/store/store.h"
 
 namespace specula::codec {
 

@@ -1,4 +1,4 @@
-#include "codec/spectral_grid.h"
+#include "specula/codec/spectral_grid.h"
 
 #include <zlib.h>
 
@@ -11,10 +11,10 @@
 
 #include <Eigen/LU>
 
-#include "core/atomic_file.h"
-#include "core/colour.h"
-#include "core/error.h"
-#include "core/text.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/colour.h"
+#include "specula/core/error.h"
+#include "specula/core/text.h"
 
 namespace specula::codec {
 namespace {

@@ -4,9 +4,9 @@
 #include <Eigen/Core>
 #include <filesystem>
 
-#include "codec/merl.h"
-#include "core/cie.h"
-#include "store/store.h"
+#include "specula/codec/merl.h"
+#include "specula/core/cie.h"
+#include "specula/store/store.h"
 
 namespace specula::codec {
 

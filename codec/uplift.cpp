@@ -1,4 +1,4 @@
-#include "codec/uplift.h"
+#include "specula/codec/uplift.h"
 
 #include <Eigen/QR>
 #include <algorithm>
@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/text.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/text.h"
 
 namespace specula::codec {
 

@@ -7,8 +7,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "codec/merl.h"
-#include "store/store.h"
+#include "specula/codec/merl.h"
+#include "specula/store/store.h"
 
 namespace specula::codec {
 

@@ -1,4 +1,4 @@
-#include "core/atomic_file.h"
+#include "specula/core/atomic_file.h"
 
 #include <fcntl.h>
 #include <sys/ioctl.h>
@@ -13,7 +13,7 @@
 #include <mutex>
 #include <string>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula {
 namespace {

@@ -1,8 +1,8 @@
-#include "core/brdf_materials.h"
+#include "specula/core/brdf_materials.h"
 
 #include <cmath>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::brdf {
 namespace {

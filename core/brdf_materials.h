@@ -6,7 +6,7 @@
 #include <memory>
 #include <string>
 
-#include "core/brdf_models.h"
+#include "specula/core/brdf_models.h"
 
 namespace specula::brdf {
 

@@ -1,4 +1,4 @@
-#include "core/brdf_models.h"
+#include "specula/core/brdf_models.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,8 +7,8 @@
 #include <string>
 #include <vector>
 
-#include "core/error.h"
-#include "core/text.h"
+#include "specula/core/error.h"
+#include "specula/core/text.h"
 
 namespace specula::brdf {
 namespace {

@@ -6,8 +6,8 @@
 #include <Eigen/Core>
 #include <span>
 
-#include "core/brdf_geometry.h"
-#include "core/wavelengths.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/wavelengths.h"
 
 namespace specula::brdf {
 

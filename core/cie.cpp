@@ -1,12 +1,12 @@
-#include "core/cie.h"
+#include "specula/core/cie.h"
 
 #include <cmath>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include "core/error.h"
-#include "core/text.h"
+#include "specula/core/error.h"
+#include "specula/core/text.h"
 
 namespace specula {
 namespace {

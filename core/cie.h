@@ -6,7 +6,7 @@
 #include <string_view>
 #include <vector>
 
-#include "core/wavelengths.h"
+#include "specula/core/wavelengths.h"
 
 namespace specula {
 

@@ -5,8 +5,8 @@
 #include <array>
 #include <string>
 
-#include "core/cie.h"
-#include "core/error.h"
+#include "specula/core/cie.h"
+#include "specula/core/error.h"
 
 namespace specula {
 namespace {

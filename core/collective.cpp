@@ -1,8 +1,8 @@
-#include "core/collective.h"
+#include "specula/core/collective.h"
 
 #include <algorithm>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula {
 namespace {

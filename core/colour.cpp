@@ -1,4 +1,4 @@
-#include "core/colour.h"
+#include "specula/core/colour.h"
 
 #include <Eigen/LU>
 #include <algorithm>
@@ -8,8 +8,8 @@
 #include <sstream>
 #include <string>
 
-#include "core/error.h"
-#include "core/text.h"
+#include "specula/core/error.h"
+#include "specula/core/text.h"
 
 namespace specula {
 namespace {

@@ -5,8 +5,8 @@
 #include <cstdint>
 #include <span>
 
-#include "core/cie.h"
-#include "core/wavelengths.h"
+#include "specula/core/cie.h"
+#include "specula/core/wavelengths.h"
 
 namespace specula {
 

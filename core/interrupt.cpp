@@ -1,11 +1,11 @@
-#include "core/interrupt.h"
+#include "specula/core/interrupt.h"
 
 #include <atomic>
 #include <csignal>
 #include <unistd.h>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/error.h"
 
 namespace specula {
 namespace {

@@ -8,7 +8,7 @@
 #include <exception>
 #include <mutex>
 
-#include "core/interrupt.h"
+#include "specula/core/interrupt.h"
 
 namespace specula {
 

@@ -1,4 +1,4 @@
-#include "core/progress.h"
+#include "specula/core/progress.h"
 
 #include <cstdio>
 #include <unistd.h>

@@ -1,4 +1,4 @@
-#include "core/text.h"
+#include "specula/core/text.h"
 
 #include <sstream>
 

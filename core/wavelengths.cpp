@@ -1,11 +1,11 @@
-#include "core/wavelengths.h"
+#include "specula/core/wavelengths.h"
 
 #include <charconv>
 #include <cmath>
 #include <sstream>
 
-#include "core/error.h"
-#include "core/text.h"
+#include "specula/core/error.h"
+#include "specula/core/text.h"
 
 namespace specula {
 namespace {

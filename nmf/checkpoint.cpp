@@ -1,8 +1,8 @@
-#include "nmf/checkpoint.h"
+#include "specula/nmf/checkpoint.h"
 
-#include "core/atomic_file.h"
-#include "core/error.h"
-#include "store/h5.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/error.h"
+#include "specula/store/h5.h"
 
 namespace specula::nmf {
 namespace h5 = store::h5;

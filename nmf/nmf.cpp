@@ -1,4 +1,4 @@
-#include "nmf/nmf.h"
+#include "specula/nmf/nmf.h"
 
 #include <immintrin.h>
 
@@ -11,12 +11,12 @@
 #include <random>
 #include <sstream>
 
-#include "core/parallel.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
-#include "nmf/checkpoint.h"
-#include "nmf/nnls.h"
+#include "specula/core/parallel.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
+#include "specula/nmf/checkpoint.h"
+#include "specula/nmf/nnls.h"
 
 namespace specula::nmf {
 namespace {

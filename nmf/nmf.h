@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "core/collective.h"
-#include "store/block_reader.h"
+#include "specula/core/collective.h"
+#include "specula/store/block_reader.h"
 
 namespace specula::nmf {
 

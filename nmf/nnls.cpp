@@ -1,4 +1,4 @@
-#include "nmf/nnls.h"
+#include "specula/nmf/nnls.h"
 
 #include <Eigen/Cholesky>
 #include <bit>
@@ -6,7 +6,7 @@
 #include <limits>
 #include <utility>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::nmf {
 namespace {

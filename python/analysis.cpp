@@ -6,12 +6,12 @@
 #include <cmath>
 #include <filesystem>
 
-#include "core/error.h"
-#include "nmf/nmf.h"
+#include "specula/core/error.h"
+#include "specula/nmf/nmf.h"
 #include "python/common.h"
-#include "stats/moments.h"
-#include "stats/pca.h"
-#include "store/block_reader.h"
+#include "specula/stats/moments.h"
+#include "specula/stats/pca.h"
+#include "specula/store/block_reader.h"
 
 namespace specula::python {
 namespace {

@@ -5,13 +5,13 @@
 #include <cmath>
 #include <limits>
 
-#include "codec/merl.h"
-#include "codec/spc.h"
-#include "codec/spectral_grid.h"
-#include "core/brdf_geometry.h"
-#include "core/cie.h"
-#include "core/colour.h"
-#include "core/error.h"
+#include "specula/codec/merl.h"
+#include "specula/codec/spc.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/cie.h"
+#include "specula/core/colour.h"
+#include "specula/core/error.h"
 #include "python/common.h"
 
 namespace specula::python {

@@ -15,9 +15,9 @@
 #include <string>
 #include <vector>
 
-#include "core/interrupt.h"
-#include "core/wavelengths.h"
-#include "store/store.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/wavelengths.h"
+#include "specula/store/store.h"
 
 namespace specula::python {
 

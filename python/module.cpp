@@ -1,8 +1,9 @@
 // The `specula` Python module: exceptions, shared conversions, and the submodules' registration.
 #include <fmt/format.h>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 #include "python/common.h"
+#include "specula/version.h"
 
 namespace specula::python {
 namespace {

@@ -10,9 +10,9 @@
 #include <thread>
 #include <variant>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 #include "python/common.h"
-#include "store/block_reader.h"
+#include "specula/store/block_reader.h"
 
 namespace specula::python {
 namespace {

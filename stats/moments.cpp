@@ -1,4 +1,4 @@
-#include "stats/moments.h"
+#include "specula/stats/moments.h"
 
 #include <immintrin.h>
 #include <omp.h>
@@ -8,10 +8,10 @@
 #include <mutex>
 #include <optional>
 
-#include "core/parallel.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
+#include "specula/core/parallel.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
 
 namespace specula::stats {
 namespace {

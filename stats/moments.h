@@ -5,9 +5,9 @@
 #include <Eigen/Core>
 #include <cstdint>
 
-#include "core/collective.h"
-#include "core/colour.h"
-#include "store/block_reader.h"
+#include "specula/core/collective.h"
+#include "specula/core/colour.h"
+#include "specula/store/block_reader.h"
 
 namespace specula::stats {
 

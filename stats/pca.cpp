@@ -1,10 +1,10 @@
-#include "stats/pca.h"
+#include "specula/stats/pca.h"
 
 #include <Eigen/Eigenvalues>
 #include <Spectra/MatOp/DenseSymMatProd.h>
 #include <Spectra/SymEigsSolver.h>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::stats {
 

@@ -3,9 +3,9 @@
 // gives, and projection onto its first k components (eqs 7.2-7.3).
 #include <Eigen/Core>
 
-#include "core/colour.h"
-#include "stats/moments.h"
-#include "store/basis.h"
+#include "specula/core/colour.h"
+#include "specula/stats/moments.h"
+#include "specula/store/basis.h"
 
 namespace specula::stats {
 

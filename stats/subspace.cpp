@@ -1,4 +1,4 @@
-#include "stats/subspace.h"
+#include "specula/stats/subspace.h"
 
 #include <Eigen/QR>
 #include <Eigen/SVD>
@@ -6,7 +6,7 @@
 #include <cmath>
 #include <string>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::stats {
 namespace {

@@ -5,8 +5,8 @@
 #include <cstdint>
 #include <string>
 
-#include "core/wavelengths.h"
-#include "store/cube.h"
+#include "specula/core/wavelengths.h"
+#include "specula/store/cube.h"
 
 namespace specula::store {
 

@@ -1,4 +1,4 @@
-#include "store/block_reader.h"
+#include "specula/store/block_reader.h"
 
 #include <fcntl.h>
 #include <fnmatch.h>
@@ -9,7 +9,7 @@
 #include <memory>
 #include <type_traits>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::store {
 namespace {

@@ -10,10 +10,10 @@
 #include <string>
 #include <vector>
 
-#include "core/colour.h"
-#include "core/interrupt.h"
-#include "core/parallel.h"
-#include "store/store.h"
+#include "specula/core/colour.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/parallel.h"
+#include "specula/store/store.h"
 
 namespace specula::store {
 

@@ -1,8 +1,8 @@
-#include "store/h5.h"
+#include "specula/store/h5.h"
 
 #include <mutex>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::store::h5 {
 namespace {

@@ -1,4 +1,4 @@
-#include "store/layout.h"
+#include "specula/store/layout.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -16,8 +16,9 @@
 #include <random>
 #include <set>
 
-#include "core/error.h"
-#include "store/h5.h"
+#include "specula/core/error.h"
+#include "specula/store/h5.h"
+#include "specula/version.h"
 
 namespace specula::store::layout {
 namespace {

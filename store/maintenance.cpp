@@ -9,9 +9,9 @@
 #include <optional>
 #include <set>
 
-#include "core/error.h"
-#include "core/progress.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/core/progress.h"
+#include "specula/store/store.h"
 
 namespace specula::store {
 namespace {

@@ -1,4 +1,4 @@
-#include "store/store.h"
+#include "specula/store/store.h"
 
 #include <omp.h>
 #include <libdeflate.h>
@@ -17,13 +17,14 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "core/parallel.h"
-#include "core/atomic_file.h"
-#include "core/brdf_geometry.h"
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/progress.h"
-#include "core/text.h"
+#include "specula/core/parallel.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
+#include "specula/core/text.h"
+#include "specula/version.h"
 
 namespace specula::store {
 namespace {

@@ -12,11 +12,11 @@
 #include <string>
 #include <vector>
 
-#include "core/wavelengths.h"
-#include "store/basis.h"
-#include "store/cube.h"
-#include "store/h5.h"
-#include "store/layout.h"
+#include "specula/core/wavelengths.h"
+#include "specula/store/basis.h"
+#include "specula/store/cube.h"
+#include "specula/store/h5.h"
+#include "specula/store/layout.h"
 
 namespace specula::store {
 

@@ -34,7 +34,7 @@
 // of eight interleaved xoshiro256** streams. Rows are generated in parallel, each with its own generators
 // seeded from (image seed, row), so the result does not depend on the thread count. The cube's pages are
 // pre-faulted from all threads (Linux), since first-touch faults of a fresh cube cost as much as the rest.
-#include "store/synth.h"
+#include "specula/store/synth.h"
 
 #include <algorithm>
 #include <array>
@@ -54,8 +54,8 @@
 #include <unistd.h>
 #endif
 
-#include "core/cie.h"
-#include "core/error.h"
+#include "specula/core/cie.h"
+#include "specula/core/error.h"
 
 namespace specula::store {
 namespace {

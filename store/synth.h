@@ -4,8 +4,8 @@
 // shadows lit by sky, sensor noise, masked rectangles.
 #include <cstdint>
 
-#include "core/wavelengths.h"
-#include "store/cube.h"
+#include "specula/core/wavelengths.h"
+#include "specula/store/cube.h"
 
 namespace specula::store {
 

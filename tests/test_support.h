@@ -9,7 +9,7 @@
 #include <iterator>
 #include <string>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 #include <sys/wait.h>
 #include <unistd.h>
 

@@ -9,13 +9,13 @@
 #include <regex>
 
 #include "apps/common.h"
-#include "codec/render.h"
-#include "codec/spectral_grid.h"
-#include "core/brdf_geometry.h"
-#include "core/colour.h"
-#include "core/error.h"
-#include "nmf/nnls.h"
-#include "store/io/png_stack.h"
+#include "specula/codec/render.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/colour.h"
+#include "specula/core/error.h"
+#include "specula/nmf/nnls.h"
+#include "specula/store/io/png_stack.h"
 
 namespace specula::view {
 namespace {

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "store/store.h"
+#include "specula/store/store.h"
 
 namespace specula::view {
 

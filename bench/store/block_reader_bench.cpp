@@ -10,8 +10,8 @@
 #include <cstdio>
 #include <string>
 
-#include "core/error.h"
-#include "store/block_reader.h"
+#include "specula/core/error.h"
+#include "specula/store/block_reader.h"
 
 using namespace specula;
 

@@ -1,4 +1,4 @@
-#include "store/io/brdf_irregular.h"
+#include "specula/store/io/brdf_irregular.h"
 
 #include <charconv>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <numbers>
 #include <string>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::store {
 namespace {

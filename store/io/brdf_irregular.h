@@ -5,7 +5,7 @@
 #include <filesystem>
 #include <vector>
 
-#include "core/wavelengths.h"
+#include "specula/core/wavelengths.h"
 
 namespace specula::store {
 

@@ -1,4 +1,4 @@
-#include "store/io/csv.h"
+#include "specula/store/io/csv.h"
 
 #include <array>
 #include <cerrno>
@@ -11,9 +11,9 @@
 #include <system_error>
 #include <vector>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
-#include "core/text.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/error.h"
+#include "specula/core/text.h"
 
 namespace specula::store {
 namespace {

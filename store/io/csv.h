@@ -2,7 +2,7 @@
 // CSV spectral tables.
 #include <filesystem>
 
-#include "store/cube.h"
+#include "specula/store/cube.h"
 
 namespace specula::store {
 

@@ -1,4 +1,4 @@
-#include "store/io/envi.h"
+#include "specula/store/io/envi.h"
 
 #include <algorithm>
 #include <array>
@@ -14,9 +14,9 @@
 #include <span>
 #include <system_error>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
-#include "core/text.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/error.h"
+#include "specula/core/text.h"
 
 namespace specula::store {
 namespace {

@@ -6,7 +6,7 @@
 #include <string_view>
 #include <vector>
 
-#include "store/cube.h"
+#include "specula/store/cube.h"
 
 namespace specula::store {
 

@@ -1,4 +1,4 @@
-#include "store/io/exr.h"
+#include "specula/store/io/exr.h"
 
 #include <Iex.h>
 #include <ImfChannelList.h>
@@ -24,8 +24,8 @@
 #include <string_view>
 #include <vector>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/error.h"
 
 namespace specula::store {
 namespace fs = std::filesystem;

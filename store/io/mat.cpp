@@ -1,4 +1,4 @@
-#include "store/io/mat.h"
+#include "specula/store/io/mat.h"
 
 #include <matio.h>
 
@@ -10,7 +10,7 @@
 #include <system_error>
 #include <vector>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::store {
 namespace {

@@ -4,7 +4,7 @@
 #include <optional>
 #include <string>
 
-#include "store/cube.h"
+#include "specula/store/cube.h"
 
 namespace specula::store {
 

@@ -1,4 +1,4 @@
-#include "store/io/png_stack.h"
+#include "specula/store/io/png_stack.h"
 
 #include <png.h>
 
@@ -13,8 +13,8 @@
 #include <memory>
 #include <string>
 
-#include "core/atomic_file.h"
-#include "core/error.h"
+#include "specula/core/atomic_file.h"
+#include "specula/core/error.h"
 
 namespace specula::store {
 namespace fs = std::filesystem;

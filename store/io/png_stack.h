@@ -5,7 +5,7 @@
 #include <span>
 #include <vector>
 
-#include "store/cube.h"
+#include "specula/store/cube.h"
 
 namespace specula::store {
 

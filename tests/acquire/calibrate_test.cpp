@@ -6,11 +6,11 @@
 #include <cmath>
 #include <numbers>
 
-#include "acquire/calibrate.h"
-#include "acquire/capture.h"
-#include "acquire/pipeline.h"
-#include "acquire/simulate.h"
-#include "store/io/png_stack.h"
+#include "specula/acquire/calibrate.h"
+#include "specula/acquire/capture.h"
+#include "specula/acquire/pipeline.h"
+#include "specula/acquire/simulate.h"
+#include "specula/store/io/png_stack.h"
 #include "small_rig.h"
 #include "test_support.h"
 

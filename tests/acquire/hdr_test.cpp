@@ -5,8 +5,8 @@
 #include <cmath>
 #include <vector>
 
-#include "acquire/hdr.h"
-#include "core/error.h"
+#include "specula/acquire/hdr.h"
+#include "specula/core/error.h"
 
 using namespace specula;
 using namespace specula::acquire;

@@ -1,4 +1,4 @@
-#include "acquire/mapping.h"
+#include "specula/acquire/mapping.h"
 
 #include <gtest/gtest.h>
 
@@ -6,7 +6,7 @@
 #include <numbers>
 #include <random>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::acquire {
 namespace {

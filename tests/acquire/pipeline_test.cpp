@@ -6,11 +6,11 @@
 #include <algorithm>
 #include <cmath>
 
-#include "acquire/pipeline.h"
-#include "acquire/simulate.h"
-#include "core/brdf_materials.h"
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/acquire/pipeline.h"
+#include "specula/acquire/simulate.h"
+#include "specula/core/brdf_materials.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 #include "small_rig.h"
 #include "test_support.h"
 

@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "store/store.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 namespace specula {

@@ -1,4 +1,4 @@
-#include "acquire/resample.h"
+#include "specula/acquire/resample.h"
 
 #include <gtest/gtest.h>
 #include <omp.h>
@@ -8,9 +8,9 @@
 #include <numbers>
 #include <random>
 
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 namespace specula::acquire {

@@ -1,11 +1,11 @@
-#include "acquire/scan.h"
+#include "specula/acquire/scan.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <numbers>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::acquire {
 namespace {

@@ -7,10 +7,10 @@
 #include <fstream>
 #include <regex>
 
-#include "acquire/capture.h"
-#include "acquire/hdr.h"
-#include "acquire/simulate.h"
-#include "store/io/png_stack.h"
+#include "specula/acquire/capture.h"
+#include "specula/acquire/hdr.h"
+#include "specula/acquire/simulate.h"
+#include "specula/store/io/png_stack.h"
 #include "small_rig.h"
 #include "test_support.h"
 

@@ -3,7 +3,7 @@
 // image diameter (as simulate-capture places it), lights on the arc from 10 degrees.
 #include <vector>
 
-#include "acquire/simulate.h"
+#include "specula/acquire/simulate.h"
 
 namespace specula::test {
 

@@ -1,4 +1,4 @@
-#include "acquire/study.h"
+#include "specula/acquire/study.h"
 
 #include <gtest/gtest.h>
 
@@ -6,9 +6,9 @@
 #include <numbers>
 #include <random>
 
-#include "acquire/scan.h"
-#include "core/brdf_models.h"
-#include "core/error.h"
+#include "specula/acquire/scan.h"
+#include "specula/core/brdf_models.h"
+#include "specula/core/error.h"
 
 namespace specula::acquire {
 namespace {

@@ -5,8 +5,8 @@
 #include <cmath>
 #include <numbers>
 
-#include "acquire/truth.h"
-#include "core/brdf_materials.h"
+#include "specula/acquire/truth.h"
+#include "specula/core/brdf_materials.h"
 #include "test_support.h"
 
 using namespace specula;

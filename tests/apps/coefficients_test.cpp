@@ -9,11 +9,11 @@
 #include <random>
 #include <vector>
 
-#include "nmf/nnls.h"
-#include "stats/moments.h"
-#include "stats/pca.h"
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/nmf/nnls.h"
+#include "specula/stats/moments.h"
+#include "specula/stats/pca.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

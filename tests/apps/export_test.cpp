@@ -3,8 +3,8 @@
 
 #include <fstream>
 
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

@@ -12,8 +12,8 @@
 #include <fstream>
 #include <thread>
 
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

@@ -1,7 +1,7 @@
 // `specula info`, `ls` and `synth-db` through the CLI.
 #include <gtest/gtest.h>
 
-#include "store/store.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

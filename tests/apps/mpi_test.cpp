@@ -7,7 +7,7 @@
 #include <cmath>
 #include <string>
 
-#include "store/store.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

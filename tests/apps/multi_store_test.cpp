@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "store/store.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

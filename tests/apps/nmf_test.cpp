@@ -8,7 +8,7 @@
 #include <sstream>
 #include <string>
 
-#include "store/store.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

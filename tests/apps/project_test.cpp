@@ -6,11 +6,11 @@
 #include <cmath>
 #include <vector>
 
-#include "stats/moments.h"
-#include "stats/pca.h"
-#include "store/io/exr.h"
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/stats/moments.h"
+#include "specula/stats/pca.h"
+#include "specula/store/io/exr.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

@@ -4,8 +4,8 @@
 
 #include <cmath>
 
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

@@ -6,8 +6,8 @@
 #include <cmath>
 #include <fstream>
 
-#include "codec/spectral_grid.h"
-#include "store/store.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 namespace specula::codec {

@@ -1,4 +1,4 @@
-#include "codec/environment.h"
+#include "specula/codec/environment.h"
 
 #include <gtest/gtest.h>
 #include <omp.h>
@@ -9,12 +9,12 @@
 #include <fstream>
 #include <numbers>
 
-#include "codec/diff.h"
-#include "codec/spectral_grid.h"
-#include "core/brdf_models.h"
-#include "core/colour.h"
-#include "core/error.h"
-#include "store/io/exr.h"
+#include "specula/codec/diff.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/core/brdf_models.h"
+#include "specula/core/colour.h"
+#include "specula/core/error.h"
+#include "specula/store/io/exr.h"
 #include "grid_fixture.h"
 #include "test_support.h"
 

@@ -4,10 +4,10 @@
 
 #include <numbers>
 
-#include "codec/merl.h"
-#include "codec/spectral_grid.h"
-#include "core/brdf_models.h"
-#include "store/store.h"
+#include "specula/codec/merl.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/core/brdf_models.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 namespace specula::codec {

@@ -1,8 +1,8 @@
 #pragma once
 // The codec tests' analytic grids: a model evaluated at every MERL cell, on 7 bands to keep the tests fast.
-#include "core/brdf_geometry.h"
-#include "core/brdf_models.h"
-#include "store/store.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/brdf_models.h"
+#include "specula/store/store.h"
 
 namespace specula::test {
 

@@ -1,4 +1,4 @@
-#include "codec/merl.h"
+#include "specula/codec/merl.h"
 
 #include <gtest/gtest.h>
 
@@ -10,7 +10,7 @@
 #include <numbers>
 #include <random>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 namespace specula::codec {

@@ -2,11 +2,11 @@
 
 #include <algorithm>
 
-#include "codec/merl.h"
-#include "codec/spectral_grid.h"
-#include "core/brdf_models.h"
-#include "store/io/exr.h"
-#include "store/io/png_stack.h"
+#include "specula/codec/merl.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/core/brdf_models.h"
+#include "specula/store/io/exr.h"
+#include "specula/store/io/png_stack.h"
 #include "test_support.h"
 
 namespace specula::codec {

@@ -1,12 +1,12 @@
-#include "codec/render.h"
+#include "specula/codec/render.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-#include "codec/spectral_grid.h"
-#include "core/brdf_models.h"
-#include "core/error.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/core/brdf_models.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 namespace specula::codec {

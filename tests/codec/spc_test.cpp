@@ -1,4 +1,4 @@
-#include "codec/spc.h"
+#include "specula/codec/spc.h"
 
 #include <gtest/gtest.h>
 #include <omp.h>
@@ -8,8 +8,8 @@
 #include <cstring>
 #include <random>
 
-#include "core/brdf_models.h"
-#include "core/error.h"
+#include "specula/core/brdf_models.h"
+#include "specula/core/error.h"
 #include "grid_fixture.h"
 #include "test_support.h"
 

@@ -1,4 +1,4 @@
-#include "codec/spectral_grid.h"
+#include "specula/codec/spectral_grid.h"
 
 #include <gtest/gtest.h>
 #include <zlib.h>
@@ -8,8 +8,8 @@
 #include <fstream>
 #include <random>
 
-#include "core/brdf_models.h"
-#include "core/error.h"
+#include "specula/core/brdf_models.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 namespace specula::codec {

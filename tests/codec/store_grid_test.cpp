@@ -3,9 +3,9 @@
 #include <cmath>
 #include <random>
 
-#include "core/brdf_geometry.h"
-#include "core/error.h"
-#include "store/store.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/error.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

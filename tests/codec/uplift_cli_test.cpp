@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <filesystem>
 
-#include "codec/merl.h"
-#include "codec/spectral_grid.h"
-#include "store/io/exr.h"
-#include "store/store.h"
+#include "specula/codec/merl.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/store/io/exr.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 namespace specula {

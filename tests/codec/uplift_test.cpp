@@ -1,4 +1,4 @@
-#include "codec/uplift.h"
+#include "specula/codec/uplift.h"
 
 #include <gtest/gtest.h>
 
@@ -8,8 +8,8 @@
 #include <cmath>
 #include <random>
 
-#include "codec/spectral_grid.h"
-#include "core/error.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 namespace specula::codec {

@@ -1,10 +1,10 @@
-#include "core/atomic_file.h"
+#include "specula/core/atomic_file.h"
 
 #include <gtest/gtest.h>
 
 #include <fstream>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 using specula::AtomicOutput;

@@ -1,4 +1,4 @@
-#include "core/brdf_geometry.h"
+#include "specula/core/brdf_geometry.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "core/brdf_models.h"
+#include "specula/core/brdf_models.h"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 #include <random>
 #include <vector>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 namespace specula::brdf {
 namespace {

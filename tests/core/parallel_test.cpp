@@ -9,9 +9,9 @@
 #include <stdexcept>
 #include <vector>
 
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "core/parallel.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/parallel.h"
 
 using namespace specula;
 

@@ -1,8 +1,8 @@
-#include "core/wavelengths.h"
+#include "specula/core/wavelengths.h"
 
 #include <gtest/gtest.h>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 using specula::WavelengthGrid;
 

@@ -5,8 +5,8 @@
 #include <string>
 #include <string_view>
 
-#include "core/error.h"
-#include "store/io/envi.h"
+#include "specula/core/error.h"
+#include "specula/store/io/envi.h"
 
 namespace {
 

@@ -1,4 +1,4 @@
-#include "nmf/nmf.h"
+#include "specula/nmf/nmf.h"
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
@@ -6,11 +6,11 @@
 
 #include <random>
 
-#include "core/error.h"
-#include "core/interrupt.h"
-#include "nmf/checkpoint.h"
-#include "nmf/nnls.h"
-#include "store/store.h"
+#include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/nmf/checkpoint.h"
+#include "specula/nmf/nnls.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

@@ -1,10 +1,10 @@
-#include "nmf/nnls.h"
+#include "specula/nmf/nnls.h"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 using namespace specula;
 using namespace specula::nmf;

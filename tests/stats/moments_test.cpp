@@ -1,10 +1,10 @@
-#include "stats/moments.h"
+#include "specula/stats/moments.h"
 
 #include <gtest/gtest.h>
 
 #include <random>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 using namespace specula;

@@ -1,11 +1,11 @@
-#include "stats/pca.h"
+#include "specula/stats/pca.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/QR>
 #include <random>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 
 using namespace specula;
 using namespace specula::stats;

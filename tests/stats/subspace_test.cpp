@@ -6,8 +6,8 @@
 #include <numbers>
 #include <random>
 
-#include "core/error.h"
-#include "stats/subspace.h"
+#include "specula/core/error.h"
+#include "specula/stats/subspace.h"
 
 using namespace specula;
 

@@ -4,7 +4,7 @@
 #include <fstream>
 #include <random>
 
-#include "store/store.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

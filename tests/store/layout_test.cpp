@@ -9,8 +9,8 @@
 #include <sstream>
 #include <optional>
 
-#include "store/block_reader.h"
-#include "store/store.h"
+#include "specula/store/block_reader.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

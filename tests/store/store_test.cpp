@@ -1,12 +1,12 @@
-#include "store/store.h"
+#include "specula/store/store.h"
 
 #include <gtest/gtest.h>
 
 #include <fstream>
 #include <random>
 
-#include "core/brdf_geometry.h"
-#include "core/error.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 using namespace specula;

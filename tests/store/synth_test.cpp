@@ -8,9 +8,9 @@
 #include <cstring>
 #include <vector>
 
-#include "core/cie.h"
-#include "core/error.h"
-#include "store/synth.h"
+#include "specula/core/cie.h"
+#include "specula/core/error.h"
+#include "specula/store/synth.h"
 #include "test_support.h"
 
 namespace specula::store {

@@ -12,11 +12,11 @@
 #include <vector>
 
 #include "apps/view/service.h"
-#include "core/brdf_geometry.h"
-#include "core/colour.h"
-#include "nmf/nnls.h"
-#include "store/io/png_stack.h"
-#include "store/store.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/colour.h"
+#include "specula/nmf/nnls.h"
+#include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "store/store.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 // After Eigen (through store.h): httplib pulls in <resolv.h>, whose _res macro breaks Eigen headers.

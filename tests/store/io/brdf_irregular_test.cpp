@@ -1,11 +1,11 @@
-#include "store/io/brdf_irregular.h"
+#include "specula/store/io/brdf_irregular.h"
 
 #include <gtest/gtest.h>
 
 #include <fstream>
 #include <sstream>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 namespace specula::store {

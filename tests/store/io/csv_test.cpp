@@ -1,10 +1,10 @@
-#include "store/io/csv.h"
+#include "specula/store/io/csv.h"
 
 #include <fstream>
 #include <string>
 #include <vector>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 namespace specula::store {

@@ -1,4 +1,4 @@
-#include "store/io/envi.h"
+#include "specula/store/io/envi.h"
 
 #include <bit>
 #include <cstdint>
@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 namespace specula::store {

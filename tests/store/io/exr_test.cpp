@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "core/error.h"
-#include "store/io/exr.h"
+#include "specula/core/error.h"
+#include "specula/store/io/exr.h"
 #include "test_support.h"
 
 namespace specula::store {

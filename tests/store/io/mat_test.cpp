@@ -1,4 +1,4 @@
-#include "store/io/mat.h"
+#include "specula/store/io/mat.h"
 
 #include <matio.h>
 
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "core/error.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 namespace specula::store {

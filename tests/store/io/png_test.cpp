@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "core/error.h"
-#include "store/io/png_stack.h"
+#include "specula/core/error.h"
+#include "specula/store/io/png_stack.h"
 #include "test_support.h"
 
 namespace specula::store {
