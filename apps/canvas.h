@@ -13,7 +13,7 @@
 namespace specula::app {
 
 using Rgb = std::array<std::uint8_t, 3>;
-inline constexpr Rgb kInk{40, 40, 40}, kMaskedGrey{160, 160, 160};
+inline constexpr Rgb kInk{40, 40, 40};
 
 /// An RGB8 picture on a white background; text is drawn with a 5x7 font at `scale` pixels per font pixel.
 struct Canvas {

@@ -111,7 +111,7 @@ void write_plot(const fs::path& path, const store::Store& s, const std::string& 
     std::vector<std::uint8_t> picture(3 * h * w);
     for (std::size_t p = 0; p < h * w; ++p) {
       const double r = range[j] > 0 ? range[j] : 1.0;
-      const Rgb col = !mask[p] ? kMaskedGrey : nmf ? heat(c[p * k + j] / r) : diverging(0.5 + 0.5 * c[p * k + j] / r);
+      const Rgb col = !mask[p] ? kMaskColour : nmf ? heat(c[p * k + j] / r) : diverging(0.5 + 0.5 * c[p * k + j] / r);
       std::copy(col.begin(), col.end(), picture.begin() + std::ptrdiff_t(3 * p));
     }
     canvas.blit(x0 + (panel_w - w) / 2, y0 + line, w, h, picture);

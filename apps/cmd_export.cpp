@@ -4,6 +4,7 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/core/illuminant.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/error.h"
@@ -46,7 +47,7 @@ void run_export(const ExportOptions& o) {
     const store::Grid grid = s.read_grid(o.object);
     const std::string ext = std::filesystem::path(o.output).extension().string();
     if (ext == ".binary") {
-      const auto weights = codec::rgb_weights(grid.wavelengths, load_illuminant(o.preview.illuminant, grid.wavelengths));
+      const auto weights = codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths));
       const codec::RgbExport rgb = codec::grid_to_merl(grid, weights);
       codec::write_merl(o.output, rgb.brdf);
       fmt::print("wrote {} (RGB under {}; {} out-of-gamut channel values clamped to 0)\n", o.output,

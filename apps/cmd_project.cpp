@@ -49,7 +49,7 @@ std::size_t error_bar_min_width(double max_value, std::size_t s) {
 std::vector<std::uint8_t> error_rgb(const std::vector<float>& err, const Cube& cube, double max_value) {
   std::vector<std::uint8_t> out(3 * err.size());
   for (std::size_t i = 0; i < err.size(); ++i) {
-    const Rgb c = !cube.mask.empty() && !cube.mask[i] ? kMaskedGrey : heat(max_value > 0 ? err[i] / max_value : 0.0);
+    const Rgb c = !cube.mask.empty() && !cube.mask[i] ? kMaskColour : heat(max_value > 0 ? err[i] / max_value : 0.0);
     std::copy(c.begin(), c.end(), out.begin() + std::ptrdiff_t(3 * i));
   }
   return out;
@@ -105,15 +105,15 @@ void write_panel(const fs::path& path, const Cube& cube, const std::vector<std::
   store::write_png_rgb8(path, c.width, c.height, c.rgb);
 }
 
-// The exposure render() would pick for the original, fixed so every reconstruction is shown alike.
-PreviewOptions shared_exposure(const Cube& cube, PreviewOptions o) {
-  if (o.exposure != "auto" || cube.units == "reflectance") return o;
-  Eigen::Vector3d white;
-  const RowMatrixX3f xyz = cube_xyz(cube, load_illuminant(o.illuminant, cube.wavelengths), white);
-  std::vector<float> y = valid_luminance(xyz, cube);
-  const double y99 = quantile(y, 0.99);
-  if (y99 > 0) o.exposure = fmt::format("{}", -std::log2(y99));
-  return o;
+// The original's settings with its automatic exposure fixed, so every reconstruction is shown alike.
+PreviewSettings shared_settings(const Cube& cube, const PreviewOptions& o) {
+  PreviewSettings p = preview_settings(o, cube.wavelengths);
+  if (!p.exposure_stops) {
+    Eigen::Vector3d white;
+    const RowMatrixX3f xyz = spectra_to_xyz(cube_rows(cube), cube.wavelengths, cube_kind(cube), p.illuminant, white);
+    p.exposure_stops = auto_exposure_stops(xyz, cube.mask, cube_kind(cube));
+  }
+  return p;
 }
 
 // Projects every pixel on the first k components and reconstructs it (eqs 7.2-7.3), in row blocks of doubles.
@@ -237,7 +237,7 @@ void run_project(const ProjectOptions& o) {
     fs::create_directories(parent);
   }
 
-  const PreviewOptions preview = shared_exposure(cube, o.preview);
+  const PreviewSettings preview = shared_settings(cube, o.preview);
   std::unique_ptr<store::StoreWriter> writer;
   if (!o.into_store.empty()) writer = std::make_unique<store::StoreWriter>(o.store, store::WriteOptions{{}, false, command_line()});
   Cube recon;

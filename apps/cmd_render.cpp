@@ -8,6 +8,7 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/core/illuminant.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/render.h"
@@ -34,7 +35,7 @@ struct RenderOptions {
 codec::MerlBrdf load_rgb(const RenderOptions& o) {
   if (std::filesystem::path(o.input).extension() == ".binary") return codec::read_merl(o.input);
   const store::Grid grid = load_grid(o.input, "render");
-  const auto weights = codec::rgb_weights(grid.wavelengths, load_illuminant(o.illuminant, grid.wavelengths));
+  const auto weights = codec::rgb_weights(grid.wavelengths, parse_illuminant(o.illuminant, grid.wavelengths));
   return codec::grid_to_merl(grid, weights).brdf;
 }
 

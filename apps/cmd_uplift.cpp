@@ -7,6 +7,7 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/core/illuminant.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/codec/uplift.h"
@@ -75,7 +76,7 @@ void run_uplift(const UpliftOptions& o) {
   if (!o.store.empty() && o.name.empty()) throw UsageError("uplift: --store needs --name for the grid");
   if (!o.store.empty()) store::validate_name(o.name, "grid");
   const WavelengthGrid grid = WavelengthGrid::parse(o.wavelengths);
-  const Eigen::VectorXd illum = load_illuminant(o.illuminant, grid);
+  const Eigen::VectorXd illum = parse_illuminant(o.illuminant, grid);
   const codec::Uplift uplift(codec::rgb_weights(grid, illum), o.alpha);
 
   const auto t0 = std::chrono::steady_clock::now();

@@ -11,20 +11,12 @@
 #include "specula/codec/uplift.h"
 #include "specula/core/cie.h"
 #include "specula/core/error.h"
+#include "specula/core/illuminant.h"
 
 namespace specula::app {
 namespace {
 std::string g_command_line;
 
-bool parse_double(const std::string& s, double& v) {
-  try {
-    std::size_t pos = 0;
-    v = std::stod(s, &pos);
-    return pos == s.size();
-  } catch (...) {
-    return false;
-  }
-}
 }  // namespace
 
 const std::string& command_line() { return g_command_line; }
@@ -37,41 +29,6 @@ void set_command_line(int argc, char** argv) {
     const bool quote = a.empty() || a.find_first_of(" \t'\"$") != std::string::npos;
     g_command_line += quote ? "'" + a + "'" : a;
   }
-}
-
-Eigen::VectorXd load_illuminant(const std::string& spec, const WavelengthGrid& grid) {
-  if (spec == "D65" || spec == "D50" || spec == "A" || spec == "E") return illuminant(spec, grid);
-  double v = 0;
-  if (spec.size() > 1 && (spec[0] == 'D' || spec[0] == 'd') && parse_double(spec.substr(1), v))
-    return daylight(v * 100.0, grid);
-  if (spec.rfind("blackbody:", 0) == 0 && parse_double(spec.substr(10), v)) {
-    if (!(v >= 500 && v <= 50000)) throw UsageError("illuminant '" + spec + "': temperature must be 500-50000 K");
-    return blackbody(v, grid);
-  }
-  if (!std::filesystem::exists(spec))
-    throw UsageError("illuminant '" + spec +
-                     "' is neither D65, D50, A, E, D<CCT/100> (e.g. D75), blackbody:<K> nor an existing SPD file");
-  std::ifstream in(spec);
-  std::vector<double> nm, val;
-  std::string line;
-  std::size_t lineno = 0;
-  while (std::getline(in, line)) {
-    ++lineno;
-    if (line.empty() || line[0] == '#') continue;
-    std::replace(line.begin(), line.end(), ';', ',');
-    const auto comma = line.find(',');
-    double a = 0, b = 0;
-    if (comma == std::string::npos || !parse_double(line.substr(0, comma), a) || !parse_double(line.substr(comma + 1), b)) {
-      if (nm.empty()) continue;  // header
-      throw InputError(spec + ":" + std::to_string(lineno) + ": expected 'wavelength_nm,value'");
-    }
-    if (!std::isfinite(b)) throw InputError(spec + ":" + std::to_string(lineno) + ": value is not finite");
-    nm.push_back(a);
-    val.push_back(b);
-  }
-  if (nm.size() < 2) throw InputError(spec + ": an SPD needs at least two 'wavelength_nm,value' rows");
-  const WavelengthGrid src(nm, spec);
-  return resample_matrix(src, grid, spec) * Eigen::Map<const Eigen::VectorXd>(val.data(), Eigen::Index(val.size()));
 }
 
 void add_preview_options(CLI::App* cmd, PreviewOptions& o, bool with_illuminant) {
@@ -87,79 +44,32 @@ void add_preview_options(CLI::App* cmd, PreviewOptions& o, bool with_illuminant)
   cmd->add_flag("--no-adapt", o.no_adapt, "Do not adapt the scene white to D65");
 }
 
-RowMatrixX3f cube_xyz(const Cube& cube, const Eigen::VectorXd& illum, Eigen::Vector3d& white) {
-  const SpectrumKind kind = cube.units == "reflectance" ? SpectrumKind::reflectance : SpectrumKind::radiance;
-  const SpectrumToXyz to_xyz(cube.wavelengths, kind, illum);
-  white = to_xyz.white();
-  const Eigen::Index n = Eigen::Index(cube.height * cube.width);
-  RowMatrixX3f xyz(n, 3);
-  to_xyz.apply(Eigen::Map<const RowMatrixXf>(cube.data.data(), n, Eigen::Index(cube.bands)), xyz);
-  return xyz;
-}
-
-Picture render(const Cube& cube, const PreviewOptions& o) {
-  const Eigen::VectorXd illum = load_illuminant(o.illuminant, cube.wavelengths);
-  Eigen::Vector3d white;
-  RowMatrixX3f xyz = cube_xyz(cube, illum, white);
-  DisplayOptions d;
-  d.tone = o.tone == "reinhard" ? ToneMap::reinhard : ToneMap::clip;
-  d.desaturate = !o.no_desaturate;
-  d.adapt_to_d65 = !o.no_adapt;
-  if (const auto stops = parse_exposure(o.exposure)) {
-    d.exposure_stops = *stops;
-  } else if (cube.units != "reflectance") {
-    std::vector<float> y = valid_luminance(xyz, cube);
-    const double white = quantile(y, 0.99);
-    if (white > 0) d.exposure_stops = -std::log2(white);
+PreviewSettings preview_settings(const PreviewOptions& o, const WavelengthGrid& grid) {
+  PreviewSettings p;
+  p.illuminant = parse_illuminant(o.illuminant, grid);
+  try {
+    p.exposure_stops = parse_exposure(o.exposure);
+  } catch (const UsageError&) {
+    throw UsageError("--exposure '" + o.exposure + "': give stops between -64 and 64, or auto");
   }
-  Picture p;
-  p.width = cube.width;
-  p.height = cube.height;
-  p.srgb8.resize(3 * std::size_t(xyz.rows()));
-  RowMatrixX3f lin(xyz.rows(), 3);
-  xyz_to_display(xyz, white, d, lin, p.srgb8);
-  p.linear.assign(lin.data(), lin.data() + lin.size());
-  if (!cube.mask.empty())
-    for (std::size_t i = 0; i < cube.mask.size(); ++i)
-      if (!cube.mask[i]) {
-        p.srgb8[3 * i] = std::uint8_t(std::min(255, 96 + p.srgb8[3 * i] / 2));
-        p.srgb8[3 * i + 1] = std::uint8_t(p.srgb8[3 * i + 1] / 4);
-        p.srgb8[3 * i + 2] = std::uint8_t(p.srgb8[3 * i + 2] / 4);
-      }
+  p.tone = parse_tone(o.tone);
+  p.desaturate = !o.no_desaturate;
+  p.adapt_to_d65 = !o.no_adapt;
   return p;
 }
 
-std::vector<float> valid_luminance(const Eigen::Ref<const RowMatrixX3f>& xyz, const Cube& cube) {
-  std::vector<float> y;
-  y.reserve(std::size_t(xyz.rows()));
-  for (Eigen::Index i = 0; i < xyz.rows(); ++i)
-    if (cube.valid(std::size_t(i) / cube.width, std::size_t(i) % cube.width)) y.push_back(xyz(i, 1));
-  return y;
+Eigen::Map<const RowMatrixXf> cube_rows(const Cube& cube) {
+  return {cube.data.data(), Eigen::Index(cube.height * cube.width), Eigen::Index(cube.bands)};
 }
 
-double quantile(std::vector<float>& values, double q) {
-  if (values.empty()) return 0.0;
-  const auto k = values.begin() + std::ptrdiff_t(double(values.size() - 1) * std::clamp(q, 0.0, 1.0));
-  std::nth_element(values.begin(), k, values.end());
-  return double(*k);
+SpectrumKind cube_kind(const Cube& cube) {
+  return cube.units == "reflectance" ? SpectrumKind::reflectance : SpectrumKind::radiance;
 }
 
-std::optional<double> parse_exposure(const std::string& spec) {
-  if (spec == "auto") return std::nullopt;
-  double v = 0;
-  if (!parse_double(spec, v) || !(std::abs(v) <= 64))
-    throw UsageError("--exposure '" + spec + "': give stops between -64 and 64, or auto");
-  return v;
-}
+Picture render(const Cube& cube, const PreviewOptions& o) { return render(cube, preview_settings(o, cube.wavelengths)); }
 
-std::array<std::uint8_t, 3> heat(double t) {
-  static const double stops[6][3] = {{0, 0, 0}, {30, 30, 140}, {150, 40, 150}, {240, 100, 40}, {250, 220, 60}, {255, 255, 255}};
-  t = std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0) * 5.0;
-  const int i = std::min(4, int(t));
-  const double f = t - i;
-  std::array<std::uint8_t, 3> c{};
-  for (int k = 0; k < 3; ++k) c[std::size_t(k)] = std::uint8_t(std::lround(stops[i][k] * (1 - f) + stops[i + 1][k] * f));
-  return c;
+Picture render(const Cube& cube, const PreviewSettings& settings) {
+  return render_preview(cube_rows(cube), cube.width, cube.height, cube.wavelengths, cube_kind(cube), cube.mask, settings);
 }
 
 std::string json_string(std::string_view s) {
@@ -249,11 +159,6 @@ std::string save_grid(const store::Grid& grid, const std::string& spec, bool rep
     throw UsageError(command + ": " + spec + ": write STORE.h5:NAME, a .spgrid exchange file or an RGB .binary");
   codec::write_grid_file(out, grid);
   return "spectral grid file " + spec;
-}
-
-Eigen::Matrix3d rendering_to_linear_srgb(const Eigen::Vector3d& white) {
-  const Eigen::Vector3d d65(0.95047, 1.0, 1.08883);
-  return xyz_to_linear_srgb() * bradford_adaptation(white / white.y(), d65) / white.y();
 }
 
 }  // namespace specula::app

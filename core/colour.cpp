@@ -21,8 +21,11 @@ std::string describe_xyz(const Eigen::Vector3d& v) {
 
 Eigen::Vector3d xy_to_xyz(double x, double y) { return {x / y, 1.0, (1.0 - x - y) / y}; }
 
-// D65 white of the CIE 1931 observer, the target of adaptation before the sRGB matrix.
+}  // namespace
+
 Eigen::Vector3d d65_white() { return xy_to_xyz(0.31271, 0.32902); }
+
+namespace {
 
 Eigen::Matrix3d bradford_matrix() {
   Eigen::Matrix3d m;

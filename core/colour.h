@@ -17,6 +17,8 @@ using RowMatrixX3f = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;
 /// What the values of a spectrum mean: a reflectance factor (lit by an illuminant for display) or a radiance.
 enum class SpectrumKind { reflectance, radiance };
 
+/// XYZ (Y = 1) of the D65 white, CIE 1931 observer: the target of adaptation before the sRGB matrix.
+Eigen::Vector3d d65_white();
 /// XYZ -> linear sRGB (IEC 61966-2-1, D65 white).
 Eigen::Matrix3d xyz_to_linear_srgb();
 /// Bradford chromatic adaptation matrix taking colours seen under white `from` to white `to` (both XYZ).

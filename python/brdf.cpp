@@ -12,6 +12,7 @@
 #include "specula/core/cie.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
+#include "specula/core/illuminant.h"
 #include "python/common.h"
 
 namespace specula::python {
@@ -40,7 +41,7 @@ SpectrumKind parse_kind(const std::string& s) {
 }
 
 Eigen::VectorXd illuminant_from(const py::object& ill, const WavelengthGrid& grid) {
-  if (py::isinstance<py::str>(ill)) return illuminant(ill.cast<std::string>(), grid);
+  if (py::isinstance<py::str>(ill)) return parse_illuminant(ill.cast<std::string>(), grid);
   Eigen::VectorXd v = vector_from(ill, "illuminant");
   if (std::size_t(v.size()) != grid.size())
     throw UsageError(fmt::format("illuminant: {} values for {} wavelengths", v.size(), grid.size()));
@@ -279,9 +280,11 @@ void init_brdf(py::module_& m) {
       py::arg("wavelengths"), py::arg("observer") = "cie1931_2deg",
       "The CIE colour-matching functions at the wavelengths, (bands, 3): xbar, ybar, zbar.");
   m.def("illuminant", [](const std::string& name, const py::object& w) {
-        return to_numpy(Eigen::VectorXd(illuminant(name, grid_from(w, "wavelengths"))));
+        return to_numpy(Eigen::VectorXd(parse_illuminant(name, grid_from(w, "wavelengths"))));
       },
-      py::arg("name"), py::arg("wavelengths"), "The relative SPD of CIE illuminant D65, D50, A or E at the wavelengths.");
+      py::arg("name"), py::arg("wavelengths"),
+      "The relative SPD at the wavelengths of an illuminant named as the CLI names it: D65, D50, A, E, D<CCT/100> "
+      "(e.g. D75), blackbody:K or an SPD CSV file.");
   m.def(
       "xyz_weights",
       [](const py::object& w, const std::string& kind, const py::object& ill, const std::string& observer) {

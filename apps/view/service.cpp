@@ -14,6 +14,8 @@
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
+#include "specula/core/illuminant.h"
+#include "specula/core/preview.h"
 #include "specula/nmf/nnls.h"
 #include "specula/store/io/png_stack.h"
 
@@ -96,12 +98,15 @@ std::string png_bytes(std::size_t w, std::size_t h, std::span<const std::uint8_t
 // An illuminant from the page: a CIE name, D<CCT/100>, blackbody:K, or spectrum INDEX of collection NAME in the
 // store ("collection:NAME:INDEX"). Never a file path.
 Eigen::VectorXd page_illuminant(const std::string& spec, const store::Store& st, const WavelengthGrid& grid) {
-  static const std::regex named(R"(D65|D50|A|E|D[0-9]{2,3}|blackbody:[0-9]+(\.[0-9]+)?)");
-  if (std::regex_match(spec, named)) return app::load_illuminant(spec, grid);
   static const std::regex from_store(R"(collection:([A-Za-z0-9_.+-]+):([0-9]+))");
   std::smatch m;
-  if (!std::regex_match(spec, m, from_store))
-    throw HttpError(400, "illuminant '" + spec + "': use D65, D50, A, E, D<CCT/100>, blackbody:K or collection:NAME:INDEX");
+  if (!std::regex_match(spec, m, from_store)) {
+    try {
+      return parse_illuminant(spec, grid, IlluminantFiles::refused);
+    } catch (const UsageError& e) {
+      throw HttpError(400, std::string(e.what()) + ", or collection:NAME:INDEX");
+    }
+  }
   const auto listed = st.collections();
   if (std::find(listed.begin(), listed.end(), m[1].str()) == listed.end())
     throw HttpError(404, st.label() + ": no collection '" + m[1].str() + "' for the illuminant");
@@ -221,23 +226,11 @@ Response Service::image_rgb(const Query& q) {
   const std::string key = "rgb\n" + name + "\n" + illuminant + "\n" + o.exposure;
   if (const auto it = png_cache_.find(key); it != png_cache_.end()) return png(it->second);
   const store::Cube& cube = image(name);
-  const Eigen::VectorXd spd = page_illuminant(illuminant, store_, cube.wavelengths);
-  // render() takes the illuminant by name; a store spectrum goes through the same XYZ path here.
-  Eigen::Vector3d white;
-  RowMatrixX3f xyz = app::cube_xyz(cube, spd, white);
-  DisplayOptions d;
-  if (const auto stops = app::parse_exposure(o.exposure)) {
-    d.exposure_stops = *stops;
-  } else if (cube.units != "reflectance") {
-    std::vector<float> y = app::valid_luminance(xyz, cube);
-    const double w = app::quantile(y, 0.99);
-    if (w > 0) d.exposure_stops = -std::log2(w);
-  }
-  std::vector<std::uint8_t> rgb(3 * std::size_t(xyz.rows()));
-  RowMatrixX3f lin(xyz.rows(), 3);
-  xyz_to_display(xyz, white, d, lin, rgb);
-  for (std::size_t i = 0; i < cube.mask.size(); ++i)
-    if (!cube.mask[i]) rgb[3 * i] = 128, rgb[3 * i + 1] = rgb[3 * i + 2] = 0;
+  PreviewSettings settings;
+  settings.illuminant = page_illuminant(illuminant, store_, cube.wavelengths);
+  settings.exposure_stops = parse_exposure(o.exposure);
+  const Picture picture = app::render(cube, settings);
+  const std::vector<std::uint8_t>& rgb = picture.srgb8;
   if (png_cache_.size() >= 16) png_cache_.clear();
   return png(png_cache_[key] = png_bytes(cube.width, cube.height, rgb));
 }
@@ -253,15 +246,14 @@ Response Service::image_band(const Query& q) {
   v.reserve(cube.height * cube.width);
   for (std::size_t p = 0; p < cube.height * cube.width; ++p)
     if (cube.mask.empty() || cube.mask[p]) v.push_back(cube.data[p * cube.bands + band]);
-  const double top = std::max(app::quantile(v, 0.99), 1e-30);
+  const double top = std::max(quantile(v, 0.99), 1e-30);
   std::vector<std::uint8_t> rgb(3 * cube.height * cube.width);
   for (std::size_t p = 0; p < cube.height * cube.width; ++p) {
     const double t = std::clamp(double(cube.data[p * cube.bands + band]) / top, 0.0, 1.0);
     const auto g = std::uint8_t(std::lround(255 * srgb_encode(t)));
-    const bool valid = cube.mask.empty() || cube.mask[p];
-    rgb[3 * p] = valid ? g : 128;
-    rgb[3 * p + 1] = rgb[3 * p + 2] = valid ? g : 0;
+    rgb[3 * p] = rgb[3 * p + 1] = rgb[3 * p + 2] = g;
   }
+  paint_masked(rgb, cube.mask);
   if (png_cache_.size() >= 16) png_cache_.clear();
   return png(png_cache_[key] = png_bytes(cube.width, cube.height, rgb));
 }
