@@ -16,7 +16,7 @@
 #include "specula/core/interrupt.h"
 #include "specula/core/progress.h"
 #include "specula/nmf/checkpoint.h"
-#include "specula/nmf/nnls.h"
+#include "specula/core/nnls.h"
 
 namespace specula::nmf {
 namespace {

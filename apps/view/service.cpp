@@ -14,7 +14,7 @@
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
-#include "specula/nmf/nnls.h"
+#include "specula/core/nnls.h"
 #include "specula/store/io/png_stack.h"
 
 namespace specula::view {
@@ -291,7 +291,7 @@ Response Service::image_spectrum(const Query& q) {
       const Eigen::MatrixXd c = b.components.topRows(Eigen::Index(k));
       r = b.mean + c.transpose() * (c * (xv - b.mean));
     } else {
-      const nmf::GramNnls solver(b.components * b.components.transpose());
+      const GramNnls solver(b.components * b.components.transpose());
       const Eigen::VectorXd h = b.components * xv;
       Eigen::VectorXd coef(h.size());
       solver.solve(h.data(), coef.data());

@@ -9,7 +9,7 @@
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/nmf/checkpoint.h"
-#include "specula/nmf/nnls.h"
+#include "specula/core/nnls.h"
 #include "specula/store/store.h"
 #include "test_support.h"
 
