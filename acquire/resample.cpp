@@ -174,7 +174,7 @@ Weights parse_weights(std::string_view name) {
 std::string_view weights_name(Weights w) { return w == Weights::mean ? "mean" : "shepard"; }
 
 void check_options(const ResampleOptions& o) {
-  if (o.k < 1 || o.k > 100000) throw UsageError("-k " + std::to_string(o.k) + ": give 1 to 100000 neighbours");
+  if (o.k < 1 || o.k > 100000) throw UsageError("k = " + std::to_string(o.k) + ": give 1 to 100000 neighbours");
   if (!(o.power >= 0) || !std::isfinite(o.power))
     throw UsageError("power " + std::to_string(o.power) + ": Shepard's power must be a finite number >= 0");
   if (!(o.max_gap > 0)) throw UsageError("max_gap: the largest gap must be positive");

@@ -15,8 +15,8 @@
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/progress.h"
-#include "specula/nmf/nmf.h"
-#include "specula/stats/pca.h"
+#include "specula/core/parallel.h"
+#include "specula/stats/project.h"
 #include "specula/store/block_reader.h"
 #include "specula/store/store.h"
 
@@ -41,44 +41,10 @@ struct MapResult {
   std::string name, image;
   std::size_t height = 0, width = 0;
   std::uint64_t valid = 0;
-  double sum_sq = 0, err_sq = 0;
+  double sum_sq = 0;              // ||X||^2 over the valid pixels
+  stats::ProjectionError error;  // of the reconstruction from the coefficients
   std::string plot;
 };
-
-// The basis the maps are computed on: PCA truncated to its first k components (with the mean), NMF whole.
-store::Basis projection_basis(const store::Store& s, const CoefficientsOptions& o) {
-  store::Basis b = s.read_basis(o.basis);
-  if (b.method != "pca" && b.method != "nmf")
-    throw InputError(s.label() + ": basis " + o.basis + " has method '" + b.method + "'; coefficient maps need a pca or nmf basis");
-  if (b.method == "pca") {
-    if (b.mean.size() != b.components.cols())
-      throw InputError(s.label() + ": basis " + o.basis + " has no mean; re-learn it with specula pca");
-    const long long k = o.k == 0 ? static_cast<long long>(b.k()) : o.k;
-    if (k < 1 || std::size_t(k) > b.k())
-      throw UsageError(fmt::format("-k {}: basis {} has {} components; give k between 1 and {}", o.k, o.basis, b.k(), b.k()));
-    b.components = b.components.topRows(Eigen::Index(k)).eval();
-  } else if (o.k != 0 && o.k != static_cast<long long>(b.k())) {
-    throw UsageError(fmt::format("-k {}: NMF basis {} has {} components and projects onto all of them; learn a basis "
-                                 "with specula nmf -k {} for {} components",
-                                 o.k, o.basis, b.k(), o.k, o.k));
-  }
-  return b;
-}
-
-// Coefficients of block `spectra` (its valid pixels, n x B) into coef (n x k) and their summed squared error.
-double project_block(const store::Basis& basis, const RowMatrixXd& spectra, RowMatrixXd& coef, RowMatrixXd& recon) {
-  const Eigen::Index n = spectra.rows(), k = Eigen::Index(basis.k());
-  coef.resize(n, k);
-  recon.resize(n, spectra.cols());
-  if (basis.method == "nmf") {
-    nmf::nnls_project(basis.components, spectra, coef);
-    recon.noalias() = coef * basis.components;
-  } else {
-    stats::pca_project(basis, basis.k(), spectra, coef);
-    stats::pca_reconstruct(basis, coef, recon);
-  }
-  return (spectra - recon).squaredNorm();
-}
 
 // One figure per map: its k coefficient images side by side (at most four to a row), each above its own colour
 // bar: NMF coefficients from 0 (black) to their 99th percentile, PCA ones blue-white-red around 0 to +-99th
@@ -127,11 +93,11 @@ void run_coefficients(const CoefficientsOptions& o) {
                                  ranks().size()));
   const auto start = std::chrono::steady_clock::now();
   const store::Store s = store::Store::open(o.store);
-  const store::Basis basis = projection_basis(s, o);
+  const store::Basis basis = s.read_basis(o.basis);
+  // PCA: the first k components (default all); NMF: all of them.
+  const stats::Projector projector(basis, o.k == 0 ? std::nullopt : std::optional<long long>(o.k), o.basis);
   const store::BlockReader reader(s, {.image_globs = o.images});
-  if (!reader.wavelengths().approx_equal(basis.wavelengths))
-    throw InputError(fmt::format("{}: the images have {}, basis {} has {}; learn a basis on the images' grid", s.label(),
-                                 reader.wavelengths().describe(), o.basis, basis.wavelengths.describe()));
+  projector.check_wavelengths(reader.wavelengths(), s.label() + ": the images", "learn a basis on the images' grid");
   const std::vector<std::string>& images = reader.source_names();
   if (!o.name.empty() && images.size() != 1)
     throw UsageError(fmt::format("--name {} names one map, but {} images match; leave --name out to get <image>.{}",
@@ -162,55 +128,53 @@ void run_coefficients(const CoefficientsOptions& o) {
     ci.method = basis.method;
     ci.height = info.height;
     ci.width = info.width;
-    ci.k = basis.k();
+    ci.k = projector.k();
     ci.valid_pixels = info.valid_pixels;
     ci.chunk_rows = std::max<std::size_t>(1, info.chunk_rows);
     ci.provenance = {o.store, basis.method + "-coefficients", command_line(), ""};
-    writer.create_coefficients(m.name, ci, basis);
+    writer.create_coefficients(m.name, ci, projector.basis());
   }
 
   // Blocks are projected in waves on all threads, then written in block order: the output and the error sums do
   // not depend on the thread count, and memory holds one wave.
-  const std::size_t blocks = reader.block_count(), k = basis.k(), bands = reader.bands();
+  const std::size_t blocks = reader.block_count(), k = projector.k(), bands = reader.bands();
   const std::size_t wave = 4 * std::size_t(std::max(1, omp_get_max_threads()));
   std::vector<store::BlockReader::RawBlock> raw(wave);
   std::vector<std::vector<float>> out(wave);
-  std::vector<double> sum_sq(wave), err_sq(wave);
+  std::vector<double> sum_sq(wave);
+  std::vector<stats::ProjectionError> errors(wave);
   std::vector<std::uint8_t> ones;
   Progress progress("coefficients on " + o.basis, blocks);
+  struct Scratch {
+    RowMatrixXd x, coef, recon;
+    Eigen::VectorXd e2;
+  };
   for (std::size_t first = 0; first < blocks; first += wave) {
-    check_interrupt();
     const long long n = static_cast<long long>(std::min(wave, blocks - first));
-    std::exception_ptr error;
-#pragma omp parallel
-    {
-      RowMatrixXd x, coef, recon;
-#pragma omp for schedule(dynamic, 1)
-      for (long long j = 0; j < n; ++j) {
-        try {
-          const std::size_t b = first + std::size_t(j);
-          store::BlockReader::RawBlock& r = raw[std::size_t(j)];
-          reader.read_raw(b, r);
-          x.resize(Eigen::Index(r.valid), Eigen::Index(bands));
-          for (std::size_t p = 0, v = 0; p < r.pixels; ++p)
-            if (r.is_valid(p))
-              x.row(Eigen::Index(v++)) = Eigen::Map<const Eigen::RowVectorXf>(r.spectrum(p, bands), Eigen::Index(bands)).cast<double>();
-          err_sq[std::size_t(j)] = project_block(basis, x, coef, recon);
-          sum_sq[std::size_t(j)] = x.squaredNorm();
-          std::vector<float>& c = out[std::size_t(j)];
-          c.assign(r.pixels * k, 0.0f);
-          for (std::size_t p = 0, v = 0; p < r.pixels; ++p)
-            if (r.is_valid(p)) {
-              for (std::size_t i = 0; i < k; ++i) c[p * k + i] = float(coef(Eigen::Index(v), Eigen::Index(i)));
-              ++v;
-            }
-        } catch (...) {
-#pragma omp critical(specula_coefficients_error)
-          if (!error) error = std::current_exception();
+    parallel_for(std::size_t(n), [] { return Scratch{}; }, [&](std::size_t j, Scratch& t) {
+      store::BlockReader::RawBlock& r = raw[j];
+      reader.read_raw(first + j, r);
+      t.x.resize(Eigen::Index(r.valid), Eigen::Index(bands));
+      for (std::size_t p = 0, v = 0; p < r.pixels; ++p)
+        if (r.is_valid(p))
+          t.x.row(Eigen::Index(v++)) = Eigen::Map<const Eigen::RowVectorXf>(r.spectrum(p, bands), Eigen::Index(bands)).cast<double>();
+      t.coef.resize(t.x.rows(), Eigen::Index(k));
+      t.recon.resize(t.x.rows(), t.x.cols());
+      t.e2.resize(t.x.rows());
+      projector.project(t.x, t.coef);
+      projector.reconstruct(t.coef, t.recon);
+      stats::squared_errors(t.x, t.recon, t.e2);
+      errors[j] = {};
+      for (Eigen::Index i = 0; i < t.e2.size(); ++i) errors[j].add(t.e2[i]);
+      sum_sq[j] = t.x.squaredNorm();
+      std::vector<float>& c = out[j];
+      c.assign(r.pixels * k, 0.0f);
+      for (std::size_t p = 0, v = 0; p < r.pixels; ++p)
+        if (r.is_valid(p)) {
+          for (std::size_t i = 0; i < k; ++i) c[p * k + i] = float(t.coef(Eigen::Index(v), Eigen::Index(i)));
+          ++v;
         }
-      }
-    }
-    if (error) std::rethrow_exception(error);
+    });
     for (long long j = 0; j < n; ++j) {
       const std::size_t b = first + std::size_t(j);
       MapResult& m = maps[reader.block_source(b)];
@@ -222,7 +186,7 @@ void run_coefficients(const CoefficientsOptions& o) {
       }
       writer.write_coefficient_rows(m.name, reader.block_first_row(b), r.pixels / m.width, out[std::size_t(j)], mask);
       m.sum_sq += sum_sq[std::size_t(j)];
-      m.err_sq += err_sq[std::size_t(j)];
+      m.error.merge(errors[std::size_t(j)]);
     }
     progress.advance(std::uint64_t(n));
   }
@@ -237,8 +201,8 @@ void run_coefficients(const CoefficientsOptions& o) {
     }
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  auto rel = [](const MapResult& m) { return m.sum_sq > 0 ? std::sqrt(m.err_sq / m.sum_sq) : 0.0; };
-  auto rms = [&](const MapResult& m) { return m.valid ? std::sqrt(m.err_sq / (double(m.valid) * double(bands))) : 0.0; };
+  auto rel = [](const MapResult& m) { return m.sum_sq > 0 ? std::sqrt(m.error.sum_sq / m.sum_sq) : 0.0; };
+  auto rms = [&](const MapResult& m) { return m.error.count ? m.error.rms(bands) : 0.0; };
   if (o.json) {
     std::string list;
     for (const MapResult& m : maps)

@@ -11,8 +11,7 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/core/error.h"
-#include "specula/nmf/nmf.h"
-#include "specula/stats/pca.h"
+#include "specula/stats/project.h"
 #include "specula/store/io/exr.h"
 #include "specula/store/io/png_stack.h"
 #include "specula/store/store.h"
@@ -22,9 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr const char* kRmsDefinition =
-    "rms = sqrt(mean over valid pixels of ||x - x'||^2 / B) (per-band root-mean-square error); "
-    "max_error = largest per-pixel ||x - x'||_2 over bands";
+constexpr const char* kRmsDefinition = stats::kProjectionErrorDefinition;
 
 struct ProjectOptions {
   std::string store;
@@ -116,45 +113,40 @@ PreviewSettings shared_settings(const Cube& cube, const PreviewOptions& o) {
   return p;
 }
 
-// Projects every pixel on the first k components and reconstructs it (eqs 7.2-7.3), in row blocks of doubles.
-KResult project(const Cube& cube, const store::Basis& basis, std::size_t k, Cube& recon) {
-  const std::size_t w = cube.width, b = cube.bands;
+// Projects every pixel (eq 7.2 or NNLS) and reconstructs it (eq 7.3), in row blocks of doubles.
+KResult project(const Cube& cube, const stats::Projector& projector, Cube& recon) {
+  const std::size_t w = cube.width, b = cube.bands, k = projector.k();
   const std::size_t rows_per_block = std::max<std::size_t>(1, (std::size_t(1) << 20) / (w * b));
   KResult r;
   r.k = k;
   r.error.assign(cube.height * w, 0.0f);
   recon.data.assign(cube.data.size(), 0.0f);
-  double sum_sq = 0;
-  std::size_t valid = 0;
+  stats::ProjectionError summary;
   RowMatrixXd x, coef, xr;
+  Eigen::VectorXd e2;
   for (std::size_t y0 = 0; y0 < cube.height; y0 += rows_per_block) {
     const Eigen::Index m = Eigen::Index(std::min(rows_per_block, cube.height - y0) * w);
     const std::size_t first = y0 * w;
     x = Eigen::Map<const RowMatrixXf>(cube.data.data() + first * b, m, Eigen::Index(b)).cast<double>();
     coef.resize(m, Eigen::Index(k));
     xr.resize(m, Eigen::Index(b));
-    if (basis.method == "nmf") {
-      nmf::nnls_project(basis.components, x, coef);
-      xr.noalias() = coef * basis.components;
-    } else {
-      stats::pca_project(basis, k, x, coef);
-      stats::pca_reconstruct(basis, coef, xr);
-    }
+    e2.resize(m);
+    projector.project(x, coef);
+    projector.reconstruct(coef, xr);
+    stats::squared_errors(x, xr, e2);
     Eigen::Map<RowMatrixXf>(recon.data.data() + first * b, m, Eigen::Index(b)) = xr.cast<float>();
     for (Eigen::Index i = 0; i < m; ++i) {
-      const double e2 = (x.row(i) - xr.row(i)).squaredNorm();
       const std::size_t p = first + std::size_t(i);
       if (!cube.mask.empty() && !cube.mask[p]) {
         std::fill_n(recon.data.begin() + std::ptrdiff_t(p * b), b, 0.0f);  // as the store keeps masked pixels
         continue;
       }
-      r.error[p] = float(std::sqrt(e2));
-      sum_sq += e2;
-      r.max_error = std::max(r.max_error, std::sqrt(e2));
-      ++valid;
+      r.error[p] = float(std::sqrt(e2[i]));
+      summary.add(e2[i]);
     }
   }
-  r.rms = std::sqrt(sum_sq / (double(valid) * double(b)));
+  r.rms = summary.rms(b);
+  r.max_error = summary.max_error;
   return r;
 }
 
@@ -186,37 +178,19 @@ void run_project(const ProjectOptions& o) {
   {
     const store::Store s = store::Store::open(o.store);
     basis = s.read_basis(o.basis);
-    if (basis.method != "pca" && basis.method != "nmf")
-      throw InputError(s.label() + ": basis " + o.basis + " has method '" + basis.method +
-                       "'; projection needs a pca or nmf basis");
-    if (basis.method == "pca" && basis.mean.size() != basis.components.cols())
-      throw InputError(s.label() + ": basis " + o.basis + " has no mean; re-learn it with specula pca");
-    if (basis.method == "pca" && o.ks.empty())
+    if (stats::basis_method(basis, o.basis) == stats::BasisMethod::pca && o.ks.empty())
       throw UsageError("-k is required with a PCA basis (e.g. -k 6, or -k 1,3,6,31 for figure 7.4's panel)");
-    if (basis.method == "nmf") {
-      // NNLS on all k components: an NMF basis is not nested, its first j components are no j-component basis.
-      for (long long k : o.ks)
-        if (k != static_cast<long long>(basis.k()))
-          throw UsageError(fmt::format("-k {}: NMF basis {} has {} components and projects onto all of them; learn a "
-                                       "basis with specula nmf -k {} for {} components",
-                                       k, o.basis, basis.k(), k, k));
-      ks.push_back(basis.k());
-    }
-    for (long long k : basis.method == "pca" ? o.ks : std::vector<long long>{}) {
-      if (k < 1 || std::size_t(k) > basis.k())
-        throw UsageError(fmt::format("-k {}: basis {} has {} components; give k between 1 and {}", k, o.basis, basis.k(),
-                                     basis.k()));
-      ks.push_back(std::size_t(k));
-    }
+    // One projector per k checks k (an NMF basis projects onto all of its components, so at most one k).
+    for (long long k : o.ks) ks.push_back(stats::Projector(basis, k, o.basis).k());
+    if (ks.empty()) ks.push_back(basis.k());
     std::sort(ks.begin(), ks.end());
     ks.erase(std::unique(ks.begin(), ks.end()), ks.end());
     if (ks.size() > 1 && names_exr(o.output))
       throw UsageError("-o " + o.output + " names one reconstruction; with several -k give a directory");
     const store::ImageInfo info = s.image_info(o.image);
-    if (!info.wavelengths.approx_equal(basis.wavelengths))
-      throw InputError(fmt::format("{}: image {} has {}, basis {} has {}; import the image with --wavelengths to match "
-                                   "the basis, or learn a basis on the image's grid",
-                                   s.label(), o.image, info.wavelengths.describe(), o.basis, basis.wavelengths.describe()));
+    stats::Projector(basis, std::nullopt, o.basis)
+        .check_wavelengths(info.wavelengths, s.label() + ": image " + o.image,
+                           "import the image with --wavelengths to match the basis, or learn a basis on the image's grid");
     if (info.valid_pixels == 0) throw InputError(s.label() + ": image " + o.image + " has no valid pixels");
     if (!o.into_store.empty()) {
       const auto images = s.images();
@@ -253,7 +227,7 @@ void run_project(const ProjectOptions& o) {
   std::vector<KResult> results;
   std::vector<std::string> outputs, store_images;
   for (std::size_t k : ks) {
-    KResult r = project(cube, basis, k, recon);
+    KResult r = project(cube, stats::Projector(basis, static_cast<long long>(k), o.basis), recon);
     const OutputPaths p = paths_for(o, k);
     store::write_spectral_exr(p.reconstruction, recon);
     r.preview = render(recon, preview).srgb8;

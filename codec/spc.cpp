@@ -16,6 +16,7 @@
 #include "specula/core/atomic_file.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
+#include "specula/core/parallel.h"
 
 namespace specula::codec {
 namespace {
@@ -149,7 +150,7 @@ std::int32_t unplane(const std::uint8_t* p, std::size_t n, std::uint8_t width, s
 std::int32_t to_code(double v, const std::string& what) {
   const double r = std::nearbyint(v);
   if (!(std::abs(r) < 2e9)) throw UsageError("encode: " + what + " needs a code of " + std::to_string(r) +
-                                             ", beyond 32 bits; raise --max-error");
+                                             ", beyond 32 bits; raise max_error");
   return std::int32_t(r);
 }
 
@@ -230,7 +231,7 @@ SpcBasis coding_basis(const store::Basis& basis, std::size_t k, const std::strin
   const bool pca = basis.method == "pca";
   const std::size_t have = basis.k() + (pca ? 1 : 0);
   if (k < 1 || k > std::min(have, basis.bands()))
-    throw UsageError("-k " + std::to_string(k) + ": basis " + reference + " gives 1 to " +
+    throw UsageError("k = " + std::to_string(k) + ": basis " + reference + " gives 1 to " +
                      std::to_string(std::min(have, basis.bands())) + " spectra" + (pca ? " (its mean and components)" : ""));
   Eigen::MatrixXd m(Eigen::Index(basis.bands()), Eigen::Index(k));
   std::size_t col = 0;
@@ -252,10 +253,9 @@ Eigen::MatrixXd shape_moment(const store::Grid& grid, const Eigen::MatrixXd& rem
   if (grid.brdf.size() != b * kMerlCells) throw UsageError("basis fit: grid values do not match bands x 90 x 90 x 180");
   std::vector<Eigen::MatrixXd> part(kMerlThetaH, Eigen::MatrixXd::Zero(Eigen::Index(b), Eigen::Index(b)));
   std::vector<std::uint64_t> count(kMerlThetaH, 0);
-#pragma omp parallel for schedule(dynamic, 1)
-  for (int h = 0; h < kMerlThetaH; ++h) {
-    Eigen::VectorXd r(static_cast<Eigen::Index>(b));
-    for (std::size_t c = std::size_t(h) * kSlab; c < std::size_t(h + 1) * kSlab; ++c) {
+  parallel_for(std::size_t(kMerlThetaH), [&] { return Eigen::VectorXd(static_cast<Eigen::Index>(b)); },
+               [&](std::size_t h, Eigen::VectorXd& r) {
+    for (std::size_t c = h * kSlab; c < (h + 1) * kSlab; ++c) {
       double m = 0;
       bool valid = true;
       for (std::size_t j = 0; j < b; ++j) {
@@ -267,10 +267,10 @@ Eigen::MatrixXd shape_moment(const store::Grid& grid, const Eigen::MatrixXd& rem
       if (!valid || !(m > 0) || !std::isfinite(m)) continue;
       r *= double(b) / m;
       if (remove.rows() > 0) r -= remove.transpose() * (remove * r);
-      part[std::size_t(h)].selfadjointView<Eigen::Lower>().rankUpdate(r);
-      ++count[std::size_t(h)];
+      part[h].selfadjointView<Eigen::Lower>().rankUpdate(r);
+      ++count[h];
     }
-  }
+  });
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(Eigen::Index(b), Eigen::Index(b));
   n = 0;
   for (int h = 0; h < kMerlThetaH; ++h) g += part[std::size_t(h)], n += count[std::size_t(h)];
@@ -296,7 +296,7 @@ Eigen::MatrixXd top_rows(const Eigen::MatrixXd& g, std::size_t k) {
 
 SpcBasis self_basis(const store::Grid& grid, std::size_t k) {
   const std::size_t b = grid.bands();
-  if (k < 1 || k > b) throw UsageError("-k " + std::to_string(k) + ": give 1 to " + std::to_string(b) + " for a self basis");
+  if (k < 1 || k > b) throw UsageError("k = " + std::to_string(k) + ": give 1 to " + std::to_string(b) + " for a self basis");
   std::uint64_t n = 0;
   const Eigen::MatrixXd g = shape_moment(grid, Eigen::MatrixXd(0, Eigen::Index(b)), n);
   if (n == 0) throw InputError("the grid has no valid cell with a non-zero spectrum to fit a basis to");
@@ -309,7 +309,7 @@ SpcBasis augment_basis(const SpcBasis& basis, const store::Grid& grid, std::size
     throw InputError("the grid has " + grid.wavelengths.describe() + ", basis " + basis.reference + " has " +
                      basis.wavelengths.describe() + "; code a grid with a basis on its own wavelengths");
   if (basis.k() + extra > b)
-    throw UsageError("--extra " + std::to_string(extra) + ": with k = " + std::to_string(basis.k()) + " at most " +
+    throw UsageError("extra = " + std::to_string(extra) + ": with k = " + std::to_string(basis.k()) + " at most " +
                      std::to_string(b - basis.k()) + " more spectra fit in " + std::to_string(b) + " bands");
   if (extra == 0) return basis;
   std::uint64_t n = 0;
@@ -333,7 +333,7 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
   const std::size_t bands = grid.bands(), k = basis.k();
   if (grid.brdf.size() != bands * kMerlCells) throw UsageError("encode: grid values do not match bands x 90 x 90 x 180");
   if (!(std::isfinite(o.max_error) && o.max_error > 0 && o.max_error <= 1))
-    throw UsageError("--max-error " + std::to_string(o.max_error) + ": give a number in (0, 1]");
+    throw UsageError("max_error = " + std::to_string(o.max_error) + ": give a number in (0, 1]");
   if (!(std::isfinite(o.magnitude_scale) && o.magnitude_scale >= 0))
     throw UsageError("magnitude scale must be finite and >= 0 (0: automatic)");
   if (o.zstd_level < 1 || o.zstd_level > 19) throw UsageError("zstd level must be 1 to 19");
@@ -346,23 +346,20 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
   // Magnitudes and validity.
   std::vector<float> mag(kMerlCells, -1.0f);
   std::vector<std::uint8_t> valid(kMerlCells, 0);
-  bool finite = true;
-#pragma omp parallel for schedule(static) reduction(&& : finite)
-  for (long long c = 0; c < static_cast<long long>(kMerlCells); ++c) {
+  parallel_for(kMerlCells, [&](std::size_t c) {
     double m = 0;
     bool ok = true;
     for (std::size_t b = 0; b < bands; ++b) {
-      const float v = grid.brdf[b * kMerlCells + std::size_t(c)];
-      finite = finite && std::isfinite(v);
+      const float v = grid.brdf[b * kMerlCells + c];
+      if (!std::isfinite(v)) throw InputError("the grid holds a non-finite value; it cannot be coded");
       ok &= v >= 0;
       m += v;
     }
     if (ok) {
-      valid[std::size_t(c)] = 1;
-      mag[std::size_t(c)] = float(m / double(bands));
+      valid[c] = 1;
+      mag[c] = float(m / double(bands));
     }
-  }
-  if (!finite) throw InputError("the grid holds a non-finite value; it cannot be coded");
+  }, kSlab);
   Coding cd;
   cd.bands = bands;
   cd.k = k;
@@ -390,62 +387,63 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
   const std::size_t channels = k + 1;
   std::vector<std::vector<std::vector<std::int32_t>>> residuals(kMerlThetaH, std::vector<std::vector<std::int32_t>>(channels));
   std::vector<double> slab_sq(kMerlThetaH, 0), slab_max(kMerlThetaH, 0), slab_resid(kMerlThetaH, 0), slab_quant(kMerlThetaH, 0);
-  std::exception_ptr error;
-#pragma omp parallel
-  {
-    std::vector<std::int32_t> q(channels * kSlab);
-    Eigen::VectorXd r(static_cast<Eigen::Index>(bands)), c(static_cast<Eigen::Index>(k));
-    std::vector<double> shape(bands);
-    std::vector<float> out(bands);
-#pragma omp for schedule(dynamic, 1)
-    for (int h = 0; h < kMerlThetaH; ++h) {
-      try {
-        const std::size_t base = std::size_t(h) * kSlab;
-        const std::uint8_t* vs = valid.data() + base;
-        double sq = 0, mx = 0, resid = 0, quant = 0;
-        for (std::size_t i = 0; i < kSlab; ++i) {
-          if (!vs[i]) continue;
-          const std::size_t cell = base + i;
-          const double m = mag[cell];
-          q[i] = to_code(std::log1p(m / cd.s) / cd.step_m, "the magnitude");
-          for (std::size_t b = 0; b < bands; ++b) r[Eigen::Index(b)] = m > 0 ? grid.brdf[b * kMerlCells + cell] / m : 0.0;
-          c.noalias() = basis.rows * r;
-          for (std::size_t j = 0; j < k; ++j) q[(j + 1) * kSlab + i] = to_code(c[Eigen::Index(j)] / cd.step_c, "a shape coefficient");
-          // What the decoder will produce, for the report.
-          reconstruct(cd, q[i], q.data() + kSlab + i, kSlab, shape.data(), out.data(), 1);
-          const Eigen::VectorXd rk = basis.rows.transpose() * c;
-          for (std::size_t b = 0; b < bands; ++b) {
-            const double e = (double(out[b]) - grid.brdf[b * kMerlCells + cell]) * cd.scale;
-            sq += e * e;
-            mx = std::max(mx, std::abs(e));
-            if (m > 0) {
-              resid = std::max(resid, std::abs(r[Eigen::Index(b)] - rk[Eigen::Index(b)]));
-              quant = std::max(quant, std::abs(shape[b] - rk[Eigen::Index(b)]));
-            }
-          }
+  struct SlabScratch {
+    std::vector<std::int32_t> q;
+    Eigen::VectorXd r, c;
+    std::vector<double> shape;
+    std::vector<float> out;
+  };
+  auto scratch = [&] {
+    return SlabScratch{std::vector<std::int32_t>(channels * kSlab), Eigen::VectorXd(static_cast<Eigen::Index>(bands)),
+                       Eigen::VectorXd(static_cast<Eigen::Index>(k)), std::vector<double>(bands), std::vector<float>(bands)};
+  };
+  parallel_for(std::size_t(kMerlThetaH), scratch, [&](std::size_t slab, SlabScratch& t) {
+    const int h = int(slab);
+    auto& q = t.q;
+    auto& r = t.r;
+    auto& c = t.c;
+    auto& shape = t.shape;
+    auto& out = t.out;
+    const std::size_t base = std::size_t(h) * kSlab;
+    const std::uint8_t* vs = valid.data() + base;
+    double sq = 0, mx = 0, resid = 0, quant = 0;
+    for (std::size_t i = 0; i < kSlab; ++i) {
+      if (!vs[i]) continue;
+      const std::size_t cell = base + i;
+      const double m = mag[cell];
+      q[i] = to_code(std::log1p(m / cd.s) / cd.step_m, "the magnitude");
+      for (std::size_t b = 0; b < bands; ++b) r[Eigen::Index(b)] = m > 0 ? grid.brdf[b * kMerlCells + cell] / m : 0.0;
+      c.noalias() = basis.rows * r;
+      for (std::size_t j = 0; j < k; ++j) q[(j + 1) * kSlab + i] = to_code(c[Eigen::Index(j)] / cd.step_c, "a shape coefficient");
+      // What the decoder will produce, for the report.
+      reconstruct(cd, q[i], q.data() + kSlab + i, kSlab, shape.data(), out.data(), 1);
+      const Eigen::VectorXd rk = basis.rows.transpose() * c;
+      for (std::size_t b = 0; b < bands; ++b) {
+        const double e = (double(out[b]) - grid.brdf[b * kMerlCells + cell]) * cd.scale;
+        sq += e * e;
+        mx = std::max(mx, std::abs(e));
+        if (m > 0) {
+          resid = std::max(resid, std::abs(r[Eigen::Index(b)] - rk[Eigen::Index(b)]));
+          quant = std::max(quant, std::abs(shape[b] - rk[Eigen::Index(b)]));
         }
-        for (std::size_t ch = 0; ch < channels; ++ch) {
-          const std::int32_t* qc = q.data() + ch * kSlab;
-          auto& res = residuals[std::size_t(h)][ch];
-          for (std::size_t d = 0; d < std::size_t(kMerlThetaD); ++d)
-            for (std::size_t p = 0; p < std::size_t(kMerlPhiD); ++p) {
-              const std::size_t i = d * kMerlPhiD + p;
-              if (!vs[i]) continue;
-              const std::int64_t e = std::int64_t(qc[i]) - predict(qc, vs, d, p);
-              if (e < std::numeric_limits<std::int32_t>::min() || e > std::numeric_limits<std::int32_t>::max())
-                throw UsageError("encode: a prediction residual exceeds 32 bits; raise --max-error");
-              res.push_back(std::int32_t(e));
-            }
-        }
-        slab_sq[std::size_t(h)] = sq, slab_max[std::size_t(h)] = mx, slab_resid[std::size_t(h)] = resid,
-        slab_quant[std::size_t(h)] = quant;
-      } catch (...) {
-#pragma omp critical
-        if (!error) error = std::current_exception();
       }
     }
-  }
-  if (error) std::rethrow_exception(error);
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      const std::int32_t* qc = q.data() + ch * kSlab;
+      auto& res = residuals[std::size_t(h)][ch];
+      for (std::size_t d = 0; d < std::size_t(kMerlThetaD); ++d)
+        for (std::size_t p = 0; p < std::size_t(kMerlPhiD); ++p) {
+          const std::size_t i = d * kMerlPhiD + p;
+          if (!vs[i]) continue;
+          const std::int64_t e = std::int64_t(qc[i]) - predict(qc, vs, d, p);
+          if (e < std::numeric_limits<std::int32_t>::min() || e > std::numeric_limits<std::int32_t>::max())
+            throw UsageError("encode: a prediction residual exceeds 32 bits; raise max_error");
+          res.push_back(std::int32_t(e));
+        }
+    }
+    slab_sq[std::size_t(h)] = sq, slab_max[std::size_t(h)] = mx, slab_resid[std::size_t(h)] = resid,
+    slab_quant[std::size_t(h)] = quant;
+  });
 
   std::vector<std::uint8_t> out;
   put_bytes(out, kSpcMagic, sizeof kSpcMagic);
@@ -565,36 +563,38 @@ store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& l
   g.provenance.source_file = p.source;
   g.provenance.importer = "decode " + p.reference;
   g.brdf.assign(cd.bands * kMerlCells, -1.0f);
-  bool finite = true;
-#pragma omp parallel reduction(&& : finite)
-  {
-    std::vector<std::int32_t> q(channels * kSlab, 0);
-    std::vector<double> shape(cd.bands);
-#pragma omp for schedule(dynamic, 1)
-    for (int h = 0; h < kMerlThetaH; ++h) {
-      const std::size_t base = std::size_t(h) * kSlab;
-      const std::uint8_t* vs = valid.data() + base;
-      for (std::size_t ch = 0; ch < channels; ++ch) {
-        std::int32_t* qc = q.data() + ch * kSlab;
-        std::uint64_t at = first[std::size_t(h)];
-        for (std::size_t d = 0; d < std::size_t(kMerlThetaD); ++d)
-          for (std::size_t pd = 0; pd < std::size_t(kMerlPhiD); ++pd) {
-            const std::size_t i = d * kMerlPhiD + pd;
-            if (!vs[i]) continue;
-            // Wraps like the encoder's int32 arithmetic; a corrupt residual gives a wrong value, never a crash.
-            qc[i] = std::int32_t(std::uint32_t(predict(qc, vs, d, pd)) +
-                                 std::uint32_t(unplane(res[ch].data(), n_valid, widths[ch], at++)));
-          }
-      }
-      for (std::size_t i = 0; i < kSlab; ++i) {
-        if (!vs[i]) continue;
-        reconstruct(cd, q[i], q.data() + kSlab + i, kSlab, shape.data(), g.brdf.data() + base + i, kMerlCells);
-        for (std::size_t b = 0; b < cd.bands; ++b) finite = finite && std::isfinite(g.brdf[b * kMerlCells + base + i]);
-      }
+  struct SlabScratch {
+    std::vector<std::int32_t> q;
+    std::vector<double> shape;
+  };
+  auto scratch = [&] { return SlabScratch{std::vector<std::int32_t>(channels * kSlab, 0), std::vector<double>(cd.bands)}; };
+  parallel_for(std::size_t(kMerlThetaH), scratch, [&](std::size_t slab, SlabScratch& t) {
+    const int h = int(slab);
+    auto& q = t.q;
+    auto& shape = t.shape;
+    const std::size_t base = std::size_t(h) * kSlab;
+    const std::uint8_t* vs = valid.data() + base;
+    for (std::size_t ch = 0; ch < channels; ++ch) {
+      std::int32_t* qc = q.data() + ch * kSlab;
+      std::uint64_t at = first[std::size_t(h)];
+      for (std::size_t d = 0; d < std::size_t(kMerlThetaD); ++d)
+        for (std::size_t pd = 0; pd < std::size_t(kMerlPhiD); ++pd) {
+          const std::size_t i = d * kMerlPhiD + pd;
+          if (!vs[i]) continue;
+          // Wraps like the encoder's int32 arithmetic; a corrupt residual gives a wrong value, never a crash.
+          qc[i] = std::int32_t(std::uint32_t(predict(qc, vs, d, pd)) +
+                               std::uint32_t(unplane(res[ch].data(), n_valid, widths[ch], at++)));
+        }
     }
-  }
-  if (!finite)
-    throw InputError(label + ": .spc codes decode to values beyond float range; the file was not written by specula encode");
+    for (std::size_t i = 0; i < kSlab; ++i) {
+      if (!vs[i]) continue;
+      reconstruct(cd, q[i], q.data() + kSlab + i, kSlab, shape.data(), g.brdf.data() + base + i, kMerlCells);
+      for (std::size_t b = 0; b < cd.bands; ++b)
+        if (!std::isfinite(g.brdf[b * kMerlCells + base + i]))
+          throw InputError(label + ": .spc codes decode to values beyond float range; the file was not written by "
+                                   "specula encode");
+    }
+  });
   return g;
 }
 

@@ -13,64 +13,6 @@
 
 namespace specula::codec {
 
-void nnls_normal(const Eigen::Ref<const Eigen::MatrixXd>& gram, const Eigen::Ref<const Eigen::VectorXd>& g,
-                 Eigen::Ref<Eigen::VectorXd> x) {
-  const Eigen::Index n = gram.cols();
-  if (gram.rows() != n || g.size() != n || x.size() != n)
-    throw UsageError("nnls: Gram matrix " + std::to_string(gram.rows()) + " x " + std::to_string(n) + ", g " +
-                     std::to_string(g.size()) + ", x " + std::to_string(x.size()) + " do not match");
-  const double tol = 1e-12 * std::max(1.0, g.cwiseAbs().maxCoeff()) * std::max<double>(1.0, double(n));
-  std::vector<char> passive(std::size_t(n), 0);
-  x.setZero();
-  Eigen::VectorXd w = g, s(n);
-  std::vector<Eigen::Index> idx;
-  auto solve_passive = [&] {
-    idx.clear();
-    for (Eigen::Index j = 0; j < n; ++j)
-      if (passive[std::size_t(j)]) idx.push_back(j);
-    const auto k = Eigen::Index(idx.size());
-    Eigen::MatrixXd gp(k, k);
-    Eigen::VectorXd rp(k);
-    for (Eigen::Index a = 0; a < k; ++a) {
-      rp[a] = g[idx[std::size_t(a)]];
-      for (Eigen::Index b = 0; b < k; ++b) gp(a, b) = gram(idx[std::size_t(a)], idx[std::size_t(b)]);
-    }
-    const Eigen::VectorXd sp = gp.ldlt().solve(rp);
-    s.setZero();
-    for (Eigen::Index a = 0; a < k; ++a) s[idx[std::size_t(a)]] = sp[a];
-  };
-  for (int outer = 0; outer < 3 * int(n) + 10; ++outer) {
-    Eigen::Index best = -1;
-    double wmax = tol;
-    for (Eigen::Index j = 0; j < n; ++j)
-      if (!passive[std::size_t(j)] && w[j] > wmax) {
-        wmax = w[j];
-        best = j;
-      }
-    if (best < 0) return;
-    passive[std::size_t(best)] = 1;
-    for (int inner = 0; inner < 3 * int(n) + 10; ++inner) {
-      solve_passive();
-      double step = 1.0;
-      bool feasible = true;
-      for (Eigen::Index j = 0; j < n; ++j)
-        if (passive[std::size_t(j)] && s[j] <= 0) {
-          feasible = false;
-          step = std::min(step, x[j] / (x[j] - s[j]));
-        }
-      if (feasible) break;
-      x += step * (s - x);
-      for (Eigen::Index j = 0; j < n; ++j)
-        if (passive[std::size_t(j)] && x[j] <= tol * 1e-3) {
-          passive[std::size_t(j)] = 0;
-          x[j] = 0;
-        }
-    }
-    for (Eigen::Index j = 0; j < n; ++j) x[j] = passive[std::size_t(j)] ? std::max(0.0, s[j]) : 0.0;
-    w = g - gram * x;
-  }
-}
-
 Uplift::Uplift(const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, double alpha) : alpha_(alpha) {
   const Eigen::Index b = weights.cols();
   if (b < 3) throw UsageError("uplift: needs at least 3 bands, got " + std::to_string(b));
@@ -91,6 +33,7 @@ Uplift::Uplift(const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, double a
   rhs.topRows(3).setIdentity();
   solve_ = qr.solve(rhs);
   gram_ = system_.transpose() * system_;
+  nnls_.emplace(gram_);
   at_ = weights.transpose();
 }
 
@@ -117,12 +60,13 @@ bool Uplift::nonnegative(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd>
   const Eigen::VectorXd g = at_ * rgb;
   const Eigen::Index n = x.size();
   if (!cache || n > 64) {
-    nnls_normal(gram_, g, x);
+    nnls_->solve(g.data(), x.data());
     return true;
   }
   // The optimum for a passive set P is linear in rgb; it is the bounded optimum when x >= 0 on P and the
-  // gradient is <= 0 off P (KKT), with nnls_normal's tolerance.
-  const double tol = 1e-12 * std::max(1.0, g.cwiseAbs().maxCoeff()) * std::max<double>(1.0, double(n));
+  // gradient is <= 0 off P (KKT), with the solver's own tolerance.
+  const Eigen::MatrixXd& gram = nnls_->gram();
+  const double tol = nnls_->tolerance(g.data());
   const double neg = 1e-12 * std::max(1.0, x.cwiseAbs().maxCoeff());
   auto& entries = cache->entries_;
   for (std::size_t e = 0; e < entries.size(); ++e) {
@@ -140,25 +84,23 @@ bool Uplift::nonnegative(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd>
     return true;
   }
   ++cache->misses_;
-  nnls_normal(gram_, g, x);
   UpliftCache::Entry entry;
+  entry.passive = entries.empty() ? 0 : entries.front().passive;  // a warm start: neighbours' sets are close
+  nnls_->solve(g.data(), x.data(), entry.passive);
   std::vector<Eigen::Index> idx;
   for (Eigen::Index j = 0; j < n; ++j)
-    if (x[j] > 0) {
-      entry.passive |= std::uint64_t(1) << j;
-      idx.push_back(j);
-    }
+    if (entry.passive >> j & 1) idx.push_back(j);
   const auto k = Eigen::Index(idx.size());
   Eigen::MatrixXd gp(k, k);
   Eigen::Matrix<double, Eigen::Dynamic, 3> rp(k, 3);
   for (Eigen::Index a = 0; a < k; ++a) {
     rp.row(a) = at_.row(idx[std::size_t(a)]);
-    for (Eigen::Index b = 0; b < k; ++b) gp(a, b) = gram_(idx[std::size_t(a)], idx[std::size_t(b)]);
+    for (Eigen::Index b = 0; b < k; ++b) gp(a, b) = gram(idx[std::size_t(a)], idx[std::size_t(b)]);
   }
   const Eigen::Matrix<double, Eigen::Dynamic, 3> sp = gp.ldlt().solve(rp);
   entry.x = Eigen::Matrix<double, Eigen::Dynamic, 3>::Zero(n, 3);
   for (Eigen::Index a = 0; a < k; ++a) entry.x.row(idx[std::size_t(a)]) = sp.row(a);
-  entry.w = at_ - gram_ * entry.x;
+  entry.w = at_ - gram * entry.x;
   constexpr std::size_t kEntries = 16;
   if (entries.size() == kEntries) entries.pop_back();
   entries.insert(entries.begin(), std::move(entry));

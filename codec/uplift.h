@@ -5,23 +5,23 @@
 #include <Eigen/Core>
 #include <Eigen/Cholesky>
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "specula/codec/merl.h"
+#include "specula/core/nnls.h"
 #include "specula/store/store.h"
 
 namespace specula::codec {
 
-/// Solves min ||M x - b|| subject to x >= 0 given G = M^T M and g = M^T b (Lawson-Hanson active set on the
-/// normal equations); x gets the solution. Throws UsageError on mismatched sizes.
-void nnls_normal(const Eigen::Ref<const Eigen::MatrixXd>& gram, const Eigen::Ref<const Eigen::VectorXd>& g,
-                 Eigen::Ref<Eigen::VectorXd> x);
-
 /// Solutions of the bounded problem for recently met active sets, reused when their optimality conditions
-/// hold for a new RGB (neighbouring cells of a BRDF share them); one per thread.
+/// hold for a new RGB (neighbouring cells of a BRDF share them); one per thread. On a miss the core NNLS
+/// (core/nnls.h) solves, warm-started from the most recent set, and its optimal passive set becomes an entry.
 class UpliftCache {
  public:
+  /// Calls answered from a cached active set.
   std::size_t hits() const { return hits_; }
+  /// Calls that needed the NNLS solver.
   std::size_t misses() const { return misses_; }
 
  private:
@@ -57,6 +57,7 @@ class Uplift {
   Eigen::MatrixXd system_;
   Eigen::Matrix<double, Eigen::Dynamic, 3> solve_;  // B x 3: x = solve_ * rgb
   Eigen::MatrixXd gram_;                            // system^T system
+  std::optional<GramNnls> nnls_;                    // the bounded problem's solver on gram_
   Eigen::Matrix<double, Eigen::Dynamic, 3> at_;     // A^T: system^T [rgb; 0] = at_ * rgb
 };
 

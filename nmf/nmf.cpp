@@ -16,7 +16,7 @@
 #include "specula/core/interrupt.h"
 #include "specula/core/progress.h"
 #include "specula/nmf/checkpoint.h"
-#include "specula/nmf/nnls.h"
+#include "specula/core/nnls.h"
 
 namespace specula::nmf {
 namespace {
@@ -506,29 +506,11 @@ std::pair<double, double> basis_angles(const Eigen::MatrixXd& a, const Eigen::Ma
   return {sum / double(k), worst};
 }
 
-void nnls_project(const Eigen::MatrixXd& basis, const Eigen::Ref<const RowMatrixXd>& spectra,
-                  Eigen::Ref<RowMatrixXd> coefficients) {
-  if (spectra.cols() != basis.cols() || coefficients.rows() != spectra.rows() || coefficients.cols() != basis.rows())
-    throw UsageError("nnls_project: spectra are " + std::to_string(spectra.rows()) + " x " +
-                     std::to_string(spectra.cols()) + ", basis " + std::to_string(basis.rows()) + " x " +
-                     std::to_string(basis.cols()) + ", coefficients " + std::to_string(coefficients.rows()) + " x " +
-                     std::to_string(coefficients.cols()));
-  const GramNnls solver(basis * basis.transpose());
-  const RowMatrixXd h = spectra * basis.transpose();
-  const Eigen::Index k = basis.rows();
-  std::uint64_t hint = 0;
-  Eigen::VectorXd c(k);
-  for (Eigen::Index r = 0; r < spectra.rows(); ++r) {
-    solver.solve(h.data() + r * k, c.data(), hint);
-    coefficients.row(r) = c.transpose();
-  }
-}
-
 NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collective& ranks) {
   const auto b = Eigen::Index(reader.bands());
   const auto k = Eigen::Index(o.k);
   if (o.k < 1 || o.k > reader.bands())
-    throw UsageError("-k " + std::to_string(o.k) + ": give between 1 and " + std::to_string(reader.bands()) +
+    throw UsageError("k = " + std::to_string(o.k) + ": give between 1 and " + std::to_string(reader.bands()) +
                      " components (the data has " + std::to_string(reader.bands()) + " bands)");
   if (o.restarts < 1 || o.restarts > 1000) throw UsageError("restarts " + std::to_string(o.restarts) + ": give 1 to 1000");
   if (o.max_epochs < 1) throw UsageError("max_epochs must be at least 1");

@@ -95,8 +95,4 @@ NmfResult factorize(const store::BlockReader& reader, const NmfOptions& options,
 /// cosine similarity: every permutation for k <= 8, greedily above).
 std::pair<double, double> basis_angles(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b);
 
-/// Non-negative coefficients of each row of `spectra` (n x B) on `basis` (k x B): out is n x k.
-void nnls_project(const Eigen::MatrixXd& basis, const Eigen::Ref<const RowMatrixXd>& spectra,
-                  Eigen::Ref<RowMatrixXd> coefficients);
-
 }  // namespace specula::nmf

@@ -11,6 +11,7 @@
 #include "python/common.h"
 #include "specula/stats/moments.h"
 #include "specula/stats/pca.h"
+#include "specula/stats/project.h"
 #include "specula/store/block_reader.h"
 
 namespace specula::python {
@@ -54,28 +55,15 @@ py::object optional_matrix(const Eigen::MatrixXd& m) {
   return to_numpy(m);
 }
 
-// Projection of spectra (..., B) onto the first k components of a PCA basis or all of an NMF basis, as
-// apps/cmd_project.cpp does, with its per-spectrum L2 error, rms and max_error over the spectra the mask keeps.
+// Projection of spectra (..., B) onto the first k components of a PCA basis or all of an NMF basis by the
+// projector `specula project` uses (stats/project.h), with the per-spectrum L2 error, rms and max_error over the
+// spectra the mask keeps.
 py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, const py::object& k_arg,
                      const py::object& mask_arg) {
-  if (basis.method != "pca" && basis.method != "nmf")
-    throw InputError(fmt::format("project: basis has method '{}'; projection needs a pca or nmf basis", basis.method));
-  if (basis.method == "pca" && std::size_t(basis.mean.size()) != basis.bands())
-    throw InputError("project: the pca basis has no mean; re-learn it with specula.pca");
-  std::size_t k = basis.k();
-  if (basis.method == "pca") {
-    if (k_arg.is_none())
-      throw UsageError("project: k is required with a PCA basis (the number of leading components, e.g. 6)");
-    const long long kk = k_arg.cast<long long>();
-    if (kk < 1 || std::size_t(kk) > basis.k())
-      throw UsageError(fmt::format("project: k = {}: the basis has {} components; give k between 1 and {}", kk,
-                                   basis.k(), basis.k()));
-    k = std::size_t(kk);
-  } else if (!k_arg.is_none() && k_arg.cast<long long>() != static_cast<long long>(basis.k())) {
-    throw UsageError(fmt::format("project: k = {}: an NMF basis projects onto all of its {} components; learn a "
-                                 "basis with specula.nmf(k={}) for {} components",
-                                 k_arg.cast<long long>(), basis.k(), k_arg.cast<long long>(), k_arg.cast<long long>()));
-  }
+  if (k_arg.is_none() && stats::basis_method(basis) == stats::BasisMethod::pca)
+    throw UsageError("project: k is required with a PCA basis (the number of leading components, e.g. 6)");
+  const stats::Projector projector(basis, k_arg.is_none() ? std::nullopt : std::optional<long long>(k_arg.cast<long long>()));
+  const std::size_t k = projector.k();
   const auto spectra = DoubleArray::ensure(spectra_arg);
   if (!spectra || spectra.ndim() < 1 || std::size_t(spectra.shape(spectra.ndim() - 1)) != basis.bands())
     throw UsageError(fmt::format("project: spectra must be an array whose last axis has the basis's {} bands",
@@ -93,27 +81,19 @@ py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, c
   const Eigen::Index b = Eigen::Index(basis.bands());
   std::vector<double> coef(std::size_t(n) * k), recon(std::size_t(n) * std::size_t(b));
   std::vector<double> error(static_cast<std::size_t>(n));
-  double sum_sq = 0, max_error = 0;
-  std::size_t valid = 0;
+  stats::ProjectionError summary;
   {
     py::gil_scoped_release release;
     const Eigen::Map<const RowMatrixXd> x(spectra.data(), n, b);
     Eigen::Map<RowMatrixXd> c(coef.data(), n, Eigen::Index(k));
     Eigen::Map<RowMatrixXd> xr(recon.data(), n, b);
-    if (basis.method == "nmf") {
-      nmf::nnls_project(basis.components, x, c);
-      xr.noalias() = c * basis.components;
-    } else {
-      stats::pca_project(basis, k, x, c);
-      stats::pca_reconstruct(basis, c, xr);
-    }
+    Eigen::Map<Eigen::VectorXd> e(error.data(), n);
+    projector.project(x, c);
+    projector.reconstruct(c, xr);
+    stats::squared_errors(x, xr, e);
     for (Eigen::Index i = 0; i < n; ++i) {
-      const double e = (x.row(i) - xr.row(i)).norm();
-      error[std::size_t(i)] = e;
-      if (!mask.empty() && !mask[std::size_t(i)]) continue;
-      sum_sq += e * e;
-      max_error = std::max(max_error, e);
-      ++valid;
+      if (mask.empty() || mask[std::size_t(i)]) summary.add(e[i]);
+      e[i] = std::sqrt(e[i]);
     }
   }
   std::vector<py::ssize_t> cshape = lead, rshape = lead;
@@ -124,8 +104,8 @@ py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, c
   out["coefficients"] = adopt(std::move(coef), cshape);
   out["reconstruction"] = adopt(std::move(recon), rshape);
   out["error"] = adopt(std::move(error), lead);
-  out["rms"] = valid ? std::sqrt(sum_sq / (double(valid) * double(b))) : std::nan("");
-  out["max_error"] = max_error;
+  out["rms"] = summary.rms(std::size_t(b));
+  out["max_error"] = summary.max_error;
   return out;
 }
 

@@ -69,7 +69,9 @@ store::Basis pca_basis(const Moments& moments, const WavelengthGrid& wavelengths
 
 void pca_project(const store::Basis& basis, std::size_t k, const Eigen::Ref<const RowMatrixXd>& spectra,
                  Eigen::Ref<RowMatrixXd> coefficients) {
-  if (k < 1 || k > basis.k()) throw UsageError("-k " + std::to_string(k) + ": the basis has " + std::to_string(basis.k()) + " components");
+  if (k < 1 || k > basis.k())
+    throw UsageError("pca_project: k = " + std::to_string(k) + ": the basis has " + std::to_string(basis.k()) +
+                     " components; give k between 1 and " + std::to_string(basis.k()));
   if (spectra.cols() != basis.components.cols() || coefficients.rows() != spectra.rows() || coefficients.cols() != Eigen::Index(k))
     throw UsageError("pca_project: spectra, basis and output sizes disagree");
   coefficients.noalias() = (spectra.rowwise() - basis.mean.transpose()) * basis.components.topRows(Eigen::Index(k)).transpose();

@@ -16,7 +16,7 @@
 #include "specula/core/error.h"
 #include "specula/core/illuminant.h"
 #include "specula/core/preview.h"
-#include "specula/nmf/nnls.h"
+#include "specula/stats/project.h"
 #include "specula/store/io/png_stack.h"
 
 namespace specula::view {
@@ -271,27 +271,27 @@ Response Service::image_spectrum(const Query& q) {
   if (const auto it = q.find("basis"); it != q.end() && !it->second.empty() && valid) {
     const std::string bname = object({{"name", it->second}}, store_.bases(), "basis", store_.label());
     const store::Basis b = store_.read_basis(bname);
-    if (!b.wavelengths.approx_equal(info.wavelengths))
-      throw HttpError(400, store_.label() + ": basis '" + bname + "' is on " + b.wavelengths.describe() + ", image '" + name +
-                               "' on " + info.wavelengths.describe());
-    Eigen::VectorXd xv(Eigen::Index(v.size()));
-    for (std::size_t i = 0; i < v.size(); ++i) xv[Eigen::Index(i)] = v[i];
-    Eigen::VectorXd r;
+    RowMatrixXd xv(1, Eigen::Index(v.size())), r(1, Eigen::Index(v.size()));
+    for (std::size_t i = 0; i < v.size(); ++i) xv(0, Eigen::Index(i)) = v[i];
     std::size_t k = b.k();
-    if (b.method == "pca") {
-      k = std::size_t(number(q, "k", double(b.k()), 0, double(b.k())));
-      const Eigen::MatrixXd c = b.components.topRows(Eigen::Index(k));
-      r = b.mean + c.transpose() * (c * (xv - b.mean));
-    } else {
-      const nmf::GramNnls solver(b.components * b.components.transpose());
-      const Eigen::VectorXd h = b.components * xv;
-      Eigen::VectorXd coef(h.size());
-      solver.solve(h.data(), coef.data());
-      r = b.components.transpose() * coef;
+    try {
+      // PCA: the first k components, k = 0 showing the mean alone (the reconstruction from a zero coefficient);
+      // NMF: all of them.
+      const bool pca = stats::basis_method(b, "'" + bname + "'") == stats::BasisMethod::pca;
+      if (pca) k = std::size_t(number(q, "k", double(b.k()), 0, double(b.k())));
+      const stats::Projector projector(b, pca ? std::optional<long long>(std::max<std::size_t>(k, 1)) : std::nullopt,
+                                       "'" + bname + "'");
+      projector.check_wavelengths(info.wavelengths, store_.label() + ": image '" + name + "'");
+      RowMatrixXd coef(1, Eigen::Index(projector.k()));
+      projector.project(xv, coef);
+      if (k == 0) coef.setZero();
+      projector.reconstruct(coef, r);
+    } catch (const InputError& e) {
+      throw HttpError(400, e.what());
     }
     const double err = (xv - r).norm(), norm = xv.norm();
     s += fmt::format(",\"reconstruction\":{{\"basis\":{},\"method\":{},\"k\":{},\"values\":{},\"l2_error\":{},\"relative_error\":{}}}",
-                     app::json_string(bname), app::json_string(b.method), k, json_numbers(r), err, norm > 0 ? err / norm : 0.0);
+                     app::json_string(bname), app::json_string(b.method), k, json_numbers(Eigen::VectorXd(r.row(0).transpose())), err, norm > 0 ? err / norm : 0.0);
   }
   return {200, "application/json", s + "}"};
 }

@@ -9,7 +9,7 @@
 #include <random>
 #include <vector>
 
-#include "specula/nmf/nnls.h"
+#include "specula/core/nnls.h"
 #include "specula/stats/moments.h"
 #include "specula/stats/pca.h"
 #include "specula/store/io/png_stack.h"
@@ -230,7 +230,7 @@ TEST(CoefficientsCli, InexactNnlsMapsMatchBruteForceAndDoNotDependOnTheThreadCou
     if (!big.cube.mask[p]) continue;
     Eigen::VectorXd x(kB);
     for (std::size_t b = 0; b < kB; ++b) x(Eigen::Index(b)) = big.cube.data[p * kB + b];
-    const Eigen::VectorXd want = nmf::nnls_brute_force(gram, nmf.components * x);
+    const Eigen::VectorXd want = nnls_brute_force(gram, nmf.components * x);
     for (Eigen::Index j = 0; j < 2; ++j) {
       worst = std::max(worst, std::abs(double(c1[p * 2 + std::size_t(j)]) - want(j)) / std::max(1.0, want(j)));
       clamped += want(j) == 0.0;

@@ -172,45 +172,6 @@ TEST(Uplift, ActiveSetCacheGivesTheSameOptimum) {
   EXPECT_GT(cache.misses(), 1u);
 }
 
-// Brute force over every active set of a small random problem: the feasible least-squares solution with
-// the lowest residual is the bounded optimum.
-TEST(Uplift, NnlsMatchesBruteForce) {
-  std::mt19937 rng(31);
-  std::normal_distribution<double> g(0, 1);
-  for (int trial = 0; trial < 30; ++trial) {
-    Eigen::MatrixXd m(9, 6);
-    Eigen::VectorXd b(9);
-    for (Eigen::Index i = 0; i < m.size(); ++i) m.data()[i] = g(rng);
-    for (Eigen::Index i = 0; i < b.size(); ++i) b[i] = g(rng);
-    Eigen::VectorXd x(6);
-    nnls_normal(m.transpose() * m, m.transpose() * b, x);
-    double best = 1e300;
-    Eigen::VectorXd best_x;
-    for (int mask = 0; mask < 64; ++mask) {
-      std::vector<Eigen::Index> cols;
-      for (Eigen::Index j = 0; j < 6; ++j)
-        if (mask >> j & 1) cols.push_back(j);
-      Eigen::VectorXd cand = Eigen::VectorXd::Zero(6);
-      if (!cols.empty()) {
-        Eigen::MatrixXd sub(9, Eigen::Index(cols.size()));
-        for (std::size_t c = 0; c < cols.size(); ++c) sub.col(Eigen::Index(c)) = m.col(cols[c]);
-        const Eigen::VectorXd s = sub.colPivHouseholderQr().solve(b);
-        if (s.minCoeff() < 0) continue;
-        for (std::size_t c = 0; c < cols.size(); ++c) cand[cols[c]] = s[Eigen::Index(c)];
-      }
-      const double r = (m * cand - b).norm();
-      if (r < best) {
-        best = r;
-        best_x = cand;
-      }
-    }
-    EXPECT_NEAR((m * x - b).norm(), best, 1e-10) << trial;
-    EXPECT_LT((x - best_x).cwiseAbs().maxCoeff(), 1e-8) << trial;
-  }
-  Eigen::VectorXd x(3);
-  EXPECT_THROW(nnls_normal(Eigen::MatrixXd::Identity(4, 4), Eigen::VectorXd::Zero(4), x), UsageError);
-}
-
 TEST(Uplift, BadParametersAreUsageErrors) {
   EXPECT_THROW(Uplift(weights31(), -1), UsageError);
   EXPECT_THROW(Uplift(weights31(), std::nan("")), UsageError);

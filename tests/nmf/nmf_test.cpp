@@ -9,7 +9,6 @@
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/nmf/checkpoint.h"
-#include "specula/nmf/nnls.h"
 #include "specula/store/store.h"
 #include "test_support.h"
 
@@ -260,20 +259,6 @@ TEST(Nmf, RefusesBadOptions) {
   EXPECT_THROW(run(path, {.k = 2, .tol = -1}), UsageError);
   EXPECT_THROW(parse_init("svd"), UsageError);
   EXPECT_THROW(parse_negatives("abs"), UsageError);
-}
-
-TEST(Nmf, NnlsProjectionMatchesPerSpectrumSolves) {
-  const Eigen::MatrixXd s = planted_basis(4);
-  std::mt19937_64 rng(1);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  RowMatrixXd x(50, kBands);
-  for (Eigen::Index i = 0; i < x.size(); ++i) x.data()[i] = u(rng);
-  RowMatrixXd c(50, 4);
-  nnls_project(s, x, c);
-  for (Eigen::Index r = 0; r < 50; ++r) {
-    const Eigen::VectorXd ref = nnls_brute_force(s * s.transpose(), s * x.row(r).transpose());
-    EXPECT_LE((c.row(r).transpose() - ref).norm(), 1e-9);
-  }
 }
 
 TEST(Nmf, WarmUpOnASampleIsThreadIndependentResumableAndCertified) {

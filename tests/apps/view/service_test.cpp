@@ -14,7 +14,7 @@
 #include "apps/view/service.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/colour.h"
-#include "specula/nmf/nnls.h"
+#include "specula/core/nnls.h"
 #include "specula/store/io/png_stack.h"
 #include "specula/store/store.h"
 #include "test_support.h"
@@ -184,7 +184,7 @@ TEST_F(ViewService, NmfReconstructionIsTheNonNegativeLeastSquaresFit) {
   const store::Basis b = store::Store::open(path_).read_basis("nmf");
   Eigen::VectorXd x(static_cast<Eigen::Index>(kB));
   for (std::size_t i = 0; i < kB; ++i) x[Eigen::Index(i)] = value(1, 3, i);
-  const Eigen::VectorXd c = nmf::nnls_brute_force(b.components * b.components.transpose(), b.components * x);
+  const Eigen::VectorXd c = nnls_brute_force(b.components * b.components.transpose(), b.components * x);
   const Eigen::VectorXd want = b.components.transpose() * c;
   const view::Response r = get("/api/image/spectrum", {{"name", "img"}, {"x", "1"}, {"y", "3"}, {"basis", "nmf"}});
   ASSERT_EQ(r.status, 200) << r.body;

@@ -3,11 +3,13 @@
 // symmetric positive (semi)definite and h = S x. Solved exactly by the active-set method of Lawson and
 // Hanson in the normal-equation form of Bro and de Jong (1997): every step solves the unconstrained
 // problem on the current passive set; the result satisfies the KKT conditions to a relative tolerance.
+// The one NNLS of specula (core, Eigen only): NMF's coefficient and basis steps, projection onto an NMF basis
+// (stats/project.h) and the bounded RGB uplift (codec/uplift.h) all solve with it.
 #include <Eigen/Core>
 #include <cstdint>
 #include <vector>
 
-namespace specula::nmf {
+namespace specula {
 
 /// Outcome of one NNLS solve.
 struct NnlsStatus {
@@ -20,23 +22,32 @@ struct NnlsStatus {
 /// hinted passive set is optimal).
 class GramNnls {
  public:
-  /// Prepares G (symmetric, k x k, 1 <= k <= 64). A tiny ridge (1e-12 of the trace) keeps singular G solvable.
+  /// Prepares G (symmetric, k x k, k >= 1). A tiny ridge (1e-12 of the trace) keeps singular G solvable.
   explicit GramNnls(const Eigen::Ref<const Eigen::MatrixXd>& gram);
+  /// The number of unknowns k.
   std::size_t k() const { return k_; }
-  /// Solves for c (length k) given h (length k). `hint` is a passive-set mask to try first (e.g. the
-  /// previous spectrum's); the returned mask is the optimal passive set, usable as the next hint.
+  /// The KKT tolerance solve() applies for right-hand side h (length k): a gradient entry off the passive set
+  /// counts as positive only above it (1e-11 of max |h_i|).
+  double tolerance(const double* h) const;
+  /// G as solved: symmetrised, with the ridge added.
+  const Eigen::MatrixXd& gram() const { return gram_; }
+  /// Solves for c (length k) given h (length k). `passive` is a passive-set mask to try first (e.g. the
+  /// previous spectrum's); the returned mask is the optimal passive set, usable as the next hint (k <= 64;
+  /// for larger k it is ignored and set to 0).
   NnlsStatus solve(const double* h, double* c, std::uint64_t& passive) const;
-  /// Solves from scratch (no hint).
+  /// Solves for c from scratch (no hint).
   NnlsStatus solve(const double* h, double* c) const {
     std::uint64_t p = 0;
     return solve(h, c, p);
   }
 
  private:
-  // Unconstrained solution on passive set `mask` into s (entries outside the set: zero, or with the cache the
-  // gradient there); false if G_PP could not be factored.
-  bool solve_passive(std::uint64_t mask, const double* h, double* s) const;
-  bool optimal(const double* h, const double* c, std::uint64_t mask, double tol) const;
+  // Unconstrained solution on the passive set (flags `in`, as a mask `mask` for the cache) into s (entries
+  // outside the set: zero, or with the cache the gradient there); idx is scratch of k; false if G_PP could not
+  // be factored.
+  bool solve_passive(const char* in, std::uint64_t mask, const double* h, double* s, int* idx) const;
+  bool optimal(const char* in, const double* h, const double* s, double tol) const;
+  void gradient(const char* in, const double* h, const double* c, const double* s, double* w) const;
 
   std::size_t k_;
   Eigen::MatrixXd gram_;
@@ -47,4 +58,4 @@ class GramNnls {
 /// Reference NNLS by enumerating all 2^k passive sets and keeping the feasible KKT point (for tests; k <= 16).
 Eigen::VectorXd nnls_brute_force(const Eigen::MatrixXd& gram, const Eigen::VectorXd& h);
 
-}  // namespace specula::nmf
+}  // namespace specula

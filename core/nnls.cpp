@@ -1,14 +1,16 @@
-#include "specula/nmf/nnls.h"
+#include "specula/core/nnls.h"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <string>
 #include <utility>
 
 #include "specula/core/error.h"
 
-namespace specula::nmf {
+namespace specula {
 namespace {
 
 constexpr std::size_t kMaxCached = 10;
@@ -51,8 +53,8 @@ bool try_hint_k(std::size_t k, const double* q, const double* h, std::uint64_t m
 }  // namespace
 
 GramNnls::GramNnls(const Eigen::Ref<const Eigen::MatrixXd>& gram) : k_(std::size_t(gram.rows())), gram_(gram) {
-  if (gram.rows() != gram.cols() || k_ < 1 || k_ > 64)
-    throw UsageError("GramNnls: the Gram matrix must be square with 1 to 64 rows, got " + std::to_string(gram.rows()) +
+  if (gram.rows() != gram.cols() || k_ < 1)
+    throw UsageError("GramNnls: the Gram matrix must be square with at least one row, got " + std::to_string(gram.rows()) +
                      " x " + std::to_string(gram.cols()));
   if (!gram_.allFinite()) throw UsageError("GramNnls: the Gram matrix has non-finite entries");
   gram_ = 0.5 * (gram_ + gram_.transpose()).eval();
@@ -86,7 +88,7 @@ GramNnls::GramNnls(const Eigen::Ref<const Eigen::MatrixXd>& gram) : k_(std::size
   cached_ = true;
 }
 
-bool GramNnls::solve_passive(std::uint64_t mask, const double* h, double* s) const {
+bool GramNnls::solve_passive(const char* in, std::uint64_t mask, const double* h, double* s, int* idx) const {
   if (cached_) {
     const double* q = inverses_.data() + mask * k_ * k_;
     for (std::size_t i = 0; i < k_; ++i) {
@@ -96,9 +98,11 @@ bool GramNnls::solve_passive(std::uint64_t mask, const double* h, double* s) con
     }
     return true;
   }
-  int idx[64];
-  const int p = members(mask, idx);
-  for (std::size_t i = 0; i < k_; ++i) s[i] = 0.0;
+  int p = 0;
+  for (std::size_t i = 0; i < k_; ++i) {
+    s[i] = 0.0;
+    if (in[i]) idx[p++] = int(i);
+  }
   if (p == 0) return true;
   Eigen::MatrixXd sub(p, p);
   Eigen::VectorXd rhs(p);
@@ -113,12 +117,11 @@ bool GramNnls::solve_passive(std::uint64_t mask, const double* h, double* s) con
   return true;
 }
 
-// KKT at the unconstrained solution s on `mask` (from solve_passive): s > 0 on the passive set, gradient
-// h - G s <= tol off it. With the cache, s already holds that gradient off the passive set.
-bool GramNnls::optimal(const double* h, const double* s, std::uint64_t mask, double tol) const {
+// KKT at the unconstrained solution s on passive set `in` (from solve_passive): s > 0 on the passive set,
+// gradient h - G s <= tol off it. With the cache, s already holds that gradient off the passive set.
+bool GramNnls::optimal(const char* in, const double* h, const double* s, double tol) const {
   for (std::size_t i = 0; i < k_; ++i) {
-    const bool in = (mask >> i) & 1u;
-    if (in) {
+    if (in[i]) {
       if (!(s[i] > 0)) return false;
       continue;
     }
@@ -126,63 +129,106 @@ bool GramNnls::optimal(const double* h, const double* s, std::uint64_t mask, dou
     if (!cached_) {
       w = h[i];
       for (std::size_t j = 0; j < k_; ++j)
-        if ((mask >> j) & 1u) w -= gram_(Eigen::Index(i), Eigen::Index(j)) * s[j];
+        if (in[j]) w -= gram_(Eigen::Index(i), Eigen::Index(j)) * s[j];
     }
     if (w > tol) return false;
   }
   return true;
 }
 
-NnlsStatus GramNnls::solve(const double* h, double* c, std::uint64_t& passive) const {
-  NnlsStatus st;
+// The gradient h - G c off the passive set into w (entries on it are not used); with the cache, s (from
+// solve_passive) already holds it there.
+void GramNnls::gradient(const char* in, const double* h, const double* c, const double* s, double* w) const {
+  for (std::size_t i = 0; i < k_; ++i) {
+    if (in[i]) continue;
+    if (cached_) {
+      w[i] = s[i];
+      continue;
+    }
+    double v = h[i];
+    for (std::size_t q = 0; q < k_; ++q) v -= gram_(Eigen::Index(i), Eigen::Index(q)) * c[q];
+    w[i] = v;
+  }
+}
+
+double GramNnls::tolerance(const double* h) const {
   double hmax = 0;
   for (std::size_t i = 0; i < k_; ++i) hmax = std::max(hmax, std::abs(h[i]));
-  const double tol = 1e-11 * std::max(hmax, std::numeric_limits<double>::min());
-  const std::uint64_t all = k_ == 64 ? ~std::uint64_t(0) : (std::uint64_t(1) << k_) - 1;
-  double s[64], w[64];
-  // The hint: if the unconstrained solution on the hinted set is positive and optimal, it is the answer.
+  return 1e-11 * std::max(hmax, std::numeric_limits<double>::min());
+}
+
+NnlsStatus GramNnls::solve(const double* h, double* c, std::uint64_t& passive) const {
+  NnlsStatus st;
+  const double tol = tolerance(h);
+  // Passive sets as flags `in`; for k <= 64 also as a mask (the hint, and the cache's index for k <= 10).
+  const bool masks = k_ <= 64;
+  const std::uint64_t all = !masks ? 0 : k_ == 64 ? ~std::uint64_t(0) : (std::uint64_t(1) << k_) - 1;
   if (passive & ~all) passive = 0;
-  if (passive && cached_) {
-    if (try_hint_k(k_, inverses_.data() + passive * k_ * k_, h, passive, tol, c, std::make_index_sequence<kMaxCached>{}))
-      return st;
-  } else if (passive && solve_passive(passive, h, s) && optimal(h, s, passive, tol)) {
-    for (std::size_t i = 0; i < k_; ++i) c[i] = ((passive >> i) & 1u) ? s[i] : 0.0;
+  // The hint: if the unconstrained solution on the hinted set is positive and optimal, it is the answer.
+  if (passive && cached_ &&
+      try_hint_k(k_, inverses_.data() + passive * k_ * k_, h, passive, tol, c, std::make_index_sequence<kMaxCached>{}))
     return st;
+  double s_stack[64], w_stack[64];
+  char in_stack[64];
+  int idx_stack[64];
+  std::vector<double> sw_heap;
+  std::vector<char> in_heap;
+  std::vector<int> idx_heap;
+  double *s = s_stack, *w = w_stack;
+  char* in = in_stack;
+  int* idx = idx_stack;
+  if (!masks) {
+    sw_heap.resize(2 * k_);
+    in_heap.resize(k_);
+    idx_heap.resize(k_);
+    s = sw_heap.data();
+    w = s + k_;
+    in = in_heap.data();
+    idx = idx_heap.data();
+  }
+  auto set_flags = [&](std::uint64_t m) {
+    for (std::size_t i = 0; i < k_; ++i) in[i] = char((m >> i) & 1u);
+  };
+  if (passive && !cached_) {
+    set_flags(passive);
+    if (solve_passive(in, passive, h, s, idx) && optimal(in, h, s, tol)) {
+      for (std::size_t i = 0; i < k_; ++i) c[i] = in[i] ? s[i] : 0.0;
+      return st;
+    }
   }
   std::uint64_t mask = 0;
   for (std::size_t i = 0; i < k_; ++i) {
     c[i] = 0;
     w[i] = h[i];
+    in[i] = 0;
   }
   const int cap = 3 * int(k_) + 10;
   // Warm start from the hint: drop its indices whose unconstrained solution is not positive until the rest
   // is; that point (the minimiser on its passive set, positive there) is a valid state of the method.
-  for (std::uint64_t hint = passive; hint && solve_passive(hint, h, s);) {
+  for (std::uint64_t hint = passive; hint;) {
+    set_flags(hint);
+    if (!solve_passive(in, hint, h, s, idx)) {
+      set_flags(0);
+      break;
+    }
     std::uint64_t drop = 0;
     for (std::size_t i = 0; i < k_; ++i)
-      if (((hint >> i) & 1u) && !(s[i] > 0)) drop |= std::uint64_t(1) << i;
+      if (in[i] && !(s[i] > 0)) drop |= std::uint64_t(1) << i;
     if (!drop) {
       mask = hint;
-      for (std::size_t i = 0; i < k_; ++i) c[i] = ((mask >> i) & 1u) ? s[i] : 0.0;
-      for (std::size_t i = 0; i < k_; ++i) {
-        if ((mask >> i) & 1u) continue;
-        double v = s[i];  // with the cache: the gradient off the passive set
-        if (!cached_) {
-          v = h[i];
-          for (std::size_t q = 0; q < k_; ++q) v -= gram_(Eigen::Index(i), Eigen::Index(q)) * c[q];
-        }
-        w[i] = v;
-      }
+      for (std::size_t i = 0; i < k_; ++i) c[i] = in[i] ? s[i] : 0.0;
+      gradient(in, h, c, s, w);
       break;
     }
     hint &= ~drop;
+    if (!hint) set_flags(0);
     ++st.iterations;
   }
   while (true) {
     int j = -1;
     double best = tol;
     for (std::size_t i = 0; i < k_; ++i)
-      if (!((mask >> i) & 1u) && w[i] > best) {
+      if (!in[i] && w[i] > best) {
         best = w[i];
         j = int(i);
       }
@@ -191,25 +237,26 @@ NnlsStatus GramNnls::solve(const double* h, double* c, std::uint64_t& passive) c
       st.converged = false;
       break;
     }
-    mask |= std::uint64_t(1) << j;
+    in[j] = 1;
+    if (masks) mask |= std::uint64_t(1) << j;
     while (true) {
-      if (!solve_passive(mask, h, s)) {
+      if (!solve_passive(in, mask, h, s, idx)) {
         st.converged = false;
         passive = mask;
         return st;
       }
       bool feasible = true;
       for (std::size_t i = 0; i < k_; ++i)
-        if (((mask >> i) & 1u) && s[i] <= 0) feasible = false;
+        if (in[i] && s[i] <= 0) feasible = false;
       if (feasible) {
-        for (std::size_t i = 0; i < k_; ++i) c[i] = ((mask >> i) & 1u) ? s[i] : 0.0;
+        for (std::size_t i = 0; i < k_; ++i) c[i] = in[i] ? s[i] : 0.0;
         break;
       }
       // Step from c towards s until the first passive coefficient reaches zero; drop those at zero.
       double alpha = 1;
       int hit = -1;
       for (std::size_t i = 0; i < k_; ++i)
-        if (((mask >> i) & 1u) && s[i] <= 0) {
+        if (in[i] && s[i] <= 0) {
           const double a = c[i] / (c[i] - s[i]);
           if (hit < 0 || a < alpha) {
             alpha = a;
@@ -217,11 +264,12 @@ NnlsStatus GramNnls::solve(const double* h, double* c, std::uint64_t& passive) c
           }
         }
       for (std::size_t i = 0; i < k_; ++i) {
-        if (!((mask >> i) & 1u)) continue;
+        if (!in[i]) continue;
         c[i] += alpha * (s[i] - c[i]);
         if (int(i) == hit || c[i] <= 0) {
           c[i] = 0;
-          mask &= ~(std::uint64_t(1) << i);
+          in[i] = 0;
+          if (masks) mask &= ~(std::uint64_t(1) << i);
         }
       }
       if (++st.iterations > cap) {
@@ -230,15 +278,7 @@ NnlsStatus GramNnls::solve(const double* h, double* c, std::uint64_t& passive) c
         return st;
       }
     }
-    for (std::size_t i = 0; i < k_; ++i) {
-      if (cached_) {
-        w[i] = s[i];  // the gradient off the passive set; entries on it are not used
-        continue;
-      }
-      double v = h[i];
-      for (std::size_t q = 0; q < k_; ++q) v -= gram_(Eigen::Index(i), Eigen::Index(q)) * c[q];
-      w[i] = v;
-    }
+    gradient(in, h, c, s, w);
   }
   passive = mask;
   return st;
@@ -273,4 +313,4 @@ Eigen::VectorXd nnls_brute_force(const Eigen::MatrixXd& gram, const Eigen::Vecto
   return best;
 }
 
-}  // namespace specula::nmf
+}  // namespace specula

@@ -1,0 +1,117 @@
+#include "specula/stats/project.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "specula/core/error.h"
+#include "specula/stats/pca.h"
+
+namespace specula::stats {
+namespace {
+
+std::string label(const std::string& name) { return name.empty() ? "the basis" : "basis " + name; }
+
+std::string sizes(Eigen::Index rows, Eigen::Index cols) { return std::to_string(rows) + " x " + std::to_string(cols); }
+
+}  // namespace
+
+BasisMethod basis_method(const store::Basis& basis, const std::string& name) {
+  if (basis.method == "nmf") return BasisMethod::nmf;
+  if (basis.method != "pca")
+    throw InputError(label(name) + " has method '" + basis.method +
+                     "'; projection needs a pca basis (with its mean) or an nmf basis");
+  if (std::size_t(basis.mean.size()) != basis.bands() || basis.components.cols() != basis.mean.size())
+    throw InputError(label(name) + " is a pca basis without a mean of its " + std::to_string(basis.bands()) +
+                     " bands; PCA projects about the mean (eq 7.2), so re-learn the basis by PCA");
+  return BasisMethod::pca;
+}
+
+void ProjectionError::add(double squared) {
+  ++count;
+  sum_sq += squared;
+  max_error = std::max(max_error, std::sqrt(squared));
+}
+
+void ProjectionError::merge(const ProjectionError& other) {
+  count += other.count;
+  sum_sq += other.sum_sq;
+  max_error = std::max(max_error, other.max_error);
+}
+
+double ProjectionError::rms(std::size_t bands) const {
+  if (count == 0 || bands == 0) return std::numeric_limits<double>::quiet_NaN();
+  return std::sqrt(sum_sq / (double(count) * double(bands)));
+}
+
+void squared_errors(const Eigen::Ref<const RowMatrixXd>& spectra, const Eigen::Ref<const RowMatrixXd>& reconstruction,
+                    Eigen::Ref<Eigen::VectorXd> squared) {
+  if (reconstruction.rows() != spectra.rows() || reconstruction.cols() != spectra.cols() || squared.size() != spectra.rows())
+    throw UsageError("squared_errors: spectra " + sizes(spectra.rows(), spectra.cols()) + ", reconstruction " +
+                     sizes(reconstruction.rows(), reconstruction.cols()) + ", squared " + std::to_string(squared.size()) +
+                     " do not match");
+  for (Eigen::Index i = 0; i < spectra.rows(); ++i) squared[i] = (spectra.row(i) - reconstruction.row(i)).squaredNorm();
+}
+
+Projector::Projector(const store::Basis& basis, std::optional<long long> k, const std::string& name)
+    : method_(basis_method(basis, name)), label_(label(name)) {
+  const auto all = static_cast<long long>(basis.k());
+  if (all < 1 || basis.components.cols() != Eigen::Index(basis.bands()))
+    throw InputError(label_ + " has components " + sizes(basis.components.rows(), basis.components.cols()) + " for " +
+                     std::to_string(basis.bands()) + " wavelengths");
+  if (method_ == BasisMethod::pca && k && (*k < 1 || *k > all))
+    throw UsageError("k = " + std::to_string(*k) + ": " + label_ + " has " + std::to_string(all) +
+                     " components; give k between 1 and " + std::to_string(all));
+  if (method_ == BasisMethod::nmf && k && *k != all)
+    throw UsageError("k = " + std::to_string(*k) + ": NMF " + (name.empty() ? "basis" : label_) + " has " +
+                     std::to_string(all) + " components and projects onto all of them (NMF bases are not nested: a "
+                     "basis projects onto all of its " + std::to_string(all) + " components, and its first " +
+                     std::to_string(*k) + " are no " + std::to_string(*k) + "-component basis)");
+  const Eigen::Index used = method_ == BasisMethod::pca && k ? Eigen::Index(*k) : Eigen::Index(all);
+  basis_.method = basis.method;
+  basis_.wavelengths = basis.wavelengths;
+  basis_.mean = basis.mean;
+  basis_.components = basis.components.topRows(used);
+  if (method_ == BasisMethod::nmf) nnls_.emplace(basis_.components * basis_.components.transpose());
+}
+
+void Projector::check_wavelengths(const WavelengthGrid& grid, const std::string& what, const std::string& hint) const {
+  if (grid.approx_equal(basis_.wavelengths)) return;
+  throw InputError(what + " has " + grid.describe() + ", " + label_ + " has " + basis_.wavelengths.describe() +
+                   (hint.empty() ? "" : "; " + hint));
+}
+
+void Projector::project(const Eigen::Ref<const RowMatrixXd>& spectra, Eigen::Ref<RowMatrixXd> coefficients) const {
+  const auto k = Eigen::Index(this->k()), b = Eigen::Index(bands());
+  if (spectra.cols() != b || coefficients.rows() != spectra.rows() || coefficients.cols() != k)
+    throw UsageError("project: spectra are " + sizes(spectra.rows(), spectra.cols()) + " and coefficients " +
+                     sizes(coefficients.rows(), coefficients.cols()) + "; " + label_ + " needs " + std::to_string(b) +
+                     " bands and gives " + std::to_string(k) + " coefficients per spectrum");
+  if (method_ == BasisMethod::pca) {
+    pca_project(basis_, std::size_t(k), spectra, coefficients);
+    return;
+  }
+  // Exact NNLS per spectrum; neighbouring spectra usually share their passive set, so each hints the next.
+  const RowMatrixXd h = spectra * basis_.components.transpose();
+  std::uint64_t hint = 0;
+  Eigen::VectorXd c(k);
+  for (Eigen::Index r = 0; r < spectra.rows(); ++r) {
+    nnls_->solve(h.data() + r * k, c.data(), hint);
+    coefficients.row(r) = c.transpose();
+  }
+}
+
+void Projector::reconstruct(const Eigen::Ref<const RowMatrixXd>& coefficients, Eigen::Ref<RowMatrixXd> spectra) const {
+  const auto k = Eigen::Index(this->k()), b = Eigen::Index(bands());
+  if (coefficients.cols() != k || spectra.rows() != coefficients.rows() || spectra.cols() != b)
+    throw UsageError("reconstruct: coefficients are " + sizes(coefficients.rows(), coefficients.cols()) + " and spectra " +
+                     sizes(spectra.rows(), spectra.cols()) + "; " + label_ + " takes " + std::to_string(k) +
+                     " coefficients and gives " + std::to_string(b) + " bands per spectrum");
+  if (method_ == BasisMethod::pca) {
+    pca_reconstruct(basis_, coefficients, spectra);
+    return;
+  }
+  spectra.noalias() = coefficients * basis_.components;
+}
+
+}  // namespace specula::stats
