@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 
 #include "apps/commands.h"
@@ -183,7 +184,7 @@ void run_import(const ImportOptions& o) {
     }
     store::Cube cube;
     if (item.format == "envi") {
-      cube = store::read_envi(first);
+      cube = store::read_envi(first, given);
     } else if (item.format == "mat") {
       cube = store::read_mat(first, o.var, o.mask.empty() ? std::nullopt : std::optional<std::string>(o.mask), given);
     } else if (item.format == "png") {
@@ -244,7 +245,16 @@ void setup_import(CLI::App& app) {
   cmd->add_option("--compression", o->compression, "none, deflate or deflate:LEVEL (shuffle + deflate)")->capture_default_str();
   cmd->add_option("--units", o->units, "Override the units: reflectance, radiance, counts, ...");
   cmd->add_flag("--replace", o->replace, "Replace objects of the same name");
-  cmd->callback([o] { run_import(*o); });
+  cmd->callback([o] {
+    try {
+      run_import(*o);
+    } catch (const InputError& e) {  // the importers name their parameter; here it is a flag
+      std::string m = e.what();
+      for (std::size_t at; (at = m.find("the `wavelengths` option")) != std::string::npos;)
+        m.replace(at, std::strlen("the `wavelengths` option"), "--wavelengths");
+      throw InputError(m);
+    }
+  });
 }
 
 }  // namespace specula::app

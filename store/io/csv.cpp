@@ -277,7 +277,7 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
   std::size_t first_data = 0, name_col = 0, B = 0;
   if (has_header) {
     const std::string hint =
-        "the first row must list wavelengths in nm (or pass --wavelengths for a file without a header row)";
+        "the first row must list wavelengths in nm (or give the `wavelengths` option for a file without a header row)";
     std::vector<std::size_t> lines, columns;
     std::vector<double> wl;
     for (std::size_t i = head_named ? 1 : 0; i < hc.size(); ++i) {
@@ -305,12 +305,12 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
     if (header_like && !fits_data)
       rd.fail(head.line, 0,
               "the header row lists " + std::to_string(head_wl.size()) + " wavelengths " + format(head_wl.front()) +
-                  "-" + format(head_wl.back()) + " nm but --wavelengths gives " + std::to_string(B) +
-                  "; drop --wavelengths to use the file's");
+                  "-" + format(head_wl.back()) + " nm but the `wavelengths` option gives " + std::to_string(B) +
+                  "; drop the `wavelengths` option to use the file's");
     if (hc.size() == B + 1) name_col = 1;
     else if (hc.size() != B)
       rd.fail(head.line, 0,
-              "row has " + std::to_string(hc.size()) + " cells but --wavelengths has " + std::to_string(B) +
+              "row has " + std::to_string(hc.size()) + " cells but the `wavelengths` option has " + std::to_string(B) +
                   " bands; give a name and one value per band, or add a header row of wavelengths");
     col.wavelengths = wavelengths;
   }

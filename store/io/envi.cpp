@@ -502,11 +502,11 @@ Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback
   double factor = unit_factor(h.wavelength_units);
   std::string problem;
   if (h.wavelength.empty() || units_lower == "index") {
-    problem = "the header has no wavelengths; pass --wavelengths FIRST:LAST:STEP (" + std::to_string(h.bands) +
+    problem = "the header has no wavelengths; give the `wavelengths` option FIRST:LAST:STEP (" + std::to_string(h.bands) +
               " bands, e.g. 400:700:10 for 31) or add a 'wavelength' list";
   } else if (factor < 0) {
     problem = "wavelength units = " + printable(h.wavelength_units) +
-              " is not supported; use Nanometers or Micrometers, or pass --wavelengths in nm";
+              " is not supported; use Nanometers or Micrometers, or give the `wavelengths` option in nm";
   } else if (factor == 0 && h.wavelength.back() < 100) {
     problem = "wavelengths " + format_real(h.wavelength.front()) + "-" + format_real(h.wavelength.back()) +
               " have no wavelength units; add 'wavelength units = Micrometers' (or Nanometers) to the header";
@@ -523,7 +523,7 @@ Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback
     }
   } else if (!fallback.empty()) {
     if (fallback.size() != h.bands)
-      throw InputError(hname + ": the image has " + std::to_string(h.bands) + " bands but --wavelengths gives " +
+      throw InputError(hname + ": the image has " + std::to_string(h.bands) + " bands but the `wavelengths` option gives " +
                        std::to_string(fallback.size()) + "; pass one wavelength per band");
     cube.wavelengths = fallback;
   } else {

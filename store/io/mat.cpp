@@ -237,7 +237,7 @@ Cube read_mat(const std::filesystem::path& path, const std::string& var,
     if (!supported_class(wi->class_type) || wi->isComplex || element_count(*wi) != bands) {
       wl_problem = file + ": variable '" + wl_name + "' is " + (wi->isComplex ? "complex " : "") +
                    class_name(wi->class_type) + " " + dims_text(*wi) + " but '" + var + "' has " +
-                   std::to_string(bands) + " bands; store one wavelength in nm per band or pass --wavelengths";
+                   std::to_string(bands) + " bands; store one wavelength in nm per band or give the `wavelengths` option";
       break;
     }
     const Var wv = mf.read(wl_name);
@@ -253,10 +253,10 @@ Cube read_mat(const std::filesystem::path& path, const std::string& var,
     if (wavelengths.empty())
       throw InputError(!wl_problem.empty()
                            ? wl_problem
-                           : file + ": no 'wavelengths' or 'bands' variable; pass --wavelengths FIRST:LAST:STEP for the " +
+                           : file + ": no 'wavelengths' or 'bands' variable; give the `wavelengths` option FIRST:LAST:STEP for the " +
                                  std::to_string(bands) + " bands of '" + var + "'");
     if (wavelengths.size() != bands)
-      throw InputError(file + ": variable '" + var + "' has " + std::to_string(bands) + " bands but --wavelengths gives " +
+      throw InputError(file + ": variable '" + var + "' has " + std::to_string(bands) + " bands but the `wavelengths` option gives " +
                        std::to_string(wavelengths.size()) + "; pass one wavelength per band");
     cube.wavelengths = wavelengths;
   }

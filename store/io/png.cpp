@@ -325,7 +325,7 @@ Cube read_png_stack(const std::vector<fs::path>& files, const WavelengthGrid& wa
   if (bands.size() != wavelengths.size())
     throw InputError(origin + ": " + std::to_string(bands.size()) + " PNG files (one per band) but " +
                      std::to_string(wavelengths.size()) +
-                     " wavelengths; pass --wavelengths with one wavelength per file, e.g. 400:700:10");
+                     " wavelengths; give the `wavelengths` option with one wavelength per file, e.g. 400:700:10");
 
   Cube cube;
   const std::size_t count = bands.size();

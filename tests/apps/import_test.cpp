@@ -271,3 +271,26 @@ TEST(ImportCli, RealColorCheckerImageAndMunsellTable) {
   // 2.5R9/2 at 420 nm is 0.69536 in the file (column 420).
   EXPECT_NEAR(munsell.values[0], 0.69536f, 1e-6f);
 }
+
+TEST(ImportCli, EnviWithoutWavelengthsTakesTheFlagAndNamesIt) {
+  const test::ScratchDir dir;
+  {
+    std::ofstream hdr(dir / "bare.hdr");
+    hdr << "ENVI\nsamples = 2\nlines = 1\nbands = 3\nheader offset = 0\ndata type = 4\ninterleave = bip\nbyte order = 0\n";
+    const std::vector<float> v{1, 2, 3, 4, 5, 6};
+    std::ofstream(dir / "bare.raw", std::ios::binary).write(reinterpret_cast<const char*>(v.data()), 24);
+  }
+  const std::string in = "'" + (dir / "bare.hdr").string() + "'";
+  const std::string out = " -o '" + (dir / "db.h5").string() + "'";
+  auto r = run_specula("-q import " + in + out);
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("bare.hdr: the header has no wavelengths; give --wavelengths FIRST:LAST:STEP"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "db.h5"));
+  r = run_specula("-q import " + in + " --wavelengths 400:600:100" + out);
+  ASSERT_EQ(r.status, 0) << r.output;
+  const store::Cube c = store::Store::open(dir / "db.h5").read_image("bare");
+  EXPECT_EQ(c.wavelengths.describe(), store::Store::open(dir / "db.h5").image_info("bare").wavelengths.describe());
+  EXPECT_EQ(c.wavelengths[2], 600.0);
+  EXPECT_EQ(c.data, (std::vector<float>{1, 2, 3, 4, 5, 6}));
+}

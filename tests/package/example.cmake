@@ -16,6 +16,22 @@ foreach(f include/specula/version.h include/specula/store/block_reader.h lib/cma
     message(FATAL_ERROR "the installed prefix lacks ${f}")
   endif()
 endforeach()
+# Components: core alone finds Eigen and nothing of the store's; an unknown component fails with the list.
+file(WRITE ${WORK}/probe/CMakeLists.txt [=[
+cmake_minimum_required(VERSION 3.22)
+project(probe LANGUAGES CXX)
+find_package(specula REQUIRED COMPONENTS core)
+if(NOT TARGET specula::core OR TARGET specula::store OR DEFINED HDF5_FOUND)
+  message(FATAL_ERROR "COMPONENTS core imported more than core")
+endif()
+find_package(specula QUIET COMPONENTS bogus)
+if(specula_FOUND OR NOT specula_NOT_FOUND_MESSAGE MATCHES "no component 'bogus'")
+  message(FATAL_ERROR "an unknown component was accepted: ${specula_NOT_FOUND_MESSAGE}")
+endif()
+]=])
+run(${CMAKE_COMMAND} -S ${WORK}/probe -B ${WORK}/probe/build -G ${GENERATOR} -DCMAKE_PREFIX_PATH=${WORK}/prefix
+    -DCMAKE_CXX_COMPILER=${CXX})
+
 run(${CMAKE_COMMAND} -S ${SOURCE_DIR}/examples/cpp -B ${WORK}/build -G ${GENERATOR} -DCMAKE_BUILD_TYPE=Release
     -DCMAKE_PREFIX_PATH=${WORK}/prefix -DCMAKE_CXX_COMPILER=${CXX} -DCMAKE_C_COMPILER=${C})
 run(${CMAKE_COMMAND} --build ${WORK}/build)

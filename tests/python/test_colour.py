@@ -76,3 +76,19 @@ def test_colour_errors():
         specula.spectra_to_xyz(np.ones(NM.size), NM, illuminant="F2")
     with pytest.raises(specula.InputError):
         specula.spectra_to_xyz(np.ones(3), [500.0, 400.0, 600.0])
+
+
+def test_illuminants_are_named_as_on_the_command_line(tmp_path):
+    # blackbody:K is Planck's law normalised to 1 at 560 nm, computed here independently.
+    h, c, k = 6.62607015e-34, 2.99792458e8, 1.380649e-23
+    def planck(nm, t):
+        lam = np.asarray(nm) * 1e-9
+        return 1.0 / (lam ** 5 * np.expm1(h * c / (lam * k * t)))
+    got = specula.illuminant("blackbody:3000", NM)
+    np.testing.assert_allclose(got, planck(NM, 3000) / planck(560.0, 3000), rtol=1e-6)
+    # An SPD file, as `specula render --illuminant spd.csv` reads it, resampled to the wavelengths.
+    spd = tmp_path / "spd.csv"
+    spd.write_text("wavelength_nm,value\n" + "".join(f"{w},{2 * w}\n" for w in range(380, 781, 20)))
+    np.testing.assert_allclose(specula.illuminant(str(spd), NM), 2 * NM, rtol=1e-9)
+    with pytest.raises(specula.UsageError, match="illuminant 'D20'"):
+        specula.illuminant("D20", NM)

@@ -68,10 +68,10 @@ TEST(Csv, HeaderlessRowsTakeGivenWavelengths) {
   EXPECT_EQ(c.wavelengths[0], 450.0);
   const std::string msg = input_error(dir / "h.csv");
   EXPECT_NE(msg.find("h.csv:1:"), std::string::npos) << msg;
-  EXPECT_NE(msg.find("--wavelengths"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("`wavelengths` option"), std::string::npos) << msg;
   write_file(dir / "hw.csv", "name,400,500\nA,0.1,0.2\n");
   const std::string differ = input_error(dir / "hw.csv", WavelengthGrid({450, 550, 650}));
-  EXPECT_NE(differ.find("hw.csv:1: the header row lists 2 wavelengths 400-500 nm but --wavelengths gives 3"),
+  EXPECT_NE(differ.find("hw.csv:1: the header row lists 2 wavelengths 400-500 nm but the `wavelengths` option gives 3"),
             std::string::npos)
       << differ;
 }

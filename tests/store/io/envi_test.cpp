@@ -307,7 +307,7 @@ TEST(Envi, MissingWavelengthsNeedFallback) {
   write_file(dir / "n.raw", interleaved("bsq", 1, false));
   write_file(dir / "n.hdr", "ENVI\nsamples = 3\nlines = 2\nbands = 4\ndata type = 1\ninterleave = bsq\n");
   const std::string msg = error_of([&] { read_envi(dir / "n.hdr"); });
-  EXPECT_NE(msg.find("--wavelengths"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("`wavelengths` option"), std::string::npos) << msg;
   EXPECT_NE(msg.find("n.hdr"), std::string::npos) << msg;
   const Cube c = read_envi(dir / "n.hdr", WavelengthGrid::range(400, 700, 100));
   EXPECT_EQ(c.wavelengths.size(), 4u);

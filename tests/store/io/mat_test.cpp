@@ -208,9 +208,9 @@ TEST(Mat, BadInputs) {
   ASSERT_TRUE(write_mat(dir / "b.mat", MAT_FT_MAT5,
                         {ref_double(), make_var("i64", MAT_C_INT64, MAT_T_INT64, {kRows, kCols, kBands}, big)}));
   std::string m = input_error([&] { read_mat(dir / "b.mat", "ref", std::nullopt, {}); });
-  EXPECT_NE(m.find("b.mat: no 'wavelengths' or 'bands' variable; pass --wavelengths"), std::string::npos) << m;
+  EXPECT_NE(m.find("b.mat: no 'wavelengths' or 'bands' variable; give the `wavelengths` option"), std::string::npos) << m;
   m = input_error([&] { read_mat(dir / "b.mat", "ref", std::nullopt, WavelengthGrid(short_wl)); });
-  EXPECT_NE(m.find("has 5 bands but --wavelengths gives 2"), std::string::npos) << m;
+  EXPECT_NE(m.find("has 5 bands but the `wavelengths` option gives 2"), std::string::npos) << m;
   m = input_error([&] { read_mat(dir / "b.mat", "i64", std::nullopt, WavelengthGrid(kNm)); });
   EXPECT_NE(m.find("variable 'i64' is int64; convert it to double"), std::string::npos) << m;
 

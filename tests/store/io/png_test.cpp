@@ -299,8 +299,8 @@ TEST(PngStack, CountMismatchTellsToPassWavelengths) {
   const std::string what = specula::test::input_error_text([&] { read_png_stack({dir.path()}, WavelengthGrid({400, 500})); });
   EXPECT_NE(what.find("3 PNG files"), std::string::npos) << what;
   EXPECT_NE(what.find("2 wavelengths"), std::string::npos) << what;
-  EXPECT_NE(what.find("--wavelengths"), std::string::npos) << what;
-  EXPECT_NE(specula::test::input_error_text([&] { read_png_stack({dir.path()}, WavelengthGrid()); }).find("--wavelengths"),
+  EXPECT_NE(what.find("`wavelengths` option"), std::string::npos) << what;
+  EXPECT_NE(specula::test::input_error_text([&] { read_png_stack({dir.path()}, WavelengthGrid()); }).find("`wavelengths` option"),
             std::string::npos);
 
   fs::create_directory(dir / "empty");
