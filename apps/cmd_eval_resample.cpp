@@ -3,18 +3,12 @@
 // and the prediction error tabulated.
 #include <fmt/format.h>
 
-#include <algorithm>
-#include <cmath>
-#include <numeric>
 #include <memory>
-#include <random>
 
-#include "specula/acquire/resample.h"
+#include "specula/acquire/cross_validate.h"
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/core/error.h"
-#include "specula/core/interrupt.h"
-#include "specula/core/progress.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -29,14 +23,6 @@ struct EvalResampleOptions {
   bool json = false;
 };
 
-struct Row {
-  std::string mapping, weights;
-  std::size_t k = 0;
-  double rel_rms = 0;     // sqrt(sum (pred - true)^2 / sum true^2) over predicted held-out samples and bands
-  double median_rel = 0;  // median over held-out samples of |pred - true| / |true| (spectra as vectors)
-  std::size_t predicted = 0;
-};
-
 void run_eval_resample(const EvalResampleOptions& o) {
   if (!(o.holdout > 0 && o.holdout < 1)) throw UsageError("--holdout: give a fraction in (0, 1)");
   for (const auto k : o.k)
@@ -46,79 +32,22 @@ void run_eval_resample(const EvalResampleOptions& o) {
   std::vector<double> angles(4 * info.size);
   std::vector<float> values(info.size * info.bands);
   s.read_samples(o.samples, 0, info.size, angles, values);
-  std::vector<std::size_t> order(info.size);
-  std::iota(order.begin(), order.end(), 0);
-  std::mt19937_64 rng(o.seed);
-  std::shuffle(order.begin(), order.end(), rng);
-  const auto held = std::size_t(std::llround(o.holdout * double(info.size)));
-  if (held < 1 || held >= info.size)
-    throw InputError(fmt::format("{}: {} samples leave nothing to hold out at --holdout {}", o.samples, info.size, o.holdout));
-  const std::size_t b = info.bands;
-  std::vector<double> train_a, test_a;
-  std::vector<float> train_v, test_v;
-  for (std::size_t j = 0; j < info.size; ++j) {
-    const std::size_t i = order[j];
-    auto& a = j < held ? test_a : train_a;
-    auto& v = j < held ? test_v : train_v;
-    a.insert(a.end(), angles.begin() + std::ptrdiff_t(4 * i), angles.begin() + std::ptrdiff_t(4 * i + 4));
-    v.insert(v.end(), values.begin() + std::ptrdiff_t(i * b), values.begin() + std::ptrdiff_t((i + 1) * b));
+  acquire::CrossValidation cv;
+  try {
+    cv = acquire::cross_validate(angles, values, info.bands, {.holdout = o.holdout, .seed = o.seed, .ks = o.k});
+  } catch (const InputError& e) {
+    throw InputError(o.samples + ": " + e.what());
   }
-  std::vector<Row> rows;
-  const std::size_t configs = 3 * o.k.size();
-  Progress progress("cross-validating", configs * held);
-  for (const auto mapping : {acquire::Mapping::standard, acquire::Mapping::marschner, acquire::Mapping::halfdiff}) {
-    const acquire::MemorySamples train(train_a, train_v, b);
-    const auto tree = std::make_shared<const acquire::SampleTree>(train, mapping);
-    for (const auto k : o.k)
-      for (const auto weights : {acquire::Weights::mean, acquire::Weights::shepard}) {
-        if (k == 1 && weights == acquire::Weights::shepard) continue;  // one neighbour: the same prediction
-        // No support limit: every held-out sample is predicted from its k nearest, however far.
-        const acquire::Resampler r(tree, train_v, b, {.mapping = mapping, .k = k, .weights = weights, .max_gap = 10});
-        std::vector<double> e2(held, -1), t2(held, 0);
-#pragma omp parallel
-        {
-          std::vector<float> out(b);
-#pragma omp for schedule(dynamic, 16)
-          for (long long jj = 0; jj < static_cast<long long>(held); ++jj) {
-            const std::size_t j = std::size_t(jj);
-            const double* a = test_a.data() + 4 * j;
-            if (!r.predict(brdf::StdAngles{a[0], a[1], a[2], a[3]}, out)) continue;
-            double se = 0, st = 0;
-            for (std::size_t q = 0; q < b; ++q) {
-              const double t = test_v[j * b + q], e = double(out[q]) - t;
-              se += e * e;
-              st += t * t;
-            }
-            e2[j] = se;
-            t2[j] = st;
-          }
-        }
-        check_interrupt();
-        progress.advance(k == 1 ? 2 * held : held);
-        double err = 0, ref = 0;
-        std::size_t predicted = 0;
-        std::vector<double> per_sample;
-        for (std::size_t j = 0; j < held; ++j) {
-          if (e2[j] < 0) continue;
-          ++predicted;
-          err += e2[j];
-          ref += t2[j];
-          if (t2[j] > 0) per_sample.push_back(std::sqrt(e2[j] / t2[j]));
-        }
-        rows.push_back({std::string(acquire::mapping_name(mapping)),
-                        k == 1 ? "nearest" : std::string(acquire::weights_name(weights)), k,
-                        ref > 0 ? std::sqrt(err / ref) : 0.0, 0.0, predicted});
-        if (!per_sample.empty()) {
-          std::nth_element(per_sample.begin(), per_sample.begin() + std::ptrdiff_t(per_sample.size() / 2), per_sample.end());
-          rows.back().median_rel = per_sample[per_sample.size() / 2];
-        }
-      }
-  }
+  const std::size_t held = cv.held_out;
+  auto weights = [](const acquire::CrossValidationRow& r) {
+    return r.k == 1 ? std::string("nearest") : std::string(acquire::weights_name(r.weights));
+  };
   if (o.json) {
     std::string list;
-    for (const auto& r : rows)
+    for (const auto& r : cv.rows)
       list += fmt::format(R"({}{{"mapping":{},"k":{},"weights":{},"rel_rms":{},"median_rel":{},"predicted":{}}})",
-                          list.empty() ? "" : ",", json_string(r.mapping), r.k, json_string(r.weights), r.rel_rms,
+                          list.empty() ? "" : ",", json_string(std::string(acquire::mapping_name(r.mapping))), r.k,
+                          json_string(weights(r)), r.rel_rms,
                           r.median_rel, r.predicted);
     fmt::print(R"({{"samples":{},"held_out":{},"seed":{},"results":[{}]}})"
                "\n",
@@ -128,8 +57,9 @@ void run_eval_resample(const EvalResampleOptions& o) {
   fmt::print("{}: {} samples, {} held out (seed {}); relative RMS error of the held-out spectra:\n", o.samples, info.size,
              held, o.seed);
   fmt::print("| mapping | k | weights | relative RMS | median relative error |\n|---|---|---|---|---|\n");
-  for (const auto& r : rows)
-    fmt::print("| {} | {} | {} | {:.4f} | {:.4f} |\n", r.mapping, r.k, r.weights, r.rel_rms, r.median_rel);
+  for (const auto& r : cv.rows)
+    fmt::print("| {} | {} | {} | {:.4f} | {:.4f} |\n", acquire::mapping_name(r.mapping), r.k, weights(r), r.rel_rms,
+               r.median_rel);
 }
 
 }  // namespace

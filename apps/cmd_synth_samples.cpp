@@ -2,15 +2,12 @@
 // configurations of a simulated scan of the reference's rig (acquire/scan.h) or at random ones, appended to a
 // store in batches as a capture would be. Ground truth for resampling tests, the study and the benchmark.
 #include <fmt/format.h>
-#include <omp.h>
 
 #include <chrono>
-#include <cmath>
 #include <filesystem>
-#include <numbers>
-#include <random>
 
 #include "specula/acquire/scan.h"
+#include "specula/acquire/synth_samples.h"
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/core/brdf_materials.h"
@@ -35,25 +32,6 @@ struct SynthSamplesOptions {
   bool replace = false;
   bool json = false;
 };
-
-// Evaluates the model at n configurations in parallel (the models are read-only), each value times
-// (1 + noise N(0, 1)) with a generator seeded from the seed and the batch's index, whatever the thread count.
-void evaluate(const brdf::SpectralModel& model, std::span<const double> angles, std::span<float> values, double noise,
-              std::uint64_t seed, std::uint64_t batch) {
-  const std::size_t n = angles.size() / 4, b = model.bands();
-  const std::size_t piece = 4096;
-#pragma omp parallel for schedule(dynamic, 1)
-  for (long long p = 0; p < static_cast<long long>((n + piece - 1) / piece); ++p) {
-    const std::size_t first = std::size_t(p) * piece, count = std::min(piece, n - first);
-    const auto v = values.subspan(b * first, b * count);
-    brdf::evaluate_at(model, angles.subspan(4 * first, 4 * count), v);
-    if (noise > 0) {
-      std::mt19937_64 rng(seed * 0x9E3779B97F4A7C15ull ^ (batch << 24) ^ std::uint64_t(p));
-      std::normal_distribution<float> g(0.0f, float(noise));
-      for (float& x : v) x *= 1 + g(rng);
-    }
-  }
-}
 
 void run_synth_samples(const SynthSamplesOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -98,16 +76,10 @@ void run_synth_samples(const SynthSamplesOptions& o) {
     for (std::size_t j = 0; j < o.rig.lights; ++j) {
       check_interrupt();
       angles.clear();
-      const std::size_t n = acquire::scan_light(o.rig, px, j, angles);
-      if (o.count && o.count < total) {
-        std::size_t kept = 0;
-        for (std::size_t i = 0; i < n; ++i, ++seen)
-          if ((seen + 1) * o.count / total > seen * o.count / total)
-            std::copy_n(angles.begin() + std::ptrdiff_t(4 * i), 4, angles.begin() + std::ptrdiff_t(4 * kept++));
-        angles.resize(4 * kept);
-      }
+      acquire::scan_light(o.rig, px, j, angles);
+      if (o.count && o.count < total) acquire::thin_evenly(angles, seen, o.count, total);
       values.resize(angles.size() / 4 * b);
-      evaluate(*model, angles, values, o.noise, o.seed, j);
+      acquire::evaluate_noisy(*model, angles, values, o.noise, o.seed, j);
       writer.append_samples(name, angles, values);
       written += angles.size() / 4;
       progress.advance();
@@ -118,18 +90,9 @@ void run_synth_samples(const SynthSamplesOptions& o) {
     for (std::size_t first = 0; first < o.count; first += block) {
       check_interrupt();
       const std::size_t n = std::min(block, o.count - first);
-      // Directions uniform over the hemisphere's solid angle; one generator per block, seeded from its index.
-      std::mt19937_64 rng(o.seed * 0x9E3779B97F4A7C15ull + first / block);
-      std::uniform_real_distribution<double> u(0, 1);
-      angles.resize(4 * n);
-      for (std::size_t i = 0; i < n; ++i) {
-        angles[4 * i] = std::acos(u(rng));
-        angles[4 * i + 1] = 2 * std::numbers::pi * u(rng) - std::numbers::pi;
-        angles[4 * i + 2] = std::acos(u(rng));
-        angles[4 * i + 3] = 2 * std::numbers::pi * u(rng) - std::numbers::pi;
-      }
+      acquire::random_configurations(n, o.seed, first / block, angles);
       values.resize(n * b);
-      evaluate(*model, angles, values, o.noise, o.seed, first / block);
+      acquire::evaluate_noisy(*model, angles, values, o.noise, o.seed, first / block);
       writer.append_samples(name, angles, values);
       written += n;
       progress.advance(n);

@@ -40,27 +40,17 @@ void uplift_environment(const UpliftOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   std::size_t w = 0, h = 0;
   const std::vector<float> rgb = store::read_exr_rgb(o.input, w, h);
-  for (std::size_t i = 0; i < rgb.size(); ++i)
-    if (rgb[i] < 0)
-      throw InputError(fmt::format("{}: pixel ({}, {}) has a negative channel; radiance must be non-negative", o.input,
-                                   i / 3 % w, i / 3 / w));
   store::Cube cube;
   cube.wavelengths = grid;
   cube.resize(h, w, grid.size());
   cube.units = "radiance";
   std::size_t constrained = 0;
-#pragma omp parallel reduction(+ : constrained)
-  {
-    Eigen::VectorXd x(static_cast<Eigen::Index>(grid.size()));
-#pragma omp for schedule(dynamic, 1)
-    for (long long y = 0; y < static_cast<long long>(h); ++y) {
-      codec::UpliftCache cache;  // one per row, so the output does not depend on the thread count
-      for (std::size_t p = std::size_t(y) * w; p < (std::size_t(y) + 1) * w; ++p) {
-        const Eigen::Vector3d c(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]);
-        constrained += o.nonnegative ? uplift.nonnegative(c, x, &cache) : uplift.clamped(c, x);
-        for (std::size_t k = 0; k < grid.size(); ++k) cube.data[p * grid.size() + k] = float(x[Eigen::Index(k)]);
-      }
-    }
+  try {
+    constrained = codec::uplift_image(rgb, w, h, uplift,
+                                      o.nonnegative ? codec::UpliftMethod::nonnegative : codec::UpliftMethod::clamp,
+                                      cube.data);
+  } catch (const InputError& e) {
+    throw InputError(o.input + ": " + e.what());
   }
   store::write_spectral_exr(o.output, cube);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

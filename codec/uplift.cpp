@@ -9,6 +9,7 @@
 
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/parallel.h"
 #include "specula/core/text.h"
 
 namespace specula::codec {
@@ -145,6 +146,32 @@ store::Grid uplift_merl(const MerlBrdf& rgb, const WavelengthGrid& wavelengths, 
   check_interrupt();
   if (report) *report = {cells, constrained, max_err};
   return grid;
+}
+
+std::size_t uplift_image(std::span<const float> rgb, std::size_t width, std::size_t height, const Uplift& uplift,
+                         UpliftMethod method, std::span<float> out) {
+  const std::size_t b = uplift.bands(), pixels = width * height;
+  if (rgb.size() != 3 * pixels || out.size() != b * pixels)
+    throw UsageError("uplift_image: a " + std::to_string(width) + " x " + std::to_string(height) + " image needs " +
+                     std::to_string(3 * pixels) + " RGB values and " + std::to_string(b * pixels) + " outputs, got " +
+                     std::to_string(rgb.size()) + " and " + std::to_string(out.size()));
+  for (std::size_t i = 0; i < rgb.size(); ++i)
+    if (rgb[i] < 0)
+      throw InputError("pixel (" + std::to_string(i / 3 % width) + ", " + std::to_string(i / 3 / width) +
+                       ") has a negative channel; radiance must be non-negative");
+  // Per-row counts and caches: which pixels a cache answers depends only on the row, not on the thread.
+  std::vector<std::size_t> constrained(height, 0);
+  parallel_for(height, [&] { return Eigen::VectorXd(Eigen::Index(b)); }, [&](std::size_t y, Eigen::VectorXd& x) {
+    UpliftCache cache;
+    for (std::size_t p = y * width; p < (y + 1) * width; ++p) {
+      const Eigen::Vector3d c(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]);
+      constrained[y] += method == UpliftMethod::nonnegative ? uplift.nonnegative(c, x, &cache) : uplift.clamped(c, x);
+      for (std::size_t k = 0; k < b; ++k) out[p * b + k] = float(x[Eigen::Index(k)]);
+    }
+  });
+  std::size_t total = 0;
+  for (const std::size_t c : constrained) total += c;
+  return total;
 }
 
 }  // namespace specula::codec

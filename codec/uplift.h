@@ -6,6 +6,7 @@
 #include <Eigen/Cholesky>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <vector>
 
 #include "specula/codec/merl.h"
@@ -78,5 +79,13 @@ struct UpliftReport {
 /// without data in any channel get -1 in every band. Throws UsageError if wavelengths do not match the bands.
 store::Grid uplift_merl(const MerlBrdf& rgb, const WavelengthGrid& wavelengths, const Uplift& uplift,
                         UpliftMethod method, UpliftReport* report = nullptr);
+
+/// Uplifts an RGB image (height x width x 3, channel fastest, rows top to bottom; e.g. radiance of a lat-long
+/// environment map) pixel by pixel into out (height x width x bands, band fastest) with `method`; on all threads, one
+/// UpliftCache per row so the output does not depend on the thread count; Interrupted between rows. Returns how
+/// many pixels clamping or the bound changed. UsageError on sizes; InputError naming the first pixel (x, y) with a
+/// negative channel.
+std::size_t uplift_image(std::span<const float> rgb, std::size_t width, std::size_t height, const Uplift& uplift,
+                         UpliftMethod method, std::span<float> out);
 
 }  // namespace specula::codec

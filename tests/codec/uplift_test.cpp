@@ -1,6 +1,7 @@
 #include "specula/codec/uplift.h"
 
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <Eigen/LU>
 #include <Eigen/QR>
@@ -211,6 +212,60 @@ TEST(Uplift, MerlBrdfRoundTripsThroughExport) {
   }
   EXPECT_FALSE(back.brdf.has_data(1));
   EXPECT_THROW(uplift_merl(rgb, WavelengthGrid::range(400, 700, 20), up, UpliftMethod::clamp), UsageError);
+}
+
+// An image of saturated hues (many pixels need the bound) whose rows repeat colours, so the per-row caches hit.
+std::vector<float> hue_image(std::size_t w, std::size_t h) {
+  std::vector<float> rgb;
+  for (std::size_t y = 0; y < h; ++y)
+    for (std::size_t x = 0; x < w; ++x) {
+      const double t = double((x + 3 * y) % 48) / 48, f = 6 * t - std::floor(6 * t);
+      const double c[6][3] = {{1, f, 0}, {1 - f, 1, 0}, {0, 1, f}, {0, 1 - f, 1}, {f, 0, 1}, {1, 0, 1 - f}};
+      for (int k = 0; k < 3; ++k) rgb.push_back(float((0.9 * c[int(6 * t)][k] + 0.02) * (0.5 + 0.01 * double(y))));
+    }
+  return rgb;
+}
+
+// Every pixel is the solution Uplift gives it alone (no cache), the count that of the pixels it constrained, and
+// the output the same for 1 and 2 threads.
+TEST(Uplift, ImagePixelsAreThoseOfTheSingleSolveWhateverTheThreadCount) {
+  const std::size_t w = 37, h = 11, b = 31;
+  const std::vector<float> rgb = hue_image(w, h);
+  const Uplift up(rgb_weights(grid31(), Eigen::VectorXd::Ones(31)), kDefaultUpliftAlpha);
+  const int saved = omp_get_max_threads();
+  for (const UpliftMethod method : {UpliftMethod::clamp, UpliftMethod::nonnegative}) {
+    std::vector<float> one(w * h * b, -1), two(w * h * b, -2);
+    omp_set_num_threads(1);
+    const std::size_t c1 = uplift_image(rgb, w, h, up, method, one);
+    omp_set_num_threads(2);
+    const std::size_t c2 = uplift_image(rgb, w, h, up, method, two);
+    omp_set_num_threads(saved);
+    EXPECT_EQ(one, two);
+    EXPECT_EQ(c1, c2);
+    std::size_t constrained = 0;
+    Eigen::VectorXd x(31);
+    for (std::size_t p = 0; p < w * h; ++p) {
+      const Eigen::Vector3d c(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]);
+      constrained += method == UpliftMethod::clamp ? up.clamped(c, x) : up.nonnegative(c, x);
+      for (std::size_t k = 0; k < b; ++k)
+        ASSERT_NEAR(one[p * b + k], x[Eigen::Index(k)], 1e-6 * std::max(1.0, x.cwiseAbs().maxCoeff())) << p << " " << k;
+    }
+    EXPECT_EQ(c1, constrained);
+    EXPECT_GT(constrained, w * h / 4);
+  }
+}
+
+TEST(Uplift, ImageWithANegativeChannelOrWrongSizesIsRejected) {
+  const std::size_t w = 5, h = 3;
+  std::vector<float> rgb(3 * w * h, 0.5f), out(31 * w * h);
+  const Uplift up(rgb_weights(grid31(), Eigen::VectorXd::Ones(31)), kDefaultUpliftAlpha);
+  rgb[3 * (2 * w + 4) + 1] = -0.25f;
+  EXPECT_EQ(test::input_error_text([&] { uplift_image(rgb, w, h, up, UpliftMethod::clamp, out); }),
+            "pixel (4, 2) has a negative channel; radiance must be non-negative");
+  rgb[3 * (2 * w + 4) + 1] = 0.25f;
+  EXPECT_THROW(uplift_image(rgb, w, h + 1, up, UpliftMethod::clamp, out), UsageError);
+  EXPECT_THROW(uplift_image(rgb, w, h, up, UpliftMethod::clamp, std::span<float>(out).first(10)), UsageError);
+  EXPECT_EQ(uplift_image(rgb, w, h, up, UpliftMethod::nonnegative, out), 0u);
 }
 
 }  // namespace
