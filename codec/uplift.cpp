@@ -101,7 +101,8 @@ bool Uplift::nonnegative(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd>
   const Eigen::Matrix<double, Eigen::Dynamic, 3> sp = gp.ldlt().solve(rp);
   entry.x = Eigen::Matrix<double, Eigen::Dynamic, 3>::Zero(n, 3);
   for (Eigen::Index a = 0; a < k; ++a) entry.x.row(idx[std::size_t(a)]) = sp.row(a);
-  entry.w = at_ - gram * entry.x;
+  // A coefficient-wise product: Eigen's blocked GEMM gave last-bit differences between thread counts here.
+  entry.w = at_ - gram.lazyProduct(entry.x);
   constexpr std::size_t kEntries = 16;
   if (entries.size() == kEntries) entries.pop_back();
   entries.insert(entries.begin(), std::move(entry));
@@ -119,31 +120,35 @@ store::Grid uplift_merl(const MerlBrdf& rgb, const WavelengthGrid& wavelengths, 
   grid.units = "1/sr";
   grid.brdf.assign(b * brdf::kMerlCells, -1.0f);
   const Eigen::MatrixXd a = uplift.system().topRows(3);
-  std::size_t cells = 0, constrained = 0;
-  double max_err = 0;
-  constexpr std::ptrdiff_t kBlock = 4096;
-  const auto n = std::ptrdiff_t(brdf::kMerlCells);
-#pragma omp parallel reduction(+ : cells, constrained) reduction(max : max_err)
-  {
+  // One active-set cache per block of cells, not per thread: a cache hit agrees with a fresh solve only to
+  // rounding, so the grid must not depend on which cells a thread happened to see before.
+  constexpr std::size_t kBlock = 4096;
+  struct BlockTally {
+    std::size_t cells = 0, constrained = 0;
+    double max_err = 0;
+  };
+  std::vector<BlockTally> tally((brdf::kMerlCells + kBlock - 1) / kBlock);
+  parallel_for(tally.size(), [&](std::size_t blk) {
     Eigen::VectorXd x = Eigen::VectorXd::Zero(Eigen::Index(b));
     UpliftCache cache;
-#pragma omp for schedule(dynamic)
-    for (std::ptrdiff_t c0 = 0; c0 < n; c0 += kBlock) {
-      if (interrupt_requested()) continue;
-      for (std::ptrdiff_t c = c0; c < std::min(n, c0 + kBlock); ++c) {
-        const auto cell = std::size_t(c);
-        if (!rgb.has_data(cell)) continue;
-        const Eigen::Vector3d v(rgb.value(0, cell), rgb.value(1, cell), rgb.value(2, cell));
-        const bool changed = method == UpliftMethod::clamp ? uplift.clamped(v, x) : uplift.nonnegative(v, x, &cache);
-        ++cells;
-        constrained += changed;
-        const double err = (a * x - v).cwiseAbs().maxCoeff() / std::max(v.cwiseAbs().maxCoeff(), 1e-300);
-        max_err = std::max(max_err, err);
-        for (std::size_t k = 0; k < b; ++k) grid.brdf[k * brdf::kMerlCells + cell] = float(x[Eigen::Index(k)]);
-      }
+    BlockTally& t = tally[blk];
+    for (std::size_t cell = blk * kBlock; cell < std::min(brdf::kMerlCells, (blk + 1) * kBlock); ++cell) {
+      if (!rgb.has_data(cell)) continue;
+      const Eigen::Vector3d v(rgb.value(0, cell), rgb.value(1, cell), rgb.value(2, cell));
+      const bool changed = method == UpliftMethod::clamp ? uplift.clamped(v, x) : uplift.nonnegative(v, x, &cache);
+      ++t.cells;
+      t.constrained += changed;
+      t.max_err = std::max(t.max_err, (a * x - v).cwiseAbs().maxCoeff() / std::max(v.cwiseAbs().maxCoeff(), 1e-300));
+      for (std::size_t k = 0; k < b; ++k) grid.brdf[k * brdf::kMerlCells + cell] = float(x[Eigen::Index(k)]);
     }
+  });
+  std::size_t cells = 0, constrained = 0;
+  double max_err = 0;
+  for (const BlockTally& t : tally) {
+    cells += t.cells;
+    constrained += t.constrained;
+    max_err = std::max(max_err, t.max_err);
   }
-  check_interrupt();
   if (report) *report = {cells, constrained, max_err};
   return grid;
 }

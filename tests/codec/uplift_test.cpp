@@ -270,3 +270,34 @@ TEST(Uplift, ImageWithANegativeChannelOrWrongSizesIsRejected) {
 
 }  // namespace
 }  // namespace specula::codec
+
+namespace specula::codec {
+namespace {
+
+// Saturated hues in every 7th cell, repeating so the active-set caches hit: the grid is bit-identical for 1 and
+// 2 threads (caches live per block of cells, not per thread).
+TEST(Uplift, MerlGridDoesNotDependOnTheThreadCount) {
+  const std::vector<float> hues = hue_image(48, 8);
+  MerlBrdf rgb;
+  for (std::size_t cell = 0, i = 0; cell < brdf::kMerlCells; cell += 7, i = (i + 1) % (48 * 8))
+    rgb.set(cell, Eigen::Vector3d(hues[3 * i], hues[3 * i + 1], hues[3 * i + 2]));
+  const Uplift up(rgb_weights(grid31(), Eigen::VectorXd::Ones(31)), kDefaultUpliftAlpha);
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  UpliftReport r1, r2;
+  const store::Grid one = uplift_merl(rgb, grid31(), up, UpliftMethod::nonnegative, &r1);
+  omp_set_num_threads(2);
+  const store::Grid two = uplift_merl(rgb, grid31(), up, UpliftMethod::nonnegative, &r2);
+  omp_set_num_threads(saved);
+  EXPECT_GT(r1.constrained, 0u);
+  EXPECT_EQ(r1.constrained, r2.constrained);
+  EXPECT_EQ(r1.max_rgb_error, r2.max_rgb_error);
+  std::size_t diff = 0, first = 0;
+  for (std::size_t i = 0; i < one.brdf.size(); ++i)
+    if (one.brdf[i] != two.brdf[i] && diff++ == 0) first = i;
+  EXPECT_EQ(diff, 0u) << "first at value " << first << " (cell " << first % brdf::kMerlCells << "): " << one.brdf[first]
+                      << " vs " << two.brdf[first];
+}
+
+}  // namespace
+}  // namespace specula::codec
