@@ -14,6 +14,7 @@
 #include "specula/store/io/envi.h"
 #include "specula/store/io/exr.h"
 #include "specula/store/io/mat.h"
+#include "specula/store/io/mask.h"
 #include "specula/store/io/png_stack.h"
 #include "specula/store/store.h"
 
@@ -94,13 +95,13 @@ void apply_nan_policy(Cube& c, const std::string& policy, const std::string& src
   fmt::print(stderr, "{}: masked {} pixels holding NaN/Inf\n", src, bad_pixels);
 }
 
-void load_mask_png(Cube& c, const std::string& path) {
-  const store::PngImage m = store::read_png(path);
+void apply_mask(Cube& c, const std::string& path) {
+  const store::Mask m = store::read_mask(path);
   if (m.width != c.width || m.height != c.height)
     throw InputError(fmt::format("{}: mask is {}x{}, image is {}x{}", path, m.width, m.height, c.width, c.height));
   if (c.mask.empty()) c.mask.assign(c.width * c.height, 1);
   for (std::size_t p = 0; p < c.width * c.height; ++p)
-    if (m.samples[p * m.channels] == 0) c.mask[p] = 0;
+    if (!m.valid[p]) c.mask[p] = 0;
 }
 
 std::string default_name(const std::filesystem::path& p) {
@@ -196,7 +197,7 @@ void run_import(const ImportOptions& o) {
     } else {
       throw UsageError("--format '" + item.format + "': use auto, envi, mat, png, exr or csv");
     }
-    if (!o.mask.empty() && item.format != "mat") load_mask_png(cube, o.mask);
+    if (!o.mask.empty() && item.format != "mat") apply_mask(cube, o.mask);
     if (!o.units.empty()) cube.units = o.units;
     apply_nan_policy(cube, o.nan, src);
     if (!target.empty() && !target.approx_equal(cube.wavelengths)) {
@@ -234,7 +235,7 @@ void setup_import(CLI::App& app) {
                   "Target grid FIRST:LAST:STEP or a comma list; data is resampled linearly onto it (no extrapolation). "
                   "Also the data's own grid when it carries none (PNG stacks)");
   cmd->add_option("--source-wavelengths", o->source_wavelengths, "The data's own grid when it carries none and --wavelengths resamples");
-  cmd->add_option("--mask", o->mask, "Mask: a PNG file (nonzero = valid), or for .mat the name of a mask variable");
+  cmd->add_option("--mask", o->mask, "Mask: a PNG or a one-band ENVI image (nonzero = valid), or for .mat the name of a mask variable");
   cmd->add_option("--var", o->var, "Cube variable in a .mat file")->capture_default_str();
   cmd->add_option("--format", o->format, "auto, envi, mat, png, exr or csv")
       ->check(CLI::IsMember({"auto", "envi", "mat", "png", "exr", "csv"}))

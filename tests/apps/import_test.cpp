@@ -294,3 +294,25 @@ TEST(ImportCli, EnviWithoutWavelengthsTakesTheFlagAndNamesIt) {
   EXPECT_EQ(c.wavelengths[2], 600.0);
   EXPECT_EQ(c.data, (std::vector<float>{1, 2, 3, 4, 5, 6}));
 }
+
+TEST(ImportCli, EnviByteMaskMasksTheImage) {
+  const test::ScratchDir dir;
+  write_envi(dir / "scene", 2, 3, 4);
+  {
+    std::ofstream(dir / "roi.hdr") << "ENVI\nsamples = 3\nlines = 2\nbands = 1\nheader offset = 0\ndata type = 1\n"
+                                      "interleave = bsq\nbyte order = 0\n";
+    const std::uint8_t roi[6] = {1, 0, 1, 1, 1, 0};
+    std::ofstream(dir / "roi.img", std::ios::binary).write(reinterpret_cast<const char*>(roi), 6);
+  }
+  const std::string store = "'" + (dir / "db.h5").string() + "'";
+  auto r = run_specula("-q import '" + (dir / "scene.hdr").string() + "' --mask '" + (dir / "roi.img").string() + "' -o " + store);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(store::Store::open(dir / "db.h5").read_image("scene").mask, (std::vector<std::uint8_t>{1, 0, 1, 1, 1, 0}));
+  // A mask of another size: one line, the store as it was.
+  const std::string before = test::read_bytes(dir / "db.h5");
+  write_envi(dir / "big", 3, 3, 4);
+  r = run_specula("-q import '" + (dir / "big.hdr").string() + "' --mask '" + (dir / "roi.hdr").string() + "' -o " + store);
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("roi.hdr: mask is 3x2, image is 3x3"), std::string::npos) << r.output;
+  EXPECT_EQ(test::read_bytes(dir / "db.h5"), before);
+}
