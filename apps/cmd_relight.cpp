@@ -46,14 +46,15 @@ void run_relight(const RelightOptions& o) {
     settings.exposure_stops = auto_exposure_stops(r.original.cwiseMax(r.spectral), cube.mask, SpectrumKind::radiance);
   const std::size_t w = cube.width, h = cube.height;
   std::vector<Picture> panels;
-  panels.push_back(render_xyz(r.original, r.white_from, w, h, {}, SpectrumKind::radiance, settings));
-  panels.push_back(render_xyz(r.spectral, r.white_to, w, h, {}, SpectrumKind::radiance, settings));
-  panels.push_back(render_xyz(r.rgb, r.white_to, w, h, {}, SpectrumKind::radiance, settings));
+  panels.push_back(render_xyz(r.original, r.white_from, w, h, cube.mask, SpectrumKind::radiance, settings));
+  panels.push_back(render_xyz(r.spectral, r.white_to, w, h, cube.mask, SpectrumKind::radiance, settings));
+  panels.push_back(render_xyz(r.rgb, r.white_to, w, h, cube.mask, SpectrumKind::radiance, settings));
   Picture& map = panels.emplace_back(Picture{w, h, std::vector<std::uint8_t>(3 * w * h), {}});
   for (std::size_t p = 0; p < w * h; ++p) {
     const Rgb8 c = heat(r.ciede2000[p] / 10.0);
     std::copy(c.begin(), c.end(), map.srgb8.begin() + std::ptrdiff_t(3 * p));
   }
+  paint_masked(map.srgb8, cube.mask);
   const Picture out = side_by_side(panels, 4);
   store::write_png_rgb8(o.output, out.width, out.height, out.srgb8);
   if (o.json) {
