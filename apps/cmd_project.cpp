@@ -123,26 +123,25 @@ KResult project(const Cube& cube, const stats::Projector& projector, Cube& recon
   recon.data.assign(cube.data.size(), 0.0f);
   stats::ProjectionError summary;
   RowMatrixXd x, coef, xr;
-  Eigen::VectorXd e2;
+  Eigen::VectorXd err;
   for (std::size_t y0 = 0; y0 < cube.height; y0 += rows_per_block) {
     const Eigen::Index m = Eigen::Index(std::min(rows_per_block, cube.height - y0) * w);
     const std::size_t first = y0 * w;
     x = Eigen::Map<const RowMatrixXf>(cube.data.data() + first * b, m, Eigen::Index(b)).cast<double>();
     coef.resize(m, Eigen::Index(k));
     xr.resize(m, Eigen::Index(b));
-    e2.resize(m);
-    projector.project(x, coef);
-    projector.reconstruct(coef, xr);
-    stats::squared_errors(x, xr, e2);
+    err.resize(m);
+    const std::span<const std::uint8_t> mask =
+        cube.mask.empty() ? std::span<const std::uint8_t>() : std::span(cube.mask).subspan(first, std::size_t(m));
+    summary.merge(stats::project_rows(projector, x, mask, coef, xr, err));
     Eigen::Map<RowMatrixXf>(recon.data.data() + first * b, m, Eigen::Index(b)) = xr.cast<float>();
     for (Eigen::Index i = 0; i < m; ++i) {
       const std::size_t p = first + std::size_t(i);
-      if (!cube.mask.empty() && !cube.mask[p]) {
+      if (mask.empty() || mask[std::size_t(i)]) {
+        r.error[p] = float(err[i]);
+      } else {
         std::fill_n(recon.data.begin() + std::ptrdiff_t(p * b), b, 0.0f);  // as the store keeps masked pixels
-        continue;
       }
-      r.error[p] = float(std::sqrt(e2[i]));
-      summary.add(e2[i]);
     }
   }
   r.rms = summary.rms(b);

@@ -88,13 +88,7 @@ py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, c
     Eigen::Map<RowMatrixXd> c(coef.data(), n, Eigen::Index(k));
     Eigen::Map<RowMatrixXd> xr(recon.data(), n, b);
     Eigen::Map<Eigen::VectorXd> e(error.data(), n);
-    projector.project(x, c);
-    projector.reconstruct(c, xr);
-    stats::squared_errors(x, xr, e);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      if (mask.empty() || mask[std::size_t(i)]) summary.add(e[i]);
-      e[i] = std::sqrt(e[i]);
-    }
+    summary = stats::project_rows(projector, x, mask, c, xr, e);
   }
   std::vector<py::ssize_t> cshape = lead, rshape = lead;
   cshape.push_back(py::ssize_t(k));

@@ -53,6 +53,23 @@ void squared_errors(const Eigen::Ref<const RowMatrixXd>& spectra, const Eigen::R
   for (Eigen::Index i = 0; i < spectra.rows(); ++i) squared[i] = (spectra.row(i) - reconstruction.row(i)).squaredNorm();
 }
 
+ProjectionError project_rows(const Projector& projector, const Eigen::Ref<const RowMatrixXd>& spectra,
+                             std::span<const std::uint8_t> mask, Eigen::Ref<RowMatrixXd> coefficients,
+                             Eigen::Ref<RowMatrixXd> reconstruction, Eigen::Ref<Eigen::VectorXd> error) {
+  if (!mask.empty() && mask.size() != std::size_t(spectra.rows()))
+    throw UsageError("project_rows: mask has " + std::to_string(mask.size()) + " entries for " +
+                     std::to_string(spectra.rows()) + " spectra; give one per spectrum or none");
+  projector.project(spectra, coefficients);
+  projector.reconstruct(coefficients, reconstruction);
+  squared_errors(spectra, reconstruction, error);
+  ProjectionError summary;
+  for (Eigen::Index i = 0; i < spectra.rows(); ++i) {
+    if (mask.empty() || mask[std::size_t(i)]) summary.add(error[i]);
+    error[i] = std::sqrt(error[i]);
+  }
+  return summary;
+}
+
 Projector::Projector(const store::Basis& basis, std::optional<long long> k, const std::string& name)
     : method_(basis_method(basis, name)), label_(label(name)) {
   const auto all = static_cast<long long>(basis.k());

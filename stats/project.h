@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 
 #include "specula/core/colour.h"
@@ -46,6 +47,15 @@ struct ProjectionError {
 /// Squared L2 errors ||x_i - x'_i||^2 of the rows of `spectra` and `reconstruction` (both n x B) into `squared` (n).
 void squared_errors(const Eigen::Ref<const RowMatrixXd>& spectra, const Eigen::Ref<const RowMatrixXd>& reconstruction,
                     Eigen::Ref<Eigen::VectorXd> squared);
+
+class Projector;
+
+/// Projects the rows of `spectra` (n x B) and reconstructs them into caller-owned coefficients (n x k),
+/// reconstruction (n x B) and L2 errors (n); returns the errors of the rows `mask` keeps (n bytes, nonzero = kept;
+/// empty: all). UsageError on other sizes.
+ProjectionError project_rows(const Projector& projector, const Eigen::Ref<const RowMatrixXd>& spectra,
+                             std::span<const std::uint8_t> mask, Eigen::Ref<RowMatrixXd> coefficients,
+                             Eigen::Ref<RowMatrixXd> reconstruction, Eigen::Ref<Eigen::VectorXd> error);
 
 /// Projection onto one basis; construct once, then project and reconstruct from any number of threads at once.
 class Projector {

@@ -214,3 +214,29 @@ TEST(Projector, OneAndTwoThreadsGiveIdenticalResults) {
     EXPECT_LT((c - one.first).cwiseAbs().maxCoeff(), 1e-9);
   }
 }
+
+TEST(Projector, ProjectRowsReturnsEveryOutputAndSumsOnlyTheKeptRows) {
+  const stats::Projector p(nmf_basis_of(4), std::nullopt);
+  const RowMatrixXd x = random_rows(9, 21, 0, 1);
+  const std::vector<std::uint8_t> mask{1, 0, 1, 1, 0, 1, 1, 1, 0};
+  RowMatrixXd c(9, 4), xr(9, kB);
+  Eigen::VectorXd e(9);
+  const stats::ProjectionError s = stats::project_rows(p, x, mask, c, xr, e);
+  RowMatrixXd c_ref(9, 4), xr_ref(9, kB);
+  p.project(x, c_ref);
+  p.reconstruct(c_ref, xr_ref);
+  EXPECT_EQ(c, c_ref);
+  EXPECT_EQ(xr, xr_ref);
+  double sum_sq = 0, max_error = 0;
+  for (Eigen::Index i = 0; i < 9; ++i) {
+    const double direct = (x.row(i) - xr_ref.row(i)).norm();
+    EXPECT_NEAR(e[i], direct, 1e-12) << i;
+    if (!mask[std::size_t(i)]) continue;
+    sum_sq += direct * direct;
+    max_error = std::max(max_error, direct);
+  }
+  EXPECT_EQ(s.count, 6u);
+  EXPECT_NEAR(s.sum_sq, sum_sq, 1e-12);
+  EXPECT_NEAR(s.max_error, max_error, 1e-12);
+  EXPECT_THROW(stats::project_rows(p, x, std::vector<std::uint8_t>(8, 1), c, xr, e), UsageError);
+}
