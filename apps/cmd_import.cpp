@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstring>
 #include <cmath>
+#include <utility>
 
 #include "apps/commands.h"
 #include "apps/common.h"
@@ -257,8 +258,9 @@ void setup_import(CLI::App& app) {
       run_import(*o);
     } catch (const InputError& e) {  // the importers name their parameter; here it is a flag
       std::string m = e.what();
-      for (std::size_t at; (at = m.find("the `wavelengths` option")) != std::string::npos;)
-        m.replace(at, std::strlen("the `wavelengths` option"), "--wavelengths");
+      for (const auto& [param, flag] : {std::pair<std::string, std::string>{"the `wavelengths` option", "--wavelengths"},
+                                        {"the `var` option", "--var"}})
+        for (std::size_t at; (at = m.find(param)) != std::string::npos;) m.replace(at, param.size(), flag);
       throw InputError(m);
     }
   });

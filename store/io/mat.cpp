@@ -313,7 +313,7 @@ std::optional<std::string> detect_cube_var(const MatFile& mf, const std::vector<
     std::string list;
     for (const auto& c : cubes) list += (list.empty() ? "" : ", ") + c;
     throw InputError(mf.file() + ": several 3-D variables (" + list +
-                     ") and none of the known names ref, rad, cube, reflectances, data; pass the variable name");
+                     ") and none of the known names ref, rad, cube, reflectances, data; give its name as the `var` option");
   }
   return std::nullopt;
 }
@@ -342,10 +342,10 @@ Layout image_layout(MatFile& mf, const std::vector<Entry>& all, const std::strin
       auto m = detect_matrix_var(all, static_cast<std::size_t>(*nrow) * static_cast<std::size_t>(*ncol));
       if (!m)
         throw InputError(file + ": nRow and nCol but no matrix 'Y' of bands x nRow*nCol pixels (" + list_names(all) +
-                         "); pass the variable name");
+                         "); give its name as the `var` option");
       var = *m;
     } else {
-      throw InputError(file + ": no 3-D image variable (" + list_names(all) + "); pass the variable name");
+      throw InputError(file + ": no 3-D image variable (" + list_names(all) + "); give its name as the `var` option");
     }
   }
   const Var head = mf.info_or_throw(var, "");
@@ -541,7 +541,7 @@ Collection read_mat_collection(const std::filesystem::path& path, const std::str
   std::string var = var_in;
   if (var.empty()) {
     auto d = detect_library_var(all, fg);
-    if (!d) throw InputError(file + ": no 2-D spectra matrix 'data' (" + list_names(all) + "); pass the variable name");
+    if (!d) throw InputError(file + ": no 2-D spectra matrix 'data' (" + list_names(all) + "); give its name as the `var` option");
     var = *d;
   }
   const Var head = mf.info_or_throw(var, "");

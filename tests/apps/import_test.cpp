@@ -384,3 +384,12 @@ TEST(ImportCli, MatWithoutWavelengthsAsksForTheFlag) {
   expect_rejected(dir, "'" + mat.string() + "'", "Indian_pines_corrected.mat",
                   "bands of 'indian_pines_corrected'; give --wavelengths FIRST:LAST:STEP");
 }
+
+TEST(ImportCli, MatWithSeveralCubesAsksForVar) {
+  test::ScratchDir dir;
+  make_store(dir);
+  auto mat = dir / "two.mat";
+  write_mat_vars(mat, MAT_FT_MAT5, {{"a", {2, 2, 3}, std::vector<double>(12, 1.0)}, {"b", {2, 2, 3}, std::vector<double>(12, 2.0)}});
+  expect_rejected(dir, "'" + mat.string() + "' --wavelengths 400:420:10", "two.mat", "(a, b) and none of the known names");
+  expect_rejected(dir, "'" + mat.string() + "' --wavelengths 400:420:10", "two.mat", "give its name as --var");
+}

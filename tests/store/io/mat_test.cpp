@@ -339,7 +339,7 @@ TEST(MatLayouts, IndianPinesUnknownNameAndAmbiguity) {
                          make_var("b", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands}, column_major<double>())}));
   const std::string amb = input_error([&] { read_mat(dir / "two.mat", "", std::nullopt, WavelengthGrid(kNm)); });
   EXPECT_NE(amb.find("several 3-D variables (a, b)"), std::string::npos) << amb;
-  EXPECT_NE(amb.find("pass the variable name"), std::string::npos) << amb;
+  EXPECT_NE(amb.find("give its name as the `var` option"), std::string::npos) << amb;
   expect_cube(read_mat(dir / "two.mat", "b", std::nullopt, WavelengthGrid(kNm)));
 }
 
