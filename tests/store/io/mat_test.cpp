@@ -411,5 +411,22 @@ TEST(MatLayouts, IsetcamLibraryIsACollection) {
   }
 }
 
+TEST(MatLayouts, WavelengthNamesAndUnitsRule) {
+  ScratchDir dir;
+  const std::vector<double> numbering = {1, 2, 3, 4, 5}, ints = {1, 2, 3, 4, 6};
+  ASSERT_TRUE(write_mat(dir / "n.mat", MAT_FT_MAT5,
+                        {ref_double(), make_var("bands", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands}, numbering)}));
+  std::string m = input_error([&] { read_mat(dir / "n.mat", "", std::nullopt, {}); });
+  EXPECT_NE(m.find("variable 'bands' holds band numbers 1..5, not wavelengths; give the `wavelengths` option"),
+            std::string::npos) << m;
+  EXPECT_EQ(read_mat(dir / "n.mat", "", std::nullopt, WavelengthGrid(kNm)).wavelengths[4], 600.0);
+  // `WL` matches case-insensitively; integers below 20 are not micrometres, they stay nm.
+  ASSERT_TRUE(write_mat(dir / "i.mat", MAT_FT_MAT5,
+                        {ref_double(), make_var("WL", MAT_C_DOUBLE, MAT_T_DOUBLE, {kBands, 1}, ints)}));
+  const Cube cube = read_mat(dir / "i.mat", "", std::nullopt, {});
+  expect_cube(cube, 0.5);
+  EXPECT_EQ(cube.wavelengths[4], 6.0);
+}
+
 }  // namespace
 }  // namespace specula::store
