@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstring>
 #include <cmath>
+#include <utility>
 
 #include "apps/commands.h"
 #include "apps/common.h"
@@ -28,7 +29,7 @@ struct ImportOptions {
   std::string wavelengths;
   std::string source_wavelengths;
   std::string mask;
-  std::string var = "ref";
+  std::string var;  // empty: detected from the file (store/io/mat.h)
   std::string format = "auto";
   std::string nan = "reject";
   std::string compression = "deflate";
@@ -144,17 +145,23 @@ void run_import(const ImportOptions& o) {
     const std::filesystem::path& first = item.files.front();
     const std::string src = first.string();
     const std::string name = o.name.empty() ? default_name(first) : o.name;
-    if (item.format == "csv") {
+    // A .mat spectral library (2-D spectra + wavelength vector, the ISETCam layout) lands as a collection.
+    const bool mat_library = item.format == "mat" && store::mat_kind(first, o.var) == store::MatKind::collection;
+    if (item.format == "csv" || mat_library) {
       // The target grid is the table's own grid only for a table without a wavelength header.
       store::Collection col;
-      try {
-        col = store::read_csv_collection(first, source);
-      } catch (const InputError& no_grid) {
-        if (!source.empty() || target.empty()) throw;
+      if (mat_library) {
+        col = store::read_mat_collection(first, o.var, given);
+      } else {
         try {
-          col = store::read_csv_collection(first, target);
-        } catch (const InputError&) {
-          throw no_grid;
+          col = store::read_csv_collection(first, source);
+        } catch (const InputError& no_grid) {
+          if (!source.empty() || target.empty()) throw;
+          try {
+            col = store::read_csv_collection(first, target);
+          } catch (const InputError&) {
+            throw no_grid;
+          }
         }
       }
       if (!target.empty() && !target.approx_equal(col.wavelengths)) {
@@ -163,7 +170,7 @@ void run_import(const ImportOptions& o) {
       }
       if (!o.units.empty()) col.units = o.units;
       col.provenance.source_file = src;
-      col.provenance.importer = "csv";
+      col.provenance.importer = item.format;
       writer.add_collection(name, col);
       report.push_back(fmt::format("imported collection {}: {} spectra, {}", name, col.size(), col.wavelengths.describe()));
       continue;
@@ -236,7 +243,7 @@ void setup_import(CLI::App& app) {
                   "Also the data's own grid when it carries none (PNG stacks)");
   cmd->add_option("--source-wavelengths", o->source_wavelengths, "The data's own grid when it carries none and --wavelengths resamples");
   cmd->add_option("--mask", o->mask, "Mask: a PNG or a one-band ENVI image (nonzero = valid), or for .mat the name of a mask variable");
-  cmd->add_option("--var", o->var, "Cube variable in a .mat file")->capture_default_str();
+  cmd->add_option("--var", o->var, "Cube or spectra variable in a .mat file (default: detected, e.g. ref, rad, cube, Y, data)");
   cmd->add_option("--format", o->format, "auto, envi, mat, png, exr or csv")
       ->check(CLI::IsMember({"auto", "envi", "mat", "png", "exr", "csv"}))
       ->capture_default_str();
@@ -251,8 +258,9 @@ void setup_import(CLI::App& app) {
       run_import(*o);
     } catch (const InputError& e) {  // the importers name their parameter; here it is a flag
       std::string m = e.what();
-      for (std::size_t at; (at = m.find("the `wavelengths` option")) != std::string::npos;)
-        m.replace(at, std::strlen("the `wavelengths` option"), "--wavelengths");
+      for (const auto& [param, flag] : {std::pair<std::string, std::string>{"the `wavelengths` option", "--wavelengths"},
+                                        {"the `var` option", "--var"}})
+        for (std::size_t at; (at = m.find(param)) != std::string::npos;) m.replace(at, param.size(), flag);
       throw InputError(m);
     }
   });

@@ -11,6 +11,8 @@
 #include <cstring>
 #include <fstream>
 #include <thread>
+#include <tuple>
+#include <vector>
 
 #include "specula/store/io/png_stack.h"
 #include "specula/store/store.h"
@@ -315,4 +317,79 @@ TEST(ImportCli, EnviByteMaskMasksTheImage) {
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("roi.hdr: mask is 3x2, image is 3x3"), std::string::npos) << r.output;
   EXPECT_EQ(test::read_bytes(dir / "db.h5"), before);
+}
+
+namespace {
+// Writes one double variable of MATLAB dims `dims` (column-major values) per entry.
+void write_mat_vars(const std::filesystem::path& p, mat_ft version,
+                    const std::vector<std::tuple<std::string, std::vector<std::size_t>, std::vector<double>>>& vars) {
+  mat_t* f = Mat_CreateVer(p.c_str(), nullptr, version);
+  ASSERT_NE(f, nullptr);
+  for (auto [name, dims, values] : vars) {
+    matvar_t* v = Mat_VarCreate(name.c_str(), MAT_C_DOUBLE, MAT_T_DOUBLE, int(dims.size()), dims.data(), values.data(), 0);
+    ASSERT_NE(v, nullptr);
+    EXPECT_EQ(Mat_VarWrite(f, v, MAT_COMPRESSION_NONE), 0);
+    Mat_VarFree(v);
+  }
+  Mat_Close(f);
+}
+}  // namespace
+
+TEST(ImportCli, MatLayoutsDetectedWithoutVar) {
+  test::ScratchDir dir;
+  auto db = dir / "db.h5";
+  // ARAD-1K: cube bands x rows x cols (v7.3) + bands; value at (r, c, b) = r + 10c + 100b.
+  const std::size_t h = 2, w = 3, b = 4;
+  std::vector<double> cube(h * w * b), y(h * w * b);
+  for (std::size_t r = 0; r < h; ++r)
+    for (std::size_t c = 0; c < w; ++c)
+      for (std::size_t k = 0; k < b; ++k) {
+        cube[k + b * (r + h * c)] = double(r + 10 * c + 100 * k);
+        y[k + b * (r + h * c)] = double(r + 10 * c + 100 * k);  // Jasper Ridge Y bands x pixels, p = r + nRow c
+      }
+  write_mat_vars(dir / "arad.mat", MAT_FT_MAT73, {{"cube", {b, h, w}, cube}, {"bands", {1, b}, {400, 410, 420, 430}}});
+  write_mat_vars(dir / "jasper.mat", MAT_FT_MAT5,
+                 {{"Y", {b, h * w}, y}, {"nRow", {1, 1}, {double(h)}}, {"nCol", {1, 1}, {double(w)}}});
+  // ISETCam library: wavelength 4 x 1, data 4 x 2 (spectra as columns).
+  write_mat_vars(dir / "lib.mat", MAT_FT_MAT5,
+                 {{"wavelength", {b, 1}, {400, 410, 420, 430}}, {"data", {b, 2}, {0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8}}});
+  auto r = run_specula("-q import '" + (dir / "arad.mat").string() + "' '" + (dir / "lib.mat").string() + "' -o '" +
+                       db.string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run_specula("-q import '" + (dir / "jasper.mat").string() + "' --wavelengths 400:430:10 -o '" + db.string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  auto s = store::Store::open(db);
+  for (const char* name : {"arad", "jasper"}) {
+    SCOPED_TRACE(name);
+    auto img = s.read_image(name);
+    ASSERT_EQ(img.height, h);
+    ASSERT_EQ(img.width, w);
+    ASSERT_EQ(img.bands, b);
+    EXPECT_EQ(img.pixel(1, 2)[3], float(1 + 20 + 300));
+    EXPECT_EQ(img.pixel(0, 1)[1], float(0 + 10 + 100));
+    EXPECT_EQ(img.wavelengths[3], 430.0);
+  }
+  auto lib = s.read_collection("lib");
+  ASSERT_EQ(lib.size(), 2u);
+  EXPECT_EQ(lib.names[1], "data_2");
+  EXPECT_EQ(lib.values[1 * b + 2], 0.7f);
+  EXPECT_EQ(lib.provenance.importer, "mat");
+}
+
+TEST(ImportCli, MatWithoutWavelengthsAsksForTheFlag) {
+  test::ScratchDir dir;
+  make_store(dir);
+  auto mat = dir / "Indian_pines_corrected.mat";
+  write_mat_vars(mat, MAT_FT_MAT5, {{"indian_pines_corrected", {2, 2, 3}, std::vector<double>(12, 1.0)}});
+  expect_rejected(dir, "'" + mat.string() + "'", "Indian_pines_corrected.mat",
+                  "bands of 'indian_pines_corrected'; give --wavelengths FIRST:LAST:STEP");
+}
+
+TEST(ImportCli, MatWithSeveralCubesAsksForVar) {
+  test::ScratchDir dir;
+  make_store(dir);
+  auto mat = dir / "two.mat";
+  write_mat_vars(mat, MAT_FT_MAT5, {{"a", {2, 2, 3}, std::vector<double>(12, 1.0)}, {"b", {2, 2, 3}, std::vector<double>(12, 2.0)}});
+  expect_rejected(dir, "'" + mat.string() + "' --wavelengths 400:420:10", "two.mat", "(a, b) and none of the known names");
+  expect_rejected(dir, "'" + mat.string() + "' --wavelengths 400:420:10", "two.mat", "give its name as --var");
 }

@@ -2,6 +2,7 @@
 
 #include <matio.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -208,7 +209,7 @@ TEST(Mat, BadInputs) {
   ASSERT_TRUE(write_mat(dir / "b.mat", MAT_FT_MAT5,
                         {ref_double(), make_var("i64", MAT_C_INT64, MAT_T_INT64, {kRows, kCols, kBands}, big)}));
   std::string m = input_error([&] { read_mat(dir / "b.mat", "ref", std::nullopt, {}); });
-  EXPECT_NE(m.find("b.mat: no 'wavelengths' or 'bands' variable; give the `wavelengths` option"), std::string::npos) << m;
+  EXPECT_NE(m.find("b.mat: no wavelength variable (wavelength, wavelengths, bands, wl or lambda) for the 5 bands of 'ref'; give the `wavelengths` option"), std::string::npos) << m;
   m = input_error([&] { read_mat(dir / "b.mat", "ref", std::nullopt, WavelengthGrid(short_wl)); });
   EXPECT_NE(m.find("has 5 bands but the `wavelengths` option gives 2"), std::string::npos) << m;
   m = input_error([&] { read_mat(dir / "b.mat", "i64", std::nullopt, WavelengthGrid(kNm)); });
@@ -243,6 +244,188 @@ TEST(Mat, TwoDimensionalVariableIsOneBand) {
   EXPECT_EQ(cube.pixel(1, 0)[0], 2.0f);
   EXPECT_EQ(cube.pixel(0, 2)[0], 5.0f);
   EXPECT_EQ(cube.pixel(1, 2)[0], 6.0f);
+}
+
+// ---- Layouts of public databases: each fixture plants f(r, c, b) and reads it back at (r, c, b).
+
+// Bands first: element (b, r, c) at b + bands * (r + rows * c), as matio reports a B x H x W variable.
+std::vector<float> bands_first() {
+  std::vector<float> out(kRows * kCols * kBands);
+  for (std::size_t r = 0; r < kRows; ++r)
+    for (std::size_t c = 0; c < kCols; ++c)
+      for (std::size_t b = 0; b < kBands; ++b) out[b + kBands * (r + kRows * c)] = static_cast<float>(f(r, c, b));
+  return out;
+}
+
+TEST(MatLayouts, HarvardRefWithLblMaskDetected) {
+  for (mat_ft version : {MAT_FT_MAT5, MAT_FT_MAT73}) {
+    ScratchDir dir;
+    std::vector<std::uint8_t> lbl(kRows * kCols, 1);
+    lbl[2 + kRows * 1] = 0;  // (2, 1) invalid
+    if (!write_mat(dir / "img1.mat", version,
+                   {ref_double(), make_var("lbl", MAT_C_UINT8, MAT_T_UINT8, {kRows, kCols}, lbl)}))
+      GTEST_SKIP() << "no v7.3 support in this matio";
+    EXPECT_EQ(mat_kind(dir / "img1.mat"), MatKind::image);
+    const Cube cube = read_mat(dir / "img1.mat", "", std::string("lbl"), WavelengthGrid(kNm));
+    expect_cube(cube, 0.5);
+    EXPECT_FALSE(cube.valid(2, 1));
+    EXPECT_TRUE(cube.valid(1, 2));
+  }
+}
+
+TEST(MatLayouts, IcvlRadBandsV73AndAradCubeBandsFirst) {
+  ScratchDir dir;
+  // ICVL: rad rows x cols x bands with `bands` in nm, v7.3.
+  if (!write_mat(dir / "icvl.mat", MAT_FT_MAT73,
+                 {make_var("rad", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands}, column_major<double>()),
+                  make_var("bands", MAT_C_DOUBLE, MAT_T_DOUBLE, {kBands, 1}, kNm)}))
+    GTEST_SKIP() << "no v7.3 support in this matio";
+  Cube cube = read_mat(dir / "icvl.mat", "", std::nullopt, {});
+  expect_cube(cube);
+  EXPECT_EQ(cube.wavelengths[3], 550.0);
+  // ARAD-1K as seen through HDF5: cube bands x rows x cols, single, `bands` a row vector.
+  ASSERT_TRUE(write_mat(dir / "arad.mat", MAT_FT_MAT73,
+                        {make_var("cube", MAT_C_SINGLE, MAT_T_SINGLE, {kBands, kRows, kCols}, bands_first()),
+                         make_var("bands", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands}, kNm)}));
+  {
+    mat_t* m = Mat_Open((dir / "arad.mat").c_str(), MAT_ACC_RDONLY);
+    ASSERT_NE(m, nullptr);
+    matvar_t* v = Mat_VarReadInfo(m, "cube");
+    ASSERT_NE(v, nullptr);
+    EXPECT_EQ(v->dims[0], kBands);  // matio reports the dims as written (it undoes HDF5's reversal)
+    EXPECT_EQ(v->dims[2], kCols);
+    Mat_VarFree(v);
+    Mat_Close(m);
+  }
+  cube = read_mat(dir / "arad.mat", "", std::nullopt, {});
+  expect_cube(cube);
+  EXPECT_EQ(cube.wavelengths[0], 400.0);
+  // The same bands-first cube in a v5 file, named explicitly, wavelengths in micrometres as `Lambda`.
+  const std::vector<double> um = {0.4, 0.45, 0.5, 0.55, 0.6};
+  ASSERT_TRUE(write_mat(dir / "um.mat", MAT_FT_MAT5,
+                        {make_var("x", MAT_C_SINGLE, MAT_T_SINGLE, {kBands, kRows, kCols}, bands_first()),
+                         make_var("Lambda", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands}, um)}));
+  cube = read_mat(dir / "um.mat", "x", std::nullopt, {});
+  expect_cube(cube);
+  EXPECT_NEAR(cube.wavelengths[1], 450.0, 1e-9);
+}
+
+TEST(MatLayouts, FosterReflectancesNeedTheOption) {
+  ScratchDir dir;
+  ASSERT_TRUE(write_mat(dir / "foster.mat", MAT_FT_MAT5,
+                        {make_var("reflectances", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands},
+                                  column_major<double>())}));
+  const std::string m = input_error([&] { read_mat(dir / "foster.mat", "", std::nullopt, {}); });
+  EXPECT_EQ(m, (dir / "foster.mat").string() +
+                   ": no wavelength variable (wavelength, wavelengths, bands, wl or lambda) for the 5 bands of "
+                   "'reflectances'; give the `wavelengths` option FIRST:LAST:STEP");
+  const Cube cube = read_mat(dir / "foster.mat", "", std::nullopt, WavelengthGrid::range(410, 450, 10));
+  expect_cube(cube);
+  EXPECT_EQ(cube.wavelengths[4], 450.0);
+}
+
+TEST(MatLayouts, IndianPinesUnknownNameAndAmbiguity) {
+  ScratchDir dir;
+  ASSERT_TRUE(write_mat(dir / "Indian_pines_corrected.mat", MAT_FT_MAT5,
+                        {make_var("indian_pines_corrected", MAT_C_UINT16, MAT_T_UINT16, {kRows, kCols, kBands},
+                                  column_major<std::uint16_t>(1000))}));
+  const std::string m = input_error([&] { read_mat(dir / "Indian_pines_corrected.mat", "", std::nullopt, {}); });
+  EXPECT_EQ(std::count(m.begin(), m.end(), '\n'), 0);
+  EXPECT_NE(m.find("bands of 'indian_pines_corrected'; give the `wavelengths` option"), std::string::npos) << m;
+  expect_cube(read_mat(dir / "Indian_pines_corrected.mat", "", std::nullopt, WavelengthGrid(kNm)), 1000);
+
+  ASSERT_TRUE(write_mat(dir / "two.mat", MAT_FT_MAT5,
+                        {make_var("a", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands}, column_major<double>()),
+                         make_var("b", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands}, column_major<double>())}));
+  const std::string amb = input_error([&] { read_mat(dir / "two.mat", "", std::nullopt, WavelengthGrid(kNm)); });
+  EXPECT_NE(amb.find("several 3-D variables (a, b)"), std::string::npos) << amb;
+  EXPECT_NE(amb.find("give its name as the `var` option"), std::string::npos) << amb;
+  expect_cube(read_mat(dir / "two.mat", "b", std::nullopt, WavelengthGrid(kNm)));
+}
+
+TEST(MatLayouts, JasperRidgeYWithNRowNColColumnMajorPixels) {
+  // Y is bands x pixels, pixel p = r + nRow * c; also pixels x bands; and SlectBands picks from a full grid.
+  std::vector<double> bp(kBands * kRows * kCols), pb(kBands * kRows * kCols);
+  const std::size_t px = kRows * kCols;
+  for (std::size_t r = 0; r < kRows; ++r)
+    for (std::size_t c = 0; c < kCols; ++c)
+      for (std::size_t b = 0; b < kBands; ++b) {
+        bp[b + kBands * (r + kRows * c)] = f(r, c, b);
+        pb[(r + kRows * c) + px * b] = f(r, c, b);
+      }
+  const std::vector<double> nrow = {double(kRows)}, ncol = {double(kCols)};
+  const std::vector<double> kept = {2, 3, 5, 8, 9};  // 1-based into a 10-band grid 400:490:10
+  for (mat_ft version : {MAT_FT_MAT5, MAT_FT_MAT73}) {
+    ScratchDir dir;
+    if (!write_mat(dir / "jasper.mat", version,
+                   {make_var("Y", MAT_C_DOUBLE, MAT_T_DOUBLE, {kBands, px}, bp),
+                    make_var("nRow", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, nrow),
+                    make_var("nCol", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, ncol),
+                    make_var("SlectBands", MAT_C_DOUBLE, MAT_T_DOUBLE, {kBands, 1}, kept)}))
+      GTEST_SKIP() << "no v7.3 support in this matio";
+    EXPECT_EQ(mat_kind(dir / "jasper.mat"), MatKind::image);
+    Cube cube = read_mat(dir / "jasper.mat", "", std::nullopt, WavelengthGrid(kNm));
+    expect_cube(cube);
+    cube = read_mat(dir / "jasper.mat", "", std::nullopt, WavelengthGrid::range(400, 490, 10));
+    expect_cube(cube);
+    EXPECT_EQ(cube.wavelengths[0], 410.0);
+    EXPECT_EQ(cube.wavelengths[4], 480.0);
+    ASSERT_TRUE(write_mat(dir / "urban.mat", version,
+                          {make_var("A", MAT_C_DOUBLE, MAT_T_DOUBLE, {px, kBands}, pb),
+                           make_var("nRow", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, nrow),
+                           make_var("nCol", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, ncol)}));
+    expect_cube(read_mat(dir / "urban.mat", "", std::nullopt, WavelengthGrid(kNm)));
+  }
+}
+
+TEST(MatLayouts, IsetcamLibraryIsACollection) {
+  // wavelength N x 1 and data N x M (one spectrum per column); also M x N (rows) named explicitly.
+  constexpr std::size_t kSpectra = 3;
+  std::vector<double> cols(kBands * kSpectra), rows(kBands * kSpectra);
+  for (std::size_t j = 0; j < kSpectra; ++j)
+    for (std::size_t k = 0; k < kBands; ++k) {
+      cols[k + kBands * j] = 0.1 * double(j) + 0.01 * double(k);
+      rows[j + kSpectra * k] = 0.1 * double(j) + 0.01 * double(k);
+    }
+  for (mat_ft version : {MAT_FT_MAT5, MAT_FT_MAT73}) {
+    ScratchDir dir;
+    if (!write_mat(dir / "lib.mat", version,
+                   {make_var("wavelength", MAT_C_DOUBLE, MAT_T_DOUBLE, {kBands, 1}, kNm),
+                    make_var("data", MAT_C_DOUBLE, MAT_T_DOUBLE, {kBands, kSpectra}, cols),
+                    make_var("rowwise", MAT_C_DOUBLE, MAT_T_DOUBLE, {kSpectra, kBands}, rows)}))
+      GTEST_SKIP() << "no v7.3 support in this matio";
+    EXPECT_EQ(mat_kind(dir / "lib.mat"), MatKind::collection);
+    EXPECT_EQ(mat_kind(dir / "lib.mat", "rowwise"), MatKind::collection);
+    for (const char* var : {"", "rowwise"}) {
+      SCOPED_TRACE(var);
+      const Collection col = read_mat_collection(dir / "lib.mat", var, {});
+      ASSERT_EQ(col.size(), kSpectra);
+      ASSERT_EQ(col.bands(), kBands);
+      EXPECT_EQ(col.wavelengths[2], 500.0);
+      EXPECT_EQ(col.names[1], std::string(*var ? var : "data") + "_2");
+      EXPECT_EQ(col.provenance.importer, "mat");
+      for (std::size_t j = 0; j < kSpectra; ++j)
+        for (std::size_t k = 0; k < kBands; ++k)
+          EXPECT_EQ(col.values[j * kBands + k], static_cast<float>(0.1 * double(j) + 0.01 * double(k))) << j << "," << k;
+    }
+  }
+}
+
+TEST(MatLayouts, WavelengthNamesAndUnitsRule) {
+  ScratchDir dir;
+  const std::vector<double> numbering = {1, 2, 3, 4, 5}, ints = {1, 2, 3, 4, 6};
+  ASSERT_TRUE(write_mat(dir / "n.mat", MAT_FT_MAT5,
+                        {ref_double(), make_var("bands", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands}, numbering)}));
+  std::string m = input_error([&] { read_mat(dir / "n.mat", "", std::nullopt, {}); });
+  EXPECT_NE(m.find("variable 'bands' holds band numbers 1..5, not wavelengths; give the `wavelengths` option"),
+            std::string::npos) << m;
+  EXPECT_EQ(read_mat(dir / "n.mat", "", std::nullopt, WavelengthGrid(kNm)).wavelengths[4], 600.0);
+  // `WL` matches case-insensitively; integers below 20 are not micrometres, they stay nm.
+  ASSERT_TRUE(write_mat(dir / "i.mat", MAT_FT_MAT5,
+                        {ref_double(), make_var("WL", MAT_C_DOUBLE, MAT_T_DOUBLE, {kBands, 1}, ints)}));
+  const Cube cube = read_mat(dir / "i.mat", "", std::nullopt, {});
+  expect_cube(cube, 0.5);
+  EXPECT_EQ(cube.wavelengths[4], 6.0);
 }
 
 }  // namespace
