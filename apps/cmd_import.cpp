@@ -184,7 +184,7 @@ void run_import(const ImportOptions& o) {
       store::TextLibrary lib;
       std::string label = src;
       if (item.format == "envi") {
-        lib.collection = store::read_envi_library(first, !o.keep_bad_bands);
+        lib.collection = store::read_envi_library(first, !o.keep_bad_bands, given);
       } else if (item.format == "ecostress") {
         lib = store::read_ecostress_spectra(item.files);
       } else {

@@ -161,11 +161,11 @@ std::vector<std::string_view> split_list(std::string_view v) {
 }
 
 std::vector<double> parse_real_list(const std::string& filename, const std::string& key, const Field& f,
-                                    std::size_t bands) {
+                                    std::size_t bands, const char* axis = "bands") {
   const auto items = split_list(f.value);
   if (items.size() != bands)
     throw InputError(filename + ": line " + std::to_string(f.line) + ": " + key + " has " +
-                     std::to_string(items.size()) + " values but bands = " + std::to_string(bands) +
+                     std::to_string(items.size()) + " values but " + axis + " = " + std::to_string(bands) +
                      "; give one value per band");
   std::vector<double> out;
   out.reserve(items.size());
@@ -571,11 +571,12 @@ EnviHeader parse_envi_header(std::string_view text, const std::string& filename)
   if (const Field* f = find("file type")) h.file_type = std::string(trim(f->value));
   // A library's spectral axis is its samples; an image's is its bands.
   const std::size_t spectral = h.is_library() ? h.samples : h.bands;
+  const char* axis = h.is_library() ? "samples" : "bands";
   if (h.is_library() && h.bands != 1)
     bad_field(filename, "bands", *find("bands"), "must be 1 in an ENVI Spectral Library (samples are its bands)");
   if (const Field* f = find("wavelength units")) h.wavelength_units = std::string(trim(f->value));
   if (const Field* f = find("wavelength")) {
-    h.wavelength = parse_real_list(filename, "wavelength", *f, spectral);
+    h.wavelength = parse_real_list(filename, "wavelength", *f, spectral, axis);
     // Library wavelengths may come unsorted: read_envi_library sorts them with the values.
     for (std::size_t i = 1; !h.is_library() && i < h.wavelength.size(); ++i)
       if (!(h.wavelength[i] > h.wavelength[i - 1]))
@@ -589,7 +590,7 @@ EnviHeader parse_envi_header(std::string_view text, const std::string& filename)
                        " is not positive; fix the wavelength list");
   }
   if (const Field* f = find("fwhm")) {
-    h.fwhm = parse_real_list(filename, "fwhm", *f, spectral);
+    h.fwhm = parse_real_list(filename, "fwhm", *f, spectral, axis);
     for (std::size_t i = 0; i < h.fwhm.size(); ++i)
       if (h.fwhm[i] < 0)
         throw InputError(filename + ": line " + std::to_string(f->line) + ": fwhm value " + std::to_string(i + 1) +
@@ -610,7 +611,7 @@ EnviHeader parse_envi_header(std::string_view text, const std::string& filename)
     h.band_names.assign(items.begin(), items.end());
   }
   if (const Field* f = find("bbl")) {
-    const auto flags = parse_real_list(filename, "bbl", *f, spectral);
+    const auto flags = parse_real_list(filename, "bbl", *f, spectral, axis);
     for (std::size_t i = 0; i < flags.size(); ++i) {
       if (flags[i] != 0 && flags[i] != 1)
         throw InputError(filename + ": line " + std::to_string(f->line) + ": bbl value " + std::to_string(i + 1) +
@@ -702,7 +703,7 @@ bool is_envi_library(const std::filesystem::path& path) {
   }
 }
 
-Collection read_envi_library(const std::filesystem::path& path, bool honour_bbl) {
+Collection read_envi_library(const std::filesystem::path& path, bool honour_bbl, const WavelengthGrid& fallback) {
   const Paths paths = locate(path);
   const std::string hname = paths.header.string();
   const std::string text = read_text(paths.header);
@@ -714,7 +715,14 @@ Collection read_envi_library(const std::filesystem::path& path, bool honour_bbl)
   double factor = 1.0;
   std::string problem;
   std::vector<double> nm = header_nm(h, factor, problem);
-  if (!problem.empty()) throw InputError(hname + ": " + problem);
+  if (!problem.empty()) {
+    if (fallback.empty()) throw InputError(hname + ": " + problem);
+    if (fallback.size() != h.samples)
+      throw InputError(hname + ": the library has " + std::to_string(h.samples) +
+                       " bands (samples) but the `wavelengths` option gives " + std::to_string(fallback.size()) +
+                       "; pass one wavelength per band");
+    nm.assign(fallback.values().begin(), fallback.values().end());
+  }
 
   Cube raw;
   read_data(paths, h, hname, raw);  // lines x samples x 1: spectrum i is row i

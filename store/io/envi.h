@@ -44,8 +44,10 @@ EnviHeader parse_envi_header(std::string_view text, const std::string& filename)
 /// `honour_bbl` false keeps the bands the header's bbl marks bad.
 Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback = {}, bool honour_bbl = true);
 /// Reads an ENVI spectral library (.sli/.hdr) as a collection: names kept, wavelengths to nm and sorted ascending
-/// (values permuted with them), bbl-bad bands dropped unless `honour_bbl` is false; InputError naming the file.
-Collection read_envi_library(const std::filesystem::path& path, bool honour_bbl = true);
+/// (values permuted with them), bbl-bad bands dropped unless `honour_bbl` is false, `fallback` (one per sample, nm)
+/// used when the header has no wavelengths; InputError naming the file.
+Collection read_envi_library(const std::filesystem::path& path, bool honour_bbl = true,
+                             const WavelengthGrid& fallback = {});
 /// True when the ENVI header beside or at `path` says file type = ENVI Spectral Library (false if unreadable).
 bool is_envi_library(const std::filesystem::path& path);
 /// Writes `cube` as float32 little-endian ENVI (.hdr beside `data_path`), masked pixels set to the ignore value -9999.

@@ -90,6 +90,22 @@ TEST(SpectralLibrary, EnviSliReadsNamesSortedGridAndExactValues) {
   EXPECT_TRUE(is_envi_library(dir / "lib.hdr"));
 }
 
+TEST(SpectralLibrary, EnviSliWithoutWavelengthsTakesTheFallback) {
+  ScratchDir dir;
+  std::string h = library_header();
+  h.replace(h.find("wavelength = {"), h.find("spectra names") - h.find("wavelength = {"), "");
+  write_file(dir / "lib.hdr", h);
+  write_file(dir / "lib.sli", library_data(true));
+  std::string m = error_of([&] { read_envi_library(dir / "lib.sli"); });
+  EXPECT_NE(m.find("no wavelengths"), std::string::npos) << m;
+  m = error_of([&] { read_envi_library(dir / "lib.sli", true, WavelengthGrid::parse("400:600:100")); });
+  EXPECT_NE(m.find("5 bands (samples) but the `wavelengths` option gives 3"), std::string::npos) << m;
+  const Collection c = read_envi_library(dir / "lib.sli", true, WavelengthGrid::parse("400:800:100"));
+  ASSERT_EQ(c.bands(), 5u);
+  EXPECT_EQ(c.wavelengths[4], 800);
+  EXPECT_EQ(c.values[4], lib_value(0, 4));
+}
+
 TEST(SpectralLibrary, EnviSliBblDropsBadBandsUnlessKept) {
   ScratchDir dir;
   write_file(dir / "lib.sli", library_data(true));
@@ -132,7 +148,7 @@ TEST(SpectralLibrary, EnviSliBadInputsAreOneLineNamingTheFile) {
   h.replace(h.find(" 0.7000, 0.6000}"), 16, " 0.7000}");
   write_file(dir / "lib.hdr", h);
   m = error_of([&] { read_envi_library(dir / "lib.sli"); });
-  EXPECT_NE(m.find("wavelength has 4 values but bands = 5"), std::string::npos) << m;
+  EXPECT_NE(m.find("wavelength has 4 values but samples = 5"), std::string::npos) << m;
   // A library read as an image, an image read as a library.
   write_file(dir / "lib.hdr", library_header());
   m = error_of([&] { read_envi(dir / "lib.sli"); });
@@ -143,6 +159,11 @@ TEST(SpectralLibrary, EnviSliBadInputsAreOneLineNamingTheFile) {
   m = error_of([&] { read_envi_library(dir / "lib.sli"); });
   EXPECT_NE(m.find("lib.hdr: line 15: wavelength has 5 values but bands = 1"), std::string::npos) << m;
   EXPECT_FALSE(is_envi_library(dir / "lib.sli"));
+  // A well-formed image header is not a library.
+  write_file(dir / "img.hdr", "ENVI\nsamples = 5\nlines = 3\nbands = 1\ndata type = 4\ninterleave = bsq\n");
+  write_file(dir / "img.raw", library_data(true));
+  m = error_of([&] { read_envi_library(dir / "img.raw"); });
+  EXPECT_NE(m.find("img.hdr: file type = (absent) is not ENVI Spectral Library"), std::string::npos) << m;
   // Bad bbl entries.
   write_file(dir / "lib.hdr", library_header("bbl = {1, 2, 1, 1, 1}\n"));
   m = error_of([&] { read_envi_library(dir / "lib.sli"); });
