@@ -200,13 +200,21 @@ EcoFile read_ecostress_file(const std::filesystem::path& p) {
   std::string x_units, y_units;
   std::size_t declared = 0, declared_line = 0;
   std::size_t i = 0;
-  // Header: "Key: value" lines up to the first row that starts with a number.
+  // Header: "Key: value" lines up to the first row that starts with a number, and at least through
+  // "Additional Information:" (the last key) when present, so a wrapped Description line such as
+  // "2 um fraction ..." is not taken for data.
+  std::size_t header_end = 0;
+  for (std::size_t k = 0; k < lines.size(); ++k)
+    if (lower(trim(lines[k])).starts_with("additional information:")) {
+      header_end = k + 1;
+      break;
+    }
   for (; i < lines.size(); ++i) {
     const auto t = trim(lines[i]);
     if (t.empty()) continue;
     double probe = 0;
     const auto first_token = t.substr(0, t.find_first_of(" \t,"));
-    if (parse_number(first_token, probe)) break;
+    if (i >= header_end && parse_number(first_token, probe)) break;
     const auto colon = t.find(':');
     if (colon == std::string_view::npos) {
       if (i == 0) bad_line(p, 1, "\"" + printable(t) + "\" is not an ECOSTRESS header (it starts with \"Name:\")");

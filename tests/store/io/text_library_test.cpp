@@ -148,6 +148,14 @@ TEST(SpectralLibrary, EcostressSortedConvertedAndGridsMustAgree) {
   EXPECT_NE(m.find("differ from " + (dir / "a.spectrum.txt").string()), std::string::npos) << m;
   EXPECT_NE(m.find("band 3"), std::string::npos) << m;
 
+  // A wrapped Description line that starts with a number stays in the header.
+  std::string wrapped = ecostress("Wrapped", {{"0.8", "50.0"}, {"0.6", "25.0"}, {"0.5", "12.5"}, {"0.4", "6.25"}});
+  wrapped.replace(wrapped.find("layout.\n") + 8, 0, "2 um grains were sieved out.\n");
+  write_file(dir / "w.spectrum.txt", wrapped);
+  const Collection w = read_ecostress_spectra(Paths{dir / "w.spectrum.txt", dir / "a.spectrum.txt"}).collection;
+  EXPECT_EQ(w.names, (std::vector<std::string>{"Wrapped", "Acmite NaFe+3(SiO3)2"}));
+  EXPECT_EQ(w.values[3], 0.5f);
+
   // Nanometres and plain fractions pass through unchanged.
   write_file(dir / "nm.txt", ecostress("Plain", {{"450", "0.5"}, {"650", "0.25"}}, "Wavelength (nanometers)",
                                        "Reflectance (fraction)"));
