@@ -17,6 +17,7 @@
 #include "specula/store/io/mat.h"
 #include "specula/store/io/mask.h"
 #include "specula/store/io/png_stack.h"
+#include "specula/store/io/text_library.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -35,6 +36,7 @@ struct ImportOptions {
   std::string compression = "deflate";
   std::string units;
   bool replace = false;
+  bool keep_bad_bands = false;
 };
 
 std::string lower(std::string s) {
@@ -45,15 +47,23 @@ std::string lower(std::string s) {
 std::string detect_format(const std::filesystem::path& p) {
   if (std::filesystem::is_directory(p)) return "png";
   const std::string ext = lower(p.extension().string());
-  if (ext == ".hdr" || ext == ".raw" || ext == ".img" || ext == ".dat" || ext == ".bsq" || ext == ".bil" || ext == ".bip")
-    return "envi";
+  if (ext == ".hdr" || ext == ".raw" || ext == ".img" || ext == ".dat" || ext == ".bsq" || ext == ".bil" || ext == ".bip" ||
+      ext == ".sli")
+    return "envi";  // an ENVI Spectral Library among them is told by its header (file type)
   if (ext == ".mat") return "mat";
   if (ext == ".png") return "png";
   if (ext == ".exr") return "exr";
   if (ext == ".csv") return "csv";
   if (ext == ".brdf") return "brdf";
+  if (ext == ".txt") {
+    const std::string kind = store::sniff_text_library(p);
+    if (kind == "usgs" || kind == "usgs-wavelengths") return "usgs";
+    if (kind == "ecostress") return "ecostress";
+    throw UsageError(p.string() + ": a .txt that is neither a USGS splib07a spectrum (title \"splib07a Record=...\") "
+                     "nor an ECOSTRESS spectrum (first line \"Name: ...\"); pass --format usgs|ecostress|csv");
+  }
   throw UsageError(p.string() + ": cannot tell the format from the extension '" + ext +
-                   "'; pass --format envi|mat|png|exr|csv|brdf");
+                   "'; pass --format envi|mat|png|exr|csv|brdf|usgs|ecostress");
 }
 
 // Resamples every spectrum of `values` (count x from.size()) onto `to`, refusing extrapolation.
@@ -130,8 +140,8 @@ void run_import(const ImportOptions& o) {
   std::vector<Item> items;
   for (const auto& in : o.inputs) {
     const std::string fmt_ = o.format == "auto" ? detect_format(in) : o.format;
-    if (fmt_ == "png" && !items.empty() && items.back().format == "png")
-      items.back().files.emplace_back(in);  // all PNGs form one band stack
+    if ((fmt_ == "png" || fmt_ == "usgs" || fmt_ == "ecostress") && !items.empty() && items.back().format == fmt_)
+      items.back().files.emplace_back(in);  // all PNGs form one band stack; text spectra one collection
     else
       items.push_back({fmt_, {in}});
   }
@@ -175,6 +185,38 @@ void run_import(const ImportOptions& o) {
       report.push_back(fmt::format("imported collection {}: {} spectra, {}", name, col.size(), col.wavelengths.describe()));
       continue;
     }
+    if (item.format == "usgs" || item.format == "ecostress" ||
+        (item.format == "envi" && store::is_envi_library(first))) {
+      // Spectral libraries become collections on their own grid (resampled only to --wavelengths).
+      store::TextLibrary lib;
+      std::string label = src;
+      if (item.format == "envi") {
+        lib.collection = store::read_envi_library(first, !o.keep_bad_bands, given);
+      } else if (item.format == "ecostress") {
+        lib = store::read_ecostress_spectra(item.files);
+      } else {
+        std::vector<std::filesystem::path> spectra, wl;
+        for (const auto& f : item.files)
+          (store::sniff_text_library(f) == "usgs-wavelengths" ? wl : spectra).push_back(f);
+        if (wl.size() != 1 || spectra.empty())
+          throw UsageError(fmt::format("{}: USGS splib07a spectra need exactly one Wavelengths file among the inputs "
+                                       "(found {}) and at least one spectrum (found {})", src, wl.size(), spectra.size()));
+        lib = store::read_usgs_spectra(spectra, wl.front());
+        label = spectra.front().string();
+      }
+      store::Collection& col = lib.collection;
+      for (const auto& note : lib.notes) fmt::print(stderr, "{}\n", note);
+      if (!target.empty() && !target.approx_equal(col.wavelengths)) {
+        col.values = resample(col.values, col.size(), col.wavelengths, target, label);
+        col.wavelengths = target;
+      }
+      if (!o.units.empty()) col.units = o.units;
+      const std::string lib_name =
+          o.name.empty() ? default_name(item.format == "usgs" ? std::filesystem::path(label) : first) : o.name;
+      writer.add_collection(lib_name, col);
+      report.push_back(fmt::format("imported collection {}: {} spectra, {}", lib_name, col.size(), col.wavelengths.describe()));
+      continue;
+    }
     if (item.format == "brdf") {
       // Scattered BRDF samples (pbrt-v2's irregular format), optionally resampled to --wavelengths.
       store::IrregularBrdf b = store::read_brdf_irregular(first);
@@ -192,7 +234,7 @@ void run_import(const ImportOptions& o) {
     }
     store::Cube cube;
     if (item.format == "envi") {
-      cube = store::read_envi(first, given);
+      cube = store::read_envi(first, given, !o.keep_bad_bands);
     } else if (item.format == "mat") {
       cube = store::read_mat(first, o.var, o.mask.empty() ? std::nullopt : std::optional<std::string>(o.mask), given);
     } else if (item.format == "png") {
@@ -202,7 +244,7 @@ void run_import(const ImportOptions& o) {
     } else if (item.format == "exr") {
       cube = store::read_spectral_exr(first);
     } else {
-      throw UsageError("--format '" + item.format + "': use auto, envi, mat, png, exr or csv");
+      throw UsageError("--format '" + item.format + "': use auto, envi, mat, png, exr, csv, usgs or ecostress");
     }
     if (!o.mask.empty() && item.format != "mat") apply_mask(cube, o.mask);
     if (!o.units.empty()) cube.units = o.units;
@@ -244,8 +286,8 @@ void setup_import(CLI::App& app) {
   cmd->add_option("--source-wavelengths", o->source_wavelengths, "The data's own grid when it carries none and --wavelengths resamples");
   cmd->add_option("--mask", o->mask, "Mask: a PNG or a one-band ENVI image (nonzero = valid), or for .mat the name of a mask variable");
   cmd->add_option("--var", o->var, "Cube or spectra variable in a .mat file (default: detected, e.g. ref, rad, cube, Y, data)");
-  cmd->add_option("--format", o->format, "auto, envi, mat, png, exr or csv")
-      ->check(CLI::IsMember({"auto", "envi", "mat", "png", "exr", "csv"}))
+  cmd->add_option("--format", o->format, "auto, envi, mat, png, exr, csv, usgs (splib07a ASCII) or ecostress")
+      ->check(CLI::IsMember({"auto", "envi", "mat", "png", "exr", "csv", "usgs", "ecostress"}))
       ->capture_default_str();
   cmd->add_option("--nan", o->nan, "NaN/Inf in valid pixels: reject (default) or mask")
       ->check(CLI::IsMember({"reject", "mask"}))
@@ -253,13 +295,15 @@ void setup_import(CLI::App& app) {
   cmd->add_option("--compression", o->compression, "none, deflate or deflate:LEVEL (shuffle + deflate)")->capture_default_str();
   cmd->add_option("--units", o->units, "Override the units: reflectance, radiance, counts, ...");
   cmd->add_flag("--replace", o->replace, "Replace objects of the same name");
+  cmd->add_flag("--keep-bad-bands", o->keep_bad_bands, "Keep the bands an ENVI header's bbl marks bad (dropped by default)");
   cmd->callback([o] {
     try {
       run_import(*o);
     } catch (const InputError& e) {  // the importers name their parameter; here it is a flag
       std::string m = e.what();
       for (const auto& [param, flag] : {std::pair<std::string, std::string>{"the `wavelengths` option", "--wavelengths"},
-                                        {"the `var` option", "--var"}})
+                                        {"the `var` option", "--var"},
+                                        {"pass honour_bbl = false", "pass --keep-bad-bands"}})
         for (std::size_t at; (at = m.find(param)) != std::string::npos;) m.replace(at, param.size(), flag);
       throw InputError(m);
     }

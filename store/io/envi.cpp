@@ -161,11 +161,11 @@ std::vector<std::string_view> split_list(std::string_view v) {
 }
 
 std::vector<double> parse_real_list(const std::string& filename, const std::string& key, const Field& f,
-                                    std::size_t bands) {
+                                    std::size_t bands, const char* axis = "bands") {
   const auto items = split_list(f.value);
   if (items.size() != bands)
     throw InputError(filename + ": line " + std::to_string(f.line) + ": " + key + " has " +
-                     std::to_string(items.size()) + " values but bands = " + std::to_string(bands) +
+                     std::to_string(items.size()) + " values but " + axis + " = " + std::to_string(bands) +
                      "; give one value per band");
   std::vector<double> out;
   out.reserve(items.size());
@@ -279,8 +279,8 @@ Paths locate(const std::filesystem::path& path) {
   if (iequals_ext(path, ".hdr")) {
     std::filesystem::path base = path;
     base.replace_extension();
-    for (const char* ext : {"", ".raw", ".img", ".dat", ".bsq", ".bil", ".bip", ".RAW", ".IMG", ".DAT", ".BSQ",
-                            ".BIL", ".BIP"}) {
+    for (const char* ext : {"", ".raw", ".img", ".dat", ".bsq", ".bil", ".bip", ".sli", ".RAW", ".IMG", ".DAT",
+                            ".BSQ", ".BIL", ".BIP", ".SLI"}) {
       std::filesystem::path cand = base;
       cand += ext;
       if (is_file(cand)) return {path, cand};
@@ -375,161 +375,8 @@ std::size_t rows_per_block(std::size_t width, std::size_t bands) {
   return std::max<std::size_t>(1, (std::size_t{2} << 20) / (width * bands * sizeof(float)));
 }
 
-}  // namespace
-
-EnviHeader parse_envi_header(std::string_view text, const std::string& filename) {
-  const Fields fields = parse_fields(text, filename);
-  const auto find = [&](const char* key) -> const Field* {
-    const auto it = fields.find(std::string_view(key));
-    return it == fields.end() ? nullptr : &it->second;
-  };
-  const auto require = [&](const char* key, const char* example) -> const Field& {
-    const Field* f = find(key);
-    if (!f)
-      throw InputError(filename + ": required field '" + key + "' is missing; add a line such as '" + example +
-                       "'");
-    return *f;
-  };
-
-  EnviHeader h;
-  const auto dimension = [&](const char* key, const char* example) {
-    const Field& f = require(key, example);
-    const std::uint64_t v = parse_unsigned(filename, key, f);
-    if (v == 0) bad_field(filename, key, f, "must be at least 1");
-    if (v > kMaxBytes) bad_field(filename, key, f, "is absurdly large; the header is corrupt");
-    return static_cast<std::size_t>(v);
-  };
-  h.samples = dimension("samples", "samples = 640");
-  h.lines = dimension("lines", "lines = 480");
-  h.bands = dimension("bands", "bands = 31");
-
-  {
-    const Field& f = require("data type", "data type = 4");
-    const std::uint64_t v = parse_unsigned(filename, "data type", f);
-    if (v > 1000 || bytes_per_sample(static_cast<int>(v)) == 0)
-      bad_field(filename, "data type", f,
-                "is not supported; convert the image to data type 1 (uint8), 2 (int16), 3 (int32), 4 (float32), "
-                "5 (float64) or 12 (uint16)");
-    h.data_type = static_cast<int>(v);
-  }
-  {
-    const Field& f = require("interleave", "interleave = bsq");
-    const std::string v = lower(trim(f.value));
-    if (v == "bsq") h.interleave = Interleave::bsq;
-    else if (v == "bil") h.interleave = Interleave::bil;
-    else if (v == "bip") h.interleave = Interleave::bip;
-    else bad_field(filename, "interleave", f, "is not one of bsq, bil, bip");
-  }
-  if (const Field* f = find("byte order")) {
-    const std::uint64_t v = parse_unsigned(filename, "byte order", *f);
-    if (v > 1) bad_field(filename, "byte order", *f, "must be 0 (little endian) or 1 (big endian)");
-    h.byte_order = static_cast<int>(v);
-  }
-  if (const Field* f = find("header offset")) {
-    const std::uint64_t v = parse_unsigned(filename, "header offset", *f);
-    if (v > kMaxBytes) bad_field(filename, "header offset", *f, "is absurdly large; the header is corrupt");
-    h.header_offset = static_cast<std::size_t>(v);
-  }
-
-  const std::size_t bps = bytes_per_sample(h.data_type);
-  std::uint64_t elements = 0, bytes = 0;
-  if (__builtin_mul_overflow(std::uint64_t{h.samples}, std::uint64_t{h.lines}, &elements) ||
-      __builtin_mul_overflow(elements, std::uint64_t{h.bands}, &elements) ||
-      __builtin_mul_overflow(elements, std::uint64_t{std::max<std::size_t>(bps, sizeof(float))}, &bytes) ||
-      bytes > kMaxBytes)
-    throw InputError(filename + ": samples " + std::to_string(h.samples) + " x lines " + std::to_string(h.lines) +
-                     " x bands " + std::to_string(h.bands) +
-                     " exceeds the 1 TiB limit for one image; the header is corrupt or the image must be split");
-
-  if (const Field* f = find("wavelength units")) h.wavelength_units = std::string(trim(f->value));
-  if (const Field* f = find("wavelength")) {
-    h.wavelength = parse_real_list(filename, "wavelength", *f, h.bands);
-    for (std::size_t i = 1; i < h.wavelength.size(); ++i)
-      if (!(h.wavelength[i] > h.wavelength[i - 1]))
-        throw InputError(filename + ": line " + std::to_string(f->line) + ": wavelength " + std::to_string(i + 1) +
-                         " (" + format_real(h.wavelength[i]) + ") is not greater than wavelength " +
-                         std::to_string(i) + " (" + format_real(h.wavelength[i - 1]) +
-                         "); wavelengths must increase strictly");
-    if (h.wavelength.front() <= 0)
-      throw InputError(filename + ": line " + std::to_string(f->line) + ": wavelength 1 (" +
-                       format_real(h.wavelength.front()) + ") is not positive; fix the wavelength list");
-  }
-  if (const Field* f = find("fwhm")) {
-    h.fwhm = parse_real_list(filename, "fwhm", *f, h.bands);
-    for (std::size_t i = 0; i < h.fwhm.size(); ++i)
-      if (h.fwhm[i] < 0)
-        throw InputError(filename + ": line " + std::to_string(f->line) + ": fwhm value " + std::to_string(i + 1) +
-                         " is negative; fix the fwhm list");
-  }
-  if (const Field* f = find("data ignore value")) {
-    bool ok = false;
-    const double v = parse_real(f->value, ok);
-    if (!ok) bad_field(filename, "data ignore value", *f, "is not a finite number");
-    h.data_ignore_value = v;
-  }
-  if (const Field* f = find("band names")) {
-    const auto items = split_list(f->value);
-    if (items.size() != h.bands)
-      throw InputError(filename + ": line " + std::to_string(f->line) + ": band names has " +
-                       std::to_string(items.size()) + " names but bands = " + std::to_string(h.bands) +
-                       "; give one name per band");
-    h.band_names.assign(items.begin(), items.end());
-  }
-  if (const Field* f = find("description")) h.description = f->value;
-  return h;
-}
-
-Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback) {
-  const Paths paths = locate(path);
-  const std::string hname = paths.header.string();
-  const std::string text = read_text(paths.header);
-  const EnviHeader h = parse_envi_header(text, hname);
-  const Fields fields = parse_fields(text, hname);
-
-  Cube cube;
-  cube.provenance.source_file = path.string();
-  cube.provenance.importer = "envi";
-  for (const char* key : {"specula units", "units"}) {
-    const auto it = fields.find(std::string_view(key));
-    if (it != fields.end() && !trim(it->second.value).empty()) {
-      cube.units = std::string(trim(it->second.value));
-      break;
-    }
-  }
-
-  // The header's own wavelengths win; `problem` explains why they are unusable when there is no fallback.
-  const std::string units_lower = lower(trim(h.wavelength_units));
-  double factor = unit_factor(h.wavelength_units);
-  std::string problem;
-  if (h.wavelength.empty() || units_lower == "index") {
-    problem = "the header has no wavelengths; give the `wavelengths` option FIRST:LAST:STEP (" + std::to_string(h.bands) +
-              " bands, e.g. 400:700:10 for 31) or add a 'wavelength' list";
-  } else if (factor < 0) {
-    problem = "wavelength units = " + printable(h.wavelength_units) +
-              " is not supported; use Nanometers or Micrometers, or give the `wavelengths` option in nm";
-  } else if (factor == 0 && h.wavelength.back() < 100) {
-    problem = "wavelengths " + format_real(h.wavelength.front()) + "-" + format_real(h.wavelength.back()) +
-              " have no wavelength units; add 'wavelength units = Micrometers' (or Nanometers) to the header";
-  } else {
-    factor = factor == 0 ? 1.0 : factor;
-  }
-  if (problem.empty()) {
-    std::vector<double> nm(h.wavelength);
-    for (double& v : nm) v *= factor;
-    cube.wavelengths = WavelengthGrid(std::move(nm), hname);
-    if (!h.fwhm.empty()) {
-      cube.fwhm = h.fwhm;
-      for (double& v : cube.fwhm) v *= factor;
-    }
-  } else if (!fallback.empty()) {
-    if (fallback.size() != h.bands)
-      throw InputError(hname + ": the image has " + std::to_string(h.bands) + " bands but the `wavelengths` option gives " +
-                       std::to_string(fallback.size()) + "; pass one wavelength per band");
-    cube.wavelengths = fallback;
-  } else {
-    throw InputError(hname + ": " + problem);
-  }
-
+// Reads the data file of `h` into cube (lines x samples x bands), checking its size first.
+void read_data(const Paths& paths, const EnviHeader& h, const std::string& hname, Cube& cube) {
   const std::size_t bps = bytes_per_sample(h.data_type);
   const std::uint64_t elements = std::uint64_t{h.samples} * h.lines * h.bands;
   const std::uint64_t needed = elements * bps + h.header_offset;
@@ -596,6 +443,238 @@ Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback
     }
   }
 
+  closer.f = nullptr;
+  if (std::fclose(f) != 0) throw LibraryError(paths.data.string() + ": close failed: " + std::strerror(errno));
+}
+
+// The header's wavelengths in nm (empty with `problem` set when unusable); `factor` scales fwhm likewise.
+std::vector<double> header_nm(const EnviHeader& h, double& factor, std::string& problem) {
+  const std::string units_lower = lower(trim(h.wavelength_units));
+  factor = unit_factor(h.wavelength_units);
+  const std::size_t n = h.is_library() ? h.samples : h.bands;
+  const double top = h.wavelength.empty() ? 0.0 : *std::max_element(h.wavelength.begin(), h.wavelength.end());
+  if (h.wavelength.empty() || units_lower == "index") {
+    problem = "the header has no wavelengths; give the `wavelengths` option FIRST:LAST:STEP (" + std::to_string(n) +
+              " bands, e.g. 400:700:10 for 31) or add a 'wavelength' list";
+  } else if (factor < 0) {
+    problem = "wavelength units = " + printable(h.wavelength_units) +
+              " is not supported; use Nanometers or Micrometers, or give the `wavelengths` option in nm";
+  } else if (factor == 0 && top < 100) {
+    problem = "wavelengths " + format_real(*std::min_element(h.wavelength.begin(), h.wavelength.end())) + "-" +
+              format_real(top) +
+              " have no wavelength units; add 'wavelength units = Micrometers' (or Nanometers) to the header";
+  } else {
+    factor = factor == 0 ? 1.0 : factor;
+    std::vector<double> nm(h.wavelength);
+    for (double& v : nm) v *= factor;
+    return nm;
+  }
+  return {};
+}
+
+// Keeps the bands whose flag is true: compacts cube data, wavelengths and fwhm.
+void drop_bands(Cube& cube, const std::vector<bool>& keep, const std::string& hname) {
+  const std::size_t B = cube.bands;
+  const std::size_t kept = static_cast<std::size_t>(std::count(keep.begin(), keep.end(), true));
+  if (kept == B) return;
+  if (kept == 0)
+    throw InputError(hname + ": bbl marks all " + std::to_string(B) +
+                     " bands bad; fix the bbl list or pass honour_bbl = false to keep them");
+  std::vector<float> data(cube.height * cube.width * kept);
+  for (std::size_t p = 0, o = 0; p < cube.height * cube.width; ++p)
+    for (std::size_t b = 0; b < B; ++b)
+      if (keep[b]) data[o++] = cube.data[p * B + b];
+  cube.data = std::move(data);
+  cube.bands = kept;
+  if (!cube.wavelengths.empty()) {
+    std::vector<double> nm;
+    for (std::size_t b = 0; b < B; ++b)
+      if (keep[b]) nm.push_back(cube.wavelengths[b]);
+    cube.wavelengths = WavelengthGrid(std::move(nm), hname);
+  }
+  if (!cube.fwhm.empty()) {
+    std::vector<double> fw;
+    for (std::size_t b = 0; b < B; ++b)
+      if (keep[b]) fw.push_back(cube.fwhm[b]);
+    cube.fwhm = std::move(fw);
+  }
+}
+
+}  // namespace
+
+bool EnviHeader::is_library() const { return lower(trim(file_type)) == "envi spectral library"; }
+
+EnviHeader parse_envi_header(std::string_view text, const std::string& filename) {
+  const Fields fields = parse_fields(text, filename);
+  const auto find = [&](const char* key) -> const Field* {
+    const auto it = fields.find(std::string_view(key));
+    return it == fields.end() ? nullptr : &it->second;
+  };
+  const auto require = [&](const char* key, const char* example) -> const Field& {
+    const Field* f = find(key);
+    if (!f)
+      throw InputError(filename + ": required field '" + key + "' is missing; add a line such as '" + example +
+                       "'");
+    return *f;
+  };
+
+  EnviHeader h;
+  const auto dimension = [&](const char* key, const char* example) {
+    const Field& f = require(key, example);
+    const std::uint64_t v = parse_unsigned(filename, key, f);
+    if (v == 0) bad_field(filename, key, f, "must be at least 1");
+    if (v > kMaxBytes) bad_field(filename, key, f, "is absurdly large; the header is corrupt");
+    return static_cast<std::size_t>(v);
+  };
+  h.samples = dimension("samples", "samples = 640");
+  h.lines = dimension("lines", "lines = 480");
+  h.bands = dimension("bands", "bands = 31");
+
+  {
+    const Field& f = require("data type", "data type = 4");
+    const std::uint64_t v = parse_unsigned(filename, "data type", f);
+    if (v > 1000 || bytes_per_sample(static_cast<int>(v)) == 0)
+      bad_field(filename, "data type", f,
+                "is not supported; convert the image to data type 1 (uint8), 2 (int16), 3 (int32), 4 (float32), "
+                "5 (float64) or 12 (uint16)");
+    h.data_type = static_cast<int>(v);
+  }
+  {
+    const Field& f = require("interleave", "interleave = bsq");
+    const std::string v = lower(trim(f.value));
+    if (v == "bsq") h.interleave = Interleave::bsq;
+    else if (v == "bil") h.interleave = Interleave::bil;
+    else if (v == "bip") h.interleave = Interleave::bip;
+    else bad_field(filename, "interleave", f, "is not one of bsq, bil, bip");
+  }
+  if (const Field* f = find("byte order")) {
+    const std::uint64_t v = parse_unsigned(filename, "byte order", *f);
+    if (v > 1) bad_field(filename, "byte order", *f, "must be 0 (little endian) or 1 (big endian)");
+    h.byte_order = static_cast<int>(v);
+  }
+  if (const Field* f = find("header offset")) {
+    const std::uint64_t v = parse_unsigned(filename, "header offset", *f);
+    if (v > kMaxBytes) bad_field(filename, "header offset", *f, "is absurdly large; the header is corrupt");
+    h.header_offset = static_cast<std::size_t>(v);
+  }
+
+  const std::size_t bps = bytes_per_sample(h.data_type);
+  std::uint64_t elements = 0, bytes = 0;
+  if (__builtin_mul_overflow(std::uint64_t{h.samples}, std::uint64_t{h.lines}, &elements) ||
+      __builtin_mul_overflow(elements, std::uint64_t{h.bands}, &elements) ||
+      __builtin_mul_overflow(elements, std::uint64_t{std::max<std::size_t>(bps, sizeof(float))}, &bytes) ||
+      bytes > kMaxBytes)
+    throw InputError(filename + ": samples " + std::to_string(h.samples) + " x lines " + std::to_string(h.lines) +
+                     " x bands " + std::to_string(h.bands) +
+                     " exceeds the 1 TiB limit for one image; the header is corrupt or the image must be split");
+
+  if (const Field* f = find("file type")) h.file_type = std::string(trim(f->value));
+  // A library's spectral axis is its samples; an image's is its bands.
+  const std::size_t spectral = h.is_library() ? h.samples : h.bands;
+  const char* axis = h.is_library() ? "samples" : "bands";
+  if (h.is_library() && h.bands != 1)
+    bad_field(filename, "bands", *find("bands"), "must be 1 in an ENVI Spectral Library (samples are its bands)");
+  if (const Field* f = find("wavelength units")) h.wavelength_units = std::string(trim(f->value));
+  if (const Field* f = find("wavelength")) {
+    h.wavelength = parse_real_list(filename, "wavelength", *f, spectral, axis);
+    // Library wavelengths may come unsorted: read_envi_library sorts them with the values.
+    for (std::size_t i = 1; !h.is_library() && i < h.wavelength.size(); ++i)
+      if (!(h.wavelength[i] > h.wavelength[i - 1]))
+        throw InputError(filename + ": line " + std::to_string(f->line) + ": wavelength " + std::to_string(i + 1) +
+                         " (" + format_real(h.wavelength[i]) + ") is not greater than wavelength " +
+                         std::to_string(i) + " (" + format_real(h.wavelength[i - 1]) +
+                         "); wavelengths must increase strictly");
+    if (*std::min_element(h.wavelength.begin(), h.wavelength.end()) <= 0)
+      throw InputError(filename + ": line " + std::to_string(f->line) + ": wavelength " +
+                       format_real(*std::min_element(h.wavelength.begin(), h.wavelength.end())) +
+                       " is not positive; fix the wavelength list");
+  }
+  if (const Field* f = find("fwhm")) {
+    h.fwhm = parse_real_list(filename, "fwhm", *f, spectral, axis);
+    for (std::size_t i = 0; i < h.fwhm.size(); ++i)
+      if (h.fwhm[i] < 0)
+        throw InputError(filename + ": line " + std::to_string(f->line) + ": fwhm value " + std::to_string(i + 1) +
+                         " is negative; fix the fwhm list");
+  }
+  if (const Field* f = find("data ignore value")) {
+    bool ok = false;
+    const double v = parse_real(f->value, ok);
+    if (!ok) bad_field(filename, "data ignore value", *f, "is not a finite number");
+    h.data_ignore_value = v;
+  }
+  if (const Field* f = find("band names")) {
+    const auto items = split_list(f->value);
+    if (items.size() != h.bands)
+      throw InputError(filename + ": line " + std::to_string(f->line) + ": band names has " +
+                       std::to_string(items.size()) + " names but bands = " + std::to_string(h.bands) +
+                       "; give one name per band");
+    h.band_names.assign(items.begin(), items.end());
+  }
+  if (const Field* f = find("bbl")) {
+    const auto flags = parse_real_list(filename, "bbl", *f, spectral, axis);
+    for (std::size_t i = 0; i < flags.size(); ++i) {
+      if (flags[i] != 0 && flags[i] != 1)
+        throw InputError(filename + ": line " + std::to_string(f->line) + ": bbl value " + std::to_string(i + 1) +
+                         " is " + format_real(flags[i]) + "; write 1 for a good band and 0 for a bad one");
+      h.bbl.push_back(flags[i] == 1);
+    }
+  }
+  if (const Field* f = find("spectra names")) {
+    const auto items = split_list(f->value);
+    if (h.is_library() && items.size() != h.lines)
+      throw InputError(filename + ": line " + std::to_string(f->line) + ": spectra names has " +
+                       std::to_string(items.size()) + " names but lines = " + std::to_string(h.lines) +
+                       "; give one name per spectrum");
+    h.spectra_names.assign(items.begin(), items.end());
+  }
+  if (const Field* f = find("description")) h.description = f->value;
+  return h;
+}
+
+Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback, bool honour_bbl) {
+  const Paths paths = locate(path);
+  const std::string hname = paths.header.string();
+  const std::string text = read_text(paths.header);
+  const EnviHeader h = parse_envi_header(text, hname);
+  const Fields fields = parse_fields(text, hname);
+  if (h.is_library())
+    throw InputError(hname + ": file type = " + printable(h.file_type) +
+                     " holds spectra, not an image; read it with read_envi_library (a collection)");
+
+  Cube cube;
+  cube.provenance.source_file = path.string();
+  cube.provenance.importer = "envi";
+  for (const char* key : {"specula units", "units"}) {
+    const auto it = fields.find(std::string_view(key));
+    if (it != fields.end() && !trim(it->second.value).empty()) {
+      cube.units = std::string(trim(it->second.value));
+      break;
+    }
+  }
+
+  // The header's own wavelengths win; `problem` explains why they are unusable when there is no fallback.
+  double factor = 1.0;
+  std::string problem;
+  std::vector<double> nm = header_nm(h, factor, problem);
+  if (problem.empty()) {
+    cube.wavelengths = WavelengthGrid(std::move(nm), hname);
+    if (!h.fwhm.empty()) {
+      cube.fwhm = h.fwhm;
+      for (double& v : cube.fwhm) v *= factor;
+    }
+  } else if (!fallback.empty()) {
+    if (fallback.size() != h.bands)
+      throw InputError(hname + ": the image has " + std::to_string(h.bands) + " bands but the `wavelengths` option gives " +
+                       std::to_string(fallback.size()) + "; pass one wavelength per band");
+    cube.wavelengths = fallback;
+  } else {
+    throw InputError(hname + ": " + problem);
+  }
+
+  read_data(paths, h, hname, cube);
+  if (honour_bbl && !h.bbl.empty()) drop_bands(cube, h.bbl, hname);
+  const std::size_t H = h.lines, W = h.samples, B = cube.bands;
+  float* out = cube.data.data();
   if (h.data_ignore_value) {
     const float ignore = static_cast<float>(*h.data_ignore_value);
     std::vector<std::uint8_t> mask(H * W, 1);
@@ -609,9 +688,86 @@ Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback
     }
     if (any) cube.mask = std::move(mask);
   }
-  closer.f = nullptr;
-  if (std::fclose(f) != 0) throw LibraryError(paths.data.string() + ": close failed: " + std::strerror(errno));
   return cube;
+}
+
+bool is_envi_library(const std::filesystem::path& path) {
+  try {
+    const Paths paths = locate(path);
+    const std::string text = read_text(paths.header);
+    const Fields fields = parse_fields(text, paths.header.string());
+    const auto it = fields.find(std::string_view("file type"));
+    return it != fields.end() && lower(trim(it->second.value)) == "envi spectral library";
+  } catch (const Error&) {
+    return false;
+  }
+}
+
+Collection read_envi_library(const std::filesystem::path& path, bool honour_bbl, const WavelengthGrid& fallback) {
+  const Paths paths = locate(path);
+  const std::string hname = paths.header.string();
+  const std::string text = read_text(paths.header);
+  const EnviHeader h = parse_envi_header(text, hname);
+  const Fields fields = parse_fields(text, hname);
+  if (!h.is_library())
+    throw InputError(hname + ": file type = " + printable(h.file_type.empty() ? "(absent)" : h.file_type) +
+                     " is not ENVI Spectral Library; read it with read_envi (an image)");
+  double factor = 1.0;
+  std::string problem;
+  std::vector<double> nm = header_nm(h, factor, problem);
+  if (!problem.empty()) {
+    if (fallback.empty()) throw InputError(hname + ": " + problem);
+    if (fallback.size() != h.samples)
+      throw InputError(hname + ": the library has " + std::to_string(h.samples) +
+                       " bands (samples) but the `wavelengths` option gives " + std::to_string(fallback.size()) +
+                       "; pass one wavelength per band");
+    nm.assign(fallback.values().begin(), fallback.values().end());
+  }
+
+  Cube raw;
+  read_data(paths, h, hname, raw);  // lines x samples x 1: spectrum i is row i
+  const std::size_t N = h.lines, S = h.samples;
+
+  // Bands kept (bbl) in ascending wavelength order; the values follow the same permutation.
+  std::vector<std::size_t> order;
+  for (std::size_t b = 0; b < S; ++b)
+    if (!honour_bbl || h.bbl.empty() || h.bbl[b]) order.push_back(b);
+  if (order.empty())
+    throw InputError(hname + ": bbl marks all " + std::to_string(S) +
+                     " bands bad; fix the bbl list or pass honour_bbl = false to keep them");
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return nm[a] < nm[b]; });
+  for (std::size_t i = 1; i < order.size(); ++i)
+    if (nm[order[i]] == nm[order[i - 1]])
+      throw InputError(hname + ": wavelength " + format_real(h.wavelength[order[i]]) + " appears twice (bands " +
+                       std::to_string(std::min(order[i], order[i - 1]) + 1) + " and " +
+                       std::to_string(std::max(order[i], order[i - 1]) + 1) + "); remove one of them");
+
+  Collection col;
+  std::vector<double> grid;
+  for (std::size_t b : order) grid.push_back(nm[b]);
+  col.wavelengths = WavelengthGrid(std::move(grid), hname);
+  col.values.resize(N * order.size());
+  for (std::size_t i = 0; i < N; ++i)
+    for (std::size_t k = 0; k < order.size(); ++k) {
+      const float v = raw.data[i * S + order[k]];
+      if (!std::isfinite(v))
+        throw InputError(hname + ": spectrum " + std::to_string(i + 1) + " band " + std::to_string(order[k] + 1) +
+                         " is " + format_real(v) + " (not finite); mark the band bad in bbl or fix the data");
+      col.values[i * order.size() + k] = v;
+    }
+  for (std::size_t i = 0; i < N; ++i)
+    col.names.push_back(h.spectra_names.empty() || h.spectra_names[i].empty() ? "spectrum_" + std::to_string(i + 1)
+                                                                             : h.spectra_names[i]);
+  for (const char* key : {"specula units", "units"}) {
+    const auto it = fields.find(std::string_view(key));
+    if (it != fields.end() && !trim(it->second.value).empty()) {
+      col.units = std::string(trim(it->second.value));
+      break;
+    }
+  }
+  col.provenance.source_file = path.string();
+  col.provenance.importer = "envi-library";
+  return col;
 }
 
 void write_envi(const std::filesystem::path& data_path, const Cube& cube, Interleave interleave) {
