@@ -122,6 +122,7 @@ TEST(ImportCli, NanIsRejectedWithCountAndPositionOrMasked) {
   auto store = make_store(dir);
   write_envi(dir / "nan", 6, 5, 31, "", float((2 * 5 + 3) * 31 + 4));
   expect_rejected(dir, "'" + (dir / "nan.hdr").string() + "'", "nan", "1 NaN/Inf values in 1 pixels (first at row 2, column 3, band 4 = 460 nm)");
+  expect_rejected(dir, "'" + (dir / "nan.hdr").string() + "'", "nan", "set --nan to \"mask\"");
   auto r = run_specula("-q import '" + (dir / "nan.hdr").string() + "' --nan mask -o '" + store.string() + "'");
   ASSERT_EQ(r.status, 0) << r.output;
   auto info = store::Store::open(store).image_info("nan");
