@@ -68,7 +68,7 @@ std::string with_flags(std::string m) {
 
 void setup_import(CLI::App& app) {
   auto o = std::make_shared<ImportOptions>();
-  auto* cmd = app.add_subcommand("import", "Import spectral images (ENVI, .mat, PNG stack, spectral EXR) or CSV tables into a store");
+  auto* cmd = app.add_subcommand("import", "Import spectral images (ENVI, .mat, PNG stack, spectral EXR) and spectral libraries (CSV, .mat, ENVI .sli, USGS, ECOSTRESS) into a store (docs/import.md)");
   cmd->add_option("inputs", o->inputs, "Input files (all PNGs together form one band stack; a directory of PNGs too)")
       ->required();
   cmd->add_option("-o,--output", o->output, "Store to create or add to")->required();
