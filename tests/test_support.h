@@ -50,6 +50,25 @@ class ScratchDir {
   std::filesystem::path path_;
 };
 
+/// Writes `bytes` to `path` exactly (binary), failing the test if the write fails.
+inline void write_file(const std::filesystem::path& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  EXPECT_TRUE(out.good()) << path;
+}
+
+/// The what() of the E that f() throws; a test failure and "" when it throws none.
+template <typename E = specula::InputError, typename F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const E& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "expected an exception";
+  return {};
+}
+
 /// The what() of the specula::InputError that f() throws, or "no InputError".
 template <class F>
 std::string input_error_text(F&& f) {

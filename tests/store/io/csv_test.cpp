@@ -10,13 +10,9 @@
 namespace specula::store {
 namespace {
 
-using test::ScratchDir;
+using specula::test::write_file;
 
-void write_file(const std::filesystem::path& p, const std::string& text) {
-  std::ofstream out(p, std::ios::binary);
-  out << text;
-  ASSERT_TRUE(out.good()) << p;
-}
+using test::ScratchDir;
 
 std::string input_error(const std::filesystem::path& p, const WavelengthGrid& grid = {}) {
   try {

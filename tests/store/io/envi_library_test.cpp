@@ -13,24 +13,10 @@
 namespace specula::store {
 namespace {
 
+using specula::test::error_of;
+using specula::test::write_file;
+
 using test::ScratchDir;
-
-void write_file(const std::filesystem::path& p, const std::string& bytes) {
-  std::ofstream out(p, std::ios::binary);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  ASSERT_TRUE(out.good()) << p;
-}
-
-template <typename E = InputError, typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected an exception";
-  return {};
-}
 
 // float32 samples, big endian when asked, as ENVI writes them.
 std::string floats(const std::vector<float>& v, bool big_endian) {

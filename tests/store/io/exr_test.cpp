@@ -23,6 +23,8 @@
 namespace specula::store {
 namespace {
 
+using specula::test::write_file;
+
 namespace fs = std::filesystem;
 using specula::test::ScratchDir;
 
@@ -204,10 +206,6 @@ ParsedExr parse_exr(const std::string& s) {
         }
   }
   return p;
-}
-
-void write_file(const fs::path& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
 }
 
 

@@ -17,6 +17,8 @@
 namespace specula::store {
 namespace {
 
+using specula::test::write_file;
+
 namespace fs = std::filesystem;
 using specula::test::ScratchDir;
 
@@ -76,10 +78,6 @@ std::string make_png(std::uint32_t width, std::uint32_t height, int bit_depth, i
   ihdr += std::string(3, '\0');
   return std::string("\x89PNG\r\n\x1a\n", 8) + chunk("IHDR", ihdr) + extra_chunks +
          chunk("IDAT", zlib_stored(scanlines)) + chunk("IEND", "");
-}
-
-void write_file(const fs::path& path, const std::string& bytes) {
-  std::ofstream(path, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
 }
 
 std::string gray16_scanlines(std::size_t width, const std::vector<std::uint16_t>& v) {

@@ -12,24 +12,11 @@
 namespace specula::store {
 namespace {
 
+using specula::test::error_of;
+using specula::test::write_file;
+
 using test::ScratchDir;
 using Paths = std::vector<std::filesystem::path>;
-
-void write_file(const std::filesystem::path& p, const std::string& text) {
-  std::ofstream out(p, std::ios::binary);
-  out << text;
-  ASSERT_TRUE(out.good()) << p;
-}
-
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected an InputError";
-  return {};
-}
 
 // splib07a layout: title line, then one right-aligned value per line.
 std::string splib(const std::string& title, const std::vector<std::string>& values) {
