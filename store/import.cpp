@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "specula/core/error.h"
+#include "specula/core/text.h"
 #include "specula/store/io/brdf_irregular.h"
 #include "specula/store/io/csv.h"
 #include "specula/store/io/envi.h"
@@ -22,11 +23,6 @@ namespace specula::store {
 namespace {
 
 using RowMatrixXf = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-  return s;
-}
 
 // Resamples every spectrum of `values` (count x from.size()) onto `to`, refusing extrapolation.
 std::vector<float> resample(const std::vector<float>& values, std::size_t count, const WavelengthGrid& from,

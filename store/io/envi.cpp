@@ -30,27 +30,7 @@ struct Field {
 };
 using Fields = std::map<std::string, Field, std::less<>>;
 
-std::string lower(std::string_view s) {
-  std::string out(s);
-  for (char& c : out)
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-  return out;
-}
-
-std::string key_of(std::string_view raw) {
-  std::string key;
-  bool space = false;
-  for (char c : lower(trim(raw))) {
-    if (c == ' ' || c == '\t') {
-      space = true;
-      continue;
-    }
-    if (space && !key.empty()) key += ' ';
-    space = false;
-    key += c;
-  }
-  return key;
-}
+std::string key_of(std::string_view raw) { return collapse_spaces(lower(raw)); }
 
 std::vector<std::string_view> split_lines(std::string_view text) {
   std::vector<std::string_view> lines;

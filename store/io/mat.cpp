@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "specula/core/error.h"
+#include "specula/core/text.h"
 
 namespace specula::store {
 namespace {
@@ -204,11 +205,6 @@ void visit_data(const MatFile& f, const matvar_t& v, const std::string& name, st
     default:
       throw UsageError("visit_data: unsupported class " + std::string(class_name(v.class_type)));
   }
-}
-
-std::string lower(std::string s) {
-  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return s;
 }
 
 bool numeric(const matvar_t& v) { return supported_class(v.class_type) && !v.isComplex; }

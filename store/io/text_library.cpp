@@ -16,13 +16,6 @@ namespace {
 // splib07a marks deleted points with -1.23e34; anything at or below -1e34 is that marker.
 constexpr double kUsgsMissingBelow = -1e34;
 
-std::string lower(std::string_view s) {
-  std::string out(s);
-  for (char& c : out)
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-  return out;
-}
-
 std::vector<std::string> read_lines(const std::filesystem::path& p) {
   std::ifstream in(p, std::ios::binary);
   if (!in) throw InputError(p.string() + ": cannot open; check the path");
@@ -83,18 +76,7 @@ std::string usgs_name(const std::string& title) {
   if (rec != std::string::npos) {
     const auto colon = title.find(':', rec);
     if (colon != std::string::npos) {
-      std::string rest(trim(std::string_view(title).substr(colon + 1)));
-      std::string out;
-      bool space = false;
-      for (char c : rest) {
-        if (c == ' ' || c == '\t') {
-          space = true;
-          continue;
-        }
-        if (space && !out.empty()) out += ' ';
-        space = false;
-        out += c;
-      }
+      const std::string out = collapse_spaces(std::string_view(title).substr(colon + 1));
       if (!out.empty()) return out;
     }
   }

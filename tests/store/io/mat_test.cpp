@@ -87,16 +87,6 @@ MatVar wl_var(const std::string& name = "wavelengths") {
   return make_var(name, MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands}, kNm);
 }
 
-std::string input_error(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected InputError";
-  return {};
-}
-
 TEST(Mat, V5ColumnMajorDoubleWithWavelengths) {
   ScratchDir dir;
   ASSERT_TRUE(write_mat(dir / "a.mat", MAT_FT_MAT5, {wl_var(), ref_double()}));
@@ -180,9 +170,9 @@ TEST(Mat, MaskVariableLogicalUint8Double) {
         }
       expect_cube(cube, 0.5);
     }
-    const std::string msg = input_error([&] { read_mat(dir / "m.mat", "ref", std::string("badmask"), {}); });
+    const std::string msg = test::error_of([&] { read_mat(dir / "m.mat", "ref", std::string("badmask"), {}); });
     EXPECT_NE(msg.find("mask variable 'badmask' is 4 x 3 but 'ref' is 3 x 4"), std::string::npos) << msg;
-    const std::string none = input_error([&] { read_mat(dir / "m.mat", "ref", std::string("nomask"), {}); });
+    const std::string none = test::error_of([&] { read_mat(dir / "m.mat", "ref", std::string("nomask"), {}); });
     EXPECT_NE(none.find("no mask variable 'nomask'"), std::string::npos) << none;
   }
 }
@@ -197,7 +187,7 @@ TEST(Mat, MissingVariableListsVariables) {
                     make_var("b", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, one),
                     make_var("c", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, one)}))
       GTEST_SKIP() << "no v7.3 support in this matio";
-    EXPECT_EQ(input_error([&] { read_mat(p, "ref", std::nullopt, WavelengthGrid(kNm)); }),
+    EXPECT_EQ(test::error_of([&] { read_mat(p, "ref", std::nullopt, WavelengthGrid(kNm)); }),
               p.string() + ": no variable 'ref' (variables: a, b, c)");
   }
 }
@@ -208,16 +198,16 @@ TEST(Mat, BadInputs) {
   const std::vector<double> short_wl = {400, 500};
   ASSERT_TRUE(write_mat(dir / "b.mat", MAT_FT_MAT5,
                         {ref_double(), make_var("i64", MAT_C_INT64, MAT_T_INT64, {kRows, kCols, kBands}, big)}));
-  std::string m = input_error([&] { read_mat(dir / "b.mat", "ref", std::nullopt, {}); });
+  std::string m = test::error_of([&] { read_mat(dir / "b.mat", "ref", std::nullopt, {}); });
   EXPECT_NE(m.find("b.mat: no wavelength variable (wavelength, wavelengths, bands, wl or lambda) for the 5 bands of 'ref'; give the `wavelengths` option"), std::string::npos) << m;
-  m = input_error([&] { read_mat(dir / "b.mat", "ref", std::nullopt, WavelengthGrid(short_wl)); });
+  m = test::error_of([&] { read_mat(dir / "b.mat", "ref", std::nullopt, WavelengthGrid(short_wl)); });
   EXPECT_NE(m.find("has 5 bands but the `wavelengths` option gives 2"), std::string::npos) << m;
-  m = input_error([&] { read_mat(dir / "b.mat", "i64", std::nullopt, WavelengthGrid(kNm)); });
+  m = test::error_of([&] { read_mat(dir / "b.mat", "i64", std::nullopt, WavelengthGrid(kNm)); });
   EXPECT_NE(m.find("variable 'i64' is int64; convert it to double"), std::string::npos) << m;
 
   ASSERT_TRUE(write_mat(dir / "w.mat", MAT_FT_MAT5,
                         {ref_double(), make_var("wavelengths", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 2}, short_wl)}));
-  m = input_error([&] { read_mat(dir / "w.mat", "ref", std::nullopt, {}); });
+  m = test::error_of([&] { read_mat(dir / "w.mat", "ref", std::nullopt, {}); });
   EXPECT_NE(m.find("variable 'wavelengths' is double 1 x 2 but 'ref' has 5 bands"), std::string::npos) << m;
   const Cube overridden = read_mat(dir / "w.mat", "ref", std::nullopt, WavelengthGrid::range(700, 740, 10));
   EXPECT_EQ(overridden.wavelengths[4], 740.0);
@@ -226,9 +216,9 @@ TEST(Mat, BadInputs) {
     std::ofstream junk(dir / "junk.mat", std::ios::binary);
     junk << std::string(300, 'x');
   }
-  m = input_error([&] { read_mat(dir / "junk.mat", "ref", std::nullopt, WavelengthGrid(kNm)); });
+  m = test::error_of([&] { read_mat(dir / "junk.mat", "ref", std::nullopt, WavelengthGrid(kNm)); });
   EXPECT_NE(m.find("junk.mat: not a MATLAB .mat file"), std::string::npos) << m;
-  m = input_error([&] { read_mat(dir / "absent.mat", "ref", std::nullopt, WavelengthGrid(kNm)); });
+  m = test::error_of([&] { read_mat(dir / "absent.mat", "ref", std::nullopt, WavelengthGrid(kNm)); });
   EXPECT_NE(m.find("absent.mat: no such file"), std::string::npos) << m;
 }
 
@@ -315,7 +305,7 @@ TEST(MatLayouts, FosterReflectancesNeedTheOption) {
   ASSERT_TRUE(write_mat(dir / "foster.mat", MAT_FT_MAT5,
                         {make_var("reflectances", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands},
                                   column_major<double>())}));
-  const std::string m = input_error([&] { read_mat(dir / "foster.mat", "", std::nullopt, {}); });
+  const std::string m = test::error_of([&] { read_mat(dir / "foster.mat", "", std::nullopt, {}); });
   EXPECT_EQ(m, (dir / "foster.mat").string() +
                    ": no wavelength variable (wavelength, wavelengths, bands, wl or lambda) for the 5 bands of "
                    "'reflectances'; give the `wavelengths` option FIRST:LAST:STEP");
@@ -329,7 +319,7 @@ TEST(MatLayouts, IndianPinesUnknownNameAndAmbiguity) {
   ASSERT_TRUE(write_mat(dir / "Indian_pines_corrected.mat", MAT_FT_MAT5,
                         {make_var("indian_pines_corrected", MAT_C_UINT16, MAT_T_UINT16, {kRows, kCols, kBands},
                                   column_major<std::uint16_t>(1000))}));
-  const std::string m = input_error([&] { read_mat(dir / "Indian_pines_corrected.mat", "", std::nullopt, {}); });
+  const std::string m = test::error_of([&] { read_mat(dir / "Indian_pines_corrected.mat", "", std::nullopt, {}); });
   EXPECT_EQ(std::count(m.begin(), m.end(), '\n'), 0);
   EXPECT_NE(m.find("bands of 'indian_pines_corrected'; give the `wavelengths` option"), std::string::npos) << m;
   expect_cube(read_mat(dir / "Indian_pines_corrected.mat", "", std::nullopt, WavelengthGrid(kNm)), 1000);
@@ -337,7 +327,7 @@ TEST(MatLayouts, IndianPinesUnknownNameAndAmbiguity) {
   ASSERT_TRUE(write_mat(dir / "two.mat", MAT_FT_MAT5,
                         {make_var("a", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands}, column_major<double>()),
                          make_var("b", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands}, column_major<double>())}));
-  const std::string amb = input_error([&] { read_mat(dir / "two.mat", "", std::nullopt, WavelengthGrid(kNm)); });
+  const std::string amb = test::error_of([&] { read_mat(dir / "two.mat", "", std::nullopt, WavelengthGrid(kNm)); });
   EXPECT_NE(amb.find("several 3-D variables (a, b)"), std::string::npos) << amb;
   EXPECT_NE(amb.find("give its name as the `var` option"), std::string::npos) << amb;
   expect_cube(read_mat(dir / "two.mat", "b", std::nullopt, WavelengthGrid(kNm)));
@@ -416,7 +406,7 @@ TEST(MatLayouts, WavelengthNamesAndUnitsRule) {
   const std::vector<double> numbering = {1, 2, 3, 4, 5}, ints = {1, 2, 3, 4, 6};
   ASSERT_TRUE(write_mat(dir / "n.mat", MAT_FT_MAT5,
                         {ref_double(), make_var("bands", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands}, numbering)}));
-  std::string m = input_error([&] { read_mat(dir / "n.mat", "", std::nullopt, {}); });
+  std::string m = test::error_of([&] { read_mat(dir / "n.mat", "", std::nullopt, {}); });
   EXPECT_NE(m.find("variable 'bands' holds band numbers 1..5, not wavelengths; give the `wavelengths` option"),
             std::string::npos) << m;
   EXPECT_EQ(read_mat(dir / "n.mat", "", std::nullopt, WavelengthGrid(kNm)).wavelengths[4], 600.0);
