@@ -92,16 +92,20 @@ struct Coding {
   Eigen::MatrixXd basis;  // k x B
 };
 
-// x'_b = m' (V^T c')_b with negatives clipped to 0 (a negative value would read as "no data").
-inline void reconstruct(const Coding& cd, std::int64_t qm, const std::int32_t* qc, std::size_t stride, double* shape,
-                        float* out, std::size_t out_stride) {
+// The coefficient form of one cell, a_j = m' c'_j in float (SpcCoefficients), from its codes.
+inline void coefficients(const Coding& cd, std::int64_t qm, const std::int32_t* qc, std::size_t stride, float* a) {
   const double m = cd.s * std::expm1(double(qm) * cd.step_m);
-  for (std::size_t b = 0; b < cd.bands; ++b) shape[b] = 0;
-  for (std::size_t j = 0; j < cd.k; ++j) {
-    const double c = double(qc[j * stride]) * cd.step_c;
-    for (std::size_t b = 0; b < cd.bands; ++b) shape[b] += c * cd.basis(Eigen::Index(j), Eigen::Index(b));
+  for (std::size_t j = 0; j < cd.k; ++j) a[j] = float(m * (double(qc[j * stride]) * cd.step_c));
+}
+
+// x'_b = max(0, sum_j a_j V_jb): negatives clipped to 0, since a negative value would read as "no data".
+inline void expand_cell(const Eigen::MatrixXd& basis, const float* a, float* out, std::size_t out_stride) {
+  const auto k = basis.rows(), bands = basis.cols();
+  for (Eigen::Index b = 0; b < bands; ++b) {
+    double x = 0;
+    for (Eigen::Index j = 0; j < k; ++j) x += double(a[j]) * basis(j, b);
+    out[std::size_t(b) * out_stride] = float(std::max(0.0, x));
   }
-  for (std::size_t b = 0; b < cd.bands; ++b) out[b * out_stride] = float(std::max(0.0, m * shape[b]));
 }
 
 std::vector<std::uint8_t> zstd_compress(const std::vector<std::uint8_t>& raw, int level) {
@@ -390,19 +394,19 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
   struct SlabScratch {
     std::vector<std::int32_t> q;
     Eigen::VectorXd r, c;
-    std::vector<double> shape;
+    std::vector<float> a;
     std::vector<float> out;
   };
   auto scratch = [&] {
     return SlabScratch{std::vector<std::int32_t>(channels * kSlab), Eigen::VectorXd(static_cast<Eigen::Index>(bands)),
-                       Eigen::VectorXd(static_cast<Eigen::Index>(k)), std::vector<double>(bands), std::vector<float>(bands)};
+                       Eigen::VectorXd(static_cast<Eigen::Index>(k)), std::vector<float>(k), std::vector<float>(bands)};
   };
   parallel_for(std::size_t(kMerlThetaH), scratch, [&](std::size_t slab, SlabScratch& t) {
     const int h = int(slab);
     auto& q = t.q;
     auto& r = t.r;
     auto& c = t.c;
-    auto& shape = t.shape;
+    auto& a = t.a;
     auto& out = t.out;
     const std::size_t base = std::size_t(h) * kSlab;
     const std::uint8_t* vs = valid.data() + base;
@@ -416,7 +420,8 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
       c.noalias() = basis.rows * r;
       for (std::size_t j = 0; j < k; ++j) q[(j + 1) * kSlab + i] = to_code(c[Eigen::Index(j)] / cd.step_c, "a shape coefficient");
       // What the decoder will produce, for the report.
-      reconstruct(cd, q[i], q.data() + kSlab + i, kSlab, shape.data(), out.data(), 1);
+      coefficients(cd, q[i], q.data() + kSlab + i, kSlab, a.data());
+      expand_cell(cd.basis, a.data(), out.data(), 1);
       const Eigen::VectorXd rk = basis.rows.transpose() * c;
       for (std::size_t b = 0; b < bands; ++b) {
         const double e = (double(out[b]) - grid.brdf[b * kMerlCells + cell]) * cd.scale;
@@ -424,7 +429,9 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
         mx = std::max(mx, std::abs(e));
         if (m > 0) {
           resid = std::max(resid, std::abs(r[Eigen::Index(b)] - rk[Eigen::Index(b)]));
-          quant = std::max(quant, std::abs(shape[b] - rk[Eigen::Index(b)]));
+          double shape_b = 0;  // r'_b = (V^T c')_b
+          for (std::size_t j = 0; j < k; ++j) shape_b += double(q[(j + 1) * kSlab + i]) * cd.step_c * basis.rows(Eigen::Index(j), Eigen::Index(b));
+          quant = std::max(quant, std::abs(shape_b - rk[Eigen::Index(b)]));
         }
       }
     }
@@ -513,7 +520,7 @@ SpcBasis spc_basis(std::span<const std::uint8_t> bytes, const std::string& label
   return {p.wavelengths, p.cd.basis, p.reference};
 }
 
-store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& label) {
+SpcCoefficients decode_spc_coefficients(std::span<const std::uint8_t> bytes, const std::string& label) {
   const Parsed p = parse_header(bytes, label);
   const Coding& cd = p.cd;
   Reader r(bytes.first(bytes.size() - 4), label);
@@ -556,22 +563,21 @@ store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& l
     for (std::size_t i = 0; i < kSlab; ++i) n += valid[std::size_t(h) * kSlab + i];
     first[std::size_t(h) + 1] = first[std::size_t(h)] + n;
   }
-  store::Grid g;
+  SpcCoefficients g;
   g.wavelengths = p.wavelengths;
+  g.basis = cd.basis;
   g.scale = cd.scale;
   g.units = p.units;
-  g.provenance.source_file = p.source;
-  g.provenance.importer = "decode " + p.reference;
-  g.brdf.assign(cd.bands * kMerlCells, -1.0f);
+  g.source = p.source;
+  g.reference = p.reference;
+  g.values.assign(cd.k * kMerlCells, 0.0f);
   struct SlabScratch {
     std::vector<std::int32_t> q;
-    std::vector<double> shape;
   };
-  auto scratch = [&] { return SlabScratch{std::vector<std::int32_t>(channels * kSlab, 0), std::vector<double>(cd.bands)}; };
+  auto scratch = [&] { return SlabScratch{std::vector<std::int32_t>(channels * kSlab, 0)}; };
   parallel_for(std::size_t(kMerlThetaH), scratch, [&](std::size_t slab, SlabScratch& t) {
     const int h = int(slab);
     auto& q = t.q;
-    auto& shape = t.shape;
     const std::size_t base = std::size_t(h) * kSlab;
     const std::uint8_t* vs = valid.data() + base;
     for (std::size_t ch = 0; ch < channels; ++ch) {
@@ -588,14 +594,37 @@ store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& l
     }
     for (std::size_t i = 0; i < kSlab; ++i) {
       if (!vs[i]) continue;
-      reconstruct(cd, q[i], q.data() + kSlab + i, kSlab, shape.data(), g.brdf.data() + base + i, kMerlCells);
-      for (std::size_t b = 0; b < cd.bands; ++b)
-        if (!std::isfinite(g.brdf[b * kMerlCells + base + i]))
+      float* a = g.values.data() + (base + i) * cd.k;
+      coefficients(cd, q[i], q.data() + kSlab + i, kSlab, a);
+      for (std::size_t j = 0; j < cd.k; ++j)
+        if (!std::isfinite(a[j]))
           throw InputError(label + ": .spc codes decode to values beyond float range; the file was not written by "
                                    "specula encode");
     }
   });
+  g.valid = std::move(valid);
   return g;
+}
+
+store::Grid expand_spc(const SpcCoefficients& c) {
+  const std::size_t k = c.k(), bands = c.bands();
+  if (c.values.size() != k * kMerlCells || c.valid.size() != kMerlCells)
+    throw UsageError("expand_spc: coefficients do not match k x 90 x 90 x 180 cells");
+  store::Grid g;
+  g.wavelengths = c.wavelengths;
+  g.scale = c.scale;
+  g.units = c.units;
+  g.provenance.source_file = c.source;
+  g.provenance.importer = "decode " + c.reference;
+  g.brdf.assign(bands * kMerlCells, -1.0f);
+  parallel_for(kMerlCells, [&](std::size_t cell) {
+    if (c.valid[cell]) expand_cell(c.basis, c.values.data() + cell * k, g.brdf.data() + cell, kMerlCells);
+  }, kSlab);
+  return g;
+}
+
+store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& label) {
+  return expand_spc(decode_spc_coefficients(bytes, label));
 }
 
 void write_spc_file(const std::filesystem::path& path, std::span<const std::uint8_t> bytes) {

@@ -65,7 +65,25 @@ struct SpcReport {
 /// bytes for any thread count. Throws UsageError for a bad option.
 std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& options,
                                      SpcReport* report = nullptr, const std::string& source = "");
-/// Decodes .spc bytes; every field and the CRC are checked, and a problem is an InputError starting with `label`.
+/// A decoded .spc held as its coefficients rather than its bands: per cell the k values a = m' c' (the magnitude
+/// folded into the shape coefficients), so the decoded spectrum is x'_b = max(0, sum_j a_j V_jb) in stored units.
+struct SpcCoefficients {
+  WavelengthGrid wavelengths;
+  Eigen::MatrixXd basis;            ///< k x B, the rows V
+  double scale = 1;                 ///< value x scale is 1/sr
+  std::string units, source, reference;
+  std::vector<float> values;        ///< kMerlCells x k, cell-major (MERL cell order); 0 in cells without data
+  std::vector<std::uint8_t> valid;  ///< kMerlCells; 1 where the cell has data
+  std::size_t k() const { return std::size_t(basis.rows()); }
+  std::size_t bands() const { return std::size_t(basis.cols()); }
+};
+
+/// Decodes .spc bytes to coefficient form; every field and the CRC are checked, and a problem is an InputError
+/// starting with `label`.
+SpcCoefficients decode_spc_coefficients(std::span<const std::uint8_t> bytes, const std::string& label);
+/// The grid of a coefficient form: x'_b = max(0, sum_j a_j V_jb) in valid cells, -1 (no data) elsewhere.
+store::Grid expand_spc(const SpcCoefficients& coefficients);
+/// Decodes .spc bytes to a grid: expand_spc(decode_spc_coefficients(bytes, label)).
 store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& label);
 /// The basis a .spc file was coded with (checked as decode_spc does).
 SpcBasis spc_basis(std::span<const std::uint8_t> bytes, const std::string& label);
