@@ -10,6 +10,32 @@
 
 namespace specula::codec {
 
+De00 de00_of_renders(std::span<const float> a, std::span<const float> b, std::span<const std::uint8_t> covered,
+                     const Eigen::Vector3d& white) {
+  if (a.size() != 3 * covered.size() || b.size() != a.size())
+    throw UsageError("de00: renderings of " + std::to_string(a.size() / 3) + " and " + std::to_string(b.size() / 3) +
+                     " pixels for a sphere of " + std::to_string(covered.size()));
+  De00 d;
+  d.per_pixel.assign(covered.size(), 0.0f);
+  std::vector<float> values;
+  for (std::size_t p = 0; p < covered.size(); ++p) {
+    if (!covered[p]) continue;
+    const Eigen::Vector3d xa(a[3 * p], a[3 * p + 1], a[3 * p + 2]), xb(b[3 * p], b[3 * p + 1], b[3 * p + 2]);
+    const double e = ciede2000(xyz_to_lab(xa, white), xyz_to_lab(xb, white));
+    d.per_pixel[p] = float(e);
+    values.push_back(float(e));
+  }
+  if (!values.empty()) {
+    double sum = 0;
+    for (const float v : values) sum += v;
+    d.mean = sum / double(values.size());
+    std::sort(values.begin(), values.end());
+    d.p95 = values[std::min(values.size() - 1, std::size_t(std::ceil(0.95 * double(values.size()))) - 1)];
+    d.max = values.back();
+  }
+  return d;
+}
+
 GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environment& env, const DiffOptions& o) {
   if (!a.wavelengths.approx_equal(b.wavelengths))
     throw InputError("the first grid has " + a.wavelengths.describe() + ", the second " + b.wavelengths.describe() +
@@ -93,24 +119,11 @@ GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environmen
   if (!(r.white.y() > 0))
     throw InputError("environment " + env.description +
                      " sends no light to a surface facing the viewer, so there is no white for CIELAB; light the front");
-  d.de00.assign(r.size * r.size, 0.0f);
-  std::vector<float> values;
-  for (std::size_t p = 0; p < r.size * r.size; ++p) {
-    if (!r.covered[p]) continue;
-    const Eigen::Vector3d xa(r.xyz[0][3 * p], r.xyz[0][3 * p + 1], r.xyz[0][3 * p + 2]);
-    const Eigen::Vector3d xb(r.xyz[1][3 * p], r.xyz[1][3 * p + 1], r.xyz[1][3 * p + 2]);
-    const double e = ciede2000(xyz_to_lab(xa, r.white), xyz_to_lab(xb, r.white));
-    d.de00[p] = float(e);
-    values.push_back(float(e));
-  }
-  if (!values.empty()) {
-    double sum = 0;
-    for (const float v : values) sum += v;
-    d.de00_mean = sum / double(values.size());
-    std::sort(values.begin(), values.end());
-    d.de00_p95 = values[std::min(values.size() - 1, std::size_t(std::ceil(0.95 * double(values.size()))) - 1)];
-    d.de00_max = values.back();
-  }
+  De00 e = de00_of_renders(r.xyz[0], r.xyz[1], r.covered, r.white);
+  d.de00 = std::move(e.per_pixel);
+  d.de00_mean = e.mean;
+  d.de00_p95 = e.p95;
+  d.de00_max = e.max;
   return d;
 }
 

@@ -1,6 +1,7 @@
 #pragma once
 // How far apart two spectral BRDF grids are: in value over the grid, and as seen rendered on a sphere.
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "specula/codec/environment.h"
@@ -31,6 +32,17 @@ struct GridDiff {
   SphereRenders renders;             ///< the two renderings compared
   std::vector<float> de00;           ///< per pixel (0 off the sphere)
 };
+
+/// CIEDE2000 per pixel of two renderings of one sphere under one light (xyz: 3 floats a pixel), each pixel's XYZ
+/// taken to CIELAB with `white`; 0 off the sphere.
+struct De00 {
+  double mean = 0, p95 = 0, max = 0;  ///< over covered pixels; p95: rank ceil(0.95 n) of the n sorted values
+  std::vector<float> per_pixel;
+};
+
+/// Compares rendering b with rendering a (same size, same `covered`); UsageError if their sizes differ.
+De00 de00_of_renders(std::span<const float> a, std::span<const float> b, std::span<const std::uint8_t> covered,
+                     const Eigen::Vector3d& white);
 
 /// Compares a (the reference) with b; InputError if their wavelength grids differ (naming both) or if env gives
 /// no white (no light on a surface facing the viewer).

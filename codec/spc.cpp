@@ -12,7 +12,13 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <optional>
+#include <array>
 
+#include "specula/codec/cube_coder.h"
+#include "specula/codec/diff.h"
+#include "specula/codec/environment.h"
+#include "specula/codec/wavelet.h"
 #include "specula/core/atomic_file.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
@@ -166,7 +172,8 @@ struct Parsed {
   std::size_t sections_at = 0;
 };
 
-Parsed parse_header(std::span<const std::uint8_t> bytes, const std::string& label) {
+// Magic, version and CRC of a .spc file of any version; returns the version.
+std::uint32_t check_container(std::span<const std::uint8_t> bytes, const std::string& label) {
   if (bytes.size() < sizeof kSpcMagic + 4 || std::memcmp(bytes.data(), kSpcMagic, sizeof kSpcMagic) != 0)
     throw InputError(label + ": not a .spc file (it does not start with the SPECUSPC magic)");
   if (bytes.size() < 12 + 4) throw InputError(label + ": .spc file is truncated (" + std::to_string(bytes.size()) + " bytes)");
@@ -186,6 +193,15 @@ Parsed parse_header(std::span<const std::uint8_t> bytes, const std::string& labe
     throw InputError(label + ": .spc file is corrupt: CRC-32 " + std::to_string(std::uint32_t(crc)) + " of its " +
                      std::to_string(bytes.size() - 4) + " bytes, the file says " + std::to_string(stored) +
                      " (truncated or damaged)");
+  return version;
+}
+
+// The header of a format-1 file.
+Parsed parse_header(std::span<const std::uint8_t> bytes, const std::string& label) {
+  if (check_container(bytes, label) != 1)
+    throw InputError(label + ": .spc format 2 has no format-1 header");
+  Reader r(bytes.first(bytes.size() - 4), label);
+  r.take(sizeof kSpcMagic + 4, "magic and version");
   Parsed p;
   const auto bands = r.get<std::uint32_t>("bands");
   const auto k = r.get<std::uint32_t>("k");
@@ -230,6 +246,525 @@ Parsed parse_header(std::span<const std::uint8_t> bytes, const std::string& labe
 }
 
 }  // namespace
+
+// ---- Format 2: the transform coder ----
+
+namespace {
+
+using wavelet::CubeLayout;
+constexpr std::size_t kFold = std::size_t(kMerlPhiD) / 2;  // phi_d folded about pi/2: 90 sums, 90 differences
+constexpr std::size_t kCube = std::size_t(kMerlThetaH) * kMerlThetaD * kFold;
+constexpr double kRounding = 0.3;        // |w| / step + kRounding rounded down: a dead zone around 0
+constexpr double kReconstruction = 0.1;  // a non-zero code q decodes to sign(q) (|q| + 0.1) step
+constexpr std::int32_t kMaxCode = 1 << 28;
+enum class Validity : std::uint8_t { all = 0, horizon = 1, bitmap = 2 };
+
+CubeLayout cube_layout(int levels) { return {{std::size_t(kMerlThetaH), std::size_t(kMerlThetaD), kFold}, levels}; }
+
+// The fields of a format-2 file that decoding needs besides the streams.
+struct Transform {
+  int levels = 4;
+  double step_y = 0, step_c = 0, frequency = 1, reconstruction = kReconstruction;
+  double step(std::size_t channel) const { return channel == 0 ? step_y : step_c; }
+};
+
+// Calls f(index, step) for every coefficient of a cube, the step of its subband: the channel's step, times
+// frequency^(levels - 1 - l) for the detail bands of level l (0 finest), divided by the subband's synthesis norm
+// so that a step is what an error costs in the channel's own values.
+template <class F>
+void for_each_coefficient(const CubeLayout& c, double channel_step, double frequency, F&& f) {
+  const std::size_t s1 = c.dims[2], s0 = c.dims[1] * c.dims[2];
+  auto band = [&](int l, int o, double step) {
+    const auto r0 = c.range(l, o, 0), r1 = c.range(l, o, 1), r2 = c.range(l, o, 2);
+    for (std::size_t i = r0[0]; i < r0[1]; ++i)
+      for (std::size_t j = r1[0]; j < r1[1]; ++j)
+        for (std::size_t k = r2[0]; k < r2[1]; ++k) f(i * s0 + j * s1 + k, step);
+  };
+  band(c.levels, 0, channel_step / c.synthesis_norm(c.levels, 0));
+  for (int l = c.levels - 1; l >= 0; --l)
+    for (int o = 1; o < 8; ++o)
+      band(l, o, channel_step * std::pow(frequency, c.levels - 1 - l) / c.synthesis_norm(l, o));
+}
+
+// Fills the cells of a 90 x 90 x 180 channel where `known` is 0 so that the channel stays smooth for the transform:
+// along theta_d, then phi_d, then theta_h, each gap between known cells linearly and each end with its nearest
+// known value; cells on lines with nothing known wait for the next axis (and are 0 if no cell is known).
+void fill(std::vector<float>& v, std::vector<std::uint8_t> known) {
+  const std::array<std::size_t, 3> n{std::size_t(kMerlThetaH), std::size_t(kMerlThetaD), std::size_t(kMerlPhiD)};
+  const std::array<std::size_t, 3> stride{kSlab, std::size_t(kMerlPhiD), 1};
+  for (const std::size_t axis : {std::size_t(1), std::size_t(2), std::size_t(0)}) {
+    const std::size_t a = (axis + 1) % 3, b = (axis + 2) % 3;
+    for (std::size_t i = 0; i < n[a]; ++i)
+      for (std::size_t j = 0; j < n[b]; ++j) {
+        const std::size_t base = i * stride[a] + j * stride[b];
+        std::ptrdiff_t last = -1;
+        for (std::size_t t = 0; t <= n[axis]; ++t) {
+          if (t < n[axis] && !known[base + t * stride[axis]]) continue;
+          if (t == n[axis] && last < 0) break;  // nothing known on this line
+          const float right = t < n[axis] ? v[base + t * stride[axis]] : v[base + std::size_t(last) * stride[axis]];
+          const float left = last >= 0 ? v[base + std::size_t(last) * stride[axis]] : right;
+          for (std::size_t u = std::size_t(last + 1); u < t; ++u) {
+            const double w = last >= 0 && t < n[axis] ? double(u - std::size_t(last)) / double(t - std::size_t(last)) : 0.0;
+            v[base + u * stride[axis]] = float(left + w * (right - left));
+            known[base + u * stride[axis]] = 1;
+          }
+          last = std::ptrdiff_t(t);
+        }
+      }
+  }
+  for (std::size_t c = 0; c < v.size(); ++c)
+    if (!known[c]) v[c] = 0;
+}
+
+// A filled channel folded about phi_d = pi/2 into its sum and difference cubes (isotropic reciprocal BRDFs are
+// even there, so the difference is near zero): S = (v(p) + v(179 - p)) / 2, D = (v(p) - v(179 - p)) / 2.
+void fold(const std::vector<float>& v, std::vector<float>& sum, std::vector<float>& diff) {
+  sum.resize(kCube);
+  diff.resize(kCube);
+  for (std::size_t hd = 0; hd < std::size_t(kMerlThetaH) * kMerlThetaD; ++hd)
+    for (std::size_t p = 0; p < kFold; ++p) {
+      const float a = v[hd * kMerlPhiD + p], b = v[hd * kMerlPhiD + kMerlPhiD - 1 - p];
+      sum[hd * kFold + p] = 0.5f * (a + b);
+      diff[hd * kFold + p] = 0.5f * (a - b);
+    }
+}
+
+// The magnitude and shape channels of a grid on a basis, transformed: 2 (k + 1) cubes (sum, difference per channel).
+struct Model {
+  std::size_t bands = 0, k = 0;
+  double scale = 1, s = 1;
+  std::vector<std::uint8_t> valid;
+  std::uint64_t n_valid = 0;
+  Validity validity = Validity::bitmap;
+  std::vector<std::vector<float>> cubes;
+};
+
+Model transform_model(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& o) {
+  Model md;
+  md.bands = grid.bands();
+  md.k = basis.k();
+  md.scale = grid.scale;
+  const std::size_t bands = md.bands, k = md.k;
+  std::vector<float> mag(kMerlCells, 0.0f);
+  md.valid.assign(kMerlCells, 0);
+  std::vector<std::vector<float>> ch(k + 1, std::vector<float>(kMerlCells, 0.0f));
+  std::vector<std::uint8_t> shaped(kMerlCells, 0);
+  parallel_for(kMerlCells, [&](std::size_t c) {
+    double m = 0;
+    bool ok = true;
+    for (std::size_t b = 0; b < bands; ++b) {
+      const float v = grid.brdf[b * kMerlCells + c];
+      if (!std::isfinite(v)) throw InputError("the grid holds a non-finite value; it cannot be coded");
+      ok &= v >= 0;
+      m += v;
+    }
+    md.valid[c] = ok;
+    if (ok) mag[c] = float(m / double(bands));
+  }, kSlab);
+  for (const auto v : md.valid) md.n_valid += v;
+  md.s = o.magnitude_scale;
+  if (md.s == 0) {
+    std::vector<float> positive;
+    for (std::size_t c = 0; c < kMerlCells; ++c)
+      if (md.valid[c] && mag[c] > 0) positive.push_back(mag[c]);
+    md.s = 1;
+    if (!positive.empty()) {
+      std::nth_element(positive.begin(), positive.begin() + std::ptrdiff_t(positive.size() / 2), positive.end());
+      md.s = 0.1 * double(positive[positive.size() / 2]);
+    }
+  }
+  bool all = true, horizon = true;
+  for (std::size_t c = 0; c < kMerlCells; ++c) {
+    all &= md.valid[c] == 1;
+    horizon &= md.valid[c] == (brdf::merl_cell_valid(brdf::merl_cell(c)) ? 1 : 0);
+  }
+  md.validity = all ? Validity::all : horizon ? Validity::horizon : Validity::bitmap;
+  parallel_for(kMerlCells, [&](std::size_t c) {
+    if (!md.valid[c]) return;
+    const double m = mag[c];
+    ch[0][c] = float(std::log1p(m / md.s));
+    if (!(m > 0)) return;
+    shaped[c] = 1;
+    for (std::size_t j = 0; j < k; ++j) {
+      double v = 0;
+      for (std::size_t b = 0; b < bands; ++b) v += basis.rows(Eigen::Index(j), Eigen::Index(b)) * grid.brdf[b * kMerlCells + c];
+      ch[j + 1][c] = float(v / m);
+    }
+  }, kSlab);
+  md.cubes.resize(2 * (k + 1));
+  const CubeLayout layout = cube_layout(o.levels);
+  parallel_for(k + 1, [&](std::size_t j) {
+    fill(ch[j], j == 0 ? md.valid : shaped);
+    fold(ch[j], md.cubes[2 * j], md.cubes[2 * j + 1]);
+    std::vector<float>().swap(ch[j]);
+    wavelet::forward_cube(md.cubes[2 * j], layout);
+    wavelet::forward_cube(md.cubes[2 * j + 1], layout);
+  }, 1);
+  return md;
+}
+
+std::vector<std::vector<std::int32_t>> quantise(const Model& md, const Transform& t) {
+  std::vector<std::vector<std::int32_t>> q(md.cubes.size(), std::vector<std::int32_t>(kCube));
+  const CubeLayout layout = cube_layout(t.levels);
+  parallel_for(md.cubes.size(), [&](std::size_t cube) {
+    const std::vector<float>& w = md.cubes[cube];
+    std::int32_t* out = q[cube].data();
+    for_each_coefficient(layout, t.step(cube / 2), t.frequency, [&](std::size_t i, double step) {
+      const double a = std::floor(std::abs(double(w[i])) / step + kRounding);
+      if (!(a < kMaxCode)) throw UsageError("encode: a transform coefficient needs a code beyond 2^28; raise the step");
+      out[i] = std::int32_t(w[i] < 0 ? -a : a);
+    });
+  }, 1);
+  return q;
+}
+
+// The coefficient form of quantised cubes: dequantised, inverse-transformed, unfolded, and per valid cell
+// a_j = s expm1(max(0, y')) c'_j.
+SpcCoefficients reconstruct(const std::vector<std::vector<std::int32_t>>& q, const Transform& t, std::size_t k,
+                            double s, const std::vector<std::uint8_t>& valid, const std::string& label) {
+  const CubeLayout layout = cube_layout(t.levels);
+  std::vector<std::vector<float>> channel(k + 1, std::vector<float>(kMerlCells));
+  parallel_for(k + 1, [&](std::size_t j) {
+    std::array<std::vector<float>, 2> w{std::vector<float>(kCube), std::vector<float>(kCube)};
+    for (std::size_t half = 0; half < 2; ++half) {
+      const std::int32_t* in = q[2 * j + half].data();
+      float* out = w[half].data();
+      for_each_coefficient(layout, t.step(j), t.frequency, [&](std::size_t i, double step) {
+        const std::int32_t v = in[i];
+        out[i] = v == 0 ? 0.0f : float((v < 0 ? -1.0 : 1.0) * (std::abs(double(v)) + t.reconstruction) * step);
+      });
+      wavelet::inverse_cube(w[half], layout);
+    }
+    float* v = channel[j].data();
+    for (std::size_t hd = 0; hd < std::size_t(kMerlThetaH) * kMerlThetaD; ++hd)
+      for (std::size_t p = 0; p < kFold; ++p) {
+        const float sum = w[0][hd * kFold + p], diff = w[1][hd * kFold + p];
+        v[hd * kMerlPhiD + p] = sum + diff;
+        v[hd * kMerlPhiD + kMerlPhiD - 1 - p] = sum - diff;
+      }
+  }, 1);
+  SpcCoefficients out;
+  out.values.assign(k * kMerlCells, 0.0f);
+  parallel_for(kMerlCells, [&](std::size_t c) {
+    if (!valid[c]) return;
+    const double m = s * std::expm1(std::max(0.0, double(channel[0][c])));
+    for (std::size_t j = 0; j < k; ++j) {
+      const float a = float(m * double(channel[j + 1][c]));
+      if (!std::isfinite(a))
+        throw InputError(label + ": .spc coefficients decode beyond float range; the file was not written by specula encode");
+      out.values[c * k + j] = a;
+    }
+  }, kSlab);
+  out.valid = valid;
+  return out;
+}
+
+std::vector<std::uint8_t> validity_bitmap(const std::vector<std::uint8_t>& valid) {
+  std::vector<std::uint8_t> bitmap((kMerlCells + 7) / 8, 0);
+  for (std::size_t c = 0; c < kMerlCells; ++c)
+    if (valid[c]) bitmap[c / 8] |= std::uint8_t(1u << (c % 8));
+  return bitmap;
+}
+
+std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const store::Grid& grid, const Transform& t,
+                                  const std::vector<std::vector<std::int32_t>>& q, const std::string& source) {
+  std::vector<std::vector<std::uint8_t>> streams(q.size());
+  const CubeLayout layout = cube_layout(t.levels);
+  parallel_for(q.size(), [&](std::size_t i) { streams[i] = encode_cube(q[i], layout); }, 1);
+  std::vector<std::uint8_t> out;
+  put_bytes(out, kSpcMagic, sizeof kSpcMagic);
+  put(out, std::uint32_t(2));
+  put(out, std::uint32_t(md.bands));
+  put(out, std::uint32_t(md.k));
+  put(out, md.scale);
+  put(out, md.s);
+  const auto& wl = grid.wavelengths;
+  const bool uniform = wl.uniform() && wl.size() > 1;
+  put(out, std::uint8_t(uniform ? 0 : 1));
+  if (uniform) {
+    put(out, wl.front());
+    put(out, wl.step());
+  } else {
+    for (const double w : wl.values()) put(out, w);
+  }
+  for (std::size_t j = 0; j < md.k; ++j)
+    for (std::size_t b = 0; b < md.bands; ++b) put(out, float(basis.rows(Eigen::Index(j), Eigen::Index(b))));
+  put_string(out, grid.units);
+  put_string(out, source);
+  put_string(out, basis.reference);
+  put(out, std::uint64_t(md.n_valid));
+  put(out, std::uint8_t(md.validity));
+  if (md.validity == Validity::bitmap) {
+    const auto z = zstd_compress(validity_bitmap(md.valid), 19);
+    put(out, std::uint64_t(z.size()));
+    put_bytes(out, z.data(), z.size());
+  }
+  put(out, std::uint8_t(t.levels));
+  put(out, t.step_y);
+  put(out, t.step_c);
+  put(out, t.frequency);
+  put(out, t.reconstruction);
+  for (const auto& s : streams) {
+    put(out, std::uint32_t(s.size()));
+    put_bytes(out, s.data(), s.size());
+  }
+  uLong crc = crc32(0L, Z_NULL, 0);
+  crc = crc32(crc, out.data(), uInt(out.size()));
+  put(out, std::uint32_t(crc));
+  return out;
+}
+
+Transform transform_of(const SpcOptions& o, double step) {
+  return {o.levels, step, step * o.shape_step_ratio, o.frequency_factor, kReconstruction};
+}
+
+void check_transform_options(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& o) {
+  if (grid.brdf.size() != grid.bands() * kMerlCells) throw UsageError("encode: grid values do not match bands x 90 x 90 x 180");
+  if (!(std::isfinite(o.step) && o.step > 0 && o.step <= 10))
+    throw UsageError("step = " + std::to_string(o.step) + ": give a number in (0, 10]");
+  if (!(std::isfinite(o.shape_step_ratio) && o.shape_step_ratio > 0 && o.shape_step_ratio <= 1000))
+    throw UsageError("shape_step_ratio = " + std::to_string(o.shape_step_ratio) + ": give a number in (0, 1000]");
+  if (!(std::isfinite(o.frequency_factor) && o.frequency_factor >= 1 && o.frequency_factor <= 16))
+    throw UsageError("frequency_factor = " + std::to_string(o.frequency_factor) + ": give a number in [1, 16]");
+  if (o.levels < 1 || o.levels > 5) throw UsageError("levels = " + std::to_string(o.levels) + ": give 1 to 5");
+  if (!(std::isfinite(o.magnitude_scale) && o.magnitude_scale >= 0))
+    throw UsageError("magnitude scale must be finite and >= 0 (0: automatic)");
+  if (!(std::isfinite(grid.scale) && grid.scale > 0)) throw UsageError("encode: the grid's scale must be positive");
+  if (basis.rows.cols() != Eigen::Index(grid.bands()) || !basis.wavelengths.approx_equal(grid.wavelengths))
+    throw InputError("the grid has " + grid.wavelengths.describe() + ", basis " + basis.reference + " has " +
+                     basis.wavelengths.describe() + "; code a grid with a basis on its own wavelengths");
+}
+
+// Errors of a decoding against the grid, for SpcReport (values x scale, 1/sr), and the shape quantisation error.
+void measure(const store::Grid& grid, const SpcCoefficients& c, const SpcBasis& basis, std::uint64_t bytes, SpcReport& r) {
+  const std::size_t bands = grid.bands(), k = c.k();
+  std::vector<double> sq(kMerlThetaH, 0), mx(kMerlThetaH, 0), resid(kMerlThetaH, 0), quant(kMerlThetaH, 0);
+  parallel_for(std::size_t(kMerlThetaH), [&] { return std::vector<float>(bands); }, [&](std::size_t h, std::vector<float>& x) {
+    Eigen::VectorXd r(static_cast<Eigen::Index>(bands)), a(static_cast<Eigen::Index>(k));
+    for (std::size_t cell = h * kSlab; cell < (h + 1) * kSlab; ++cell) {
+      if (!c.valid[cell]) continue;
+      expand_cell(c.basis, c.values.data() + cell * k, x.data(), 1);
+      double m = 0;
+      for (std::size_t b = 0; b < bands; ++b) {
+        const double e = (double(x[b]) - grid.brdf[b * kMerlCells + cell]) * grid.scale;
+        sq[h] += e * e;
+        mx[h] = std::max(mx[h], std::abs(e));
+        r[Eigen::Index(b)] = grid.brdf[b * kMerlCells + cell];
+        m += r[Eigen::Index(b)];
+      }
+      m /= double(bands);
+      if (!(m > 0)) continue;
+      r /= m;
+      const Eigen::VectorXd coef = basis.rows * r;
+      const Eigen::VectorXd rk = basis.rows.transpose() * coef;
+      for (std::size_t j = 0; j < k; ++j) a[Eigen::Index(j)] = c.values[cell * k + j];
+      const double ma = (c.basis.transpose() * a).mean();
+      const Eigen::VectorXd rq = ma > 0 ? Eigen::VectorXd(c.basis.transpose() * a / ma) : Eigen::VectorXd(rk);
+      resid[h] = std::max(resid[h], (r - rk).cwiseAbs().maxCoeff());
+      quant[h] = std::max(quant[h], (rq - rk).cwiseAbs().maxCoeff());
+    }
+  });
+  r = {};
+  double total = 0;
+  for (int h = 0; h < kMerlThetaH; ++h) {
+    total += sq[std::size_t(h)];
+    r.max_abs_error = std::max(r.max_abs_error, mx[std::size_t(h)]);
+    r.max_shape_residual = std::max(r.max_shape_residual, resid[std::size_t(h)]);
+    r.max_quantisation_error = std::max(r.max_quantisation_error, quant[std::size_t(h)]);
+  }
+  r.input_bytes = std::uint64_t(bands) * kMerlCells * 8;
+  r.output_bytes = bytes;
+  r.valid_cells = std::uint64_t(std::count(c.valid.begin(), c.valid.end(), std::uint8_t(1)));
+  r.rms_error = r.valid_cells ? std::sqrt(total / double(r.valid_cells * bands)) : 0.0;
+}
+
+SpcCoefficients with_header(SpcCoefficients c, const store::Grid& grid, const SpcBasis& basis, const std::string& source) {
+  c.wavelengths = grid.wavelengths;
+  c.basis = basis.rows.cast<float>().cast<double>();  // as the file stores it
+  c.scale = grid.scale;
+  c.units = grid.units;
+  c.source = source;
+  c.reference = basis.reference;
+  return c;
+}
+
+std::vector<std::uint8_t> encode_transform(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& o,
+                                           SpcReport* report, const std::string& source) {
+  check_transform_options(grid, basis, o);
+  const Model md = transform_model(grid, basis, o);
+  const Transform t = transform_of(o, o.step);
+  const auto q = quantise(md, t);
+  auto bytes = pack_v2(md, basis, grid, t, q, source);
+  if (report) {
+    const SpcCoefficients c = with_header(reconstruct(q, t, md.k, md.s, md.valid, "encode"), grid, basis, source);
+    measure(grid, c, basis, bytes.size(), *report);
+    report->magnitude_scale = md.s * md.scale;
+    report->magnitude_step = t.step_y;
+    report->shape_step = t.step_c;
+  }
+  return bytes;
+}
+
+SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only) {
+  Reader r(bytes.first(bytes.size() - 4), label);
+  r.take(sizeof kSpcMagic + 4, "magic and version");
+  const auto bands = r.get<std::uint32_t>("bands");
+  const auto k = r.get<std::uint32_t>("k");
+  if (bands < 1 || bands > kMaxBands) throw InputError(label + ": .spc header has " + std::to_string(bands) + " bands");
+  if (k < 1 || k > bands)
+    throw InputError(label + ": .spc header has k = " + std::to_string(k) + " for " + std::to_string(bands) + " bands");
+  SpcCoefficients c;
+  c.scale = r.get<double>("scale");
+  const double s = r.get<double>("magnitude scale");
+  for (const auto& [v, what] : {std::pair{c.scale, "scale"}, std::pair{s, "magnitude scale"}})
+    if (!(std::isfinite(v) && v > 0))
+      throw InputError(label + ": .spc header field '" + what + "' is " + std::to_string(v) + "; it must be finite and positive");
+  const auto wl_kind = r.get<std::uint8_t>("wavelength kind");
+  std::vector<double> wl(bands);
+  if (wl_kind == 0) {
+    const double first = r.get<double>("first wavelength"), step = r.get<double>("wavelength step");
+    for (std::size_t b = 0; b < bands; ++b) wl[b] = first + double(b) * step;
+  } else if (wl_kind == 1) {
+    std::memcpy(wl.data(), r.take(8 * bands, "wavelengths"), 8 * bands);
+  } else {
+    throw InputError(label + ": .spc wavelength kind " + std::to_string(wl_kind) + " is neither 0 (uniform) nor 1 (list)");
+  }
+  try {
+    c.wavelengths = WavelengthGrid(wl);
+  } catch (const Error& e) {
+    throw InputError(label + ": .spc wavelengths are invalid: " + e.what());
+  }
+  c.basis.resize(k, bands);
+  std::vector<float> basis(std::size_t(k) * bands);
+  std::memcpy(basis.data(), r.take(4 * basis.size(), "basis"), 4 * basis.size());
+  for (std::size_t j = 0; j < k; ++j)
+    for (std::size_t b = 0; b < bands; ++b) {
+      const float v = basis[j * bands + b];
+      if (!std::isfinite(v)) throw InputError(label + ": .spc basis holds a non-finite value");
+      c.basis(Eigen::Index(j), Eigen::Index(b)) = v;
+    }
+  c.units = r.string("units");
+  c.source = r.string("source");
+  c.reference = r.string("basis reference");
+  if (header_only) return c;
+  const auto n_valid = r.get<std::uint64_t>("valid cells");
+  const auto kind = r.get<std::uint8_t>("validity kind");
+  c.valid.assign(kMerlCells, 0);
+  if (kind == std::uint8_t(Validity::all)) {
+    std::fill(c.valid.begin(), c.valid.end(), 1);
+  } else if (kind == std::uint8_t(Validity::horizon)) {
+    for (std::size_t cell = 0; cell < kMerlCells; ++cell) c.valid[cell] = brdf::merl_cell_valid(brdf::merl_cell(cell));
+  } else if (kind == std::uint8_t(Validity::bitmap)) {
+    const auto z = r.get<std::uint64_t>("validity");
+    std::vector<std::uint8_t> bitmap((kMerlCells + 7) / 8);
+    zstd_decompress(r.take(z, "validity"), z, bitmap, label, "validity");
+    for (std::size_t cell = 0; cell < kMerlCells; ++cell) c.valid[cell] = (bitmap[cell / 8] >> (cell % 8)) & 1u;
+  } else {
+    throw InputError(label + ": .spc validity kind " + std::to_string(kind) + " is not 0 (all), 1 (horizon) or 2 (bitmap)");
+  }
+  const auto counted = std::uint64_t(std::count(c.valid.begin(), c.valid.end(), std::uint8_t(1)));
+  if (counted != n_valid)
+    throw InputError(label + ": .spc validity has " + std::to_string(counted) + " valid cells, the header says " +
+                     std::to_string(n_valid));
+  Transform t;
+  t.levels = r.get<std::uint8_t>("levels");
+  t.step_y = r.get<double>("magnitude step");
+  t.step_c = r.get<double>("shape step");
+  t.frequency = r.get<double>("frequency factor");
+  t.reconstruction = r.get<double>("reconstruction offset");
+  if (t.levels < 1 || t.levels > 5) throw InputError(label + ": .spc has " + std::to_string(t.levels) + " levels; 1 to 5 are valid");
+  for (const auto& [v, what] : {std::pair{t.step_y, "magnitude step"}, std::pair{t.step_c, "shape step"},
+                                std::pair{t.frequency, "frequency factor"}})
+    if (!(std::isfinite(v) && v > 0 && v <= 1e6))
+      throw InputError(label + ": .spc field '" + what + "' is " + std::to_string(v) + "; it must be in (0, 1e6]");
+  if (!(std::isfinite(t.reconstruction) && std::abs(t.reconstruction) < 1))
+    throw InputError(label + ": .spc reconstruction offset " + std::to_string(t.reconstruction) + " is outside (-1, 1)");
+  const std::size_t cubes = 2 * (std::size_t(k) + 1);
+  std::vector<std::span<const std::uint8_t>> streams(cubes);
+  for (std::size_t i = 0; i < cubes; ++i) {
+    const auto n = r.get<std::uint32_t>("stream length");
+    streams[i] = {r.take(n, "stream"), n};
+  }
+  if (r.at() != bytes.size() - 4)
+    throw InputError(label + ": .spc file has " + std::to_string(bytes.size() - 4 - r.at()) + " unexpected bytes before its CRC");
+  std::vector<std::vector<std::int32_t>> q(cubes, std::vector<std::int32_t>(kCube));
+  std::vector<std::uint8_t> ok(cubes, 1);
+  const CubeLayout layout = cube_layout(t.levels);
+  parallel_for(cubes, [&](std::size_t i) { ok[i] = decode_cube(streams[i], layout, q[i]); }, 1);
+  for (std::size_t i = 0; i < cubes; ++i)
+    if (!ok[i]) throw InputError(label + ": .spc stream " + std::to_string(i) + " ends before its cube; the file is corrupt");
+  SpcCoefficients v = reconstruct(q, t, k, s, c.valid, label);
+  c.values = std::move(v.values);
+  return c;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& o,
+                                               const SpcTarget& target, const Environment& env,
+                                               SpcTargetReport& tr, SpcReport* report, const std::string& source) {
+  check_transform_options(grid, basis, o);
+  if (!(target.de00_mean > 0 && target.de00_p95 > 0 && std::isfinite(target.de00_mean) && std::isfinite(target.de00_p95)))
+    throw UsageError("target: de00_mean and de00_p95 must be positive");
+  if (target.max_trials < 2 || target.max_trials > 32) throw UsageError("target: max_trials must be 2 to 32");
+  const Model md = transform_model(grid, basis, o);
+  const SphereRenders reference = render_spheres({&grid}, env, target.size);
+  if (!(reference.white.y() > 0))
+    throw InputError("environment " + env.description + " sends no light to a surface facing the viewer; nothing maps to white");
+  struct Trial {
+    double step;
+    De00 de;
+    bool meets;
+  };
+  auto trial = [&](double step) {
+    const Transform t = transform_of(o, step);
+    const auto q = quantise(md, t);
+    const store::Grid g = expand_spc(with_header(reconstruct(q, t, md.k, md.s, md.valid, "encode"), grid, basis, source));
+    const SphereRenders r = render_spheres({&g}, env, target.size);
+    De00 de = de00_of_renders(reference.xyz[0], r.xyz[0], reference.covered, reference.white);
+    const bool meets = de.mean <= target.de00_mean && de.p95 <= target.de00_p95;
+    ++tr.trials;
+    return Trial{step, std::move(de), meets};
+  };
+  tr = {};
+  std::optional<Trial> good, bad;
+  if (!(std::isfinite(target.first_step) && target.first_step > 0 && target.first_step <= 10))
+    throw UsageError("target: first_step must be in (0, 10]");
+  double step = target.first_step;
+  while (tr.trials < target.max_trials && !(good && bad)) {
+    Trial t = trial(step);
+    if (t.meets) {
+      good = std::move(t);
+      step *= 4;
+    } else {
+      bad = std::move(t);
+      step /= 4;
+    }
+    if (step > 10 || step < 1e-6) break;
+  }
+  while (good && bad && tr.trials < target.max_trials && bad->step / good->step > 1.15) {
+    Trial t = trial(std::sqrt(good->step * bad->step));
+    (t.meets ? good : bad) = std::move(t);
+  }
+  const Trial& chosen = good ? *good : *bad;
+  tr.reached = good.has_value();
+  tr.step = chosen.step;
+  tr.de00_mean = chosen.de.mean;
+  tr.de00_p95 = chosen.de.p95;
+  SpcOptions final = o;
+  final.step = chosen.step;
+  const Transform t = transform_of(final, chosen.step);
+  const auto q = quantise(md, t);
+  auto bytes = pack_v2(md, basis, grid, t, q, source);
+  if (report) {
+    const SpcCoefficients c = with_header(reconstruct(q, t, md.k, md.s, md.valid, "encode"), grid, basis, source);
+    measure(grid, c, basis, bytes.size(), *report);
+    report->magnitude_scale = md.s * md.scale;
+    report->magnitude_step = t.step_y;
+    report->shape_step = t.step_c;
+  }
+  return bytes;
+}
 
 SpcBasis coding_basis(const store::Basis& basis, std::size_t k, const std::string& reference) {
   const bool pca = basis.method == "pca";
@@ -334,6 +869,7 @@ SpcBasis augment_basis(const SpcBasis& basis, const store::Grid& grid, std::size
 
 std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& o,
                                      SpcReport* report, const std::string& source) {
+  if (o.method == SpcMethod::transform) return encode_transform(grid, basis, o, report, source);
   const std::size_t bands = grid.bands(), k = basis.k();
   if (grid.brdf.size() != bands * kMerlCells) throw UsageError("encode: grid values do not match bands x 90 x 90 x 180");
   if (!(std::isfinite(o.max_error) && o.max_error > 0 && o.max_error <= 1))
@@ -454,7 +990,7 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
 
   std::vector<std::uint8_t> out;
   put_bytes(out, kSpcMagic, sizeof kSpcMagic);
-  put(out, kSpcVersion);
+  put(out, std::uint32_t(1));
   put(out, std::uint32_t(bands));
   put(out, std::uint32_t(k));
   put(out, cd.scale);
@@ -516,11 +1052,16 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
 }
 
 SpcBasis spc_basis(std::span<const std::uint8_t> bytes, const std::string& label) {
+  if (check_container(bytes, label) == 2) {
+    const SpcCoefficients c = decode_v2(bytes, label, true);
+    return {c.wavelengths, c.basis, c.reference};
+  }
   const Parsed p = parse_header(bytes, label);
   return {p.wavelengths, p.cd.basis, p.reference};
 }
 
 SpcCoefficients decode_spc_coefficients(std::span<const std::uint8_t> bytes, const std::string& label) {
+  if (check_container(bytes, label) == 2) return decode_v2(bytes, label, false);
   const Parsed p = parse_header(bytes, label);
   const Coding& cd = p.cd;
   Reader r(bytes.first(bytes.size() - 4), label);

@@ -17,10 +17,12 @@
 
 namespace specula::codec {
 
+struct Environment;
+
 /// Magic bytes that open a .spc file.
 inline constexpr char kSpcMagic[8] = {'S', 'P', 'E', 'C', 'U', 'S', 'P', 'C'};
-/// Version of the .spc format this specula writes and the newest it reads.
-inline constexpr std::uint32_t kSpcVersion = 1;
+/// Newest .spc format version this specula reads: 1 (bounded error, predictive) and 2 (transform) are written.
+inline constexpr std::uint32_t kSpcVersion = 2;
 
 /// k orthonormal spectra (rows) on a wavelength grid, and where they came from.
 struct SpcBasis {
@@ -40,13 +42,25 @@ SpcBasis augment_basis(const SpcBasis& basis, const store::Grid& grid, std::size
 /// cells with a non-zero magnitude. Throws UsageError unless 1 <= k <= bands, InputError if no cell qualifies.
 SpcBasis self_basis(const store::Grid& grid, std::size_t k);
 
+/// How encode_spc codes: `bounded` (format 1) keeps every value within a stated error of the original; `transform`
+/// (format 2) codes the magnitude and shape channels by a 3-D wavelet transform over the grid, with quantisation
+/// steps chosen for the rendered appearance rather than a per-value bound (docs/codec-format.md).
+enum class SpcMethod { bounded, transform };
+
 struct SpcOptions {
-  /// Error target E > 0: |m' - m| <= E (m + s) for the magnitude and |r'_b - r_k,b| <= E per band for the
+  SpcMethod method = SpcMethod::bounded;
+  /// bounded: error target E > 0: |m' - m| <= E (m + s) for the magnitude and |r'_b - r_k,b| <= E per band for the
   /// shape (r_k: the shape's projection onto the basis).
   double max_error = 0.01;
   /// s of the magnitude mapping in the grid's stored units; 0: a tenth of the median valid magnitude.
   double magnitude_scale = 0;
-  int zstd_level = 9;  ///< 1..19
+  int zstd_level = 9;  ///< bounded: 1..19
+  /// transform: quantisation step of log(1 + m / s) in the coarsest bands (> 0); the shape steps are
+  /// `shape_step_ratio` times it and finer bands' steps grow by `frequency_factor` per level.
+  double step = 0.01;
+  double shape_step_ratio = 2;
+  double frequency_factor = 1.5;  ///< >= 1; 1 spends bits as mean squared error would
+  int levels = 4;                 ///< transform levels, 1..5
 };
 
 /// What encoding measured.
@@ -77,6 +91,33 @@ struct SpcCoefficients {
   std::size_t k() const { return std::size_t(basis.rows()); }
   std::size_t bands() const { return std::size_t(basis.cols()); }
 };
+
+/// What a perceptual target asks of a transform coding: the rendered CIEDE2000 between the grid and its decoding
+/// (diff_grids' renderer under `env`, a `size`-pixel sphere) at most `de00_mean` on average and `de00_p95` at the
+/// 95th percentile.
+struct SpcTarget {
+  double de00_mean = 0.5;
+  double de00_p95 = 1.5;
+  std::size_t size = 128;
+  int max_trials = 8;        ///< trial codings, 2..32
+  double first_step = 0.1;   ///< the first step tried; then x4 or /4 until bracketed, then bisected
+};
+
+/// Where a target search ended.
+struct SpcTargetReport {
+  bool reached = false;      ///< false: no trial met the target; the finest step tried was coded
+  int trials = 0;
+  double step = 0;           ///< the step coded
+  double de00_mean = 0, de00_p95 = 0;  ///< what the coded file renders to
+};
+
+/// Encodes `grid` by the transform method (options.method and options.step are ignored) with the coarsest step that
+/// meets `target` under `env`, found by multiplying target.first_step by 4 or 1/4 until bracketed and then bisecting
+/// in log steps, at most target.max_trials renderings; not meeting it is reported in `target_report`, not thrown.
+std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& options,
+                                               const SpcTarget& target, const Environment& env,
+                                               SpcTargetReport& target_report, SpcReport* report = nullptr,
+                                               const std::string& source = "");
 
 /// Decodes .spc bytes to coefficient form; every field and the CRC are checked, and a problem is an InputError
 /// starting with `label`.

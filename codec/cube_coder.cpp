@@ -1,0 +1,148 @@
+#include "specula/codec/cube_coder.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cstdlib>
+
+#include "specula/codec/range_coder.h"
+#include "specula/core/error.h"
+
+namespace specula::codec {
+namespace {
+
+constexpr int kLevelClasses = 3;   // finest, next, all coarser
+constexpr int kExponentBits = 20;  // adaptive unary exponent positions (more share the last)
+constexpr int kMaxExponent = 30;
+
+struct Contexts {
+  std::array<rc::Bit, kLevelClasses * 4 * 2> significant;
+  std::array<rc::Bit, kLevelClasses * 3> above_one;
+  std::array<rc::Bit, kLevelClasses * kExponentBits> exponent;
+  rc::Bit low_zero;
+  std::array<rc::Bit, kExponentBits> low_exponent;
+};
+
+// One traversal serves both directions: the encoder reads q, the decoder writes it, so the contexts can never
+// disagree between them.
+template <class Coder>
+struct Traversal {
+  static constexpr bool kDecode = std::is_same_v<Coder, rc::Decoder>;
+  Coder& rc;
+  std::int32_t* q;
+  const wavelet::CubeLayout& c;
+  Contexts ctx{};
+  std::vector<std::uint8_t> sig;
+
+  unsigned bit(rc::Bit& b, unsigned v) {
+    if constexpr (kDecode) {
+      return rc.decode(b);
+    } else {
+      rc.encode(b, v);
+      return v;
+    }
+  }
+  std::uint32_t direct(std::uint32_t v, int n) {
+    if constexpr (kDecode) {
+      return rc.decode_direct(n);
+    } else {
+      rc.encode_direct(v, n);
+      return v;
+    }
+  }
+  // Exp-Golomb of v >= 0: the exponent e = floor(log2(v + 1)) in unary with adaptive bits, then e direct bits.
+  std::uint32_t exp_golomb(std::uint32_t v, rc::Bit* exponent) {
+    const int e_in = kDecode ? 0 : std::bit_width(v + 1) - 1;
+    int e = 0;
+    while (e < kMaxExponent && bit(exponent[std::min(e, kExponentBits - 1)], e < e_in ? 1u : 0u)) ++e;
+    const std::uint32_t rest = direct(kDecode ? 0 : (v + 1) - (1u << e), e);
+    return (1u << e) + rest - 1;
+  }
+
+  void low_cube() {
+    const auto e = c.low(c.levels);
+    const std::size_t s1 = c.dims[2], s0 = c.dims[1] * c.dims[2];
+    for (std::size_t i = 0; i < e[0]; ++i)
+      for (std::size_t j = 0; j < e[1]; ++j)
+        for (std::size_t k = 0; k < e[2]; ++k) {
+          const std::size_t at = i * s0 + j * s1 + k;
+          const std::int64_t pred = k > 0 ? q[at - 1] : j > 0 ? q[at - s1] : i > 0 ? q[at - s0] : 0;
+          const std::int64_t d = kDecode ? 0 : std::int64_t(q[at]) - pred;
+          std::int64_t r = 0;
+          if (bit(ctx.low_zero, d != 0)) {
+            const unsigned negative = direct(d < 0, 1);
+            const std::uint32_t mag = exp_golomb(kDecode ? 0 : std::uint32_t(std::llabs(d) - 1), ctx.low_exponent.data()) + 1;
+            r = negative ? -std::int64_t(mag) : std::int64_t(mag);
+          }
+          if constexpr (kDecode) q[at] = std::int32_t(std::clamp<std::int64_t>(pred + r, INT32_MIN, INT32_MAX));
+          sig[at] = 1;
+        }
+  }
+
+  void detail(int l, int o) {
+    const std::array<std::array<std::size_t, 2>, 3> r{c.range(l, o, 0), c.range(l, o, 1), c.range(l, o, 2)};
+    const bool has_parent = l + 1 < c.levels;
+    std::array<std::array<std::size_t, 2>, 3> pr{};
+    if (has_parent) pr = {c.range(l + 1, o, 0), c.range(l + 1, o, 1), c.range(l + 1, o, 2)};
+    const std::size_t s1 = c.dims[2], s0 = c.dims[1] * c.dims[2];
+    const int lc = std::min(l, kLevelClasses - 1);
+    for (std::size_t i = r[0][0]; i < r[0][1]; ++i)
+      for (std::size_t j = r[1][0]; j < r[1][1]; ++j)
+        for (std::size_t k = r[2][0]; k < r[2][1]; ++k) {
+          const std::size_t at = i * s0 + j * s1 + k;
+          const int n = (i > r[0][0] && sig[at - s0]) + (j > r[1][0] && sig[at - s1]) + (k > r[2][0] && sig[at - 1]);
+          int parent = 0;
+          if (has_parent) {
+            const std::size_t pi = std::min(pr[0][0] + (i - r[0][0]) / 2, pr[0][1] - 1);
+            const std::size_t pj = std::min(pr[1][0] + (j - r[1][0]) / 2, pr[1][1] - 1);
+            const std::size_t pk = std::min(pr[2][0] + (k - r[2][0]) / 2, pr[2][1] - 1);
+            parent = sig[pi * s0 + pj * s1 + pk];
+          }
+          const std::int32_t v = kDecode ? 0 : q[at];
+          const unsigned s = bit(ctx.significant[std::size_t((lc * 4 + n) * 2 + parent)], v != 0);
+          std::int32_t out = 0;
+          if (s) {
+            const unsigned negative = direct(v < 0, 1);
+            const std::uint32_t mag_in = kDecode ? 0 : std::uint32_t(std::abs(std::int64_t(v)));
+            std::uint32_t mag = 1;
+            if (bit(ctx.above_one[std::size_t(lc * 3 + std::min(n, 2))], mag_in > 1))
+              mag = 2 + exp_golomb(kDecode ? 0 : mag_in - 2, ctx.exponent.data() + lc * kExponentBits);
+            out = negative ? -std::int32_t(std::min<std::uint32_t>(mag, INT32_MAX)) : std::int32_t(std::min<std::uint32_t>(mag, INT32_MAX));
+          }
+          if constexpr (kDecode) q[at] = out;
+          sig[at] = s;
+        }
+  }
+
+  void run() {
+    sig.assign(c.dims[0] * c.dims[1] * c.dims[2], 0);
+    low_cube();
+    for (int l = c.levels - 1; l >= 0; --l)
+      for (int o = 1; o < 8; ++o) detail(l, o);
+  }
+};
+
+void check(std::size_t n, const wavelet::CubeLayout& c) {
+  if (n != c.dims[0] * c.dims[1] * c.dims[2])
+    throw UsageError("cube coder: " + std::to_string(n) + " coefficients do not match the cube's layout");
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encode_cube(std::span<const std::int32_t> q, const wavelet::CubeLayout& layout) {
+  check(q.size(), layout);
+  for (const std::int32_t v : q)
+    if (v == INT32_MIN) throw UsageError("cube coder: a coefficient of -2^31 cannot be coded");
+  rc::Encoder enc;
+  Traversal<rc::Encoder>{enc, const_cast<std::int32_t*>(q.data()), layout}.run();
+  return enc.finish();
+}
+
+bool decode_cube(std::span<const std::uint8_t> bytes, const wavelet::CubeLayout& layout, std::span<std::int32_t> q) {
+  check(q.size(), layout);
+  rc::Decoder dec(bytes);
+  Traversal<rc::Decoder>{dec, q.data(), layout}.run();
+  return !dec.overrun();
+}
+
+}  // namespace specula::codec
