@@ -471,7 +471,10 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
   std::vector<std::vector<std::uint8_t>> streams(q.size());
   const CubeLayout layout = cube_layout(t.levels);
   parallel_for(q.size(), [&](std::size_t i) { streams[i] = encode_cube(q[i], layout); }, 1);
-  std::vector<std::uint8_t> out;
+  std::size_t total = 1024 + 8 * md.bands * (md.k + 1) + grid.units.size() + source.size() + basis.reference.size();
+  for (const auto& st : streams) total += 4 + st.size();
+  std::vector<std::uint8_t> out(total);  // sized first: GCC 12 warns falsely (-Wstringop-overflow) on growing inserts
+  out.resize(0);
   put_bytes(out, kSpcMagic, sizeof kSpcMagic);
   put(out, std::uint32_t(2));
   put(out, std::uint32_t(md.bands));
