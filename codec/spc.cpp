@@ -36,8 +36,9 @@ constexpr std::uint32_t kMaxBands = 1024;
 constexpr std::uint32_t kMaxString = 1 << 16;
 
 void put_bytes(std::vector<std::uint8_t>& out, const void* p, std::size_t n) {
-  const auto* b = static_cast<const std::uint8_t*>(p);
-  out.insert(out.end(), b, b + n);
+  const std::size_t at = out.size();
+  out.resize(at + n);  // resize and copy: GCC 12 warns falsely (-Wstringop-overflow) on a growing range insert
+  if (n) std::memcpy(out.data() + at, p, n);
 }
 template <class T>
 void put(std::vector<std::uint8_t>& out, T v) {
@@ -257,7 +258,18 @@ constexpr std::size_t kCube = std::size_t(kMerlThetaH) * kMerlThetaD * kFold;
 constexpr double kRounding = 0.3;        // |w| / step + kRounding rounded down: a dead zone around 0
 constexpr double kReconstruction = 0.1;  // a non-zero code q decodes to sign(q) (|q| + 0.1) step
 constexpr std::int32_t kMaxCode = 1 << 28;
-enum class Validity : std::uint8_t { all = 0, horizon = 1, bitmap = 2 };
+enum class Validity : std::uint8_t { all = 0, horizon = 1, coded = 2 };
+
+// 1 for the cells whose centre has both directions above the horizon.
+const std::vector<std::uint8_t>& horizon_mask() {
+  static const std::vector<std::uint8_t> m = [] {
+    std::vector<std::uint8_t> v(kMerlCells);
+    for (std::size_t c = 0; c < kMerlCells; ++c) v[c] = brdf::merl_cell_valid(brdf::merl_cell(c));
+    return v;
+  }();
+  return m;
+}
+constexpr std::array<std::size_t, 3> kGridDims{std::size_t(kMerlThetaH), std::size_t(kMerlThetaD), std::size_t(kMerlPhiD)};
 
 CubeLayout cube_layout(int levels) { return {{std::size_t(kMerlThetaH), std::size_t(kMerlThetaD), kFold}, levels}; }
 
@@ -335,7 +347,7 @@ struct Model {
   double scale = 1, s = 1;
   std::vector<std::uint8_t> valid;
   std::uint64_t n_valid = 0;
-  Validity validity = Validity::bitmap;
+  Validity validity = Validity::coded;
   std::vector<std::vector<float>> cubes;
 };
 
@@ -373,12 +385,8 @@ Model transform_model(const store::Grid& grid, const SpcBasis& basis, const SpcO
       md.s = 0.1 * double(positive[positive.size() / 2]);
     }
   }
-  bool all = true, horizon = true;
-  for (std::size_t c = 0; c < kMerlCells; ++c) {
-    all &= md.valid[c] == 1;
-    horizon &= md.valid[c] == (brdf::merl_cell_valid(brdf::merl_cell(c)) ? 1 : 0);
-  }
-  md.validity = all ? Validity::all : horizon ? Validity::horizon : Validity::bitmap;
+  const bool all = md.n_valid == kMerlCells, horizon = md.valid == horizon_mask();
+  md.validity = all ? Validity::all : horizon ? Validity::horizon : Validity::coded;
   parallel_for(kMerlCells, [&](std::size_t c) {
     if (!md.valid[c]) return;
     const double m = mag[c];
@@ -459,13 +467,6 @@ SpcCoefficients reconstruct(const std::vector<std::vector<std::int32_t>>& q, con
   return out;
 }
 
-std::vector<std::uint8_t> validity_bitmap(const std::vector<std::uint8_t>& valid) {
-  std::vector<std::uint8_t> bitmap((kMerlCells + 7) / 8, 0);
-  for (std::size_t c = 0; c < kMerlCells; ++c)
-    if (valid[c]) bitmap[c / 8] |= std::uint8_t(1u << (c % 8));
-  return bitmap;
-}
-
 std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const store::Grid& grid, const Transform& t,
                                   const std::vector<std::vector<std::int32_t>>& q, const std::string& source) {
   std::vector<std::vector<std::uint8_t>> streams(q.size());
@@ -473,8 +474,8 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
   parallel_for(q.size(), [&](std::size_t i) { streams[i] = encode_cube(q[i], layout); }, 1);
   std::size_t total = 1024 + 8 * md.bands * (md.k + 1) + grid.units.size() + source.size() + basis.reference.size();
   for (const auto& st : streams) total += 4 + st.size();
-  std::vector<std::uint8_t> out(total);  // sized first: GCC 12 warns falsely (-Wstringop-overflow) on growing inserts
-  out.resize(0);
+  std::vector<std::uint8_t> out;
+  out.reserve(total);
   put_bytes(out, kSpcMagic, sizeof kSpcMagic);
   put(out, std::uint32_t(2));
   put(out, std::uint32_t(md.bands));
@@ -497,9 +498,9 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
   put_string(out, basis.reference);
   put(out, std::uint64_t(md.n_valid));
   put(out, std::uint8_t(md.validity));
-  if (md.validity == Validity::bitmap) {
-    const auto z = zstd_compress(validity_bitmap(md.valid), 19);
-    put(out, std::uint64_t(z.size()));
+  if (md.validity == Validity::coded) {
+    const auto z = encode_mask(md.valid, horizon_mask(), kGridDims);
+    put(out, std::uint32_t(z.size()));
     put_bytes(out, z.data(), z.size());
   }
   put(out, std::uint8_t(t.levels));
@@ -656,14 +657,13 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
   if (kind == std::uint8_t(Validity::all)) {
     std::fill(c.valid.begin(), c.valid.end(), 1);
   } else if (kind == std::uint8_t(Validity::horizon)) {
-    for (std::size_t cell = 0; cell < kMerlCells; ++cell) c.valid[cell] = brdf::merl_cell_valid(brdf::merl_cell(cell));
-  } else if (kind == std::uint8_t(Validity::bitmap)) {
-    const auto z = r.get<std::uint64_t>("validity");
-    std::vector<std::uint8_t> bitmap((kMerlCells + 7) / 8);
-    zstd_decompress(r.take(z, "validity"), z, bitmap, label, "validity");
-    for (std::size_t cell = 0; cell < kMerlCells; ++cell) c.valid[cell] = (bitmap[cell / 8] >> (cell % 8)) & 1u;
+    c.valid = horizon_mask();
+  } else if (kind == std::uint8_t(Validity::coded)) {
+    const auto z = r.get<std::uint32_t>("validity");
+    if (!decode_mask({r.take(z, "validity"), z}, horizon_mask(), kGridDims, c.valid))
+      throw InputError(label + ": .spc validity stream ends before its cells; the file is corrupt");
   } else {
-    throw InputError(label + ": .spc validity kind " + std::to_string(kind) + " is not 0 (all), 1 (horizon) or 2 (bitmap)");
+    throw InputError(label + ": .spc validity kind " + std::to_string(kind) + " is not 0 (all), 1 (horizon) or 2 (coded)");
   }
   const auto counted = std::uint64_t(std::count(c.valid.begin(), c.valid.end(), std::uint8_t(1)));
   if (counted != n_valid)
