@@ -60,6 +60,29 @@ TEST(CodecCli, EncodeDecodeAndDiffAGridWithItsOwnBasisAndWithALearnedOne) {
   EXPECT_TRUE(std::filesystem::exists(dir / "env.exr"));
 }
 
+// Format 2 end to end: coded to a rendered target, its JSON report checked against an independent brdf-diff of the
+// decoded file, which is far smaller than format 1 at a similar rendered error.
+TEST(CodecCli, ATargetEncodeMeetsItsTargetAsBrdfDiffMeasuresIt) {
+  test::ScratchDir dir;
+  const auto grid = dir / "rp.spgrid", spc = dir / "rp.spc", back = dir / "back.spgrid";
+  ASSERT_EQ(run_specula("synth-brdf red-plastic --wavelengths 420:720:30 -o " + q(grid)).status, 0);
+  auto r = run_specula("encode " + q(grid) + " --basis self -k 3 --target-de00 0.4 --target-p95 1.2 --trials 6 -o " + q(spc) +
+                       " --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(test::json_number(r.output, "format_version"), 2) << r.output;
+  EXPECT_NE(r.output.find("\"reached\":true"), std::string::npos) << r.output;
+  const double reached = test::json_number(r.output, "reached_de00_mean");
+  ASSERT_EQ(run_specula("decode " + q(spc) + " -o " + q(back)).status, 0);
+  r = run_specula("brdf-diff " + q(grid) + " " + q(back) + " --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_LE(test::json_number(r.output, "de00_mean"), 0.4) << r.output;
+  EXPECT_LE(test::json_number(r.output, "de00_p95"), 1.2) << r.output;
+  EXPECT_NEAR(test::json_number(r.output, "de00_mean"), reached, 1e-3) << r.output;
+  r = run_specula("encode " + q(grid) + " --basis self -k 3 --max-error 0.03 -o " + q(dir / "v1.spc"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_GT(std::filesystem::file_size(dir / "v1.spc"), 5 * std::filesystem::file_size(spc));
+}
+
 TEST(CodecCli, BadInputIsOneLineAndLeavesFilesAlone) {
   test::ScratchDir dir;
   const auto grid = dir / "m.spgrid", spc = dir / "m.spc";
@@ -99,6 +122,16 @@ TEST(CodecCli, BadInputIsOneLineAndLeavesFilesAlone) {
   EXPECT_NE(r.output.find(":GRID"), std::string::npos) << r.output;
   r = run_specula("brdf-diff " + q(grid) + " " + q(grid) + " --size 2");
   EXPECT_EQ(r.status, 1) << r.output;
+  // Format-2 options: exclusive, in range, and the .spc still untouched.
+  for (const std::string& args : {std::string("--basis self -k 1 --step 0.1 --target-de00 0.5"),
+                                  std::string("--basis self -k 1 --target-p95 1"), std::string("--basis self -k 1 --step 0"),
+                                  std::string("--basis self -k 1 --target-de00 0.5 --trials 1"),
+                                  std::string("--basis self -k 1 --target-de00 0.5 --env nowhere.exr")}) {
+    r = run_specula("encode " + q(grid) + " " + args + " -o " + q(spc));
+    EXPECT_NE(r.status, 0) << args;
+    EXPECT_TRUE(one_line(r)) << args << ": " << r.output;
+  }
+  EXPECT_EQ(test::read_bytes(spc), before);
   r = run_specula("synth-brdf velvet -o " + q(dir / "v.spgrid"));
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("red-plastic"), std::string::npos) << r.output;
