@@ -456,6 +456,17 @@ MatKind mat_kind(const std::filesystem::path& path, const std::string& var) {
   return fits && element_count(*e->head) > fg->length ? MatKind::collection : MatKind::image;
 }
 
+std::uint64_t mat_decoded_bytes(const std::filesystem::path& path) {
+  MatFile mf(path);
+  std::uint64_t total = 0;
+  for (const auto& e : scan(mf))
+    if (numeric(*e.head)) {
+      const std::uint64_t n = element_count(*e.head);
+      total += n == UINT64_MAX ? n : n * (Mat_SizeOfClass(e.head->class_type) + sizeof(float));
+    }
+  return total;
+}
+
 Cube read_mat(const std::filesystem::path& path, const std::string& var_in,
               const std::optional<std::string>& mask_var, const WavelengthGrid& wavelengths) {
   MatFile mf(path);
