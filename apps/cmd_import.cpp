@@ -35,6 +35,8 @@ struct ImportOptions {
   double memory_gib = 1.0;
 };
 
+std::string with_flags(std::string m);
+
 void run_import(const ImportOptions& o) {
   store::ImportOptions options;
   options.name = o.name;
@@ -55,7 +57,7 @@ void run_import(const ImportOptions& o) {
                                        .command_line = command_line()});
   const store::ImportReport report = store::import_files(writer, inputs, options);
   writer.commit();
-  for (const auto& skip : report.skipped) fmt::print(stderr, "{}\n", skip);
+  for (const auto& skip : report.skipped) fmt::print(stderr, "{}\n", with_flags(skip));
   for (const auto& note : report.notes) fmt::print(stderr, "{}\n", note);
   for (const auto& line : report.imported) fmt::print("{}\n", line);  // only once everything has landed
 }
