@@ -598,7 +598,8 @@ ImportReport import_files(StoreWriter& writer, const std::vector<std::filesystem
   std::vector<std::vector<std::string>> notes(n);
   std::vector<std::exception_ptr> errors(n);
   Schedule schedule(o.jobs, o.memory_budget);
-  Progress progress("importing", n);
+  std::optional<Progress> progress;  // one bar over the files; a single file keeps the bar of its own writing
+  if (n > 1) progress.emplace("importing", n);
   const auto one = [&](std::size_t i) {
     if (!schedule.admit(i, bytes[i])) return;
     bool ok = false;
@@ -613,7 +614,7 @@ ImportReport import_files(StoreWriter& writer, const std::vector<std::filesystem
       errors[i] = std::current_exception();
     }
     schedule.done(i, bytes[i], ok);
-    if (ok) progress.advance();
+    if (ok && progress) progress->advance();
   };
   if (o.jobs <= 1 || n == 1) {
     for (std::size_t i = 0; i < n; ++i) one(i);  // each file's own parallel loops keep every thread
