@@ -239,7 +239,12 @@ class Expander {
       const auto matches = glob_paths(in.string());
       if (matches.empty())
         throw InputError(in.string() + ": no file matches this pattern; check it (specula expands quoted patterns)");
-      for (const auto& m : matches) found(m);
+      for (const auto& m : matches) {
+        if (o_.format == "auto" && lower(m.extension().string()) == ".png" && std::filesystem::is_regular_file(m, ec))
+          out.files.push_back(m);  // the PNGs of one pattern are named together: a band stack, as the shell's would be
+        else
+          found(m);
+      }
     } else if (std::filesystem::is_directory(in, ec)) {
       directory(in);
     } else {

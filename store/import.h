@@ -50,7 +50,8 @@ struct ImportInputs {
 
 /// Expands `inputs`: a named file stays as it is; a directory holding PNGs and no other recognised file is one band
 /// stack; any other directory, and every match of a pattern with * ? or [ that names no existing file, contributes
-/// each file it holds that a reader recognises (ENVI data files through their .hdr) and a skip line for the rest.
+/// each file it holds that a reader recognises (ENVI data files through their .hdr; a pattern's PNGs as if named)
+/// and a skip line for the rest.
 /// InputError when a pattern matches nothing.
 ImportInputs expand_import_inputs(const std::vector<std::filesystem::path>& inputs, const ImportOptions& options);
 

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "specula/core/error.h"
+#include "specula/store/io/png_stack.h"
 #include "test_support.h"
 
 namespace specula::store {
@@ -208,6 +209,25 @@ TEST(Import, WithSeveralBadFilesTheFirstOneIsReportedWhateverTheJobs) {
     EXPECT_EQ(e.rfind((dir / "db" / "m1.hdr").string() + ": 1 NaN/Inf values", 0), 0u) << jobs << ": " << e;
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "s.h5"));
+}
+
+TEST(Import, APngStackByDirectoryOrByPatternIsOneImage) {
+  const test::ScratchDir dir;
+  std::filesystem::create_directories(dir / "cave");
+  for (int b = 0; b < 3; ++b)
+    write_png_gray16(dir / "cave" / ("band_" + std::to_string(b) + ".png"), 2, 1,
+                     std::vector<std::uint16_t>{std::uint16_t(1000 * b), std::uint16_t(1000 * b + 1)});
+  test::write_file(dir / "cave" / "Thumbs.db", "x");
+  ImportOptions o;
+  o.wavelengths = WavelengthGrid::range(500, 520, 10);
+  for (const auto& in : {dir / "cave", dir / "cave" / "*.png"}) {
+    StoreWriter w(dir / "s.h5", {.replace = true});
+    const ImportReport r = import_files(w, {in}, o);
+    w.commit();
+    ASSERT_EQ(r.imported.size(), 1u) << in;
+    EXPECT_EQ(r.imported[0].rfind("imported image ", 0), 0u) << r.imported[0];
+    EXPECT_NE(r.imported[0].find(": 1x2, 3 bands"), std::string::npos) << r.imported[0];
+  }
 }
 
 }  // namespace
