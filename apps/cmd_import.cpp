@@ -2,6 +2,7 @@
 // transaction (all or nothing).
 #include <fmt/format.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <utility>
 #include <vector>
@@ -29,7 +30,12 @@ struct ImportOptions {
   std::string units;
   bool replace = false;
   bool keep_bad_bands = false;
+  bool strict = false;
+  unsigned jobs = 1;
+  double memory_gib = 1.0;
 };
+
+std::string with_flags(std::string m);
 
 void run_import(const ImportOptions& o) {
   store::ImportOptions options;
@@ -42,12 +48,16 @@ void run_import(const ImportOptions& o) {
   options.nan = o.nan == "mask" ? store::NanPolicy::mask : store::NanPolicy::reject;
   options.units = o.units;
   options.honour_bbl = !o.keep_bad_bands;
+  options.strict = o.strict;
+  options.jobs = o.jobs;
+  options.memory_budget = std::uint64_t(o.memory_gib * double(std::uint64_t{1} << 30));
   const std::vector<std::filesystem::path> inputs(o.inputs.begin(), o.inputs.end());
 
   store::StoreWriter writer(o.output, {.compression = store::Compression::parse(o.compression), .replace = o.replace,
                                        .command_line = command_line()});
   const store::ImportReport report = store::import_files(writer, inputs, options);
   writer.commit();
+  for (const auto& skip : report.skipped) fmt::print(stderr, "{}\n", with_flags(skip));
   for (const auto& note : report.notes) fmt::print(stderr, "{}\n", note);
   for (const auto& line : report.imported) fmt::print("{}\n", line);  // only once everything has landed
 }
@@ -59,6 +69,9 @@ std::string with_flags(std::string m) {
                                     {"the `nan` option", "--nan"},
                                     {"the `name` option", "--name"},
                                     {"the `format` option", "--format"},
+                                    {"the `mask` option", "--mask"},
+                                    {"import without `strict`", "import without --strict"},
+                                    {"the `strict` option", "--strict"},
                                     {"pass honour_bbl = false", "pass --keep-bad-bands"}})
     for (std::size_t at; (at = m.find(param)) != std::string::npos;) m.replace(at, param.size(), flag);
   return m;
@@ -68,8 +81,11 @@ std::string with_flags(std::string m) {
 
 void setup_import(CLI::App& app) {
   auto o = std::make_shared<ImportOptions>();
-  auto* cmd = app.add_subcommand("import", "Import spectral images (ENVI, .mat, PNG stack, spectral EXR) and spectral libraries (CSV, .mat, ENVI .sli, USGS, ECOSTRESS) into a store (docs/import.md)");
-  cmd->add_option("inputs", o->inputs, "Input files (all PNGs together form one band stack; a directory of PNGs too)")
+  auto* cmd = app.add_subcommand("import", "Import spectral images (ENVI, .mat, PNG stack, spectral EXR, GeoTIFF and other GDAL rasters) and spectral libraries (CSV, .mat, ENVI .sli, USGS, ECOSTRESS) into a store, whole directories in one transaction (docs/import.md)");
+  cmd->add_option("inputs", o->inputs,
+                  "Files, directories or quoted glob patterns ('db/*.mat'). A directory or pattern imports every file "
+                  "it holds that a reader recognises and prints a line for each file it skips; a directory whose only "
+                  "recognised files are PNGs is one band stack, as are PNG files named together")
       ->required();
   cmd->add_option("-o,--output", o->output, "Store to create or add to")->required();
   cmd->add_option("--name", o->name, "Object name (default: the file name without extension)");
@@ -79,8 +95,8 @@ void setup_import(CLI::App& app) {
   cmd->add_option("--source-wavelengths", o->source_wavelengths, "The data's own grid when it carries none and --wavelengths resamples");
   cmd->add_option("--mask", o->mask, "Mask: a PNG or a one-band ENVI image (nonzero = valid), or for .mat the name of a mask variable");
   cmd->add_option("--var", o->var, "Cube or spectra variable in a .mat file (default: detected, e.g. ref, rad, cube, Y, data)");
-  cmd->add_option("--format", o->format, "auto, envi, mat, png, exr, csv, usgs (splib07a ASCII) or ecostress")
-      ->check(CLI::IsMember({"auto", "envi", "mat", "png", "exr", "csv", "usgs", "ecostress"}))
+  cmd->add_option("--format", o->format, "auto, envi, mat, png, exr, csv, usgs (splib07a ASCII), ecostress or gdal (any raster GDAL reads; .tif/.tiff are gdal by default)")
+      ->check(CLI::IsMember({"auto", "envi", "mat", "png", "exr", "csv", "usgs", "ecostress", "gdal"}))
       ->capture_default_str();
   cmd->add_option("--nan", o->nan, "NaN/Inf in valid pixels: reject (default) or mask")
       ->check(CLI::IsMember({"reject", "mask"}))
@@ -88,6 +104,17 @@ void setup_import(CLI::App& app) {
   cmd->add_option("--compression", o->compression, "none, deflate or deflate:LEVEL (shuffle + deflate)")->capture_default_str();
   cmd->add_option("--units", o->units, "Override the units: reflectance, radiance, counts, ...");
   cmd->add_flag("--replace", o->replace, "Replace objects of the same name");
+  cmd->add_flag("--strict", o->strict, "Any file skipped in a directory or pattern is an error (nothing is imported)");
+  cmd->add_option("--jobs", o->jobs,
+                  "Files read at once, at most, within --memory (1 keeps every core for each file's compression); the "
+                  "store's content does not depend on it")
+      ->check(CLI::Range(1u, 256u))
+      ->capture_default_str();
+  cmd->add_option("--memory", o->memory_gib,
+                  "GiB the files read at once may take, estimated from their headers (a larger file is read alone; "
+                  "GDAL rasters are streamed by row strips)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_flag("--keep-bad-bands", o->keep_bad_bands, "Keep the bands an ENVI header's bbl marks bad (dropped by default)");
   cmd->callback([o] {
     try {

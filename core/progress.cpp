@@ -6,6 +6,7 @@
 namespace specula {
 namespace {
 std::atomic<bool> g_quiet{false};
+std::atomic<bool> g_drawing{false};  // one bar on the terminal at a time
 }
 
 void set_progress_quiet(bool quiet) noexcept { g_quiet = quiet; }
@@ -13,13 +14,17 @@ bool progress_enabled() noexcept { return !g_quiet && ::isatty(STDERR_FILENO) ==
 
 Progress::Progress(std::string label, std::uint64_t total)
     : label_(std::move(label)), total_(total), start_(std::chrono::steady_clock::now()),
-      last_draw_(start_), enabled_(progress_enabled()) {}
+      last_draw_(start_), enabled_(false) {
+  bool idle = false;
+  enabled_ = progress_enabled() && g_drawing.compare_exchange_strong(idle, true);
+}
 
 Progress::~Progress() {
   if (enabled_) {
     std::lock_guard lock(mutex_);
     std::fprintf(stderr, "\r\033[K");
     std::fflush(stderr);
+    g_drawing = false;
   }
 }
 

@@ -13,7 +13,8 @@ void set_progress_quiet(bool quiet) noexcept;
 /// True when progress bars will be drawn (stderr is a terminal and not quiet).
 bool progress_enabled() noexcept;
 
-/// A progress bar over `total` units of work; advance() is thread-safe; the bar is erased on destruction.
+/// A progress bar over `total` units of work; advance() is thread-safe; the bar is erased on destruction. A bar made
+/// while another is shown stays silent, so work inside a larger task (a file of an import) draws no second bar.
 class Progress {
  public:
   Progress(std::string label, std::uint64_t total);

@@ -839,25 +839,25 @@ void write_chunks_deflated(hid_t ds, std::size_t chunks, std::size_t chunk_elems
   }
 }
 
-// Writes a shuffle+deflate cube chunk by chunk (write_chunks_deflated); the bytes are what HDF5's own filters
-// would store. Masked pixels are stored as zeros.
-void write_cube_deflated(hid_t ds, const Cube& cube, std::size_t ch, std::size_t cw, int level, const std::string& ctx) {
-  const std::size_t b = cube.bands, h = cube.height, w = cube.width;
+// Writes rows [y0, y0 + h) of a shuffle+deflate cube chunk by chunk (write_chunks_deflated); y0 and h are whole
+// chunk rows (h may end at the cube's last row); the bytes are what HDF5's own filters would store. Pixels whose mask
+// byte is 0 (mask may be null) are stored as zeros.
+void write_rows_deflated(hid_t ds, const float* data, const std::uint8_t* mask, std::size_t y0, std::size_t h,
+                         std::size_t w, std::size_t b, std::size_t ch, std::size_t cw, int level, const std::string& ctx) {
   const std::size_t row_chunks = (h + ch - 1) / ch, col_chunks = (w + cw - 1) / cw;
   write_chunks_deflated(
       ds, row_chunks * col_chunks, ch * cw * b, level, ctx,
       [&](std::size_t k, std::vector<float>& plain) {
         const std::size_t r = k / col_chunks, c = k % col_chunks;
-        const std::size_t y0 = r * ch, x0 = c * cw;
-        const std::size_t ny = std::min(ch, h - y0), nx = std::min(cw, w - x0);
+        const std::size_t ry = r * ch, x0 = c * cw;
+        const std::size_t ny = std::min(ch, h - ry), nx = std::min(cw, w - x0);
         for (std::size_t y = 0; y < ny; ++y)
           for (std::size_t x = 0; x < nx; ++x) {
-            const std::size_t p = (y0 + y) * w + x0 + x;
-            if (cube.mask.empty() || cube.mask[p])
-              std::copy_n(cube.data.data() + p * b, b, plain.data() + (y * cw + x) * b);
+            const std::size_t p = (ry + y) * w + x0 + x;
+            if (!mask || mask[p]) std::copy_n(data + p * b, b, plain.data() + (y * cw + x) * b);
           }
       },
-      [&](std::size_t k) { return std::array<hsize_t, 3>{(k / col_chunks) * ch, (k % col_chunks) * cw, 0}; });
+      [&](std::size_t k) { return std::array<hsize_t, 3>{y0 + (k / col_chunks) * ch, (k % col_chunks) * cw, 0}; });
 }
 }  // namespace
 
@@ -944,7 +944,8 @@ void write_image_objects(hid_t file, const std::string& name, const Cube& cube, 
   bool ch_written_by_chunks = false;
 
   if (options_.compression.kind == Compression::Kind::deflate) {
-    write_cube_deflated(ds, cube, ch, cw, options_.compression.level, ctx);
+    write_rows_deflated(ds, cube.data.data(), cube.mask.empty() ? nullptr : cube.mask.data(), 0, cube.height, cube.width,
+                        cube.bands, ch, cw, options_.compression.level, ctx);
     ch_written_by_chunks = true;
   }
   // Write by chunk rows; masked pixels are stored as zeros so the cube holds only finite numbers.
@@ -1219,7 +1220,7 @@ void StoreWriter::write_coefficient_rows(const std::string& name, std::size_t y0
                   valid.data(), ctx);
 }
 
-void StoreWriter::create_image(const std::string& name, std::size_t height, std::size_t width,
+std::size_t StoreWriter::create_image(const std::string& name, std::size_t height, std::size_t width,
                                const WavelengthGrid& wavelengths, std::span<const double> fwhm, const std::string& units,
                                const Provenance& provenance) {
   const std::string ctx = label() + ": /images/" + name;
@@ -1230,8 +1231,9 @@ void StoreWriter::create_image(const std::string& name, std::size_t height, std:
   if (!fwhm.empty() && fwhm.size() != wavelengths.size())
     throw InputError(src + ": " + std::to_string(fwhm.size()) + " FWHM values for " + std::to_string(wavelengths.size()) + " bands");
   const hid_t f = begin("images", name, "image");
+  std::size_t chunk_rows = 0;
   try {
-    create_image_datasets(f, name, height, width, wavelengths, fwhm, units, provenance, options_, ctx);
+    chunk_rows = create_image_datasets(f, name, height, width, wavelengths, fwhm, units, provenance, options_, ctx).chunk_rows;
   } catch (...) {
     state_->drop("images", name);
     throw;
@@ -1239,6 +1241,7 @@ void StoreWriter::create_image(const std::string& name, std::size_t height, std:
   State::Pending& p = *state_->find("images", name);
   p.rows_expected = height;
   p.row_done.assign(height, false);
+  return chunk_rows;
 }
 
 void StoreWriter::write_image_rows(const std::string& name, std::size_t y0, std::size_t rows,
@@ -1275,7 +1278,11 @@ void StoreWriter::write_image_rows(const std::string& name, std::size_t y0, std:
   for (std::size_t y = y0; y < y0 + rows; ++y)
     if (p.row_done[y]) throw UsageError(ctx + ": row " + std::to_string(y) + " is written twice");
   const hsize_t start[3] = {y0, 0, 0}, cnt[3] = {rows, width, bands};
-  write_hyperslab(ds, H5T_NATIVE_FLOAT, start, cnt, values.data(), ctx);
+  const auto [ch, cw] = image_chunk(dims[0], width, bands);
+  if (options_.compression.kind == Compression::Kind::deflate && y0 % ch == 0 && (rows % ch == 0 || y0 + rows == dims[0]))
+    write_rows_deflated(ds, values.data(), nullptr, y0, rows, width, bands, ch, cw, options_.compression.level, ctx);
+  else
+    write_hyperslab(ds, H5T_NATIVE_FLOAT, start, cnt, values.data(), ctx);
   h5::Id mds = open_dataset(g, "mask", ctx);
   write_hyperslab(mds, H5T_NATIVE_UINT8, std::span<const hsize_t>(start, 2), std::span<const hsize_t>(cnt, 2),
                   valid.data(), ctx);

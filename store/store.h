@@ -188,8 +188,8 @@ class StoreWriter {
 
   /// Adds image `name` (chunked by rows, compressed); throws InputError on NaN/Inf, size or name problems.
   void add_image(const std::string& name, const Cube& cube);
-  /// Creates image `name` (height x width x wavelengths.size(), chunked as add_image does) to be filled by write_image_rows; fwhm empty or one per band.
-  void create_image(const std::string& name, std::size_t height, std::size_t width, const WavelengthGrid& wavelengths,
+  /// Creates image `name` (height x width x wavelengths.size(), chunked as add_image does) to be filled by write_image_rows; fwhm empty or one per band. Returns the rows per storage chunk: strips of whole chunks write fastest.
+  std::size_t create_image(const std::string& name, std::size_t height, std::size_t width, const WavelengthGrid& wavelengths,
                     std::span<const double> fwhm, const std::string& units, const Provenance& provenance);
   /// Writes rows [y0, y0 + rows): spectra (rows x width x bands, band fastest) and mask (rows x width, 1 = valid; empty = all valid); InputError on a non-finite value at a valid pixel. Every row must be written before commit().
   void write_image_rows(const std::string& name, std::size_t y0, std::size_t rows, std::span<const float> spectra,

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "specula/core/error.h"
+#include "specula/core/parallel.h"
 #include "specula/core/text.h"
 
 namespace specula::store {
@@ -456,6 +457,36 @@ MatKind mat_kind(const std::filesystem::path& path, const std::string& var) {
   return fits && element_count(*e->head) > fg->length ? MatKind::collection : MatKind::image;
 }
 
+namespace {
+// out[(r * cols + c) * bands + b] = in[r + rows * (c + cols * b)] (MATLAB's column-major H x W x B to band-fastest
+// rows), by tiles of rows x columns whose input and output lines stay in cache, tiles spread over the threads.
+template <class T>
+void transpose_column_major(const T* in, std::size_t rows, std::size_t cols, std::size_t bands, float* out) {
+  constexpr std::size_t kTileRows = 64, kTileCols = 8;
+  const std::size_t row_tiles = (rows + kTileRows - 1) / kTileRows, col_tiles = (cols + kTileCols - 1) / kTileCols;
+  parallel_for(row_tiles * col_tiles, [&](std::size_t t) {
+    const std::size_t r0 = (t / col_tiles) * kTileRows, c0 = (t % col_tiles) * kTileCols;
+    const std::size_t r1 = std::min(rows, r0 + kTileRows), c1 = std::min(cols, c0 + kTileCols);
+    for (std::size_t b = 0; b < bands; ++b)
+      for (std::size_t c = c0; c < c1; ++c) {
+        const T* src = in + rows * (c + cols * b);
+        for (std::size_t r = r0; r < r1; ++r) out[(r * cols + c) * bands + b] = static_cast<float>(src[r]);
+      }
+  }, 16);
+}
+}  // namespace
+
+std::uint64_t mat_decoded_bytes(const std::filesystem::path& path) {
+  MatFile mf(path);
+  std::uint64_t total = 0;
+  for (const auto& e : scan(mf))
+    if (numeric(*e.head)) {
+      const std::uint64_t n = element_count(*e.head);
+      total += n == UINT64_MAX ? n : n * (Mat_SizeOfClass(e.head->class_type) + sizeof(float));
+    }
+  return total;
+}
+
 Cube read_mat(const std::filesystem::path& path, const std::string& var_in,
               const std::optional<std::string>& mask_var, const WavelengthGrid& wavelengths) {
   MatFile mf(path);
@@ -501,9 +532,8 @@ Cube read_mat(const std::filesystem::path& path, const std::string& var_in,
   visit_data(mf, *data, var, static_cast<std::size_t>(l.n), [&](const auto* p) {
     switch (l.order) {
       case Order::hwb:  // (r, c, b) at r + rows * (c + cols * b)
-        for (std::size_t b = 0; b < bands; ++b)
-          for (std::size_t c = 0; c < cols; ++c)
-            for (std::size_t r = 0; r < rows; ++r) out[(r * cols + c) * bands + b] = static_cast<float>(*p++);
+      case Order::pb:   // (p, b) at p + pixels * b, p = r + rows * c: the same
+        transpose_column_major(p, rows, cols, bands, out);
         break;
       case Order::bhw:  // (b, r, c) at b + bands * (r + rows * c)
         for (std::size_t c = 0; c < cols; ++c)
@@ -514,11 +544,6 @@ Cube read_mat(const std::filesystem::path& path, const std::string& var_in,
         for (std::size_t c = 0; c < cols; ++c)
           for (std::size_t r = 0; r < rows; ++r)
             for (std::size_t b = 0; b < bands; ++b) out[(r * cols + c) * bands + b] = static_cast<float>(*p++);
-        break;
-      case Order::pb:  // (p, b) at p + pixels * b
-        for (std::size_t b = 0; b < bands; ++b)
-          for (std::size_t c = 0; c < cols; ++c)
-            for (std::size_t r = 0; r < rows; ++r) out[(r * cols + c) * bands + b] = static_cast<float>(*p++);
         break;
     }
   });

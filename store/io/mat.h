@@ -20,6 +20,7 @@
 // dim 0 is nRow*nCol; pixel p is MATLAB column-major, p = row + nRow * col (the benchmarks' own
 // reshape(Y', nRow, nCol, B)). A kept-band list `SlectBands`/`SelectBands` (1-based) picks the rows'
 // wavelengths out of a longer `wavelengths` argument (the full sensor grid).
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -34,6 +35,9 @@ enum class MatKind { image, collection };
 /// Decides image or collection for `var` (empty: detect): collection when the only data is a 2-D matrix
 /// one of whose dimensions equals the length of the file's wavelength vector and there are no nRow/nCol.
 MatKind mat_kind(const std::filesystem::path& path, const std::string& var = {});
+
+/// Bytes reading `path` needs at most: every numeric variable in its own class plus as float32 (from the headers only).
+std::uint64_t mat_decoded_bytes(const std::filesystem::path& path);
 
 /// Reads the cube variable `var` (empty: detect, see above) as a Cube with an optional 2-D mask variable
 /// (nonzero = valid) and wavelengths from the file, else `wavelengths`; throws InputError naming the file.

@@ -394,3 +394,26 @@ TEST(ImportCli, MatWithSeveralCubesAsksForVar) {
   expect_rejected(dir, "'" + mat.string() + "' --wavelengths 400:420:10", "two.mat", "(a, b) and none of the known names");
   expect_rejected(dir, "'" + mat.string() + "' --wavelengths 400:420:10", "two.mat", "give its name as --var");
 }
+
+TEST(ImportCli, DirectoryAndQuotedGlobInOneCommandNameEverySkip) {
+  test::ScratchDir dir;
+  auto store = make_store(dir);
+  std::filesystem::create_directories(dir / "db" / "more");
+  write_envi(dir / "db" / "a", 3, 4, 31);
+  write_envi(dir / "db" / "more" / "b", 2, 2, 31);
+  std::ofstream(dir / "db" / "notes.md") << "about\n";
+  // --strict: one line naming the skipped file and the flag, exit 1, the store byte-identical.
+  expect_rejected(dir, "'" + (dir / "db").string() + "' --strict", "notes.md: skipped",
+                  "--strict makes a skip an error");
+  auto r = run_specula("-q import '" + (dir / "db").string() + "' -o '" + store.string() + "' --jobs 2");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find((dir / "db" / "notes.md").string() + ": skipped: cannot tell the format from the extension "
+                          "'.md'; give --format"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("imported image a: 3x4"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("imported image b: 2x2"), std::string::npos) << r.output;
+  // The shell does not expand a quoted pattern; specula does.
+  r = run_specula("-q import '" + (dir / "db" / "*.hdr").string() + "' -o '" + (dir / "g.h5").string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(store::Store::open(dir / "g.h5").images(), std::vector<std::string>{"a"});
+  expect_rejected(dir, "'" + (dir / "db" / "*.tif").string() + "'", "*.tif", "no file matches this pattern");
+}

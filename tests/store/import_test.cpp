@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "specula/core/error.h"
+#include "specula/store/io/png_stack.h"
 #include "test_support.h"
 
 namespace specula::store {
@@ -88,6 +89,145 @@ TEST(Import, MisuseNamesTheOption) {
   }
   EXPECT_EQ(detect_import_format(dir / "a.hdr"), "envi");
   EXPECT_EQ(detect_import_format(dir / "x.MAT"), "mat");
+}
+
+// Every image and collection of the store at `path`, with values and masks, as one comparable text.
+std::string contents(const std::filesystem::path& path) {
+  const Store s = Store::open(path);
+  std::string out;
+  for (const auto& n : s.images()) {
+    const Cube c = s.read_image(n);
+    out += "image " + n + " " + c.wavelengths.describe() + " " + c.provenance.source_file + ":";
+    for (float v : c.data) out += " " + std::to_string(v);
+    for (auto m : c.mask) out += " " + std::to_string(int(m));
+    out += "\n";
+  }
+  for (const auto& n : s.collections()) {
+    const Collection c = s.read_collection(n);
+    out += "collection " + n + ":";
+    for (float v : c.values) out += " " + std::to_string(v);
+    out += "\n";
+  }
+  return out;
+}
+
+// A database directory: ENVI images (one in a subdirectory), a CSV table, a PNG band stack directory beside a
+// stray thumbnail, and files no reader knows.
+void write_database(const std::filesystem::path& root) {
+  std::filesystem::create_directories(root / "sub");
+  std::filesystem::create_directories(root / "stack");
+  write_envi(root / "a", 3, 4, 3);
+  write_envi(root / "b", 2, 5, 3);
+  write_envi(root / "sub" / "c", 4, 2, 3);
+  std::ofstream(root / "lib.csv") << "name,500,510,520\nchip,0.1,0.2,0.3\n";
+  std::ofstream(root / "README") << "about this database\n";
+  std::ofstream(root / "orphan.raw") << "no header";
+  test::write_file(root / "stack" / "Thumbs.db", "x");
+}
+
+TEST(Import, DirectoryImportsWhatItRecognisesAndReportsEverySkip) {
+  const test::ScratchDir dir;
+  write_database(dir / "db");
+  StoreWriter w(dir / "s.h5", {});
+  ImportOptions o;
+  const ImportReport r = import_files(w, {dir / "db"}, o);
+  w.commit();
+  ASSERT_EQ(r.imported.size(), 4u);
+  EXPECT_EQ(r.imported[0].rfind("imported image a: 3x4", 0), 0u) << r.imported[0];
+  EXPECT_EQ(r.imported[1].rfind("imported image b: 2x5", 0), 0u) << r.imported[1];
+  EXPECT_EQ(r.imported[2].rfind("imported collection lib:", 0), 0u) << r.imported[2];
+  EXPECT_EQ(r.imported[3].rfind("imported image c: 4x2", 0), 0u) << r.imported[3];
+  ASSERT_EQ(r.skipped.size(), 3u);
+  EXPECT_EQ(r.skipped[0].rfind((dir / "db" / "README").string() + ": skipped: cannot tell the format", 0), 0u) << r.skipped[0];
+  EXPECT_EQ(r.skipped[1], (dir / "db" / "orphan.raw").string() + ": skipped: an ENVI data file without its .hdr header");
+  EXPECT_EQ(r.skipped[2].rfind((dir / "db" / "stack" / "Thumbs.db").string() + ": skipped", 0), 0u) << r.skipped[2];
+  // `stack` holds no PNG: only its stray file is reported. A glob picks the same files as the directory.
+  const Store s = Store::open(dir / "s.h5");
+  EXPECT_EQ(s.images(), (std::vector<std::string>{"a", "b", "c"}));
+  StoreWriter g(dir / "g.h5", {});
+  const ImportReport rg = import_files(g, {dir / "db" / "*.hdr", dir / "db" / "s*"}, o);
+  g.commit();
+  EXPECT_EQ(Store::open(dir / "g.h5").images(), (std::vector<std::string>{"a", "b", "c"}));
+  EXPECT_EQ(rg.skipped.size(), 1u);
+  StoreWriter none(dir / "n.h5", {});
+  const std::string e = test::input_error_text([&] { import_files(none, {dir / "db" / "*.nothing"}, o); });
+  EXPECT_NE(e.find("*.nothing: no file matches this pattern"), std::string::npos) << e;
+}
+
+TEST(Import, StrictMakesASkipAnErrorAndLeavesTheStoreAsItWas) {
+  const test::ScratchDir dir;
+  write_database(dir / "db");
+  write_envi(dir / "first", 2, 2, 3);
+  {
+    StoreWriter w(dir / "s.h5", {});
+    import_files(w, {dir / "first.hdr"}, {});
+    w.commit();
+  }
+  const std::string before = contents(dir / "s.h5");
+  ImportOptions o;
+  o.strict = true;
+  {
+    StoreWriter w(dir / "s.h5", {});
+    const std::string e = test::input_error_text([&] { import_files(w, {dir / "db"}, o); });
+    EXPECT_NE(e.find("README: skipped: cannot tell the format"), std::string::npos) << e;
+    EXPECT_NE(e.find("(3 files skipped in all); the `strict` option makes a skip an error"), std::string::npos) << e;
+  }
+  EXPECT_EQ(contents(dir / "s.h5"), before);
+}
+
+TEST(Import, StoreContentDoesNotDependOnJobsOrTheMemoryBudget) {
+  const test::ScratchDir dir;
+  write_database(dir / "db");
+  for (int i = 0; i < 6; ++i) write_envi(dir / "db" / ("m" + std::to_string(i)), 5 + i, 7, 3);
+  ImportOptions serial;
+  StoreWriter w1(dir / "one.h5", {});
+  const ImportReport r1 = import_files(w1, {dir / "db"}, serial);
+  w1.commit();
+  for (std::uint64_t budget : {std::uint64_t{1}, std::uint64_t{1} << 30}) {  // one file at a time, then all at once
+    ImportOptions parallel;
+    parallel.jobs = 2;
+    parallel.memory_budget = budget;
+    const auto path = dir / ("two-" + std::to_string(budget) + ".h5");
+    StoreWriter w2(path, {});
+    const ImportReport r2 = import_files(w2, {dir / "db"}, parallel);
+    w2.commit();
+    EXPECT_EQ(r2.imported, r1.imported);
+    EXPECT_EQ(r2.skipped, r1.skipped);
+    EXPECT_EQ(contents(path), contents(dir / "one.h5"));
+  }
+}
+
+TEST(Import, WithSeveralBadFilesTheFirstOneIsReportedWhateverTheJobs) {
+  const test::ScratchDir dir;
+  std::filesystem::create_directories(dir / "db");
+  for (int i = 0; i < 5; ++i) write_envi(dir / "db" / ("m" + std::to_string(i)), 4, 4, 3, i == 1 || i == 3 ? 5 : -1);
+  for (unsigned jobs : {1u, 2u}) {
+    ImportOptions o;
+    o.jobs = jobs;
+    StoreWriter w(dir / "s.h5", {});
+    const std::string e = test::input_error_text([&] { import_files(w, {dir / "db"}, o); });
+    EXPECT_EQ(e.rfind((dir / "db" / "m1.hdr").string() + ": 1 NaN/Inf values", 0), 0u) << jobs << ": " << e;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "s.h5"));
+}
+
+TEST(Import, APngStackByDirectoryOrByPatternIsOneImage) {
+  const test::ScratchDir dir;
+  std::filesystem::create_directories(dir / "cave");
+  for (int b = 0; b < 3; ++b)
+    write_png_gray16(dir / "cave" / ("band_" + std::to_string(b) + ".png"), 2, 1,
+                     std::vector<std::uint16_t>{std::uint16_t(1000 * b), std::uint16_t(1000 * b + 1)});
+  test::write_file(dir / "cave" / "Thumbs.db", "x");
+  ImportOptions o;
+  o.wavelengths = WavelengthGrid::range(500, 520, 10);
+  for (const auto& in : {dir / "cave", dir / "cave" / "*.png"}) {
+    StoreWriter w(dir / "s.h5", {.replace = true});
+    const ImportReport r = import_files(w, {in}, o);
+    w.commit();
+    ASSERT_EQ(r.imported.size(), 1u) << in;
+    EXPECT_EQ(r.imported[0].rfind("imported image ", 0), 0u) << r.imported[0];
+    EXPECT_NE(r.imported[0].find(": 1x2, 3 bands"), std::string::npos) << r.imported[0];
+  }
 }
 
 }  // namespace

@@ -418,5 +418,22 @@ TEST(MatLayouts, WavelengthNamesAndUnitsRule) {
   EXPECT_EQ(cube.wavelengths[4], 6.0);
 }
 
+TEST(Mat, ACubeOfManyTransposeTilesLandsWhereMatlabPutIt) {
+  // 150 x 21 x 3: several tiles of rows and of columns, the last ones partial.
+  constexpr std::size_t R = 150, C = 21, B = 3;
+  std::vector<double> v(R * C * B);
+  for (std::size_t r = 0; r < R; ++r)
+    for (std::size_t c = 0; c < C; ++c)
+      for (std::size_t b = 0; b < B; ++b) v[r + R * (c + C * b)] = 1000.0 * r + 10.0 * c + b;
+  ScratchDir dir;
+  ASSERT_TRUE(write_mat(dir / "big.mat", MAT_FT_MAT5, {make_var("ref", MAT_C_DOUBLE, MAT_T_DOUBLE, {R, C, B}, v)}));
+  const Cube cube = read_mat(dir / "big.mat", "", std::nullopt, WavelengthGrid::range(500, 520, 10));
+  ASSERT_EQ(cube.height, R);
+  ASSERT_EQ(cube.width, C);
+  for (std::size_t r = 0; r < R; ++r)
+    for (std::size_t c = 0; c < C; ++c)
+      for (std::size_t b = 0; b < B; ++b) ASSERT_EQ(cube.pixel(r, c)[b], float(1000.0 * r + 10.0 * c + b)) << r << "," << c;
+}
+
 }  // namespace
 }  // namespace specula::store
