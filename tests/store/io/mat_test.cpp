@@ -224,7 +224,9 @@ TEST(Mat, BadInputs) {
 }
 
 // Found by fuzzing (tests/fuzz/corpus/mat/): a corrupt length field that would make matio allocate and clear
-// gigabytes, a variable name with a newline, and an nRow no size_t can hold are each one line naming the file.
+// gigabytes, dimensions promising more values than the data holds (matio reads them without complaint, we
+// allocated the promise), a variable name with a newline, and an nRow no size_t can hold are each one line naming
+// the file.
 TEST(Mat, CorruptFilesFoundByFuzzingAreOneLine) {
   ScratchDir dir;
   const std::vector<double> px = {1, 2, 3, 4, 5, 6};
@@ -248,6 +250,15 @@ TEST(Mat, CorruptFilesFoundByFuzzingAreOneLine) {
   test::write_file(dir / "big.mat", big);
   m = test::error_of([&] { read_mat(dir / "big.mat", "", std::nullopt, {}); });
   EXPECT_NE(m.find("big.mat: corrupt MATLAB v5 file: the element at byte 168 claims 4294443008 bytes"), std::string::npos) << m;
+
+  std::string promise = bytes;  // dims 1 x 6 -> 1 x 600000000 (0x23c34600), the data still 6 doubles
+  promise.replace(128 + 8 + 16 + 12, 4, std::string("\x00\x46\xc3\x23", 4));
+  test::write_file(dir / "promise.mat", promise);
+  m = test::error_of([&] { read_mat(dir / "promise.mat", "", std::nullopt, {}); });
+  EXPECT_NE(m.find("promise.mat: corrupt MATLAB v5 file: the variable at byte 136 has dimensions for 600000000 values "
+                   "but its data holds 6"),
+            std::string::npos)
+      << m;
 
   std::string newline = bytes;
   newline[name_tag + 4] = '\n';
