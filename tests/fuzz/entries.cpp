@@ -107,8 +107,11 @@ void envi_header(std::span<const std::uint8_t> input) {
     check(h.wavelength.empty() || h.wavelength.size() == h.bands, "one wavelength per band");
     check(h.fwhm.empty() || h.fwhm.size() == h.bands, "one fwhm per band");
     check(h.band_names.empty() || h.band_names.size() == h.bands, "one name per band");
-    const auto bytes = static_cast<unsigned __int128>(h.samples) * h.lines * h.bands * 8;
-    check(bytes <= (static_cast<unsigned __int128>(1) << 43), "size limit");
+    std::uint64_t bytes = 0;
+    const bool overflow = __builtin_mul_overflow(std::uint64_t{h.samples}, std::uint64_t{h.lines}, &bytes) ||
+                          __builtin_mul_overflow(bytes, std::uint64_t{h.bands}, &bytes) ||
+                          __builtin_mul_overflow(bytes, std::uint64_t{8}, &bytes);
+    check(!overflow && bytes <= (std::uint64_t{1} << 43), "size limit");
   }, "fuzz.hdr");
 }
 
