@@ -217,8 +217,8 @@ EcoFile read_ecostress_file(const std::filesystem::path& p) {
     else if (key == "y units") y_units = value;
     else if (key == "number of x values") {
       double d = 0;
-      if (!parse_number(value, d) || d < 1 || d != std::floor(d))
-        bad_line(p, i + 1, "Number of X Values = \"" + printable(value) + "\" is not a positive whole number");
+      if (!parse_number(value, d) || d < 1 || d != std::floor(d) || d > 4294967295.0)
+        bad_line(p, i + 1, "Number of X Values = \"" + printable(value) + "\" is not a whole number from 1 to 2^32 - 1");
       declared = static_cast<std::size_t>(d);
       declared_line = i + 1;
     }

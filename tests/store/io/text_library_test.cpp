@@ -169,6 +169,20 @@ TEST(SpectralLibrary, EcostressBadInputsNameFileAndLine) {
   write_file(dir / "n.txt", ecostress("N", {{"0.8", "1"}, {"0.6", "x2"}}));
   m = error_of([&] { read_ecostress_spectra(Paths{dir / "n.txt"}); });
   EXPECT_NE(m.find("n.txt: line 23: \"0.6?x2\" is not a row of two numbers"), std::string::npos) << m;
+  // A row count no size_t holds (found by fuzzing: converting it was undefined).
+  write_file(dir / "count.txt", ecostress("N", {{"0.8", "1"}, {"0.6", "2"}}, "Wavelength (micrometers)",
+                                          "Reflectance (percent)", 0));
+  {
+    std::string text;
+    std::ifstream in(dir / "count.txt");
+    for (std::string line; std::getline(in, line);)
+      text += (line.starts_with("Number of X Values") ? "Number of X Values: 5e52" : line) + "\n";
+    write_file(dir / "count.txt", text);
+  }
+  m = error_of([&] { read_ecostress_spectra(Paths{dir / "count.txt"}); });
+  EXPECT_NE(m.find("count.txt: line 19: Number of X Values = \"5e52\" is not a whole number from 1 to 2^32 - 1"),
+            std::string::npos)
+      << m;
   // A value no float32 holds.
   write_file(dir / "huge.txt", ecostress("N", {{"0.8", "1"}, {"0.6", "1e39"}}));
   m = error_of([&] { read_ecostress_spectra(Paths{dir / "huge.txt"}); });
