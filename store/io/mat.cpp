@@ -59,16 +59,19 @@ constexpr std::uint32_t kMiMatrix = 14, kMiCompressed = 15;
 // make it allocate and clear gigabytes. Checked first: each top-level element fits in the file; the array flags,
 // dimensions and name opening each matrix (inside compressed elements too, from their first inflated bytes) fit
 // in the matrix and stay small (rank up to 32, names up to 4096 bytes); and a numeric matrix's real part holds as
-// many values as its dimensions promise. v7.3 (HDF5) and v4 files are left to matio.
+// many values as its dimensions promise. v7.3 (HDF5) files are left to matio; files without the MAT-file header
+// (v4, which matio would also read, as trustingly) are refused.
 class V5Layout {
  public:
   V5Layout(const std::string& file, std::istream& in, std::uint64_t size) : file_(file), in_(in), size_(size) {}
 
   void check() {
     char header[128];
-    if (size_ < 128 || !in_.read(header, 128)) return;
-    const std::string endian(header + 126, 2);
-    if (endian != "IM" && endian != "MI") return;
+    const bool read = size_ >= 128 && in_.read(header, 128);
+    const std::string endian = read ? std::string(header + 126, 2) : std::string();
+    if (endian != "IM" && endian != "MI")
+      throw InputError(file_ + ": not a MATLAB .mat file in v5 or v7.3 format (no 128-byte MAT-file header; v4 files "
+                       "are not read); save it from MATLAB with save(..., '-v7') or '-v7.3'");
     swap_ = endian == "MI";
     if (u16(reinterpret_cast<const unsigned char*>(header) + 124) != 0x0100) return;  // 0x0200: v7.3
     for (std::uint64_t at = 128; at + 8 <= size_;) {
