@@ -236,7 +236,7 @@ EcoFile read_ecostress_file(const std::filesystem::path& p) {
                      "\" names no unit; write Wavelength (micrometers) or Wavelength (nanometers)");
   f.percent = yu.find("percent") != std::string::npos || yu.find('%') != std::string::npos;
   const auto paren = y_units.find('(');
-  f.y_kind = lower(trim(std::string_view(y_units).substr(0, paren)));
+  f.y_kind = lower(printable(trim(std::string_view(y_units).substr(0, paren))));  // it names the units and messages
   if (f.y_kind.empty()) f.y_kind = "unknown";
 
   std::vector<std::pair<double, double>> rows;

@@ -183,6 +183,12 @@ TEST(SpectralLibrary, EcostressBadInputsNameFileAndLine) {
   EXPECT_NE(m.find("count.txt: line 19: Number of X Values = \"5e52\" is not a whole number from 1 to 2^32 - 1"),
             std::string::npos)
       << m;
+  // Y Units holding carriage returns (found by fuzzing) stay out of the one-line message.
+  write_file(dir / "a.txt", ecostress("A", {{"0.8", "1"}, {"0.6", "2"}}));
+  write_file(dir / "cr.txt", ecostress("B", {{"0.8", "1"}, {"0.6", "2"}}, "Wavelength (micrometers)", "Reflecta\r\rnce (percent)"));
+  m = error_of([&] { read_ecostress_spectra(Paths{dir / "a.txt", dir / "cr.txt"}); });
+  EXPECT_NE(m.find("cr.txt: Y Units (reflecta??nce, percent) differ from"), std::string::npos) << m;
+  EXPECT_EQ(m.find_first_of("\r\n"), std::string::npos) << m;
   // A value no float32 holds.
   write_file(dir / "huge.txt", ecostress("N", {{"0.8", "1"}, {"0.6", "1e39"}}));
   m = error_of([&] { read_ecostress_spectra(Paths{dir / "huge.txt"}); });
