@@ -61,7 +61,7 @@ fs::path write(const std::string& name, std::string_view bytes) {
   return p;
 }
 
-// Runs read(); a specula::Error must be one line naming a file of the scratch directory (or `named`).
+// Runs read(); a specula::Error must be one line containing `named` (the file, or the directory of the files).
 template <typename F>
 void expect_clean(F&& read, std::string_view named) {
   try {
