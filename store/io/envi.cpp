@@ -452,32 +452,25 @@ std::vector<double> header_nm(const EnviHeader& h, double& factor, std::string& 
   return {};
 }
 
-// Keeps the bands whose flag is true: compacts cube data, wavelengths and fwhm.
-void drop_bands(Cube& cube, const std::vector<bool>& keep, const std::string& hname) {
-  const std::size_t B = cube.bands;
-  const std::size_t kept = static_cast<std::size_t>(std::count(keep.begin(), keep.end(), true));
-  if (kept == B) return;
-  if (kept == 0)
-    throw InputError(hname + ": bbl marks all " + std::to_string(B) +
+// The bands to keep (all, or those bbl marks good) in ascending order of their wavelengths `nm` (one per band, any
+// order): a list ENVI allows unsorted is kept exactly, permuted, never resampled. InputError for a wavelength listed
+// twice or a bbl marking every band bad.
+std::vector<std::size_t> kept_band_order(const EnviHeader& h, const std::vector<double>& nm, bool honour_bbl,
+                                         const std::string& hname) {
+  std::vector<std::size_t> order;
+  for (std::size_t b = 0; b < nm.size(); ++b)
+    if (!honour_bbl || h.bbl.empty() || h.bbl[b]) order.push_back(b);
+  if (order.empty())
+    throw InputError(hname + ": bbl marks all " + std::to_string(nm.size()) +
                      " bands bad; fix the bbl list or pass honour_bbl = false to keep them");
-  std::vector<float> data(cube.height * cube.width * kept);
-  for (std::size_t p = 0, o = 0; p < cube.height * cube.width; ++p)
-    for (std::size_t b = 0; b < B; ++b)
-      if (keep[b]) data[o++] = cube.data[p * B + b];
-  cube.data = std::move(data);
-  cube.bands = kept;
-  if (!cube.wavelengths.empty()) {
-    std::vector<double> nm;
-    for (std::size_t b = 0; b < B; ++b)
-      if (keep[b]) nm.push_back(cube.wavelengths[b]);
-    cube.wavelengths = WavelengthGrid(std::move(nm), hname);
-  }
-  if (!cube.fwhm.empty()) {
-    std::vector<double> fw;
-    for (std::size_t b = 0; b < B; ++b)
-      if (keep[b]) fw.push_back(cube.fwhm[b]);
-    cube.fwhm = std::move(fw);
-  }
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return nm[a] < nm[b]; });
+  for (std::size_t i = 1; i < order.size(); ++i)
+    if (nm[order[i]] == nm[order[i - 1]])
+      throw InputError(hname + ": wavelength " +
+                       format_real(h.wavelength.size() == nm.size() ? h.wavelength[order[i]] : nm[order[i]]) +
+                       " appears twice (bands " + std::to_string(std::min(order[i], order[i - 1]) + 1) + " and " +
+                       std::to_string(std::max(order[i], order[i - 1]) + 1) + "); remove one of them");
+  return order;
 }
 
 }  // namespace
@@ -557,13 +550,7 @@ EnviHeader parse_envi_header(std::string_view text, const std::string& filename)
   if (const Field* f = find("wavelength units")) h.wavelength_units = std::string(trim(f->value));
   if (const Field* f = find("wavelength")) {
     h.wavelength = parse_real_list(filename, "wavelength", *f, spectral, axis);
-    // Library wavelengths may come unsorted: read_envi_library sorts them with the values.
-    for (std::size_t i = 1; !h.is_library() && i < h.wavelength.size(); ++i)
-      if (!(h.wavelength[i] > h.wavelength[i - 1]))
-        throw InputError(filename + ": line " + std::to_string(f->line) + ": wavelength " + std::to_string(i + 1) +
-                         " (" + format_real(h.wavelength[i]) + ") is not greater than wavelength " +
-                         std::to_string(i) + " (" + format_real(h.wavelength[i - 1]) +
-                         "); wavelengths must increase strictly");
+    // Wavelengths may come unsorted: the readers sort the bands by them (kept_band_order).
     if (*std::min_element(h.wavelength.begin(), h.wavelength.end()) <= 0)
       throw InputError(filename + ": line " + std::to_string(f->line) + ": wavelength " +
                        format_real(*std::min_element(h.wavelength.begin(), h.wavelength.end())) +
@@ -635,25 +622,39 @@ Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback
   // The header's own wavelengths win; `problem` explains why they are unusable when there is no fallback.
   double factor = 1.0;
   std::string problem;
-  std::vector<double> nm = header_nm(h, factor, problem);
+  std::vector<double> nm = header_nm(h, factor, problem), fwhm;
   if (problem.empty()) {
-    cube.wavelengths = WavelengthGrid(std::move(nm), hname);
-    if (!h.fwhm.empty()) {
-      cube.fwhm = h.fwhm;
-      for (double& v : cube.fwhm) v *= factor;
-    }
+    fwhm = h.fwhm;
+    for (double& v : fwhm) v *= factor;
   } else if (!fallback.empty()) {
     if (fallback.size() != h.bands)
       throw InputError(hname + ": the image has " + std::to_string(h.bands) + " bands but the `wavelengths` option gives " +
                        std::to_string(fallback.size()) + "; pass one wavelength per band");
-    cube.wavelengths = fallback;
+    nm.assign(fallback.values().begin(), fallback.values().end());
   } else {
     throw InputError(hname + ": " + problem);
   }
+  const std::vector<std::size_t> order = kept_band_order(h, nm, honour_bbl, hname);
 
-  read_data(paths, h, hname, cube);
-  if (honour_bbl && !h.bbl.empty()) drop_bands(cube, h.bbl, hname);
-  const std::size_t H = h.lines, W = h.samples, B = cube.bands;
+  Cube raw;
+  read_data(paths, h, hname, raw);
+  const std::size_t pixels = std::size_t(h.lines) * h.samples, B = order.size();
+  std::vector<double> kept_nm;
+  for (const std::size_t b : order) kept_nm.push_back(nm[b]);
+  cube.wavelengths = WavelengthGrid(std::move(kept_nm), hname);
+  if (!fwhm.empty())
+    for (const std::size_t b : order) cube.fwhm.push_back(fwhm[b]);
+  cube.height = raw.height;
+  cube.width = raw.width;
+  cube.bands = B;
+  if (B == raw.bands && std::is_sorted(order.begin(), order.end())) {
+    cube.data = std::move(raw.data);
+  } else {
+    cube.data.resize(pixels * B);
+    for (std::size_t p = 0; p < pixels; ++p)
+      for (std::size_t k = 0; k < B; ++k) cube.data[p * B + k] = raw.data[p * raw.bands + order[k]];
+  }
+  const std::size_t H = h.lines, W = h.samples;
   float* out = cube.data.data();
   if (h.data_ignore_value) {
     const float ignore = static_cast<float>(*h.data_ignore_value);
@@ -708,19 +709,7 @@ Collection read_envi_library(const std::filesystem::path& path, bool honour_bbl,
   read_data(paths, h, hname, raw);  // lines x samples x 1: spectrum i is row i
   const std::size_t N = h.lines, S = h.samples;
 
-  // Bands kept (bbl) in ascending wavelength order; the values follow the same permutation.
-  std::vector<std::size_t> order;
-  for (std::size_t b = 0; b < S; ++b)
-    if (!honour_bbl || h.bbl.empty() || h.bbl[b]) order.push_back(b);
-  if (order.empty())
-    throw InputError(hname + ": bbl marks all " + std::to_string(S) +
-                     " bands bad; fix the bbl list or pass honour_bbl = false to keep them");
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return nm[a] < nm[b]; });
-  for (std::size_t i = 1; i < order.size(); ++i)
-    if (nm[order[i]] == nm[order[i - 1]])
-      throw InputError(hname + ": wavelength " + format_real(h.wavelength[order[i]]) + " appears twice (bands " +
-                       std::to_string(std::min(order[i], order[i - 1]) + 1) + " and " +
-                       std::to_string(std::max(order[i], order[i - 1]) + 1) + "); remove one of them");
+  const std::vector<std::size_t> order = kept_band_order(h, nm, honour_bbl, hname);
 
   Collection col;
   std::vector<double> grid;

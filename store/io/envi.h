@@ -3,7 +3,8 @@
 // ENVI spectral libraries (file type = ENVI Spectral Library, usually a .sli data file): samples = bands,
 // lines = spectra, one spectrum per line, names from 'spectra names'.
 // A bad band list ('bbl', one 0/1 per band) drops the bands marked 0, with their wavelengths and fwhm, unless
-// the caller passes honour_bbl = false.
+// the caller passes honour_bbl = false. Wavelength lists may be unsorted (ENVI allows it): the bands are sorted by
+// wavelength, values and fwhm with them; a wavelength listed twice is an InputError.
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -39,7 +40,8 @@ struct EnviHeader {
 
 /// Parses header text; throws InputError prefixed with `filename` naming the bad or missing field.
 EnviHeader parse_envi_header(std::string_view text, const std::string& filename);
-/// Reads an ENVI image from its .hdr or data file (wavelengths to nm, ignore value masked, bbl-bad bands dropped);
+/// Reads an ENVI image from its .hdr or data file (wavelengths to nm and sorted ascending with their bands, never
+/// resampled; ignore value masked; bbl-bad bands dropped);
 /// `fallback` is used when the header has no wavelengths (one per band in the file).
 /// `honour_bbl` false keeps the bands the header's bbl marks bad.
 Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback = {}, bool honour_bbl = true);

@@ -1,15 +1,19 @@
 #include "specula/store/io/mat.h"
 
 #include <matio.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
+#include <fstream>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <system_error>
+#include <utility>
 #include <vector>
 
 #include "specula/core/error.h"
@@ -49,6 +53,114 @@ struct VarFree {
 };
 using Var = std::unique_ptr<matvar_t, VarFree>;
 
+// MATLAB v5 data types used below.
+constexpr std::uint32_t kMiMatrix = 14, kMiCompressed = 15;
+
+// matio sizes its buffers from a v5 file's tags before reading what they announce, so a few corrupt bytes could
+// make it allocate and clear gigabytes. Checked first: each top-level element fits in the file; the array flags,
+// dimensions and name opening each matrix (inside compressed elements too, from their first inflated bytes) fit
+// in the matrix and stay small (rank up to 32, names up to 4096 bytes); and a numeric matrix's real part holds as
+// many values as its dimensions promise. v7.3 (HDF5) files are left to matio; files without the MAT-file header
+// (v4, which matio would also read, as trustingly) are refused.
+class V5Layout {
+ public:
+  V5Layout(const std::string& file, std::istream& in, std::uint64_t size) : file_(file), in_(in), size_(size) {}
+
+  void check() {
+    char header[128];
+    const bool read = size_ >= 128 && in_.read(header, 128);
+    const std::string endian = read ? std::string(header + 126, 2) : std::string();
+    if (endian != "IM" && endian != "MI")
+      throw InputError(file_ + ": not a MATLAB .mat file in v5 or v7.3 format (no 128-byte MAT-file header; v4 files "
+                       "are not read); save it from MATLAB with save(..., '-v7') or '-v7.3'");
+    swap_ = endian == "MI";
+    if (u16(reinterpret_cast<const unsigned char*>(header) + 124) != 0x0100) return;  // 0x0200: v7.3
+    for (std::uint64_t at = 128; at + 8 <= size_;) {
+      unsigned char tag[8];
+      in_.seekg(std::streamoff(at));
+      if (!in_.read(reinterpret_cast<char*>(tag), 8)) return;
+      const std::uint32_t type = u32(tag), n = u32(tag + 4);
+      if (n > size_ - at - 8) corrupt(at, n, size_ - at - 8);
+      if (type == kMiMatrix) {
+        std::vector<unsigned char> head(std::min<std::uint64_t>(n, kHead));
+        in_.read(reinterpret_cast<char*>(head.data()), std::streamsize(head.size()));
+        matrix(head, n, at + 8);
+      } else if (type == kMiCompressed) {
+        inflated_matrix(at + 8, n);
+      }
+      at += 8 + n + (type == kMiCompressed ? 0 : (8 - n % 8) % 8);
+    }
+  }
+
+ private:
+  static constexpr std::size_t kHead = 4096;
+
+  std::uint16_t u16(const unsigned char* p) const {
+    return swap_ ? std::uint16_t(p[0] << 8 | p[1]) : std::uint16_t(p[1] << 8 | p[0]);
+  }
+  std::uint32_t u32(const unsigned char* p) const {
+    return swap_ ? std::uint32_t(p[0]) << 24 | std::uint32_t(p[1]) << 16 | std::uint32_t(p[2]) << 8 | p[3]
+                 : std::uint32_t(p[3]) << 24 | std::uint32_t(p[2]) << 16 | std::uint32_t(p[1]) << 8 | p[0];
+  }
+
+  [[noreturn]] void corrupt(std::uint64_t at, std::uint64_t claims, std::uint64_t room) const {
+    throw InputError(file_ + ": corrupt MATLAB v5 file: the element at byte " + std::to_string(at) + " claims " +
+                     std::to_string(claims) + " bytes where " + std::to_string(room) +
+                     " can follow; the file is truncated or damaged, save it again");
+  }
+
+  // The flags, dims and name sub-elements opening a matrix of n bytes whose first bytes are `head`, and for a
+  // numeric class the real part's element count against the dimensions.
+  void matrix(const std::vector<unsigned char>& head, std::uint64_t n, std::uint64_t at) const {
+    std::uint64_t pos = 0, promised = 1;
+    int array_class = 0;
+    for (const std::uint64_t cap : {std::uint64_t{16}, std::uint64_t{8 * 32}, std::uint64_t{4096}, n}) {
+      if (pos + 8 > head.size()) return;
+      const std::uint32_t type = u32(head.data() + pos);
+      const bool small = (type >> 16) != 0;  // small data element: size in the upper half, data in the tag
+      const std::uint64_t len = small ? type >> 16 : u32(head.data() + pos + 4);
+      const std::uint64_t room = n - std::min(n, pos + (small ? 4 : 8));
+      if (len > std::min(room, cap)) corrupt(at + pos, len, std::min(room, cap));
+      const unsigned char* data = head.data() + pos + (small ? 4 : 8);
+      if (cap == 16 && len >= 4 && data + 4 <= head.data() + head.size()) array_class = data[swap_ ? 3 : 0];
+      if (cap == 8 * 32)
+        for (std::uint64_t k = 0; k + 4 <= len && data + k + 4 <= head.data() + head.size(); k += 4)
+          if (__builtin_mul_overflow(promised, std::uint64_t{u32(data + k)}, &promised)) promised = UINT64_MAX;
+      if (cap == n && array_class >= 6 && array_class <= 15) {  // mxDOUBLE_CLASS ... mxUINT64_CLASS
+        const std::uint32_t t = small ? type & 0xffff : type;
+        const std::uint64_t size = t == 1 || t == 2 ? 1 : t == 3 || t == 4 ? 2 : t >= 5 && t <= 7 ? 4 : t == 9 || t >= 12 ? 8 : 0;
+        if (size != 0 && t <= 13 && len / size != promised)
+          throw InputError(file_ + ": corrupt MATLAB v5 file: the variable at byte " + std::to_string(at) +
+                           " has dimensions for " + std::to_string(promised) + " values but its data holds " +
+                           std::to_string(len / size) + "; the file is truncated or damaged, save it again");
+      }
+      pos += small ? 8 : 8 + len + (8 - len % 8) % 8;
+    }
+  }
+
+  void inflated_matrix(std::uint64_t at, std::uint32_t n) {
+    std::vector<unsigned char> packed(std::min<std::uint64_t>(n, kHead)), out(kHead);
+    in_.seekg(std::streamoff(at));
+    in_.read(reinterpret_cast<char*>(packed.data()), std::streamsize(packed.size()));
+    z_stream z{};
+    if (inflateInit(&z) != Z_OK) return;
+    z.next_in = packed.data();
+    z.avail_in = uInt(in_.gcount());
+    z.next_out = out.data();
+    z.avail_out = uInt(out.size());
+    inflate(&z, Z_SYNC_FLUSH);
+    out.resize(out.size() - z.avail_out);
+    inflateEnd(&z);
+    if (out.size() < 8 || u32(out.data()) != kMiMatrix) return;
+    matrix(std::vector<unsigned char>(out.begin() + 8, out.end()), u32(out.data() + 4), at);
+  }
+
+  const std::string& file_;
+  std::istream& in_;
+  std::uint64_t size_;
+  bool swap_ = false;
+};
+
 class MatFile {
  public:
   explicit MatFile(const std::filesystem::path& path) : file_(path.string()) {
@@ -57,6 +169,10 @@ class MatFile {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
       throw InputError(file_ + ": no such file; give the path of a MATLAB .mat file");
+    {
+      std::ifstream in(path, std::ios::binary);
+      V5Layout(file_, in, std::filesystem::file_size(path, ec)).check();
+    }
     mat_ = Mat_Open(file_.c_str(), MAT_ACC_RDONLY);
     if (!mat_) {
       const std::string why = take_matio_message();
@@ -90,8 +206,12 @@ class MatFile {
       take_matio_message();
       return out;
     }
+    // A name with control characters cannot come from MATLAB and would break one-line messages: such
+    // variables are not offered.
     for (std::size_t i = 0; i < n; ++i)
-      if (dir[i]) out.emplace_back(dir[i]);
+      if (dir[i] && std::none_of(dir[i], dir[i] + std::strlen(dir[i]),
+                                 [](char c) { return (c >= 0 && c < 0x20) || c == 0x7f; }))
+        out.emplace_back(dir[i]);
     return out;
   }
 
@@ -189,14 +309,19 @@ void check_numeric(const MatFile& f, const matvar_t& v, const std::string& name)
     throw InputError(f.file() + ": variable '" + name + "' is complex; store its real part (real(" + name + "))");
 }
 
-// Calls fn(p) with the typed data pointer of a read variable holding at least n elements.
-template <typename Fn>
-void visit_data(const MatFile& f, const matvar_t& v, const std::string& name, std::size_t n, Fn&& fn) {
+// Throws unless a read variable holds at least n elements (a corrupt file's dimensions may promise more).
+void check_data(const MatFile& f, const matvar_t& v, const std::string& name, std::size_t n) {
   const auto size = Mat_SizeOfClass(v.class_type);
-  if (size == 0 || static_cast<std::size_t>(v.data_size) != size || v.nbytes < n * size)
+  if (size == 0 || static_cast<std::size_t>(v.data_size) != size || v.nbytes / size < n)
     throw LibraryError(f.file() + ": matio returned " + std::to_string(v.nbytes) + " bytes of " +
                        std::to_string(v.data_size) + "-byte elements for variable '" + name + "' (" +
                        std::to_string(n) + " " + class_name(v.class_type) + " values expected)");
+}
+
+// Calls fn(p) with the typed data pointer of a read variable holding at least n elements.
+template <typename Fn>
+void visit_data(const MatFile& f, const matvar_t& v, const std::string& name, std::size_t n, Fn&& fn) {
+  check_data(f, v, name, n);
   switch (v.class_type) {
     case MAT_C_DOUBLE: fn(static_cast<const double*>(v.data)); break;
     case MAT_C_SINGLE: fn(static_cast<const float*>(v.data)); break;
@@ -331,6 +456,11 @@ Layout image_layout(MatFile& mf, const std::vector<Entry>& all, const std::strin
   const std::string& file = mf.file();
   const auto nrow = scalar(mf, all, "nrow"), ncol = scalar(mf, all, "ncol");
   const bool benchmark = nrow && ncol && *nrow >= 1 && *ncol >= 1;
+  if (benchmark)
+    for (const auto& [name, v] : {std::pair{"nRow", *nrow}, std::pair{"nCol", *ncol}})
+      if (v != std::floor(v) || v > double(std::uint64_t{1} << 31))
+        throw InputError(file + ": " + name + " = " + num(v) +
+                         " is not a whole number of pixels up to 2^31; store the image's row and column counts");
   std::string var = var_in;
   if (var.empty()) {
     if (auto c = detect_cube_var(mf, all)) {
@@ -516,6 +646,7 @@ Cube read_mat(const std::filesystem::path& path, const std::string& var_in,
       throw InputError(file + ": mask variable '" + *mask_var + "' is " + dims_text(*mi) + " but '" + var + "' is " +
                        std::to_string(rows) + " x " + std::to_string(cols) + " pixels; give a rows x cols mask");
     const Var mv = mf.read(*mask_var);
+    check_data(mf, *mv, *mask_var, rows * cols);
     mask.resize(rows * cols);
     visit_data(mf, *mv, *mask_var, rows * cols, [&](const auto* p) {
       for (std::size_t c = 0; c < cols; ++c)
@@ -527,6 +658,7 @@ Cube read_mat(const std::filesystem::path& path, const std::string& var_in,
   }
 
   const Var data = mf.read(var);
+  check_data(mf, *data, var, static_cast<std::size_t>(l.n));  // before allocating what the dimensions promise
   cube.resize(rows, cols, bands);
   float* out = cube.data.data();
   visit_data(mf, *data, var, static_cast<std::size_t>(l.n), [&](const auto* p) {
@@ -569,6 +701,8 @@ Collection read_mat_collection(const std::filesystem::path& path, const std::str
   check_numeric(mf, *head, var);
   if (head->rank != 2 || element_count(*head) == 0)
     throw InputError(file + ": variable '" + var + "' is " + dims_text(*head) + "; expected bands x spectra (2-D)");
+  if (element_count(*head) > kMaxElements)
+    throw InputError(file + ": variable '" + var + "' is " + dims_text(*head) + ", more than the 1 TiB limit; split it");
   const std::size_t d0 = head->dims[0], d1 = head->dims[1];
   const std::size_t nwl = fg && !fg->numbering && !fg->nm.empty() ? fg->length : wavelengths.size();
   const bool columns = nwl == 0 || d0 == nwl || d1 != nwl;  // ISETCam: one spectrum per column
@@ -578,10 +712,11 @@ Collection read_mat_collection(const std::filesystem::path& path, const std::str
   col.wavelengths = resolve_grid(mf, all, fg, var, bands, wavelengths);
   col.provenance.source_file = path.string();
   col.provenance.importer = "mat";
+  const Var data = mf.read(var);
+  check_data(mf, *data, var, count * bands);  // before allocating what the dimensions promise
   col.names.reserve(count);
   for (std::size_t j = 0; j < count; ++j) col.names.push_back(var + "_" + std::to_string(j + 1));
   col.values.resize(count * bands);
-  const Var data = mf.read(var);
   visit_data(mf, *data, var, count * bands, [&](const auto* p) {
     for (std::size_t i = 0; i < count * bands; ++i) {
       // element i is (i % d0, i / d0); spectrum j band k

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <numeric>
 #include <sstream>
 
@@ -36,6 +37,9 @@ bool parse_number(std::string_view text, double& out) {
   return !v.empty() && ec == std::errc{} && ptr == v.data() + v.size() && std::isfinite(out);
 }
 
+// Whether v survives the conversion to the store's float32 values.
+bool fits_float(double v) { return std::abs(v) <= double(std::numeric_limits<float>::max()); }
+
 [[noreturn]] void bad_line(const std::filesystem::path& p, std::size_t line, const std::string& problem) {
   throw InputError(p.string() + ": line " + std::to_string(line) + ": " + problem);
 }
@@ -64,6 +68,8 @@ UsgsFile read_usgs_file(const std::filesystem::path& p) {
     double v = 0;
     if (!parse_number(t, v))
       bad_line(p, i + 1, "\"" + printable(t) + "\" is not a number; a splib07a file holds one value per line");
+    if (!fits_float(v))
+      bad_line(p, i + 1, "value " + num(v) + " is beyond the float32 range of a store; fix the value");
     f.values.push_back(v);
   }
   if (f.values.empty()) throw InputError(p.string() + ": title line but no values; the file is truncated");
@@ -211,8 +217,8 @@ EcoFile read_ecostress_file(const std::filesystem::path& p) {
     else if (key == "y units") y_units = value;
     else if (key == "number of x values") {
       double d = 0;
-      if (!parse_number(value, d) || d < 1 || d != std::floor(d))
-        bad_line(p, i + 1, "Number of X Values = \"" + printable(value) + "\" is not a positive whole number");
+      if (!parse_number(value, d) || d < 1 || d != std::floor(d) || d > 4294967295.0)
+        bad_line(p, i + 1, "Number of X Values = \"" + printable(value) + "\" is not a whole number from 1 to 2^32 - 1");
       declared = static_cast<std::size_t>(d);
       declared_line = i + 1;
     }
@@ -230,7 +236,7 @@ EcoFile read_ecostress_file(const std::filesystem::path& p) {
                      "\" names no unit; write Wavelength (micrometers) or Wavelength (nanometers)");
   f.percent = yu.find("percent") != std::string::npos || yu.find('%') != std::string::npos;
   const auto paren = y_units.find('(');
-  f.y_kind = lower(trim(std::string_view(y_units).substr(0, paren)));
+  f.y_kind = lower(printable(trim(std::string_view(y_units).substr(0, paren))));  // it names the units and messages
   if (f.y_kind.empty()) f.y_kind = "unknown";
 
   std::vector<std::pair<double, double>> rows;
@@ -248,6 +254,8 @@ EcoFile read_ecostress_file(const std::filesystem::path& p) {
     if (b.empty() || !extra.empty() || !parse_number(a, x) || !parse_number(b, y))
       bad_line(p, i + 1, "\"" + printable(t) + "\" is not a row of two numbers (wavelength value)");
     if (!(x > 0)) bad_line(p, i + 1, "wavelength " + num(x) + " is not positive");
+    if (!fits_float(y))
+      bad_line(p, i + 1, "value " + num(y) + " is beyond the float32 range of a store; fix the value");
     rows.emplace_back(x, y);
     row_line.push_back(i + 1);
   }

@@ -103,11 +103,19 @@ TEST(ImportCli, UnknownDataType) {
   expect_rejected(dir, "'" + (dir / "dt.hdr").string() + "'", "dt.hdr", "data type");
 }
 
-TEST(ImportCli, NonMonotonicWavelengths) {
+// Issue 18: an unsorted band list is kept, sorted with its values; a wavelength listed twice is refused.
+TEST(ImportCli, NonMonotonicWavelengthsAreSortedWithTheirBands) {
   test::ScratchDir dir;
-  make_store(dir);
+  const auto store = make_store(dir);
   write_envi(dir / "wl", 2, 2, 3, "", -1, 0, 4, "500, 490, 510");
-  expect_rejected(dir, "'" + (dir / "wl.hdr").string() + "'", "wl", "increase");
+  auto r = run_specula("-q import '" + (dir / "wl.hdr").string() + "' -o '" + store.string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const store::Cube c = store::Store::open(store).read_image("wl");
+  EXPECT_EQ(std::vector<double>(c.wavelengths.values().begin(), c.wavelengths.values().end()),
+            (std::vector<double>{490, 500, 510}));
+  EXPECT_EQ(std::vector<float>(c.data.begin(), c.data.begin() + 3), (std::vector<float>{100, 0, 200}));
+  write_envi(dir / "twice", 2, 2, 3, "", -1, 0, 4, "500, 490, 500");
+  expect_rejected(dir, "'" + (dir / "twice.hdr").string() + "'", "twice", "wavelength 500 appears twice");
 }
 
 TEST(ImportCli, TargetGridOutsideTheDataIsRefused) {

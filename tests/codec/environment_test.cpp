@@ -16,6 +16,7 @@
 #include "specula/core/error.h"
 #include "specula/store/io/exr.h"
 #include "grid_fixture.h"
+#include "quadrature_support.h"
 #include "test_support.h"
 
 namespace specula::codec {
@@ -320,6 +321,42 @@ TEST(Environment, MismatchedGridsAndBadSizesAreRefused) {
   const store::Grid ok = grid_of(brdf::Lambertian(kGrid, Eigen::VectorXd::Constant(7, 0.5)));
   EXPECT_THROW(render_spheres({&ok}, default_environment(kGrid), 4), UsageError);
   EXPECT_THROW(render_spheres({&ok}, default_environment(kGrid), 5000), UsageError);
+}
+
+
+// render_spheres on an irregular grid (spacings 3 to 20 nm): a Lambertian sphere of albedo rho under a uniform sky
+// of radiance L shows, at the pixel facing the viewer, XYZ / Y_white = integral of cmf rho L / integral of ybar L
+// and the white integral of cmf L / integral of ybar L: by the trapezoid rule on the actual band centres, within its
+// error bound of the integrals over every nm of the CMF table.
+TEST(Environment, OnAnIrregularGridTheRenderIsTheDirectIntegral) {
+  const WavelengthGrid grid = test::irregular_grid();
+  const std::size_t b = grid.size();
+  const test::Spectrum rho = [](double l) { return 0.5 + 0.35 * std::sin((l - 430) / 50); };
+  const test::Spectrum sky = [](double l) { return 1.5 - (l - 400) / 400 + 0.1 * std::cos(l / 20); };
+  Eigen::VectorXd rho_g(static_cast<Eigen::Index>(b)), sky_g(static_cast<Eigen::Index>(b));
+  for (std::size_t i = 0; i < b; ++i) {
+    rho_g[Eigen::Index(i)] = rho(grid[i]);
+    sky_g[Eigen::Index(i)] = sky(grid[i]);
+  }
+  const store::Grid g = grid_of(brdf::Lambertian(grid, rho_g));
+  const std::size_t size = 9, centre = 4 * size + 4;  // the pixel centre at x = y = 0: normal +z, as the white's
+  const SphereRenders r = render_spheres({&g}, uniform_environment(grid, sky_g), size);
+  ASSERT_TRUE(r.covered[centre]);
+  Eigen::VectorXd got(6);
+  for (std::size_t c = 0; c < 3; ++c) {
+    got[Eigen::Index(c)] = r.xyz[0][3 * centre + c] / r.white.y();
+    got[Eigen::Index(3 + c)] = r.white[Eigen::Index(c)] / r.white.y();
+  }
+
+  std::vector<test::Spectrum> f;
+  for (int c = 0; c < 3; ++c) f.push_back([&, c](double l) { return test::cmf_at(c, l) * rho(l) * sky(l); });
+  for (int c = 0; c < 3; ++c) f.push_back([&, c](double l) { return test::cmf_at(c, l) * sky(l); });
+  const test::Propagated want = test::propagate(f, grid, [](const std::vector<double>& i) {
+    Eigen::VectorXd out(6);
+    for (int k = 0; k < 6; ++k) out[k] = i[std::size_t(k)] / i[4];
+    return out;
+  });
+  test::expect_integrals(got, want, 1e-5);
 }
 
 }  // namespace

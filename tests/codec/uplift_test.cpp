@@ -10,7 +10,9 @@
 #include <random>
 
 #include "specula/codec/spectral_grid.h"
+#include "specula/core/colour.h"
 #include "specula/core/error.h"
+#include "quadrature_support.h"
 #include "test_support.h"
 
 namespace specula::codec {
@@ -58,6 +60,53 @@ Eigen::VectorXd min_curvature_exact(const Eigen::Matrix<double, 3, Eigen::Dynami
 
 // A spectrum linear in wavelength has no second differences, so if it also matches the RGB it is the exact
 // minimiser of eq A.3 for every alpha (and the system has full rank, so the only one).
+// Appendix A on an irregular grid (spacings 3 to 20 nm): the uplifted spectrum has the target sRGB (adapted from the
+// light's white to sRGB's as rgb_weights does) by the trapezoid rule on the actual band centres, and, interpolated
+// linearly between its bands and integrated on every nm of the CMF table, within that rule's error bound. Weights
+// built as if the bands were evenly spaced give a spectrum that misses the target.
+TEST(Uplift, OnAnIrregularGridTheSpectrumHasTheTargetRgbByDirectIntegral) {
+  const WavelengthGrid grid = test::irregular_grid();
+  const std::size_t b = grid.size();
+  const test::Spectrum light = [](double l) { return 0.8 + 0.4 * (l - 400) / 300 + 0.1 * std::sin(l / 35); };
+  Eigen::VectorXd light_g(static_cast<Eigen::Index>(b)), uniform_w(static_cast<Eigen::Index>(b));
+  for (std::size_t i = 0; i < b; ++i) light_g[Eigen::Index(i)] = light(grid[i]);
+  const Eigen::Vector3d target(0.55, 0.3, 0.12);
+  const Eigen::Matrix3d m = xyz_to_linear_srgb();
+  const Eigen::Vector3d srgb_white = m.inverse() * Eigen::Vector3d::Ones();
+  // Integrals 0-2: cmf * light * x interpolated between bands; 3-5: cmf * light.
+  const auto rgb_of = [&](const std::vector<double>& i) {
+    const Eigen::Vector3d xyz(i[0] / i[4], i[1] / i[4], i[2] / i[4]), white(i[3] / i[4], 1, i[5] / i[4]);
+    return Eigen::VectorXd(m * bradford_adaptation(white, srgb_white) * xyz);
+  };
+  const auto direct_rgb = [&](const Eigen::VectorXd& x) {
+    const test::Spectrum interpolated = [&](double l) {
+      return sample_tabulated(grid.values(), std::span<const double>(x.data(), b), WavelengthGrid({l}))[0];
+    };
+    std::vector<test::Spectrum> f;
+    for (int c = 0; c < 3; ++c)
+      f.push_back([&, c](double l) { return test::cmf_at(c, l) * light(l) * interpolated(l); });
+    for (int c = 0; c < 3; ++c) f.push_back([&, c](double l) { return test::cmf_at(c, l) * light(l); });
+    return test::propagate(f, grid, rgb_of);
+  };
+
+  Eigen::VectorXd x(static_cast<Eigen::Index>(b));
+  const Uplift up(rgb_weights(grid, light_g), kDefaultUpliftAlpha);
+  EXPECT_FALSE(up.clamped(target, x));
+  const Eigen::VectorXd rgb = target;
+  test::expect_integrals(rgb, direct_rgb(x), 1e-6);
+
+  // The uniform-step mistake: weights whose quadrature treats every band as 10 nm wide. Its spectrum misses.
+  const double step = (grid.back() - grid.front()) / double(b - 1);
+  uniform_w.setConstant(step);
+  uniform_w[0] = uniform_w[Eigen::Index(b - 1)] = step / 2;
+  const Eigen::MatrixX3d bar = cmf(grid);
+  Eigen::Matrix<double, 3, Eigen::Dynamic> xyz_w = bar.transpose() * uniform_w.cwiseProduct(light_g).asDiagonal();
+  xyz_w /= xyz_w.row(1).sum();
+  const Uplift wrong(m * bradford_adaptation(xyz_w.rowwise().sum(), srgb_white) * xyz_w, kDefaultUpliftAlpha);
+  wrong.clamped(target, x);
+  EXPECT_GT((direct_rgb(x).nodes - rgb).cwiseAbs().maxCoeff(), 1e-4);
+}
+
 TEST(Uplift, LinearSpectrumIsRecoveredForEveryAlpha) {
   const auto a = weights31();
   Eigen::VectorXd lin(31);

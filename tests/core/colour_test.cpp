@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "specula/core/error.h"
+#include "quadrature_support.h"
 #include "test_support.h"
 
 namespace specula {
@@ -44,6 +45,31 @@ TEST(Colour, RadianceFlatSpectrumIsEqualEnergyWhite) {
   EXPECT_NEAR(conv.white()[1], 1.0, 1e-12);
   EXPECT_NEAR(chromaticity(conv.white())[0], 1.0 / 3.0, 1e-4);
   EXPECT_NEAR(chromaticity(conv.white())[1], 1.0 / 3.0, 1e-4);
+}
+
+// XYZ on an irregular grid (spacings 3 to 20 nm) is the trapezoid rule on the actual band centres, which is the
+// direct integral over the 1 nm CMF table within its error bound; a code that assumed a uniform step fails.
+TEST(Colour, XyzOnAnIrregularGridIsTheDirectIntegral) {
+  const WavelengthGrid grid = test::irregular_grid();
+  ASSERT_FALSE(grid.uniform());
+  const test::Spectrum s = [](double l) { return 0.5 + 0.4 * std::sin((l - 400) / 45) + 0.1 * std::cos((l - 400) / 13); };
+  const test::Spectrum light = [](double l) { return 1 + 0.8 * (l - 400) / 300 + 0.2 * std::sin(l / 30); };
+  Eigen::VectorXd s_grid(Eigen::Index(grid.size())), light_grid(Eigen::Index(grid.size()));
+  for (std::size_t i = 0; i < grid.size(); ++i) {
+    s_grid[Eigen::Index(i)] = s(grid[i]);
+    light_grid[Eigen::Index(i)] = light(grid[i]);
+  }
+  const auto ratios = [](const std::vector<double>& i) { return Eigen::Vector3d(i[0] / i[3], i[1] / i[3], i[2] / i[3]); };
+  for (const SpectrumKind kind : {SpectrumKind::radiance, SpectrumKind::reflectance}) {
+    const test::Spectrum lit = kind == SpectrumKind::radiance ? s : [&](double l) { return s(l) * light(l); };
+    const test::Spectrum white = kind == SpectrumKind::radiance ? test::Spectrum([](double) { return 1.0; }) : light;
+    std::vector<test::Spectrum> integrands;
+    for (int c = 0; c < 3; ++c) integrands.push_back([&, c](double l) { return test::cmf_at(c, l) * lit(l); });
+    integrands.push_back([&](double l) { return test::cmf_at(1, l) * white(l); });
+    const test::Propagated want = test::propagate(integrands, grid, ratios);
+    const SpectrumToXyz conv(grid, kind, light_grid);
+    test::expect_integrals(conv.weights() * s_grid, want, 1e-12);
+  }
 }
 
 TEST(Colour, SpectrumToXyzChecksSizes) {

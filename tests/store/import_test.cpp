@@ -51,6 +51,23 @@ TEST(Import, FilesLandAsTheirObjectsResampledWhenAsked) {
   EXPECT_NEAR(lib.values[1], 0.2, 1e-6);
 }
 
+// Issue 18: an unsorted, non-uniform band list is kept exactly, sorted with its values, never resampled.
+TEST(Import, AnUnsortedIrregularBandListIsKeptExactlyWithItsValues) {
+  const test::ScratchDir dir;
+  const std::vector<float> v = {1, 2, 3, 4, 5, 6, 7, 8};  // 1 x 2 pixels x 4 bands, BIP
+  std::ofstream(dir / "u.hdr") << "ENVI\nsamples = 2\nlines = 1\nbands = 4\nheader offset = 0\ndata type = 4\n"
+                               << "interleave = bip\nbyte order = 0\nwavelength units = Nanometers\n"
+                               << "wavelength = {700, 403, 455.5, 410}\n";
+  std::ofstream(dir / "u.raw", std::ios::binary).write(reinterpret_cast<const char*>(v.data()), std::streamsize(v.size() * 4));
+  StoreWriter w(dir / "db.h5", {});
+  import_files(w, {dir / "u.hdr"}, {});
+  w.commit();
+  const Cube c = Store::open(dir / "db.h5").read_image("u");
+  EXPECT_EQ(std::vector<double>(c.wavelengths.values().begin(), c.wavelengths.values().end()),
+            (std::vector<double>{403, 410, 455.5, 700}));
+  EXPECT_EQ(c.data, (std::vector<float>{2, 4, 3, 1, 6, 8, 7, 5}));
+}
+
 TEST(Import, NanIsRejectedOrMaskedWithANote) {
   const test::ScratchDir dir;
   write_envi(dir / "nan", 2, 2, 3, /*nan_at=*/4);  // pixel 1, band 1

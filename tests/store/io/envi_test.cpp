@@ -318,6 +318,36 @@ TEST(Envi, TruncatedAndOversizedDataNameBothSizes) {
   EXPECT_NE(big.find("has 50 bytes, header needs 48"), std::string::npos) << big;
 }
 
+// ENVI allows an unsorted wavelength list: the bands are sorted by wavelength with their values, fwhm and bbl,
+// and the irregular grid is kept exactly (no resampling). A wavelength listed twice is an error naming it.
+TEST(Envi, UnsortedWavelengthsSortTheBandsWithTheirValues) {
+  ScratchDir dir;
+  const std::string wl = "wavelength units = Nanometers\nwavelength = {650, 400, 523.5, 410}\nfwhm = {6, 3, 5, 4}\n";
+  std::string text = header("bil", 4, 0) + wl;  // the later wavelength list replaces header()'s
+  write_file(dir / "u.hdr", text);
+  write_file(dir / "u.raw", interleaved("bil", 4, false));
+  const Cube c = read_envi(dir / "u.hdr");
+  ASSERT_EQ(c.bands, kB);
+  EXPECT_EQ(std::vector<double>(c.wavelengths.values().begin(), c.wavelengths.values().end()),
+            (std::vector<double>{400, 410, 523.5, 650}));
+  EXPECT_EQ(c.fwhm, (std::vector<double>{3, 4, 5, 6}));
+  const std::size_t file_band[kB] = {1, 3, 2, 0};
+  for (std::size_t y = 0; y < kH; ++y)
+    for (std::size_t x = 0; x < kW; ++x)
+      for (std::size_t k = 0; k < kB; ++k)
+        EXPECT_EQ(c.data[(y * kW + x) * kB + k], static_cast<float>(value_at(y, x, file_band[k])));
+
+  write_file(dir / "u.hdr", text + "bbl = {1, 1, 0, 1}\n");  // band 3 (523.5 nm) bad
+  const Cube kept = read_envi(dir / "u.hdr");
+  ASSERT_EQ(kept.bands, 3u);
+  EXPECT_EQ(kept.wavelengths[2], 650.0);
+  EXPECT_EQ(kept.data[2], static_cast<float>(value_at(0, 0, 0)));
+
+  write_file(dir / "u.hdr", header("bil", 4, 0) + "wavelength = {650, 400, 650, 410}\n");
+  const std::string m = error_of([&] { read_envi(dir / "u.hdr"); });
+  EXPECT_NE(m.find("u.hdr: wavelength 650 appears twice (bands 1 and 3); remove one of them"), std::string::npos) << m;
+}
+
 TEST(Envi, BadHeadersAreInputErrors) {
   const std::string ok = header("bsq", 4, 0);
   const auto msg = [](const std::string& text) { return error_of([&] { parse_envi_header(text, "bad.hdr"); }); };
@@ -331,8 +361,6 @@ TEST(Envi, BadHeadersAreInputErrors) {
   expect_has(msg("ENVI\nsamples = 3\nlines = 2\nbands = 4\ndata type = 4\n"), "'interleave' is missing");
   expect_has(msg("ENVI\nlines = 2\nbands = 4\ndata type = 4\ninterleave = bsq\n"), "'samples' is missing");
   expect_has(msg("ENVI\nsamples = 3\nlines = 2\nbands = 4\ninterleave = bsq\n"), "'data type' is missing");
-  expect_has(msg("ENVI\nsamples = 3\nlines = 2\nbands = 3\ndata type = 4\ninterleave = bsq\nwavelength = {400, 500, 450}\n"),
-             "wavelength 3 (450) is not greater than wavelength 2 (500)");
   expect_has(msg("ENVI\nsamples = 3\nlines = 2\nbands = 3\ndata type = 4\ninterleave = bsq\nwavelength = {400, 500}\n"),
              "wavelength has 2 values but bands = 3");
   expect_has(msg("hello\x01world\nsamples = 3\n"), "not an ENVI header");

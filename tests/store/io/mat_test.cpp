@@ -7,6 +7,7 @@
 #include <cstring>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -220,6 +221,51 @@ TEST(Mat, BadInputs) {
   EXPECT_NE(m.find("junk.mat: not a MATLAB .mat file"), std::string::npos) << m;
   m = test::error_of([&] { read_mat(dir / "absent.mat", "ref", std::nullopt, WavelengthGrid(kNm)); });
   EXPECT_NE(m.find("absent.mat: no such file"), std::string::npos) << m;
+}
+
+// Found by fuzzing (tests/fuzz/corpus/mat/): a corrupt length field that would make matio allocate and clear
+// gigabytes, dimensions promising more values than the data holds (matio reads them without complaint, we
+// allocated the promise), a variable name with a newline, and an nRow no size_t can hold are each one line naming
+// the file.
+TEST(Mat, CorruptFilesFoundByFuzzingAreOneLine) {
+  ScratchDir dir;
+  const std::vector<double> px = {1, 2, 3, 4, 5, 6};
+  ASSERT_TRUE(write_mat(dir / "y.mat", MAT_FT_MAT5,
+                        {make_var("Y", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 6}, px),
+                         make_var("nRow", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, std::vector<double>{1e300}),
+                         make_var("nCol", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, 1}, std::vector<double>{2.5})}));
+  std::string m = test::error_of([&] { read_mat(dir / "y.mat", "", std::nullopt, WavelengthGrid({500.0})); });
+  EXPECT_NE(m.find("y.mat: nRow = 1e+300 is not a whole number of pixels up to 2^31"), std::string::npos) << m;
+
+  // The first matrix's name tag (after 128 header bytes, the matrix tag, flags and dims of a 1 x 6 matrix).
+  std::string bytes;
+  {
+    std::ifstream in(dir / "y.mat", std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const std::size_t name_tag = 128 + 8 + 16 + 16;
+  ASSERT_EQ(bytes.substr(name_tag + 4, 4), std::string("Y\0\0\0", 4)) << "a small data element holding 'Y'";
+  std::string big = bytes;
+  big.replace(name_tag, 8, std::string("\x01\0\0\0\0\0\xf8\xff", 8));  // int8, 4294443008 bytes
+  test::write_file(dir / "big.mat", big);
+  m = test::error_of([&] { read_mat(dir / "big.mat", "", std::nullopt, {}); });
+  EXPECT_NE(m.find("big.mat: corrupt MATLAB v5 file: the element at byte 168 claims 4294443008 bytes"), std::string::npos) << m;
+
+  std::string promise = bytes;  // dims 1 x 6 -> 1 x 600000000 (0x23c34600), the data still 6 doubles
+  promise.replace(128 + 8 + 16 + 12, 4, std::string("\x00\x46\xc3\x23", 4));
+  test::write_file(dir / "promise.mat", promise);
+  m = test::error_of([&] { read_mat(dir / "promise.mat", "", std::nullopt, {}); });
+  EXPECT_NE(m.find("promise.mat: corrupt MATLAB v5 file: the variable at byte 136 has dimensions for 600000000 values "
+                   "but its data holds 6"),
+            std::string::npos)
+      << m;
+
+  std::string newline = bytes;
+  newline[name_tag + 4] = '\n';
+  test::write_file(dir / "nl.mat", newline);
+  m = test::error_of([&] { read_mat(dir / "nl.mat", "", std::nullopt, {}); });
+  EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+  EXPECT_NE(m.find("nl.mat: "), std::string::npos) << m;
 }
 
 TEST(Mat, TwoDimensionalVariableIsOneBand) {

@@ -80,6 +80,10 @@ TEST(SpectralLibrary, UsgsBadInputsNameFileAndLine) {
   m = error_of([&] { read_usgs_spectra(Paths{dir / "text.txt"}, wl); });
   EXPECT_NE(m.find("text.txt: line 4: \"abc\" is not a number"), std::string::npos) << m;
   EXPECT_EQ(m.find('\n'), std::string::npos);
+  // A value no float32 holds (found by fuzzing: it became inf in the collection).
+  write_file(dir / "huge.txt", splib("splib07a Record=9: Huge ASDFRa AREF", {"0.1", "0.2", "2300000e+34", "0.4", "0.5"}));
+  m = error_of([&] { read_usgs_spectra(Paths{dir / "huge.txt"}, wl); });
+  EXPECT_NE(m.find("huge.txt: line 4: value 2.3e+40 is beyond the float32 range of a store"), std::string::npos) << m;
   // Title only.
   write_file(dir / "title.txt", "splib07a Record=9: Title only\n");
   m = error_of([&] { read_usgs_spectra(Paths{dir / "title.txt"}, wl); });
@@ -165,6 +169,30 @@ TEST(SpectralLibrary, EcostressBadInputsNameFileAndLine) {
   write_file(dir / "n.txt", ecostress("N", {{"0.8", "1"}, {"0.6", "x2"}}));
   m = error_of([&] { read_ecostress_spectra(Paths{dir / "n.txt"}); });
   EXPECT_NE(m.find("n.txt: line 23: \"0.6?x2\" is not a row of two numbers"), std::string::npos) << m;
+  // A row count no size_t holds (found by fuzzing: converting it was undefined).
+  write_file(dir / "count.txt", ecostress("N", {{"0.8", "1"}, {"0.6", "2"}}, "Wavelength (micrometers)",
+                                          "Reflectance (percent)", 0));
+  {
+    std::string text;
+    std::ifstream in(dir / "count.txt");
+    for (std::string line; std::getline(in, line);)
+      text += (line.starts_with("Number of X Values") ? "Number of X Values: 5e52" : line) + "\n";
+    write_file(dir / "count.txt", text);
+  }
+  m = error_of([&] { read_ecostress_spectra(Paths{dir / "count.txt"}); });
+  EXPECT_NE(m.find("count.txt: line 19: Number of X Values = \"5e52\" is not a whole number from 1 to 2^32 - 1"),
+            std::string::npos)
+      << m;
+  // Y Units holding carriage returns (found by fuzzing) stay out of the one-line message.
+  write_file(dir / "a.txt", ecostress("A", {{"0.8", "1"}, {"0.6", "2"}}));
+  write_file(dir / "cr.txt", ecostress("B", {{"0.8", "1"}, {"0.6", "2"}}, "Wavelength (micrometers)", "Reflecta\r\rnce (percent)"));
+  m = error_of([&] { read_ecostress_spectra(Paths{dir / "a.txt", dir / "cr.txt"}); });
+  EXPECT_NE(m.find("cr.txt: Y Units (reflecta??nce, percent) differ from"), std::string::npos) << m;
+  EXPECT_EQ(m.find_first_of("\r\n"), std::string::npos) << m;
+  // A value no float32 holds.
+  write_file(dir / "huge.txt", ecostress("N", {{"0.8", "1"}, {"0.6", "1e39"}}));
+  m = error_of([&] { read_ecostress_spectra(Paths{dir / "huge.txt"}); });
+  EXPECT_NE(m.find("huge.txt: line 23: value 1e+39 is beyond the float32 range of a store"), std::string::npos) << m;
   // Three columns.
   write_file(dir / "three.txt", ecostress("N", {{"0.8", "1 2"}, {"0.6", "2"}}));
   m = error_of([&] { read_ecostress_spectra(Paths{dir / "three.txt"}); });

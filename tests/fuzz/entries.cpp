@@ -1,0 +1,187 @@
+#include "entries.h"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+#include <string>
+
+#include "specula/core/error.h"
+#include "specula/store/io/csv.h"
+#include "specula/store/io/envi.h"
+#include "specula/store/io/mask.h"
+#include "specula/store/io/mat.h"
+#include "specula/store/io/text_library.h"
+
+namespace specula::fuzz {
+namespace {
+
+namespace fs = std::filesystem;
+
+void check(bool ok, const char* what) {
+  if (!ok) throw std::logic_error(std::string("fuzz invariant broken: ") + what);
+}
+
+// This process's scratch directory, made once and removed at exit.
+const fs::path& scratch() {
+  static const fs::path dir = [] {
+    fs::path d = fs::temp_directory_path() / ("specula-fuzz-" + std::to_string(::getpid()));
+    fs::create_directories(d);
+    std::atexit([] {
+      std::error_code ec;
+      fs::remove_all(fs::temp_directory_path() / ("specula-fuzz-" + std::to_string(::getpid())), ec);
+    });
+    return d;
+  }();
+  return dir;
+}
+
+std::string_view text_of(std::span<const std::uint8_t> input) {
+  return {reinterpret_cast<const char*>(input.data()), input.size()};
+}
+
+std::vector<std::string_view> split_files(std::string_view all) {
+  std::vector<std::string_view> parts;
+  for (std::size_t at; (at = all.find(kFileSeparator)) != std::string_view::npos;) {
+    parts.push_back(all.substr(0, at));
+    all.remove_prefix(at + kFileSeparator.size());
+  }
+  parts.push_back(all);
+  return parts;
+}
+
+fs::path write(const std::string& name, std::string_view bytes) {
+  const fs::path p = scratch() / name;
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  if (!out) throw std::runtime_error("fuzz: cannot write " + p.string());
+  return p;
+}
+
+// Runs read(); a specula::Error must be one line containing `named` (the file, or the directory of the files).
+template <typename F>
+void expect_clean(F&& read, std::string_view named) {
+  try {
+    read();
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    if (what.find_first_of("\n\r") != std::string::npos || what.find(named) == std::string::npos)
+      throw std::logic_error("fuzz: the error message is not one line naming the file: " + what);
+    throw;
+  }
+}
+
+void check_grid(const WavelengthGrid& g, std::size_t bands) {
+  check(g.size() == bands, "one wavelength per band");
+  for (std::size_t i = 0; i < g.size(); ++i) check(std::isfinite(g[i]) && g[i] > 0, "finite positive wavelengths");
+  for (std::size_t i = 1; i < g.size(); ++i) check(g[i] > g[i - 1], "ascending wavelengths");
+}
+
+void check_cube(const store::Cube& c) {
+  check(c.height > 0 && c.width > 0 && c.bands > 0, "non-empty cube");
+  check(c.data.size() == c.height * c.width * c.bands, "cube data size");
+  check(c.mask.empty() || c.mask.size() == c.height * c.width, "mask size");
+  check(c.fwhm.empty() || c.fwhm.size() == c.bands, "one fwhm per band");
+  check_grid(c.wavelengths, c.bands);
+}
+
+void check_collection(const store::Collection& c) {
+  check(c.size() > 0 && c.bands() > 0, "non-empty collection");
+  check(c.values.size() == c.size() * c.bands(), "collection values size");
+  check_grid(c.wavelengths, c.bands());
+}
+
+}  // namespace
+
+void envi_header(std::span<const std::uint8_t> input) {
+  expect_clean([&] {
+    const store::EnviHeader h = store::parse_envi_header(text_of(input), "fuzz.hdr");
+    check(h.samples > 0 && h.lines > 0 && h.bands > 0, "positive dimensions");
+    check(h.data_type == 1 || h.data_type == 2 || h.data_type == 3 || h.data_type == 4 || h.data_type == 5 ||
+              h.data_type == 12,
+          "supported data type");
+    check(h.byte_order == 0 || h.byte_order == 1, "byte order 0 or 1");
+    check(h.wavelength.empty() || h.wavelength.size() == h.bands, "one wavelength per band");
+    check(h.fwhm.empty() || h.fwhm.size() == h.bands, "one fwhm per band");
+    check(h.band_names.empty() || h.band_names.size() == h.bands, "one name per band");
+    std::uint64_t bytes = 0;
+    const bool overflow = __builtin_mul_overflow(std::uint64_t{h.samples}, std::uint64_t{h.lines}, &bytes) ||
+                          __builtin_mul_overflow(bytes, std::uint64_t{h.bands}, &bytes) ||
+                          __builtin_mul_overflow(bytes, std::uint64_t{8}, &bytes);
+    check(!overflow && bytes <= (std::uint64_t{1} << 43), "size limit");
+  }, "fuzz.hdr");
+}
+
+void envi(std::span<const std::uint8_t> input) {
+  const auto parts = split_files(text_of(input));
+  const fs::path hdr = write("envi.hdr", parts[0]);
+  write("envi.sli", parts.size() > 1 ? parts[1] : std::string_view());
+  const std::string dir = scratch().string();
+  if (store::is_envi_library(hdr)) {
+    for (const bool honour_bbl : {true, false})
+      expect_clean([&] { check_collection(store::read_envi_library(hdr, honour_bbl)); }, dir);
+  } else {
+    for (const bool honour_bbl : {true, false})
+      expect_clean([&] { check_cube(store::read_envi(hdr, {}, honour_bbl)); }, dir);
+  }
+}
+
+void mat(std::span<const std::uint8_t> input) {
+  const fs::path p = write("input.mat", text_of(input));
+  expect_clean([&] {
+    if (store::mat_kind(p) == store::MatKind::collection)
+      check_collection(store::read_mat_collection(p, "", {}));
+    else
+      check_cube(store::read_mat(p, "", std::nullopt, {}));
+  }, p.string());
+}
+
+void mask(std::span<const std::uint8_t> input) {
+  const std::string_view all = text_of(input);
+  fs::path p;
+  if (all.starts_with("\x89PNG")) {
+    std::error_code ec;
+    fs::remove(scratch() / "mask.hdr", ec);
+    p = write("mask.png", all);
+  } else {
+    const auto parts = split_files(all);
+    write("mask.hdr", parts[0]);
+    p = write("mask.img", parts.size() > 1 ? parts[1] : std::string_view());
+  }
+  expect_clean([&] {
+    const store::Mask m = store::read_mask(p);
+    check(m.width > 0 && m.height > 0 && m.valid.size() == m.width * m.height, "mask size");
+    for (const std::uint8_t v : m.valid) check(v == 0 || v == 1, "mask holds 0 or 1");
+  }, scratch().string());
+}
+
+void text_library(std::span<const std::uint8_t> input) {
+  const auto parts = split_files(text_of(input));
+  std::vector<fs::path> files;
+  for (std::size_t i = 0; i < parts.size(); ++i) files.push_back(write("library" + std::to_string(i) + ".txt", parts[i]));
+  expect_clean([&] {
+    const bool ecostress = store::sniff_text_library(files[0]) == "ecostress";
+    if (!ecostress && files.size() < 2) return;  // USGS needs a wavelengths file and a spectrum
+    const store::TextLibrary lib = ecostress ? store::read_ecostress_spectra(files)
+                                             : store::read_usgs_spectra(std::span(files).subspan(1), files[0]);
+    check_collection(lib.collection);
+    for (const float v : lib.collection.values) check(std::isfinite(v), "finite values");
+  }, scratch().string());
+}
+
+void csv(std::span<const std::uint8_t> input) {
+  const fs::path p = write("input.csv", text_of(input));
+  expect_clean([&] { check_collection(store::read_csv_collection(p)); }, p.string());
+}
+
+const std::vector<Target>& targets() {
+  static const std::vector<Target> all = {{"envi_header", envi_header}, {"envi", envi},
+                                          {"mat", mat},                 {"mask", mask},
+                                          {"text_library", text_library}, {"csv", csv}};
+  return all;
+}
+
+}  // namespace specula::fuzz

@@ -1,0 +1,123 @@
+#!/usr/bin/python3
+"""Writes the seed corpora of tests/fuzz/corpus/<target>/ from the layouts the reader tests use as fixtures
+(tests/store/io/*_test.cpp), a few hundred bytes each. Run with Debian's python3 (numpy, scipy, h5py):
+/usr/bin/python3 tests/fuzz/make_corpus.py. Crash reproducers found by fuzzing are added by hand beside them."""
+import os
+import struct
+import zlib
+
+import h5py
+import numpy as np
+import scipy.io
+
+HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "corpus")
+SEP = b"\n--next file--\n"  # entries.h kFileSeparator
+
+
+def put(target, name, data):
+    os.makedirs(os.path.join(HERE, target), exist_ok=True)
+    with open(os.path.join(HERE, target, name), "wb") as f:
+        f.write(data if isinstance(data, bytes) else data.encode())
+
+
+def floats(values, big_endian=False):
+    return struct.pack((">" if big_endian else "<") + "%df" % len(values), *values)
+
+
+# envi: header + data. A library (envi_library_test.cpp: wavelengths out of order, big endian) and a bip image
+# with bbl (EnviBbl test).
+lib_header = (b"ENVI\ndescription = {\n  Spectral Library}\nsamples = 5\nlines   = 3\nbands   = 1\n"
+              b"header offset = 0\nfile type = ENVI Spectral Library\ndata type = 4\ninterleave = bsq\n"
+              b"byte order = 1\nwavelength units = Micrometers\nwavelength = {\n 0.4000, 0.5000, 0.9000,\n 0.7000, 0.6000}\n"
+              b"spectra names = {\n Alunite GDS84 Na03, Kaolinite CM9,\n Dry Grass}\nbbl = {1, 1, 0, 1, 1}\n")
+lib_values = [0.125 * (s + 1) + 0.0078125 * b for s in range(3) for b in range(5)]
+put("envi", "library-bbl", lib_header + SEP + floats(lib_values, True))
+img_header = (b"ENVI\nsamples = 2\nlines = 1\nbands = 4\nheader offset = 0\nfile type = ENVI Standard\n"
+              b"data type = 4\ninterleave = bip\nbyte order = 0\nwavelength units = Nanometers\n"
+              b"wavelength = {450, 550, 650, 750}\nfwhm = {5, 6, 7, 8}\nbbl = {1.0, 0.0, 1.0, 0.0}\n")
+put("envi", "image-bip-bbl", img_header + SEP + floats([10 * x + b + 1 for x in range(2) for b in range(4)]))
+put("envi", "image-u16-bil", b"ENVI\nsamples = 2\nlines = 2\nbands = 2\ndata type = 12\ninterleave = bil\n"
+    b"byte order = 1\ndata ignore value = 0\nwavelength = {0.5, 0.6}\n" + SEP + struct.pack(">8H", *range(8)))
+
+# mask: ENVI byte image (mask_test.cpp) and PNGs.
+put("mask", "envi-bytes", b"ENVI\nsamples = 3\nlines = 2\nbands = 1\nheader offset = 0\nfile type = ENVI Standard\n"
+    b"data type = 1\ninterleave = bsq\nbyte order = 0\ndata ignore value = 7\n" + SEP + bytes([0, 1, 255, 0, 7, 1]))
+
+
+def png(width, height, colour_type, depth, rows):
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xffffffff)
+    raw = b"".join(b"\0" + r for r in rows)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, depth, colour_type, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+
+
+put("mask", "rgb8.png", png(2, 1, 2, 8, [bytes([9, 0, 0, 0, 200, 200])]))
+put("mask", "grey16.png", png(3, 2, 0, 16, [struct.pack(">3H", 0, 1, 65535), struct.pack(">3H", 7, 0, 2)]))
+
+# text_library: USGS wavelengths + spectra, ECOSTRESS pair (text_library_test.cpp).
+def splib(title, values):
+    return (title + "\n" + "".join("   " + v + "\n" for v in values)).encode()
+
+
+put("text_library", "usgs", SEP.join([
+    splib("splib07a Record=6: Wavelengths ASD 0.35-2.5 microns 2151 ch",
+          ["0.350000", "0.400000", "0.450000", "0.500000", "0.550000"]),
+    splib("splib07a Record=55: Alunite GDS84 Na03       ASDFRa AREF",
+          ["-1.23e34", "0.2500000", "0.5000000", "0.7500000", "0.1250000"]),
+    splib("splib07a Record=3380: Kaolinite CM9          ASDFRb AREF",
+          ["0.0625000", "0.3750000", "0.6250000", "-1.2300000e+34", "0.8750000"])]))
+
+
+def ecostress(name, rows):
+    s = ("Name: " + name + "\nType: Mineral\nClass: Silicate\nOwner: JHU\nWavelength Range: TIR\n"
+         "Measurement: Directional (10 Degree) Hemispherical Reflectance\nFirst Column: X\nSecond Column: Y\n"
+         "X Units: Wavelength (micrometers)\nY Units: Reflectance (percent)\nFirst X Value: " + rows[0][0] +
+         "\nLast X Value: " + rows[-1][0] + "\nNumber of X Values: %d\nAdditional Information: none\n\n" % len(rows))
+    return (s + "".join(x + "\t" + y + "\n" for x, y in rows)).encode()
+
+
+put("text_library", "ecostress", SEP.join([
+    ecostress("Acmite NaFe+3(SiO3)2", [("0.8", "50.0"), ("0.6", "25.0"), ("0.5", "12.5"), ("0.4", "6.25")]),
+    ecostress("Dry grass", [("0.8", "80.0"), ("0.6", "60.0"), ("0.5", "40.0"), ("0.4", "20.0")])]))
+
+# csv (csv_test.cpp).
+put("csv", "header-names-quotes.csv", "\xEF\xBB\xBFname,400,500,600\r\nA,0.1,0.2,0.3\r\n\r\n\"B, \"\"quoted\"\"\", 1 ,2e-1,+3\r\n")
+put("csv", "header-no-names.csv", "450,550\n0.5,0.25\n0.75,1\n")
+put("csv", "transposed.csv", "wavelength_nm,\"dark skin\",light\n400,0.1,0.2\n410,0.3,0.4\n420,0.5,0.6\n")
+
+# mat (mat_test.cpp layouts): v5 cube with wavelengths, v5 compressed bands-first with a mask, an unmixing
+# benchmark, an ISETCam library, and a v7.3 cube.
+rows, cols, bands = 3, 4, 5
+cube = np.fromfunction(lambda r, c, b: 100.0 * r + 10.0 * c + b, (rows, cols, bands))
+wl = np.arange(400.0, 400.0 + 10 * bands, 10.0).reshape(bands, 1)
+tmp = os.path.join(HERE, "mat.tmp")
+
+
+def save_mat(name, variables, compress=False):
+    scipy.io.savemat(tmp, variables, do_compression=compress, format="5")
+    with open(tmp, "rb") as f:
+        put("mat", name, f.read())
+    os.remove(tmp)
+
+
+save_mat("v5-cube-wavelengths.mat", {"ref": cube, "wavelength": wl, "lbl": np.array([[1, 0, 1, 1]] * 3, np.uint8)})
+save_mat("v5z-bands-first-single.mat",
+         {"cube": np.ascontiguousarray(np.moveaxis(cube, 2, 0)).astype(np.float32), "bands": wl.ravel() / 1000.0},
+         compress=True)
+save_mat("v5-unmixing.mat", {"Y": np.arange(2 * 6, dtype=np.float64).reshape(2, 6), "nRow": 2.0, "nCol": 3.0,
+                             "wavelengths": np.array([[450.0, 550.0]])})
+save_mat("v5-library.mat", {"wavelength": wl, "data": np.arange(bands * 3, dtype=np.uint16).reshape(bands, 3)})
+
+# v7.3: HDF5 behind MATLAB's 128-byte header in a 512-byte user block; datasets in MATLAB's reversed dim order.
+with h5py.File(tmp, "w", userblock_size=512, libver="earliest") as h:
+    for name, value in {"rad": np.ascontiguousarray(cube.transpose()), "bands": wl.ravel().reshape(1, bands)}.items():
+        d = h.create_dataset(name, data=value)
+        d.attrs["MATLAB_class"] = np.bytes_("double")
+header = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jan  1 00:00:00 2024 HDF5 schema 1.00 ."
+header = header.ljust(116, b" ") + b"\0" * 8 + struct.pack("<H", 0x0200) + b"IM"
+with open(tmp, "r+b") as f:
+    f.write(header)
+with open(tmp, "rb") as f:
+    put("mat", "v73-cube-bands.mat", f.read())
+os.remove(tmp)
