@@ -1,6 +1,10 @@
 #include "specula/codec/spc_eval.h"
 
+#include <sys/mman.h>
+
 #include <algorithm>
+#include <cstdlib>
+#include <new>
 #include <cmath>
 #include <numbers>
 #include <string>
@@ -19,9 +23,10 @@ using brdf::kMerlCells;
 inline float atan2_float(float y, float x) {
   const float ax = std::abs(x), ay = std::abs(y);
   const float hi = std::max(ax, ay), lo = std::min(ax, ay);
-  const float a = hi > 0 ? lo / hi : 0.0f;
+  const float a = lo / std::max(hi, 1e-30f);
   const bool reduce = a > 0.41421356f;
-  const float t = reduce ? (a - 1.0f) / (a + 1.0f) : a;
+  const float reduced = (a - 1.0f) / (a + 1.0f);
+  const float t = reduce ? reduced : a;
   const float z = t * t;
   float r = (((8.05374449538e-2f * z - 1.38776856032e-1f) * z + 1.99777106478e-1f) * z - 3.33329491539e-1f) * z * t + t;
   r += reduce ? 0.78539816f : 0.0f;
@@ -60,13 +65,14 @@ void float_indices(const float* wi, const float* wo, std::size_t n, std::uint32_
     float phi_d = atan2_float(dy, dx);
     phi_d = phi_d < 0 ? phi_d + kPi : phi_d;
     float xh = 90.0f * std::sqrt(theta_h * kInvHalfPi), xd = theta_d * kDegPerRad, xp = phi_d * kDegPerRad;
-    bool ok = hl > kMinHalfLength && hxy > kMinSine && dxy > kMinSine && xh >= 0 && xh < 256 && xd >= 0 && xd < 256 &&
-              xp >= 0 && xp < 256;
+    // Non-short-circuit & keeps the loop free of branches, so that it vectorises.
+    bool ok = (hl > kMinHalfLength) & (hxy > kMinSine) & (dxy > kMinSine) & (xh >= 0) & (xh < 256) & (xd >= 0) &
+              (xd < 256) & (xp >= 0) & (xp < 256);
     xh = ok ? xh : 0.0f, xd = ok ? xd : 0.0f, xp = ok ? xp : 0.0f;
     const int th = int(xh), td = int(xd), tp = int(xp);
     const float fh = xh - float(th), fd = xd - float(td), fp = xp - float(tp);
-    ok = ok && fh > kBoundaryMargin && fh < 1 - kBoundaryMargin && fd > kBoundaryMargin && fd < 1 - kBoundaryMargin &&
-         fp > kBoundaryMargin && fp < 1 - kBoundaryMargin;
+    ok = ok & (fh > kBoundaryMargin) & (fh < 1 - kBoundaryMargin) & (fd > kBoundaryMargin) &
+         (fd < 1 - kBoundaryMargin) & (fp > kBoundaryMargin) & (fp < 1 - kBoundaryMargin);
     const int ch = std::min(th, brdf::kMerlThetaH - 1), cd = std::min(td, brdf::kMerlThetaD - 1),
               cp = std::min(tp, brdf::kMerlPhiD - 1);
     cells[i] = std::uint32_t(cp + brdf::kMerlPhiD * (cd + brdf::kMerlThetaD * ch));
@@ -122,26 +128,52 @@ SpcBrdf::SpcBrdf(SpcCoefficients&& c)
   for (std::size_t j = 0; j < k_; ++j)
     for (std::size_t b = 0; b < bands_; ++b)
       basis_[j * padded_ + b] = float(c.basis(Eigen::Index(j), Eigen::Index(b)) * c.scale);
-  values_ = std::move(c.values);
+  // The cells are read in random order: on 2 MB pages their table costs a few TLB entries instead of thousands.
+  constexpr std::size_t kHugePage = std::size_t(1) << 21;
+  values_bytes_ = (c.values.size() * sizeof(float) + kHugePage - 1) / kHugePage * kHugePage;
+  values_.reset(static_cast<float*>(std::aligned_alloc(kHugePage, values_bytes_)));
+  if (!values_) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+  madvise(values_.get(), values_bytes_, MADV_HUGEPAGE);
+#endif
+  std::copy(c.values.begin(), c.values.end(), values_.get());
+  std::vector<float>().swap(c.values);
   valid_ = std::move(c.valid);
 }
 
+void SpcBrdf::Free::operator()(float* p) const { std::free(p); }
+
 std::size_t SpcBrdf::memory_bytes() const {
-  return values_.capacity() * sizeof(float) + valid_.capacity() + basis_.capacity() * sizeof(float);
+  return values_bytes_ + valid_.capacity() + basis_.capacity() * sizeof(float);
 }
 
+namespace {
+
+// out[b] = max(0, sum_j a_j v[j * P + b]) for b < bands <= P, summed in registers over the padded width P.
+template <std::size_t P>
+inline void expand_padded(const float* a, std::size_t k, const float* v, float* out, std::size_t bands) {
+  float acc[P];
+  for (std::size_t b = 0; b < P; ++b) acc[b] = a[0] * v[b];
+  for (std::size_t j = 1; j < k; ++j)
+    for (std::size_t b = 0; b < P; ++b) acc[b] += a[j] * v[j * P + b];
+  for (std::size_t b = 0; b < bands; ++b) out[b] = std::max(0.0f, acc[b]);
+}
+
+}  // namespace
+
 void SpcBrdf::expand(std::size_t cell, float* out) const {
-  const float* a = values_.data() + cell * k_;
-  const std::size_t bands = bands_, padded = padded_;
+  const float* a = values_.get() + cell * k_;
   const float* v = basis_.data();
-  const float a0 = a[0];
-  for (std::size_t b = 0; b < bands; ++b) out[b] = a0 * v[b];
-  for (std::size_t j = 1; j < k_; ++j) {
-    const float aj = a[j];
-    const float* vj = v + j * padded;
-    for (std::size_t b = 0; b < bands; ++b) out[b] += aj * vj[b];
+  switch (padded_) {
+    case 8: return expand_padded<8>(a, k_, v, out, bands_);
+    case 16: return expand_padded<16>(a, k_, v, out, bands_);
+    case 32: return expand_padded<32>(a, k_, v, out, bands_);
+    default: break;
   }
-  for (std::size_t b = 0; b < bands; ++b) out[b] = std::max(0.0f, out[b]);
+  for (std::size_t b = 0; b < bands_; ++b) out[b] = a[0] * v[b];
+  for (std::size_t j = 1; j < k_; ++j)
+    for (std::size_t b = 0; b < bands_; ++b) out[b] += a[j] * v[j * padded_ + b];
+  for (std::size_t b = 0; b < bands_; ++b) out[b] = std::max(0.0f, out[b]);
 }
 
 void SpcBrdf::evaluate_cell(std::size_t cell, std::span<float> out) const {
@@ -167,16 +199,13 @@ void SpcBrdf::evaluate(std::span<const float> wi, std::span<const float> wo, std
   if (out.size() != n * bands_)
     throw UsageError("SpcBrdf::evaluate: " + std::to_string(out.size()) + " output values for " + std::to_string(n) +
                      " direction pairs; give n x " + std::to_string(bands_));
-  constexpr std::size_t kPrefetch = 8;
   parallel_for(
       (n + kBlock - 1) / kBlock, [] { return std::vector<std::uint32_t>(kBlock); },
       [&](std::size_t block, std::vector<std::uint32_t>& cells) {
         const std::size_t first = block * kBlock, m = std::min(kBlock, n - first);
         merl_indices(wi.subspan(3 * first, 3 * m), wo.subspan(3 * first, 3 * m), std::span(cells).first(m));
-        for (std::size_t i = 0; i < m; ++i) {
-          if (i + kPrefetch < m) __builtin_prefetch(values_.data() + cells[i + kPrefetch] * k_);
-          expand(cells[i], out.data() + (first + i) * bands_);
-        }
+        for (std::size_t i = 0; i < m; ++i) __builtin_prefetch(values_.get() + cells[i] * k_);
+        for (std::size_t i = 0; i < m; ++i) expand(cells[i], out.data() + (first + i) * bands_);
       },
       16);
 }

@@ -5,6 +5,7 @@
 // neither does this: x_b(wi, wo) = max(0, sum_j a_j(cell) V_jb) * scale, in 1/sr.
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -53,7 +54,11 @@ class SpcBrdf {
   WavelengthGrid wavelengths_;
   std::string source_, reference_;
   std::size_t k_ = 0, bands_ = 0, padded_ = 0;
-  std::vector<float> values_;        // kMerlCells x k
+  struct Free {
+    void operator()(float* p) const;
+  };
+  std::unique_ptr<float[], Free> values_;  // kMerlCells x k, on huge pages where the system gives them
+  std::size_t values_bytes_ = 0;
   std::vector<std::uint8_t> valid_;  // kMerlCells
   std::vector<float> basis_;         // k x padded_, the rows V times scale, zero beyond B
 };
