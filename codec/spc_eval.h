@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "specula/codec/spc.h"
@@ -26,9 +27,12 @@ class SpcBrdf {
   /// else UsageError naming what does not match.
   explicit SpcBrdf(SpcCoefficients&& coefficients);
 
+  /// Coefficients per cell.
   std::size_t k() const { return k_; }
+  /// Values per evaluation, one per wavelength.
   std::size_t bands() const { return bands_; }
   const WavelengthGrid& wavelengths() const { return wavelengths_; }
+  /// The coded grid's source and the basis reference, as the .spc records them.
   const std::string& source() const { return source_; }
   const std::string& reference() const { return reference_; }
   /// Bytes held: the coefficients (k floats per cell), the validity map and the basis.
