@@ -199,15 +199,33 @@ void SpcBrdf::evaluate(std::span<const float> wi, std::span<const float> wo, std
   if (out.size() != n * bands_)
     throw UsageError("SpcBrdf::evaluate: " + std::to_string(out.size()) + " output values for " + std::to_string(n) +
                      " direction pairs; give n x " + std::to_string(bands_));
-  parallel_for(
-      (n + kBlock - 1) / kBlock, [] { return std::vector<std::uint32_t>(kBlock); },
-      [&](std::size_t block, std::vector<std::uint32_t>& cells) {
-        const std::size_t first = block * kBlock, m = std::min(kBlock, n - first);
-        merl_indices(wi.subspan(3 * first, 3 * m), wo.subspan(3 * first, 3 * m), std::span(cells).first(m));
-        for (std::size_t i = 0; i < m; ++i) __builtin_prefetch(values_.get() + cells[i] * k_);
-        for (std::size_t i = 0; i < m; ++i) expand(cells[i], out.data() + (first + i) * bands_);
-      },
-      16);
+  // Chunks of kChunkBlocks blocks; within a chunk the next block's cells are found first and each of them is
+  // prefetched while one pair of the current block is expanded, so the table's misses overlap the arithmetic.
+  constexpr std::size_t kChunkBlocks = 16, kChunk = kChunkBlocks * kBlock;
+  parallel_for((n + kChunk - 1) / kChunk, [] { return std::vector<std::uint32_t>(2 * kBlock); },
+               [&](std::size_t chunk, std::vector<std::uint32_t>& cells) {
+                 const std::size_t begin = chunk * kChunk, end = std::min(n, begin + kChunk);
+                 auto find = [&](std::size_t first, std::uint32_t* into) {
+                   const std::size_t m = std::min(kBlock, end - first);
+                   merl_indices(wi.subspan(3 * first, 3 * m), wo.subspan(3 * first, 3 * m), std::span(into, m));
+                 };
+                 std::uint32_t* now = cells.data();
+                 std::uint32_t* next = cells.data() + kBlock;
+                 find(begin, now);
+                 for (std::size_t i = 0; i < std::min(kBlock, end - begin); ++i)
+                   __builtin_prefetch(values_.get() + now[i] * k_);
+                 for (std::size_t first = begin; first < end; first += kBlock) {
+                   const std::size_t m = std::min(kBlock, end - first);
+                   const bool more = first + kBlock < end;
+                   const std::size_t m_next = more ? std::min(kBlock, end - first - kBlock) : 0;
+                   if (more) find(first + kBlock, next);
+                   for (std::size_t i = 0; i < m; ++i) {
+                     if (i < m_next) __builtin_prefetch(values_.get() + next[i] * k_);
+                     expand(now[i], out.data() + (first + i) * bands_);
+                   }
+                   std::swap(now, next);
+                 }
+               });
 }
 
 }  // namespace specula::codec
