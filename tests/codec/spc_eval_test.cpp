@@ -4,6 +4,7 @@
 #include <omp.h>
 
 #include <cmath>
+#include <map>
 #include <numbers>
 #include <random>
 
@@ -28,16 +29,18 @@ struct Coded {
   SpcCoefficients coefficients;
   store::Grid grid;
 };
-const Coded& coded(std::size_t k) {
+const Coded& coded(std::size_t k, SpcMethod method = SpcMethod::bounded) {
   static const store::Grid g =
       test::grid_of(brdf::TorranceSparrow(kGrid, Eigen::VectorXd::Constant(7, 0.15), ramp(1.55, 1.45), ramp(0.5, 0.1)));
-  static std::map<std::size_t, Coded> cache;
-  if (!cache.contains(k)) {
-    SpcCoefficients c = decode_spc_coefficients(encode_spc(g, self_basis(g, k), {.max_error = 0.01}), "test.spc");
+  static std::map<std::pair<std::size_t, SpcMethod>, Coded> cache;
+  const auto key = std::make_pair(k, method);
+  if (!cache.contains(key)) {
+    SpcCoefficients c =
+        decode_spc_coefficients(encode_spc(g, self_basis(g, k), {.method = method, .max_error = 0.01}), "test.spc");
     store::Grid grid = expand_spc(c);
-    cache.emplace(k, Coded{std::move(c), std::move(grid)});
+    cache.emplace(key, Coded{std::move(c), std::move(grid)});
   }
-  return cache.at(k);
+  return cache.at(key);
 }
 
 // Random direction pairs (n x 3 floats each, not normalised): a third uniform over the upper hemisphere, a third
@@ -106,8 +109,8 @@ TEST(SpcEval, CellsAtCellCentresAndDegenerateDirectionsEqualTheDoubleLookup) {
   for (std::size_t i = 0; i < cells.size(); ++i) EXPECT_EQ(cells[i], reference_cell(&wi[3 * i], &wo[3 * i])) << i;
 }
 
-void expect_matches_decoded_grid(std::size_t k) {
-  const Coded& c = coded(k);
+void expect_matches_decoded_grid(std::size_t k, SpcMethod method = SpcMethod::bounded) {
+  const Coded& c = coded(k, method);
   const SpcBrdf f(SpcCoefficients(c.coefficients));
   const std::size_t b = f.bands();
   std::vector<float> wi, wo;
@@ -137,6 +140,9 @@ void expect_matches_decoded_grid(std::size_t k) {
 
 TEST(SpcEval, EqualsDecodingToAGridThenLookingUpForK3) { expect_matches_decoded_grid(3); }
 TEST(SpcEval, EqualsDecodingToAGridThenLookingUpForK6) { expect_matches_decoded_grid(6); }
+TEST(SpcEval, EqualsDecodingToAGridThenLookingUpForATransformCodedFile) {
+  expect_matches_decoded_grid(3, SpcMethod::transform);
+}
 
 TEST(SpcEval, CellsWithoutDataGiveZeroAndFalse) {
   const SpcBrdf f(SpcCoefficients(coded(3).coefficients));
