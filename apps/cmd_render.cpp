@@ -1,6 +1,7 @@
-// specula render: a sphere under one directional light, from an RGB MERL .binary, a spectral grid file or a
-// store grid (STORE.h5:NAME, rendered through the CIE CMFs under --illuminant); or, with --env, a spectral
-// rendering under an environment (an RGB .binary uplifted first); sRGB PNG and linear EXR.
+// specula render: a sphere under one directional light, from an RGB MERL .binary, a spectral grid file, a store
+// grid (STORE.h5:NAME) or a .spc (evaluated from its coefficients, never decoded to a grid), spectral ones rendered
+// through the CIE CMFs under --illuminant; or, with --env, a spectral rendering under an environment (an RGB
+// .binary uplifted first); sRGB PNG and linear EXR.
 #include <fmt/format.h>
 
 #include <cmath>
@@ -12,6 +13,8 @@
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/render.h"
+#include "specula/codec/spc.h"
+#include "specula/codec/spc_eval.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
@@ -32,6 +35,10 @@ struct RenderOptions {
   std::string env;
 };
 
+codec::SpcBrdf load_spc(const std::string& path) {
+  return codec::SpcBrdf(codec::decode_spc_coefficients(codec::read_spc_file(path), path));
+}
+
 codec::MerlBrdf load_rgb(const RenderOptions& o) {
   if (std::filesystem::path(o.input).extension() == ".binary") return codec::read_merl(o.input);
   const store::Grid grid = load_grid(o.input, "render");
@@ -46,11 +53,26 @@ void run_render(const RenderOptions& o) {
   std::filesystem::path png(o.output);
   if (png.extension() != ".png") throw UsageError("render: -o must name a .png file (the EXR is written beside it)");
   const std::filesystem::path exr = std::filesystem::path(png).replace_extension(".exr");
+  const bool coded = std::filesystem::path(o.input).extension() == ".spc";
   if (!o.env.empty()) {
-    const store::Grid grid = load_grid(o.input, "render", default_uplift_wavelengths());
-    const codec::Environment env =
-        o.env == "default" ? codec::default_environment(grid.wavelengths) : codec::read_environment(o.env, grid.wavelengths);
-    const codec::SphereRenders r = codec::render_spheres({&grid}, env, o.size);
+    auto environment = [&](const WavelengthGrid& wavelengths) {
+      return o.env == "default" ? codec::default_environment(wavelengths) : codec::read_environment(o.env, wavelengths);
+    };
+    codec::Environment env;
+    codec::SphereRenders r;
+    std::string note;
+    if (coded) {
+      const codec::SpcBrdf brdf = load_spc(o.input);
+      env = environment(brdf.wavelengths());
+      const codec::SpcBrdf* brdfs[] = {&brdf};
+      r = codec::render_spheres(brdfs, env, o.size);
+      note = " (evaluated from its " + std::to_string(brdf.k()) + " coefficients per cell)";
+    } else {
+      const store::Grid grid = load_grid(o.input, "render", default_uplift_wavelengths());
+      env = environment(grid.wavelengths);
+      r = codec::render_spheres({&grid}, env, o.size);
+      if (grid.provenance.importer == "uplift-clamp") note = " (uplifted to " + grid.wavelengths.describe() + ")";
+    }
     if (!(r.white.y() > 0))
       throw InputError("render: " + env.description + " sends no light to a surface facing the viewer; nothing maps to white");
     // Linear sRGB with the environment's white (a white Lambertian facing the viewer) adapted to D65 and at 1.
@@ -67,15 +89,20 @@ void run_render(const RenderOptions& o) {
         srgb[3 * i + c] = r.covered[i] ? std::uint8_t(std::lround(255 * srgb_encode(gain * linear[3 * i + c]))) : 24;
     store::write_png_rgb8(png, o.size, o.size, srgb);
     store::write_exr_rgb(exr, o.size, o.size, linear);
-    fmt::print("rendered {}{} on a {}x{} sphere under {}: {} and {}\n", o.input,
-               grid.provenance.importer == "uplift-clamp" ? " (uplifted to " + grid.wavelengths.describe() + ")" : "",
-               o.size, o.size, env.description, png.string(), exr.string());
+    fmt::print("rendered {}{} on a {}x{} sphere under {}: {} and {}\n", o.input, note, o.size, o.size, env.description,
+               png.string(), exr.string());
     return;
   }
-  const codec::MerlBrdf rgb = load_rgb(o);
   const double t = o.light[0] * std::numbers::pi / 180, p = o.light[1] * std::numbers::pi / 180;
-  const codec::SphereImage img =
-      codec::render_sphere(rgb, o.size, {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)});
+  const Eigen::Vector3d light(std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t));
+  codec::SphereImage img;
+  if (coded) {
+    const codec::SpcBrdf brdf = load_spc(o.input);
+    img = codec::render_sphere(brdf, codec::rgb_weights(brdf.wavelengths(), parse_illuminant(o.illuminant, brdf.wavelengths())),
+                               o.size, light);
+  } else {
+    img = codec::render_sphere(load_rgb(o), o.size, light);
+  }
   const double gain = std::exp2(o.exposure);
   std::vector<std::uint8_t> srgb(3 * o.size * o.size);
   for (std::size_t i = 0; i < img.covered.size(); ++i)
@@ -92,7 +119,7 @@ void run_render(const RenderOptions& o) {
 void setup_render(CLI::App& app) {
   auto o = std::make_shared<RenderOptions>();
   auto* cmd = app.add_subcommand("render", "A sphere under a directional light from a BRDF (sRGB PNG and linear EXR)");
-  cmd->add_option("brdf", o->input, "MERL .binary, spectral grid file, or STORE.h5:GRID")->required();
+  cmd->add_option("brdf", o->input, "MERL .binary, spectral grid file, STORE.h5:GRID, or a .spc (evaluated from its code, not decoded)")->required();
   cmd->add_option("-o,--output", o->output, "PNG to write; the linear EXR goes beside it")->required();
   cmd->add_option("--size", o->size, "Image width and height in pixels")->capture_default_str();
   cmd->add_option("--light", o->light, "Light direction THETA,PHI in degrees (theta from the viewer)")

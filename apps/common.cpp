@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "specula/codec/merl.h"
+#include "specula/codec/spc.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/codec/uplift.h"
 #include "specula/core/cie.h"
@@ -134,6 +135,7 @@ store::Grid load_grid(const std::string& spec, const std::string& command, const
     g.provenance.importer = "uplift-clamp";
     return g;
   }
+  if (in.extension() == ".spc") return codec::decode_spc(codec::read_spc_file(in), spec);
   return codec::read_grid_file(in);
 }
 

@@ -55,7 +55,8 @@ std::vector<store::Store> open_stores(const std::vector<std::string>& paths);
 /// Where a basis learned from `inputs` is saved: `output` if given, else the first input store.
 std::string basis_output(const std::vector<std::string>& inputs, const std::string& output);
 
-/// A spectral BRDF grid named as STORE.h5:GRID or a grid exchange file (.spgrid); `command` prefixes usage errors.
+/// A spectral BRDF grid named as STORE.h5:GRID, a grid exchange file (.spgrid) or a .spc (decoded by decode_spc);
+/// `command` prefixes usage errors.
 /// With `uplift_onto`, an RGB MERL .binary is accepted too, uplifted onto those bands as `specula uplift` does by
 /// default (Appendix A under D65, default alpha, clamped); without, a .binary is a UsageError saying so.
 store::Grid load_grid(const std::string& spec, const std::string& command,

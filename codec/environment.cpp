@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <span>
 #include <sstream>
 
 #include "specula/codec/spectral_grid.h"
@@ -15,6 +16,7 @@
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/parallel.h"
 #include "specula/store/io/exr.h"
 
 namespace specula::codec {
@@ -232,17 +234,25 @@ Environment read_environment(const std::filesystem::path& path, const Wavelength
   return e;
 }
 
-SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const Environment& env, std::size_t size) {
+namespace {
+
+// One (pixel, light) pair of a block of image rows.
+struct Pair {
+  std::uint32_t cell, pixel;  // pixel within the block
+  std::uint32_t light;
+  float weight;  // the light's mean cosine
+};
+
+// The one sphere-and-lights loop of both renderers: checks, lights, white, blocks of image rows and every
+// (pixel, light) pair's cell (per row, pixels left to right, lights in order); shade(row_pairs, rows, pixels,
+// lights, acc) adds each of `count` BRDFs' band values times light power times weight into acc (count x bands x
+// pixels, zeroed), and scale(g) is BRDF g's scale.
+template <class Shade, class Scale>
+SphereRenders render_with(std::size_t count, const Environment& env, std::size_t size, Shade&& shade, Scale&& scale) {
   if (size < 8 || size > 4096) throw UsageError("sphere size " + std::to_string(size) + ": give 8 to 4096 pixels");
   const std::size_t b = env.wavelengths.size();
   if (env.width == 0 || env.height == 0 || env.radiance.size() != env.width * env.height * b)
     throw UsageError("render: environment buffers do not match its size");
-  for (const auto* g : grids) {
-    if (!g->wavelengths.approx_equal(env.wavelengths))
-      throw InputError("a grid has " + g->wavelengths.describe() + ", the environment " + env.wavelengths.describe() +
-                       "; render on the grid's own wavelengths");
-    if (g->brdf.size() != b * brdf::kMerlCells) throw UsageError("render: grid values do not match bands x 90 x 90 x 180");
-  }
   const Lights lights = make_lights(env);
   const std::size_t nl = lights.count;
   const SpectrumToXyz to_xyz(env.wavelengths, SpectrumKind::radiance, Eigen::VectorXd::Ones(Eigen::Index(b)));
@@ -250,7 +260,7 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
   SphereRenders out;
   out.size = size;
   out.covered.assign(size * size, 0);
-  out.xyz.assign(grids.size(), std::vector<float>(3 * size * size, 0.0f));
+  out.xyz.assign(count, std::vector<float>(3 * size * size, 0.0f));
   // White: a Lambertian surface of albedo 1 (f = 1 / pi) facing the viewer, by the same quadrature.
   Eigen::VectorXd white_l = Eigen::VectorXd::Zero(Eigen::Index(b));
   for (std::size_t j = 0; j < nl; ++j)
@@ -258,19 +268,8 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
       for (std::size_t k = 0; k < b; ++k)
         white_l[Eigen::Index(k)] += lights.power[k * nl + j] * lights.length[j] * lights.dir[j].z() / pi;
   out.white = w * white_l;
-  // Blocks of image rows: every (pixel, light) pair's cell, sorted by cell (counting sort on buckets of 256
-  // cells, stable), so that each band plane of a grid is swept once per block in increasing address order.
-  // Each pixel's sum runs in that fixed order, so the result does not depend on the thread count.
-  struct Pair {
-    std::uint32_t cell, pixel;  // pixel within the block
-    std::uint32_t light;
-    float weight;  // the light's mean cosine
-  };
-  constexpr std::size_t kBucketShift = 8, kBuckets = (brdf::kMerlCells >> kBucketShift) + 1, kChunk = 4096;
   const std::size_t rows_per_block = std::clamp<std::size_t>((std::size_t(1) << 21) / (size * (nl / 2 + 1)), 1, size);
   std::vector<std::vector<Pair>> row_pairs(rows_per_block);
-  std::vector<Pair> sorted;
-  std::vector<std::uint32_t> start(kBuckets + 1);
   std::vector<double> acc;
   for (std::size_t row0 = 0; row0 < size; row0 += rows_per_block) {
     check_interrupt();
@@ -285,7 +284,7 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
         if (x * x + y * y >= 1) continue;
         out.covered[py * size + px] = 1;
         const Eigen::Vector3d n(x, y, std::sqrt(1 - x * x - y * y));
-        // Any tangent frame will do: the grids are isotropic.
+        // Any tangent frame will do: the BRDFs are isotropic.
         const Eigen::Vector3d t =
             (std::abs(n.y()) < 0.9 ? Eigen::Vector3d::UnitY().cross(n) : Eigen::Vector3d::UnitX().cross(n)).normalized();
         const Eigen::Vector3d s = n.cross(t);
@@ -301,17 +300,54 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
         }
       }
     }
+    acc.assign(count * b * pixels, 0.0);
+    shade(std::span<const std::vector<Pair>>(row_pairs.data(), rows), pixels, lights, acc);
+    for (std::size_t g = 0; g < count; ++g)
+      for (std::size_t i = 0; i < pixels; ++i) {
+        const std::size_t pix = row0 * size + i;
+        if (!out.covered[pix]) continue;
+        Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
+        for (std::size_t k = 0; k < b; ++k) xyz += w.col(Eigen::Index(k)) * acc[(g * b + k) * pixels + i];
+        for (std::size_t c = 0; c < 3; ++c) out.xyz[g][3 * pix + c] = float(scale(g) * xyz[Eigen::Index(c)]);
+      }
+  }
+  check_interrupt();
+  return out;
+}
+
+void check_wavelengths(const WavelengthGrid& brdf, const Environment& env, const char* what) {
+  if (!brdf.approx_equal(env.wavelengths))
+    throw InputError(std::string("a ") + what + " has " + brdf.describe() + ", the environment " +
+                     env.wavelengths.describe() + "; render on the " + what + "'s own wavelengths");
+}
+
+}  // namespace
+
+SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const Environment& env, std::size_t size) {
+  const std::size_t b = env.wavelengths.size();
+  for (const auto* g : grids) {
+    check_wavelengths(g->wavelengths, env, "grid");
+    if (g->brdf.size() != b * brdf::kMerlCells) throw UsageError("render: grid values do not match bands x 90 x 90 x 180");
+  }
+  // Per block, the pairs sorted by cell (counting sort on buckets of 256 cells, stable), so that each band plane
+  // of a grid is swept once per block in increasing address order. Each pixel's sum runs in that fixed order, so
+  // the result does not depend on the thread count.
+  constexpr std::size_t kBucketShift = 8, kBuckets = (brdf::kMerlCells >> kBucketShift) + 1, kChunk = 4096;
+  std::vector<Pair> sorted;
+  std::vector<std::uint32_t> start(kBuckets + 1);
+  auto shade = [&](std::span<const std::vector<Pair>> row_pairs, std::size_t pixels, const Lights& lights,
+                   std::vector<double>& acc) {
+    const std::size_t nl = lights.count;
     std::fill(start.begin(), start.end(), 0u);
     std::size_t total = 0;
-    for (std::size_t r = 0; r < rows; ++r) {
-      total += row_pairs[r].size();
-      for (const Pair& p : row_pairs[r]) ++start[(p.cell >> kBucketShift) + 1];
+    for (const auto& pairs : row_pairs) {
+      total += pairs.size();
+      for (const Pair& p : pairs) ++start[(p.cell >> kBucketShift) + 1];
     }
     for (std::size_t i = 1; i <= kBuckets; ++i) start[i] += start[i - 1];
     sorted.resize(total);
-    for (std::size_t r = 0; r < rows; ++r)
-      for (const Pair& p : row_pairs[r]) sorted[start[p.cell >> kBucketShift]++] = p;
-    acc.assign(grids.size() * b * pixels, 0.0);
+    for (const auto& pairs : row_pairs)
+      for (const Pair& p : pairs) sorted[start[p.cell >> kBucketShift]++] = p;
     // Each thread owns a fixed share of the (grid, band) planes and walks the pairs in cache-sized chunks,
     // every chunk through all its planes, so the pairs come from memory once per thread, not once per plane.
     const std::size_t tasks = grids.size() * b;
@@ -330,17 +366,31 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
         }
       }
     }
-    for (std::size_t g = 0; g < grids.size(); ++g)
-      for (std::size_t i = 0; i < pixels; ++i) {
-        const std::size_t pix = row0 * size + i;
-        if (!out.covered[pix]) continue;
-        Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
-        for (std::size_t k = 0; k < b; ++k) xyz += w.col(Eigen::Index(k)) * acc[(g * b + k) * pixels + i];
-        for (std::size_t c = 0; c < 3; ++c) out.xyz[g][3 * pix + c] = float(grids[g]->scale * xyz[Eigen::Index(c)]);
-      }
-  }
-  check_interrupt();
-  return out;
+  };
+  return render_with(grids.size(), env, size, shade, [&](std::size_t g) { return grids[g]->scale; });
+}
+
+SphereRenders render_spheres(std::span<const SpcBrdf* const> brdfs, const Environment& env, std::size_t size) {
+  const std::size_t b = env.wavelengths.size();
+  for (const auto* f : brdfs) check_wavelengths(f->wavelengths(), env, "coded BRDF");
+  // Each row's pairs in their order (pixel, then light), every pair's cell expanded from its k coefficients:
+  // rows on any thread, each pixel summed in one fixed order, so the result does not depend on the thread count.
+  auto shade = [&](std::span<const std::vector<Pair>> row_pairs, std::size_t pixels, const Lights& lights,
+                   std::vector<double>& acc) {
+    const std::size_t nl = lights.count;
+    parallel_for(
+        row_pairs.size(), [&] { return std::vector<float>(b); },
+        [&](std::size_t r, std::vector<float>& f) {
+          for (std::size_t g = 0; g < brdfs.size(); ++g)
+            for (const Pair& p : row_pairs[r]) {
+              brdfs[g]->evaluate_cell(p.cell, f);
+              double* a = acc.data() + g * b * pixels + p.pixel;
+              const double* power = lights.power.data() + p.light;
+              for (std::size_t k = 0; k < b; ++k) a[k * pixels] += double(f[k]) * power[k * nl] * double(p.weight);
+            }
+        });
+  };
+  return render_with(brdfs.size(), env, size, shade, [](std::size_t) { return 1.0; });
 }
 
 }  // namespace specula::codec

@@ -7,9 +7,11 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <vector>
 
+#include "specula/codec/spc_eval.h"
 #include "specula/core/wavelengths.h"
 #include "specula/store/store.h"
 
@@ -57,5 +59,8 @@ struct SphereRenders {
 /// 2 degree CMFs. Deterministic and independent of the thread count. Grids must share env's wavelengths
 /// (InputError).
 SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const Environment& env, std::size_t size);
+/// As above for coded BRDFs evaluated from their coefficients (SpcBrdf::evaluate_cell in the same cells), without
+/// a grid: equal to rendering their expand_spc grids to float precision.
+SphereRenders render_spheres(std::span<const SpcBrdf* const> brdfs, const Environment& env, std::size_t size);
 
 }  // namespace specula::codec

@@ -8,7 +8,11 @@
 
 namespace specula::codec {
 
-SphereImage render_sphere(const MerlBrdf& brdf, std::size_t size, const Eigen::Vector3d& light) {
+namespace {
+
+// The one directional-light sphere loop: rgb(angles) is the linear RGB BRDF (1/sr) at the pixel's standard angles.
+template <class Rgb>
+SphereImage render_with(std::size_t size, const Eigen::Vector3d& light, Rgb&& rgb) {
   if (size == 0 || size > 16384) throw UsageError("render: size " + std::to_string(size) + " must be 1-16384 pixels");
   if (!(light.norm() > 0) || !light.allFinite()) throw UsageError("render: the light direction must be a non-zero vector");
   const Eigen::Vector3d l = light.normalized(), v(0, 0, 1);
@@ -31,11 +35,30 @@ SphereImage render_sphere(const MerlBrdf& brdf, std::size_t size, const Eigen::V
       const Eigen::Vector3d wi(l.dot(t), l.dot(s), l.dot(n)), wo(v.dot(t), v.dot(s), v.dot(n));
       if (wi.z() <= 0 || wo.z() <= 0) continue;
       const double ti = std::acos(std::min(1.0, wi.z())), to = std::acos(std::min(1.0, wo.z()));
-      const Eigen::Vector3d f = brdf.lookup({ti, std::atan2(wi.y(), wi.x()), to, std::atan2(wo.y(), wo.x())});
+      const Eigen::Vector3d f = rgb(brdf::StdAngles{ti, std::atan2(wi.y(), wi.x()), to, std::atan2(wo.y(), wo.x())});
       for (int c = 0; c < 3; ++c)
         img.linear[3 * p + std::size_t(c)] = float(std::numbers::pi * std::max(0.0, f[c]) * wi.z());
     }
   return img;
+}
+
+}  // namespace
+
+SphereImage render_sphere(const MerlBrdf& merl, std::size_t size, const Eigen::Vector3d& light) {
+  return render_with(size, light, [&](const brdf::StdAngles& a) { return merl.lookup(a); });
+}
+
+SphereImage render_sphere(const SpcBrdf& coded, const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, std::size_t size,
+                          const Eigen::Vector3d& light) {
+  if (std::size_t(weights.cols()) != coded.bands())
+    throw UsageError("render: RGB weights have " + std::to_string(weights.cols()) + " columns for a BRDF of " +
+                     std::to_string(coded.bands()) + " bands; give one per band");
+  std::vector<float> f(coded.bands());
+  return render_with(size, light, [&](const brdf::StdAngles& a) {
+    coded.evaluate_cell(brdf::merl_index(brdf::merl_cell(a)), f);
+    const Eigen::Vector3d rgb = weights * Eigen::Map<const Eigen::VectorXf>(f.data(), Eigen::Index(f.size())).cast<double>();
+    return rgb.cwiseMax(0.0).eval();
+  });
 }
 
 }  // namespace specula::codec

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "specula/codec/merl.h"
+#include "specula/codec/spc_eval.h"
 
 namespace specula::codec {
 
@@ -22,5 +23,10 @@ struct SphereImage {
 /// pi * f(wi, wo) * cos(theta_i) with f looked up as BRDFRead.cpp does (no data counts as 0).
 /// Throws UsageError for size 0 or a zero light direction.
 SphereImage render_sphere(const MerlBrdf& brdf, std::size_t size, const Eigen::Vector3d& light);
+/// As above for a coded BRDF evaluated in the same cells, its spectrum taken to RGB by `weights` (3 x B, e.g.
+/// rgb_weights(); else UsageError) with negative channels set to 0: render_sphere(grid_to_merl(expand_spc(...),
+/// weights).brdf, ...) to float precision, without the grid.
+SphereImage render_sphere(const SpcBrdf& brdf, const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, std::size_t size,
+                          const Eigen::Vector3d& light);
 
 }  // namespace specula::codec

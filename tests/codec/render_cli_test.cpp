@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "specula/codec/merl.h"
+#include "specula/codec/spc.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/brdf_models.h"
 #include "specula/store/io/exr.h"
@@ -98,6 +99,34 @@ TEST(RenderCli, UnderAnEnvironmentAGreyShowsItsAlbedo) {
   EXPECT_NE(r.output.find("bad.exr: pixel (13, 0)"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
   EXPECT_FALSE(std::filesystem::exists(dir / "x.exr"));
+}
+
+// A .spc renders from its coefficients to the picture of its decoded grid, under a directional light and under
+// an environment; commands that need a grid (brdf-diff) take a .spc by decoding it.
+TEST(RenderCli, ASpcRendersAsItsDecodedGrid) {
+  test::ScratchDir dir;
+  const WavelengthGrid grid = WavelengthGrid::range(400, 700, 50);
+  const brdf::Ward ward(grid, Eigen::VectorXd::LinSpaced(7, 0.05, 0.5), Eigen::VectorXd::Constant(7, 0.2),
+                        Eigen::VectorXd::Constant(7, 0.15));
+  store::Grid g;
+  g.wavelengths = grid;
+  g.brdf.resize(7 * brdf::kMerlCells);
+  brdf::evaluate_grid(ward, g.brdf);
+  const auto bytes = encode_spc(g, self_basis(g, 3), {.max_error = 0.01});
+  write_spc_file(dir / "w.spc", bytes);
+  write_grid_file(dir / "w.spgrid", decode_spc(bytes, "w.spc"));
+  for (const std::string light : {"--light 30,120", "--env default"}) {
+    for (const std::string name : {"w.spc", "w.spgrid"}) {
+      const test::RunResult r = test::run_specula("-q render '" + (dir / name).string() + "' -o '" +
+                                                  (dir / (name + ".png")).string() + "' --size 40 " + light);
+      ASSERT_EQ(r.status, 0) << r.output;
+    }
+    EXPECT_EQ(store::read_png(dir / "w.spc.png").samples, store::read_png(dir / "w.spgrid.png").samples) << light;
+  }
+  const test::RunResult d = test::run_specula("-q brdf-diff '" + (dir / "w.spc").string() + "' '" +
+                                              (dir / "w.spgrid").string() + "' --json");
+  ASSERT_EQ(d.status, 0) << d.output;
+  EXPECT_EQ(test::json_number(d.output, "rms"), 0) << d.output;
 }
 
 }  // namespace
