@@ -50,7 +50,9 @@ TEST(Wavelet, ACubeComesBackAtEveryLevelCount) {
     const auto x = random_values(18 * 11 * 30, unsigned(levels));
     auto y = x;
     forward_cube(y, layout);
-    if (levels > 0) EXPECT_GT(std::abs(y[5] - x[5]) + std::abs(y[300] - x[300]), 1e-3);
+    if (levels > 0) {
+      EXPECT_GT(std::abs(y[5] - x[5]) + std::abs(y[300] - x[300]), 1e-3);
+    }
     inverse_cube(y, layout);
     for (std::size_t i = 0; i < x.size(); ++i) ASSERT_NEAR(y[i], x[i], 1e-4) << levels << " " << i;
   }
@@ -77,7 +79,7 @@ TEST(Wavelet, SubbandsTileTheCube) {
 // coefficient placed off the middle of the same subband.
 TEST(Wavelet, SynthesisNormsAreTheEnergyOfAUnitCoefficient) {
   const CubeLayout c{{90, 90, 90}, 3};
-  for (const auto [l, o] : {std::pair{0, 1}, std::pair{1, 5}, std::pair{2, 7}, std::pair{3, 0}}) {
+  for (const auto& [l, o] : {std::pair{0, 1}, std::pair{1, 5}, std::pair{2, 7}, std::pair{3, 0}}) {
     std::vector<float> x(90 * 90 * 90, 0.0f);
     auto mid = [&](int axis) { return (c.range(l, o, axis)[0] + c.range(l, o, axis)[1]) / 2; };
     x[((mid(0) + 1) * 90 + mid(1) - 1) * 90 + mid(2)] = 1;
