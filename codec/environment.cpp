@@ -278,6 +278,7 @@ SphereRenders render_with(std::size_t count, const Environment& env, std::size_t
     for (long long r = 0; r < static_cast<long long>(rows); ++r) {
       std::vector<Pair>& pairs = row_pairs[std::size_t(r)];
       pairs.clear();
+      std::vector<float> wis, wos;  // the row's directions, for merl_indices' vectorised lookup
       const std::size_t py = row0 + std::size_t(r);
       for (std::size_t px = 0; px < size; ++px) {
         const double x = 2 * (double(px) + 0.5) / double(size) - 1, y = 1 - 2 * (double(py) + 0.5) / double(size);
@@ -293,12 +294,15 @@ SphereRenders render_with(std::size_t count, const Environment& env, std::size_t
           const Eigen::Vector3d& d = lights.dir[j];
           const double c = n.dot(d);
           if (c <= 0) continue;
-          const Eigen::Vector3d wi(t.dot(d), s.dot(d), c);
-          const std::size_t cell = brdf::merl_index(brdf::merl_cell(brdf::half_diff(wi, wo)));
-          pairs.push_back({std::uint32_t(cell), std::uint32_t(std::size_t(r) * size + px), std::uint32_t(j),
-                           float(c * lights.length[j])});
+          const float wi[3] = {float(t.dot(d)), float(s.dot(d)), float(c)};
+          wis.insert(wis.end(), wi, wi + 3);
+          wos.insert(wos.end(), {float(wo.x()), float(wo.y()), float(wo.z())});
+          pairs.push_back({0, std::uint32_t(std::size_t(r) * size + px), std::uint32_t(j), float(c * lights.length[j])});
         }
       }
+      std::vector<std::uint32_t> cells(pairs.size());
+      merl_indices(wis, wos, cells);
+      for (std::size_t i = 0; i < pairs.size(); ++i) pairs[i].cell = cells[i];
     }
     acc.assign(count * b * pixels, 0.0);
     shade(std::span<const std::vector<Pair>>(row_pairs.data(), rows), pixels, lights, acc);

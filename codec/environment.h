@@ -55,7 +55,7 @@ struct SphereRenders {
 /// centre (normal n, viewer +z): L = sum over regions j of f(d_j, wo) P_j (n . m_j) + f(sun, wo) E_sun (n . sun),
 /// over lights with n . d > 0, where region j (see kEnvironmentRegionsW) has power P_j = integral of L_env
 /// d_omega, mean vector m_j = (integral of d d_omega) / (its solid angle), direction d_j = m_j / |m_j|; f looked
-/// up in the grid's cell as MERL's BRDFRead.cpp does (no data counts as 0), value * scale; XYZ by the CIE 1931
+/// up in the grid's cell as MERL's BRDFRead.cpp does (of the directions rounded to float, merl_indices) (no data counts as 0), value * scale; XYZ by the CIE 1931
 /// 2 degree CMFs. Deterministic and independent of the thread count. Grids must share env's wavelengths
 /// (InputError).
 SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const Environment& env, std::size_t size);

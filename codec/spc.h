@@ -100,7 +100,7 @@ struct SpcTarget {
   double de00_p95 = 1.5;
   std::size_t size = 128;
   int max_trials = 8;        ///< trial codings, 2..32
-  double first_step = 0.1;   ///< the first step tried; then x4 or /4 until bracketed, then bisected
+  double first_step = 1;     ///< the first step tried
 };
 
 /// Where a target search ended.
@@ -111,9 +111,10 @@ struct SpcTargetReport {
   double de00_mean = 0, de00_p95 = 0;  ///< what the coded file renders to
 };
 
-/// Encodes `grid` by the transform method (options.method and options.step are ignored) with the coarsest step that
-/// meets `target` under `env`, found by multiplying target.first_step by 4 or 1/4 until bracketed and then bisecting
-/// in log steps, at most target.max_trials renderings; not meeting it is reported in `target_report`, not thrown.
+/// Encodes `grid` by the transform method (options.method and options.step are ignored) with the coarsest step found
+/// to meet `target` under `env`: from target.first_step, each next step scaled from the last trial's error (2 to 16
+/// times) until the target is bracketed, then interpolated in log error against log step until the bracket is within
+/// 20 %, at most target.max_trials renderings; not meeting it is reported in `target_report`, not thrown.
 std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& options,
                                                const SpcTarget& target, const Environment& env,
                                                SpcTargetReport& target_report, SpcReport* report = nullptr,
