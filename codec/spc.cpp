@@ -592,11 +592,10 @@ SpcCoefficients with_header(SpcCoefficients c, const store::Grid& grid, const Sp
   return c;
 }
 
-std::vector<std::uint8_t> encode_transform(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& o,
-                                           SpcReport* report, const std::string& source) {
-  check_transform_options(grid, basis, o);
-  const Model md = transform_model(grid, basis, o);
-  const Transform t = transform_of(o, o.step);
+// The file of a transformed model at one step, and what it measures against the grid when asked.
+std::vector<std::uint8_t> code_model(const Model& md, const store::Grid& grid, const SpcBasis& basis, const SpcOptions& o,
+                                     double step, SpcReport* report, const std::string& source) {
+  const Transform t = transform_of(o, step);
   const auto q = quantise(md, t);
   auto bytes = pack_v2(md, basis, grid, t, q, source);
   if (report) {
@@ -607,6 +606,12 @@ std::vector<std::uint8_t> encode_transform(const store::Grid& grid, const SpcBas
     report->shape_step = t.step_c;
   }
   return bytes;
+}
+
+std::vector<std::uint8_t> encode_transform(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& o,
+                                           SpcReport* report, const std::string& source) {
+  check_transform_options(grid, basis, o);
+  return code_model(transform_model(grid, basis, o), grid, basis, o, o.step, report, source);
 }
 
 SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only) {
@@ -762,19 +767,7 @@ std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const Sp
   tr.step = chosen.step;
   tr.de00_mean = chosen.de.mean;
   tr.de00_p95 = chosen.de.p95;
-  SpcOptions final = o;
-  final.step = chosen.step;
-  const Transform t = transform_of(final, chosen.step);
-  const auto q = quantise(md, t);
-  auto bytes = pack_v2(md, basis, grid, t, q, source);
-  if (report) {
-    const SpcCoefficients c = with_header(reconstruct(q, t, md.k, md.s, md.valid, "encode"), grid, basis, source);
-    measure(grid, c, basis, bytes.size(), *report);
-    report->magnitude_scale = md.s * md.scale;
-    report->magnitude_step = t.step_y;
-    report->shape_step = t.step_c;
-  }
-  return bytes;
+  return code_model(md, grid, basis, o, chosen.step, report, source);
 }
 
 SpcBasis coding_basis(const store::Basis& basis, std::size_t k, const std::string& reference) {
