@@ -1,7 +1,9 @@
 #include "specula/core/wavelengths.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <numeric>
 #include <sstream>
 
 #include "specula/core/error.h"
@@ -33,6 +35,25 @@ WavelengthGrid::WavelengthGrid(std::vector<double> nm, std::string_view context)
       throw InputError(std::string(context) + ": wavelengths are not increasing (" + num(nm_[i - 1]) +
                        " nm then " + num(nm_[i]) + " nm at index " + std::to_string(i) + ")");
   }
+}
+
+std::vector<std::size_t> ascending_band_order(std::span<const double> nm, std::vector<std::size_t> bands,
+                                              const std::function<void(std::size_t, std::size_t)>& repeated) {
+  std::stable_sort(bands.begin(), bands.end(), [&](std::size_t a, std::size_t b) { return nm[a] < nm[b]; });
+  for (std::size_t i = 1; i < bands.size(); ++i)
+    if (nm[bands[i]] == nm[bands[i - 1]]) {
+      repeated(std::min(bands[i], bands[i - 1]), std::max(bands[i], bands[i - 1]));
+      throw LibraryError("ascending_band_order: wavelength " + num(nm[bands[i]]) +
+                         " appears twice and the caller's handler did not throw");
+    }
+  return bands;
+}
+
+std::vector<std::size_t> ascending_band_order(std::span<const double> nm,
+                                              const std::function<void(std::size_t, std::size_t)>& repeated) {
+  std::vector<std::size_t> all(nm.size());
+  std::iota(all.begin(), all.end(), std::size_t{0});
+  return ascending_band_order(nm, std::move(all), repeated);
 }
 
 WavelengthGrid WavelengthGrid::range(double first, double last, double step) {

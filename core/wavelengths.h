@@ -1,6 +1,8 @@
 #pragma once
 // Wavelength grids (nm) and linear resampling between them.
 #include <Eigen/Core>
+#include <cstddef>
+#include <functional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -37,6 +39,15 @@ class WavelengthGrid {
  private:
   std::vector<double> nm_;
 };
+
+/// `bands` (indices into `nm`) in ascending order of their wavelengths: a list given unsorted is kept exactly, permuted,
+/// never resampled. For a wavelength listed twice calls `repeated(first, second)` (indices, first < second), which
+/// throws the caller's InputError naming the file; LibraryError if it returns.
+std::vector<std::size_t> ascending_band_order(std::span<const double> nm, std::vector<std::size_t> bands,
+                                              const std::function<void(std::size_t, std::size_t)>& repeated);
+/// ascending_band_order of every band 0..nm.size()-1.
+std::vector<std::size_t> ascending_band_order(std::span<const double> nm,
+                                              const std::function<void(std::size_t, std::size_t)>& repeated);
 
 /// Linear-interpolation matrix R (to.size() x from.size()) so that R * s resamples s; throws InputError
 /// naming the first wavelength of `to` outside [from.front(), from.back()] (no extrapolation).

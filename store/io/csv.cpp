@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <numeric>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -14,6 +15,7 @@
 #include "specula/core/atomic_file.h"
 #include "specula/core/error.h"
 #include "specula/core/text.h"
+#include "specula/core/wavelengths.h"
 
 namespace specula::store {
 namespace {
@@ -154,15 +156,17 @@ class Reader {
                "; every row needs the same number of cells");
   }
 
-  void check_increasing(const std::vector<double>& wl, const std::vector<std::size_t>& lines,
-                        const std::vector<std::size_t>& columns, const std::string& hint) const {
-    for (std::size_t i = 0; i < wl.size(); ++i) {
-      if (wl[i] <= 0)
-        fail(lines[i], columns[i], "wavelength " + format(wl[i]) + " is not positive; " + hint);
-      if (i > 0 && !(wl[i] > wl[i - 1]))
-        fail(lines[i], columns[i], "wavelength " + format(wl[i]) + " is not greater than the previous " +
-                                       format(wl[i - 1]) + "; " + hint);
-    }
+  // The bands in ascending order of their wavelengths wl (a list given unsorted is kept, its values permuted);
+  // fails at the cell of a wavelength that is not positive or appears twice.
+  std::vector<std::size_t> band_order(const std::vector<double>& wl, const std::vector<std::size_t>& lines,
+                                      const std::vector<std::size_t>& columns, const std::string& hint) const {
+    for (std::size_t i = 0; i < wl.size(); ++i)
+      if (wl[i] <= 0) fail(lines[i], columns[i], "wavelength " + format(wl[i]) + " is not positive; " + hint);
+    return ascending_band_order(wl, [&](std::size_t first, std::size_t second) {
+      fail(lines[second], columns[second], "wavelength " + format(wl[second]) + " appears twice (also at line " +
+                                               std::to_string(lines[first]) + ", column " +
+                                               std::to_string(columns[first]) + "); remove one of them");
+    });
   }
 
  private:
@@ -246,12 +250,16 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
       for (std::size_t i = 1; i < row.cells.size(); ++i)
         by_row.push_back(rd.number<float>(row.cells[i], row.line, "spectrum"));
     }
-    rd.check_increasing(wl, lines, columns, "the first column must list wavelengths in nm in increasing order");
+    const std::vector<std::size_t> order =
+        rd.band_order(wl, lines, columns, "the first column must list wavelengths in nm");
     const std::size_t B = wl.size();
     col.values.resize(n * B);
-    for (std::size_t b = 0; b < B; ++b)
-      for (std::size_t s = 0; s < n; ++s) col.values[s * B + b] = by_row[b * n + s];
-    col.wavelengths = WavelengthGrid(std::move(wl), file);
+    std::vector<double> nm(B);
+    for (std::size_t b = 0; b < B; ++b) {
+      nm[b] = wl[order[b]];
+      for (std::size_t s = 0; s < n; ++s) col.values[s * B + b] = by_row[order[b] * n + s];
+    }
+    col.wavelengths = WavelengthGrid(std::move(nm), file);
     return col;
   }
 
@@ -275,6 +283,7 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
   }
 
   std::size_t first_data = 0, name_col = 0, B = 0;
+  std::vector<std::size_t> order;  // file column of each band, by ascending wavelength
   if (has_header) {
     const std::string hint =
         "the first row must list wavelengths in nm (or give the `wavelengths` option for a file without a header row)";
@@ -289,14 +298,16 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
       columns.push_back(hc[i].column);
     }
     if (wl.empty()) rd.fail(head.line, 0, "the header row has no wavelengths; " + hint);
-    rd.check_increasing(wl, lines, columns, hint);
-    if (wl.back() < 100)
-      rd.fail(head.line, 0, "header values " + format(wl.front()) + " to " + format(wl.back()) +
+    order = rd.band_order(wl, lines, columns, hint);
+    if (wl[order.back()] < 100)
+      rd.fail(head.line, 0, "header values " + format(wl[order.front()]) + " to " + format(wl[order.back()]) +
                                 " are not wavelengths in nm; " + hint);
     B = wl.size();
     name_col = head_named ? 1 : 0;
     first_data = 1;
-    col.wavelengths = WavelengthGrid(std::move(wl), file);
+    std::vector<double> nm;
+    for (const std::size_t b : order) nm.push_back(wl[b]);
+    col.wavelengths = WavelengthGrid(std::move(nm), file);
   } else {
     B = wavelengths.size();
     bool header_like = head_all_numeric && head_wl.size() >= 2 && head_wl.front() >= 100;
@@ -313,11 +324,14 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
               "row has " + std::to_string(hc.size()) + " cells but the `wavelengths` option has " + std::to_string(B) +
                   " bands; give a name and one value per band, or add a header row of wavelengths");
     col.wavelengths = wavelengths;
+    order.resize(B);
+    std::iota(order.begin(), order.end(), std::size_t{0});
   }
   const std::size_t expected = name_col + B;
   const std::string origin = has_header ? "the header on line " + std::to_string(head.line)
                                         : "the first row (line " + std::to_string(head.line) + ")";
   col.values.reserve((rows.size() - first_data) * B);
+  std::vector<float> spectrum(B);  // one row in the file's column order
   for (std::size_t r = first_data; r < rows.size(); ++r) {
     const Row& row = rows[r];
     rd.check_count(row, expected, origin);
@@ -327,8 +341,8 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
     } else {
       col.names.push_back("spectrum_" + std::to_string(col.names.size() + 1));
     }
-    for (std::size_t i = name_col; i < row.cells.size(); ++i)
-      col.values.push_back(rd.number<float>(row.cells[i], row.line, "spectrum"));
+    for (std::size_t b = 0; b < B; ++b) spectrum[b] = rd.number<float>(row.cells[name_col + b], row.line, "spectrum");
+    for (const std::size_t b : order) col.values.push_back(spectrum[b]);
   }
   if (col.names.empty()) rd.fail(head.line, 0, "a header row but no spectra; add one row per spectrum");
   return col;

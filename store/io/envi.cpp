@@ -463,14 +463,12 @@ std::vector<std::size_t> kept_band_order(const EnviHeader& h, const std::vector<
   if (order.empty())
     throw InputError(hname + ": bbl marks all " + std::to_string(nm.size()) +
                      " bands bad; fix the bbl list or pass honour_bbl = false to keep them");
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return nm[a] < nm[b]; });
-  for (std::size_t i = 1; i < order.size(); ++i)
-    if (nm[order[i]] == nm[order[i - 1]])
-      throw InputError(hname + ": wavelength " +
-                       format_real(h.wavelength.size() == nm.size() ? h.wavelength[order[i]] : nm[order[i]]) +
-                       " appears twice (bands " + std::to_string(std::min(order[i], order[i - 1]) + 1) + " and " +
-                       std::to_string(std::max(order[i], order[i - 1]) + 1) + "); remove one of them");
-  return order;
+  return ascending_band_order(nm, std::move(order), [&](std::size_t first, std::size_t second) {
+    throw InputError(hname + ": wavelength " +
+                     format_real(h.wavelength.size() == nm.size() ? h.wavelength[second] : nm[second]) +
+                     " appears twice (bands " + std::to_string(first + 1) + " and " + std::to_string(second + 1) +
+                     "); remove one of them");
+  });
 }
 
 }  // namespace

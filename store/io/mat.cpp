@@ -11,6 +11,7 @@
 #include <fstream>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <system_error>
 #include <utility>
@@ -512,13 +513,42 @@ Layout image_layout(MatFile& mf, const std::vector<Entry>& all, const std::strin
   return l;
 }
 
-// The grid of `bands` bands of `var`: the file's vector, else the argument (through a kept-band list).
-WavelengthGrid resolve_grid(MatFile& mf, const std::vector<Entry>& all, const std::optional<FileGrid>& fg,
-                            const std::string& var, std::size_t bands, const WavelengthGrid& given) {
+// The wavelengths of a variable's bands and the band of the variable at each of them (ascending).
+struct BandGrid {
+  WavelengthGrid grid;
+  std::vector<std::size_t> order;
+};
+
+// `nm` (one per band of a variable, listed by `list`) sorted, the bands permuted with them.
+BandGrid sorted_grid(const std::vector<double>& nm, const std::string& file, const std::string& list) {
+  std::vector<std::size_t> order = ascending_band_order(nm, [&](std::size_t first, std::size_t second) {
+    throw InputError(file + ": variable '" + list + "' lists wavelength " + num(nm[second]) + " nm twice (bands " +
+                     std::to_string(first + 1) + " and " + std::to_string(second + 1) + "); remove one of them");
+  });
+  std::vector<double> sorted;
+  for (const std::size_t b : order) sorted.push_back(nm[b]);
+  return {WavelengthGrid(std::move(sorted), file + ": variable '" + list + "'"), std::move(order)};
+}
+
+// Each spectrum of `values` (spectra x bands, band fastest) rearranged so band k holds its band order[k].
+void permute_bands(std::span<float> values, const std::vector<std::size_t>& order) {
+  const std::size_t bands = order.size();
+  bool identity = true;
+  for (std::size_t k = 0; k < bands; ++k) identity = identity && order[k] == k;
+  if (identity) return;
+  std::vector<float> spectrum(bands);
+  for (std::size_t at = 0; at < values.size(); at += bands) {
+    std::copy_n(values.begin() + std::ptrdiff_t(at), bands, spectrum.begin());
+    for (std::size_t k = 0; k < bands; ++k) values[at + k] = spectrum[order[k]];
+  }
+}
+
+// The grid of `bands` bands of `var`: the file's vector (any order), else the argument (through a kept-band list).
+BandGrid resolve_grid(MatFile& mf, const std::vector<Entry>& all, const std::optional<FileGrid>& fg,
+                      const std::string& var, std::size_t bands, const WavelengthGrid& given) {
   const std::string& file = mf.file();
   std::string problem;
-  if (fg && !fg->numbering && !fg->nm.empty() && fg->length == bands)
-    return WavelengthGrid(fg->nm, file + ": variable '" + fg->name + "'");
+  if (fg && !fg->numbering && !fg->nm.empty() && fg->length == bands) return sorted_grid(fg->nm, file, fg->name);
   if (fg) {
     const Entry* e = find_ci(all, {lower(fg->name).c_str()});
     problem = fg->numbering
@@ -534,7 +564,7 @@ WavelengthGrid resolve_grid(MatFile& mf, const std::vector<Entry>& all, const st
                                       : file + ": no wavelength variable (wavelength, wavelengths, bands, wl or lambda) for the " +
                                             std::to_string(bands) + " bands of '" + var +
                                             "'; give the `wavelengths` option FIRST:LAST:STEP");
-  if (given.size() == bands) return given;
+  if (given.size() == bands) return sorted_grid({given.values().begin(), given.values().end()}, file, var);
   if (const Entry* sel = find_ci(all, {"slectbands", "selectbands"});
       sel && numeric(*sel->head) && is_vector(*sel->head) && element_count(*sel->head) == bands) {
     const auto idx = read_doubles(mf, sel->name, bands);
@@ -546,7 +576,7 @@ WavelengthGrid resolve_grid(MatFile& mf, const std::vector<Entry>& all, const st
                          "; pass the full grid the 1-based band numbers refer to");
       nm[i] = given[static_cast<std::size_t>(idx[i]) - 1];
     }
-    return WavelengthGrid(std::move(nm), file + ": variable '" + sel->name + "'");
+    return sorted_grid(nm, file, sel->name);
   }
   throw InputError(file + ": variable '" + var + "' has " + std::to_string(bands) + " bands but the `wavelengths` option gives " +
                    std::to_string(given.size()) + "; pass one wavelength per band");
@@ -634,7 +664,8 @@ Cube read_mat(const std::filesystem::path& path, const std::string& var_in,
   Cube cube;
   cube.provenance.source_file = path.string();
   cube.provenance.importer = "mat";
-  cube.wavelengths = resolve_grid(mf, all, fg, var, bands, wavelengths);
+  BandGrid bg = resolve_grid(mf, all, fg, var, bands, wavelengths);
+  cube.wavelengths = std::move(bg.grid);
 
   std::vector<std::uint8_t> mask;
   if (mask_var) {
@@ -679,6 +710,7 @@ Cube read_mat(const std::filesystem::path& path, const std::string& var_in,
         break;
     }
   });
+  permute_bands(cube.data, bg.order);
   cube.mask = std::move(mask);
   mf.close();
   return cube;
@@ -709,7 +741,8 @@ Collection read_mat_collection(const std::filesystem::path& path, const std::str
   const std::size_t bands = columns ? d0 : d1, count = columns ? d1 : d0;
 
   Collection col;
-  col.wavelengths = resolve_grid(mf, all, fg, var, bands, wavelengths);
+  BandGrid bg = resolve_grid(mf, all, fg, var, bands, wavelengths);
+  col.wavelengths = std::move(bg.grid);
   col.provenance.source_file = path.string();
   col.provenance.importer = "mat";
   const Var data = mf.read(var);
@@ -725,6 +758,7 @@ Collection read_mat_collection(const std::filesystem::path& path, const std::str
       col.values[j * bands + k] = static_cast<float>(p[i]);
     }
   });
+  permute_bands(col.values, bg.order);
   mf.close();
   return col;
 }

@@ -4,7 +4,8 @@
 // Wavelength variable: the first variable whose name is, case-insensitively, `wavelength`, `wavelengths`,
 // `bands`, `wl` or `lambda` and which is a numeric vector. Values all in [0.2, 20] and not all integers are
 // micrometres and become nm (x1000); anything else is kept as nm. A vector holding exactly 1, 2, ..., B is
-// band numbering, not wavelengths, and counts as absent. A usable file vector wins over the `wavelengths`
+// band numbering, not wavelengths, and counts as absent. An unsorted vector is sorted with the bands (a
+// wavelength listed twice is an InputError). A usable file vector wins over the `wavelengths`
 // argument; without one the argument is the grid, and without either the readers throw one InputError
 // asking for the `wavelengths` option.
 //

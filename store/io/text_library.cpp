@@ -5,7 +5,6 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
-#include <numeric>
 #include <sstream>
 
 #include "specula/core/error.h"
@@ -149,14 +148,11 @@ TextLibrary read_usgs_spectra(std::span<const std::filesystem::path> spectra,
     out.notes.push_back(spectra.front().string() + (kept.size() > 1 ? " and the others" : "") + ": dropped " +
                         std::to_string(B - order.size()) + " of " + std::to_string(B) +
                         " bands holding the missing marker -1.23e34");
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return wl.values[a] < wl.values[b]; });
+  order = ascending_band_order(wl.values, std::move(order), [&](std::size_t, std::size_t second) {
+    bad_line(wavelengths, second + 2, "wavelength " + num(wl.values[second]) + " appears twice; remove one of them");
+  });
   std::vector<double> nm;
-  for (std::size_t i = 0; i < order.size(); ++i) {
-    if (i > 0 && wl.values[order[i]] == wl.values[order[i - 1]])
-      bad_line(wavelengths, std::max(order[i], order[i - 1]) + 2,
-               "wavelength " + num(wl.values[order[i]]) + " appears twice; remove one of them");
-    nm.push_back(wl.values[order[i]] * 1000.0);
-  }
+  for (const std::size_t b : order) nm.push_back(wl.values[b] * 1000.0);
 
   Collection& col = out.collection;
   col.wavelengths = WavelengthGrid(std::move(nm), wavelengths.string());
@@ -264,13 +260,11 @@ EcoFile read_ecostress_file(const std::filesystem::path& p) {
     bad_line(p, declared_line, "Number of X Values says " + std::to_string(declared) + " but the file has " +
                                    std::to_string(rows.size()) + " data rows" +
                                    (rows.size() < declared ? "; the file is truncated" : "; fix the count"));
-  std::vector<std::size_t> order(rows.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return rows[a].first < rows[b].first; });
-  for (std::size_t k = 1; k < order.size(); ++k)
-    if (rows[order[k]].first == rows[order[k - 1]].first)
-      bad_line(p, std::max(row_line[order[k]], row_line[order[k - 1]]),
-               "wavelength " + num(rows[order[k]].first) + " appears twice; remove one of the rows");
+  std::vector<double> x;
+  for (const auto& r : rows) x.push_back(r.first);
+  const std::vector<std::size_t> order = ascending_band_order(x, [&](std::size_t, std::size_t second) {
+    bad_line(p, row_line[second], "wavelength " + num(x[second]) + " appears twice; remove one of the rows");
+  });
   const double xf = f.micrometers ? 1000.0 : 1.0, yd = f.percent ? 100.0 : 1.0;
   for (std::size_t k : order) {
     f.nm.push_back(rows[k].first * xf);

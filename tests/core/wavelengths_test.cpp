@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <vector>
+
 #include "specula/core/error.h"
 
 using specula::WavelengthGrid;
@@ -38,6 +40,26 @@ TEST(WavelengthGrid, RejectsBadInput) {
     EXPECT_NE(std::string(e.what()).find("scan.hdr"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("405"), std::string::npos);
   }
+}
+
+TEST(AscendingBandOrder, SortsTheGivenBandsAndReportsARepeat) {
+  const std::vector<double> nm = {600, 400, 650, 500};
+  const auto never = [](std::size_t, std::size_t) { FAIL() << "no wavelength is repeated"; };
+  EXPECT_EQ(specula::ascending_band_order(nm, never), (std::vector<std::size_t>{1, 3, 0, 2}));
+  EXPECT_EQ(specula::ascending_band_order(nm, {0, 2, 3}, never), (std::vector<std::size_t>{3, 0, 2}));
+
+  const std::vector<double> twice = {500, 400, 450, 400};
+  std::size_t first = 0, second = 0;
+  EXPECT_THROW(specula::ascending_band_order(twice,
+                                             [&](std::size_t a, std::size_t b) {
+                                               first = a, second = b;
+                                               throw specula::InputError("repeated");
+                                             }),
+               specula::InputError);
+  EXPECT_EQ(first, 1u);
+  EXPECT_EQ(second, 3u);
+  EXPECT_EQ(specula::ascending_band_order(twice, {0, 1, 2}, never), (std::vector<std::size_t>{1, 2, 0}));
+  EXPECT_THROW(specula::ascending_band_order(twice, [](std::size_t, std::size_t) {}), specula::LibraryError);
 }
 
 TEST(Resample, LinearFunctionIsReproducedExactly) {

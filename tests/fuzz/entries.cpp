@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include "specula/core/error.h"
 #include "specula/store/io/csv.h"
 #include "specula/store/io/envi.h"
+#include "specula/store/io/gdal.h"
 #include "specula/store/io/mask.h"
 #include "specula/store/io/mat.h"
 #include "specula/store/io/text_library.h"
@@ -177,10 +179,33 @@ void csv(std::span<const std::uint8_t> input) {
   expect_clean([&] { check_collection(store::read_csv_collection(p)); }, p.string());
 }
 
+void gdal(std::span<const std::uint8_t> input) {
+  const fs::path p = write("input.tif", text_of(input));
+  expect_clean([&] {
+    store::GdalRaster r(p, WavelengthGrid({450, 550, 650}));
+    check_grid(r.wavelengths(), r.bands());
+    check(r.height() > 0 && r.width() > 0, "non-empty raster");
+    check(r.fwhm().empty() || r.fwhm().size() == r.bands(), "one fwhm per band");
+    constexpr std::size_t kStrip = 2;
+    // A header claiming a huge raster is GDAL's to read (sparse blocks read as zeros), not ours: skip it.
+    if (double(r.height()) * double(r.width()) * double(r.bands()) > double(1 << 22)) return;
+    std::vector<float> spectra;
+    std::vector<std::uint8_t> mask;
+    for (std::size_t y0 = 0; y0 < r.height(); y0 += kStrip) {
+      const std::size_t rows = std::min(kStrip, r.height() - y0);
+      spectra.assign(rows * r.width() * r.bands(), -1.0f);
+      mask.assign(rows * r.width(), 2);
+      r.read_rows(y0, rows, spectra, mask);
+      for (const std::uint8_t v : mask) check(v == 0 || v == 1, "mask holds 0 or 1");
+    }
+  }, p.string());
+}
+
 const std::vector<Target>& targets() {
   static const std::vector<Target> all = {{"envi_header", envi_header}, {"envi", envi},
                                           {"mat", mat},                 {"mask", mask},
-                                          {"text_library", text_library}, {"csv", csv}};
+                                          {"text_library", text_library}, {"csv", csv},
+                                          {"gdal", gdal}};
   return all;
 }
 

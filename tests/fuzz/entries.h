@@ -37,6 +37,9 @@ void mask(std::span<const std::uint8_t> input);
 void text_library(std::span<const std::uint8_t> input);
 /// A CSV spectral table.
 void csv(std::span<const std::uint8_t> input);
+/// A raster as a .tif through GdalRaster (3-band fallback grid), every row read in strips of 2. NaN or Inf in a valid
+/// pixel is not a defect: the import's --nan policy decides about it.
+void gdal(std::span<const std::uint8_t> input);
 
 /// Every target, in the order above.
 const std::vector<Target>& targets();

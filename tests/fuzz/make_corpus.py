@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Writes the seed corpora of tests/fuzz/corpus/<target>/ from the layouts the reader tests use as fixtures
-(tests/store/io/*_test.cpp), a few hundred bytes each. Run with Debian's python3 (numpy, scipy, h5py):
+(tests/store/io/*_test.cpp), a few hundred bytes each. Run with Debian's python3 (numpy, scipy, h5py, gdal):
 /usr/bin/python3 tests/fuzz/make_corpus.py. Crash reproducers found by fuzzing are added by hand beside them."""
 import os
 import struct
@@ -121,3 +121,48 @@ with open(tmp, "r+b") as f:
 with open(tmp, "rb") as f:
     put("mat", "v73-cube-bands.mat", f.read())
 os.remove(tmp)
+
+# gdal: 4x3-pixel, 3-band GeoTIFFs: int16 with nodata (no wavelengths: the fallback grid), float32 with wavelength
+# and fwhm metadata in micrometres; uncompressed and deflate (band-interleaved, tiled).
+from osgeo import gdal  # noqa: E402  (Debian's python3-gdal)
+
+gdal.UseExceptions()
+
+
+def tif(name, dtype, options, fill):
+    path = "/vsimem/" + name
+    d = gdal.GetDriverByName("GTiff").Create(path, 4, 3, 3, dtype, options)
+    fill(d)
+    d = None
+    f = gdal.VSIFOpenL(path, "rb")
+    gdal.VSIFSeekL(f, 0, 2)
+    size = gdal.VSIFTellL(f)
+    gdal.VSIFSeekL(f, 0, 0)
+    put("gdal", name, bytes(gdal.VSIFReadL(1, size, f)))
+    gdal.VSIFCloseL(f)
+    gdal.Unlink(path)
+
+
+def int16_nodata(d):
+    for b in range(3):
+        band = d.GetRasterBand(b + 1)
+        band.SetNoDataValue(-9999)
+        values = np.arange(12, dtype=np.int16).reshape(3, 4) * 10 + b
+        values[1, 2] = -9999
+        band.WriteArray(values)
+
+
+def float32_wavelengths(d):
+    for b in range(3):
+        band = d.GetRasterBand(b + 1)
+        band.SetMetadataItem("wavelength", "%g" % (0.45 + 0.1 * b))
+        band.SetMetadataItem("wavelength_units", "Micrometers")
+        band.SetMetadataItem("fwhm", "0.01")
+        band.WriteArray(np.arange(12, dtype=np.float32).reshape(3, 4) / 16 + b)
+
+
+tif("int16-nodata.tif", gdal.GDT_Int16, [], int16_nodata)
+tif("int16-nodata-deflate-band.tif", gdal.GDT_Int16, ["COMPRESS=DEFLATE", "INTERLEAVE=BAND"], int16_nodata)
+tif("float32-wavelengths.tif", gdal.GDT_Float32, [], float32_wavelengths)
+tif("float32-wavelengths-deflate-tiled.tif", gdal.GDT_Float32, ["COMPRESS=DEFLATE", "TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=16"],
+    float32_wavelengths)

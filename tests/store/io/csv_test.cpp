@@ -86,6 +86,28 @@ TEST(Csv, TransposedLayout) {
   EXPECT_EQ(c.wavelengths[2], 420.0);
 }
 
+// Issue 18: an unsorted band list is kept, its values permuted with it; a wavelength listed twice is refused.
+TEST(Csv, UnsortedWavelengthsAreSortedWithTheirValues) {
+  ScratchDir dir;
+  write_file(dir / "rows.csv", "name,600,400,500\nA,0.6,0.4,0.5\nB,6,4,5\n");
+  const Collection r = read_csv_collection(dir / "rows.csv");
+  ASSERT_EQ(r.bands(), 3u);
+  EXPECT_EQ(std::vector<double>(r.wavelengths.values().begin(), r.wavelengths.values().end()),
+            (std::vector<double>{400, 500, 600}));
+  EXPECT_EQ(r.values, (std::vector<float>{0.4f, 0.5f, 0.6f, 4, 5, 6}));
+
+  write_file(dir / "columns.csv", "wavelength,A,B\n410,0.41,4.1\n400,0.40,4.0\n420,0.42,4.2\n");
+  const Collection c = read_csv_collection(dir / "columns.csv");
+  ASSERT_EQ(c.bands(), 3u);
+  EXPECT_EQ(std::vector<double>(c.wavelengths.values().begin(), c.wavelengths.values().end()),
+            (std::vector<double>{400, 410, 420}));
+  EXPECT_EQ(c.values, (std::vector<float>{0.40f, 0.41f, 0.42f, 4.0f, 4.1f, 4.2f}));
+
+  write_file(dir / "twice.csv", "wavelength,A\n410,1\n400,2\n410,3\n");
+  const std::string m = input_error(dir / "twice.csv");
+  EXPECT_NE(m.find("twice.csv:4:1: wavelength 410 appears twice (also at line 2, column 1)"), std::string::npos) << m;
+}
+
 TEST(Csv, RoundTripIsExact) {
   Collection c;
   c.names = {"plain", "with, comma", "with \"quote\"", " padded ", "#hash"};
@@ -137,9 +159,11 @@ TEST(Csv, BadCellsNameLineAndColumn) {
   m = input_error(dir / "empty.csv");
   EXPECT_NE(m.find("empty.csv:2:2: empty cell"), std::string::npos) << m;
 
-  write_file(dir / "order.csv", "name,400,500,450\nA,0.1,0.2,0.3\n");
+  write_file(dir / "order.csv", "name,400,500,400\nA,0.1,0.2,0.3\n");
   m = input_error(dir / "order.csv");
-  EXPECT_NE(m.find("order.csv:1:4: wavelength 450"), std::string::npos) << m;
+  EXPECT_NE(m.find("order.csv:1:4: wavelength 400 appears twice (also at line 1, column 2); remove one of them"),
+            std::string::npos)
+      << m;
 
   write_file(dir / "tnan.csv", "wavelength,a,b\n400,0.1,0.2\n410,inf,0.2\n");
   m = input_error(dir / "tnan.csv");

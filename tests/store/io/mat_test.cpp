@@ -447,6 +447,50 @@ TEST(MatLayouts, IsetcamLibraryIsACollection) {
   }
 }
 
+// Issue 18: an unsorted wavelength variable is kept, the bands permuted with it; a wavelength listed twice is refused.
+TEST(MatLayouts, UnsortedWavelengthsAreSortedWithTheirBands) {
+  const std::vector<double> unsorted = {500, 400, 600, 450, 550};
+  const std::size_t source[kBands] = {1, 3, 0, 4, 2};  // the file's band at 400, 450, 500, 550, 600 nm
+  ScratchDir dir;
+  ASSERT_TRUE(write_mat(dir / "cube.mat", MAT_FT_MAT5,
+                        {make_var("wavelengths", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands}, unsorted), ref_double()}));
+  const Cube cube = read_mat(dir / "cube.mat", "ref", std::nullopt, {});
+  ASSERT_EQ(cube.bands, kBands);
+  for (std::size_t k = 0; k < kBands; ++k) EXPECT_EQ(cube.wavelengths[k], kNm[k]);
+  for (std::size_t r = 0; r < kRows; ++r)
+    for (std::size_t c = 0; c < kCols; ++c)
+      for (std::size_t k = 0; k < kBands; ++k)
+        EXPECT_EQ(cube.pixel(r, c)[k], static_cast<float>(f(r, c, source[k]) + 0.5)) << r << "," << c << "," << k;
+
+  constexpr std::size_t kSpectra = 2;
+  std::vector<double> library(kBands * kSpectra);  // one spectrum per column, in the file's band order
+  for (std::size_t j = 0; j < kSpectra; ++j)
+    for (std::size_t b = 0; b < kBands; ++b) library[b + kBands * j] = double(j) + 0.001 * unsorted[b];
+  ASSERT_TRUE(write_mat(dir / "lib.mat", MAT_FT_MAT5,
+                        {make_var("wavelength", MAT_C_DOUBLE, MAT_T_DOUBLE, {kBands, 1}, unsorted),
+                         make_var("data", MAT_C_DOUBLE, MAT_T_DOUBLE, {kBands, kSpectra}, library)}));
+  const Collection col = read_mat_collection(dir / "lib.mat", "", {});
+  ASSERT_EQ(col.bands(), kBands);
+  for (std::size_t k = 0; k < kBands; ++k) EXPECT_EQ(col.wavelengths[k], kNm[k]);
+  for (std::size_t j = 0; j < kSpectra; ++j)
+    for (std::size_t k = 0; k < kBands; ++k)
+      EXPECT_EQ(col.values[j * kBands + k], static_cast<float>(library[source[k] + kBands * j])) << j << "," << k;
+
+  ASSERT_TRUE(write_mat(dir / "twice.mat", MAT_FT_MAT5,
+                        {make_var("wavelengths", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands},
+                                  std::vector<double>{500, 400, 600, 400, 550}),
+                         ref_double()}));
+  try {
+    read_mat(dir / "twice.mat", "ref", std::nullopt, {});
+    ADD_FAILURE() << "a wavelength listed twice was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "twice.mat: variable 'wavelengths' lists wavelength 400 nm twice (bands 2 and 4); remove one of them"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(MatLayouts, WavelengthNamesAndUnitsRule) {
   ScratchDir dir;
   const std::vector<double> numbering = {1, 2, 3, 4, 5}, ints = {1, 2, 3, 4, 6};
