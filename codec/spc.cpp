@@ -522,6 +522,19 @@ Transform transform_of(const SpcOptions& o, double step) {
   return {o.levels, step, step * o.shape_step_ratio, o.frequency_factor, kReconstruction};
 }
 
+// The finest step (of options o's ratios) whose codes all stay below kMaxCode / 2.
+double finest_step(const Model& md, const SpcOptions& o) {
+  const Transform unit = transform_of(o, 1);
+  const CubeLayout layout = cube_layout(unit.levels);
+  std::vector<double> need(md.cubes.size(), 0);
+  parallel_for(md.cubes.size(), [&](std::size_t cube) {
+    for_each_coefficient(layout, unit.step(cube / 2), unit.frequency, [&](std::size_t i, double step) {
+      need[cube] = std::max(need[cube], std::abs(double(md.cubes[cube][i])) / step);
+    });
+  }, 1);
+  return *std::max_element(need.begin(), need.end()) / (kMaxCode / 2);
+}
+
 void check_transform_options(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& o) {
   if (grid.brdf.size() != grid.bands() * kMerlCells) throw UsageError("encode: grid values do not match bands x 90 x 90 x 180");
   if (!(std::isfinite(o.step) && o.step > 0 && o.step <= 10))
@@ -743,7 +756,8 @@ std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const Sp
   // from a single trial (by 2 to 16 times), then by interpolating log excess against log step inside the bracket
   // (kept a tenth of the bracket away from its ends), until the bracket is within 20 %.
   constexpr double kAim = 0.95;
-  double step = target.first_step;
+  const double finest = std::max(1e-6, finest_step(md, o));
+  double step = std::max(target.first_step, finest);
   while (tr.trials < target.max_trials) {
     Trial t = trial(step);
     (t.excess <= 1 ? good : bad) = std::move(t);
@@ -758,8 +772,8 @@ std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const Sp
       step = good->step * std::clamp(kAim / std::max(good->excess, 1e-6), 2.0, 16.0);
       if (step > 10) break;
     } else {
-      step = bad->step / std::clamp(bad->excess / kAim, 2.0, 16.0);
-      if (step < 1e-6) break;
+      if (bad->step <= finest) break;  // the target is out of reach: the basis or the float channels limit it
+      step = std::max(finest, bad->step / std::clamp(bad->excess / kAim, 2.0, 16.0));
     }
   }
   const Trial& chosen = good ? *good : *bad;

@@ -114,7 +114,8 @@ struct SpcTargetReport {
 /// Encodes `grid` by the transform method (options.method and options.step are ignored) with the coarsest step found
 /// to meet `target` under `env`: from target.first_step, each next step scaled from the last trial's error (2 to 16
 /// times) until the target is bracketed, then interpolated in log error against log step until the bracket is within
-/// 20 %, at most target.max_trials renderings; not meeting it is reported in `target_report`, not thrown.
+/// 20 %, at most target.max_trials renderings, never finer than codes of 2^27 allow; not meeting it (a basis that
+/// cannot express the grid's spectra has an error floor) is reported in `target_report`, not thrown.
 std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& options,
                                                const SpcTarget& target, const Environment& env,
                                                SpcTargetReport& target_report, SpcReport* report = nullptr,

@@ -332,6 +332,13 @@ TEST(SpcTransform, AnUnreachableTargetIsReportedNotThrown) {
   EXPECT_EQ(tr.trials, 3);
   EXPECT_GT(tr.de00_mean, 1e-4);
   EXPECT_NO_THROW(decode_spc(bytes, "u.spc"));
+  // Given every trial it wants, the search stops at the finest step the codes allow instead of overflowing them.
+  SpcTargetReport all;
+  EXPECT_NO_THROW(encode_spc_to_target(ward(), self_basis(ward(), 1), {}, {.de00_mean = 1e-4, .de00_p95 = 1e-4, .size = 16,
+                                                                           .max_trials = 32},
+                                       default_environment(kGrid), all));
+  EXPECT_FALSE(all.reached);
+  EXPECT_LT(all.trials, 32);
   EXPECT_THROW(encode_spc_to_target(ward(), self_basis(ward(), 1), {}, {.de00_mean = -1}, default_environment(kGrid), tr),
                UsageError);
 }
