@@ -277,25 +277,32 @@ CubeLayout cube_layout(int levels) { return {{std::size_t(kMerlThetaH), std::siz
 struct Transform {
   int levels = 4;
   double step_y = 0, step_c = 0, frequency = 1, reconstruction = kReconstruction;
+  double specular = 1, extent = 1;  // steps times specular at theta_h index 0, rising linearly to 1 at `extent`
   double step(std::size_t channel) const { return channel == 0 ? step_y : step_c; }
 };
 
-// Calls f(index, step) for every coefficient of a cube, the step of its subband: the channel's step, times
-// frequency^(levels - 1 - l) for the detail bands of level l (0 finest), divided by the subband's synthesis norm
-// so that a step is what an error costs in the channel's own values.
+// Calls f(index, step) for every coefficient of a cube of channel `channel`, the step of its subband: the
+// channel's step, times frequency^(levels - 1 - l) for the detail bands of level l (0 finest), divided by the
+// subband's synthesis norm so that a step is what an error costs in the channel's own values; and times the
+// specular factor near the specular peak: specular + (1 - specular) min(1, h / extent), h the theta_h index its
+// support is centred on ((offset in the subband + 1/2) 2^(l + 1), or 2^levels for the final low cube).
 template <class F>
-void for_each_coefficient(const CubeLayout& c, double channel_step, double frequency, F&& f) {
+void for_each_coefficient(const CubeLayout& c, const Transform& t, std::size_t channel, F&& f) {
   const std::size_t s1 = c.dims[2], s0 = c.dims[1] * c.dims[2];
-  auto band = [&](int l, int o, double step) {
+  auto band = [&](int l, int o, double step, double spread) {
     const auto r0 = c.range(l, o, 0), r1 = c.range(l, o, 1), r2 = c.range(l, o, 2);
-    for (std::size_t i = r0[0]; i < r0[1]; ++i)
+    for (std::size_t i = r0[0]; i < r0[1]; ++i) {
+      const double h = (double(i - r0[0]) + 0.5) * spread;
+      const double at = step * (t.specular + (1 - t.specular) * std::min(1.0, h / t.extent));
       for (std::size_t j = r1[0]; j < r1[1]; ++j)
-        for (std::size_t k = r2[0]; k < r2[1]; ++k) f(i * s0 + j * s1 + k, step);
+        for (std::size_t k = r2[0]; k < r2[1]; ++k) f(i * s0 + j * s1 + k, at);
+    }
   };
-  band(c.levels, 0, channel_step / c.synthesis_norm(c.levels, 0));
+  const double base = t.step(channel);
+  band(c.levels, 0, base / c.synthesis_norm(c.levels, 0), std::ldexp(1.0, c.levels));
   for (int l = c.levels - 1; l >= 0; --l)
     for (int o = 1; o < 8; ++o)
-      band(l, o, channel_step * std::pow(frequency, c.levels - 1 - l) / c.synthesis_norm(l, o));
+      band(l, o, base * std::pow(t.frequency, c.levels - 1 - l) / c.synthesis_norm(l, o), std::ldexp(1.0, l + 1));
 }
 
 // Fills the cells of a 90 x 90 x 180 channel where `known` is 0 so that the channel stays smooth for the transform:
@@ -417,7 +424,7 @@ std::vector<std::vector<std::int32_t>> quantise(const Model& md, const Transform
   parallel_for(md.cubes.size(), [&](std::size_t cube) {
     const std::vector<float>& w = md.cubes[cube];
     std::int32_t* out = q[cube].data();
-    for_each_coefficient(layout, t.step(cube / 2), t.frequency, [&](std::size_t i, double step) {
+    for_each_coefficient(layout, t, cube / 2, [&](std::size_t i, double step) {
       const double a = std::floor(std::abs(double(w[i])) / step + kRounding);
       if (!(a < kMaxCode)) throw UsageError("encode: a transform coefficient needs a code beyond 2^28; raise the step");
       out[i] = std::int32_t(w[i] < 0 ? -a : a);
@@ -437,7 +444,7 @@ SpcCoefficients reconstruct(const std::vector<std::vector<std::int32_t>>& q, con
     for (std::size_t half = 0; half < 2; ++half) {
       const std::int32_t* in = q[2 * j + half].data();
       float* out = w[half].data();
-      for_each_coefficient(layout, t.step(j), t.frequency, [&](std::size_t i, double step) {
+      for_each_coefficient(layout, t, j, [&](std::size_t i, double step) {
         const std::int32_t v = in[i];
         out[i] = v == 0 ? 0.0f : float((v < 0 ? -1.0 : 1.0) * (std::abs(double(v)) + t.reconstruction) * step);
       });
@@ -508,6 +515,8 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
   put(out, t.step_c);
   put(out, t.frequency);
   put(out, t.reconstruction);
+  put(out, t.specular);
+  put(out, t.extent);
   for (const auto& s : streams) {
     put(out, std::uint32_t(s.size()));
     put_bytes(out, s.data(), s.size());
@@ -519,7 +528,7 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
 }
 
 Transform transform_of(const SpcOptions& o, double step) {
-  return {o.levels, step, step * o.shape_step_ratio, o.frequency_factor, kReconstruction};
+  return {o.levels, step, step * o.shape_step_ratio, o.frequency_factor, kReconstruction, o.specular_factor, o.specular_extent};
 }
 
 // The finest step (of options o's ratios) whose codes all stay below kMaxCode / 2.
@@ -528,7 +537,7 @@ double finest_step(const Model& md, const SpcOptions& o) {
   const CubeLayout layout = cube_layout(unit.levels);
   std::vector<double> need(md.cubes.size(), 0);
   parallel_for(md.cubes.size(), [&](std::size_t cube) {
-    for_each_coefficient(layout, unit.step(cube / 2), unit.frequency, [&](std::size_t i, double step) {
+    for_each_coefficient(layout, unit, cube / 2, [&](std::size_t i, double step) {
       need[cube] = std::max(need[cube], std::abs(double(md.cubes[cube][i])) / step);
     });
   }, 1);
@@ -544,6 +553,10 @@ void check_transform_options(const store::Grid& grid, const SpcBasis& basis, con
   if (!(std::isfinite(o.frequency_factor) && o.frequency_factor >= 1 && o.frequency_factor <= 16))
     throw UsageError("frequency_factor = " + std::to_string(o.frequency_factor) + ": give a number in [1, 16]");
   if (o.levels < 1 || o.levels > 5) throw UsageError("levels = " + std::to_string(o.levels) + ": give 1 to 5");
+  if (!(std::isfinite(o.specular_factor) && o.specular_factor > 0 && o.specular_factor <= 1))
+    throw UsageError("specular_factor = " + std::to_string(o.specular_factor) + ": give a number in (0, 1]");
+  if (!(std::isfinite(o.specular_extent) && o.specular_extent >= 1 && o.specular_extent <= 90))
+    throw UsageError("specular_extent = " + std::to_string(o.specular_extent) + ": give 1 to 90 theta_h indices");
   if (!(std::isfinite(o.magnitude_scale) && o.magnitude_scale >= 0))
     throw UsageError("magnitude scale must be finite and >= 0 (0: automatic)");
   if (!(std::isfinite(grid.scale) && grid.scale > 0)) throw UsageError("encode: the grid's scale must be positive");
@@ -693,11 +706,17 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
   t.step_c = r.get<double>("shape step");
   t.frequency = r.get<double>("frequency factor");
   t.reconstruction = r.get<double>("reconstruction offset");
+  t.specular = r.get<double>("specular factor");
+  t.extent = r.get<double>("specular extent");
   if (t.levels < 1 || t.levels > 5) throw InputError(label + ": .spc has " + std::to_string(t.levels) + " levels; 1 to 5 are valid");
   for (const auto& [v, what] : {std::pair{t.step_y, "magnitude step"}, std::pair{t.step_c, "shape step"},
                                 std::pair{t.frequency, "frequency factor"}})
     if (!(std::isfinite(v) && v > 0 && v <= 1e6))
       throw InputError(label + ": .spc field '" + what + "' is " + std::to_string(v) + "; it must be in (0, 1e6]");
+  if (!(std::isfinite(t.specular) && t.specular > 0 && t.specular <= 1))
+    throw InputError(label + ": .spc specular factor " + std::to_string(t.specular) + " is outside (0, 1]");
+  if (!(std::isfinite(t.extent) && t.extent >= 1 && t.extent <= 90))
+    throw InputError(label + ": .spc specular extent " + std::to_string(t.extent) + " is outside [1, 90]");
   if (!(std::isfinite(t.reconstruction) && std::abs(t.reconstruction) < 1))
     throw InputError(label + ": .spc reconstruction offset " + std::to_string(t.reconstruction) + " is outside (-1, 1)");
   const std::size_t cubes = 2 * (std::size_t(k) + 1);

@@ -61,6 +61,10 @@ struct SpcOptions {
   double shape_step_ratio = 2;
   double frequency_factor = 1.5;  ///< >= 1; 1 spends bits as mean squared error would
   int levels = 4;                 ///< transform levels, 1..5
+  /// Steps near the specular peak times specular_factor (in (0, 1]) at theta_h index 0, rising linearly to the
+  /// full step at theta_h index specular_extent (1..90): the small half-angles where a highlight lives.
+  double specular_factor = 0.5;
+  double specular_extent = 45;
 };
 
 /// What encoding measured.
