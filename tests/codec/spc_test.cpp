@@ -13,6 +13,9 @@
 
 #include "specula/codec/diff.h"
 #include "specula/codec/environment.h"
+#include "specula/codec/spectral_grid.h"
+#include "specula/codec/uplift.h"
+#include "specula/core/illuminant.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/brdf_models.h"
 #include "specula/core/error.h"
@@ -339,6 +342,13 @@ TEST(SpcTransform, TheTargetIsMetOnEveryMaterialAsAnIndependentDiffMeasuresIt) {
   const SpcTarget target{.de00_mean = 0.5, .de00_p95 = 1.5, .size = 32, .max_trials = 6};
   std::vector<std::pair<std::string, store::Grid>> grids;
   for (const auto& [name, what] : brdf::material_catalogue()) grids.emplace_back(name, grid_of(*brdf::make_material(name, kGrid)));
+  {  // red plastic through RGB and back: exported under D65 and uplifted by Appendix A (the `specula uplift` path)
+    const auto weights = rgb_weights(kGrid, parse_illuminant("D65", kGrid));
+    const Uplift uplift(weights, kDefaultUpliftAlpha);
+    grids.emplace_back("red-plastic uplifted",
+                       uplift_merl(grid_to_merl(grid_of(*brdf::make_material("red-plastic", kGrid)), weights).brdf, kGrid,
+                                   uplift, UpliftMethod::clamp));
+  }
   for (auto& [name, g] : grids) {
     SpcTargetReport tr;
     const auto bytes = encode_spc_to_target(g, self_basis(g, 3), {}, target, env, tr);
