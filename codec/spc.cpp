@@ -165,6 +165,38 @@ std::int32_t to_code(double v, const std::string& what) {
   return std::int32_t(r);
 }
 
+// Per cell whether it has data (every band >= 0) and its magnitude, the band mean (0 without data); InputError on
+// a non-finite value. Returns the number of cells with data.
+std::uint64_t magnitudes(const store::Grid& grid, std::vector<float>& mag, std::vector<std::uint8_t>& valid) {
+  const std::size_t bands = grid.bands();
+  mag.assign(kMerlCells, 0.0f);
+  valid.assign(kMerlCells, 0);
+  parallel_for(kMerlCells, [&](std::size_t c) {
+    double m = 0;
+    bool ok = true;
+    for (std::size_t b = 0; b < bands; ++b) {
+      const float v = grid.brdf[b * kMerlCells + c];
+      if (!std::isfinite(v)) throw InputError("the grid holds a non-finite value; it cannot be coded");
+      ok &= v >= 0;
+      m += v;
+    }
+    valid[c] = ok;
+    if (ok) mag[c] = float(m / double(bands));
+  }, kSlab);
+  return std::uint64_t(std::count(valid.begin(), valid.end(), std::uint8_t(1)));
+}
+
+// s of the magnitude mapping: `given`, or when 0 a tenth of the median positive magnitude (1 if there is none).
+double magnitude_scale(const std::vector<float>& mag, const std::vector<std::uint8_t>& valid, double given) {
+  if (given != 0) return given;
+  std::vector<float> positive;
+  for (std::size_t c = 0; c < kMerlCells; ++c)
+    if (valid[c] && mag[c] > 0) positive.push_back(mag[c]);
+  if (positive.empty()) return 1;
+  std::nth_element(positive.begin(), positive.begin() + std::ptrdiff_t(positive.size() / 2), positive.end());
+  return 0.1 * double(positive[positive.size() / 2]);
+}
+
 struct Parsed {
   Coding cd;
   WavelengthGrid wavelengths;
@@ -364,34 +396,11 @@ Model transform_model(const store::Grid& grid, const SpcBasis& basis, const SpcO
   md.k = basis.k();
   md.scale = grid.scale;
   const std::size_t bands = md.bands, k = md.k;
-  std::vector<float> mag(kMerlCells, 0.0f);
-  md.valid.assign(kMerlCells, 0);
+  std::vector<float> mag;
+  md.n_valid = magnitudes(grid, mag, md.valid);
+  md.s = magnitude_scale(mag, md.valid, o.magnitude_scale);
   std::vector<std::vector<float>> ch(k + 1, std::vector<float>(kMerlCells, 0.0f));
   std::vector<std::uint8_t> shaped(kMerlCells, 0);
-  parallel_for(kMerlCells, [&](std::size_t c) {
-    double m = 0;
-    bool ok = true;
-    for (std::size_t b = 0; b < bands; ++b) {
-      const float v = grid.brdf[b * kMerlCells + c];
-      if (!std::isfinite(v)) throw InputError("the grid holds a non-finite value; it cannot be coded");
-      ok &= v >= 0;
-      m += v;
-    }
-    md.valid[c] = ok;
-    if (ok) mag[c] = float(m / double(bands));
-  }, kSlab);
-  for (const auto v : md.valid) md.n_valid += v;
-  md.s = o.magnitude_scale;
-  if (md.s == 0) {
-    std::vector<float> positive;
-    for (std::size_t c = 0; c < kMerlCells; ++c)
-      if (md.valid[c] && mag[c] > 0) positive.push_back(mag[c]);
-    md.s = 1;
-    if (!positive.empty()) {
-      std::nth_element(positive.begin(), positive.begin() + std::ptrdiff_t(positive.size() / 2), positive.end());
-      md.s = 0.1 * double(positive[positive.size() / 2]);
-    }
-  }
   const bool all = md.n_valid == kMerlCells, horizon = md.valid == horizon_mask();
   md.validity = all ? Validity::all : horizon ? Validity::horizon : Validity::coded;
   parallel_for(kMerlCells, [&](std::size_t c) {
@@ -920,42 +929,15 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
                      basis.wavelengths.describe() + "; code a grid with a basis on its own wavelengths");
   if (k < 1 || k > bands) throw UsageError("encode: the basis must hold 1 to bands spectra");
 
-  // Magnitudes and validity.
-  std::vector<float> mag(kMerlCells, -1.0f);
-  std::vector<std::uint8_t> valid(kMerlCells, 0);
-  parallel_for(kMerlCells, [&](std::size_t c) {
-    double m = 0;
-    bool ok = true;
-    for (std::size_t b = 0; b < bands; ++b) {
-      const float v = grid.brdf[b * kMerlCells + c];
-      if (!std::isfinite(v)) throw InputError("the grid holds a non-finite value; it cannot be coded");
-      ok &= v >= 0;
-      m += v;
-    }
-    if (ok) {
-      valid[c] = 1;
-      mag[c] = float(m / double(bands));
-    }
-  }, kSlab);
+  std::vector<float> mag;
+  std::vector<std::uint8_t> valid;
+  const std::uint64_t n_valid = magnitudes(grid, mag, valid);
   Coding cd;
   cd.bands = bands;
   cd.k = k;
   cd.scale = grid.scale;
   cd.basis = basis.rows;
-  cd.s = o.magnitude_scale;
-  std::uint64_t n_valid = 0;
-  for (const auto v : valid) n_valid += v;
-  if (cd.s == 0) {
-    std::vector<float> positive;
-    for (std::size_t c = 0; c < kMerlCells; ++c)
-      if (valid[c] && mag[c] > 0) positive.push_back(mag[c]);
-    if (positive.empty()) {
-      cd.s = 1;
-    } else {
-      std::nth_element(positive.begin(), positive.begin() + std::ptrdiff_t(positive.size() / 2), positive.end());
-      cd.s = 0.1 * double(positive[positive.size() / 2]);
-    }
-  }
+  cd.s = magnitude_scale(mag, valid, o.magnitude_scale);
   cd.step_m = 2 * std::log1p(o.max_error);
   const double spread = basis.rows.cwiseAbs().colwise().sum().maxCoeff();
   cd.step_c = 2 * o.max_error / spread;
