@@ -197,6 +197,38 @@ double magnitude_scale(const std::vector<float>& mag, const std::vector<std::uin
   return 0.1 * double(positive[positive.size() / 2]);
 }
 
+// The header's band count and k, checked (both formats).
+std::pair<std::uint32_t, std::uint32_t> read_shape(Reader& r, const std::string& label) {
+  const auto bands = r.get<std::uint32_t>("bands");
+  const auto k = r.get<std::uint32_t>("k");
+  if (bands < 1 || bands > kMaxBands) throw InputError(label + ": .spc header has " + std::to_string(bands) + " bands");
+  if (k < 1 || k > bands)
+    throw InputError(label + ": .spc header has k = " + std::to_string(k) + " for " + std::to_string(bands) + " bands");
+  return {bands, k};
+}
+
+WavelengthGrid checked_wavelengths(std::vector<double> wl, const std::string& label) {
+  try {
+    return WavelengthGrid(std::move(wl));
+  } catch (const Error& e) {
+    throw InputError(label + ": .spc wavelengths are invalid: " + e.what());
+  }
+}
+
+// The k x B basis stored as T (double in format 1, float in format 2), every value finite.
+template <class T>
+Eigen::MatrixXd read_basis(Reader& r, std::size_t k, std::size_t bands, const std::string& label) {
+  std::vector<T> v(k * bands);
+  std::memcpy(v.data(), r.take(sizeof(T) * v.size(), "basis"), sizeof(T) * v.size());
+  Eigen::MatrixXd m(static_cast<Eigen::Index>(k), static_cast<Eigen::Index>(bands));
+  for (std::size_t j = 0; j < k; ++j)
+    for (std::size_t b = 0; b < bands; ++b) {
+      if (!std::isfinite(v[j * bands + b])) throw InputError(label + ": .spc basis holds a non-finite value");
+      m(Eigen::Index(j), Eigen::Index(b)) = double(v[j * bands + b]);
+    }
+  return m;
+}
+
 struct Parsed {
   Coding cd;
   WavelengthGrid wavelengths;
@@ -236,11 +268,7 @@ Parsed parse_header(std::span<const std::uint8_t> bytes, const std::string& labe
   Reader r(bytes.first(bytes.size() - 4), label);
   r.take(sizeof kSpcMagic + 4, "magic and version");
   Parsed p;
-  const auto bands = r.get<std::uint32_t>("bands");
-  const auto k = r.get<std::uint32_t>("k");
-  if (bands < 1 || bands > kMaxBands) throw InputError(label + ": .spc header has " + std::to_string(bands) + " bands");
-  if (k < 1 || k > bands)
-    throw InputError(label + ": .spc header has k = " + std::to_string(k) + " for " + std::to_string(bands) + " bands");
+  const auto [bands, k] = read_shape(r, label);
   p.cd.bands = bands;
   p.cd.k = k;
   p.cd.scale = r.get<double>("scale");
@@ -253,20 +281,8 @@ Parsed parse_header(std::span<const std::uint8_t> bytes, const std::string& labe
       throw InputError(label + ": .spc header field '" + what + "' is " + std::to_string(v) + "; it must be finite and positive");
   std::vector<double> wl(bands);
   std::memcpy(wl.data(), r.take(8 * bands, "wavelengths"), 8 * bands);
-  try {
-    p.wavelengths = WavelengthGrid(wl);
-  } catch (const Error& e) {
-    throw InputError(label + ": .spc wavelengths are invalid: " + e.what());
-  }
-  p.cd.basis.resize(k, bands);
-  std::vector<double> basis(std::size_t(k) * bands);
-  std::memcpy(basis.data(), r.take(8 * basis.size(), "basis"), 8 * basis.size());
-  for (std::size_t j = 0; j < k; ++j)
-    for (std::size_t b = 0; b < bands; ++b) {
-      const double v = basis[j * bands + b];
-      if (!std::isfinite(v)) throw InputError(label + ": .spc basis holds a non-finite value");
-      p.cd.basis(Eigen::Index(j), Eigen::Index(b)) = v;
-    }
+  p.wavelengths = checked_wavelengths(std::move(wl), label);
+  p.cd.basis = read_basis<double>(r, k, bands, label);
   p.units = r.string("units");
   p.source = r.string("source");
   p.reference = r.string("basis reference");
@@ -652,11 +668,7 @@ std::vector<std::uint8_t> encode_transform(const store::Grid& grid, const SpcBas
 SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only) {
   Reader r(bytes.first(bytes.size() - 4), label);
   r.take(sizeof kSpcMagic + 4, "magic and version");
-  const auto bands = r.get<std::uint32_t>("bands");
-  const auto k = r.get<std::uint32_t>("k");
-  if (bands < 1 || bands > kMaxBands) throw InputError(label + ": .spc header has " + std::to_string(bands) + " bands");
-  if (k < 1 || k > bands)
-    throw InputError(label + ": .spc header has k = " + std::to_string(k) + " for " + std::to_string(bands) + " bands");
+  const auto [bands, k] = read_shape(r, label);
   SpcCoefficients c;
   c.scale = r.get<double>("scale");
   const double s = r.get<double>("magnitude scale");
@@ -673,20 +685,8 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
   } else {
     throw InputError(label + ": .spc wavelength kind " + std::to_string(wl_kind) + " is neither 0 (uniform) nor 1 (list)");
   }
-  try {
-    c.wavelengths = WavelengthGrid(wl);
-  } catch (const Error& e) {
-    throw InputError(label + ": .spc wavelengths are invalid: " + e.what());
-  }
-  c.basis.resize(k, bands);
-  std::vector<float> basis(std::size_t(k) * bands);
-  std::memcpy(basis.data(), r.take(4 * basis.size(), "basis"), 4 * basis.size());
-  for (std::size_t j = 0; j < k; ++j)
-    for (std::size_t b = 0; b < bands; ++b) {
-      const float v = basis[j * bands + b];
-      if (!std::isfinite(v)) throw InputError(label + ": .spc basis holds a non-finite value");
-      c.basis(Eigen::Index(j), Eigen::Index(b)) = v;
-    }
+  c.wavelengths = checked_wavelengths(std::move(wl), label);
+  c.basis = read_basis<float>(r, k, bands, label);
   c.units = r.string("units");
   c.source = r.string("source");
   c.reference = r.string("basis reference");
