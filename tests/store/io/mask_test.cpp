@@ -49,6 +49,27 @@ TEST(Mask, PngFirstChannel) {
   EXPECT_EQ(read_mask(dir / "m.mask").valid, m.valid);
 }
 
+TEST(Mask, PngBesideASameStemEnviHeaderIsReadAsThePng) {
+  const test::ScratchDir dir;
+  // m.hdr describes a 4 x 3 one-band byte image (m.img); m.png is a 2 x 1 PNG. Asked for m.png, the PNG is read.
+  write_envi_bytes(dir / "m.img", 4, 3, 1, std::vector<std::uint8_t>(12, 0));
+  write_png_rgb8(dir / "m.png", 2, 1, std::vector<std::uint8_t>{0, 5, 5, 3, 0, 0});
+  const Mask m = read_mask(dir / "m.png");
+  EXPECT_EQ(m.width, 2u);
+  EXPECT_EQ(m.height, 1u);
+  EXPECT_EQ(m.valid, (std::vector<std::uint8_t>{0, 1}));
+  // The ENVI mask beside it is still what its header and data file name.
+  for (const char* name : {"m.hdr", "m.img"}) {
+    const Mask e = read_mask(dir / name);
+    EXPECT_EQ(e.width, 4u) << name;
+    EXPECT_EQ(e.valid, std::vector<std::uint8_t>(12, 0)) << name;
+  }
+  // A PNG under another name beside a same-stem header is known by its signature.
+  std::filesystem::copy_file(dir / "m.png", dir / "q.mask");
+  write_envi_bytes(dir / "q.img", 4, 3, 1, std::vector<std::uint8_t>(12, 1));
+  EXPECT_EQ(read_mask(dir / "q.mask").valid, m.valid);
+}
+
 TEST(Mask, WhatIsNotAMaskIsOneLineNamingTheFile) {
   const test::ScratchDir dir;
   write_envi_bytes(dir / "rgb.img", 2, 1, 3, std::vector<std::uint8_t>(6, 1));
