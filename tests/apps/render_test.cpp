@@ -8,6 +8,7 @@
 #include "specula/core/brdf_models.h"
 #include "specula/store/io/exr.h"
 #include "specula/store/io/png_stack.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 namespace specula::codec {
