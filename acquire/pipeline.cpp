@@ -10,7 +10,6 @@
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/progress.h"
-#include "specula/store/h5.h"
 #include "specula/store/io/png_stack.h"
 
 namespace specula::acquire {
@@ -327,58 +326,50 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
 
 void write_calibration(store::StoreWriter& out, const std::string& name, const Calibration& c) {
   store::validate_name(name, "calibration");
-  const std::string ctx = out.label() + ": /acquire/" + name;
-  namespace h5 = store::h5;
-  h5::Id g = out.create_group("acquire", name);
+  store::Record r;
   Eigen::MatrixXd s(c.spatial.height, c.spatial.width);
   for (int v = 0; v < c.spatial.height; ++v)
     for (int u = 0; u < c.spatial.width; ++u) s(v, u) = c.spatial.at(u, v);
-  h5::write_matrix(g, "spatial_response", s, ctx);
-  h5::write_matrix(g, "spectral_recovery", c.spectral.recovery, ctx);
-  h5::write_vector(g, "spectral_scale", std::span<const double>(c.spectral.scale.data(), std::size_t(c.spectral.scale.size())), ctx);
-  h5::write_vector(g, "bands_nm", c.spectral.bands, ctx);
-  h5::write_attr(g, "spectral_model", std::string_view(c.spectral.model == SpectralModel::delta ? "delta" : "factored"), ctx);
-  const std::vector<double> circle = {c.circle.cx, c.circle.cy, c.circle.r};
-  h5::write_vector(g, "circle_px", circle, ctx);
-  const std::vector<double> sphere = {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z(), c.sphere.radius};
-  h5::write_vector(g, "sphere_m", sphere, ctx);
   Eigen::MatrixXd lights(Eigen::Index(c.light_dirs.size()), 3);
   for (std::size_t l = 0; l < c.light_dirs.size(); ++l) lights.row(Eigen::Index(l)) = c.light_dirs[l].transpose();
-  h5::write_matrix(g, "light_dirs", lights, ctx);
-  h5::write_vector(g, "light_confidence", c.light_confidence, ctx);
-  const std::vector<double> distance = {c.light_distance};
-  h5::write_vector(g, "light_distance_m", distance, ctx);
-  store::Provenance p;
-  p.importer = "acquire calibrate";
-  store::write_provenance(g, p, out.options().command_line, ctx);
+  r.matrices = {{"spatial_response", s}, {"spectral_recovery", c.spectral.recovery}, {"light_dirs", lights}};
+  r.vectors = {{"spectral_scale", std::vector<double>(c.spectral.scale.data(), c.spectral.scale.data() + c.spectral.scale.size())},
+               {"bands_nm", c.spectral.bands},
+               {"circle_px", {c.circle.cx, c.circle.cy, c.circle.r}},
+               {"sphere_m", {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z(), c.sphere.radius}},
+               {"light_confidence", c.light_confidence},
+               {"light_distance_m", {c.light_distance}}};
+  r.texts = {{"spectral_model", c.spectral.model == SpectralModel::delta ? "delta" : "factored"}};
+  r.provenance.importer = "acquire calibrate";
+  out.add_record("acquire", name, r);
 }
 
 Calibration read_calibration(const store::Store& in, const std::string& name) {
-  namespace h5 = store::h5;
-  const std::string path = "/acquire/" + name, ctx = in.label() + ": " + path;
-  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(in.file(), "/acquire") || !h5::exists(in.file(), path))
+  const std::vector<std::string> names = in.objects("acquire");
+  if (name.empty() || name.find('/') != std::string::npos || std::find(names.begin(), names.end(), name) == names.end())
     throw InputError(in.label() + ": no calibration '" + name + "' (run specula acquire calibrate first)");
-  h5::Id g(h5::check(H5Gopen2(in.file(), path.c_str(), H5P_DEFAULT), ctx, "cannot open"));
+  const store::Record r = in.read_record("acquire", name);
   Calibration c;
-  const Eigen::MatrixXd s = h5::read_matrix(g, "spatial_response", ctx);
+  const Eigen::MatrixXd& s = r.matrix("spatial_response");
   c.spatial = {int(s.cols()), int(s.rows()), std::vector<float>(std::size_t(s.size()))};
   for (Eigen::Index v = 0; v < s.rows(); ++v)
     for (Eigen::Index u = 0; u < s.cols(); ++u) c.spatial.value[std::size_t(v * s.cols() + u)] = float(s(v, u));
-  c.spectral.recovery = h5::read_matrix(g, "spectral_recovery", ctx);
-  const std::vector<double> scale = h5::read_vector(g, "spectral_scale", ctx);
+  c.spectral.recovery = r.matrix("spectral_recovery");
+  const std::vector<double>& scale = r.vector("spectral_scale");
   c.spectral.scale = Eigen::Map<const Eigen::VectorXd>(scale.data(), Eigen::Index(scale.size()));
-  c.spectral.bands = h5::read_vector(g, "bands_nm", ctx);
-  c.spectral.model = h5::read_string_attr(g, "spectral_model", ctx) == "factored" ? SpectralModel::factored : SpectralModel::delta;
-  const std::vector<double> circle = h5::read_vector(g, "circle_px", ctx), sphere = h5::read_vector(g, "sphere_m", ctx);
+  c.spectral.bands = r.vector("bands_nm");
+  c.spectral.model = r.text("spectral_model") == "factored" ? SpectralModel::factored : SpectralModel::delta;
+  const std::vector<double>& circle = r.vector("circle_px");
+  const std::vector<double>& sphere = r.vector("sphere_m");
   if (circle.size() != 3 || sphere.size() != 4 || c.spectral.recovery.rows() != Eigen::Index(c.spectral.bands.size()))
-    throw InputError(ctx + ": malformed calibration");
+    throw InputError(r.label + ": malformed calibration");
   c.circle = {circle[0], circle[1], circle[2]};
   c.sphere = {Eigen::Vector3d(sphere[0], sphere[1], sphere[2]), sphere[3]};
-  const Eigen::MatrixXd lights = h5::read_matrix(g, "light_dirs", ctx);
+  const Eigen::MatrixXd& lights = r.matrix("light_dirs");
   for (Eigen::Index l = 0; l < lights.rows(); ++l) c.light_dirs.push_back(lights.row(l).transpose());
-  c.light_confidence = h5::read_vector(g, "light_confidence", ctx);
-  const std::vector<double> distance = h5::read_vector(g, "light_distance_m", ctx);
-  if (distance.size() != 1) throw InputError(ctx + ": malformed light_distance_m");
+  c.light_confidence = r.vector("light_confidence");
+  const std::vector<double>& distance = r.vector("light_distance_m");
+  if (distance.size() != 1) throw InputError(r.label + ": malformed light_distance_m");
   c.light_distance = distance[0];
   return c;
 }

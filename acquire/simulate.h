@@ -13,7 +13,7 @@
 #include "specula/acquire/capture.h"
 #include "specula/acquire/scan.h"
 #include "specula/core/brdf_models.h"
-#include "specula/store/store.h"
+#include "specula/store/grid.h"
 
 namespace specula::acquire {
 

@@ -5,11 +5,9 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/core/error.h"
-#include "specula/store/h5.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
-namespace h5 = store::h5;
 namespace {
 
 struct InfoOptions {
@@ -76,15 +74,14 @@ void list_objects(const store::Store& s, bool json) {
   for (const auto& n : s.bases()) rows.push_back(json ? fmt::format(R"({{"kind":"basis","name":{}}})", json_string(n)) : "basis       " + n);
   for (const auto& n : s.coefficients())
     rows.push_back(json ? coefficients_json(s.coefficients_info(n)) : coefficients_line(s.coefficients_info(n)));
-  if (store::h5::exists(s.file(), "/acquire"))
-    for (const auto& n : store::h5::list(s.file(), "/acquire")) {
-      const acquire::Calibration c = acquire::read_calibration(s, n);
-      const char* model = c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored";
-      rows.push_back(json ? fmt::format(R"({{"kind":"calibration","name":{},"spectral_model":"{}","lights":{}}})", json_string(n), model,
-                                        c.light_dirs.size())
-                          : fmt::format("calibration {:<24} {} spectral model, {} lights, sphere {:.4f} m at {:.4f} m", n, model,
-                                        c.light_dirs.size(), c.sphere.radius, c.sphere.centre.norm()));
-    }
+  for (const auto& n : s.objects("acquire")) {
+    const acquire::Calibration c = acquire::read_calibration(s, n);
+    const char* model = c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored";
+    rows.push_back(json ? fmt::format(R"({{"kind":"calibration","name":{},"spectral_model":"{}","lights":{}}})", json_string(n), model,
+                                      c.light_dirs.size())
+                        : fmt::format("calibration {:<24} {} spectral model, {} lights, sphere {:.4f} m at {:.4f} m", n, model,
+                                      c.light_dirs.size(), c.sphere.radius, c.sphere.centre.norm()));
+  }
   if (json) {
     fmt::print("[");
     for (std::size_t i = 0; i < rows.size(); ++i) fmt::print("{}{}", i ? "," : "", rows[i]);
@@ -100,7 +97,7 @@ void run_info(const InfoOptions& o) {
     std::uint64_t spectra = 0;
     for (const auto& n : s.images()) spectra += s.image_info(n).valid_pixels;
     const auto bytes = store::store_bytes(s);
-    const std::string created = h5::has_attr(s.file(), "created_utc") ? h5::read_string_attr(s.file(), "created_utc", s.label()) : "";
+    const std::string created = s.created_utc();
     if (o.json) {
       fmt::print(R"({{"store":{},"format_version":{},"generation":{},"bytes":{},"created_utc":{},"valid_spectra":{},"objects":)",
                  json_string(s.path().string()), s.format_version(), s.index().generation, bytes, json_string(created),

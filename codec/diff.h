@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "specula/codec/environment.h"
-#include "specula/store/store.h"
+#include "specula/store/grid.h"
 
 namespace specula::codec {
 

@@ -13,7 +13,7 @@
 
 #include "specula/codec/spc_eval.h"
 #include "specula/core/wavelengths.h"
-#include "specula/store/store.h"
+#include "specula/store/grid.h"
 
 namespace specula::codec {
 

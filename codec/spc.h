@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "specula/store/basis.h"
-#include "specula/store/store.h"
+#include "specula/store/grid.h"
 
 namespace specula::codec {
 

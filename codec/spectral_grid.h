@@ -6,7 +6,7 @@
 
 #include "specula/codec/merl.h"
 #include "specula/core/cie.h"
-#include "specula/store/store.h"
+#include "specula/store/grid.h"
 
 namespace specula::codec {
 

@@ -11,7 +11,7 @@
 
 #include "specula/codec/merl.h"
 #include "specula/core/nnls.h"
-#include "specula/store/store.h"
+#include "specula/store/grid.h"
 
 namespace specula::codec {
 

@@ -10,14 +10,15 @@
 #include <type_traits>
 
 #include "specula/core/error.h"
+#include "specula/store/detail/objects.h"
 
 namespace specula::store {
 namespace {
 
-h5::Id open_with_cache(hid_t file, const std::string& path, std::size_t cache_bytes, std::string_view ctx) {
+std::shared_ptr<h5::Id> open_with_cache(hid_t file, const std::string& path, std::size_t cache_bytes, std::string_view ctx) {
   h5::Id dapl(h5::check(H5Pcreate(H5P_DATASET_ACCESS), ctx, "H5Pcreate"));
   h5::check(H5Pset_chunk_cache(dapl, 1031, cache_bytes, 1.0), ctx, "H5Pset_chunk_cache");
-  return h5::Id(h5::check(H5Dopen2(file, path.c_str(), dapl), ctx, "cannot open " + path));
+  return std::make_shared<h5::Id>(h5::check(H5Dopen2(file, path.c_str(), dapl), ctx, "cannot open " + path));
 }
 
 bool matches(const std::vector<std::string>& globs, const std::string& name) {
@@ -62,7 +63,7 @@ bool BlockReader::direct() const {
 
 void BlockReader::map_chunks(SourceData& sd, std::size_t rows) const {
   const std::string ctx = stores_[sd.store].label();
-  h5::Id dcpl(h5::check(H5Dget_create_plist(sd.cube), ctx, "H5Dget_create_plist"));
+  h5::Id dcpl(h5::check(H5Dget_create_plist(*sd.cube), ctx, "H5Dget_create_plist"));
   if (H5Pget_layout(dcpl) != H5D_CHUNKED) return;
   const int nf = H5Pget_nfilters(dcpl);
   for (int i = 0; i < nf; ++i) {
@@ -87,7 +88,7 @@ void BlockReader::map_chunks(SourceData& sd, std::size_t rows) const {
       unsigned fmask = 0;
       haddr_t addr = 0;
       hsize_t size = 0;
-      if (H5Dget_chunk_info_by_coord(sd.cube, offset, &fmask, &addr, &size) < 0) {
+      if (H5Dget_chunk_info_by_coord(*sd.cube, offset, &fmask, &addr, &size) < 0) {
         H5Eclear2(H5E_DEFAULT);
         sd.chunks.clear();
         return;
@@ -98,7 +99,7 @@ void BlockReader::map_chunks(SourceData& sd, std::size_t rows) const {
       ref.filter_mask = fmask;
     }
   // The dataset may live in a data file of its own (format 2): read the file HDF5 opened for it.
-  h5::Id file(h5::check(H5Iget_file_id(sd.cube), ctx, "H5Iget_file_id"));
+  h5::Id file(h5::check(H5Iget_file_id(*sd.cube), ctx, "H5Iget_file_id"));
   void* handle = nullptr;
   if (H5Fget_vfd_handle(file, H5P_DEFAULT, &handle) < 0 || !handle) {
     H5Eclear2(H5E_DEFAULT);
@@ -229,7 +230,7 @@ void BlockReader::add_store(std::size_t index, const Selection& selection, std::
     SourceData sd;
     sd.store = index;
     sd.kind = samples ? "samples" : "collection";
-    sd.cube = open_with_cache(store.file(), (samples ? "/samples/" : "/collections/") + info.name + (samples ? "/values" : "/spectra"),
+    sd.cube = open_with_cache(StoreAccess::root(store), (samples ? "/samples/" : "/collections/") + info.name + (samples ? "/values" : "/spectra"),
                               rows_per_block * info.bands * sizeof(float) * 2, ctx);
     sd.width = 1;
     map_chunks(sd, info.size);
@@ -256,8 +257,8 @@ void BlockReader::add_store(std::size_t index, const Selection& selection, std::
     SourceData sd;
     sd.store = index;
     sd.kind = "image";
-    sd.cube = open_with_cache(store.file(), "/images/" + name + "/cube", cache, ctx);
-    sd.mask = open_with_cache(store.file(), "/images/" + name + "/mask", cache / info.bands + 4096, ctx);
+    sd.cube = open_with_cache(StoreAccess::root(store), "/images/" + name + "/cube", cache, ctx);
+    sd.mask = open_with_cache(StoreAccess::root(store), "/images/" + name + "/mask", cache / info.bands + 4096, ctx);
     sd.width = info.width;
     map_chunks(sd, info.height);
     const std::size_t source = names_.size();
@@ -284,7 +285,7 @@ std::string BlockReader::describe_block(std::size_t i) const {
   const SourceData& src = sources_[blk.source];
   std::string name = names_[blk.source];
   if (const auto colon = name.find(':'); stores_.size() > 1 && colon != std::string::npos) name = name.substr(colon + 1);
-  return stores_[src.store].label() + ": " + src.kind + " '" + name + "' " + (src.mask.valid() ? "rows " : "spectra ") +
+  return stores_[src.store].label() + ": " + src.kind + " '" + name + "' " + ((src.mask != nullptr) ? "rows " : "spectra ") +
          std::to_string(blk.row0) + "-" + std::to_string(blk.row0 + blk.rows - 1);
 }
 
@@ -294,7 +295,7 @@ void BlockReader::read_raw(std::size_t i, RawBlock& out) const {
   const std::string ctx = stores_[src.store].label() + ": " + names_[blk.source];
   const std::size_t b = bands();
   const std::size_t px = blk.rows * src.width;
-  const bool image = src.mask.valid();
+  const bool image = (src.mask != nullptr);
   out.pixels = px;
   out.values.resize(px * b);
   const hsize_t start[3] = {blk.row0, 0, 0};
@@ -305,20 +306,20 @@ void BlockReader::read_raw(std::size_t i, RawBlock& out) const {
   } else {
     const int rank = image ? 3 : 2;
     const hsize_t* count = image ? count3 : count2;
-    h5::Id fspace(h5::check(H5Dget_space(src.cube), ctx, "H5Dget_space"));
+    h5::Id fspace(h5::check(H5Dget_space(*src.cube), ctx, "H5Dget_space"));
     h5::check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start, nullptr, count, nullptr), ctx, "H5Sselect_hyperslab");
     h5::Id mspace(h5::check(H5Screate_simple(rank, count, nullptr), ctx, "H5Screate_simple"));
-    h5::check(H5Dread(src.cube, H5T_NATIVE_FLOAT, mspace, fspace, H5P_DEFAULT, out.values.data()), ctx,
+    h5::check(H5Dread(*src.cube, H5T_NATIVE_FLOAT, mspace, fspace, H5P_DEFAULT, out.values.data()), ctx,
               "cannot read spectra");
   }
   out.valid = px;
   out.mask.clear();
   if (!image) return;
   out.mask.resize(px);
-  h5::Id fspace(h5::check(H5Dget_space(src.mask), ctx, "H5Dget_space"));
+  h5::Id fspace(h5::check(H5Dget_space(*src.mask), ctx, "H5Dget_space"));
   h5::check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start, nullptr, count3, nullptr), ctx, "H5Sselect_hyperslab");
   h5::Id mspace(h5::check(H5Screate_simple(2, count3, nullptr), ctx, "H5Screate_simple"));
-  h5::check(H5Dread(src.mask, H5T_NATIVE_UINT8, mspace, fspace, H5P_DEFAULT, out.mask.data()), ctx, "cannot read mask");
+  h5::check(H5Dread(*src.mask, H5T_NATIVE_UINT8, mspace, fspace, H5P_DEFAULT, out.mask.data()), ctx, "cannot read mask");
   std::size_t valid = 0;
   for (std::size_t p = 0; p < px; ++p) valid += out.mask[p] != 0;
   out.valid = valid;

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <exception>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -82,7 +83,7 @@ class BlockReader {
   };
   struct SourceData {
     std::size_t store = 0;  // index into stores_
-    h5::Id cube, mask;      // mask invalid for collections and samples
+    std::shared_ptr<h5::Id> cube, mask;  // mask null for collections and samples
     std::string kind;       // "image", "collection" or "samples"
     std::size_t width = 0;  // pixels per row (1 for collections)
     bool direct = false;    // chunk map below is usable (filters: none, or shuffle then deflate)

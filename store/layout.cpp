@@ -17,6 +17,7 @@
 #include <set>
 
 #include "specula/core/error.h"
+#include "specula/store/detail/objects.h"
 #include "specula/store/h5.h"
 #include "specula/version.h"
 

@@ -2,8 +2,6 @@
 // The version-2 store on disk (docs/store-format.md): a small root file holding the index and one HDF5 external link
 // per object, beside a data directory of immutable object files. This header is the store library's own: the commit
 // protocol, the locks that serialise commits and protect readers, and garbage collection.
-#include <hdf5.h>
-
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -52,8 +50,6 @@ std::filesystem::path default_data_dir(const std::filesystem::path& root);
 /// The data directory of a store whose index is `index`.
 std::filesystem::path data_dir(const std::filesystem::path& root, const Index& index);
 
-/// Reads the index of an open version-2 root; InputError naming ctx when it is malformed.
-Index read_index(hid_t root, std::string_view ctx);
 /// Writes a complete version-2 root for `index` at `path` (to be renamed over `root` later) and fsyncs it.
 void write_root(const std::filesystem::path& path, const Index& index);
 

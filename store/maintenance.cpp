@@ -11,6 +11,7 @@
 
 #include "specula/core/error.h"
 #include "specula/core/progress.h"
+#include "specula/store/detail/objects.h"
 #include "specula/store/store.h"
 
 namespace specula::store {
@@ -73,11 +74,11 @@ std::pair<std::string, std::string> resolve_object(const Store& store, const std
       throw InputError(store.label() + ": '" + spec + "': '" + s.substr(0, slash) +
                        "' is not a kind of object (images, collections, samples, grids, bases, coefficients, acquire)");
     const std::string name = s.substr(slash + 1);
-    if (h5::exists(store.file(), "/" + kind) && h5::exists(store.file(), "/" + kind + "/" + name)) return {kind, name};
+    if (h5::exists(StoreAccess::root(store), "/" + kind) && h5::exists(StoreAccess::root(store), "/" + kind + "/" + name)) return {kind, name};
     throw InputError(store.label() + ": no " + kind + " object '" + name + "'");
   }
   for (const auto kind : layout::kKinds)
-    if (h5::exists(store.file(), "/" + std::string(kind)) && h5::exists(store.file(), "/" + std::string(kind) + "/" + s))
+    if (h5::exists(StoreAccess::root(store), "/" + std::string(kind)) && h5::exists(StoreAccess::root(store), "/" + std::string(kind) + "/" + s))
       found.emplace_back(kind, s);
   if (found.size() == 1) return found.front();
   if (found.empty()) throw InputError(store.label() + ": no object '" + spec + "'; `specula ls` lists them");
@@ -134,7 +135,7 @@ std::vector<Problem> check(const fs::path& path) {
     }
     if (!holds(file, "/" + e.kind + "/" + e.name))
       out.push_back({what + ": data file " + e.file + " does not hold /" + e.kind + "/" + e.name});
-    const auto link = external_link(s.file(), "/" + e.kind + "/" + e.name);
+    const auto link = external_link(StoreAccess::root(s), "/" + e.kind + "/" + e.name);
     if (!link)
       out.push_back({what + ": the root has no external link for it"});
     else if (link->file != index.data_dir + "/" + e.file || link->object != "/" + e.kind + "/" + e.name)
@@ -142,7 +143,7 @@ std::vector<Problem> check(const fs::path& path) {
                      index.data_dir + "/" + e.file});
   }
   for (const auto kind : layout::kKinds)
-    for (const auto& name : h5::list(s.file(), "/" + std::string(kind)))
+    for (const auto& name : h5::list(StoreAccess::root(s), "/" + std::string(kind)))
       if (!index.find(kind, name)) out.push_back({std::string(kind) + "/" + name + ": linked from the root but not in the index"});
   return out;
 }
@@ -172,9 +173,9 @@ void upgrade(const fs::path& path) {
     const Store s = Store::open(path);
     if (s.format_version() != 1)
       throw InputError(ctx + ": already store format version " + std::to_string(s.format_version()) + "; nothing to upgrade");
-    created = h5::has_attr(s.file(), "created_utc") ? h5::read_string_attr(s.file(), "created_utc", ctx) : utc_now();
+    created = h5::has_attr(StoreAccess::root(s), "created_utc") ? h5::read_string_attr(StoreAccess::root(s), "created_utc", ctx) : utc_now();
     for (const auto kind : layout::kKinds)
-      for (const auto& name : h5::list(s.file(), "/" + std::string(kind))) {
+      for (const auto& name : h5::list(StoreAccess::root(s), "/" + std::string(kind))) {
         validate_name(name, std::string(kind) + " name");
         objects.emplace_back(kind, name);
       }

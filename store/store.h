@@ -4,21 +4,30 @@
 // learned bases, coefficient maps and calibrations. Layout and commit protocol: docs/store-format.md. Reading is
 // through Store (one committed state, never blocked); every change goes through a StoreWriter transaction that
 // writes only its own objects and is invisible until commit() (all or nothing, serialised with other writers).
+#include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include "specula/core/wavelengths.h"
 #include "specula/store/basis.h"
 #include "specula/store/cube.h"
-#include "specula/store/h5.h"
+#include "specula/store/grid.h"
 #include "specula/store/layout.h"
 
 namespace specula::store {
+
+namespace h5 {
+class Id;
+}  // namespace h5
+struct StoreAccess;
+struct WriterState;
 
 inline constexpr const char* kFormatName = "specula-store";
 inline constexpr long long kFormatVersion = 2;
@@ -65,18 +74,6 @@ struct SamplesInfo {
   Provenance provenance;
 };
 
-/// A B-band BRDF in the MERL half/difference layout: brdf is bands x 90 x 90 x 180 float32 (band slowest,
-/// phi_d fastest, the cell order of core/brdf_geometry.h); a negative value means no data; value * scale is in 1/sr.
-struct Grid {
-  WavelengthGrid wavelengths;
-  double scale = 1.0;
-  std::vector<float> brdf;
-  std::string units = "1/sr";
-  Provenance provenance;
-
-  std::size_t bands() const { return wavelengths.size(); }
-};
-
 /// What a store knows about one BRDF grid without reading its values.
 struct GridInfo {
   std::string name;
@@ -102,6 +99,24 @@ struct CoefficientsInfo {
   Provenance provenance;
 };
 
+/// An object of a kind another library defines (kind "acquire": acquire's calibrations): float64 vectors and
+/// matrices and string attributes by name, with provenance. Written by StoreWriter::add_record, read by
+/// Store::read_record.
+struct Record {
+  std::string label;  ///< "<store>: /<kind>/<name>", the prefix of messages about it (set by read_record)
+  std::vector<std::pair<std::string, Eigen::MatrixXd>> matrices;      ///< 2-D datasets (row-major on disk)
+  std::vector<std::pair<std::string, std::vector<double>>> vectors;  ///< 1-D datasets
+  std::vector<std::pair<std::string, std::string>> texts;            ///< string attributes besides provenance
+  Provenance provenance;
+
+  /// Matrix `name`; InputError starting with label when the record has none.
+  const Eigen::MatrixXd& matrix(std::string_view name) const;
+  /// Vector `name`; InputError starting with label when the record has none.
+  const std::vector<double>& vector(std::string_view name) const;
+  /// Text `name`; InputError starting with label when the record has none.
+  const std::string& text(std::string_view name) const;
+};
+
 /// A store opened read-only: one committed state, kept readable (its data files are not reclaimed) while any copy of
 /// this object lives. Copies share the open file.
 class Store {
@@ -112,7 +127,6 @@ class Store {
   const std::filesystem::path& path() const { return path_; }
   /// The file's name, used as the prefix of every message about it.
   std::string label() const { return path_.filename().string(); }
-  hid_t file() const { return file_->get(); }
 
   std::vector<std::string> images() const;
   std::vector<std::string> collections() const;
@@ -120,12 +134,16 @@ class Store {
   std::vector<std::string> grids() const;
   std::vector<std::string> bases() const;
   std::vector<std::string> coefficients() const;
+  /// Names of the objects of `kind` (one of layout::kKinds, e.g. "acquire" for calibrations), in name order.
+  std::vector<std::string> objects(std::string_view kind) const;
   /// Format version of the root: 2 (current), or 1 (a single-file store: readable, written only after upgrade()).
   long long format_version() const { return version_; }
   /// The committed state this object reads (format 2; empty entries and generation 0 for format 1).
   const layout::Index& index() const;
   /// True when a commit replaced the root since this state was opened (open() again to see it).
   bool stale() const;
+  /// When the store was created (the root's created_utc attribute, ISO 8601; empty when absent).
+  std::string created_utc() const;
   /// The data directory of a format-2 store.
   std::filesystem::path data_dir() const { return layout::data_dir(path_, index()); }
 
@@ -160,8 +178,11 @@ class Store {
   /// empty span skips that dataset.
   void read_samples(const std::string& name, std::size_t first, std::size_t count, std::span<double> angles,
                     std::span<float> values) const;
+  /// Record `name` of `kind` (written by StoreWriter::add_record); InputError when absent or malformed.
+  Record read_record(const std::string& kind, const std::string& name) const;
 
  private:
+  friend struct StoreAccess;
   struct Snapshot;
   std::filesystem::path path_;
   std::shared_ptr<h5::Id> file_;
@@ -212,9 +233,9 @@ class StoreWriter {
   /// masked pixels are stored as zeros. InputError on a non-finite coefficient at a valid pixel.
   void write_coefficient_rows(const std::string& name, std::size_t y0, std::size_t rows,
                               std::span<const float> coefficients, std::span<const std::uint8_t> mask);
-  /// Starts object `name` of `kind` (a group of layout::kKinds, e.g. "acquire") in its own data file and returns its
-  /// group, for other libraries' object kinds; replaces an existing object only when options().replace.
-  h5::Id create_group(const std::string& kind, const std::string& name);
+  /// Adds record `name` of `kind` (one of layout::kKinds other than the kinds above, e.g. "acquire") in its own data
+  /// file, for other libraries' object kinds; replaces an existing object only when options().replace.
+  void add_record(const std::string& kind, const std::string& name, const Record& record);
   /// Removes object `name` of `kind` on commit; InputError if the store has no such object.
   void remove(const std::string& kind, const std::string& name);
   /// Makes every change visible at the store's path at once (waiting for other writers' commits, never for their
@@ -227,14 +248,13 @@ class StoreWriter {
   const WriteOptions& options() const { return options_; }
 
  private:
-  struct State;
   /// The open data file of object (kind, name), started by begin() in this transaction; UsageError otherwise.
-  hid_t object_file(const std::string& kind, const std::string& name, const std::string& hint) const;
+  std::int64_t object_file(const std::string& kind, const std::string& name, const std::string& hint) const;
   /// Validates and claims (kind, name) and creates its data file; returns the file.
-  hid_t begin(const std::string& kind, const std::string& name, const std::string& what);
+  std::int64_t begin(const std::string& kind, const std::string& name, const std::string& what);
   std::filesystem::path target_;
   WriteOptions options_;
-  std::unique_ptr<State> state_;
+  std::unique_ptr<WriterState> state_;
   layout::Reclaimed reclaimed_;
 };
 
@@ -259,10 +279,6 @@ void upgrade(const std::filesystem::path& path);
 
 /// Validates an object name: 1-255 chars of [A-Za-z0-9_.+-], not starting with '.'; throws UsageError.
 void validate_name(const std::string& name, const std::string& kind);
-/// Writes provenance attributes (source_file, importer, specula_version, command_line, created_utc) on obj.
-void write_provenance(hid_t obj, const Provenance& p, const std::string& command_line, std::string_view ctx);
-/// Reads provenance attributes written by write_provenance (missing ones empty).
-Provenance read_provenance(hid_t obj, std::string_view ctx);
 /// Current UTC time as ISO 8601 ("2026-11-22T02:25:19Z").
 std::string utc_now();
 /// Test hook: after `n` more chunk writes, the next one fails as a full disk would (-1 disables).

@@ -16,6 +16,7 @@
 
 #include "specula/store/io/png_stack.h"
 #include "specula/store/store.h"
+#include "specula/store/h5.h"
 #include "test_support.h"
 
 using namespace specula;

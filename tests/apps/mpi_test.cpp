@@ -8,6 +8,7 @@
 #include <string>
 
 #include "specula/store/store.h"
+#include "specula/store/h5.h"
 #include "test_support.h"
 
 using namespace specula;

@@ -6,6 +6,7 @@
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/store/store.h"
+#include "specula/store/h5.h"
 #include "test_support.h"
 
 using namespace specula;
@@ -50,7 +51,8 @@ TEST(StoreGrid, RoundTripKeepsValuesAndMetadata) {
   EXPECT_EQ(r.brdf, g.brdf);
   EXPECT_EQ(r.scale, 0.25);
   // The documented layout, read with plain HDF5: (bands, 90, 90, 180) float32, chunked.
-  h5::Id ds(H5Dopen2(s.file(), "/grids/ward/brdf", H5P_DEFAULT));
+  h5::Id root(H5Fopen(s.path().c_str(), H5F_ACC_RDONLY, H5P_DEFAULT));
+  h5::Id ds(H5Dopen2(root, "/grids/ward/brdf", H5P_DEFAULT));
   ASSERT_TRUE(ds.valid());
   EXPECT_EQ(h5::shape(ds, "t"), (std::vector<hsize_t>{2, 90, 90, 180}));
   h5::Id type(H5Dget_type(ds));

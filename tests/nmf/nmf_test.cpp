@@ -10,6 +10,7 @@
 #include "specula/core/interrupt.h"
 #include "specula/nmf/checkpoint.h"
 #include "specula/store/store.h"
+#include "specula/store/h5.h"
 #include "test_support.h"
 
 using namespace specula;

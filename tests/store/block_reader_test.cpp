@@ -1,4 +1,5 @@
 #include "specula/store/block_reader.h"
+#include "specula/store/h5.h"
 
 #include <gtest/gtest.h>
 

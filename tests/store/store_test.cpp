@@ -1,4 +1,5 @@
 #include "specula/store/store.h"
+#include "specula/store/h5.h"
 
 #include <gtest/gtest.h>
 

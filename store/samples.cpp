@@ -1,0 +1,97 @@
+// Scattered BRDF samples: an extendible set of (angles, values) rows.
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "specula/core/error.h"
+#include "specula/store/detail/objects.h"
+
+namespace specula::store {
+
+SamplesInfo Store::samples_info(const std::string& name) const {
+  const std::string path = "/samples/" + name;
+  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(StoreAccess::root(*this), path))
+    throw InputError(label() + ": no samples '" + name + "' (samples: " + join(samples()) + ")");
+  const std::string ctx = label() + ": " + path;
+  h5::Id g = open_group(StoreAccess::root(*this), path, ctx);
+  SamplesInfo info;
+  info.name = name;
+  h5::Id values = open_dataset(g, "values", ctx);
+  auto dims = h5::shape(values, ctx);
+  h5::Id angles = open_dataset(g, "angles", ctx);
+  auto adims = h5::shape(angles, ctx);
+  if (dims.size() != 2 || adims.size() != 2 || adims[1] != 4 || adims[0] != dims[0])
+    throw InputError(ctx + ": angles must be N x 4 and values N x B with the same N");
+  info.size = dims[0];
+  info.bands = dims[1];
+  info.wavelengths = read_wavelengths(g, ctx);
+  if (info.wavelengths.size() != info.bands) throw InputError(ctx + ": values and wavelengths disagree on band count");
+  info.units = h5::has_attr(g, "units") ? h5::read_string_attr(g, "units", ctx) : "unknown";
+  info.chunk_rows = chunk_rows_of(values, ctx);
+  info.provenance = read_provenance(g, ctx);
+  return info;
+}
+
+void Store::read_samples(const std::string& name, std::size_t first, std::size_t count, std::span<double> angles,
+                         std::span<float> values) const {
+  const SamplesInfo info = samples_info(name);
+  const std::string ctx = label() + ": /samples/" + name;
+  const bool want_angles = !angles.empty(), want_values = !values.empty();
+  if (first > info.size || count > info.size - first || (want_angles && angles.size() != count * 4) ||
+      (want_values && values.size() != count * info.bands))
+    throw UsageError(ctx + ": read_samples range or buffer sizes are wrong");
+  if (count == 0) return;
+  h5::Id g = open_group(StoreAccess::root(*this), "/samples/" + name, ctx);
+  const hsize_t s2[2] = {first, 0}, ca[2] = {count, 4}, cv[2] = {count, info.bands};
+  if (want_angles) read_hyperslab(open_dataset(g, "angles", ctx), H5T_NATIVE_DOUBLE, s2, ca, angles.data(), ctx);
+  if (want_values) read_hyperslab(open_dataset(g, "values", ctx), H5T_NATIVE_FLOAT, s2, cv, values.data(), ctx);
+}
+
+void StoreWriter::create_samples(const std::string& name, const WavelengthGrid& wavelengths, const std::string& units,
+                                 const Provenance& provenance) {
+  const std::string ctx = label() + ": /samples/" + name;
+  if (wavelengths.empty()) throw UsageError(ctx + ": samples need at least one wavelength");
+  h5::Id g = make_group(begin("samples", name, "samples"), "/samples/" + name, ctx);
+  h5::write_attr(g, "kind", std::string_view("samples"), ctx);
+  h5::write_attr(g, "units", std::string_view(units), ctx);
+  write_provenance(g, provenance, options_.command_line, ctx);
+  write_grid(g, wavelengths, ctx);
+  const hsize_t b = wavelengths.size();
+  const hsize_t adims0[2] = {0, 4}, vdims0[2] = {0, b};
+  const hsize_t amax[2] = {H5S_UNLIMITED, 4}, vmax[2] = {H5S_UNLIMITED, b};
+  const hsize_t achunk[2] = {8192, 4};
+  const hsize_t vchunk[2] = {std::max<hsize_t>(1, kChunkBytes / (b * sizeof(float))), b};
+  h5::Id aspace(h5::check(H5Screate_simple(2, adims0, amax), ctx, "H5Screate_simple"));
+  h5::Id vspace(h5::check(H5Screate_simple(2, vdims0, vmax), ctx, "H5Screate_simple"));
+  h5::Id adcpl = chunked_dcpl(achunk, options_.compression, ctx);
+  h5::Id vdcpl = chunked_dcpl(vchunk, options_.compression, ctx);
+  h5::Id a(h5::check(H5Dcreate2(g, "angles", H5T_IEEE_F64LE, aspace, H5P_DEFAULT, adcpl, H5P_DEFAULT), ctx, "cannot create angles"));
+  h5::write_attr(a, "columns", std::string_view("theta_i,phi_i,theta_o,phi_o"), ctx);
+  h5::write_attr(a, "units", std::string_view("rad"), ctx);
+  h5::Id v(h5::check(H5Dcreate2(g, "values", H5T_IEEE_F32LE, vspace, H5P_DEFAULT, vdcpl, H5P_DEFAULT), ctx, "cannot create values"));
+}
+
+void StoreWriter::append_samples(const std::string& name, std::span<const double> angles, std::span<const float> values) {
+  const std::string ctx = label() + ": /samples/" + name;
+  h5::Id g = open_group(object_file("samples", name, "create_samples first"), "/samples/" + name, ctx);
+  h5::Id a = open_dataset(g, "angles", ctx);
+  h5::Id v = open_dataset(g, "values", ctx);
+  const auto vd = h5::shape(v, ctx);
+  const hsize_t b = vd[1];
+  if (angles.size() % 4 != 0 || values.size() != angles.size() / 4 * b)
+    throw UsageError(ctx + ": append_samples needs n x 4 angles and n x " + std::to_string(b) + " values");
+  const hsize_t n = angles.size() / 4;
+  for (std::size_t i = 0; i < angles.size(); ++i)
+    if (!std::isfinite(angles[i])) throw InputError(ctx + ": non-finite angle in sample " + std::to_string(vd[0] + i / 4));
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!std::isfinite(values[i])) throw InputError(ctx + ": non-finite value in sample " + std::to_string(vd[0] + i / b));
+  if (n == 0) return;
+  const hsize_t new_a[2] = {vd[0] + n, 4}, new_v[2] = {vd[0] + n, b};
+  h5::check(H5Dset_extent(a, new_a), ctx, "cannot extend angles");
+  h5::check(H5Dset_extent(v, new_v), ctx, "cannot extend values");
+  const hsize_t start[2] = {vd[0], 0}, ca[2] = {n, 4}, cv[2] = {n, b};
+  write_hyperslab(a, H5T_NATIVE_DOUBLE, start, ca, angles.data(), ctx);
+  write_hyperslab(v, H5T_NATIVE_FLOAT, start, cv, values.data(), ctx);
+}
+
+}  // namespace specula::store
