@@ -319,86 +319,80 @@ std::uint64_t estimate_bytes(const Item& item, const ImportOptions& o) {
   return o.wavelengths.empty() ? floats + floats / 4 : 2 * floats + floats / 4;
 }
 
-// Reads one item into memory: everything but writing (GDAL rasters are only named here).
-Loaded read_item(const Item& item, const ImportOptions& o) {
+// A CSV table or a .mat spectral library as a collection on the target grid.
+Collection read_table(const Item& item, const ImportOptions& o, bool mat_library) {
   const WavelengthGrid& target = o.wavelengths;
   const WavelengthGrid& source = o.source_wavelengths;
   const WavelengthGrid& given = source.empty() ? target : source;  // the grid of data without its own
   const std::filesystem::path& first = item.files.front();
   const std::string src = first.string();
-  Loaded out;
-  out.name = o.name.empty() ? default_name(first) : o.name;
-  if (item.format == "gdal") {
-    out.stream_gdal = true;
-    return out;
-  }
-  // A .mat spectral library (2-D spectra + wavelength vector, the ISETCam layout) lands as a collection.
-  const bool mat_library = item.format == "mat" && mat_kind(first, o.var) == MatKind::collection;
-  if (item.format == "csv" || mat_library) {
-    // The target grid is the table's own grid only for a table without a wavelength header.
-    Collection col;
-    if (mat_library) {
-      col = read_mat_collection(first, o.var, given);
-    } else {
+  // The target grid is the table's own grid only for a table without a wavelength header.
+  Collection col;
+  if (mat_library) {
+    col = read_mat_collection(first, o.var, given);
+  } else {
+    try {
+      col = read_csv_collection(first, source);
+    } catch (const InputError& no_grid) {
+      if (!source.empty() || target.empty()) throw;
       try {
-        col = read_csv_collection(first, source);
-      } catch (const InputError& no_grid) {
-        if (!source.empty() || target.empty()) throw;
-        try {
-          col = read_csv_collection(first, target);
-        } catch (const InputError&) {
-          throw no_grid;
-        }
+        col = read_csv_collection(first, target);
+      } catch (const InputError&) {
+        throw no_grid;
       }
     }
-    if (!target.empty() && !target.approx_equal(col.wavelengths)) {
-      col.values = resample(col.values, col.size(), col.wavelengths, target, src);
-      col.wavelengths = target;
-    }
-    if (!o.units.empty()) col.units = o.units;
-    col.provenance.source_file = src;
-    col.provenance.importer = item.format;
-    out.object = std::move(col);
-    return out;
   }
-  if (item.format == "usgs" || item.format == "ecostress" || (item.format == "envi" && is_envi_library(first))) {
-    // Spectral libraries become collections on their own grid (resampled only to the target grid).
-    TextLibrary lib;
-    std::string label = src;
-    if (item.format == "envi") {
-      lib.collection = read_envi_library(first, o.honour_bbl, given);
-    } else if (item.format == "ecostress") {
-      lib = read_ecostress_spectra(item.files);
-    } else {
-      std::vector<std::filesystem::path> spectra, wl;
-      for (const auto& f : item.files) (sniff_text_library(f) == "usgs-wavelengths" ? wl : spectra).push_back(f);
-      if (wl.size() != 1 || spectra.empty())
-        throw UsageError(fmt::format("{}: USGS splib07a spectra need exactly one Wavelengths file among the inputs "
-                                     "(found {}) and at least one spectrum (found {})", src, wl.size(), spectra.size()));
-      lib = read_usgs_spectra(spectra, wl.front());
-      label = spectra.front().string();
-    }
-    Collection& col = lib.collection;
-    out.notes = lib.notes;
-    if (!target.empty() && !target.approx_equal(col.wavelengths)) {
-      col.values = resample(col.values, col.size(), col.wavelengths, target, label);
-      col.wavelengths = target;
-    }
-    if (!o.units.empty()) col.units = o.units;
-    if (o.name.empty()) out.name = default_name(item.format == "usgs" ? std::filesystem::path(label) : first);
-    out.object = std::move(col);
-    return out;
+  if (!target.empty() && !target.approx_equal(col.wavelengths)) {
+    col.values = resample(col.values, col.size(), col.wavelengths, target, src);
+    col.wavelengths = target;
   }
-  if (item.format == "brdf") {
-    // Scattered BRDF samples (pbrt-v2's irregular format), optionally resampled to the target grid.
-    IrregularBrdf b = read_brdf_irregular(first);
-    if (!target.empty() && !target.approx_equal(b.wavelengths)) {
-      b.values = resample(b.values, b.size(), b.wavelengths, target, src);
-      b.wavelengths = target;
-    }
-    out.object = std::move(b);
-    return out;
+  if (!o.units.empty()) col.units = o.units;
+  col.provenance.source_file = src;
+  col.provenance.importer = item.format;
+  return col;
+}
+
+// A spectral library (USGS, ECOSTRESS, ENVI .sli) as a collection on its own grid (resampled only to the target's).
+void read_library(const Item& item, const ImportOptions& o, Loaded& out) {
+  const WavelengthGrid& target = o.wavelengths;
+  const WavelengthGrid& source = o.source_wavelengths;
+  const WavelengthGrid& given = source.empty() ? target : source;  // the grid of data without its own
+  const std::filesystem::path& first = item.files.front();
+  const std::string src = first.string();
+  // Spectral libraries become collections on their own grid (resampled only to the target grid).
+  TextLibrary lib;
+  std::string label = src;
+  if (item.format == "envi") {
+    lib.collection = read_envi_library(first, o.honour_bbl, given);
+  } else if (item.format == "ecostress") {
+    lib = read_ecostress_spectra(item.files);
+  } else {
+    std::vector<std::filesystem::path> spectra, wl;
+    for (const auto& f : item.files) (sniff_text_library(f) == "usgs-wavelengths" ? wl : spectra).push_back(f);
+    if (wl.size() != 1 || spectra.empty())
+      throw UsageError(fmt::format("{}: USGS splib07a spectra need exactly one Wavelengths file among the inputs "
+                                   "(found {}) and at least one spectrum (found {})", src, wl.size(), spectra.size()));
+    lib = read_usgs_spectra(spectra, wl.front());
+    label = spectra.front().string();
   }
+  Collection& col = lib.collection;
+  out.notes = lib.notes;
+  if (!target.empty() && !target.approx_equal(col.wavelengths)) {
+    col.values = resample(col.values, col.size(), col.wavelengths, target, label);
+    col.wavelengths = target;
+  }
+  if (!o.units.empty()) col.units = o.units;
+  if (o.name.empty()) out.name = default_name(item.format == "usgs" ? std::filesystem::path(label) : first);
+  out.object = std::move(col);
+}
+
+// An image (ENVI, .mat, PNG stack, spectral EXR): masked, NaN policy applied, resampled to the target grid.
+Cube read_image_item(const Item& item, const ImportOptions& o, std::vector<std::string>& notes) {
+  const WavelengthGrid& target = o.wavelengths;
+  const WavelengthGrid& source = o.source_wavelengths;
+  const WavelengthGrid& given = source.empty() ? target : source;  // the grid of data without its own
+  const std::filesystem::path& first = item.files.front();
+  const std::string src = first.string();
   Cube cube;
   if (item.format == "envi") {
     cube = read_envi(first, given, o.honour_bbl);
@@ -415,7 +409,7 @@ Loaded read_item(const Item& item, const ImportOptions& o) {
   }
   if (!o.mask.empty() && item.format != "mat") apply_mask(cube, o.mask);
   if (!o.units.empty()) cube.units = o.units;
-  apply_nan_policy(cube, o.nan, src, out.notes);
+  apply_nan_policy(cube, o.nan, src, notes);
   if (!target.empty() && !target.approx_equal(cube.wavelengths)) {
     // Masked pixels may hold anything; zero them so resampling cannot spread NaN.
     if (!cube.mask.empty())
@@ -428,7 +422,41 @@ Loaded read_item(const Item& item, const ImportOptions& o) {
   }
   cube.provenance.source_file = src;
   if (cube.provenance.importer.empty()) cube.provenance.importer = item.format;
-  out.object = std::move(cube);
+  return cube;
+}
+
+// Reads one item into memory: everything but writing (GDAL rasters are only named here).
+Loaded read_item(const Item& item, const ImportOptions& o) {
+  const WavelengthGrid& target = o.wavelengths;
+  const std::filesystem::path& first = item.files.front();
+  const std::string src = first.string();
+  Loaded out;
+  out.name = o.name.empty() ? default_name(first) : o.name;
+  if (item.format == "gdal") {
+    out.stream_gdal = true;
+    return out;
+  }
+  // A .mat spectral library (2-D spectra + wavelength vector, the ISETCam layout) lands as a collection.
+  const bool mat_library = item.format == "mat" && mat_kind(first, o.var) == MatKind::collection;
+  if (item.format == "csv" || mat_library) {
+    out.object = read_table(item, o, mat_library);
+    return out;
+  }
+  if (item.format == "usgs" || item.format == "ecostress" || (item.format == "envi" && is_envi_library(first))) {
+    read_library(item, o, out);
+    return out;
+  }
+  if (item.format == "brdf") {
+    // Scattered BRDF samples (pbrt-v2's irregular format), optionally resampled to the target grid.
+    IrregularBrdf b = read_brdf_irregular(first);
+    if (!target.empty() && !target.approx_equal(b.wavelengths)) {
+      b.values = resample(b.values, b.size(), b.wavelengths, target, src);
+      b.wavelengths = target;
+    }
+    out.object = std::move(b);
+    return out;
+  }
+  out.object = read_image_item(item, o, out.notes);
   return out;
 }
 

@@ -402,16 +402,9 @@ struct Scene {
   }
 };
 
-Scene make_scene(const SynthOptions& o, std::uint64_t image_seed) {
-  Rng rng(image_seed);
-  Scene sc;
-  sc.height = o.height;
-  sc.width = o.width;
-  sc.bands = o.wavelengths.size();
-  sc.stride = (sc.bands + 15) / 16 * 16;
-  const double H = double(o.height), W = double(o.width);
+// The scene's light (sun and sky daylights) and its palette of materials lit by both; returns the material count.
+int add_palette(Scene& sc, Rng& rng, const SynthOptions& o) {
   const auto nm = o.wavelengths.values();
-
   // illumination
   const double cct_sun = rng.uniform(4000, 12000);
   const double cct_sky = std::min(25000.0, std::max(rng.uniform(10000, 20000), cct_sun + 1000));
@@ -440,14 +433,11 @@ Scene make_scene(const SynthOptions& o, std::uint64_t image_seed) {
     sc.mean_sky[std::size_t(m)] /= double(sc.bands);
   }
 
-  // texture patterns and per-image grain
-  for (std::size_t p = 0; p < kPatterns; ++p) {
-    const double period = rng.log_uniform(3, 30), theta = rng.uniform(0, kPi);
-    const double k = 2 * kPi / period;
-    sc.patterns.push_back({k * std::cos(theta), k * std::sin(theta), rng.uniform(0, 2 * kPi), 1.0, {}, {}});
-  }
-  sc.grain = static_cast<float>(rng.uniform(0.005, 0.02));
+  return materials;
+}
 
+// The regions of the power diagram and the objects over it, each with a material, orientation and texture.
+void add_layout(Scene& sc, Rng& rng, double H, double W, int materials) {
   auto new_region = [&] {
     Region r;
     r.material = static_cast<std::uint32_t>(rng.integer(0, materials - 1));
@@ -475,6 +465,10 @@ Scene make_scene(const SynthOptions& o, std::uint64_t image_seed) {
     sc.regions.push_back(new_region());
   }
 
+}
+
+// Shading waves and cast shadows (soft ellipses, sometimes one straight edge).
+void add_shading_and_shadows(Scene& sc, Rng& rng, double H, double W) {
   // shading: three slowly varying plane waves, total amplitude <= 0.36
   const double big = std::max(H, W);
   for (int i = 0; i < 3; ++i) {
@@ -499,6 +493,11 @@ Scene make_scene(const SynthOptions& o, std::uint64_t image_seed) {
     sc.straight_shadows.push_back({nx, ny, pmax - cover * (pmax - pmin), rng.uniform(1.5, 8)});
   }
 
+}
+
+// 0-3 masked rectangles.
+void add_mask(Scene& sc, Rng& rng, const SynthOptions& o) {
+  const double H = double(o.height), W = double(o.width);
   // mask: 0-3 rectangles
   const int n_masked = rng.integer(0, 3);
   for (int i = 0; i < n_masked; ++i) {
@@ -512,6 +511,28 @@ Scene make_scene(const SynthOptions& o, std::uint64_t image_seed) {
     sc.masked.push_back(r);
   }
 
+}
+
+Scene make_scene(const SynthOptions& o, std::uint64_t image_seed) {
+  Rng rng(image_seed);
+  Scene sc;
+  sc.height = o.height;
+  sc.width = o.width;
+  sc.bands = o.wavelengths.size();
+  sc.stride = (sc.bands + 15) / 16 * 16;
+  const double H = double(o.height), W = double(o.width);
+  const int materials = add_palette(sc, rng, o);
+  // texture patterns and per-image grain
+  for (std::size_t p = 0; p < kPatterns; ++p) {
+    const double period = rng.log_uniform(3, 30), theta = rng.uniform(0, kPi);
+    const double k = 2 * kPi / period;
+    sc.patterns.push_back({k * std::cos(theta), k * std::sin(theta), rng.uniform(0, 2 * kPi), 1.0, {}, {}});
+  }
+  sc.grain = static_cast<float>(rng.uniform(0.005, 0.02));
+
+  add_layout(sc, rng, H, W, materials);
+  add_shading_and_shadows(sc, rng, H, W);
+  add_mask(sc, rng, o);
   for (auto& w : sc.shading) w.tabulate(o.width);
   for (auto& w : sc.patterns) w.tabulate(o.width);
 

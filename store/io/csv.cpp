@@ -207,62 +207,52 @@ std::string quoted(const std::string& name) {
   return out + "\"";
 }
 
-}  // namespace
-
-Collection read_csv_collection(const std::filesystem::path& path, const WavelengthGrid& wavelengths) {
-  const std::string file = path.string();
-  const Reader rd(file);
-  const std::vector<Row> rows = rd.rows(read_all(path));
-  if (rows.empty()) throw InputError(file + ": no rows; the file is empty");
-
-  Collection col;
-  col.provenance.source_file = file;
-  col.provenance.importer = "csv";
+// A file whose first column lists wavelengths and whose header row names the spectra (one column each).
+void read_transposed(const Reader& rd, const std::vector<Row>& rows, const std::string& file, Collection& col) {
   const Row& head = rows.front();
   const auto& hc = head.cells;
-
-  bool transposed = false;
-  if (hc.size() >= 2 && !Reader::is_number(hc[0].text) && looks_like_wavelength_label(hc[0].text))
-    transposed = true;
-  if (hc.size() >= 2) {
-    bool any_numeric = false;
-    for (std::size_t i = 1; i < hc.size(); ++i) any_numeric = any_numeric || Reader::is_number(hc[i].text);
-    transposed = transposed || !any_numeric;
+  const std::size_t n = hc.size() - 1;
+  for (std::size_t i = 1; i < hc.size(); ++i) {
+    if (hc[i].text.empty()) rd.fail(head.line, hc[i].column, "empty spectrum name in the header; name every column");
+    col.names.push_back(hc[i].text);
   }
-
-  if (transposed) {
-    const std::size_t n = hc.size() - 1;
-    for (std::size_t i = 1; i < hc.size(); ++i) {
-      if (hc[i].text.empty()) rd.fail(head.line, hc[i].column, "empty spectrum name in the header; name every column");
-      col.names.push_back(hc[i].text);
-    }
-    if (rows.size() < 2) rd.fail(head.line, 0, "header but no wavelength rows");
-    std::vector<double> wl;
-    std::vector<std::size_t> lines, columns;
-    std::vector<float> by_row;
-    by_row.reserve((rows.size() - 1) * n);
-    for (std::size_t r = 1; r < rows.size(); ++r) {
-      const Row& row = rows[r];
-      rd.check_count(row, hc.size(), "the header on line " + std::to_string(head.line));
-      wl.push_back(rd.number<double>(row.cells[0], row.line, "wavelength row"));
-      lines.push_back(row.line);
-      columns.push_back(1);
-      for (std::size_t i = 1; i < row.cells.size(); ++i)
-        by_row.push_back(rd.number<float>(row.cells[i], row.line, "spectrum"));
-    }
-    const std::vector<std::size_t> order =
-        rd.band_order(wl, lines, columns, "the first column must list wavelengths in nm");
-    const std::size_t B = wl.size();
-    col.values.resize(n * B);
-    std::vector<double> nm(B);
-    for (std::size_t b = 0; b < B; ++b) {
-      nm[b] = wl[order[b]];
-      for (std::size_t s = 0; s < n; ++s) col.values[s * B + b] = by_row[order[b] * n + s];
-    }
-    col.wavelengths = WavelengthGrid(std::move(nm), file);
-    return col;
+  if (rows.size() < 2) rd.fail(head.line, 0, "header but no wavelength rows");
+  std::vector<double> wl;
+  std::vector<std::size_t> lines, columns;
+  std::vector<float> by_row;
+  by_row.reserve((rows.size() - 1) * n);
+  for (std::size_t r = 1; r < rows.size(); ++r) {
+    const Row& row = rows[r];
+    rd.check_count(row, hc.size(), "the header on line " + std::to_string(head.line));
+    wl.push_back(rd.number<double>(row.cells[0], row.line, "wavelength row"));
+    lines.push_back(row.line);
+    columns.push_back(1);
+    for (std::size_t i = 1; i < row.cells.size(); ++i)
+      by_row.push_back(rd.number<float>(row.cells[i], row.line, "spectrum"));
   }
+  const std::vector<std::size_t> order =
+      rd.band_order(wl, lines, columns, "the first column must list wavelengths in nm");
+  const std::size_t B = wl.size();
+  col.values.resize(n * B);
+  std::vector<double> nm(B);
+  for (std::size_t b = 0; b < B; ++b) {
+    nm[b] = wl[order[b]];
+    for (std::size_t s = 0; s < n; ++s) col.values[s * B + b] = by_row[order[b] * n + s];
+  }
+  col.wavelengths = WavelengthGrid(std::move(nm), file);
+}
 
+// Where the spectra of a row-per-spectrum file lie: the first data row, the name column (0 or 1), the bands and the
+// file column of each band by ascending wavelength; col.wavelengths is set from the header row or `wavelengths`.
+struct RowLayout {
+  bool has_header = true;
+  std::size_t first_data = 0, name_col = 0, B = 0;
+  std::vector<std::size_t> order;
+};
+
+RowLayout row_layout(const Reader& rd, const Row& head, const WavelengthGrid& wavelengths, const std::string& file,
+                     Collection& col) {
+  const auto& hc = head.cells;
   // Row layout: is the first row a wavelength header?
   const bool head_named = !Reader::is_number(hc[0].text);
   std::vector<double> head_wl;
@@ -275,15 +265,18 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
     }
     head_wl.push_back(v);
   }
-  bool has_header = true;
+  RowLayout l;
+  bool& has_header = l.has_header;
   if (!wavelengths.empty()) {
     has_header = head_all_numeric && head_wl.size() == wavelengths.size();
     for (std::size_t i = 0; has_header && i < head_wl.size(); ++i)
       has_header = std::abs(head_wl[i] - wavelengths[i]) <= 1e-3;
   }
 
-  std::size_t first_data = 0, name_col = 0, B = 0;
-  std::vector<std::size_t> order;  // file column of each band, by ascending wavelength
+  std::size_t& first_data = l.first_data;
+  std::size_t& name_col = l.name_col;
+  std::size_t& B = l.B;
+  std::vector<std::size_t>& order = l.order;  // file column of each band, by ascending wavelength
   if (has_header) {
     const std::string hint =
         "the first row must list wavelengths in nm (or give the `wavelengths` option for a file without a header row)";
@@ -327,6 +320,15 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
     order.resize(B);
     std::iota(order.begin(), order.end(), std::size_t{0});
   }
+  return l;
+}
+
+// The spectra rows of a row-per-spectrum file laid out as `l`.
+void read_rows(const Reader& rd, const std::vector<Row>& rows, const RowLayout& l, Collection& col) {
+  const Row& head = rows.front();
+  const bool has_header = l.has_header;
+  const std::size_t first_data = l.first_data, name_col = l.name_col, B = l.B;
+  const std::vector<std::size_t>& order = l.order;
   const std::size_t expected = name_col + B;
   const std::string origin = has_header ? "the header on line " + std::to_string(head.line)
                                         : "the first row (line " + std::to_string(head.line) + ")";
@@ -345,6 +347,36 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
     for (const std::size_t b : order) col.values.push_back(spectrum[b]);
   }
   if (col.names.empty()) rd.fail(head.line, 0, "a header row but no spectra; add one row per spectrum");
+}
+
+}  // namespace
+
+Collection read_csv_collection(const std::filesystem::path& path, const WavelengthGrid& wavelengths) {
+  const std::string file = path.string();
+  const Reader rd(file);
+  const std::vector<Row> rows = rd.rows(read_all(path));
+  if (rows.empty()) throw InputError(file + ": no rows; the file is empty");
+
+  Collection col;
+  col.provenance.source_file = file;
+  col.provenance.importer = "csv";
+  const Row& head = rows.front();
+  const auto& hc = head.cells;
+
+  bool transposed = false;
+  if (hc.size() >= 2 && !Reader::is_number(hc[0].text) && looks_like_wavelength_label(hc[0].text))
+    transposed = true;
+  if (hc.size() >= 2) {
+    bool any_numeric = false;
+    for (std::size_t i = 1; i < hc.size(); ++i) any_numeric = any_numeric || Reader::is_number(hc[i].text);
+    transposed = transposed || !any_numeric;
+  }
+
+  if (transposed) {
+    read_transposed(rd, rows, file, col);
+    return col;
+  }
+  read_rows(rd, rows, row_layout(rd, head, wavelengths, file, col), col);
   return col;
 }
 
