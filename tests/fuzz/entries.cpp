@@ -8,8 +8,14 @@
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
+#include <cstring>
 #include <string>
 
+#include <zlib.h>
+
+#include "specula/codec/merl.h"
+#include "specula/codec/spc.h"
+#include "specula/codec/spectral_grid.h"
 #include "specula/core/error.h"
 #include "specula/store/io/csv.h"
 #include "specula/store/io/envi.h"
@@ -94,6 +100,24 @@ void check_collection(const store::Collection& c) {
   check(c.size() > 0 && c.bands() > 0, "non-empty collection");
   check(c.values.size() == c.size() * c.bands(), "collection values size");
   check_grid(c.wavelengths, c.bands());
+}
+
+// The rest of `input` after its mode byte: `head` bytes as given, then the bytes after them repeated to `size`.
+std::string expand(std::span<const std::uint8_t> input, std::size_t head, std::uint64_t size) {
+  const std::string_view rest = text_of(input).substr(1);
+  std::string out(rest.substr(0, std::min(head, rest.size())));
+  const std::string_view pattern = rest.size() > head ? rest.substr(head) : std::string_view("\xff", 1);
+  out.reserve(size);
+  while (out.size() < size) out.append(pattern.substr(0, std::min<std::uint64_t>(pattern.size(), size - out.size())));
+  out.resize(size);
+  return out;
+}
+
+void check_brdf_grid(const store::Grid& g) {
+  check(g.bands() > 0 && g.brdf.size() == g.bands() * brdf::kMerlCells, "bands x 90 x 90 x 180 values");
+  check(std::isfinite(g.scale) && g.scale > 0, "finite positive scale");
+  check_grid(g.wavelengths, g.bands());
+  for (const float v : g.brdf) check(std::isfinite(v), "finite values");
 }
 
 }  // namespace
@@ -201,11 +225,67 @@ void gdal(std::span<const std::uint8_t> input) {
   }, p.string());
 }
 
+void spc(std::span<const std::uint8_t> input) {
+  expect_clean([&] {
+    const codec::SpcCoefficients c = codec::decode_spc_coefficients(input, "fuzz.spc");
+    check(c.k() > 0 && c.bands() > 0, "a non-empty basis");
+    check(c.values.size() == brdf::kMerlCells * c.k() && c.valid.size() == brdf::kMerlCells, "one entry per cell");
+    check_grid(c.wavelengths, c.bands());
+    check(std::isfinite(c.scale) && c.scale > 0, "finite positive scale");
+    check(c.basis.allFinite(), "finite basis");
+    for (std::size_t i = 0; i < c.values.size(); ++i)
+      check(std::isfinite(c.values[i]) && (c.valid[i / c.k()] || c.values[i] == 0), "finite values, 0 without data");
+    const store::Grid g = codec::expand_spc(c);
+    check(g.bands() == c.bands() && g.brdf.size() == c.bands() * brdf::kMerlCells, "the grid of the coefficients");
+    for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell)
+      for (std::size_t b = 0; b < g.bands(); ++b) {
+        const float v = g.brdf[b * brdf::kMerlCells + cell];
+        check(c.valid[cell] ? std::isfinite(v) && v >= 0 : v < 0, "x >= 0 with data, negative without");
+      }
+    const codec::SpcBasis basis = codec::spc_basis(input, "fuzz.spc");
+    check(basis.rows.rows() == c.basis.rows() && basis.rows.cols() == c.basis.cols(), "the same basis");
+  }, "fuzz.spc");
+}
+
+void spgrid(std::span<const std::uint8_t> input) {
+  if (input.empty()) return;
+  std::string bytes(text_of(input).substr(1));
+  constexpr std::size_t kHeader = 40;
+  if (input[0] % 2 == 0 && input.size() > 1 + 16) {
+    std::uint32_t bands = 0;
+    std::memcpy(&bands, input.data() + 1 + 12, sizeof bands);
+    if (bands >= 1 && bands <= 4) {
+      bytes = expand(input, kHeader, codec::grid_file_bytes(bands));
+      if (input[0] == 0) {
+        const uLong crc = crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), uInt(bytes.size() - 4));
+        const auto stored = std::uint32_t(crc);
+        std::memcpy(bytes.data() + bytes.size() - 4, &stored, sizeof stored);
+      }
+    }
+  }
+  const fs::path p = write("fuzz.spgrid", bytes);
+  expect_clean([&] { check_brdf_grid(codec::read_grid_file(p)); }, p.string());
+}
+
+void merl(std::span<const std::uint8_t> input) {
+  if (input.empty()) return;
+  const std::string bytes = input[0] % 2 ? std::string(text_of(input).substr(1)) : expand(input, 12, codec::kMerlFileBytes);
+  const fs::path p = write("fuzz.binary", bytes);
+  expect_clean([&] {
+    const codec::MerlBrdf b = codec::read_merl(p);
+    check(b.raw.size() == 3 * brdf::kMerlCells, "three planes of 90 x 90 x 180");
+    for (const double v : b.raw) check(std::isfinite(v), "finite values");
+  }, p.string());
+}
+
 const std::vector<Target>& targets() {
   static const std::vector<Target> all = {{"envi_header", envi_header}, {"envi", envi},
                                           {"mat", mat},                 {"mask", mask},
                                           {"text_library", text_library}, {"csv", csv},
-                                          {"gdal", gdal}};
+                                          {"gdal", gdal},
+                                          {"spc", spc},
+                                          {"spgrid", spgrid},
+                                          {"merl", merl}};
   return all;
 }
 

@@ -40,6 +40,15 @@ void csv(std::span<const std::uint8_t> input);
 /// A raster as a .tif through GdalRaster (3-band fallback grid), every row read in strips of 2. NaN or Inf in a valid
 /// pixel is not a defect: the import's --nan policy decides about it.
 void gdal(std::span<const std::uint8_t> input);
+/// .spc bytes: decode_spc_coefficients, then expand_spc and spc_basis on what it accepts.
+void spc(std::span<const std::uint8_t> input);
+/// A .spgrid exchange file (read_grid_file). The first byte chooses the layout: odd, the rest is the file as is;
+/// even, the rest is the 40-byte header then a pattern repeated to the size the header's band count needs (at most
+/// 4 bands: whole files are megabytes), the CRC-32 fixed up when the byte is 0 so the values themselves are read.
+void spgrid(std::span<const std::uint8_t> input);
+/// A MERL .binary (read_merl). The first byte chooses the layout: odd, the rest is the file as is; even, the rest is
+/// the 12-byte header then a pattern of float64 values repeated to the 35 MB a MERL file holds.
+void merl(std::span<const std::uint8_t> input);
 
 /// Every target, in the order above.
 const std::vector<Target>& targets();

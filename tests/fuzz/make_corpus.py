@@ -166,3 +166,25 @@ tif("int16-nodata-deflate-band.tif", gdal.GDT_Int16, ["COMPRESS=DEFLATE", "INTER
 tif("float32-wavelengths.tif", gdal.GDT_Float32, [], float32_wavelengths)
 tif("float32-wavelengths-deflate-tiled.tif", gdal.GDT_Float32, ["COMPRESS=DEFLATE", "TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=16"],
     float32_wavelengths)
+
+# spc: a format-1 file (tests/codec/data) and a format-2 one made by the CLI:
+#   specula synth-brdf red-plastic --wavelengths 400:700:50 -o rp.spgrid
+#   specula encode rp.spgrid --basis self -k 3 --step 0.05 -o rp-k3-v2.spc
+# (kept as checked in: the encoder's bytes are not this script's to reproduce).
+with open(os.path.join(os.path.dirname(HERE), "..", "codec", "data", "green-matte-7band-v1.spc"), "rb") as f:
+    put("spc", "green-matte-7band-v1.spc", f.read())
+
+
+# spgrid and merl (entries.h): a mode byte, then a header and a pattern the entry repeats to a whole file.
+def spgrid_header(bands, version=1, dims=(90, 90, 180), scale=0.5):
+    return b"SPECGRID" + struct.pack("<IIIIIId", version, bands, *dims, 0, scale)
+
+
+put("spgrid", "one-band-crc-fixed", b"\0" + spgrid_header(1) + struct.pack("<df", 550.0, 0.5))
+put("spgrid", "two-bands-crc-fixed", b"\0" + spgrid_header(2) + struct.pack("<ddf", 450.0, 650.0, -1.0))
+put("spgrid", "two-bands-stale-crc", b"\2" + spgrid_header(2) + struct.pack("<ddf", 450.0, 650.0, 0.25))
+put("spgrid", "truncated", b"\1" + spgrid_header(3) + struct.pack("<ddd", 450.0, 550.0, 650.0))
+merl_header = struct.pack("<3i", 90, 90, 180)
+put("merl", "quarter", b"\0" + merl_header + struct.pack("<d", 0.25))
+put("merl", "no-data-and-values", b"\0" + merl_header + struct.pack("<3d", -1.0, 0.5, 2.0))
+put("merl", "truncated", b"\1" + merl_header + struct.pack("<2d", 0.5, 0.5))
