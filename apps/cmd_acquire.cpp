@@ -25,6 +25,7 @@
 #include "specula/core/interrupt.h"
 #include "specula/core/progress.h"
 #include "specula/store/io/png_stack.h"
+#include "specula/store/object_spec.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -72,8 +73,7 @@ struct AcquireOptions {
 };
 
 std::pair<std::string, std::string> split_output(const std::string& spec, const std::string& fallback) {
-  const auto colon = spec.rfind(':');
-  if (colon != std::string::npos && colon > 1) return {spec.substr(0, colon), spec.substr(colon + 1)};
+  if (const auto s = store::parse_object_spec(spec); s && s->file.string().size() > 1) return {s->file.string(), s->name};
   return {spec, fallback};
 }
 

@@ -12,6 +12,7 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/core/error.h"
+#include "specula/store/object_spec.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -35,11 +36,11 @@ struct ResampleCliOptions {
 void check_output(const std::string& spec, bool replace) {
   const std::filesystem::path out(spec);
   if (out.extension() == ".spgrid" || out.extension() == ".binary") return;
-  const auto colon = spec.rfind(':');
-  const std::filesystem::path file = colon == std::string::npos ? out : std::filesystem::path(spec.substr(0, colon));
-  if (colon == std::string::npos || file.extension() != ".h5")
+  const auto object = store::parse_object_spec(spec);
+  if (!object || object->file.extension() != ".h5")
     throw UsageError("resample: " + spec + ": write STORE.h5:NAME, a .spgrid exchange file or an RGB .binary");
-  const std::string name = spec.substr(colon + 1);
+  const std::filesystem::path& file = object->file;
+  const std::string& name = object->name;
   store::validate_name(name, "grid");
   if (!replace && std::filesystem::exists(file)) {
     const auto grids = store::Store::open(file).grids();

@@ -14,6 +14,7 @@
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/progress.h"
+#include "specula/store/object_spec.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -35,10 +36,10 @@ struct SynthSamplesOptions {
 
 void run_synth_samples(const SynthSamplesOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
-  const auto colon = o.output.rfind(':');
-  if (colon == std::string::npos || std::filesystem::path(o.output.substr(0, colon)).extension() != ".h5")
+  const auto spec = store::parse_object_spec(o.output);
+  if (!spec || spec->file.extension() != ".h5")
     throw UsageError("synth-samples: -o " + o.output + ": write the samples as STORE.h5:NAME");
-  const std::string file = o.output.substr(0, colon), name = o.output.substr(colon + 1);
+  const std::string file = spec->file.string(), name = spec->name;
   store::validate_name(name, "samples");
   if (o.geometry != "scan" && o.geometry != "random")
     throw UsageError("--geometry '" + o.geometry + "': use scan (the reference's rig) or random");
