@@ -305,16 +305,12 @@ Response Service::grid_sphere(const Query& q) {
   if (const auto it = png_cache_.find(key); it != png_cache_.end()) return png(it->second);
   const store::Grid& g = grid(name);
   const Eigen::VectorXd spd = page_illuminant(illuminant, store_, g.wavelengths);
-  const codec::MerlBrdf rgb = codec::grid_to_merl(g, codec::rgb_weights(g.wavelengths, spd)).brdf;
   const double t = theta * pi / 180, p = phi * pi / 180;
   const std::size_t size = 256;
   const codec::SphereImage img =
-      codec::render_sphere(rgb, size, {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)});
-  const double gain = std::exp2(exposure);
-  std::vector<std::uint8_t> out(3 * size * size, 24);
-  for (std::size_t i = 0; i < img.covered.size(); ++i)
-    if (img.covered[i])
-      for (std::size_t c = 0; c < 3; ++c) out[3 * i + c] = std::uint8_t(std::lround(255 * srgb_encode(gain * img.linear[3 * i + c])));
+      codec::render_sphere(g, spd, size, {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)});
+  std::vector<std::uint8_t> out(3 * size * size);
+  encode_srgb8(img.linear, img.covered, exposure, out);
   if (png_cache_.size() >= 16) png_cache_.clear();
   return png(png_cache_[key] = png_bytes(size, size, out));
 }
