@@ -135,10 +135,9 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
   std::vector<std::string> points(o.plot_theta.size());
   acquire::for_each_sample(s, name, [&](const double* angles, const float* values) {
     const acquire::IsoAngles a = acquire::iso_angles({angles[0], angles[1], angles[2], angles[3]});
-    if (a.phi_d > eps && a.phi_d < pi - eps) return;
     for (std::size_t k = 0; k < o.plot_theta.size(); ++k)
-      if (std::abs(a.theta_i - o.plot_theta[k] * pi / 180) <= eps)
-        points[k] += fmt::format("{:.3f} {:.5g}\n", (a.phi_d > pi / 2 ? 1 : -1) * a.theta_o * 180 / pi, std::cbrt(std::max(0.0f, values[band])));
+      if (const auto x = acquire::incidence_plane_angle(a, o.plot_theta[k] * pi / 180, eps))
+        points[k] += fmt::format("{:.3f} {:.5g}\n", *x * 180 / pi, std::cbrt(std::max(0.0f, values[band])));
   });
   for (std::size_t k = 0; k < o.plot_theta.size(); ++k) {
     std::string script = "$S << EOD\n" + points[k] + "EOD\n";

@@ -78,9 +78,8 @@ void incidence_plot(const std::filesystem::path& path, const std::string& materi
   std::string script = "$S << EOD\n";
   for (std::size_t i = 0; i < angles.size() / 4; ++i) {
     const acquire::IsoAngles a = acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
-    if (std::abs(a.theta_i - ti) > eps || (a.phi_d > eps && a.phi_d < pi - eps)) continue;
-    const double x = (a.phi_d > pi / 2 ? 1 : -1) * a.theta_o * 180 / pi;
-    script += fmt::format("{:.3f} {:.5g}\n", x, std::cbrt(std::max(0.0f, values[i])));
+    if (const auto x = acquire::incidence_plane_angle(a, ti, eps))
+      script += fmt::format("{:.3f} {:.5g}\n", *x * 180 / pi, std::cbrt(std::max(0.0f, values[i])));
   }
   script += "EOD\n$R << EOD\n";
   const acquire::Resampler r(angles, values, 1, {.k = k, .weights = acquire::Weights::shepard, .max_gap = max_gap});

@@ -9,6 +9,7 @@
 #include <regex>
 
 #include "apps/common.h"
+#include "specula/acquire/mapping.h"
 #include "specula/codec/render.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/brdf_geometry.h"
@@ -359,10 +360,9 @@ Response Service::samples_incidence(const Query& q) {
     // Angles first; a block's values are read only when some of its samples lie in the plane.
     bool have_values = false;
     for (std::size_t i = 0; i < n && found < limit; ++i) {
-      const double ti = angles[4 * i], to = angles[4 * i + 2];
-      double pd = std::fmod(std::abs(angles[4 * i + 3] - angles[4 * i + 1]), 2 * pi);
-      if (pd > pi) pd = 2 * pi - pd;
-      if (std::abs(ti - theta_i) > eps || (pd > eps && pd < pi - eps)) continue;
+      const auto x = acquire::incidence_plane_angle(
+          acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]}), theta_i, eps);
+      if (!x) continue;
       if (!have_values) {
         values.resize(n * info.bands);
         store_.read_samples(name, first, n, {}, values);
