@@ -97,6 +97,12 @@ std::string json_array(std::span<const double> v) {
   return out + "]";
 }
 
+Json json_numbers(std::span<const double> v) { return Json(std::vector<double>(v.begin(), v.end())); }
+
+Json json_numbers(const Eigen::VectorXd& v) { return json_numbers(std::span<const double>(v.data(), std::size_t(v.size()))); }
+
+void print_json(const Json& j) { fmt::print("{}\n", j.dump(-1, ' ', false, Json::error_handler_t::replace)); }
+
 std::vector<store::Store> open_stores(const std::vector<std::string>& paths) {
   std::vector<store::Store> stores;
   for (const auto& p : paths) stores.push_back(store::Store::open(p));
