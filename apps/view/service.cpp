@@ -368,8 +368,7 @@ Response Service::samples_incidence(const Query& q) {
         store_.read_samples(name, first, n, {}, values);
         have_values = true;
       }
-      const double x = (pd > pi / 2 ? 1 : -1) * to * 180 / pi;
-      points += fmt::format("{}[{:.3f},{}]", found ? "," : "", x, values[i * info.bands + band]);
+      points += fmt::format("{}[{:.3f},{}]", found ? "," : "", *x * 180 / pi, values[i * info.bands + band]);
       ++found;
     }
   }
