@@ -166,6 +166,20 @@ std::vector<std::vector<double>> simulated_response(const SimulatorOptions& o, c
 
 namespace {
 
+// The fraction of light reaching pixel (u, v): 1 at the centre, 1 - vignetting / 2 at the middle of an edge.
+double vignetting_factor(const SimulatorOptions& o, int u, int v) {
+  const double cx = o.width / 2.0, cy = o.height / 2.0;
+  const double dx = (u + 0.5 - cx) / cx, dy = (v + 0.5 - cy) / cy;
+  return 1 - o.vignetting * (dx * dx + dy * dy) / 2;
+}
+
+// The folders the images of `cap` go in.
+void make_image_directories(const fs::path& dir, const Capture& cap, std::size_t lights) {
+  for (const char* sub : {"mirror", "flat", "target", "scene"}) fs::create_directories(dir / sub);
+  for (const auto& t : cap.targets) fs::create_directories(dir / "target" / t.name);
+  for (std::size_t l = 0; l < lights; ++l) fs::create_directories(dir / "scene" / fmt::format("L{:03}", l));
+}
+
 // UsageError unless every pixel of the sphere lies on the image.
 void check_sphere_on_image(const SimulatorOptions& o) {
   const double px = o.width / 2.0, py = o.height / 2.0;
@@ -335,21 +349,17 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   fs::create_directories(dir);
 
   const std::vector<double> nm = fine_grid();
-  const double dl = nm[1] - nm[0];
   const WavelengthGrid fine(nm);
   const Eigen::VectorXd light = blackbody(o.light_kelvin, fine);
   const auto response = simulated_response(o, nm);
   const std::size_t B = o.bands.size(), L = nm.size();
-  const std::vector<std::vector<double>> w = band_weights(light, response, dl);
+  const std::vector<std::vector<double>> w = band_weights(light, response, nm[1] - nm[0]);
   const auto material = o.grid ? grid_material(o.grid, fine) : brdf::make_material(o.material, fine);
 
   const int W = o.width, H = o.height;
   const double cx = W / 2.0, cy = H / 2.0;
   const Sensor sensor{o, (1 << 12) - 1};
-  auto vignette = [&](int u, int v) {
-    const double dx = (u + 0.5 - cx) / cx, dy = (v + 0.5 - cy) / cy;
-    return 1 - o.vignetting * (dx * dx + dy * dy) / 2;
-  };
+  auto vignette = [&](int u, int v) { return vignetting_factor(o, u, v); };
   // The scan geometry puts pixel x at image column x + cx (principal point at the image centre).
   ScanRig rig = o.rig;
   const std::vector<ScanPixel> pixels = scan_pixels(rig);
@@ -359,9 +369,7 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   Capture cap = capture_description(o, nm, light, response, centre, radius);
 
   const std::vector<Job> jobs = image_jobs(o, cap);
-  for (const char* sub : {"mirror", "flat", "target", "scene"}) fs::create_directories(dir / sub);
-  for (const auto& t : cap.targets) fs::create_directories(dir / "target" / t.name);
-  for (std::size_t l = 0; l < rig.lights; ++l) fs::create_directories(dir / "scene" / fmt::format("L{:03}", l));
+  make_image_directories(dir, cap, rig.lights);
 
   // The rate of every sphere pixel in every band (DN/s at the brightness scale) for light l: bands x H x W.
   auto light_rates = [&](std::size_t l) {

@@ -28,7 +28,7 @@ store::Collection random_collection(std::size_t n, std::size_t bands, unsigned s
 }  // namespace
 
 TEST(LearnPca, MeanEigenvaluesAndProvenance) {
-  ScratchDir dir;
+  test::ScratchDir dir;
   const auto path = dir / "db.h5";
   const store::Collection c = random_collection(200, 4, 7);
   {
@@ -37,14 +37,15 @@ TEST(LearnPca, MeanEigenvaluesAndProvenance) {
     w.add_collection("one", random_collection(1, 4, 8));
     w.commit();
   }
-  const std::vector<store::Store> stores{store::Store::open(path)};
+  std::vector<store::Store> stores;
+  stores.push_back(store::Store::open(path));
   const stats::LearnedPca r = stats::learn_pca(stores, {.collection = "c"}, 2);
   Eigen::MatrixXd x(200, 4);
   for (Eigen::Index i = 0; i < 200; ++i)
     for (Eigen::Index b = 0; b < 4; ++b) x(i, b) = c.values[std::size_t(i * 4 + b)];
   const Eigen::VectorXd mean = x.colwise().mean();
   const Eigen::MatrixXd centred = x.rowwise() - mean.transpose();
-  const Eigen::MatrixXd cov = centred.transpose() * centred / 200.0;
+  const Eigen::MatrixXd cov = centred.transpose() * centred / 199.0;  // the sample covariance (n - 1)
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(cov);
   ASSERT_EQ(r.basis.eigenvalues.size(), 4);
   for (Eigen::Index b = 0; b < 4; ++b) EXPECT_NEAR(r.basis.mean[b], mean[b], 1e-6);
