@@ -23,8 +23,8 @@ std::filesystem::path output_store(const std::vector<store::Store>& stores, cons
   return py::module_::import("os").attr("fspath")(output).cast<std::string>();
 }
 
-void save_basis(const std::filesystem::path& out, const std::string& name, const store::Basis& basis, bool replace,
-                const std::string& function) {
+void save_basis_released(const std::filesystem::path& out, const std::string& name, const store::Basis& basis, bool replace,
+                         const std::string& function) {
   py::gil_scoped_release release;
   store::save_basis(out, name, basis, replace, python_command_line(function));
 }
@@ -176,7 +176,7 @@ void init_analysis(py::module_& m) {
         const std::filesystem::path out = output_store(stores, output);
         const store::Selection sel{.image_globs = globs_from(images), .collection = collection};
         store::Basis basis = interruptible([&] { return stats::learn_pca(stores, sel, k).basis; });
-        if (!name.is_none()) save_basis(out, name.cast<std::string>(), basis, replace, "pca");
+        if (!name.is_none()) save_basis_released(out, name.cast<std::string>(), basis, replace, "pca");
         return basis;
       },
       py::arg("stores"), py::arg("images") = py::none(), py::arg("collection") = "", py::arg("k") = 0,
@@ -227,7 +227,7 @@ void init_analysis(py::module_& m) {
         const store::Basis& basis = learned.basis;
         const nmf::NmfResult& r = learned.result;
         if (save) {
-          save_basis(out, *save, basis, replace, "nmf");
+          save_basis_released(out, *save, basis, replace, "nmf");
           std::error_code ec;
           std::filesystem::remove(opt.checkpoint, ec);
         }
