@@ -10,7 +10,7 @@
 using namespace specula;
 
 TEST(LearnBasis, RankTwoDataAndProvenance) {
-  ScratchDir dir;
+  test::ScratchDir dir;
   const auto path = dir / "db.h5";
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -29,7 +29,8 @@ TEST(LearnBasis, RankTwoDataAndProvenance) {
     w.add_collection("c", c);
     w.commit();
   }
-  const std::vector<store::Store> stores{store::Store::open(path)};
+  std::vector<store::Store> stores;
+  stores.push_back(store::Store::open(path));
   const nmf::LearnedBasis r = nmf::learn_basis(stores, {.collection = "c"}, {.k = 2, .max_epochs = 200, .tol = 1e-9});
   EXPECT_LT(r.result.rel_error, 1e-3);
   EXPECT_EQ(r.bands, bands);
