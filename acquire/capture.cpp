@@ -78,6 +78,34 @@ T field(const json& j, const char* key, const std::string& ctx) {
   }
 }
 
+// One entry of the manifest's "images", checked against the capture's lights, bands and targets read so far and the
+// directory's files.
+CaptureImage read_image_entry(const json& e, const Capture& c, const fs::path& dir, const std::string& ctx) {
+  CaptureImage im;
+  im.file = field<std::string>(e, "file", ctx + " image");
+  const std::string ictx = ctx + ": image '" + im.file + "'";
+  im.kind = parse_kind(field<std::string>(e, "kind", ictx), ictx);
+  im.exposure_s = field<double>(e, "exposure_s", ictx);
+  im.light = e.value("light", -1);
+  im.band = e.value("band", -1);
+  im.target = e.value("target", -1);
+  if (im.file.empty() || fs::path(im.file).is_absolute() || im.file.find("..") != std::string::npos)
+    throw InputError(ictx + ": the file must be a path inside the capture directory");
+  if (!(im.exposure_s > 0)) throw InputError(ictx + ": exposure_s must be positive");
+  const bool needs_light = im.kind == ImageKind::scene || im.kind == ImageKind::mirror;
+  const bool needs_band = im.kind == ImageKind::scene || im.kind == ImageKind::flat || im.kind == ImageKind::target;
+  if (needs_light != (im.light >= 0) || im.light >= int(c.light_angles_deg.size()))
+    throw InputError(ictx + ": light " + std::to_string(im.light) + " is not one of the " +
+                     std::to_string(c.light_angles_deg.size()) + " light positions a " + kind_name(im.kind) + " image needs");
+  if (needs_band != (im.band >= 0) || im.band >= int(c.bands.size()))
+    throw InputError(ictx + ": band " + std::to_string(im.band) + " is not one of the " + std::to_string(c.bands.size()) +
+                     " bands a " + kind_name(im.kind) + " image needs");
+  if ((im.kind == ImageKind::target) != (im.target >= 0) || im.target >= int(c.targets.size()))
+    throw InputError(ictx + ": target " + std::to_string(im.target) + " is not one of the " + std::to_string(c.targets.size()) + " targets");
+  if (!fs::is_regular_file(dir / im.file)) throw InputError(ictx + ": file is missing from " + dir.string());
+  return im;
+}
+
 }  // namespace
 
 Capture read_manifest(const fs::path& dir) {
@@ -146,30 +174,9 @@ Capture read_manifest(const fs::path& dir) {
   }
   std::set<std::tuple<int, int, double>> scene_exposures;
   for (const json& e : field<json>(j, "images", ctx)) {
-    CaptureImage im;
-    im.file = field<std::string>(e, "file", ctx + " image");
-    const std::string ictx = ctx + ": image '" + im.file + "'";
-    im.kind = parse_kind(field<std::string>(e, "kind", ictx), ictx);
-    im.exposure_s = field<double>(e, "exposure_s", ictx);
-    im.light = e.value("light", -1);
-    im.band = e.value("band", -1);
-    im.target = e.value("target", -1);
-    if (im.file.empty() || fs::path(im.file).is_absolute() || im.file.find("..") != std::string::npos)
-      throw InputError(ictx + ": the file must be a path inside the capture directory");
-    if (!(im.exposure_s > 0)) throw InputError(ictx + ": exposure_s must be positive");
-    const bool needs_light = im.kind == ImageKind::scene || im.kind == ImageKind::mirror;
-    const bool needs_band = im.kind == ImageKind::scene || im.kind == ImageKind::flat || im.kind == ImageKind::target;
-    if (needs_light != (im.light >= 0) || im.light >= int(c.light_angles_deg.size()))
-      throw InputError(ictx + ": light " + std::to_string(im.light) + " is not one of the " +
-                       std::to_string(c.light_angles_deg.size()) + " light positions a " + kind_name(im.kind) + " image needs");
-    if (needs_band != (im.band >= 0) || im.band >= int(c.bands.size()))
-      throw InputError(ictx + ": band " + std::to_string(im.band) + " is not one of the " + std::to_string(c.bands.size()) +
-                       " bands a " + kind_name(im.kind) + " image needs");
-    if ((im.kind == ImageKind::target) != (im.target >= 0) || im.target >= int(c.targets.size()))
-      throw InputError(ictx + ": target " + std::to_string(im.target) + " is not one of the " + std::to_string(c.targets.size()) + " targets");
-    if (!fs::is_regular_file(dir / im.file)) throw InputError(ictx + ": file is missing from " + dir.string());
+    CaptureImage im = read_image_entry(e, c, dir, ctx);
     if (im.kind == ImageKind::scene && !scene_exposures.insert({im.light, im.band, im.exposure_s}).second)
-      throw InputError(ictx + ": a second image for the same light, band and exposure");
+      throw InputError(ctx + ": image '" + im.file + "': a second image for the same light, band and exposure");
     c.images.push_back(std::move(im));
   }
   for (int l = 0; l < int(c.light_angles_deg.size()); ++l)

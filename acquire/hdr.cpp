@@ -6,6 +6,7 @@
 #include <string>
 
 #include "specula/core/error.h"
+#include "specula/core/parallel.h"
 
 namespace specula::acquire {
 
@@ -36,9 +37,7 @@ HdrImage merge_exposures(std::span<const std::span<const std::uint16_t>> exposur
   out.status.assign(n, HdrStatus::ok);
   out.pearson.assign(n, 1.0f);
   out.used.assign(n, 0);
-#pragma omp parallel for schedule(static)
-  for (long long ip = 0; ip < static_cast<long long>(n); ++ip) {
-    const std::size_t p = std::size_t(ip);
+  parallel_for(n, [&](std::size_t p) {
     double st = 0, sv = 0, stt = 0, svv = 0, stv = 0;
     int k = 0;
     for (const std::size_t e : order) {
@@ -67,7 +66,7 @@ HdrImage merge_exposures(std::span<const std::span<const std::uint16_t>> exposur
       out.rate[p] = float(double(exposures[e][p]) / times[e]);
       out.status[p] = HdrStatus::low_signal;
     }
-  }
+  }, 4096);
   return out;
 }
 

@@ -37,6 +37,11 @@ double phi_difference(double phi_i, double phi_o) {
 
 IsoAngles iso_angles(const brdf::StdAngles& a) { return {a.theta_i, a.theta_o, phi_difference(a.phi_i, a.phi_o)}; }
 
+std::optional<double> incidence_plane_angle(const IsoAngles& a, double theta_i, double eps) {
+  if (std::abs(a.theta_i - theta_i) > eps || (a.phi_d > eps && a.phi_d < pi - eps)) return std::nullopt;
+  return (a.phi_d > pi / 2 ? 1 : -1) * a.theta_o;
+}
+
 Eigen::Vector3d map_angles(Mapping m, const IsoAngles& a) {
   switch (m) {
     case Mapping::standard: return {a.theta_i, a.theta_o, a.phi_d};

@@ -4,6 +4,7 @@
 // Marschner's eq 5.8, M_h Rusinkiewicz's half/difference angles. Every mapping honours isotropy (eq 5.6:
 // only |phi_o - phi_i| folded into [0, pi] matters); M_m and M_h honour reciprocity too (eq 5.7), M_s does not.
 #include <Eigen/Core>
+#include <optional>
 #include <string_view>
 
 #include "specula/core/brdf_geometry.h"
@@ -26,6 +27,10 @@ struct IsoAngles {
 
 /// The isotropic configuration of standard angles.
 IsoAngles iso_angles(const brdf::StdAngles& a);
+/// Where a configuration lies on the incidence plane at theta_i (figures 5.5-5.7, 5.17): its signed outgoing angle in
+/// radians (negative on the light's side, positive towards the mirror direction) when its theta_i and its phi_d
+/// (0 or pi) are both within eps of the plane's, else nullopt.
+std::optional<double> incidence_plane_angle(const IsoAngles& a, double theta_i, double eps);
 /// |phi_o - phi_i| folded into [0, pi].
 double phi_difference(double phi_i, double phi_o);
 

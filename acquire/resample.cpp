@@ -108,21 +108,19 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
       for (std::size_t b0 = 0; b0 < m; b0 += batch) {
         check_interrupt();
         const std::size_t b1 = std::min(m, b0 + batch);
-#pragma omp parallel
-        {
-          WeightedNeighbours wn;
-#pragma omp for schedule(dynamic, 256)
-          for (long long i = static_cast<long long>(b0); i < static_cast<long long>(b1); ++i) {
-            const std::size_t c = std::size_t(i);
-            const brdf::StdAngles centre = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[first + c])));
-            if (!wn.find(tree, iso_angles(centre), o)) continue;
-            count[c] = std::uint32_t(wn.by_sample.size());
-            for (std::size_t j = 0; j < wn.by_sample.size(); ++j) {
-              sample[c * k + j] = wn.by_sample[j].first;
-              weight[c * k + j] = wn.by_sample[j].second;
-            }
-          }
-        }
+        parallel_for(
+            b1 - b0, [] { return WeightedNeighbours(); },
+            [&](std::size_t i, WeightedNeighbours& wn) {
+              const std::size_t c = b0 + i;
+              const brdf::StdAngles centre = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[first + c])));
+              if (!wn.find(tree, iso_angles(centre), o)) return;
+              count[c] = std::uint32_t(wn.by_sample.size());
+              for (std::size_t j = 0; j < wn.by_sample.size(); ++j) {
+                sample[c * k + j] = wn.by_sample[j].first;
+                weight[c * k + j] = wn.by_sample[j].second;
+              }
+            },
+            256);
         progress.advance(b1 - b0);
       }
     }
@@ -138,18 +136,19 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
         block.resize(rows * bands);
         read(s0, rows, block);
         const auto s1 = std::uint32_t(s0 + rows);
-#pragma omp parallel for schedule(dynamic, 4096)
-        for (long long i = 0; i < static_cast<long long>(m); ++i) {
-          const std::size_t c = std::size_t(i);
-          std::uint32_t j = cursor[c];
-          double* a = acc.data() + c * bands;
-          for (; j < count[c] && sample[c * k + j] < s1; ++j) {
-            const float* v = block.data() + (sample[c * k + j] - s0) * bands;
-            const double w = weight[c * k + j];
-            for (std::size_t q = 0; q < bands; ++q) a[q] += w * double(v[q]);
-          }
-          cursor[c] = j;
-        }
+        parallel_for(
+            m,
+            [&](std::size_t c) {
+              std::uint32_t j = cursor[c];
+              double* a = acc.data() + c * bands;
+              for (; j < count[c] && sample[c * k + j] < s1; ++j) {
+                const float* v = block.data() + (sample[c * k + j] - s0) * bands;
+                const double w = weight[c * k + j];
+                for (std::size_t q = 0; q < bands; ++q) a[q] += w * double(v[q]);
+              }
+              cursor[c] = j;
+            },
+            4096);
         progress.advance(rows);
       }
     }
@@ -261,12 +260,14 @@ SampleTree::SampleTree(const SampleSource& src, Mapping m) : mapping_(m), n_(src
       const std::size_t r = std::min(rows, n_ - s0);
       angles.resize(4 * r);
       src.read_angles(s0, r, angles);
-#pragma omp parallel for schedule(static)
-      for (long long i = 0; i < static_cast<long long>(r); ++i) {
-        const double* a = angles.data() + 4 * i;
-        const Eigen::Vector3f p = mapped(m, iso_angles({a[0], a[1], a[2], a[3]}));
-        for (std::size_t d = 0; d < 3; ++d) xyz[3 * (s0 + std::size_t(i)) + d] = p[Eigen::Index(d)];
-      }
+      parallel_for(
+          r,
+          [&](std::size_t i) {
+            const double* a = angles.data() + 4 * i;
+            const Eigen::Vector3f p = mapped(m, iso_angles({a[0], a[1], a[2], a[3]}));
+            for (std::size_t d = 0; d < 3; ++d) xyz[3 * (s0 + i) + d] = p[Eigen::Index(d)];
+          },
+          4096);
       progress.advance(r);
     }
   }

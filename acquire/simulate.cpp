@@ -164,28 +164,98 @@ std::vector<std::vector<double>> simulated_response(const SimulatorOptions& o, c
   return r;
 }
 
-Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
-  check_simulator(opt);
-  SimulatorOptions o = opt;
-  if (o.bands.empty()) o.bands = default_bands();
-  {
-    const std::vector<ScanPixel> probe = scan_pixels(o.rig);
-    const double px = o.width / 2.0, py = o.height / 2.0;
-    for (const ScanPixel& p : probe)
-      if (p.x + px < 0 || p.x + px >= o.width || p.y + py < 0 || p.y + py >= o.height)
-        throw UsageError("simulate-capture: the sphere falls off the image; enlarge the image or bring the sphere to the axis");
-  }
-  if (fs::exists(dir) && !fs::is_empty(dir))
-    throw UsageError("simulate-capture: " + dir.string() + " exists and is not empty; name a new directory");
-  fs::create_directories(dir);
+namespace {
 
-  const std::vector<double> nm = fine_grid();
-  const double dl = nm[1] - nm[0];
-  const WavelengthGrid fine(nm);
-  const Eigen::VectorXd light = blackbody(o.light_kelvin, fine);
-  const auto response = simulated_response(o, nm);
-  const std::size_t B = o.bands.size(), L = nm.size();
-  // band_weight[j][k] = L(k) R_j(k) dl / Z, with Z making the strongest band of a white Lambertian (pi f = 1) 1.
+// The fraction of light reaching pixel (u, v): 1 at the centre, 1 - vignetting / 2 at the middle of an edge.
+double vignetting_factor(const SimulatorOptions& o, int u, int v) {
+  const double cx = o.width / 2.0, cy = o.height / 2.0;
+  const double dx = (u + 0.5 - cx) / cx, dy = (v + 0.5 - cy) / cy;
+  return 1 - o.vignetting * (dx * dx + dy * dy) / 2;
+}
+
+// The folders the images of `cap` go in.
+void make_image_directories(const fs::path& dir, const Capture& cap, std::size_t lights) {
+  for (const char* sub : {"mirror", "flat", "target", "scene"}) fs::create_directories(dir / sub);
+  for (const auto& t : cap.targets) fs::create_directories(dir / "target" / t.name);
+  for (std::size_t l = 0; l < lights; ++l) fs::create_directories(dir / "scene" / fmt::format("L{:03}", l));
+}
+
+// UsageError unless every pixel of the sphere lies on the image.
+void check_sphere_on_image(const SimulatorOptions& o) {
+  const double px = o.width / 2.0, py = o.height / 2.0;
+  for (const ScanPixel& p : scan_pixels(o.rig))
+    if (p.x + px < 0 || p.x + px >= o.width || p.y + py < 0 || p.y + py >= o.height)
+      throw UsageError("simulate-capture: the sphere falls off the image; enlarge the image or bring the sphere to the axis");
+}
+
+// Per band: the weights' sum (a white flat field) and, per target (t * B + j), the weights times its reflectance.
+std::pair<std::vector<double>, std::vector<double>> flat_and_target_sums(const std::vector<std::vector<double>>& w,
+                                                                         const std::vector<double>& bands,
+                                                                         const std::vector<CaptureTarget>& targets,
+                                                                         const std::vector<double>& nm) {
+  const std::size_t B = w.size(), L = nm.size();
+  std::vector<double> flat_sum(B, 0.0), target_sum(targets.size() * B, 0.0);
+  for (std::size_t j = 0; j < B; ++j) {
+    for (std::size_t k = 0; k < L; ++k) flat_sum[j] += w[j][k];
+    for (std::size_t t = 0; t < targets.size(); ++t)
+      for (std::size_t k = 0; k < L; ++k) target_sum[t * B + j] += w[j][k] * interpolate(bands, targets[t].reflectance, nm[k]);
+  }
+  return {flat_sum, target_sum};
+}
+
+// A mirror sphere in the same place: the light's reflection is a small bright spot (a source of 1 degree), found by
+// 8 x 8 supersampling of pixel (u, v) where the reflected view ray points at the light at lp.
+double mirror_rate(int u, int v, double cx, double cy, const Eigen::Vector3d& lp, const ScanRig& rig,
+                   const Eigen::Vector3d& centre, double radius) {
+  double sum = 0;
+  for (int sy = 0; sy < 8; ++sy)
+    for (int sx = 0; sx < 8; ++sx) {
+      const Eigen::Vector3d d =
+          Eigen::Vector3d((u + (sx + 0.5) / 8 - cx) / rig.focal_px, (v + (sy + 0.5) / 8 - cy) / rig.focal_px, 1).normalized();
+      const double b = d.dot(centre), disc = b * b - centre.squaredNorm() + radius * radius;
+      if (disc <= 0) continue;
+      const Eigen::Vector3d x = (b - std::sqrt(disc)) * d, n = (x - centre) / radius;
+      const Eigen::Vector3d r = d - 2 * d.dot(n) * n;
+      const double angle = std::acos(std::clamp(r.dot((lp - x).normalized()), -1.0, 1.0)) * 180 / pi;
+      sum += std::exp(-0.5 * std::pow(angle / 1.0, 2));
+    }
+  return 300000 * sum / 64;
+}
+
+// Every image is a job with its own seed, so the files do not depend on the thread count.
+struct Job {
+  CaptureImage image;
+  std::uint64_t seed;
+};
+
+// The images of a capture in the order they are rendered: silhouette, mirror, flats, targets, then the scene.
+std::vector<Job> image_jobs(const SimulatorOptions& o, const Capture& cap) {
+  const ScanRig& rig = o.rig;
+  const std::size_t B = o.bands.size();
+  std::vector<Job> jobs;
+  auto add = [&](ImageKind kind, int light_index, int band, int target, double t, const std::string& file) {
+    CaptureImage im{file, kind, light_index, band, target, t};
+    jobs.push_back({im, std::uint64_t(o.seed) * 1000003ull + jobs.size()});
+  };
+  add(ImageKind::silhouette, -1, -1, -1, 0.05, "silhouette.png");
+  for (std::size_t l = 0; l < rig.lights; ++l) add(ImageKind::mirror, int(l), -1, -1, 0.01, fmt::format("mirror/L{:03}.png", l));
+  for (std::size_t j = 0; j < B; ++j)
+    for (const double e : {0.02, 0.05}) add(ImageKind::flat, -1, int(j), -1, e, fmt::format("flat/B{:03}-{:g}ms.png", int(o.bands[j]), e * 1000));
+  for (std::size_t t = 0; t < cap.targets.size(); ++t)
+    for (std::size_t j = 0; j < B; ++j)
+      for (const double e : {0.02, 0.1, 0.5, 2.0})
+        add(ImageKind::target, -1, int(j), int(t), e, fmt::format("target/{}/B{:03}-{:g}ms.png", cap.targets[t].name, int(o.bands[j]), e * 1000));
+  for (std::size_t l = 0; l < rig.lights; ++l)
+    for (std::size_t j = 0; j < B; ++j)
+      for (const double e : o.exposures_s)
+        add(ImageKind::scene, int(l), int(j), -1, e, fmt::format("scene/L{:03}/B{:03}-{:g}ms.png", l, int(o.bands[j]), e * 1000));
+  return jobs;
+}
+
+// band_weight[j][k] = L(k) R_j(k) dl / Z, with Z making the strongest band of a white Lambertian (pi f = 1) 1.
+std::vector<std::vector<double>> band_weights(const Eigen::VectorXd& light, const std::vector<std::vector<double>>& response,
+                                              double dl) {
+  const std::size_t B = response.size(), L = std::size_t(light.size());
   std::vector<std::vector<double>> w(B, std::vector<double>(L));
   double z = 0;
   for (std::size_t j = 0; j < B; ++j) {
@@ -195,21 +265,17 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   }
   for (auto& row : w)
     for (double& v : row) v /= z;
-  const auto material = o.grid ? grid_material(o.grid, fine) : brdf::make_material(o.material, fine);
+  return w;
+}
 
+// The manifest of a simulated capture before its images: camera, rig, light, targets, the filter's transmission data
+// and the truth (sphere and light directions).
+Capture capture_description(const SimulatorOptions& o, const std::vector<double>& nm, const Eigen::VectorXd& light,
+                            const std::vector<std::vector<double>>& response, const Eigen::Vector3d& centre, double radius) {
+  const ScanRig& rig = o.rig;
   const int W = o.width, H = o.height;
   const double cx = W / 2.0, cy = H / 2.0;
-  const Sensor sensor{o, (1 << 12) - 1};
-  auto vignette = [&](int u, int v) {
-    const double dx = (u + 0.5 - cx) / cx, dy = (v + 0.5 - cy) / cy;
-    return 1 - o.vignetting * (dx * dx + dy * dy) / 2;
-  };
-  // The scan geometry puts pixel x at image column x + cx (principal point at the image centre).
-  ScanRig rig = o.rig;
-  const std::vector<ScanPixel> pixels = scan_pixels(rig);
-  const Eigen::Vector3d centre(rig.off_axis, rig.off_axis_y, rig.distance);
-  const double radius = sphere_radius(rig);
-
+  const std::size_t B = o.bands.size(), L = nm.size();
   Capture cap;
   cap.width = W;
   cap.height = H;
@@ -250,32 +316,60 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
     truth.light_dirs.push_back({d.x(), d.y(), d.z()});
   }
   cap.truth = truth;
+  return cap;
+}
 
-  // Every image is a job with its own seed, so the files do not depend on the thread count.
-  struct Job {
-    CaptureImage image;
-    std::uint64_t seed;
-  };
-  std::vector<Job> jobs;
-  auto add = [&](ImageKind kind, int light_index, int band, int target, double t, const std::string& file) {
-    CaptureImage im{file, kind, light_index, band, target, t};
-    jobs.push_back({im, std::uint64_t(o.seed) * 1000003ull + jobs.size()});
-  };
-  add(ImageKind::silhouette, -1, -1, -1, 0.05, "silhouette.png");
-  for (std::size_t l = 0; l < rig.lights; ++l) add(ImageKind::mirror, int(l), -1, -1, 0.01, fmt::format("mirror/L{:03}.png", l));
-  for (std::size_t j = 0; j < B; ++j)
-    for (const double e : {0.02, 0.05}) add(ImageKind::flat, -1, int(j), -1, e, fmt::format("flat/B{:03}-{:g}ms.png", int(o.bands[j]), e * 1000));
-  for (std::size_t t = 0; t < cap.targets.size(); ++t)
-    for (std::size_t j = 0; j < B; ++j)
-      for (const double e : {0.02, 0.1, 0.5, 2.0})
-        add(ImageKind::target, -1, int(j), int(t), e, fmt::format("target/{}/B{:03}-{:g}ms.png", cap.targets[t].name, int(o.bands[j]), e * 1000));
-  for (std::size_t l = 0; l < rig.lights; ++l)
-    for (std::size_t j = 0; j < B; ++j)
-      for (const double e : o.exposures_s)
-        add(ImageKind::scene, int(l), int(j), -1, e, fmt::format("scene/L{:03}/B{:03}-{:g}ms.png", l, int(o.bands[j]), e * 1000));
-  for (const char* sub : {"mirror", "flat", "target", "scene"}) fs::create_directories(dir / sub);
-  for (const auto& t : cap.targets) fs::create_directories(dir / "target" / t.name);
-  for (std::size_t l = 0; l < rig.lights; ++l) fs::create_directories(dir / "scene" / fmt::format("L{:03}", l));
+// Silhouette coverage by 4 x 4 supersampling of the sphere's disc, for edges with sub-pixel information.
+std::vector<float> silhouette_coverage(int W, int H, const ScanRig& rig, const Eigen::Vector3d& centre, double radius) {
+  const double cx = W / 2.0, cy = H / 2.0;
+  std::vector<float> coverage(std::size_t(W * H), 0.0f);
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u) {
+      int hits = 0;
+      for (int sy = 0; sy < 4; ++sy)
+        for (int sx = 0; sx < 4; ++sx) {
+          const Eigen::Vector3d d = Eigen::Vector3d((u + (sx + 0.5) / 4 - cx) / rig.focal_px, (v + (sy + 0.5) / 4 - cy) / rig.focal_px, 1).normalized();
+          const double b = d.dot(centre);
+          hits += b * b - centre.squaredNorm() + radius * radius > 0;
+        }
+      coverage[std::size_t(v * W + u)] = float(hits / 16.0);
+    }
+  return coverage;
+}
+
+}  // namespace
+
+Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
+  check_simulator(opt);
+  SimulatorOptions o = opt;
+  if (o.bands.empty()) o.bands = default_bands();
+  check_sphere_on_image(o);
+  if (fs::exists(dir) && !fs::is_empty(dir))
+    throw UsageError("simulate-capture: " + dir.string() + " exists and is not empty; name a new directory");
+  fs::create_directories(dir);
+
+  const std::vector<double> nm = fine_grid();
+  const WavelengthGrid fine(nm);
+  const Eigen::VectorXd light = blackbody(o.light_kelvin, fine);
+  const auto response = simulated_response(o, nm);
+  const std::size_t B = o.bands.size(), L = nm.size();
+  const std::vector<std::vector<double>> w = band_weights(light, response, nm[1] - nm[0]);
+  const auto material = o.grid ? grid_material(o.grid, fine) : brdf::make_material(o.material, fine);
+
+  const int W = o.width, H = o.height;
+  const double cx = W / 2.0, cy = H / 2.0;
+  const Sensor sensor{o, (1 << 12) - 1};
+  auto vignette = [&](int u, int v) { return vignetting_factor(o, u, v); };
+  // The scan geometry puts pixel x at image column x + cx (principal point at the image centre).
+  ScanRig rig = o.rig;
+  const std::vector<ScanPixel> pixels = scan_pixels(rig);
+  const Eigen::Vector3d centre(rig.off_axis, rig.off_axis_y, rig.distance);
+  const double radius = sphere_radius(rig);
+
+  Capture cap = capture_description(o, nm, light, response, centre, radius);
+
+  const std::vector<Job> jobs = image_jobs(o, cap);
+  make_image_directories(dir, cap, rig.lights);
 
   // The rate of every sphere pixel in every band (DN/s at the brightness scale) for light l: bands x H x W.
   auto light_rates = [&](std::size_t l) {
@@ -303,26 +397,9 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   };
   std::vector<float> scene_rate;
   // What a flat field and each target send through each band (the same at every pixel but for vignetting).
-  std::vector<double> flat_sum(B, 0.0), target_sum(cap.targets.size() * B, 0.0);
-  for (std::size_t j = 0; j < B; ++j) {
-    for (std::size_t k = 0; k < L; ++k) flat_sum[j] += w[j][k];
-    for (std::size_t t = 0; t < cap.targets.size(); ++t)
-      for (std::size_t k = 0; k < L; ++k) target_sum[t * B + j] += w[j][k] * interpolate(o.bands, cap.targets[t].reflectance, nm[k]);
-  }
+  const auto [flat_sum, target_sum] = flat_and_target_sums(w, o.bands, cap.targets, nm);
 
-  // Silhouette coverage by 4 x 4 supersampling of the sphere's disc, for edges with sub-pixel information.
-  std::vector<float> coverage(std::size_t(W * H), 0.0f);
-  for (int v = 0; v < H; ++v)
-    for (int u = 0; u < W; ++u) {
-      int hits = 0;
-      for (int sy = 0; sy < 4; ++sy)
-        for (int sx = 0; sx < 4; ++sx) {
-          const Eigen::Vector3d d = Eigen::Vector3d((u + (sx + 0.5) / 4 - cx) / rig.focal_px, (v + (sy + 0.5) / 4 - cy) / rig.focal_px, 1).normalized();
-          const double b = d.dot(centre);
-          hits += b * b - centre.squaredNorm() + radius * radius > 0;
-        }
-      coverage[std::size_t(v * W + u)] = float(hits / 16.0);
-    }
+  const std::vector<float> coverage = silhouette_coverage(W, H, rig, centre, radius);
 
   auto render = [&](std::size_t first, std::size_t last) {
     parallel_for(last - first, [&](std::size_t k) {
@@ -342,23 +419,7 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
               rate = o.brightness * vignette(u, v) * target_sum[std::size_t(im.target) * B + std::size_t(im.band)];
               break;
             case ImageKind::mirror: {
-              // A mirror sphere in the same place: the light's reflection is a small bright spot (a source of
-              // 1 degree), found by 8 x 8 supersampling where the reflected view ray points at the light.
-              if (coverage[p] <= 0) break;
-              const Eigen::Vector3d lp = light_position(rig, std::size_t(im.light));
-              double sum = 0;
-              for (int sy = 0; sy < 8; ++sy)
-                for (int sx = 0; sx < 8; ++sx) {
-                  const Eigen::Vector3d d =
-                      Eigen::Vector3d((u + (sx + 0.5) / 8 - cx) / rig.focal_px, (v + (sy + 0.5) / 8 - cy) / rig.focal_px, 1).normalized();
-                  const double b = d.dot(centre), disc = b * b - centre.squaredNorm() + radius * radius;
-                  if (disc <= 0) continue;
-                  const Eigen::Vector3d x = (b - std::sqrt(disc)) * d, n = (x - centre) / radius;
-                  const Eigen::Vector3d r = d - 2 * d.dot(n) * n;
-                  const double angle = std::acos(std::clamp(r.dot((lp - x).normalized()), -1.0, 1.0)) * 180 / pi;
-                  sum += std::exp(-0.5 * std::pow(angle / 1.0, 2));
-                }
-              rate = 300000 * sum / 64;
+              if (coverage[p] > 0) rate = mirror_rate(u, v, cx, cy, light_position(rig, std::size_t(im.light)), rig, centre, radius);
               break;
             }
           }

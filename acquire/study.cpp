@@ -8,6 +8,7 @@
 
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/parallel.h"
 
 namespace specula::acquire {
 namespace {
@@ -125,13 +126,15 @@ StudyOutput resampling_study(const brdf::SpectralModel& model, std::size_t band,
         check_interrupt();
         const Resampler r(tree, column, 1, {.mapping = m, .k = k, .weights = w, .power = 1, .max_gap = o.max_gap});
         std::vector<double> v(cells.size());
-#pragma omp parallel for schedule(dynamic, 64)
-        for (long long c = 0; c < static_cast<long long>(cells.size()); ++c) {
-          float x = 0;
-          const bool has = r.predict(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[std::size_t(c)]))),
-                                     std::span<float>(&x, 1));
-          v[std::size_t(c)] = has ? double(x) : std::numeric_limits<double>::quiet_NaN();
-        }
+        parallel_for(
+            cells.size(),
+            [&](std::size_t c) {
+              float x = 0;
+              const bool has =
+                  r.predict(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[c]))), std::span<float>(&x, 1));
+              v[c] = has ? double(x) : std::numeric_limits<double>::quiet_NaN();
+            },
+            64);
         StudyResult row{.mapping = m, .k = k, .weights = w};
         SphereRender render = render_cells(v);
         compare(render, row);

@@ -7,6 +7,8 @@
 #include <string>
 
 #include "specula/core/error.h"
+#include "specula/core/interrupt.h"
+#include "specula/core/progress.h"
 #include "specula/core/parallel.h"
 
 namespace specula::acquire {
@@ -57,6 +59,53 @@ std::size_t thin_evenly(std::vector<double>& angles, std::size_t& seen, std::siz
       std::copy_n(angles.begin() + std::ptrdiff_t(4 * i), 4, angles.begin() + std::ptrdiff_t(4 * kept++));
   angles.resize(4 * kept);
   return kept;
+}
+
+SynthesisCount synthesize_samples(const brdf::SpectralModel& model, const SampleSynthesis& o,
+                                  const std::function<void(std::span<const double>, std::span<const float>)>& sink) {
+  const std::size_t b = model.bands();
+  std::vector<double> angles;
+  std::vector<float> values;
+  SynthesisCount out;
+  if (o.geometry == SampleSynthesis::Geometry::scan) {
+    const std::vector<ScanPixel> px = scan_pixels(o.rig);
+    out.pixels = px.size();
+    // With a count, every lit sample is counted first and the scan thinned evenly to it.
+    std::size_t total = 0;
+    if (o.count) {
+      for (std::size_t j = 0; j < o.rig.lights; ++j) {
+        angles.clear();
+        total += scan_light(o.rig, px, j, angles);
+      }
+    }
+    Progress progress("synth-samples", o.rig.lights);
+    std::size_t seen = 0;
+    for (std::size_t j = 0; j < o.rig.lights; ++j) {
+      check_interrupt();
+      angles.clear();
+      scan_light(o.rig, px, j, angles);
+      if (o.count && o.count < total) thin_evenly(angles, seen, o.count, total);
+      values.resize(angles.size() / 4 * b);
+      evaluate_noisy(model, angles, values, o.noise, o.seed, j);
+      sink(angles, values);
+      out.samples += angles.size() / 4;
+      progress.advance();
+    }
+    return out;
+  }
+  const std::size_t block = std::size_t(1) << 20;
+  Progress progress("synth-samples", o.count);
+  for (std::size_t first = 0; first < o.count; first += block) {
+    check_interrupt();
+    const std::size_t n = std::min(block, o.count - first);
+    random_configurations(n, o.seed, first / block, angles);
+    values.resize(n * b);
+    evaluate_noisy(model, angles, values, o.noise, o.seed, first / block);
+    sink(angles, values);
+    out.samples += n;
+    progress.advance(n);
+  }
+  return out;
 }
 
 }  // namespace specula::acquire

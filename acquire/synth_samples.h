@@ -7,9 +7,11 @@
 // (core/parallel.h) needs the including library's OpenMP, and core stays Eigen-only.
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
+#include "specula/acquire/scan.h"
 #include "specula/core/brdf_models.h"
 
 namespace specula::acquire {
@@ -32,5 +34,27 @@ void random_configurations(std::size_t n, std::uint64_t seed, std::uint64_t bloc
 /// samples of this batch whose running index `seen` (advanced by n) crosses a multiple of total / count, compacting
 /// angles in place; over the whole stream exactly `count` are kept. Returns how many of this batch were kept.
 std::size_t thin_evenly(std::vector<double>& angles, std::size_t& seen, std::size_t count, std::size_t total);
+
+/// Where synthetic samples are taken: at the scan of `rig` (thinned evenly to `count` when 0 < count < all it sees) or
+/// at `count` random configurations (random_configurations, 2^20 per block); `noise` and `seed` as evaluate_noisy().
+struct SampleSynthesis {
+  enum class Geometry { scan, random } geometry = Geometry::scan;
+  ScanRig rig;
+  std::size_t count = 0;
+  double noise = 0;
+  std::uint64_t seed = 1;
+};
+
+/// What synthesize_samples() produced.
+struct SynthesisCount {
+  std::size_t samples = 0;
+  std::size_t pixels = 0;  ///< scan: sphere pixels seen
+};
+
+/// Synthetic samples of `model` (angles n x 4, values n x bands) handed to `sink` batch by batch in a fixed order (one
+/// batch per light of the scan, or per block of random configurations), with progress and an interruption check
+/// between batches. The settings are not checked here (check_rig, count, noise: the caller's).
+SynthesisCount synthesize_samples(const brdf::SpectralModel& model, const SampleSynthesis& settings,
+                                  const std::function<void(std::span<const double>, std::span<const float>)>& sink);
 
 }  // namespace specula::acquire

@@ -25,6 +25,7 @@
 #include "specula/core/interrupt.h"
 #include "specula/core/progress.h"
 #include "specula/store/io/png_stack.h"
+#include "specula/store/object_spec.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -48,10 +49,16 @@ void run_acquire_hdr(const AcquireHdrOptions& o) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   auto name = [](std::size_t s) { return acquire::status_name(acquire::HdrStatus(s)); };
   if (o.json) {
-    std::string by;
-    for (std::size_t s = 0; s < sum.status.size(); ++s) by += fmt::format("{}\"{}\":{}", s ? "," : "", name(s), sum.status[s]);
-    fmt::print("{{\"lights\":{},\"bands\":{},\"pixels\":{},\"valid_pixels\":{},\"status\":{{{}}},\"seconds\":{:.3f}}}\n",
-               sum.lights, sum.bands, sum.pixels, sum.valid_pixels, by, seconds);
+    Json by;
+    for (std::size_t s = 0; s < sum.status.size(); ++s) by[name(s)] = sum.status[s];
+    Json j;
+    j["lights"] = sum.lights;
+    j["bands"] = sum.bands;
+    j["pixels"] = sum.pixels;
+    j["valid_pixels"] = sum.valid_pixels;
+    j["status"] = std::move(by);
+    j["seconds"] = seconds;
+    print_json(j);
     return;
   }
   fmt::print("merged {} light positions x {} bands into {} ({} of {} pixels valid in every band) in {:.1f} s\n", sum.lights,
@@ -72,12 +79,9 @@ struct AcquireOptions {
 };
 
 std::pair<std::string, std::string> split_output(const std::string& spec, const std::string& fallback) {
-  const auto colon = spec.rfind(':');
-  if (colon != std::string::npos && colon > 1) return {spec.substr(0, colon), spec.substr(colon + 1)};
+  if (const auto s = store::parse_object_spec(spec); s && s->file.string().size() > 1) return {s->file.string(), s->name};
   return {spec, fallback};
 }
-
-std::string vec_json(const Eigen::Vector3d& v) { return fmt::format("[{},{},{}]", v.x(), v.y(), v.z()); }
 
 // Figures 4.6-4.9: each target's known reflectance against the delta and factored recoveries.
 void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::path& dir, const acquire::Calibration& c) {
@@ -135,10 +139,9 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
   std::vector<std::string> points(o.plot_theta.size());
   acquire::for_each_sample(s, name, [&](const double* angles, const float* values) {
     const acquire::IsoAngles a = acquire::iso_angles({angles[0], angles[1], angles[2], angles[3]});
-    if (a.phi_d > eps && a.phi_d < pi - eps) return;
     for (std::size_t k = 0; k < o.plot_theta.size(); ++k)
-      if (std::abs(a.theta_i - o.plot_theta[k] * pi / 180) <= eps)
-        points[k] += fmt::format("{:.3f} {:.5g}\n", (a.phi_d > pi / 2 ? 1 : -1) * a.theta_o * 180 / pi, std::cbrt(std::max(0.0f, values[band])));
+      if (const auto x = acquire::incidence_plane_angle(a, o.plot_theta[k] * pi / 180, eps))
+        points[k] += fmt::format("{:.3f} {:.5g}\n", *x * 180 / pi, std::cbrt(std::max(0.0f, values[band])));
   });
   for (std::size_t k = 0; k < o.plot_theta.size(); ++k) {
     std::string script = "$S << EOD\n" + points[k] + "EOD\n";
@@ -178,16 +181,20 @@ void print_calibration(const acquire::Capture& cap, const acquire::Calibration& 
   (void)cap;
 }
 
-// Mean and largest angle between the calibrated and the true light directions, when the manifest has the truth.
-std::string calibration_json(const acquire::Capture& cap, const acquire::Calibration& c) {
-  std::string targets;
+// The calibration's circle, sphere and targets and, when the manifest has the truth, the mean and largest angle between
+// the calibrated and the true light directions, added to `j`.
+void add_calibration_json(Json& j, const acquire::Capture& cap, const acquire::Calibration& c) {
+  Json targets = Json::array();
   for (const auto& t : c.targets)
-    targets += fmt::format("{}{{\"name\":{},\"held_out\":{},\"rms_delta\":{},\"rms_factored\":{}}}", targets.empty() ? "" : ",",
-                           json_string(t.name), t.held_out ? "true" : "false", t.rms_delta, t.rms_factored);
+    targets.push_back({{"name", t.name}, {"held_out", t.held_out}, {"rms_delta", t.rms_delta}, {"rms_factored", t.rms_factored}});
   const auto [mean, worst] = acquire::light_direction_error(cap, c);
-  return fmt::format("\"circle\":{{\"cx\":{},\"cy\":{},\"r\":{}}},\"sphere\":{{\"centre\":{},\"radius\":{}}},\"targets\":[{}]{}",
-                     c.circle.cx, c.circle.cy, c.circle.r, vec_json(c.sphere.centre), c.sphere.radius, targets,
-                     mean >= 0 ? fmt::format(",\"light_dir_error_deg\":{},\"light_dir_error_max_deg\":{}", mean, worst) : std::string());
+  j["circle"] = {{"cx", c.circle.cx}, {"cy", c.circle.cy}, {"r", c.circle.r}};
+  j["sphere"] = {{"centre", {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z()}}, {"radius", c.sphere.radius}};
+  j["targets"] = std::move(targets);
+  if (mean >= 0) {
+    j["light_dir_error_deg"] = mean;
+    j["light_dir_error_max_deg"] = worst;
+  }
 }
 
 void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
@@ -236,13 +243,21 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
       truth = acquire::sample_error(store::Store::open(store_path), name, *model);
   const auto [truth_err, truth_ratio] = truth;
   if (o.json) {
-    std::string rejected;
-    for (std::size_t k = 0; k < r.rejected.size(); ++k)
-      rejected += fmt::format("{}\"{}\":{}", k ? "," : "", acquire::kRejectNames[k], r.rejected[k]);
-    fmt::print("{{\"samples\":{},\"sphere_pixels\":{},\"rejected\":{{{}}},{}{}{},\"seconds\":{:.3f}}}\n", r.samples, r.sphere_pixels,
-               rejected, calibration_json(cap, c),
-               truth_err >= 0 ? fmt::format(",\"truth_median_rel_error\":{},\"truth_median_ratio\":{}", truth_err, truth_ratio) : std::string(),
-               fmt::format(",\"calibrate_seconds\":{:.3f},\"extract_seconds\":{:.3f}", calibrate_seconds, extract_seconds), seconds);
+    Json rejected;
+    for (std::size_t k = 0; k < r.rejected.size(); ++k) rejected[acquire::kRejectNames[k]] = r.rejected[k];
+    Json j;
+    j["samples"] = r.samples;
+    j["sphere_pixels"] = r.sphere_pixels;
+    j["rejected"] = std::move(rejected);
+    add_calibration_json(j, cap, c);
+    if (truth_err >= 0) {
+      j["truth_median_rel_error"] = truth_err;
+      j["truth_median_ratio"] = truth_ratio;
+    }
+    j["calibrate_seconds"] = calibrate_seconds;
+    j["extract_seconds"] = extract_seconds;
+    j["seconds"] = seconds;
+    print_json(j);
     return;
   }
   if (calibrate) print_calibration(cap, c);

@@ -120,15 +120,26 @@ void run_coefficients(const CoefficientsOptions& o) {
   const std::size_t k = projector.k(), bands = projector.bands();
   auto rms = [&](const stats::CoefficientMap& m) { return m.error.count ? m.error.rms(bands) : 0.0; };
   if (o.json) {
-    std::string list;
+    Json list = Json::array();
     for (std::size_t i = 0; i < maps.size(); ++i) {
       const stats::CoefficientMap& m = maps[i];
-      list += fmt::format(R"({}{{"name":{},"image":{},"height":{},"width":{},"valid_pixels":{},"rel_error":{},"rms":{},"plot":{}}})",
-                          list.empty() ? "" : ",", json_string(m.name), json_string(m.image), m.height, m.width, m.valid,
-                          m.relative_error(), rms(m), plots[i].empty() ? "null" : json_string(plots[i]));
+      list.push_back({{"name", m.name},
+                      {"image", m.image},
+                      {"height", m.height},
+                      {"width", m.width},
+                      {"valid_pixels", m.valid},
+                      {"rel_error", m.relative_error()},
+                      {"rms", rms(m)},
+                      {"plot", plots[i].empty() ? Json() : Json(plots[i])}});
     }
-    fmt::print(R"({{"store":{},"basis":{},"method":{},"k":{},"maps":[{}],"seconds":{}}})" "\n", json_string(o.store),
-               json_string(o.basis), json_string(basis.method), k, list, seconds);
+    Json j;
+    j["store"] = o.store;
+    j["basis"] = o.basis;
+    j["method"] = basis.method;
+    j["k"] = k;
+    j["maps"] = std::move(list);
+    j["seconds"] = seconds;
+    print_json(j);
     return;
   }
   for (std::size_t i = 0; i < maps.size(); ++i) {

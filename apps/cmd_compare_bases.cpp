@@ -85,15 +85,19 @@ void run_compare_bases(const CompareBasesOptions& o) {
   }
 
   if (o.json) {
-    std::string ks, rows;
+    Json ks = Json::array(), rows = Json::array();
     for (std::size_t k = 1; k <= k_max; ++k) {
-      ks += fmt::format("{}{}", k > 1 ? "," : "", k);
-      rows += (k > 1 ? "," : "") + json_array(degrees[k - 1]);
+      ks.push_back(k);
+      rows.push_back(json_numbers(degrees[k - 1]));
     }
-    fmt::print(R"({{"a":{},"b":{},"store_a":{},"store_b":{},"k":[{}],"principal_angles_deg":[{}]}})"
-               "\n",
-               json_string(o.basis_a), json_string(o.basis_b), json_string(sa.path().string()),
-               json_string(sb.path().string()), ks, rows);
+    Json j;
+    j["a"] = o.basis_a;
+    j["b"] = o.basis_b;
+    j["store_a"] = sa.path().string();
+    j["store_b"] = sb.path().string();
+    j["k"] = std::move(ks);
+    j["principal_angles_deg"] = std::move(rows);
+    print_json(j);
   } else {
     fmt::print("principal angles (degrees) between the spans of the first k components\n  a: {}\n  b: {}\n", label_a,
                label_b);

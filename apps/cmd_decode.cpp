@@ -33,12 +33,18 @@ void run_decode(const DecodeOptions& o) {
   const double coefficients_s = std::chrono::duration<double>(t_coefficients - t1).count();
   const double out_mb = double(grid.brdf.size()) * 4 / 1e6;
   if (o.json) {
-    fmt::print(R"({{"input":{},"output":{},"input_bytes":{},"output_bytes_float32":{},"decode_seconds":{:.6f},)"
-               R"("decode_mb_per_s":{:.1f},"coefficients_seconds":{:.6f},"coefficients_mb_per_s":{:.1f},"seconds":{:.6f},"threads":{}}})"
-               "\n",
-               json_string(o.input), json_string(o.output), bytes.size(), grid.brdf.size() * 4, decode_s,
-               out_mb / decode_s, coefficients_s, out_mb / coefficients_s, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
-               omp_get_max_threads());
+    Json j;
+    j["input"] = o.input;
+    j["output"] = o.output;
+    j["input_bytes"] = bytes.size();
+    j["output_bytes_float32"] = grid.brdf.size() * 4;
+    j["decode_seconds"] = decode_s;
+    j["decode_mb_per_s"] = out_mb / decode_s;
+    j["coefficients_seconds"] = coefficients_s;
+    j["coefficients_mb_per_s"] = out_mb / coefficients_s;
+    j["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    j["threads"] = omp_get_max_threads();
+    print_json(j);
     return;
   }
   fmt::print("decoded {} into {}: {:.0f} MB of float32 in {:.3f} s ({:.0f} MB/s; its coefficient form in {:.3f} s)\n",

@@ -10,6 +10,7 @@
 #include "specula/codec/environment.h"
 #include "specula/codec/spc.h"
 #include "specula/core/error.h"
+#include "specula/store/object_spec.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -37,13 +38,12 @@ codec::SpcBasis load_basis(const EncodeOptions& o, const store::Grid& grid) {
     if (o.extra) throw UsageError("encode: --extra extends a learned basis; with --basis self raise -k instead");
     return codec::self_basis(grid, o.k);
   }
-  const auto colon = o.basis.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == o.basis.size())
+  const auto spec = store::parse_object_spec(o.basis);
+  if (!spec || spec->name.empty())
     throw UsageError("encode: --basis takes STORE.h5:BASIS (a PCA or NMF basis learned by specula) or 'self', not '" +
                      o.basis + "'");
-  const store::Store s = store::Store::open(o.basis.substr(0, colon));
-  const codec::SpcBasis learned =
-      codec::coding_basis(s.read_basis(o.basis.substr(colon + 1)), o.k, s.label() + ":" + o.basis.substr(colon + 1));
+  const store::Store s = store::Store::open(spec->file);
+  const codec::SpcBasis learned = codec::coding_basis(s.read_basis(spec->name), o.k, s.label() + ":" + spec->name);
   return codec::augment_basis(learned, grid, o.extra);
 }
 

@@ -43,15 +43,20 @@ void run_eval_resample(const EvalResampleOptions& o) {
     return r.k == 1 ? std::string("nearest") : std::string(acquire::weights_name(r.weights));
   };
   if (o.json) {
-    std::string list;
+    Json list = Json::array();
     for (const auto& r : cv.rows)
-      list += fmt::format(R"({}{{"mapping":{},"k":{},"weights":{},"rel_rms":{},"median_rel":{},"predicted":{}}})",
-                          list.empty() ? "" : ",", json_string(std::string(acquire::mapping_name(r.mapping))), r.k,
-                          json_string(weights(r)), r.rel_rms,
-                          r.median_rel, r.predicted);
-    fmt::print(R"({{"samples":{},"held_out":{},"seed":{},"results":[{}]}})"
-               "\n",
-               info.size, held, o.seed, list);
+      list.push_back({{"mapping", std::string(acquire::mapping_name(r.mapping))},
+                      {"k", r.k},
+                      {"weights", weights(r)},
+                      {"rel_rms", r.rel_rms},
+                      {"median_rel", r.median_rel},
+                      {"predicted", r.predicted}});
+    Json j;
+    j["samples"] = info.size;
+    j["held_out"] = held;
+    j["seed"] = o.seed;
+    j["results"] = std::move(list);
+    print_json(j);
     return;
   }
   fmt::print("{}: {} samples, {} held out (seed {}); relative RMS error of the held-out spectra:\n", o.samples, info.size,

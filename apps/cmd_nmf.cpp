@@ -10,8 +10,8 @@
 #include "apps/common.h"
 #include "apps/ranks.h"
 #include "specula/core/error.h"
-#include "specula/nmf/nmf.h"
-#include "specula/store/block_reader.h"
+#include "specula/nmf/learn.h"
+#include "specula/store/learned_basis.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -37,10 +37,58 @@ struct NmfCliOptions {
   bool json = false;
 };
 
-std::string json_history(const std::vector<double>& v) { return json_array({v.data(), v.size()}); }
+// The run as one JSON object: the basis's store, name and output, the best restart's errors and history, every
+// restart, the reading and the components.
+void print_nmf_json(const NmfCliOptions& o, const std::string& store, const std::string& name, const std::string& out,
+                    const nmf::LearnedBasis& learned, const std::vector<nmf::EpochReport>& epochs, double seconds) {
+  const nmf::NmfResult& r = learned.result;
+  const nmf::RestartResult& best = r.best_result();
+  Json restarts = Json::array();
+  for (const auto& rr : r.restarts)
+    restarts.push_back({{"rel_error", rr.rel_error},
+                        {"epochs", rr.epochs},
+                        {"converged", rr.converged},
+                        {"mean_angle_deg", rr.mean_angle_deg},
+                        {"max_angle_deg", rr.max_angle_deg},
+                        {"history", json_numbers(rr.history)}});
+  std::vector<double> t;
+  for (const auto& e : epochs)
+    if (e.restart == r.best) t.push_back(e.seconds);
+  Json components = Json::array();
+  for (Eigen::Index i = 0; i < best.basis.rows(); ++i) components.push_back(json_numbers(Eigen::VectorXd(best.basis.row(i).transpose())));
+  Json j;
+  j["store"] = store;
+  j["basis"] = name;
+  j["output"] = out;
+  j["k"] = o.k;
+  j["n"] = r.n;
+  j["bands"] = learned.bands;
+  j["rel_error"] = r.rel_error;
+  j["svd_bound"] = r.svd_bound;
+  j["epochs"] = best.epochs;
+  j["converged"] = best.converged;
+  j["seconds"] = seconds;
+  j["restarts"] = std::move(restarts);
+  j["best_restart"] = r.best;
+  j["history"] = json_numbers(best.history);
+  j["history_seconds"] = json_numbers(t);
+  j["passes"] = r.passes;
+  j["resumed"] = r.resumed;
+  j["negatives"] = r.negatives;
+  j["values"] = r.values;
+  j["nnls_unconverged"] = r.nnls_unconverged;
+  j["warmup_epochs"] = r.warmup_epochs;
+  j["warmup_blocks"] = r.warmup_blocks;
+  j["warmup_pass_equivalent"] = r.warmup_pass_equivalent;
+  j["weights"] = json_numbers(r.weights);
+  j["components"] = std::move(components);
+  j["threads"] = omp_get_max_threads();
+  j["ranks"] = ranks().size();
+  print_json(j);
+}
 
 void run_nmf(const NmfCliOptions& o) {
-  const std::string name = o.name.empty() ? fmt::format("nmf{}", o.k) : o.name;
+  const std::string name = o.name.empty() ? nmf::default_basis_name(o.k) : o.name;
   store::validate_name(name, "basis");
   const std::string out = basis_output(o.stores, o.output);
   nmf::NmfOptions opt{.k = o.k,
@@ -51,21 +99,13 @@ void run_nmf(const NmfCliOptions& o) {
                       .tol = o.tol,
                       .negatives = nmf::parse_negatives(o.negatives),
                       .wave_blocks = o.wave_blocks,
-                      .checkpoint = o.checkpoint.empty() ? std::filesystem::path(out + ".nmf-" + name + ".checkpoint")
+                      .checkpoint = o.checkpoint.empty() ? nmf::default_checkpoint(out, name)
                                                          : std::filesystem::path(o.checkpoint),
                       .resume = o.resume};
   const std::vector<store::Store> stores = open_stores(o.stores);
   const store::Store& s = stores.front();
-  if (!o.replace && !o.resume) {
-    // Refuse before hours of work rather than at the end.
-    if (std::filesystem::exists(out)) {
-      const store::Store target = store::Store::open(out);
-      for (const auto& b : target.bases())
-        if (b == name)
-          throw UsageError(fmt::format("{}: basis {} already exists; choose another --name or give --replace", out, name));
-    }
-  }
-  const store::BlockReader reader(stores, {.image_globs = o.images, .collection = o.collection});
+  if (!o.replace && !o.resume && store::holds_basis(out, name))  // refuse before hours of work
+    throw UsageError(fmt::format("{}: basis {} already exists; choose another --name or give --replace", out, name));
   const bool root = ranks().rank() == 0;
   std::vector<nmf::EpochReport> epochs;
   opt.on_epoch = [&](const nmf::EpochReport& e) {
@@ -76,9 +116,9 @@ void run_nmf(const NmfCliOptions& o) {
     std::fflush(stdout);
   };
   const auto t0 = std::chrono::steady_clock::now();
-  const nmf::NmfResult r = [&] {
+  const nmf::LearnedBasis learned = [&] {
     try {
-      return nmf::factorize(reader, opt, ranks());
+      return nmf::learn_basis(stores, {.image_globs = o.images, .collection = o.collection}, opt, ranks());
     } catch (const Interrupted& e) {
       throw Interrupted(std::string(e.what()) + (o.checkpoint.empty() && !std::filesystem::exists(opt.checkpoint)
                                                      ? std::string()
@@ -87,64 +127,18 @@ void run_nmf(const NmfCliOptions& o) {
   }();
   if (!root) return;  // rank 0 writes and reports
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const nmf::NmfResult& r = learned.result;
   const nmf::RestartResult& best = r.best_result();
-
-  store::Basis basis;
-  basis.method = "nmf";
-  basis.wavelengths = reader.wavelengths();
-  basis.n = r.n;
-  basis.components = best.basis;
-  basis.weights = r.weights;
-  basis.second_moment = r.second_moment;
-  if (!o.collection.empty()) {
-    basis.source = "collection " + o.collection;
-  } else {
-    basis.source = "images";
-    for (const auto& n : reader.source_names()) basis.source += " " + n;
-  }
-  for (const auto& st : stores)
-    basis.provenance.source_file += (basis.provenance.source_file.empty() ? "" : " ") + st.path().string();
-  basis.provenance.importer = fmt::format("nmf k={} init={} seed={} restarts={} rel_error={:.9g} svd_bound={:.9g}",
-                                          o.k, o.init, o.seed, o.restarts, r.rel_error, r.svd_bound);
-  {
-    store::StoreWriter writer(out, {.compression = {}, .replace = o.replace, .command_line = command_line()});
-    writer.add_basis(name, basis);
-    writer.commit();
-  }
+  store::save_basis(out, name, learned.basis, o.replace, command_line());
   std::error_code ec;
   std::filesystem::remove(opt.checkpoint, ec);
 
   if (o.json) {
-    std::string restarts, times;
-    for (const auto& rr : r.restarts)
-      restarts += fmt::format(R"({}{{"rel_error":{},"epochs":{},"converged":{},"mean_angle_deg":{},"max_angle_deg":{},"history":{}}})",
-                              restarts.empty() ? "" : ",", rr.rel_error, rr.epochs, rr.converged, rr.mean_angle_deg,
-                              rr.max_angle_deg, json_history(rr.history));
-    std::vector<double> t;
-    for (const auto& e : epochs)
-      if (e.restart == r.best) t.push_back(e.seconds);
-    fmt::print(R"({{"store":{},"basis":{},"output":{},"k":{},"n":{},"bands":{},"rel_error":{},"svd_bound":{},)"
-               R"("epochs":{},"converged":{},"seconds":{:.6f},"restarts":[{}],"best_restart":{},"history":{},)"
-               R"("history_seconds":{},"passes":{},"resumed":{},"negatives":{},"values":{},"nnls_unconverged":{},)"
-               R"("warmup_epochs":{},"warmup_blocks":{},"warmup_pass_equivalent":{},"weights":{},"components":[{}],"threads":{},"ranks":{}}})"
-               "\n",
-               json_string(s.path().string()), json_string(name), json_string(out), o.k, r.n, reader.bands(),
-               r.rel_error, r.svd_bound, best.epochs, best.converged, seconds, restarts, r.best,
-               json_history(best.history), json_history(t), r.passes, r.resumed, r.negatives, r.values,
-               r.nnls_unconverged, r.warmup_epochs, r.warmup_blocks, r.warmup_pass_equivalent, json_array({r.weights.data(), std::size_t(r.weights.size())}),
-               [&] {
-                 std::string rows;
-                 for (Eigen::Index i = 0; i < best.basis.rows(); ++i) {
-                   const Eigen::VectorXd row = best.basis.row(i).transpose();
-                   rows += (i ? "," : "") + json_array({row.data(), std::size_t(row.size())});
-                 }
-                 return rows;
-               }(),
-               omp_get_max_threads(), ranks().size());
+    print_nmf_json(o, s.path().string(), name, out, learned, epochs, seconds);
     return;
   }
   fmt::print("NMF of {} spectra ({}), k = {}: relative error {:.6f} (rank-{} SVD bound {:.6f}, {:+.1f} %) after {} epochs{}\n",
-             r.n, reader.wavelengths().describe(), o.k, r.rel_error, o.k, r.svd_bound,
+             r.n, learned.basis.wavelengths.describe(), o.k, r.rel_error, o.k, r.svd_bound,
              r.svd_bound > 0 ? 100 * (r.rel_error / r.svd_bound - 1) : 0.0, best.epochs,
              best.converged ? "" : " (max epochs reached)");
   if (r.restarts.size() > 1) {

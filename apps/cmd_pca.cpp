@@ -3,15 +3,14 @@
 #include <fmt/format.h>
 #include <omp.h>
 
-#include <chrono>
+#include <cmath>
 
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/ranks.h"
 #include "specula/core/error.h"
-#include "specula/stats/moments.h"
-#include "specula/stats/pca.h"
-#include "specula/store/block_reader.h"
+#include "specula/stats/learn_pca.h"
+#include "specula/store/learned_basis.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -32,47 +31,33 @@ void run_pca(const PcaOptions& o) {
   const std::string out = basis_output(o.stores, o.output);
   const std::vector<store::Store> stores = open_stores(o.stores);
   const store::Store& s = stores.front();
-  const store::BlockReader reader(stores, {.image_globs = o.images, .collection = o.collection});
-  if (o.k > reader.bands())
-    throw UsageError(fmt::format("-k {}: the data has {} bands", o.k, reader.bands()));
-  if (reader.spectra() < 2)
-    throw InputError(fmt::format("{}: the selection holds {} valid spectra; PCA needs at least two", s.label(),
-                                 reader.spectra()));
-  const auto t0 = std::chrono::steady_clock::now();
-  const stats::Moments moments = stats::stream_moments(reader, ranks());
-  const auto t1 = std::chrono::steady_clock::now();
-  store::Basis basis = stats::pca_basis(moments, reader.wavelengths(), o.k);
-  const double stream_seconds = std::chrono::duration<double>(t1 - t0).count();
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::string source;
-  if (!o.collection.empty()) {
-    source = "collection " + o.collection;
-  } else {
-    source = "images";
-    for (const auto& n : reader.source_names()) source += " " + n;
-  }
-  basis.source = source;
-  for (const auto& st : stores)
-    basis.provenance.source_file += (basis.provenance.source_file.empty() ? "" : " ") + st.path().string();
-  basis.provenance.importer = "pca";
+  const stats::LearnedPca learned =
+      stats::learn_pca(stores, {.image_globs = o.images, .collection = o.collection}, o.k, ranks());
+  const store::Basis& basis = learned.basis;
+  const std::string& source = basis.source;
+  const double seconds = learned.seconds, stream_seconds = learned.stream_seconds;
   if (ranks().rank() != 0) return;  // rank 0 writes and reports
 
-  store::StoreWriter writer(out, {.compression = {}, .replace = o.replace, .command_line = command_line()});
-  writer.add_basis(o.name, basis);
-  writer.commit();
+  store::save_basis(out, o.name, basis, o.replace, command_line());
 
   if (o.json) {
-    const Eigen::VectorXd& ev = basis.eigenvalues;
-    fmt::print(R"({{"store":{},"basis":{},"output":{},"n":{},"bands":{},"wavelengths":{},"mean":{},"eigenvalues":{},)"
-               R"("explained_variance_ratio":{},"components":{},"seconds":{:.6f},"stream_seconds":{:.6f},)"
-               R"("spectra_per_s":{:.0f},"threads":{},"ranks":{}}})"
-               "\n",
-               json_string(s.path().string()), json_string(o.name), json_string(out), basis.n, basis.bands(),
-               json_array(basis.wavelengths.values()), json_array({basis.mean.data(), std::size_t(basis.mean.size())}),
-               json_array({ev.data(), std::size_t(ev.size())}),
-               json_array({basis.explained_variance_ratio.data(), std::size_t(basis.explained_variance_ratio.size())}),
-               basis.k(), seconds, stream_seconds, double(basis.n) / stream_seconds, omp_get_max_threads(),
-               ranks().size());
+    Json j;
+    j["store"] = s.path().string();
+    j["basis"] = o.name;
+    j["output"] = out;
+    j["n"] = basis.n;
+    j["bands"] = basis.bands();
+    j["wavelengths"] = json_numbers(basis.wavelengths.values());
+    j["mean"] = json_numbers(basis.mean);
+    j["eigenvalues"] = json_numbers(basis.eigenvalues);
+    j["explained_variance_ratio"] = json_numbers(basis.explained_variance_ratio);
+    j["components"] = basis.k();
+    j["seconds"] = seconds;
+    j["stream_seconds"] = stream_seconds;
+    j["spectra_per_s"] = std::round(double(basis.n) / stream_seconds);
+    j["threads"] = omp_get_max_threads();
+    j["ranks"] = ranks().size();
+    print_json(j);
     return;
   }
   fmt::print("PCA of {} spectra ({}) from {} in {:.3f} s ({:.1f} M spectra/s, {} threads)\n", basis.n,

@@ -113,42 +113,6 @@ PreviewSettings shared_settings(const Cube& cube, const PreviewOptions& o) {
   return p;
 }
 
-// Projects every pixel (eq 7.2 or NNLS) and reconstructs it (eq 7.3), in row blocks of doubles.
-KResult project(const Cube& cube, const stats::Projector& projector, Cube& recon) {
-  const std::size_t w = cube.width, b = cube.bands, k = projector.k();
-  const std::size_t rows_per_block = std::max<std::size_t>(1, (std::size_t(1) << 20) / (w * b));
-  KResult r;
-  r.k = k;
-  r.error.assign(cube.height * w, 0.0f);
-  recon.data.assign(cube.data.size(), 0.0f);
-  stats::ProjectionError summary;
-  RowMatrixXd x, coef, xr;
-  Eigen::VectorXd err;
-  for (std::size_t y0 = 0; y0 < cube.height; y0 += rows_per_block) {
-    const Eigen::Index m = Eigen::Index(std::min(rows_per_block, cube.height - y0) * w);
-    const std::size_t first = y0 * w;
-    x = Eigen::Map<const RowMatrixXf>(cube.data.data() + first * b, m, Eigen::Index(b)).cast<double>();
-    coef.resize(m, Eigen::Index(k));
-    xr.resize(m, Eigen::Index(b));
-    err.resize(m);
-    const std::span<const std::uint8_t> mask =
-        cube.mask.empty() ? std::span<const std::uint8_t>() : std::span(cube.mask).subspan(first, std::size_t(m));
-    summary.merge(stats::project_rows(projector, x, mask, coef, xr, err));
-    Eigen::Map<RowMatrixXf>(recon.data.data() + first * b, m, Eigen::Index(b)) = xr.cast<float>();
-    for (Eigen::Index i = 0; i < m; ++i) {
-      const std::size_t p = first + std::size_t(i);
-      if (mask.empty() || mask[std::size_t(i)]) {
-        r.error[p] = float(err[i]);
-      } else {
-        std::fill_n(recon.data.begin() + std::ptrdiff_t(p * b), b, 0.0f);  // as the store keeps masked pixels
-      }
-    }
-  }
-  r.rms = summary.rms(b);
-  r.max_error = summary.max_error;
-  return r;
-}
-
 struct OutputPaths {
   fs::path reconstruction, preview, error;
 };
@@ -226,7 +190,10 @@ void run_project(const ProjectOptions& o) {
   std::vector<KResult> results;
   std::vector<std::string> outputs, store_images;
   for (std::size_t k : ks) {
-    KResult r = project(cube, stats::Projector(basis, static_cast<long long>(k), o.basis), recon);
+    recon.data.resize(cube.data.size());
+    stats::ImageProjection proj =
+        stats::project_image(cube, stats::Projector(basis, static_cast<long long>(k), o.basis), recon.data);
+    KResult r{.k = proj.k, .rms = proj.rms, .max_error = proj.max_error, .error = std::move(proj.error), .preview = {}};
     const OutputPaths p = paths_for(o, k);
     store::write_spectral_exr(p.reconstruction, recon);
     r.preview = render(recon, preview).srgb8;
@@ -248,14 +215,16 @@ void run_project(const ProjectOptions& o) {
   if (writer) writer->commit();
 
   if (o.json) {
-    std::string res, outs, imgs;
-    for (const KResult& r : results)
-      res += fmt::format(R"({}{{"k":{},"rms":{},"max_error":{}}})", res.empty() ? "" : ",", r.k, r.rms, r.max_error);
-    for (const std::string& f : outputs) outs += (outs.empty() ? "" : ",") + json_string(f);
-    for (const std::string& n : store_images) imgs += (imgs.empty() ? "" : ",") + json_string(n);
-    fmt::print(R"({{"image":{},"basis":{},"rms_definition":{},"results":[{}],"outputs":[{}],"store_images":[{}]}})"
-               "\n",
-               json_string(o.image), json_string(o.basis), json_string(kRmsDefinition), res, outs, imgs);
+    Json res = Json::array();
+    for (const KResult& r : results) res.push_back({{"k", r.k}, {"rms", r.rms}, {"max_error", r.max_error}});
+    Json j;
+    j["image"] = o.image;
+    j["basis"] = o.basis;
+    j["rms_definition"] = kRmsDefinition;
+    j["results"] = std::move(res);
+    j["outputs"] = outputs;
+    j["store_images"] = store_images;
+    print_json(j);
     return;
   }
   for (const KResult& r : results) fmt::print("k={}: rms {:.3g}, max {:.3g} (L2 over bands)\n", r.k, r.rms, r.max_error);

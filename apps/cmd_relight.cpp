@@ -58,10 +58,16 @@ void run_relight(const RelightOptions& o) {
   const Picture out = side_by_side(panels, 4);
   store::write_png_rgb8(o.output, out.width, out.height, out.srgb8);
   if (o.json) {
-    fmt::print(R"({{"image":{},"from":{},"to":{},"pixels":{},"mean_ciede2000":{},"p95_ciede2000":{},"max_ciede2000":{},"output":{}}})"
-               "\n",
-               json_string(o.image), json_string(o.from), json_string(o.to), r.pixels, r.mean_ciede2000, r.p95_ciede2000,
-               r.max_ciede2000, json_string(o.output));
+    Json j;
+    j["image"] = o.image;
+    j["from"] = o.from;
+    j["to"] = o.to;
+    j["pixels"] = r.pixels;
+    j["mean_ciede2000"] = r.mean_ciede2000;
+    j["p95_ciede2000"] = r.p95_ciede2000;
+    j["max_ciede2000"] = r.max_ciede2000;
+    j["output"] = o.output;
+    print_json(j);
   } else {
     fmt::print("{}: relit from {} to {}: mean CIEDE2000 between spectral and RGB relighting {:.3f} "
                "(95th percentile {:.3f}, max {:.3f}) over {} pixels\n",

@@ -39,11 +39,11 @@ codec::SpcBrdf load_spc(const std::string& path) {
   return codec::SpcBrdf(codec::decode_spc_coefficients(codec::read_spc_file(path), path));
 }
 
-codec::MerlBrdf load_rgb(const RenderOptions& o) {
-  if (std::filesystem::path(o.input).extension() == ".binary") return codec::read_merl(o.input);
+// An RGB .binary as it is, a spectral grid seen under --illuminant.
+codec::SphereImage render_rgb(const RenderOptions& o, const Eigen::Vector3d& light) {
+  if (std::filesystem::path(o.input).extension() == ".binary") return codec::render_sphere(codec::read_merl(o.input), o.size, light);
   const store::Grid grid = load_grid(o.input, "render");
-  const auto weights = codec::rgb_weights(grid.wavelengths, parse_illuminant(o.illuminant, grid.wavelengths));
-  return codec::grid_to_merl(grid, weights).brdf;
+  return codec::render_sphere(grid, parse_illuminant(o.illuminant, grid.wavelengths), o.size, light);
 }
 
 void run_render(const RenderOptions& o) {
@@ -82,11 +82,8 @@ void run_render(const RenderOptions& o) {
       const Eigen::Vector3d c = m * Eigen::Vector3d(r.xyz[0][3 * i], r.xyz[0][3 * i + 1], r.xyz[0][3 * i + 2]);
       for (std::size_t k = 0; k < 3; ++k) linear[3 * i + k] = float(c[Eigen::Index(k)]);
     }
-    const double gain = std::exp2(o.exposure);
     std::vector<std::uint8_t> srgb(3 * o.size * o.size);
-    for (std::size_t i = 0; i < r.covered.size(); ++i)
-      for (std::size_t c = 0; c < 3; ++c)
-        srgb[3 * i + c] = r.covered[i] ? std::uint8_t(std::lround(255 * srgb_encode(gain * linear[3 * i + c]))) : 24;
+    encode_srgb8(linear, r.covered, o.exposure, srgb);
     store::write_png_rgb8(png, o.size, o.size, srgb);
     store::write_exr_rgb(exr, o.size, o.size, linear);
     fmt::print("rendered {}{} on a {}x{} sphere under {}: {} and {}\n", o.input, note, o.size, o.size, env.description,
@@ -101,13 +98,10 @@ void run_render(const RenderOptions& o) {
     img = codec::render_sphere(brdf, codec::rgb_weights(brdf.wavelengths(), parse_illuminant(o.illuminant, brdf.wavelengths())),
                                o.size, light);
   } else {
-    img = codec::render_sphere(load_rgb(o), o.size, light);
+    img = render_rgb(o, light);
   }
-  const double gain = std::exp2(o.exposure);
   std::vector<std::uint8_t> srgb(3 * o.size * o.size);
-  for (std::size_t i = 0; i < img.covered.size(); ++i)
-    for (std::size_t c = 0; c < 3; ++c)
-      srgb[3 * i + c] = img.covered[i] ? std::uint8_t(std::lround(255 * srgb_encode(gain * img.linear[3 * i + c]))) : 24;
+  encode_srgb8(img.linear, img.covered, o.exposure, srgb);
   store::write_png_rgb8(png, o.size, o.size, srgb);
   store::write_exr_rgb(exr, o.size, o.size, img.linear);
   fmt::print("rendered {} on a {}x{} sphere, light at theta {} phi {} deg: {} and {}\n", o.input, o.size, o.size,

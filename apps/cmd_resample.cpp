@@ -12,6 +12,7 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/core/error.h"
+#include "specula/store/object_spec.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -35,11 +36,11 @@ struct ResampleCliOptions {
 void check_output(const std::string& spec, bool replace) {
   const std::filesystem::path out(spec);
   if (out.extension() == ".spgrid" || out.extension() == ".binary") return;
-  const auto colon = spec.rfind(':');
-  const std::filesystem::path file = colon == std::string::npos ? out : std::filesystem::path(spec.substr(0, colon));
-  if (colon == std::string::npos || file.extension() != ".h5")
+  const auto object = store::parse_object_spec(spec);
+  if (!object || object->file.extension() != ".h5")
     throw UsageError("resample: " + spec + ": write STORE.h5:NAME, a .spgrid exchange file or an RGB .binary");
-  const std::string name = spec.substr(colon + 1);
+  const std::filesystem::path& file = object->file;
+  const std::string& name = object->name;
   store::validate_name(name, "grid");
   if (!replace && std::filesystem::exists(file)) {
     const auto grids = store::Store::open(file).grids();
@@ -72,13 +73,23 @@ void run_resample(const ResampleCliOptions& o) {
   const std::string what = save_grid(grid, o.output, o.replace, "resample");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
-    fmt::print(R"({{"samples":{},"bands":{},"cells":{},"valid_cells":{},"seconds":{:.6f},"tree_seconds":{:.6f},)"
-               R"("query_seconds":{:.6f},"average_seconds":{:.6f},"passes":{},"mapping":{},"k":{},"weights":{},)"
-               R"("power":{},"output":{},"threads":{}}})"
-               "\n",
-               info.size, info.bands, brdf::kMerlCells, stats.valid_cells, seconds, stats.tree_seconds,
-               stats.query_seconds, stats.average_seconds, stats.passes, json_string(o.mapping), o.k,
-               json_string(o.weights), o.power, json_string(o.output), omp_get_max_threads());
+    Json j;
+    j["samples"] = info.size;
+    j["bands"] = info.bands;
+    j["cells"] = brdf::kMerlCells;
+    j["valid_cells"] = stats.valid_cells;
+    j["seconds"] = seconds;
+    j["tree_seconds"] = stats.tree_seconds;
+    j["query_seconds"] = stats.query_seconds;
+    j["average_seconds"] = stats.average_seconds;
+    j["passes"] = stats.passes;
+    j["mapping"] = o.mapping;
+    j["k"] = o.k;
+    j["weights"] = o.weights;
+    j["power"] = o.power;
+    j["output"] = o.output;
+    j["threads"] = omp_get_max_threads();
+    print_json(j);
     return;
   }
   fmt::print("resampled {} samples of {} onto {} of {} cells ({} mapping, k = {}, {} weights) in {:.2f} s: {}\n", info.size,

@@ -78,9 +78,8 @@ void incidence_plot(const std::filesystem::path& path, const std::string& materi
   std::string script = "$S << EOD\n";
   for (std::size_t i = 0; i < angles.size() / 4; ++i) {
     const acquire::IsoAngles a = acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
-    if (std::abs(a.theta_i - ti) > eps || (a.phi_d > eps && a.phi_d < pi - eps)) continue;
-    const double x = (a.phi_d > pi / 2 ? 1 : -1) * a.theta_o * 180 / pi;
-    script += fmt::format("{:.3f} {:.5g}\n", x, std::cbrt(std::max(0.0f, values[i])));
+    if (const auto x = acquire::incidence_plane_angle(a, ti, eps))
+      script += fmt::format("{:.3f} {:.5g}\n", *x * 180 / pi, std::cbrt(std::max(0.0f, values[i])));
   }
   script += "EOD\n$R << EOD\n";
   const acquire::Resampler r(angles, values, 1, {.k = k, .weights = acquire::Weights::shepard, .max_gap = max_gap});
@@ -132,7 +131,7 @@ void run_resample_study(const ResampleStudyOptions& o) {
   std::vector<double> angles;
   for (std::size_t j = 0; j < o.rig.lights; ++j) acquire::scan_light(o.rig, pixels, j, angles);
   const std::size_t n = angles.size() / 4;
-  std::string json;
+  Json json = Json::array();
   for (const auto& name : o.materials) {
     check_interrupt();
     const auto model = brdf::make_material(name, band);
@@ -145,15 +144,19 @@ void run_resample_study(const ResampleStudyOptions& o) {
                      so.max_gap);
     }
     if (o.json) {
-      std::string rows;
+      Json rows = Json::array();
       for (const auto& r : s.rows)
-        rows += fmt::format(R"({}{{"mapping":{},"k":{},"weights":{},"l1":{},"max_error":{},"pixels_without_data":{}}})",
-                            rows.empty() ? "" : ",", json_string(acquire::mapping_name(r.mapping)), r.k,
-                            json_string(r.k == 1 ? "nearest" : acquire::weights_name(r.weights)), r.l1, r.max_error,
-                            r.pixels_without_data);
-      json += fmt::format(R"({}{{"material":{},"description":{},"samples":{},"grid_l1":{},"rows":[{}]}})",
-                          json.empty() ? "" : ",", json_string(name), json_string(brdf::material_catalogue().at(name)), n,
-                          s.grid_l1, rows);
+        rows.push_back({{"mapping", std::string(acquire::mapping_name(r.mapping))},
+                        {"k", r.k},
+                        {"weights", r.k == 1 ? std::string("nearest") : std::string(acquire::weights_name(r.weights))},
+                        {"l1", r.l1},
+                        {"max_error", r.max_error},
+                        {"pixels_without_data", r.pixels_without_data}});
+      json.push_back({{"material", name},
+                      {"description", brdf::material_catalogue().at(name)},
+                      {"samples", n},
+                      {"grid_l1", s.grid_l1},
+                      {"rows", std::move(rows)}});
       continue;
     }
     fmt::print("{} ({}): {} scan samples ({} sphere pixels x {} lights), {}x{} render, light at theta {} phi {} deg\n",
@@ -170,9 +173,12 @@ void run_resample_study(const ResampleStudyOptions& o) {
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
-    fmt::print(R"({{"samples":{},"render_size":{},"materials":[{}],"seconds":{:.3f}}})"
-               "\n",
-               n, o.render_size, json, seconds);
+    Json j;
+    j["samples"] = n;
+    j["render_size"] = o.render_size;
+    j["materials"] = std::move(json);
+    j["seconds"] = seconds;
+    print_json(j);
     return;
   }
   fmt::print("{:.1f} s{}\n", seconds, o.out.empty() ? "" : "; renders and incidence-plane plots in " + o.out);

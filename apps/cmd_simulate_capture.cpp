@@ -55,8 +55,15 @@ void run_simulate_capture(SimulateCaptureOptions o) {
   std::filesystem::rename(temp, out);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
-    fmt::print("{{\"output\":{},\"images\":{},\"width\":{},\"height\":{},\"lights\":{},\"bands\":{},\"seconds\":{:.3f}}}\n",
-               json_string(o.output), c.images.size(), c.width, c.height, c.light_angles_deg.size(), c.bands.size(), seconds);
+    Json j;
+    j["output"] = o.output;
+    j["images"] = c.images.size();
+    j["width"] = c.width;
+    j["height"] = c.height;
+    j["lights"] = c.light_angles_deg.size();
+    j["bands"] = c.bands.size();
+    j["seconds"] = seconds;
+    print_json(j);
     return;
   }
   fmt::print("wrote {} images ({}) into {} in {:.1f} s\n", c.images.size(), c.description, o.output, seconds);

@@ -14,6 +14,7 @@
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/progress.h"
+#include "specula/store/object_spec.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -35,10 +36,10 @@ struct SynthSamplesOptions {
 
 void run_synth_samples(const SynthSamplesOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
-  const auto colon = o.output.rfind(':');
-  if (colon == std::string::npos || std::filesystem::path(o.output.substr(0, colon)).extension() != ".h5")
+  const auto spec = store::parse_object_spec(o.output);
+  if (!spec || spec->file.extension() != ".h5")
     throw UsageError("synth-samples: -o " + o.output + ": write the samples as STORE.h5:NAME");
-  const std::string file = o.output.substr(0, colon), name = o.output.substr(colon + 1);
+  const std::string file = spec->file.string(), name = spec->name;
   store::validate_name(name, "samples");
   if (o.geometry != "scan" && o.geometry != "random")
     throw UsageError("--geometry '" + o.geometry + "': use scan (the reference's rig) or random");
@@ -57,54 +58,28 @@ void run_synth_samples(const SynthSamplesOptions& o) {
   prov.importer = fmt::format("synth-samples {} ({}) at {} configurations, noise {}", o.material,
                               brdf::material_catalogue().at(o.material), o.geometry, o.noise);
   writer.create_samples(name, g, "1/sr", prov);
-  std::vector<double> angles;
-  std::vector<float> values;
-  std::size_t written = 0, pixels = 0;
-  if (o.geometry == "scan") {
-    const std::vector<acquire::ScanPixel> px = acquire::scan_pixels(o.rig);
-    pixels = px.size();
-    // With -n, every lit sample is counted first and the scan thinned evenly to n.
-    std::size_t total = 0;
-    if (o.count) {
-      for (std::size_t j = 0; j < o.rig.lights; ++j) {
-        angles.clear();
-        total += acquire::scan_light(o.rig, px, j, angles);
-      }
-    }
-    Progress progress("synth-samples", o.rig.lights);
-    std::size_t seen = 0;
-    for (std::size_t j = 0; j < o.rig.lights; ++j) {
-      check_interrupt();
-      angles.clear();
-      acquire::scan_light(o.rig, px, j, angles);
-      if (o.count && o.count < total) acquire::thin_evenly(angles, seen, o.count, total);
-      values.resize(angles.size() / 4 * b);
-      acquire::evaluate_noisy(*model, angles, values, o.noise, o.seed, j);
-      writer.append_samples(name, angles, values);
-      written += angles.size() / 4;
-      progress.advance();
-    }
-  } else {
-    const std::size_t block = std::size_t(1) << 20;
-    Progress progress("synth-samples", o.count);
-    for (std::size_t first = 0; first < o.count; first += block) {
-      check_interrupt();
-      const std::size_t n = std::min(block, o.count - first);
-      acquire::random_configurations(n, o.seed, first / block, angles);
-      values.resize(n * b);
-      acquire::evaluate_noisy(*model, angles, values, o.noise, o.seed, first / block);
-      writer.append_samples(name, angles, values);
-      written += n;
-      progress.advance(n);
-    }
-  }
+  const acquire::SynthesisCount made = acquire::synthesize_samples(
+      *model,
+      {.geometry = o.geometry == "scan" ? acquire::SampleSynthesis::Geometry::scan
+                                        : acquire::SampleSynthesis::Geometry::random,
+       .rig = o.rig,
+       .count = o.count,
+       .noise = o.noise,
+       .seed = o.seed},
+      [&](std::span<const double> angles, std::span<const float> values) { writer.append_samples(name, angles, values); });
+  const std::size_t written = made.samples, pixels = made.pixels;
   writer.commit();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
-    fmt::print(R"({{"samples":{},"bands":{},"pixels":{},"lights":{},"bytes":{},"seconds":{:.3f},"output":{}}})"
-               "\n",
-               written, b, pixels, o.geometry == "scan" ? o.rig.lights : 0, written * (32 + 4 * b), seconds,
-               json_string(o.output));
+    Json j;
+    j["samples"] = written;
+    j["bands"] = b;
+    j["pixels"] = pixels;
+    j["lights"] = o.geometry == "scan" ? o.rig.lights : 0;
+    j["bytes"] = written * (32 + 4 * b);
+    j["seconds"] = seconds;
+    j["output"] = o.output;
+    print_json(j);
     return;
   }
   fmt::print("wrote {} samples of {} ({}) at {} configurations{} to {} in {:.1f} s\n", written, o.material, g.describe(),

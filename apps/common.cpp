@@ -13,6 +13,7 @@
 #include "specula/core/cie.h"
 #include "specula/core/error.h"
 #include "specula/core/illuminant.h"
+#include "specula/store/object_spec.h"
 
 namespace specula::app {
 namespace {
@@ -96,6 +97,12 @@ std::string json_array(std::span<const double> v) {
   return out + "]";
 }
 
+Json json_numbers(std::span<const double> v) { return Json(std::vector<double>(v.begin(), v.end())); }
+
+Json json_numbers(const Eigen::VectorXd& v) { return json_numbers(std::span<const double>(v.data(), std::size_t(v.size()))); }
+
+void print_json(const Json& j) { fmt::print("{}\n", j.dump(-1, ' ', false, Json::error_handler_t::replace)); }
+
 std::vector<store::Store> open_stores(const std::vector<std::string>& paths) {
   std::vector<store::Store> stores;
   for (const auto& p : paths) stores.push_back(store::Store::open(p));
@@ -111,12 +118,10 @@ std::string basis_output(const std::vector<std::string>& inputs, const std::stri
 namespace {
 // "path.h5:name" where path.h5 exists (or, when writing, ends in .h5) and the whole spec is not a file.
 std::optional<std::pair<std::string, std::string>> store_spec(const std::string& spec, bool writing) {
-  const auto colon = spec.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == spec.size()) return std::nullopt;
-  const std::string file = spec.substr(0, colon);
-  if (std::filesystem::exists(spec)) return std::nullopt;
-  if (std::filesystem::is_regular_file(file) || (writing && std::filesystem::path(file).extension() == ".h5"))
-    return std::pair{file, spec.substr(colon + 1)};
+  const auto s = store::parse_object_spec(spec);
+  if (!s || s->name.empty() || std::filesystem::exists(spec)) return std::nullopt;
+  if (std::filesystem::is_regular_file(s->file) || (writing && s->file.extension() == ".h5"))
+    return std::pair{s->file.string(), s->name};
   return std::nullopt;
 }
 }  // namespace

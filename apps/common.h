@@ -3,6 +3,7 @@
 // a cube rendered through core/preview.h, JSON output.
 #include <CLI/CLI.hpp>
 #include <Eigen/Core>
+#include <nlohmann/json.hpp>
 
 #include <array>
 #include <cstdint>
@@ -49,6 +50,12 @@ Picture render(const Cube& cube, const PreviewSettings& settings);
 std::string json_string(std::string_view s);
 /// JSON array of numbers (shortest round-trip formatting).
 std::string json_array(std::span<const double> v);
+/// The numbers as a JSON array (non-finite ones null), in the order of the output objects' keys.
+using Json = nlohmann::ordered_json;
+Json json_numbers(std::span<const double> v);
+Json json_numbers(const Eigen::VectorXd& v);
+/// Prints `j` compactly on one line.
+void print_json(const Json& j);
 
 /// Opens every store named (at least one); an analysis over several reads them as one database.
 std::vector<store::Store> open_stores(const std::vector<std::string>& paths);

@@ -7,6 +7,7 @@
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
+#include "specula/core/parallel.h"
 
 namespace specula::codec {
 
@@ -50,12 +51,15 @@ GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environmen
   const std::size_t blocks = (cells + kBlock - 1) / kBlock;
   std::vector<double> sq_b(blocks, 0), wsq_b(blocks, 0), wref_b(blocks, 0), mx_b(blocks, 0);
   std::vector<std::uint64_t> both_b(blocks, 0), only_a_b(blocks, 0), only_b_b(blocks, 0);
-#pragma omp parallel
-  {
-    std::vector<std::uint8_t> va(kBlock), vb(kBlock);
-    std::vector<double> w(kBlock);
-#pragma omp for schedule(dynamic, 4)
-    for (long long blk = 0; blk < static_cast<long long>(blocks); ++blk) {
+  struct BlockState {
+    std::vector<std::uint8_t> va, vb;
+    std::vector<double> w;
+  };
+  parallel_for(
+      blocks, [] { return BlockState{std::vector<std::uint8_t>(kBlock), std::vector<std::uint8_t>(kBlock), std::vector<double>(kBlock)}; },
+      [&](std::size_t blk, BlockState& st) {
+      std::vector<std::uint8_t>&va = st.va, &vb = st.vb;
+      std::vector<double>& w = st.w;
       const std::size_t c0 = std::size_t(blk) * kBlock, n = std::min(kBlock, cells - c0);
       std::fill(va.begin(), va.end(), 1);
       std::fill(vb.begin(), vb.end(), 1);
@@ -94,8 +98,8 @@ GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environmen
       wsq_b[std::size_t(blk)] = wsq;
       wref_b[std::size_t(blk)] = wref;
       mx_b[std::size_t(blk)] = mx;
-    }
-  }
+      },
+      4);
   double sq = 0, wsq = 0, wref = 0, mx = 0;
   std::uint64_t both = 0, only_a = 0, only_b = 0;
   for (std::size_t i = 0; i < blocks; ++i) {

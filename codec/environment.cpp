@@ -208,12 +208,13 @@ Environment read_environment(const std::filesystem::path& path, const Wavelength
   e.height = h / f;
   e.radiance.assign(e.width * e.height * b, 0.0f);
   const LatLongGeometry geo(w, h);
-#pragma omp parallel
-  {
-    Eigen::VectorXd x(static_cast<Eigen::Index>(b)), sum(static_cast<Eigen::Index>(b));
-#pragma omp for schedule(dynamic, 1)
-    for (long long oy = 0; oy < static_cast<long long>(e.height); ++oy) {
-      if (interrupt_requested()) continue;
+  struct RowState {
+    Eigen::VectorXd x, sum;
+  };
+  parallel_for(
+      e.height, [&] { return RowState{Eigen::VectorXd(Eigen::Index(b)), Eigen::VectorXd(Eigen::Index(b))}; },
+      [&](std::size_t oy, RowState& st) {
+      Eigen::VectorXd &x = st.x, &sum = st.sum;
       UpliftCache cache;  // one per output row, so the result does not depend on the thread count
       for (std::size_t ox = 0; ox < e.width; ++ox) {
         sum.setZero();
@@ -228,9 +229,7 @@ Environment read_environment(const std::filesystem::path& path, const Wavelength
         for (std::size_t k = 0; k < b; ++k)
           e.radiance[(std::size_t(oy) * e.width + ox) * b + k] = float(sum[Eigen::Index(k)] / omega);
       }
-    }
-  }
-  check_interrupt();
+      });
   return e;
 }
 
@@ -274,8 +273,7 @@ SphereRenders render_with(std::size_t count, const Environment& env, std::size_t
   for (std::size_t row0 = 0; row0 < size; row0 += rows_per_block) {
     check_interrupt();
     const std::size_t rows = std::min(rows_per_block, size - row0), pixels = rows * size;
-#pragma omp parallel for schedule(dynamic, 1)
-    for (long long r = 0; r < static_cast<long long>(rows); ++r) {
+    parallel_for(rows, [&](std::size_t r) {
       std::vector<Pair>& pairs = row_pairs[std::size_t(r)];
       pairs.clear();
       std::vector<float> wis, wos;  // the row's directions, for merl_indices' vectorised lookup
@@ -303,7 +301,7 @@ SphereRenders render_with(std::size_t count, const Environment& env, std::size_t
       std::vector<std::uint32_t> cells(pairs.size());
       merl_indices(wis, wos, cells);
       for (std::size_t i = 0; i < pairs.size(); ++i) pairs[i].cell = cells[i];
-    }
+    });
     acc.assign(count * b * pixels, 0.0);
     shade(std::span<const std::vector<Pair>>(row_pairs.data(), rows), pixels, lights, acc);
     for (std::size_t g = 0; g < count; ++g)

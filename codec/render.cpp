@@ -4,6 +4,7 @@
 #include <numbers>
 #include <string>
 
+#include "specula/codec/spectral_grid.h"
 #include "specula/core/error.h"
 
 namespace specula::codec {
@@ -59,6 +60,11 @@ SphereImage render_sphere(const SpcBrdf& coded, const Eigen::Matrix<double, 3, E
     const Eigen::Vector3d rgb = weights * Eigen::Map<const Eigen::VectorXf>(f.data(), Eigen::Index(f.size())).cast<double>();
     return rgb.cwiseMax(0.0).eval();
   });
+}
+
+SphereImage render_sphere(const store::Grid& grid, const Eigen::VectorXd& illuminant, std::size_t size,
+                          const Eigen::Vector3d& light) {
+  return render_sphere(grid_to_merl(grid, rgb_weights(grid.wavelengths, illuminant)).brdf, size, light);
 }
 
 }  // namespace specula::codec

@@ -8,6 +8,10 @@
 #include "specula/codec/merl.h"
 #include "specula/codec/spc_eval.h"
 
+namespace specula::store {
+struct Grid;
+}  // namespace specula::store
+
 namespace specula::codec {
 
 /// A square rendering: linear RGB (3 per pixel, row-major) and which pixels show the sphere.
@@ -27,6 +31,10 @@ SphereImage render_sphere(const MerlBrdf& brdf, std::size_t size, const Eigen::V
 /// rgb_weights(); else UsageError) with negative channels set to 0: render_sphere(grid_to_merl(expand_spc(...),
 /// weights).brdf, ...) to float precision, without the grid.
 SphereImage render_sphere(const SpcBrdf& brdf, const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, std::size_t size,
+                          const Eigen::Vector3d& light);
+/// As above for a spectral grid seen under `illuminant` (its SPD on the grid's wavelengths): the grid taken to RGB
+/// through the CIE 1931 CMFs under that light (grid_to_merl with rgb_weights) and rendered as a MERL BRDF.
+SphereImage render_sphere(const store::Grid& grid, const Eigen::VectorXd& illuminant, std::size_t size,
                           const Eigen::Vector3d& light);
 
 }  // namespace specula::codec

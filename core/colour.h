@@ -73,4 +73,10 @@ void xyz_to_display(const Eigen::Ref<const RowMatrixX3f>& xyz, const Eigen::Vect
 /// luminance above 1 is clipped to white. Returns the mapped colour.
 Eigen::Vector3d desaturate_into_gamut(const Eigen::Vector3d& linear_rgb);
 
+/// 8-bit sRGB of linear RGB pixels (3 values each) scaled by 2^exposure_stops, clipped to [0, 1] and encoded (rounded);
+/// pixels whose `covered` entry is 0 get `background` in every channel. Throws UsageError unless linear and out hold
+/// 3 values per entry of `covered`.
+void encode_srgb8(std::span<const float> linear, std::span<const std::uint8_t> covered, double exposure_stops,
+                  std::span<std::uint8_t> out, std::uint8_t background = 24);
+
 }  // namespace specula

@@ -7,29 +7,15 @@
 #include <filesystem>
 
 #include "specula/core/error.h"
-#include "specula/nmf/nmf.h"
+#include "specula/nmf/learn.h"
 #include "python/common.h"
-#include "specula/stats/moments.h"
+#include "specula/stats/learn_pca.h"
 #include "specula/stats/pca.h"
 #include "specula/stats/project.h"
-#include "specula/store/block_reader.h"
+#include "specula/store/learned_basis.h"
 
 namespace specula::python {
 namespace {
-
-// What a basis was learned from, as the CLI records it.
-std::string basis_source(const store::BlockReader& reader, const std::string& collection) {
-  if (!collection.empty()) return "collection " + collection;
-  std::string source = "images";
-  for (const auto& n : reader.source_names()) source += " " + n;
-  return source;
-}
-
-std::string source_files(const std::vector<store::Store>& stores) {
-  std::string files;
-  for (const auto& s : stores) files += (files.empty() ? "" : " ") + s.path().string();
-  return files;
-}
 
 // The store a basis is saved in: `output` when given, else the first input store (as the CLI's basis_output).
 std::filesystem::path output_store(const std::vector<store::Store>& stores, const py::object& output) {
@@ -37,12 +23,10 @@ std::filesystem::path output_store(const std::vector<store::Store>& stores, cons
   return py::module_::import("os").attr("fspath")(output).cast<std::string>();
 }
 
-void save_basis(const std::filesystem::path& out, const std::string& name, const store::Basis& basis, bool replace,
-                const std::string& function) {
+void save_basis_released(const std::filesystem::path& out, const std::string& name, const store::Basis& basis, bool replace,
+                         const std::string& function) {
   py::gil_scoped_release release;
-  store::StoreWriter writer(out, {.compression = {}, .replace = replace, .command_line = python_command_line(function)});
-  writer.add_basis(name, basis);
-  writer.commit();
+  store::save_basis(out, name, basis, replace, python_command_line(function));
 }
 
 py::object optional_vector(const Eigen::VectorXd& v) {
@@ -103,9 +87,39 @@ py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, c
   return out;
 }
 
-}  // namespace
+// What specula.nmf() reports besides the basis.
+py::dict nmf_report(const nmf::NmfResult& r) {
+  py::dict report;
+  report["rel_error"] = r.rel_error;
+  report["svd_bound"] = r.svd_bound;
+  report["n"] = r.n;
+  report["best_restart"] = r.best;
+  report["epochs"] = r.best_result().epochs;
+  report["converged"] = r.best_result().converged;
+  report["history"] = r.best_result().history;
+  py::list rs;
+  for (const auto& rr : r.restarts) {
+    py::dict d;
+    d["rel_error"] = rr.rel_error;
+    d["epochs"] = rr.epochs;
+    d["converged"] = rr.converged;
+    d["history"] = rr.history;
+    d["mean_angle_deg"] = rr.mean_angle_deg;
+    d["max_angle_deg"] = rr.max_angle_deg;
+    rs.append(d);
+  }
+  report["restarts"] = rs;
+  report["passes"] = r.passes;
+  report["negatives"] = r.negatives;
+  report["values"] = r.values;
+  report["nnls_unconverged"] = r.nnls_unconverged;
+  report["resumed"] = r.resumed;
+  report["warmup_epochs"] = r.warmup_epochs;
+  return report;
+}
 
-void init_analysis(py::module_& m) {
+// specula.Basis: a learned basis made in Python or read from a store, its arrays as numpy.
+void init_basis(py::module_& m) {
   py::class_<store::Basis>(m, "Basis",
                            "A learned spectral basis: components are rows (k x bands); PCA bases carry mean, "
                            "eigenvalues, explained variance, covariance; NMF bases weights.")
@@ -146,6 +160,12 @@ void init_analysis(py::module_& m) {
       .def("__repr__", [](const store::Basis& b) {
         return fmt::format("<specula.Basis {} k={} {} n={}>", b.method, b.k(), b.wavelengths.describe(), b.n);
       });
+}
+
+}  // namespace
+
+void init_analysis(py::module_& m) {
+  init_basis(m);
 
   m.def(
       "pca",
@@ -155,20 +175,8 @@ void init_analysis(py::module_& m) {
         if (!name.is_none()) store::validate_name(name.cast<std::string>(), "basis");
         const std::filesystem::path out = output_store(stores, output);
         const store::Selection sel{.image_globs = globs_from(images), .collection = collection};
-        store::Basis basis = interruptible([&] {
-          const store::BlockReader reader(stores, sel);
-          if (k > reader.bands()) throw UsageError(fmt::format("pca: k = {}: the data has {} bands", k, reader.bands()));
-          if (reader.spectra() < 2)
-            throw InputError(fmt::format("{}: the selection holds {} valid spectra; PCA needs at least two",
-                                         stores.front().label(), reader.spectra()));
-          const stats::Moments moments = stats::stream_moments(reader);
-          store::Basis b = stats::pca_basis(moments, reader.wavelengths(), k);
-          b.source = basis_source(reader, collection);
-          return b;
-        });
-        basis.provenance.source_file = source_files(stores);
-        basis.provenance.importer = "pca";
-        if (!name.is_none()) save_basis(out, name.cast<std::string>(), basis, replace, "pca");
+        store::Basis basis = interruptible([&] { return stats::learn_pca(stores, sel, k).basis; });
+        if (!name.is_none()) save_basis_released(out, name.cast<std::string>(), basis, replace, "pca");
         return basis;
       },
       py::arg("stores"), py::arg("images") = py::none(), py::arg("collection") = "", py::arg("k") = 0,
@@ -200,14 +208,10 @@ void init_analysis(py::module_& m) {
         if (!checkpoint.is_none())
           opt.checkpoint = py::module_::import("os").attr("fspath")(checkpoint).cast<std::string>();
         else if (save)
-          opt.checkpoint = out.string() + ".nmf-" + *save + ".checkpoint";
-        if (save && !replace && !resume && std::filesystem::exists(out)) {
-          const store::Store target = store::Store::open(out);
-          for (const auto& b : target.bases())
-            if (b == *save)
-              throw UsageError(fmt::format("{}: basis {} already exists; choose another name or give replace=True",
-                                           out.string(), *save));
-        }
+          opt.checkpoint = nmf::default_checkpoint(out, *save);
+        if (save && !replace && !resume && store::holds_basis(out, *save))
+          throw UsageError(fmt::format("{}: basis {} already exists; choose another name or give replace=True",
+                                       out.string(), *save));
         if (!on_epoch.is_none())
           opt.on_epoch = [on_epoch](const nmf::EpochReport& e) {
             py::gil_scoped_acquire gil;
@@ -219,54 +223,15 @@ void init_analysis(py::module_& m) {
             on_epoch(d);
           };
         const store::Selection sel{.image_globs = globs_from(images), .collection = collection};
-        store::Basis basis;
-        nmf::NmfResult r;
-        interruptible([&] {
-          const store::BlockReader reader(stores, sel);
-          r = nmf::factorize(reader, opt);
-          basis.method = "nmf";
-          basis.wavelengths = reader.wavelengths();
-          basis.n = r.n;
-          basis.components = r.best_result().basis;
-          basis.weights = r.weights;
-          basis.second_moment = r.second_moment;
-          basis.source = basis_source(reader, collection);
-        });
-        basis.provenance.source_file = source_files(stores);
-        basis.provenance.importer = fmt::format("nmf k={} init={} seed={} restarts={} rel_error={:.9g} svd_bound={:.9g}",
-                                                k, init, seed, restarts, r.rel_error, r.svd_bound);
+        const nmf::LearnedBasis learned = interruptible([&] { return nmf::learn_basis(stores, sel, opt); });
+        const store::Basis& basis = learned.basis;
+        const nmf::NmfResult& r = learned.result;
         if (save) {
-          save_basis(out, *save, basis, replace, "nmf");
+          save_basis_released(out, *save, basis, replace, "nmf");
           std::error_code ec;
           std::filesystem::remove(opt.checkpoint, ec);
         }
-        py::dict report;
-        report["rel_error"] = r.rel_error;
-        report["svd_bound"] = r.svd_bound;
-        report["n"] = r.n;
-        report["best_restart"] = r.best;
-        report["epochs"] = r.best_result().epochs;
-        report["converged"] = r.best_result().converged;
-        report["history"] = r.best_result().history;
-        py::list rs;
-        for (const auto& rr : r.restarts) {
-          py::dict d;
-          d["rel_error"] = rr.rel_error;
-          d["epochs"] = rr.epochs;
-          d["converged"] = rr.converged;
-          d["history"] = rr.history;
-          d["mean_angle_deg"] = rr.mean_angle_deg;
-          d["max_angle_deg"] = rr.max_angle_deg;
-          rs.append(d);
-        }
-        report["restarts"] = rs;
-        report["passes"] = r.passes;
-        report["negatives"] = r.negatives;
-        report["values"] = r.values;
-        report["nnls_unconverged"] = r.nnls_unconverged;
-        report["resumed"] = r.resumed;
-        report["warmup_epochs"] = r.warmup_epochs;
-        return py::make_tuple(basis, report);
+        return py::make_tuple(basis, nmf_report(r));
       },
       py::arg("stores"), py::arg("k"), py::arg("images") = py::none(), py::arg("collection") = "",
       py::arg("init") = "nndsvd", py::arg("seed") = 0, py::arg("restarts") = 1, py::arg("max_epochs") = 100,

@@ -131,4 +131,42 @@ void Projector::reconstruct(const Eigen::Ref<const RowMatrixXd>& coefficients, E
   spectra.noalias() = coefficients * basis_.components;
 }
 
+ImageProjection project_image(const store::Cube& cube, const Projector& projector, std::span<float> reconstruction) {
+  const std::size_t w = cube.width, b = cube.bands, k = projector.k();
+  if (reconstruction.size() != cube.data.size())
+    throw UsageError("project_image: " + std::to_string(reconstruction.size()) + " values for the reconstruction of a " +
+                     std::to_string(cube.data.size()) + "-value image");
+  const std::size_t rows_per_block = std::max<std::size_t>(1, (std::size_t(1) << 20) / (w * b));
+  ImageProjection r;
+  r.k = k;
+  r.error.assign(cube.height * w, 0.0f);
+  std::fill(reconstruction.begin(), reconstruction.end(), 0.0f);
+  ProjectionError summary;
+  RowMatrixXd x, coef, xr;
+  Eigen::VectorXd err;
+  for (std::size_t y0 = 0; y0 < cube.height; y0 += rows_per_block) {
+    const Eigen::Index m = Eigen::Index(std::min(rows_per_block, cube.height - y0) * w);
+    const std::size_t first = y0 * w;
+    x = Eigen::Map<const RowMatrixXf>(cube.data.data() + first * b, m, Eigen::Index(b)).cast<double>();
+    coef.resize(m, Eigen::Index(k));
+    xr.resize(m, Eigen::Index(b));
+    err.resize(m);
+    const std::span<const std::uint8_t> mask =
+        cube.mask.empty() ? std::span<const std::uint8_t>() : std::span(cube.mask).subspan(first, std::size_t(m));
+    summary.merge(project_rows(projector, x, mask, coef, xr, err));
+    Eigen::Map<RowMatrixXf>(reconstruction.data() + first * b, m, Eigen::Index(b)) = xr.cast<float>();
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const std::size_t p = first + std::size_t(i);
+      if (mask.empty() || mask[std::size_t(i)]) {
+        r.error[p] = float(err[i]);
+      } else {
+        std::fill_n(reconstruction.begin() + std::ptrdiff_t(p * b), b, 0.0f);
+      }
+    }
+  }
+  r.rms = summary.rms(b);
+  r.max_error = summary.max_error;
+  return r;
+}
+
 }  // namespace specula::stats

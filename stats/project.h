@@ -11,11 +11,13 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "specula/core/colour.h"
 #include "specula/core/nnls.h"
 #include "specula/core/wavelengths.h"
 #include "specula/store/basis.h"
+#include "specula/store/cube.h"
 
 namespace specula::stats {
 
@@ -88,5 +90,17 @@ class Projector {
   store::Basis basis_;   // method, wavelengths, mean and the k components used
   std::optional<GramNnls> nnls_;  // NMF: the solver for S S^T
 };
+
+/// The projection of an image: its summary and the per-pixel L2 error over bands (0 for masked pixels).
+struct ImageProjection {
+  std::size_t k = 0;
+  double rms = 0, max_error = 0;  ///< as ProjectionError::rms() and max_error, over the valid pixels
+  std::vector<float> error;       ///< height x width
+};
+
+/// Projects every pixel of `cube` (eq 7.2 or NNLS) and reconstructs it (eq 7.3) into `reconstruction` (as many values
+/// as the cube's; masked pixels 0, as the store keeps them), in row blocks of about 2^20 doubles: memory bounded by
+/// the block. UsageError on other sizes.
+ImageProjection project_image(const store::Cube& cube, const Projector& projector, std::span<float> reconstruction);
 
 }  // namespace specula::stats

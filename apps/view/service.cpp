@@ -9,6 +9,7 @@
 #include <regex>
 
 #include "apps/common.h"
+#include "specula/acquire/mapping.h"
 #include "specula/codec/render.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/brdf_geometry.h"
@@ -305,16 +306,12 @@ Response Service::grid_sphere(const Query& q) {
   if (const auto it = png_cache_.find(key); it != png_cache_.end()) return png(it->second);
   const store::Grid& g = grid(name);
   const Eigen::VectorXd spd = page_illuminant(illuminant, store_, g.wavelengths);
-  const codec::MerlBrdf rgb = codec::grid_to_merl(g, codec::rgb_weights(g.wavelengths, spd)).brdf;
   const double t = theta * pi / 180, p = phi * pi / 180;
   const std::size_t size = 256;
   const codec::SphereImage img =
-      codec::render_sphere(rgb, size, {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)});
-  const double gain = std::exp2(exposure);
-  std::vector<std::uint8_t> out(3 * size * size, 24);
-  for (std::size_t i = 0; i < img.covered.size(); ++i)
-    if (img.covered[i])
-      for (std::size_t c = 0; c < 3; ++c) out[3 * i + c] = std::uint8_t(std::lround(255 * srgb_encode(gain * img.linear[3 * i + c])));
+      codec::render_sphere(g, spd, size, {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)});
+  std::vector<std::uint8_t> out(3 * size * size);
+  encode_srgb8(img.linear, img.covered, exposure, out);
   if (png_cache_.size() >= 16) png_cache_.clear();
   return png(png_cache_[key] = png_bytes(size, size, out));
 }
@@ -363,17 +360,15 @@ Response Service::samples_incidence(const Query& q) {
     // Angles first; a block's values are read only when some of its samples lie in the plane.
     bool have_values = false;
     for (std::size_t i = 0; i < n && found < limit; ++i) {
-      const double ti = angles[4 * i], to = angles[4 * i + 2];
-      double pd = std::fmod(std::abs(angles[4 * i + 3] - angles[4 * i + 1]), 2 * pi);
-      if (pd > pi) pd = 2 * pi - pd;
-      if (std::abs(ti - theta_i) > eps || (pd > eps && pd < pi - eps)) continue;
+      const auto x = acquire::incidence_plane_angle(
+          acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]}), theta_i, eps);
+      if (!x) continue;
       if (!have_values) {
         values.resize(n * info.bands);
         store_.read_samples(name, first, n, {}, values);
         have_values = true;
       }
-      const double x = (pd > pi / 2 ? 1 : -1) * to * 180 / pi;
-      points += fmt::format("{}[{:.3f},{}]", found ? "," : "", x, values[i * info.bands + band]);
+      points += fmt::format("{}[{:.3f},{}]", found ? "," : "", *x * 180 / pi, values[i * info.bands + band]);
       ++found;
     }
   }
