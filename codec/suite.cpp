@@ -1,5 +1,6 @@
 #include "specula/codec/suite.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -18,14 +19,16 @@ namespace {
 using std::numbers::pi;
 constexpr double kDeg = pi / 180;
 constexpr double kOffNormalDeg = 60;  // the second view
-// The directional lights: (angle from the normal, azimuth) in degrees; 0 once, the others at two azimuths.
+// The directional lights: (angle from the normal, azimuth) in degrees; 0 once, the others at two azimuths. Seen
+// head-on, every pixel of a light at angle a has theta_d = a / 2, so a is an odd number of degrees (31, not 30): theta_d
+// then falls on a cell centre of the MERL grid instead of on a boundary, where float rounding would pick the cell.
 constexpr std::array<std::array<double, 2>, 9> kLights{{{0, 0},
-                                                        {30, 0},
-                                                        {30, 90},
-                                                        {60, 0},
-                                                        {60, 90},
-                                                        {80, 0},
-                                                        {80, 90},
+                                                        {31, 0},
+                                                        {31, 90},
+                                                        {61, 0},
+                                                        {61, 90},
+                                                        {81, 0},
+                                                        {81, 90},
                                                         {105, 0},
                                                         {105, 90}}};
 constexpr double kExposurePercentile = 0.99;
@@ -373,7 +376,7 @@ SuiteDiff suite_diff(const store::Grid& a, const store::Grid& b, const LightingS
 }
 
 std::string suite_json(const SuiteDiff& d, const LightingSuite& suite) {
-  using nlohmann::json;
+  using json = nlohmann::ordered_json;
   auto finite = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
   json conditions = json::array();
   for (std::size_t c = 0; c < d.conditions.size(); ++c) {

@@ -2,7 +2,7 @@
 // The lighting suite: one fixed set of renderings under which two spectral BRDF grids are compared, so that a
 // BRDF is judged the way many scenes would see it rather than by one picture (docs/brdf.md, "The lighting
 // suite"). A sphere is seen from two views (head-on along the sample normal, and 60 degrees off it) under the
-// built-in environment and nine directional lights (0, 30, 60, 80 and 105 degrees from the normal, two
+// built-in environment and nine directional lights (0, 31, 61, 81 and 105 degrees from the normal, two
 // azimuths) in D65 and in illuminant A: 38 conditions. Each rendering is exposed by the reference's own
 // brightness; cells without data render black and are counted.
 #include <Eigen/Core>

@@ -3,6 +3,7 @@
 // per pixel, its own view frames and tangent frame, standard angles and brdf::merl_cell(StdAngles), its own
 // exposure and CIEDE2000 pooling. Tests check the suite and the codec's target against it.
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <numbers>
