@@ -233,7 +233,7 @@ SuiteDiff LightingSuite::compare(const SuiteRenders& ref, const SuiteRenders& te
     const std::vector<float>& a = ref.xyz[c];
     const std::vector<float>& t = test.xyz[c];
     // Exposure: the white of the light (a white Lambertian surface facing it; for the environment, facing the
-    // viewer), scaled so that its Y is the reference's 99th-percentile luminance over the lit pixels.
+    // viewer), scaled so that its Y is the reference's 99th-percentile luminance over the compared pixels.
     Eigen::Vector3d white;
     if (g.environment) {
       const Eigen::Matrix3d cam = camera(g.view);
@@ -248,9 +248,13 @@ SuiteDiff LightingSuite::compare(const SuiteRenders& ref, const SuiteRenders& te
     } else {
       white = to_xyz_ * illuminant(c) / pi;
     }
+    // Compared: lit pixels with at least one cell the reference has data for.
+    std::vector<std::uint8_t> seen(np, 0);
+    for (std::size_t p = 0; p < np; ++p)
+      for (std::uint32_t q = g.offsets[p]; q < g.offsets[p + 1] && !seen[p]; ++q) seen[p] = ref.cell_valid[g.cell[q]];
     std::vector<float> lum;
     for (std::size_t p = 0; p < np; ++p)
-      if (g.lit[p]) lum.push_back(a[3 * p + 1]);
+      if (seen[p]) lum.push_back(a[3 * p + 1]);
     const double y = percentile(lum, kExposurePercentile);
     if (y > 0 && white.y() > 0) white *= y / white.y();
     ConditionDiff& cd = d.conditions[c];
@@ -258,6 +262,10 @@ SuiteDiff LightingSuite::compare(const SuiteRenders& ref, const SuiteRenders& te
     if (keep_maps) maps[c].assign(np, 0.0f);
     for (std::size_t p = 0; p < np; ++p) {
       if (!g.lit[p]) continue;
+      if (!seen[p]) {
+        ++cd.unseen_pixels;
+        continue;
+      }
       const Eigen::Vector3d xa(a[3 * p], a[3 * p + 1], a[3 * p + 2]), xb(t[3 * p], t[3 * p + 1], t[3 * p + 2]);
       const float e = float(ciede2000(xyz_to_lab(xa, white), xyz_to_lab(xb, white)));
       values[c].push_back(e);
@@ -282,6 +290,7 @@ SuiteDiff LightingSuite::compare(const SuiteRenders& ref, const SuiteRenders& te
     pooled.insert(pooled.end(), values[c].begin(), values[c].end());
     d.pixels += d.conditions[c].pixels;
     d.hole_pixels += d.conditions[c].hole_pixels;
+    d.unseen_pixels += d.conditions[c].unseen_pixels;
     if (d.conditions[c].de00_mean > d.conditions[d.worst].de00_mean) d.worst = c;
   }
   d.de00_mean = pooled.empty() ? 0.0 : sum / double(pooled.size());
@@ -385,7 +394,8 @@ std::string suite_json(const SuiteDiff& d, const LightingSuite& suite) {
     conditions.push_back({{"name", sc.name}, {"view", sc.view == 0 ? "head-on" : "60 deg off the normal"},
                           {"light", sc.light}, {"elevation_deg", sc.elevation_deg}, {"azimuth_deg", sc.azimuth_deg},
                           {"de00_mean", cd.de00_mean}, {"de00_p95", cd.de00_p95}, {"de00_max", cd.de00_max},
-                          {"pixels", cd.pixels}, {"hole_pixels", cd.hole_pixels}});
+                          {"pixels", cd.pixels}, {"hole_pixels", cd.hole_pixels},
+                          {"unseen_pixels", cd.unseen_pixels}});
   }
   json albedo = json::array();
   for (std::size_t i = 0; i < kSuiteAlbedoAngles.size(); ++i)
@@ -393,7 +403,7 @@ std::string suite_json(const SuiteDiff& d, const LightingSuite& suite) {
                       {"relative_error", finite(d.albedo_rel_error[i])}});
   const json j = {{"suite", {{"conditions", d.conditions.size()}, {"size", suite.size()}}},
                   {"de00_mean", d.de00_mean}, {"de00_p95", d.de00_p95}, {"de00_max", d.de00_max},
-                  {"pixels", d.pixels}, {"hole_pixels", d.hole_pixels},
+                  {"pixels", d.pixels}, {"hole_pixels", d.hole_pixels}, {"unseen_pixels", d.unseen_pixels},
                   {"worst_condition", d.conditions.empty() ? "" : suite.conditions().at(d.worst).name},
                   {"worst_de00_mean", d.conditions.empty() ? 0.0 : d.conditions[d.worst].de00_mean},
                   {"cells", d.cells}, {"hole_cells", d.hole_cells}, {"extra_cells", d.extra_cells},

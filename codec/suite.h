@@ -41,10 +41,12 @@ struct SuiteRenders {
   std::vector<std::uint8_t> cell_valid;
 };
 
-/// ΔE00 of one condition over its lit pixels (the disc pixels some light of the condition reaches).
+/// ΔE00 of one condition over its compared pixels: the lit ones (some light of the condition reaches them) that
+/// the reference has data for (at least one of their cells).
 struct ConditionDiff {
   double de00_mean = 0, de00_p95 = 0, de00_max = 0;
-  std::size_t pixels = 0;       ///< lit pixels compared
+  std::size_t pixels = 0;       ///< pixels compared
+  std::size_t unseen_pixels = 0;  ///< lit pixels the reference has no data for: black in it, not compared
   std::size_t hole_pixels = 0;  ///< of them, lit through a cell the reference has and the compared grid lacks
   Eigen::Vector3d white = Eigen::Vector3d::Zero();  ///< the exposure's reference white (XYZ)
 };
@@ -52,11 +54,11 @@ struct ConditionDiff {
 /// The suite's verdict on grid b against reference a.
 struct SuiteDiff {
   std::vector<ConditionDiff> conditions;  ///< in LightingSuite::conditions() order
-  /// Pooled over the lit pixels of every condition: mean, 95th percentile (rank ceil(0.95 n)), max.
+  /// Pooled over the compared pixels of every condition: mean, 95th percentile (rank ceil(0.95 n)), max.
   double de00_mean = 0, de00_p95 = 0, de00_max = 0;
   std::size_t worst = 0;  ///< the condition of largest ΔE00 mean
-  std::size_t pixels = 0, hole_pixels = 0;
-  /// Per condition, ΔE00 per disc pixel (0 where unlit); filled when asked (keep_maps).
+  std::size_t pixels = 0, hole_pixels = 0, unseen_pixels = 0;
+  /// Per condition, ΔE00 per disc pixel (0 where not compared); filled when asked (keep_maps).
   std::vector<std::vector<float>> de00;
   /// Value metrics (suite_value_metrics); filled by suite_diff.
   std::uint64_t cells = 0;      ///< valid in the reference
