@@ -50,20 +50,13 @@ struct LatLongGeometry {
   }
 };
 
-// The environment as point lights: each region of the map (kEnvironmentRegionsW x kEnvironmentRegionsH, fewer
-// for a smaller map) becomes one light in the direction of its mean vector m (the solid-angle average of its
-// directions) with power the integral of L over it; a surface of normal n sees the region's mean cosine n . m
-// (exact when the region lies wholly above its horizon). The sun is one more light with |m| = 1.
-struct Lights {
-  std::size_t count = 0;
-  std::vector<Eigen::Vector3d> dir;  // unit
-  std::vector<double> length;        // |m|
-  std::vector<double> power;         // band-major: power[k * count + j]
-};
+// A surface of normal n sees a region light's mean cosine n . m (exact when the region lies wholly above its horizon).
+using Lights = EnvironmentLights;
 
-Lights make_lights(const Environment& env) {
+Lights make_lights(const Environment& env, std::size_t regions_w = kEnvironmentRegionsW,
+                   std::size_t regions_h = kEnvironmentRegionsH) {
   const std::size_t b = env.wavelengths.size();
-  const std::size_t rw = std::min(kEnvironmentRegionsW, env.width), rh = std::min(kEnvironmentRegionsH, env.height);
+  const std::size_t rw = std::min(regions_w, env.width), rh = std::min(regions_h, env.height);
   const LatLongGeometry geo(env.width, env.height);
   std::vector<double> omega(rw * rh, 0.0);
   std::vector<Eigen::Vector3d> moment(rw * rh, Eigen::Vector3d::Zero());
@@ -117,6 +110,13 @@ std::size_t reduction_factor(std::size_t w, std::size_t h) {
 }
 
 }  // namespace
+
+EnvironmentLights environment_lights(const Environment& env, std::size_t regions_w, std::size_t regions_h) {
+  if (regions_w < 1 || regions_h < 1) throw UsageError("environment lights: give at least 1 x 1 regions");
+  if (env.width == 0 || env.height == 0 || env.radiance.size() != env.width * env.height * env.wavelengths.size())
+    throw UsageError("environment lights: environment buffers do not match its size");
+  return make_lights(env, regions_w, regions_h);
+}
 
 Environment default_environment(const WavelengthGrid& grid) {
   Environment e;

@@ -30,6 +30,19 @@ struct Environment {
 /// smaller map), each a block of whole map pixels.
 inline constexpr std::size_t kEnvironmentRegionsW = 64, kEnvironmentRegionsH = 32;
 
+/// An environment as point lights (what render_spheres integrates): each region of a regions_w x regions_h split
+/// of the map (fewer for a smaller map) with any power becomes a light along its mean vector m (the solid-angle
+/// average of its directions), `length` |m| and `power` the integral of L over it (band-major:
+/// power[b * count + j]); the sun, if any, is one more light with length 1.
+struct EnvironmentLights {
+  std::size_t count = 0;
+  std::vector<Eigen::Vector3d> dir;  ///< unit, world frame
+  std::vector<double> length;
+  std::vector<double> power;
+};
+/// The lights of `env` split into at most regions_w x regions_h regions (each >= 1, else UsageError).
+EnvironmentLights environment_lights(const Environment& env, std::size_t regions_w, std::size_t regions_h);
+
 /// The built-in environment on `grid`: a CIE daylight sky of 12000 K brightening towards the zenith, a green-brown
 /// ground lit by daylight, and a 5500 K daylight sun at (-0.45, 0.6, 0.66) carrying most of the irradiance.
 Environment default_environment(const WavelengthGrid& grid);

@@ -17,8 +17,6 @@
 
 namespace specula::codec {
 
-struct Environment;
-
 /// Magic bytes that open a .spc file.
 inline constexpr char kSpcMagic[8] = {'S', 'P', 'E', 'C', 'U', 'S', 'P', 'C'};
 /// Newest .spc format version this specula reads: 1 (bounded error, predictive) and 2 (transform) are written.
@@ -42,20 +40,21 @@ SpcBasis augment_basis(const SpcBasis& basis, const store::Grid& grid, std::size
 /// cells with a non-zero magnitude. Throws UsageError unless 1 <= k <= bands, InputError if no cell qualifies.
 SpcBasis self_basis(const store::Grid& grid, std::size_t k);
 
-/// How encode_spc codes: `bounded` (format 1) keeps every value within a stated error of the original; `transform`
-/// (format 2) codes the magnitude and shape channels by a 3-D wavelet transform over the grid, with quantisation
-/// steps chosen for the rendered appearance rather than a per-value bound (docs/codec-format.md).
-enum class SpcMethod { bounded, transform };
-
-struct SpcOptions {
-  SpcMethod method = SpcMethod::bounded;
-  /// bounded: error target E > 0: |m' - m| <= E (m + s) for the magnitude and |r'_b - r_k,b| <= E per band for the
+/// Settings of the bounded method (format 1): every value kept within a stated error of the original.
+struct SpcBoundedOptions {
+  /// Error target E in (0, 1]: |m' - m| <= E (m + s) for the magnitude and |r'_b - r_k,b| <= E per band for the
   /// shape (r_k: the shape's projection onto the basis).
   double max_error = 0.01;
   /// s of the magnitude mapping in the grid's stored units; 0: a tenth of the median valid magnitude.
   double magnitude_scale = 0;
-  int zstd_level = 9;  ///< bounded: 1..19
-  /// transform: quantisation step of log(1 + m / s) in the coarsest bands (> 0); the shape steps are
+  int zstd_level = 9;  ///< 1..19
+};
+
+/// Settings of the transform method (format 2): the magnitude and shape channels coded by a 3-D wavelet transform
+/// over the grid, with quantisation steps chosen for the rendered appearance rather than a per-value bound
+/// (docs/codec-format.md).
+struct SpcTransformOptions {
+  /// Quantisation step of log(1 + m / s) in the coarsest bands (in (0, 10]); the shape steps are
   /// `shape_step_ratio` times it and finer bands' steps grow by `frequency_factor` per level.
   double step = 0.01;
   double shape_step_ratio = 2;
@@ -65,6 +64,8 @@ struct SpcOptions {
   /// full step at theta_h index specular_extent (1..90): the small half-angles where a highlight lives.
   double specular_factor = 0.5;
   double specular_extent = 45;
+  /// s of the magnitude mapping in the grid's stored units; 0: a tenth of the median valid magnitude.
+  double magnitude_scale = 0;
 };
 
 /// What encoding measured.
@@ -79,9 +80,12 @@ struct SpcReport {
   double max_quantisation_error = 0;  ///< max over cells and bands of |r' - r_k| (at most max_error)
 };
 
-/// Encodes `grid` on `basis` (same wavelengths, else InputError naming both) into .spc bytes; the same
-/// bytes for any thread count. Throws UsageError for a bad option.
-std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& options,
+/// Encodes `grid` on `basis` (same wavelengths, else InputError naming both) into .spc bytes of format 1; the
+/// same bytes for any thread count. Throws UsageError for a bad option.
+std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& basis, const SpcBoundedOptions& options,
+                                     SpcReport* report = nullptr, const std::string& source = "");
+/// As above in format 2 (the transform method) at options.step.
+std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& basis, const SpcTransformOptions& options,
                                      SpcReport* report = nullptr, const std::string& source = "");
 /// A decoded .spc held as its coefficients rather than its bands: per cell the k values a = m' c' (the magnitude
 /// folded into the shape coefficients), so the decoded spectrum is x'_b = max(0, sum_j a_j V_jb) in stored units.
@@ -95,35 +99,6 @@ struct SpcCoefficients {
   std::size_t k() const { return std::size_t(basis.rows()); }
   std::size_t bands() const { return std::size_t(basis.cols()); }
 };
-
-/// What a perceptual target asks of a transform coding: the rendered CIEDE2000 between the grid and its decoding
-/// (diff_grids' renderer under `env`, a `size`-pixel sphere) at most `de00_mean` on average and `de00_p95` at the
-/// 95th percentile.
-struct SpcTarget {
-  double de00_mean = 0.5;
-  double de00_p95 = 1.5;
-  std::size_t size = 128;
-  int max_trials = 8;        ///< trial codings, 2..32
-  double first_step = 1;     ///< the first step tried
-};
-
-/// Where a target search ended.
-struct SpcTargetReport {
-  bool reached = false;      ///< false: no trial met the target; the finest step tried was coded
-  int trials = 0;
-  double step = 0;           ///< the step coded
-  double de00_mean = 0, de00_p95 = 0;  ///< what the coded file renders to
-};
-
-/// Encodes `grid` by the transform method (options.method and options.step are ignored) with the coarsest step found
-/// to meet `target` under `env`: from target.first_step, each next step scaled from the last trial's error (2 to 16
-/// times) until the target is bracketed, then interpolated in log error against log step until the bracket is within
-/// 20 %, at most target.max_trials renderings, never finer than codes of 2^27 allow; not meeting it (a basis that
-/// cannot express the grid's spectra has an error floor) is reported in `target_report`, not thrown.
-std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const SpcBasis& basis, const SpcOptions& options,
-                                               const SpcTarget& target, const Environment& env,
-                                               SpcTargetReport& target_report, SpcReport* report = nullptr,
-                                               const std::string& source = "");
 
 /// Decodes .spc bytes to coefficient form; every field and the CRC are checked, and a problem is an InputError
 /// starting with `label`.

@@ -4,24 +4,16 @@
 #include <Eigen/Core>
 
 #include "specula/core/colour.h"
+#include "specula/core/eigenpairs.h"
 #include "specula/stats/moments.h"
 #include "specula/store/basis.h"
 
 namespace specula::stats {
 
-/// Eigenpairs of a symmetric matrix, eigenvalues descending; each eigenvector's largest-magnitude entry is
-/// positive (a deterministic sign).
-struct Eigenpairs {
-  Eigen::VectorXd values;
-  Eigen::MatrixXd vectors;  ///< one eigenvector per column
-  bool converged = true;    ///< false if the iterative solver stopped early (values are then approximate)
-};
-
-/// The top k eigenpairs of symmetric `m`: dense (Eigen) when k is large relative to the size or the size is
-/// small (<= 64), else Lanczos (Spectra's SymEigsSolver). Throws UsageError unless 1 <= k <= size.
-Eigenpairs symmetric_eigenpairs(const Eigen::MatrixXd& m, std::size_t k);
-/// Forces the sign convention (largest-magnitude entry positive) on the columns of v.
-void canonical_signs(Eigen::MatrixXd& v);
+/// The eigen-decomposition PCA uses is core's (specula/core/eigenpairs.h), shared with the codec's fitted bases.
+using specula::canonical_signs;
+using specula::Eigenpairs;
+using specula::symmetric_eigenpairs;
 
 /// A PCA basis from streamed moments: mean, all eigenvalues (descending) and explained variance ratios,
 /// the first k components (k = 0: all), covariance and the uncentred second moment.

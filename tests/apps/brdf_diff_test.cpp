@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "specula/codec/spectral_grid.h"
+#include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_models.h"
 #include "specula/store/io/exr.h"
 #include "specula/store/io/png_stack.h"
@@ -38,13 +39,13 @@ TEST(BrdfDiffCli, IdenticalGridsGiveZerosAndAScaledOneItsScale) {
   test::ScratchDir dir;
   write_grid_file(dir / "a.spgrid", ward());
   write_grid_file(dir / "b.spgrid", ward(1.01));
-  auto r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "a.spgrid") + " --size 24 --json");
+  auto r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "a.spgrid") + " --env default --size 24 --json");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_TRUE(one_line(r)) << r.output;
   for (const char* key : {"rms", "max_abs", "rel_rms_cos", "de00_mean", "de00_p95", "de00_max", "only_a", "only_b"})
     EXPECT_EQ(test::json_number(r.output, key), 0.0) << key << ": " << r.output;
   EXPECT_GT(test::json_number(r.output, "cells"), 1e6);
-  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "b.spgrid") + " --size 24 --json --heatmap " +
+  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "b.spgrid") + " --env default --size 24 --json --heatmap " +
                   q(dir / "h.png") + " --panel " + q(dir / "p.png"));
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NEAR(test::json_number(r.output, "rel_rms_cos"), 0.01, 1e-6) << r.output;
@@ -52,10 +53,48 @@ TEST(BrdfDiffCli, IdenticalGridsGiveZerosAndAScaledOneItsScale) {
   EXPECT_EQ(store::read_png(dir / "h.png").width, 24u);
   EXPECT_EQ(store::read_png(dir / "p.png").width, 72u);
   // The text report names both inputs and the environment.
-  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "b.spgrid") + " --size 16");
+  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "b.spgrid") + " --env default --size 16");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("b.spgrid"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("built-in"), std::string::npos) << r.output;
+}
+
+// By default the lighting suite: every condition in the JSON, holes counted, the worst condition's panel.
+TEST(BrdfDiffCli, ReportsTheLightingSuiteByDefault) {
+  test::ScratchDir dir;
+  write_grid_file(dir / "a.spgrid", ward());
+  write_grid_file(dir / "b.spgrid", ward(1.01));
+  store::Grid holed = ward();
+  std::size_t removed = 0;
+  for (std::size_t c = 0; c < brdf::kMerlCells; ++c)
+    if (brdf::merl_cell(c).theta_h < 10 && holed.brdf[c] >= 0) {
+      ++removed;
+      for (std::size_t k = 0; k < kGrid.size(); ++k) holed.brdf[k * brdf::kMerlCells + c] = -1;
+    }
+  write_grid_file(dir / "h.spgrid", holed);
+  auto r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "a.spgrid") + " --size 24 --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(one_line(r)) << r.output;
+  for (const char* key : {"de00_mean", "de00_p95", "de00_max", "hole_cells", "rel_rms_cos"})
+    EXPECT_EQ(test::json_number(r.output, key), 0.0) << key << ": " << r.output;
+  std::size_t conditions = 0;
+  for (auto at = r.output.find("\"elevation_deg\""); at != std::string::npos; at = r.output.find("\"elevation_deg\"", at + 1))
+    ++conditions;
+  EXPECT_EQ(conditions, 38u) << r.output;
+  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "b.spgrid") + " --size 24 --json --panel " + q(dir / "p.png"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NEAR(test::json_number(r.output, "rel_rms_cos"), 0.01, 1e-6) << r.output;
+  EXPECT_GT(test::json_number(r.output, "de00_mean"), 0) << r.output;
+  EXPECT_EQ(store::read_png(dir / "p.png").width, 72u);
+  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "h.spgrid") + " --size 24 --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(test::json_number(r.output, "hole_cells"), double(removed)) << r.output;
+  EXPECT_GT(test::json_number(r.output, "hole_pixels"), 0) << r.output;
+  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "h.spgrid") + " --size 24");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("lighting suite"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("worst condition"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(std::to_string(removed) + " of the reference's"), std::string::npos) << r.output;
 }
 
 // An RGB .binary is uplifted onto the other grid's bands exactly as `specula uplift` does by default, so it and

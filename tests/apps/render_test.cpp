@@ -125,9 +125,14 @@ TEST(RenderCli, ASpcRendersAsItsDecodedGrid) {
     EXPECT_EQ(store::read_png(dir / "w.spc.png").samples, store::read_png(dir / "w.spgrid.png").samples) << light;
   }
   const test::RunResult d = test::run_specula("-q brdf-diff '" + (dir / "w.spc").string() + "' '" +
-                                              (dir / "w.spgrid").string() + "' --json");
+                                              (dir / "w.spgrid").string() + "' --env default --json");
   ASSERT_EQ(d.status, 0) << d.output;
   EXPECT_EQ(test::json_number(d.output, "rms"), 0) << d.output;
+  const test::RunResult suite = test::run_specula("-q brdf-diff '" + (dir / "w.spc").string() + "' '" +
+                                                  (dir / "w.spgrid").string() + "' --json");
+  ASSERT_EQ(suite.status, 0) << suite.output;
+  EXPECT_EQ(test::json_number(suite.output, "de00_max"), 0) << suite.output;
+  EXPECT_EQ(test::json_number(suite.output, "rel_rms_cos"), 0) << suite.output;
 }
 
 }  // namespace

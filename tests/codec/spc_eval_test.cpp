@@ -29,14 +29,17 @@ struct Coded {
   SpcCoefficients coefficients;
   store::Grid grid;
 };
+enum class SpcMethod { bounded, transform };
 const Coded& coded(std::size_t k, SpcMethod method = SpcMethod::bounded) {
   static const store::Grid g =
       test::grid_of(brdf::TorranceSparrow(kGrid, Eigen::VectorXd::Constant(7, 0.15), ramp(1.55, 1.45), ramp(0.5, 0.1)));
   static std::map<std::pair<std::size_t, SpcMethod>, Coded> cache;
   const auto key = std::make_pair(k, method);
   if (!cache.contains(key)) {
-    SpcCoefficients c =
-        decode_spc_coefficients(encode_spc(g, self_basis(g, k), {.method = method, .max_error = 0.01}), "test.spc");
+    SpcCoefficients c = decode_spc_coefficients(
+        method == SpcMethod::bounded ? encode_spc(g, self_basis(g, k), SpcBoundedOptions{.max_error = 0.01})
+                                     : encode_spc(g, self_basis(g, k), SpcTransformOptions{.step = 0.01}),
+        "test.spc");
     store::Grid grid = expand_spc(c);
     cache.emplace(key, Coded{std::move(c), std::move(grid)});
   }
