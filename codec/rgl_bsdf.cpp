@@ -48,7 +48,7 @@ void check_density(const std::vector<float>& v, std::size_t slices, const std::s
   for (std::size_t s = 0; s < slices; ++s) {
     double sum = 0;
     for (std::size_t i = 0; i < n; ++i) sum += v[s * n + i];
-    if (!(sum > 0))
+    if (!(sum > 1e-30))
       throw InputError(label + ": field '" + name + "' is zero everywhere for incident direction " + std::to_string(s) +
                        "; a renderer cannot normalise it into a density");
   }
@@ -150,6 +150,9 @@ RglBsdf from_tensor(const TensorFile& f, const std::string& label) {
   b.values = float32_values(values, label);
   check_values(b.ndf, "ndf", true, label);
   check_values(b.sigma, "sigma", true, label);
+  for (std::size_t i = 0; i < b.sigma.size(); ++i)
+    if (!(b.sigma[i] > 0))
+      throw InputError(label + ": field 'sigma' holds 0 at element " + std::to_string(i) + "; the renderers divide by it");
   check_values(b.vndf, "vndf", true, label);
   check_values(b.luminance, "luminance", true, label);
   check_values(b.values, values.name, false, label);

@@ -41,6 +41,9 @@ void csv(std::span<const std::uint8_t> input);
 /// pixel is not a defect: the import's --nan policy decides about it.
 void gdal(std::span<const std::uint8_t> input);
 
+/// An RGL .bsdf: read_rgl_bsdf, then RglEvaluator at a few direction pairs (finite, non-negative values).
+void rgl_bsdf(std::span<const std::uint8_t> input);
+
 /// Every target, in the order above.
 const std::vector<Target>& targets();
 
