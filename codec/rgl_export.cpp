@@ -99,6 +99,7 @@ double at_u(std::span<const double> nodes, double u) {
 void check(const RglExportSettings& s) {
   if (s.theta_i < 2 || s.resolution < 2 || s.ndf_nodes < 2 || s.vndf_resolution < 2)
     throw UsageError("RGL export: theta_i, resolution, ndf_nodes and vndf_resolution must be at least 2");
+  if (!(s.vndf_floor >= 0 && s.vndf_floor <= 100)) throw UsageError("RGL export: vndf_floor must be in [0, 100]");
   if (s.theta_i > 90 || s.resolution > 512 || s.ndf_nodes > 4096 || s.vndf_resolution > 1024)
     throw UsageError("RGL export: at most 90 theta_i, a 512 sample grid, 4096 ndf nodes and a 1024 vndf grid");
 }
@@ -192,7 +193,8 @@ RglBsdf build(const MerlField& field, std::span<const double> lum_weights, const
       for (std::size_t x = 0; x < V; ++x) {
         const double u = double(x) / double(V - 1), theta_m = rgl_u_to_theta(u);
         const Eigen::Vector3d m = brdf::direction(theta_m, rgl_v_to_phi(double(y) / double(V - 1)));
-        vndf[y * V + x] = float(ndf_table.eval(u, 0, {}) * std::max(0.0, wi.dot(m)) * 2 * kPi * kPi * u * std::sin(theta_m));
+        vndf[y * V + x] = float((ndf_table.eval(u, 0, {}) + s.vndf_floor / kPi) * std::max(0.0, wi.dot(m)) * 2 * kPi * kPi * u *
+                                std::sin(theta_m));
       }
     const Warp2D warp({vndf, V * V}, V, V, {}, true);
     const double sigma_i = sigma_table.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(0), {});

@@ -25,6 +25,9 @@ struct RglExportSettings {
   std::size_t ndf_nodes = 128;       ///< nodes of the ndf and sigma tables in u, >= 2
   std::size_t vndf_resolution = 32;  ///< vndf nodes per side, >= 2
   std::size_t power_iterations = 30;
+  /// The vndf table (which only places the sample nodes; stored values use the ndf) is (D(m) + floor / pi) <wi . m>+:
+  /// a floor > 0 keeps nodes off the peak of a glossy material, where its diffuse part lives.
+  double vndf_floor = 0.1;
   std::string description;           ///< empty: "specula export"
 };
 

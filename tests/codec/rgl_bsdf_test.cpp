@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "specula/codec/rgl_eval.h"
+#include "specula/codec/rgl_export.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 
@@ -62,6 +63,35 @@ TEST(RglBsdf, TheRealFilesParseWithFiniteValuesAndAlbedoBelowOne) {
     EXPECT_LT(median, 0.5) << name;  // a measured material tabulated per incident direction is roughly reciprocal
   }
   EXPECT_EQ(files, 4);
+}
+
+TEST(RglBsdf, AMeasuredMaterialRoundTripsThroughExport) {
+  // A measured-derived grid: the real glossy vinyl evaluated at the MERL cell centres, exported again with specula's
+  // own parameterisation and evaluated back. Compared where both directions are within 80 degrees of the normal.
+  if (!fs::is_directory(kRgl)) GTEST_SKIP() << kRgl << " is absent (../shared)";
+  const MerlBrdf a = rgl_to_merl(read_rgl_bsdf(kRgl / "chm_orange_rgb.bsdf"));
+  const MerlBrdf b = rgl_to_merl(export_rgl(a, {}));
+  std::vector<double> rel;
+  double num = 0, den = 0;
+  for (std::size_t cell = 0; cell < brdf::kMerlCells; cell += 5) {
+    if (!a.has_data(cell) || !b.has_data(cell)) continue;
+    Eigen::Vector3d wi, wo;
+    brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(cell)), wi, wo);
+    if (wi.z() < 0.17 || wo.z() < 0.17) continue;
+    const double w = wi.z() * wo.z();
+    for (int c = 0; c < 3; ++c) {
+      num += w * std::pow(a.value(c, cell) - b.value(c, cell), 2);
+      den += w * std::pow(a.value(c, cell), 2);
+      if (a.value(c, cell) > 1e-3) rel.push_back(std::abs(b.value(c, cell) / a.value(c, cell) - 1));
+    }
+  }
+  std::sort(rel.begin(), rel.end());
+  const double median = rel[rel.size() / 2], rms = std::sqrt(num / den);
+  std::printf("chm_orange re-exported: median relative error %.4f, cos-weighted relative RMS %.4f\n", median, rms);
+  // Known gap (docs/brdf.md): off the peak of this very glossy film (D(0) near 5000) the re-export is 16 % off
+  // in the median; the bound guards against regressions, it is not the goal.
+  EXPECT_LT(median, 0.2);
+  EXPECT_LT(rms, 0.25);
 }
 
 RglBsdf small() {
