@@ -99,8 +99,8 @@ void run_brdf_diff(const BrdfDiffOptions& o) {
 void setup_brdf_diff(CLI::App& app) {
   auto o = std::make_shared<BrdfDiffOptions>();
   auto* cmd = app.add_subcommand("brdf-diff", "Compare two spectral BRDF grids: values, and renderings (CIEDE2000)");
-  cmd->add_option("a", o->a, "Reference grid: STORE.h5:GRID, a .spgrid file, a .spc (decoded), or an RGB MERL .binary (uplifted)")->required();
-  cmd->add_option("b", o->b, "Grid to compare: STORE.h5:GRID, a .spgrid file, a .spc (decoded), or an RGB MERL .binary (uplifted)")->required();
+  cmd->add_option("a", o->a, "Reference grid: STORE.h5:GRID, a .spgrid file, a .spc (decoded), an RGL .bsdf (RGB ones uplifted), or an RGB MERL .binary (uplifted)")->required();
+  cmd->add_option("b", o->b, "Grid to compare: STORE.h5:GRID, a .spgrid file, a .spc (decoded), an RGL .bsdf (RGB ones uplifted), or an RGB MERL .binary (uplifted)")->required();
   cmd->add_option("--env", o->env, "Lighting: 'default' (built-in sky, ground and sun) or a lat-long EXR (spectral or RGB)")
       ->capture_default_str();
   cmd->add_option("--size", o->size, "Sphere size in pixels")->capture_default_str();

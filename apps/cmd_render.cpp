@@ -13,6 +13,7 @@
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/render.h"
+#include "specula/codec/rgl_eval.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spc_eval.h"
 #include "specula/codec/spectral_grid.h"
@@ -41,6 +42,10 @@ codec::SpcBrdf load_spc(const std::string& path) {
 
 codec::MerlBrdf load_rgb(const RenderOptions& o) {
   if (std::filesystem::path(o.input).extension() == ".binary") return codec::read_merl(o.input);
+  if (std::filesystem::path(o.input).extension() == ".bsdf") {
+    const codec::RglBsdf b = codec::read_rgl_bsdf(o.input);
+    if (b.rgb) return codec::rgl_to_merl(b);
+  }
   const store::Grid grid = load_grid(o.input, "render");
   const auto weights = codec::rgb_weights(grid.wavelengths, parse_illuminant(o.illuminant, grid.wavelengths));
   return codec::grid_to_merl(grid, weights).brdf;
@@ -119,7 +124,7 @@ void run_render(const RenderOptions& o) {
 void setup_render(CLI::App& app) {
   auto o = std::make_shared<RenderOptions>();
   auto* cmd = app.add_subcommand("render", "A sphere under a directional light from a BRDF (sRGB PNG and linear EXR)");
-  cmd->add_option("brdf", o->input, "MERL .binary, spectral grid file, STORE.h5:GRID, or a .spc (evaluated from its code, not decoded)")->required();
+  cmd->add_option("brdf", o->input, "MERL .binary, spectral grid file, STORE.h5:GRID, an RGL .bsdf, or a .spc (evaluated from its code, not decoded)")->required();
   cmd->add_option("-o,--output", o->output, "PNG to write; the linear EXR goes beside it")->required();
   cmd->add_option("--size", o->size, "Image width and height in pixels")->capture_default_str();
   cmd->add_option("--light", o->light, "Light direction THETA,PHI in degrees (theta from the viewer)")
