@@ -7,6 +7,7 @@
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/cie.h"
+#include "specula/core/error.h"
 #include "python/common.h"
 
 namespace specula::python {
