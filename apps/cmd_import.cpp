@@ -41,10 +41,11 @@ std::string with_flags(std::string m);
 // RGL .bsdf materials become grids evaluated at the MERL cell centres (RGB ones uplifted), in one transaction.
 void import_bsdf(const ImportOptions& o) {
   if (!o.name.empty() && o.inputs.size() > 1) throw UsageError("import: --name names one .bsdf file; " + std::to_string(o.inputs.size()) + " given");
+  // RGB files are uplifted onto --wavelengths (default 400-700 nm step 10); spectral ones keep their own.
+  const WavelengthGrid onto = o.wavelengths.empty() ? default_uplift_wavelengths() : WavelengthGrid::parse(o.wavelengths);
   std::vector<std::pair<std::string, store::Grid>> grids;
   for (const auto& in : o.inputs) {
-    grids.emplace_back(o.name.empty() ? std::filesystem::path(in).stem().string() : o.name,
-                       load_grid(in, "import", default_uplift_wavelengths()));
+    grids.emplace_back(o.name.empty() ? std::filesystem::path(in).stem().string() : o.name, load_grid(in, "import", onto));
     grids.back().second.provenance.command_line = command_line();
   }
   store::StoreWriter writer(o.output, {.compression = store::Compression::parse(o.compression), .replace = o.replace,
