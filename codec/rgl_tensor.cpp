@@ -9,6 +9,7 @@
 
 #include "specula/core/atomic_file.h"
 #include "specula/core/error.h"
+#include "specula/core/text.h"
 
 namespace specula::codec {
 
@@ -113,24 +114,24 @@ TensorFile parse_tensor_file(std::span<const std::byte> bytes, const std::string
       throw InputError(label + ": truncated tensor file header: field " + std::to_string(i) + "'s name runs past the end");
     f.name.assign(reinterpret_cast<const char*>(bytes.data() + c.at), name_length);
     c.at += name_length;
-    if (!names.insert(f.name).second) throw InputError(label + ": tensor field '" + f.name + "' appears twice");
+    if (!names.insert(f.name).second) throw InputError(label + ": tensor field '" + printable(f.name) + "' appears twice");
     const auto rank = c.get<std::uint16_t>("a field rank");
     const auto type = c.get<std::uint8_t>("a field type");
     if (type < 1 || type > 11)
-      throw InputError(label + ": tensor field '" + f.name + "' has type " + std::to_string(type) + "; types are 1 (uint8) to 11 (float64)");
+      throw InputError(label + ": tensor field '" + printable(f.name) + "' has type " + std::to_string(type) + "; types are 1 (uint8) to 11 (float64)");
     f.type = TensorType(type);
     const auto offset = c.get<std::uint64_t>("a field offset");
     std::uint64_t count = 1;
     for (std::uint16_t d = 0; d < rank; ++d) {
       const auto e = c.get<std::uint64_t>("a field extent");
       if (e != 0 && count > std::numeric_limits<std::uint64_t>::max() / 8 / e)
-        throw InputError(label + ": tensor field '" + f.name + "': its extents overflow 64 bits");
+        throw InputError(label + ": tensor field '" + printable(f.name) + "': its extents overflow 64 bits");
       count *= e;
       f.shape.push_back(e);
     }
     const std::uint64_t size = count * tensor_type_size(f.type);
     if (offset > bytes.size() || size > bytes.size() - offset)
-      throw InputError(label + ": tensor field '" + f.name + "' (" + std::to_string(size) + " bytes at offset " +
+      throw InputError(label + ": tensor field '" + printable(f.name) + "' (" + std::to_string(size) + " bytes at offset " +
                        std::to_string(offset) + ") runs past the end of the " + std::to_string(bytes.size()) +
                        "-byte file; truncated?");
     f.data.assign(bytes.begin() + std::ptrdiff_t(offset), bytes.begin() + std::ptrdiff_t(offset + size));
