@@ -183,8 +183,8 @@ void setup_brdf_diff(CLI::App& app) {
   auto o = std::make_shared<BrdfDiffOptions>();
   auto* cmd = app.add_subcommand("brdf-diff", "Compare two spectral BRDF grids under the lighting suite (CIEDE2000 per "
                                               "condition, holes, albedo), or under one environment (--env)");
-  cmd->add_option("a", o->a, "Reference grid: STORE.h5:GRID, a .spgrid file, a .spc (decoded), or an RGB MERL .binary (uplifted)")->required();
-  cmd->add_option("b", o->b, "Grid to compare: STORE.h5:GRID, a .spgrid file, a .spc (decoded), or an RGB MERL .binary (uplifted)")->required();
+  cmd->add_option("a", o->a, "Reference grid: STORE.h5:GRID, a .spgrid file, a .spc (decoded), an RGL .bsdf (RGB ones uplifted), or an RGB MERL .binary (uplifted)")->required();
+  cmd->add_option("b", o->b, "Grid to compare: STORE.h5:GRID, a .spgrid file, a .spc (decoded), an RGL .bsdf (RGB ones uplifted), or an RGB MERL .binary (uplifted)")->required();
   cmd->add_option("--env", o->env,
                   "Instead of the suite, one picture under this lighting: 'default' (built-in sky, ground and sun) or a "
                   "lat-long EXR (spectral or RGB)");

@@ -6,6 +6,9 @@
 #include "apps/common.h"
 #include "specula/core/illuminant.h"
 #include "specula/codec/merl.h"
+#include "specula/codec/rgl_bsdf.h"
+#include "specula/codec/rgl_export.h"
+#include "specula/codec/rgl_scene.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/error.h"
 #include "specula/store/io/csv.h"
@@ -24,7 +27,43 @@ struct ExportOptions {
   std::string format = "auto";
   std::string interleave = "bsq";
   PreviewOptions preview;
+  bool rgb = false;
+  std::size_t theta_i = 8, resolution = 32;
+  std::vector<std::string> scenes;
 };
+
+// An RGL .bsdf from a BRDF named as STORE.h5 GRID, STORE.h5:GRID, a .spgrid, a .spc or an RGB MERL .binary.
+void export_bsdf(const ExportOptions& o) {
+  const std::string spec = o.object.empty() ? o.store : o.store + ":" + o.object;
+  const codec::RglExportSettings settings{.theta_i = o.theta_i, .resolution = o.resolution,
+                                          .description = "specula export of " + spec};
+  const bool merl = std::filesystem::path(spec).extension() == ".binary";
+  codec::RglBsdf bsdf;
+  if (o.rgb) {
+    if (merl) {
+      bsdf = codec::export_rgl(codec::read_merl(spec), settings);
+    } else {
+      const store::Grid grid = load_grid(spec, "export");
+      bsdf = codec::export_rgl(codec::grid_to_merl(grid, codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths))).brdf, settings);
+    }
+  } else {
+    bsdf = codec::export_rgl(load_grid(spec, "export", default_uplift_wavelengths()), settings);
+  }
+  for (const auto& scene : o.scenes)
+    if (scene == "pbrt" && bsdf.rgb)
+      throw UsageError("export: pbrt-v4 reads spectral .bsdf files only; drop --rgb for --scene pbrt");
+  codec::write_rgl_bsdf(o.output, bsdf);
+  fmt::print("wrote {} ({}, {} theta_i, {}x{} samples, {} bytes)\n", o.output,
+             bsdf.rgb ? "RGB" : std::to_string(bsdf.channels()) + " wavelengths", bsdf.theta_i.size(), bsdf.resolution,
+             bsdf.resolution, std::filesystem::file_size(o.output));
+  const std::filesystem::path out(o.output);
+  const std::string name = out.filename().string(), stem = out.stem().string();
+  for (const auto& scene : o.scenes) {
+    const std::filesystem::path path = std::filesystem::path(out).replace_filename(stem + (scene == "pbrt" ? ".pbrt" : ".xml"));
+    codec::write_scene(path, scene == "pbrt" ? codec::pbrt_scene(name, stem + "_pbrt.exr") : codec::mitsuba_scene(name, !bsdf.rgb));
+    fmt::print("wrote {}\n", path.string());
+  }
+}
 
 std::string format_of(const ExportOptions& o) {
   if (o.format != "auto") return o.format;
@@ -40,6 +79,9 @@ std::string format_of(const ExportOptions& o) {
 }
 
 void run_export(const ExportOptions& o) {
+  if (std::filesystem::path(o.output).extension() == ".bsdf") return export_bsdf(o);
+  if (!o.scenes.empty() || o.rgb) throw UsageError("export: --rgb and --scene are for .bsdf output");
+  if (o.object.empty()) throw UsageError("export: name the object to export from " + o.store);
   const store::Store s = store::Store::open(o.store);
   const auto grids = s.grids();
   if (std::find(grids.begin(), grids.end(), o.object) != grids.end()) {
@@ -97,9 +139,14 @@ void run_export(const ExportOptions& o) {
 void setup_export(CLI::App& app) {
   auto o = std::make_shared<ExportOptions>();
   auto* cmd = app.add_subcommand("export", "Write an object as spectral EXR, ENVI, CSV, or an sRGB preview (PNG, linear EXR)");
-  cmd->add_option("store", o->store, "Store file")->required();
-  cmd->add_option("object", o->object, "Image, collection or BRDF grid name")->required();
-  cmd->add_option("-o,--output", o->output, "Output file; the extension picks the format (.exr .hdr .png .csv; .binary .spgrid for grids)")->required();
+  cmd->add_option("store", o->store, "Store file; for .bsdf output also a BRDF: STORE.h5:GRID, .spgrid, .spc or RGB MERL .binary")->required();
+  cmd->add_option("object", o->object, "Image, collection or BRDF grid name");
+  cmd->add_option("-o,--output", o->output, "Output file; the extension picks the format (.exr .hdr .png .csv; .binary .spgrid .bsdf for grids)")->required();
+  cmd->add_flag("--rgb", o->rgb, ".bsdf: an RGB file (under --illuminant) instead of the spectral one pbrt-v4 needs");
+  cmd->add_option("--theta-i", o->theta_i, ".bsdf: incident elevations (uniform in projected area)")->check(CLI::Range(2, 90))->capture_default_str();
+  cmd->add_option("--resolution", o->resolution, ".bsdf: sample grid nodes per side")->check(CLI::Range(2, 512))->capture_default_str();
+  cmd->add_option("--scene", o->scenes, ".bsdf: also write a minimal scene beside it: pbrt (pbrt-v4, X.pbrt) and/or mitsuba (Mitsuba 3, X.xml)")
+      ->check(CLI::IsMember({"pbrt", "mitsuba"}));
   cmd->add_option("--format", o->format, "auto, exr (spectral), envi, png (sRGB 8-bit), rgb-exr (linear sRGB), csv")
       ->check(CLI::IsMember({"auto", "exr", "envi", "png", "rgb-exr", "csv"}))
       ->capture_default_str();

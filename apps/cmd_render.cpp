@@ -13,6 +13,7 @@
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/render.h"
+#include "specula/codec/rgl_eval.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spc_eval.h"
 #include "specula/codec/spectral_grid.h"
@@ -42,6 +43,10 @@ codec::SpcBrdf load_spc(const std::string& path) {
 // An RGB .binary as it is, a spectral grid seen under --illuminant.
 codec::SphereImage render_rgb(const RenderOptions& o, const Eigen::Vector3d& light) {
   if (std::filesystem::path(o.input).extension() == ".binary") return codec::render_sphere(codec::read_merl(o.input), o.size, light);
+  if (std::filesystem::path(o.input).extension() == ".bsdf") {
+    const codec::RglBsdf b = codec::read_rgl_bsdf(o.input);
+    if (b.rgb) return codec::render_sphere(codec::rgl_to_merl(b), o.size, light);
+  }
   const store::Grid grid = load_grid(o.input, "render");
   return codec::render_sphere(grid, parse_illuminant(o.illuminant, grid.wavelengths), o.size, light);
 }
@@ -113,7 +118,7 @@ void run_render(const RenderOptions& o) {
 void setup_render(CLI::App& app) {
   auto o = std::make_shared<RenderOptions>();
   auto* cmd = app.add_subcommand("render", "A sphere under a directional light from a BRDF (sRGB PNG and linear EXR)");
-  cmd->add_option("brdf", o->input, "MERL .binary, spectral grid file, STORE.h5:GRID, or a .spc (evaluated from its code, not decoded)")->required();
+  cmd->add_option("brdf", o->input, "MERL .binary, spectral grid file, STORE.h5:GRID, an RGL .bsdf, or a .spc (evaluated from its code, not decoded)")->required();
   cmd->add_option("-o,--output", o->output, "PNG to write; the linear EXR goes beside it")->required();
   cmd->add_option("--size", o->size, "Image width and height in pixels")->capture_default_str();
   cmd->add_option("--light", o->light, "Light direction THETA,PHI in degrees (theta from the viewer)")

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "specula/codec/merl.h"
+#include "specula/codec/rgl_eval.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/codec/uplift.h"
@@ -131,11 +132,19 @@ store::Grid load_grid(const std::string& spec, const std::string& command, const
   const std::filesystem::path in(spec);
   if (in.extension() == ".h5")
     throw UsageError(command + ": " + spec + " is a store; name the grid as " + spec + ":GRID (see `specula ls " + spec + "`)");
-  if (in.extension() == ".binary") {
+  std::optional<codec::RglBsdf> rgl;
+  if (in.extension() == ".bsdf") {
+    rgl = codec::read_rgl_bsdf(in);
+    if (!rgl->rgb) return codec::rgl_to_grid(*rgl, spec);
+  }
+  if (in.extension() == ".binary" || rgl) {
     if (!uplift_onto)
-      throw UsageError(command + ": " + spec + " is an RGB MERL file; make a spectral grid of it with `specula uplift` first");
+      throw UsageError(command + ": " + spec +
+                       (rgl ? " is an RGB RGL file; make a spectral grid of it with `specula import " + spec + " -o STORE.h5` first"
+                            : " is an RGB MERL file; make a spectral grid of it with `specula uplift` first"));
     const codec::Uplift uplift(codec::rgb_weights(*uplift_onto, illuminant("D65", *uplift_onto)), codec::kDefaultUpliftAlpha);
-    store::Grid g = codec::uplift_merl(codec::read_merl(in), *uplift_onto, uplift, codec::UpliftMethod::clamp);
+    store::Grid g = codec::uplift_merl(rgl ? codec::rgl_to_merl(*rgl) : codec::read_merl(in), *uplift_onto, uplift,
+                                       codec::UpliftMethod::clamp);
     g.provenance.source_file = spec;
     g.provenance.importer = "uplift-clamp";
     return g;

@@ -64,8 +64,9 @@ std::string basis_output(const std::vector<std::string>& inputs, const std::stri
 
 /// A spectral BRDF grid named as STORE.h5:GRID, a grid exchange file (.spgrid) or a .spc (decoded by decode_spc);
 /// `command` prefixes usage errors.
-/// With `uplift_onto`, an RGB MERL .binary is accepted too, uplifted onto those bands as `specula uplift` does by
-/// default (Appendix A under D65, default alpha, clamped); without, a .binary is a UsageError saying so.
+/// A spectral RGL .bsdf is evaluated at the cell centres on its own wavelengths (codec/rgl_eval.h).
+/// With `uplift_onto`, an RGB MERL .binary or RGB .bsdf is accepted too, uplifted onto those bands as `specula uplift`
+/// does by default (Appendix A under D65, default alpha, clamped); without, either is a UsageError saying so.
 store::Grid load_grid(const std::string& spec, const std::string& command,
                       const std::optional<WavelengthGrid>& uplift_onto = std::nullopt);
 /// The bands an RGB .binary is uplifted onto when nothing else decides them: 400-700 nm step 10, as `specula uplift`.

@@ -28,6 +28,7 @@ using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>
 void init_store(py::module_& m);
 void init_analysis(py::module_& m);
 void init_brdf(py::module_& m);
+void init_bsdf(py::module_& m);
 
 /// A numpy array of `shape` that takes ownership of `owner` (a heap object holding the data at `data`).
 template <class T, class Owner>

@@ -130,4 +130,5 @@ PYBIND11_MODULE(specula, m) {
   sp::init_store(m);
   sp::init_analysis(m);
   sp::init_brdf(m);
+  sp::init_bsdf(m);
 }

@@ -14,6 +14,7 @@
 #include <zlib.h>
 
 #include "specula/codec/merl.h"
+#include "specula/codec/rgl_eval.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/error.h"
@@ -278,6 +279,23 @@ void merl(std::span<const std::uint8_t> input) {
   }, p.string());
 }
 
+void rgl_bsdf(std::span<const std::uint8_t> input) {
+  const fs::path p = write("fuzz.bsdf", text_of(input));
+  expect_clean([&] {
+    const codec::RglBsdf b = codec::read_rgl_bsdf(p);
+    check(b.values.size() == b.theta_i.size() * b.channels() * b.resolution * b.resolution, "values size");
+    const codec::RglEvaluator e(b);
+    std::vector<double> f(e.channels());
+    for (double ti : {0.0, 0.7, 1.4})
+      for (double to : {0.1, 0.9})
+        for (double po : {0.0, 2.0}) {
+          e.eval(Eigen::Vector3d(std::sin(ti), 0, std::cos(ti)),
+                 Eigen::Vector3d(std::sin(to) * std::cos(po), std::sin(to) * std::sin(po), std::cos(to)), f);
+          for (double v : f) check(!std::isnan(v) && v >= 0, "f is a number and not negative");
+        }
+  }, "fuzz.bsdf");
+}
+
 const std::vector<Target>& targets() {
   static const std::vector<Target> all = {{"envi_header", envi_header}, {"envi", envi},
                                           {"mat", mat},                 {"mask", mask},
@@ -285,7 +303,8 @@ const std::vector<Target>& targets() {
                                           {"gdal", gdal},
                                           {"spc", spc},
                                           {"spgrid", spgrid},
-                                          {"merl", merl}};
+                                          {"merl", merl},
+                                          {"rgl_bsdf", rgl_bsdf}};
   return all;
 }
 

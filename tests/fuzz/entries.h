@@ -50,6 +50,9 @@ void spgrid(std::span<const std::uint8_t> input);
 /// the 12-byte header then a pattern of float64 values repeated to the 35 MB a MERL file holds.
 void merl(std::span<const std::uint8_t> input);
 
+/// An RGL .bsdf: read_rgl_bsdf, then RglEvaluator at a few direction pairs (finite, non-negative values).
+void rgl_bsdf(std::span<const std::uint8_t> input);
+
 /// Every target, in the order above.
 const std::vector<Target>& targets();
 

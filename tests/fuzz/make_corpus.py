@@ -188,3 +188,39 @@ merl_header = struct.pack("<3i", 90, 90, 180)
 put("merl", "quarter", b"\0" + merl_header + struct.pack("<d", 0.25))
 put("merl", "no-data-and-values", b"\0" + merl_header + struct.pack("<3d", -1.0, 0.5, 2.0))
 put("merl", "truncated", b"\1" + merl_header + struct.pack("<2d", 0.5, 0.5))
+
+# RGL .bsdf tensor files (codec/rgl_tensor.h): fields 8-byte aligned, as specula's writer lays them out.
+def tensor_file(fields):
+    header = 12 + 2 + 4 + sum(2 + len(n) + 2 + 1 + 8 + 8 * len(a.shape) for n, a in fields)
+    types = {np.dtype(np.uint8): 1, np.dtype(np.uint32): 5, np.dtype(np.float32): 10}
+    at, offsets = (header + 7) // 8 * 8, []
+    for _, a in fields:
+        offsets.append(at)
+        at = (at + a.nbytes + 7) // 8 * 8
+    out = bytearray(b"tensor_file\0" + bytes([1, 0]) + struct.pack("<I", len(fields)))
+    for (n, a), off in zip(fields, offsets):
+        out += struct.pack("<H", len(n)) + n.encode() + struct.pack("<HBQ", len(a.shape), types[a.dtype], off)
+        out += b"".join(struct.pack("<Q", e) for e in a.shape)
+    out += bytes(at - len(out))
+    for (_, a), off in zip(fields, offsets):
+        out[off:off + a.nbytes] = a.astype(a.dtype.newbyteorder("<")).tobytes()
+    return bytes(out)
+
+
+def rgl(spectral):
+    f32 = lambda v: np.asarray(v, dtype=np.float32)
+    fields = [("version", np.array([1, 0], dtype=np.uint32)), ("description", np.frombuffer(b"seed", dtype=np.uint8)),
+              ("phi_i", f32([0])), ("theta_i", f32([0, 1.2])),
+              ("sigma", f32([[1, 0.9, 0.5], [1, 0.9, 0.5]])), ("ndf", f32([[2, 1, 0.1], [2, 1, 0.1]])),
+              ("vndf", f32(np.arange(1, 17).reshape(1, 2, 2, 4) / 16)),
+              ("luminance", f32(np.ones((1, 2, 2, 2))))]
+    if spectral:
+        fields += [("wavelengths", f32([450, 650])), ("spectra", f32(np.linspace(0.1, 0.9, 16).reshape(1, 2, 2, 2, 2)))]
+    else:
+        fields += [("rgb", f32(np.linspace(0.1, 0.9, 24).reshape(1, 2, 3, 2, 2)))]
+    return tensor_file(fields + [("jacobian", np.array([1], dtype=np.uint8)), ("valid", np.array([255], dtype=np.uint8))])
+
+
+put("rgl_bsdf", "spectral.bsdf", rgl(True))
+put("rgl_bsdf", "rgb.bsdf", rgl(False))
+put("rgl_bsdf", "truncated.bsdf", rgl(True)[:300])

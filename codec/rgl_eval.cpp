@@ -1,0 +1,134 @@
+#include "specula/codec/rgl_eval.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/error.h"
+#include "specula/core/parallel.h"
+
+namespace specula::codec {
+
+namespace {
+constexpr double kPi = std::numbers::pi;
+
+std::vector<float> channel_index(std::size_t n) {
+  std::vector<float> v(n);
+  for (std::size_t i = 0; i < n; ++i) v[i] = float(i);
+  return v;
+}
+}  // namespace
+
+double rgl_theta_to_u(double theta) { return std::sqrt(std::max(theta, 0.0) * (2 / kPi)); }
+double rgl_u_to_theta(double u) { return u * u * (kPi / 2); }
+double rgl_phi_to_v(double phi) { return (phi + kPi) / (2 * kPi); }
+double rgl_v_to_phi(double v) { return (2 * v - 1) * kPi; }
+double rgl_elevation(const Eigen::Vector3d& d) {
+  const double dist = std::sqrt(d.x() * d.x() + d.y() * d.y() + (d.z() - 1) * (d.z() - 1));
+  return 2 * std::asin(std::clamp(0.5 * dist, -1.0, 1.0));
+}
+
+RglEvaluator::RglEvaluator(const RglBsdf& b)
+    : channels_(b.channels()),
+      jacobian_(b.jacobian),
+      ndf_(b.ndf, b.ndf_width, b.ndf_height, {}, false),
+      sigma_(b.sigma, b.sigma_width, b.sigma_height, {}, false),
+      vndf_(b.vndf, b.vndf_width, b.vndf_height, {b.phi_i, b.theta_i}, true),
+      values_(b.values, b.resolution, b.resolution, {b.phi_i, b.theta_i, channel_index(b.channels())}, false) {}
+
+double RglEvaluator::ndf(double u, double v) const { return ndf_.eval(u, v, {}); }
+double RglEvaluator::sigma(double theta_i) const { return sigma_.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(0), {}); }
+
+Eigen::Vector2d RglEvaluator::sample_point(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const {
+  const Eigen::Vector3d m = (wi + wo).normalized();
+  const double theta_i = rgl_elevation(wi), phi_i = std::atan2(wi.y(), wi.x());
+  const double theta_m = rgl_elevation(m), phi_m = std::atan2(m.y(), m.x());
+  double v = rgl_phi_to_v(phi_m - phi_i);
+  v -= std::floor(v);
+  const double params[2] = {phi_i, theta_i};
+  const WarpPoint s = vndf_.invert(rgl_theta_to_u(theta_m), v, params);
+  return {s.x, s.y};
+}
+
+void RglEvaluator::eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, std::span<double> out) const {
+  if (out.size() != channels_) throw UsageError("RglEvaluator::eval: out holds " + std::to_string(out.size()) + " values, the material " + std::to_string(channels_));
+  std::fill(out.begin(), out.end(), 0.0);
+  if (!(wi.z() > 0 && wo.z() > 0)) return;
+  const Eigen::Vector3d m = (wi + wo).normalized();
+  const double theta_i = rgl_elevation(wi), phi_i = std::atan2(wi.y(), wi.x());
+  const double theta_m = rgl_elevation(m), phi_m = std::atan2(m.y(), m.x());
+  const double u_m = rgl_theta_to_u(theta_m);
+  double v_m = rgl_phi_to_v(phi_m - phi_i);
+  v_m -= std::floor(v_m);
+  const double params[2] = {phi_i, theta_i};
+  const WarpPoint s = vndf_.invert(u_m, v_m, params);
+  double factor = 1 / wo.z();
+  if (jacobian_) factor *= ndf_.eval(u_m, v_m, {}) / (4 * sigma_.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(phi_i), {}));
+  for (std::size_t c = 0; c < channels_; ++c) {
+    const double p[3] = {phi_i, theta_i, double(c)};
+    out[c] = std::max(0.0, values_.eval(s.x, s.y, p)) * factor;
+  }
+}
+
+std::vector<double> RglEvaluator::albedo(double theta_i, std::size_t n) const {
+  const Eigen::Vector3d wi(std::sin(theta_i), 0, std::cos(theta_i));
+  const double params[2] = {0, theta_i};
+  std::vector<double> sum(channels_, 0.0), f(channels_);
+  for (std::size_t j = 0; j < n; ++j)
+    for (std::size_t i = 0; i < n; ++i) {
+      const WarpPoint p = vndf_.sample((double(i) + 0.5) / double(n), (double(j) + 0.5) / double(n), params);
+      const double theta_m = rgl_u_to_theta(p.x), phi_m = rgl_v_to_phi(p.y);
+      const Eigen::Vector3d m(std::sin(theta_m) * std::cos(phi_m), std::sin(theta_m) * std::sin(phi_m), std::cos(theta_m));
+      const Eigen::Vector3d wo = 2 * wi.dot(m) * m - wi;
+      if (!(wo.z() > 0) || !(wi.dot(m) > 0) || !(p.pdf > 0)) continue;
+      // Density of wo: the square's density over the Jacobian of (u, v) -> m (2 pi^2 u sin theta_m) and of m -> wo.
+      const double pdf = p.pdf / (std::max(2 * kPi * kPi * p.x * std::sin(theta_m), 1e-12) * 4 * wi.dot(m));
+      eval(wi, wo.normalized(), f);
+      for (std::size_t c = 0; c < channels_; ++c) sum[c] += f[c] * wo.z() / pdf;
+    }
+  for (auto& v : sum) v /= double(n * n);
+  return sum;
+}
+
+std::vector<float> rgl_merl_values(const RglBsdf& bsdf) {
+  const RglEvaluator e(bsdf);
+  const std::size_t channels = e.channels(), per_h = std::size_t(brdf::kMerlThetaD) * brdf::kMerlPhiD;
+  std::vector<float> out(channels * brdf::kMerlCells, -1.0f);
+  parallel_for(std::size_t(brdf::kMerlThetaH), [&](std::size_t h) {
+    std::vector<double> f(channels);
+    for (std::size_t k = 0; k < per_h; ++k) {
+      const std::size_t cell = h * per_h + k;
+      const brdf::MerlCell c = brdf::merl_cell(cell);
+      if (!brdf::merl_cell_valid(c)) continue;
+      Eigen::Vector3d wi, wo;
+      brdf::directions(brdf::merl_cell_centre(c), wi, wo);
+      e.eval(wi, wo, f);
+      for (std::size_t ch = 0; ch < channels; ++ch) out[ch * brdf::kMerlCells + cell] = float(f[ch]);
+    }
+  });
+  return out;
+}
+
+store::Grid rgl_to_grid(const RglBsdf& bsdf, const std::string& source) {
+  if (bsdf.rgb) throw UsageError(source + ": an RGB RGL file has no spectra; uplift its RGB (rgl_to_merl) instead");
+  store::Grid g;
+  g.wavelengths = WavelengthGrid(std::vector<double>(bsdf.wavelengths.begin(), bsdf.wavelengths.end()), source);
+  g.brdf = rgl_merl_values(bsdf);
+  g.provenance.source_file = source;
+  g.provenance.importer = "rgl-bsdf";
+  return g;
+}
+
+MerlBrdf rgl_to_merl(const RglBsdf& bsdf) {
+  if (!bsdf.rgb) throw UsageError("rgl_to_merl: a spectral RGL file; use rgl_to_grid");
+  const std::vector<float> v = rgl_merl_values(bsdf);
+  MerlBrdf m;
+  for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
+    if (v[cell] < 0) continue;
+    m.set(cell, Eigen::Vector3d(v[cell], v[brdf::kMerlCells + cell], v[2 * brdf::kMerlCells + cell]));
+  }
+  return m;
+}
+
+}  // namespace specula::codec

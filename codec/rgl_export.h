@@ -1,0 +1,47 @@
+#pragma once
+// A BRDF on the MERL grid (spectral grid or RGB MERL) as an isotropic RGL material (codec/rgl_bsdf.h), built as
+// Dupuy and Jakob (2018) build theirs from a measurement: the microfacet distribution D recovered from the
+// retro-reflection by power iteration (Dupuy et al. 2015, D_{n+1}(theta) = f(k, k) cos(theta) sigma_n(theta)),
+// sigma(theta) = integral of D(m) <k . m>+ dm by quadrature, D scaled so sigma(0) = 1, the incident elevations chosen
+// uniformly in sigma, per elevation the visible-normal density D(m) <wi . m>+ on the square (u, v) times its Jacobian
+// 2 pi^2 u sin(theta_m), and at the nodes of the sample square warped by it the values f cos(theta_o) 4 sigma / D.
+// f between MERL cells is interpolated trilinearly in the grid's index space over the cells that hold data.
+#include <Eigen/Core>
+#include <cstddef>
+#include <span>
+#include <string>
+
+#include "specula/codec/merl.h"
+#include "specula/codec/rgl_bsdf.h"
+#include "specula/store/store.h"
+
+namespace specula::codec {
+
+/// The resolution of an exported file; the defaults follow the published RGL files except the vndf table (see
+/// docs/brdf.md: 32 x 32 keeps a 31-band file near 1 MB; the published files use 128 x 128).
+struct RglExportSettings {
+  std::size_t theta_i = 8;           ///< incident elevations, >= 2
+  std::size_t resolution = 32;       ///< sample-square nodes per side, >= 2
+  std::size_t ndf_nodes = 128;       ///< nodes of the ndf and sigma tables in u, >= 2
+  std::size_t vndf_resolution = 32;  ///< vndf nodes per side, >= 2
+  std::size_t power_iterations = 30;
+  /// The vndf table (which only places the sample nodes; stored values use the ndf) is (D(m) + floor / pi) <wi . m>+:
+  /// a floor > 0 keeps nodes off the peak of a glossy material, where its diffuse part lives.
+  double vndf_floor = 0.1;
+  std::string description;           ///< empty: "specula export"
+};
+
+/// A spectral grid as a spectral file on the grid's wavelengths (luminance: CIE Y under D65 as sRGB's luminance).
+/// UsageError for settings out of range.
+RglBsdf export_rgl(const store::Grid& grid, const RglExportSettings& settings);
+/// An RGB MERL BRDF as an RGB file (luminance 0.2126 R + 0.7152 G + 0.0722 B).
+RglBsdf export_rgl(const MerlBrdf& brdf, const RglExportSettings& settings);
+
+/// The pieces of the construction, exposed for tests: D at ndf_nodes nodes u_k = k / (n - 1) (theta = u^2 pi / 2)
+/// from the retro-reflection `retro` (values at those nodes), normalised so that sigma(0) = 1.
+std::vector<double> rgl_ndf_from_retro(std::span<const double> retro, std::size_t iterations);
+/// sigma(theta) = integral over the hemisphere of D(m) max(0, k . m) dm for the D tabulated at nodes u_k and linear in
+/// u between them, at each elevation of `theta`.
+std::vector<double> rgl_sigma(std::span<const double> ndf, std::span<const double> theta);
+
+}  // namespace specula::codec

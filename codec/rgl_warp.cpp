@@ -1,0 +1,173 @@
+#include "specula/codec/rgl_warp.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "specula/core/error.h"
+
+namespace specula::codec {
+namespace {
+
+// Largest i in [0, size - 2] with pred(i), or 0 (Mitsuba's and pbrt's FindInterval).
+template <class Pred>
+std::size_t find_interval(std::size_t size, Pred pred) {
+  std::size_t first = 1, len = size - 2;
+  while (len > 0) {
+    const std::size_t half = len >> 1, middle = first + half;
+    if (pred(middle)) {
+      first = middle + 1;
+      len -= half + 1;
+    } else {
+      len = half;
+    }
+  }
+  const std::size_t i = first - 1;
+  return std::min(i, size - 2);
+}
+
+double safe_sqrt(double v) { return std::sqrt(std::max(v, 0.0)); }
+
+}  // namespace
+
+Warp2D::Warp2D(std::span<const float> data, std::size_t width, std::size_t height, std::vector<std::vector<float>> params,
+               bool density)
+    : w_(width), h_(height), params_(std::move(params)), density_(density) {
+  if (w_ < 2 || h_ < 2) throw UsageError("Warp2D: a grid needs at least 2 x 2 nodes, not " + std::to_string(w_) + " x " + std::to_string(h_));
+  if (params_.size() > 3) throw UsageError("Warp2D: at most 3 parameters");
+  std::size_t slices = 1;
+  param_stride_.assign(params_.size(), 0);
+  for (std::size_t d = params_.size(); d-- > 0;) {
+    if (params_[d].empty()) throw UsageError("Warp2D: parameter " + std::to_string(d) + " has no values");
+    param_stride_[d] = params_[d].size() > 1 ? slices : 0;
+    slices *= params_[d].size();
+  }
+  const std::size_t n = w_ * h_;
+  if (data.size() != slices * n)
+    throw UsageError("Warp2D: " + std::to_string(data.size()) + " values for " + std::to_string(slices) + " slices of " +
+                     std::to_string(w_) + " x " + std::to_string(h_));
+  data_.assign(data.begin(), data.end());
+  if (!density_) return;
+  marginal_.assign(slices * h_, 0.0f);
+  conditional_.assign(slices * n, 0.0f);
+  for (std::size_t s = 0; s < slices; ++s) {
+    const float* in = data.data() + s * n;
+    float* cond = conditional_.data() + s * n;
+    float* marg = marginal_.data() + s * h_;
+    for (std::size_t y = 0; y < h_; ++y) {
+      double sum = 0;
+      cond[y * w_] = 0;
+      for (std::size_t x = 0; x + 1 < w_; ++x) {
+        sum += 0.5 * (double(in[y * w_ + x]) + double(in[y * w_ + x + 1]));
+        cond[y * w_ + x + 1] = float(sum);
+      }
+    }
+    double sum = 0;
+    marg[0] = 0;
+    for (std::size_t y = 0; y + 1 < h_; ++y) {
+      sum += 0.5 * (double(cond[(y + 1) * w_ - 1]) + double(cond[(y + 2) * w_ - 1]));
+      marg[y + 1] = float(sum);
+    }
+    const float norm = 1.0f / marg[h_ - 1];
+    for (std::size_t i = 0; i < n; ++i) cond[i] *= norm;
+    for (std::size_t i = 0; i < h_; ++i) marg[i] *= norm;
+    for (std::size_t i = 0; i < n; ++i) data_[s * n + i] = in[i] * norm;
+  }
+}
+
+Warp2D::Corners Warp2D::corners(std::span<const double> param) const {
+  Corners c;
+  c.n = 1;
+  c.slice[0] = 0;
+  c.weight[0] = 1;
+  for (std::size_t d = 0; d < params_.size(); ++d) {
+    const auto& v = params_[d];
+    if (v.size() == 1) continue;
+    const double p = d < param.size() ? param[d] : 0.0;
+    const std::size_t i = find_interval(v.size(), [&](std::size_t k) { return double(v[k]) < p; });
+    const double p0 = v[i], p1 = v[i + 1];
+    const double w1 = std::clamp((p - p0) / (p1 - p0), 0.0, 1.0), w0 = 1 - w1;
+    for (int k = 0; k < c.n; ++k) {
+      c.slice[std::size_t(c.n + k)] = c.slice[std::size_t(k)] + param_stride_[d] * (i + 1);
+      c.weight[std::size_t(c.n + k)] = c.weight[std::size_t(k)] * w1;
+      c.slice[std::size_t(k)] += param_stride_[d] * i;
+      c.weight[std::size_t(k)] *= w0;
+    }
+    c.n *= 2;
+  }
+  return c;
+}
+
+double Warp2D::lookup(const std::vector<float>& a, std::size_t stride, std::size_t index, const Corners& c) const {
+  double v = 0;
+  for (int k = 0; k < c.n; ++k) v += c.weight[std::size_t(k)] * double(a[c.slice[std::size_t(k)] * stride + index]);
+  return v;
+}
+
+double Warp2D::eval(double x, double y, std::span<const double> param) const {
+  const Corners c = corners(param);
+  x = std::clamp(x, 0.0, 1.0) * double(w_ - 1);
+  y = std::clamp(y, 0.0, 1.0) * double(h_ - 1);
+  const std::size_t ix = std::min(std::size_t(x), w_ - 2), iy = std::min(std::size_t(y), h_ - 2);
+  const double fx = x - double(ix), fy = y - double(iy);
+  const std::size_t n = w_ * h_, i = ix + iy * w_;
+  const double v00 = lookup(data_, n, i, c), v10 = lookup(data_, n, i + 1, c), v01 = lookup(data_, n, i + w_, c),
+               v11 = lookup(data_, n, i + w_ + 1, c);
+  const double v = (1 - fy) * ((1 - fx) * v00 + fx * v10) + fy * ((1 - fx) * v01 + fx * v11);
+  return density_ ? v * double(w_ - 1) * double(h_ - 1) : v;
+}
+
+WarpPoint Warp2D::sample(double x, double y, std::span<const double> param) const {
+  if (!density_) throw UsageError("Warp2D::sample: the table was built without a CDF");
+  const Corners c = corners(param);
+  constexpr double eps = std::numeric_limits<float>::epsilon() / 2, one_minus = 1.0 - eps;
+  x = std::clamp(x, eps, one_minus);
+  y = std::clamp(y, eps, one_minus);
+  const std::size_t n = w_ * h_;
+  auto marginal = [&](std::size_t k) { return lookup(marginal_, h_, k, c); };
+  const std::size_t row = find_interval(h_, [&](std::size_t k) { return marginal(k) < y; });
+  y -= marginal(row);
+  const double r0 = lookup(conditional_, n, row * w_ + w_ - 1, c), r1 = lookup(conditional_, n, row * w_ + 2 * w_ - 1, c);
+  bool flat = std::abs(r0 - r1) < 1e-4 * (r0 + r1);
+  y = flat ? 2 * y / (r0 + r1) : (r0 - safe_sqrt(r0 * r0 - 2 * y * (r0 - r1))) / (r0 - r1);
+  x *= (1 - y) * r0 + y * r1;
+  auto conditional = [&](std::size_t k) {
+    return (1 - y) * lookup(conditional_, n, row * w_ + k, c) + y * lookup(conditional_, n, row * w_ + w_ + k, c);
+  };
+  const std::size_t col = find_interval(w_, [&](std::size_t k) { return conditional(k) < x; });
+  x -= conditional(col);
+  const std::size_t i = row * w_ + col;
+  const double v00 = lookup(data_, n, i, c), v10 = lookup(data_, n, i + 1, c), v01 = lookup(data_, n, i + w_, c),
+               v11 = lookup(data_, n, i + w_ + 1, c);
+  const double c0 = (1 - y) * v00 + y * v01, c1 = (1 - y) * v10 + y * v11;
+  flat = std::abs(c0 - c1) < 1e-4 * (c0 + c1);
+  x = flat ? 2 * x : c0 - safe_sqrt(c0 * c0 - 2 * x * (c0 - c1));
+  const double divisor = flat ? c0 + c1 : c0 - c1;
+  if (divisor != 0) x /= divisor;
+  return {(double(col) + x) / double(w_ - 1), (double(row) + y) / double(h_ - 1),
+          ((1 - x) * c0 + x * c1) * double(w_ - 1) * double(h_ - 1)};
+}
+
+WarpPoint Warp2D::invert(double x, double y, std::span<const double> param) const {
+  if (!density_) throw UsageError("Warp2D::invert: the table was built without a CDF");
+  const Corners c = corners(param);
+  x = std::clamp(x, 0.0, 1.0) * double(w_ - 1);
+  y = std::clamp(y, 0.0, 1.0) * double(h_ - 1);
+  const std::size_t ix = std::min(std::size_t(x), w_ - 2), iy = std::min(std::size_t(y), h_ - 2);
+  x -= double(ix);
+  y -= double(iy);
+  const std::size_t n = w_ * h_, i = ix + iy * w_;
+  const double v00 = lookup(data_, n, i, c), v10 = lookup(data_, n, i + 1, c), v01 = lookup(data_, n, i + w_, c),
+               v11 = lookup(data_, n, i + w_ + 1, c);
+  const double c0 = (1 - y) * v00 + y * v01, c1 = (1 - y) * v10 + y * v11, pdf = (1 - x) * c0 + x * c1;
+  x *= c0 + 0.5 * x * (c1 - c0);
+  x += (1 - y) * lookup(conditional_, n, i, c) + y * lookup(conditional_, n, i + w_, c);
+  const double r0 = lookup(conditional_, n, iy * w_ + w_ - 1, c), r1 = lookup(conditional_, n, iy * w_ + 2 * w_ - 1, c);
+  x /= (1 - y) * r0 + y * r1;
+  y *= r0 + 0.5 * y * (r1 - r0);
+  y += lookup(marginal_, h_, iy, c);
+  return {x, y, pdf * double(w_ - 1) * double(h_ - 1)};
+}
+
+}  // namespace specula::codec
