@@ -40,6 +40,8 @@ void csv(std::span<const std::uint8_t> input);
 /// A raster as a .tif through GdalRaster (3-band fallback grid), every row read in strips of 2. NaN or Inf in a valid
 /// pixel is not a defect: the import's --nan policy decides about it.
 void gdal(std::span<const std::uint8_t> input);
+/// Keras weights of a neural BRDF (.h5) through read_nbrdf: every layer of its shape, every weight finite.
+void nbrdf(std::span<const std::uint8_t> input);
 
 /// Every target, in the order above.
 const std::vector<Target>& targets();
