@@ -46,8 +46,20 @@ std::string with_flags(std::string m);
 bool is_nbrdf_import(const ImportOptions& o) {
   if (o.format == "nbrdf") return true;
   if (o.format != "auto") return false;
-  for (const auto& in : o.inputs)
-    if (std::filesystem::path(in).extension() != ".h5" || !store::is_nbrdf(in)) return false;
+  for (const auto& in : o.inputs) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(in, ec)) {  // a directory of NBRDFs: all its .h5 files are
+      bool any = false;
+      for (const auto& e : std::filesystem::directory_iterator(in, ec)) {
+        if (e.path().extension() != ".h5") continue;
+        if (!store::is_nbrdf(e.path())) return false;
+        any = true;
+      }
+      if (!any) return false;
+    } else if (std::filesystem::path(in).extension() != ".h5" || !store::is_nbrdf(in)) {
+      return false;
+    }
+  }
   return true;
 }
 
