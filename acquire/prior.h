@@ -22,7 +22,7 @@ namespace specula::acquire {
 
 /// How a prior is learned.
 struct PriorOptions {
-  std::size_t channels = 4;     ///< knots of the spectral basis, spread evenly over the grids' wavelengths (>= 2)
+  std::size_t channels = 8;     ///< knots of the spectral basis, spread evenly over the grids' wavelengths (>= 2)
   std::size_t components = 0;   ///< principal components kept; 0: all (observations - 1)
   double epsilon = 1e-3;        ///< eps of the log-relative mapping (1/sr, as Nielsen et al.)
 };

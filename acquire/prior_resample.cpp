@@ -82,10 +82,11 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
                      std::to_string(prior.wavelengths.size()) + "; build the prior on the samples' bands");
   if (grid.size() != b * brdf::kMerlCells || confidence.size() != brdf::kMerlCells)
     throw UsageError("prior: grid or confidence of the wrong size");
-  if (!(o.half_confidence > 0) || !std::isfinite(o.half_confidence))
-    throw UsageError("prior: half_confidence must be positive and finite");
+  if (!(o.confidence_reach > 0 && o.confidence_reach <= 1))
+    throw UsageError("prior: confidence_reach (the reach of the confidence, a fraction of max_gap) must be in (0, 1]");
   PriorResampleStats st;
-  st.local = resample_grid(src, o.local, grid);
+  const SampleTree tree(src, o.local.mapping);
+  st.local = resample_grid(tree, src, o.local, grid);
   const auto t0 = std::chrono::steady_clock::now();
   const PriorObservations obs = cell_means(src);
   if (obs.cell.empty()) throw InputError("prior: no sample falls in a cell above the horizon");
@@ -93,13 +94,16 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
   fit_prior(prior, obs, o.fit, fitted);
   const auto& cells = valid_cells();
-  std::vector<float> n(cells.size(), 0.0f);
-  for (std::size_t s = 0; s < obs.cell.size(); ++s) n[obs.cell[s]] = obs.weight[s];
   std::fill(confidence.begin(), confidence.end(), -1.0f);
-  parallel_for(cells.size(), [&](std::size_t i) {
+  parallel_for(cells.size(), [] { return Neighbours{}; }, [&](std::size_t i, Neighbours& nb) {
     const std::size_t cell = cells[i];
     const bool local = grid[cell] >= 0;
-    const double c = local ? n[i] / (n[i] + o.half_confidence) : 0.0;
+    double c = 0;
+    if (local) {  // falls from 1 at a sample to 0 at the distance where the kd-tree estimate stops (max_gap)
+      tree.nearest(iso_angles(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cell)))), 1, nb);
+      const double r = nb.gap / (o.confidence_reach * o.local.max_gap);
+      c = std::clamp(1 - r * r, 0.0, 1.0);
+    }
     confidence[cell] = float(c);
     for (std::size_t k = 0; k < b; ++k) {
       const std::size_t at = k * brdf::kMerlCells + cell;

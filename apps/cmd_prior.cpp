@@ -19,7 +19,7 @@ struct PriorBuildOptions {
   std::vector<std::string> exclude;
   std::string output;
   std::string name;
-  std::size_t channels = 4;
+  std::size_t channels = 8;
   std::size_t components = 0;
   double epsilon = 1e-3;
   bool replace = false;

@@ -31,7 +31,7 @@ struct ResampleCliOptions {
   bool json = false;
   std::string prior;  // STORE.h5:PRIOR
   double lambda = 1e-3;
-  double half_confidence = 4;
+  double confidence_reach = 1;
 };
 
 // What save_grid would refuse after the work, refused before it: an output that is neither STORE.h5:NAME, a
@@ -78,11 +78,11 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   conf.wavelengths = WavelengthGrid({info.wavelengths[info.bands / 2]});
   conf.units = "confidence";
   conf.brdf.resize(brdf::kMerlCells);
-  const acquire::PriorResampleOptions po{.local = ro, .fit = {.lambda = o.lambda}, .half_confidence = o.half_confidence};
+  const acquire::PriorResampleOptions po{.local = ro, .fit = {.lambda = o.lambda}, .confidence_reach = o.confidence_reach};
   const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, conf.brdf);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
-  grid.provenance.importer = fmt::format("resample prior={} lambda={} half_confidence={} mapping={} k={} weights={}",
-                                         o.prior, o.lambda, o.half_confidence, o.mapping, o.k, o.weights);
+  grid.provenance.importer = fmt::format("resample prior={} lambda={} confidence_reach={} mapping={} k={} weights={}",
+                                         o.prior, o.lambda, o.confidence_reach, o.mapping, o.k, o.weights);
   conf.provenance.importer = "resample confidence of " + o.output;
   const std::string what = save_grid(grid, o.output, o.replace, "resample");
   save_grid(conf, conf_out, o.replace, "resample");
@@ -157,8 +157,8 @@ void setup_resample(CLI::App& app) {
                   "STORE.h5:PRIOR: fit a learned prior (specula prior build) and fill every valid cell, blending with "
                   "the kd-tree estimate by per-cell confidence, written beside the grid as NAME.confidence (docs/prior.md)");
   cmd->add_option("--lambda", o->lambda, "--prior: Tikhonov weight of the fit")->capture_default_str();
-  cmd->add_option("--half-confidence", o->half_confidence,
-                  "--prior: samples in a cell at which the kd-tree estimate gets half the weight")
+  cmd->add_option("--confidence-reach", o->confidence_reach,
+                  "--prior: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction of --max-gap")
       ->capture_default_str();
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
