@@ -60,7 +60,7 @@ bool holds(const fs::path& path, const std::string& object) {
 std::pair<std::string, std::string> resolve_object(const Store& store, const std::string& spec) {
   static const std::pair<std::string_view, std::string_view> aliases[] = {
       {"image", "images"}, {"collection", "collections"}, {"grid", "grids"}, {"basis", "bases"},
-      {"coefficient", "coefficients"}, {"map", "coefficients"}, {"calibration", "acquire"}, {"calibrations", "acquire"}};
+      {"coefficient", "coefficients"}, {"map", "coefficients"}, {"calibration", "acquire"}, {"calibrations", "acquire"}, {"prior", "priors"}};
   std::string s = spec;
   if (!s.empty() && s[0] == '/') s = s.substr(1);
   const auto slash = s.find('/');
