@@ -71,7 +71,7 @@ std::pair<std::string, std::string> resolve_object(const Store& store, const std
       if (kind == a) kind = k;
     if (!layout::is_kind(kind))
       throw InputError(store.label() + ": '" + spec + "': '" + s.substr(0, slash) +
-                       "' is not a kind of object (images, collections, samples, grids, bases, coefficients, acquire)");
+                       "' is not a kind of object (images, collections, samples, grids, bases, coefficients, acquire, priors)");
     const std::string name = s.substr(slash + 1);
     if (h5::exists(store.file(), "/" + kind) && h5::exists(store.file(), "/" + kind + "/" + name)) return {kind, name};
     throw InputError(store.label() + ": no " + kind + " object '" + name + "'");
