@@ -10,8 +10,11 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/codec/nbrdf.h"
 #include "specula/core/error.h"
+#include "specula/core/illuminant.h"
 #include "specula/store/import.h"
+#include "specula/store/io/nbrdf.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -32,6 +35,8 @@ struct ImportOptions {
   bool replace = false;
   bool keep_bad_bands = false;
   bool strict = false;
+  bool uplift = false;
+  std::string illuminant = "D65";
   unsigned jobs = 1;
   double memory_gib = 1.0;
 };
@@ -57,7 +62,55 @@ void import_bsdf(const ImportOptions& o) {
                grid.provenance.importer == "uplift-clamp" ? ", uplifted from RGB" : "", o.output);
 }
 
+// Neural BRDF weights (.h5, docs/import.md): evaluated on the MERL grid and uplifted to spectral grids.
+bool is_nbrdf_import(const ImportOptions& o) {
+  if (o.format == "nbrdf") return true;
+  if (o.format != "auto") return false;
+  for (const auto& in : o.inputs) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(in, ec)) {  // a directory of NBRDFs: all its .h5 files are
+      bool any = false;
+      for (const auto& e : std::filesystem::directory_iterator(in, ec)) {
+        if (e.path().extension() != ".h5") continue;
+        if (!store::is_nbrdf(e.path())) return false;
+        any = true;
+      }
+      if (!any) return false;
+    } else if (std::filesystem::path(in).extension() != ".h5" || !store::is_nbrdf(in)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+void run_nbrdf_import(const ImportOptions& o) {
+  const std::vector<std::filesystem::path> inputs(o.inputs.begin(), o.inputs.end());
+  const auto files = codec::nbrdf_files(inputs);
+  if (std::filesystem::path(o.output).extension() == ".binary") {
+    if (files.size() != 1) throw UsageError("import: -o X.binary takes one NBRDF file");
+    codec::NbrdfGridReport report;
+    codec::write_merl(o.output, codec::nbrdf_to_merl(store::read_nbrdf(files[0]), &report));
+    fmt::print("{} -> {}: NBRDF at {} cell centres ({} negative channel values set to 0)\n", files[0].string(),
+               o.output, report.cells, report.clamped);
+    return;
+  }
+  if (!o.uplift)
+    throw UsageError("import: a store holds spectral grids: pass --uplift to turn the NBRDF's RGB into spectra "
+                     "(Appendix A, onto --wavelengths), or evaluate it to an RGB MERL .binary with `specula "
+                     "import X.h5 --format nbrdf -o X.binary`");
+  codec::NbrdfImportOptions options;
+  options.name = o.name;
+  options.wavelengths = WavelengthGrid::parse(o.wavelengths.empty() ? "400:700:10" : o.wavelengths);
+  options.illuminant = parse_illuminant(o.illuminant, options.wavelengths);
+  store::StoreWriter writer(o.output, {.compression = store::Compression::parse(o.compression), .replace = o.replace,
+                                       .command_line = command_line()});
+  const auto lines = codec::import_nbrdf(writer, files, options);
+  writer.commit();
+  for (const auto& line : lines) fmt::print("{}\n", line);
+}
+
 void run_import(const ImportOptions& o) {
+  if (is_nbrdf_import(o)) return run_nbrdf_import(o);
   if (!o.inputs.empty() && std::all_of(o.inputs.begin(), o.inputs.end(), [](const std::string& i) {
         return std::filesystem::path(i).extension() == ".bsdf";
       }))
@@ -119,8 +172,8 @@ void setup_import(CLI::App& app) {
   cmd->add_option("--source-wavelengths", o->source_wavelengths, "The data's own grid when it carries none and --wavelengths resamples");
   cmd->add_option("--mask", o->mask, "Mask: a PNG or a one-band ENVI image (nonzero = valid), or for .mat the name of a mask variable");
   cmd->add_option("--var", o->var, "Cube or spectra variable in a .mat file (default: detected, e.g. ref, rad, cube, Y, data)");
-  cmd->add_option("--format", o->format, "auto, envi, mat, png, exr, csv, usgs (splib07a ASCII), ecostress or gdal (any raster GDAL reads; .tif/.tiff are gdal by default)")
-      ->check(CLI::IsMember({"auto", "envi", "mat", "png", "exr", "csv", "usgs", "ecostress", "gdal"}))
+  cmd->add_option("--format", o->format, "auto, envi, mat, png, exr, csv, usgs (splib07a ASCII), ecostress, gdal (any raster GDAL reads; .tif/.tiff are gdal by default) or nbrdf (Keras weights of a neural BRDF; .h5 files holding dense_1 are nbrdf by default)")
+      ->check(CLI::IsMember({"auto", "envi", "mat", "png", "exr", "csv", "usgs", "ecostress", "gdal", "nbrdf"}))
       ->capture_default_str();
   cmd->add_option("--nan", o->nan, "NaN/Inf in valid pixels: reject (default) or mask")
       ->check(CLI::IsMember({"reject", "mask"}))
@@ -138,6 +191,11 @@ void setup_import(CLI::App& app) {
                   "GiB the files read at once may take, estimated from their headers (a larger file is read alone; "
                   "GDAL rasters are streamed by row strips)")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_flag("--uplift", o->uplift,
+                "NBRDF: turn the network's RGB into spectra on --wavelengths (default 400:700:10) by Appendix A, "
+                "non-negative");
+  cmd->add_option("--illuminant", o->illuminant, "NBRDF --uplift: illuminant under which the RGB was seen (as for uplift)")
       ->capture_default_str();
   cmd->add_flag("--keep-bad-bands", o->keep_bad_bands, "Keep the bands an ENVI header's bbl marks bad (dropped by default)");
   cmd->callback([o] {

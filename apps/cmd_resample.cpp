@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <numbers>
 
+#include "specula/acquire/prior_resample.h"
 #include "specula/acquire/resample.h"
 #include "apps/commands.h"
 #include "apps/common.h"
@@ -29,6 +30,9 @@ struct ResampleCliOptions {
   double max_gap_deg = 8.6;
   bool replace = false;
   bool json = false;
+  std::string prior;  // STORE.h5:PRIOR
+  double lambda = 1e-3;
+  double confidence_reach = 1;
 };
 
 // What save_grid would refuse after the work, refused before it: an output that is neither STORE.h5:NAME, a
@@ -49,6 +53,54 @@ void check_output(const std::string& spec, bool replace) {
   }
 }
 
+// The confidence grid beside `output`: STORE.h5:NAME.confidence, or X.confidence.spgrid beside X.spgrid.
+std::string confidence_output(const std::string& output) {
+  const std::filesystem::path p(output);
+  if (p.extension() == ".spgrid") return (p.parent_path() / (p.stem().string() + ".confidence.spgrid")).string();
+  if (p.extension() == ".binary") throw UsageError("resample --prior: write STORE.h5:NAME or a .spgrid (the confidence goes beside it)");
+  return output + ".confidence";
+}
+
+// --prior: the prior fitted to the samples' cell means, blended with the kd-tree estimate by per-cell confidence.
+void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOptions& ro) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto colon = o.prior.rfind(':');
+  if (colon == std::string::npos) throw UsageError("resample --prior: give STORE.h5:PRIOR");
+  const std::string conf_out = confidence_output(o.output);
+  check_output(conf_out, o.replace);
+  const acquire::BrdfPrior prior = acquire::read_prior(store::Store::open(o.prior.substr(0, colon)), o.prior.substr(colon + 1));
+  const store::Store s = store::Store::open(o.store);
+  const store::SamplesInfo info = s.samples_info(o.samples);
+  const acquire::StoreSamples src(s, o.samples);
+  store::Grid grid, conf;
+  grid.wavelengths = info.wavelengths;
+  grid.units = info.units;
+  grid.brdf.resize(info.bands * brdf::kMerlCells);
+  conf.wavelengths = WavelengthGrid({info.wavelengths[info.bands / 2]});
+  conf.units = "confidence";
+  conf.brdf.resize(brdf::kMerlCells);
+  const acquire::PriorResampleOptions po{.local = ro, .fit = {.lambda = o.lambda}, .confidence_reach = o.confidence_reach};
+  const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, conf.brdf);
+  grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
+  grid.provenance.importer = fmt::format("resample prior={} lambda={} confidence_reach={} mapping={} k={} weights={}",
+                                         o.prior, o.lambda, o.confidence_reach, o.mapping, o.k, o.weights);
+  conf.provenance.importer = "resample confidence of " + o.output;
+  const std::string what = save_grid(grid, o.output, o.replace, "resample");
+  save_grid(conf, conf_out, o.replace, "resample");
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (o.json) {
+    fmt::print(R"({{"samples":{},"bands":{},"cells":{},"valid_cells":{},"observed_cells":{},"seconds":{:.6f},)"
+               R"("fit_seconds":{:.6f},"prior":{},"output":{},"confidence":{},"threads":{}}})"
+               "\n",
+               info.size, info.bands, brdf::kMerlCells, st.filled_cells, st.observed_cells, seconds, st.fit_seconds,
+               json_string(o.prior), json_string(o.output), json_string(conf_out), omp_get_max_threads());
+    return;
+  }
+  fmt::print("resampled {} samples of {} with prior {} onto all {} valid cells ({} observed) in {:.2f} s: {}; "
+             "confidence in {}\n",
+             info.size, o.samples, o.prior, st.filled_cells, st.observed_cells, seconds, what, conf_out);
+}
+
 void run_resample(const ResampleCliOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!(o.max_gap_deg > 0 && o.max_gap_deg <= 180)) throw UsageError("--max-gap: give degrees in (0, 180]");
@@ -59,6 +111,7 @@ void run_resample(const ResampleCliOptions& o) {
                                     .max_gap = o.max_gap_deg * std::numbers::pi / 180};
   acquire::check_options(ro);
   check_output(o.output, o.replace);
+  if (!o.prior.empty()) return run_prior_resample(o, ro);
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);
@@ -110,6 +163,13 @@ void setup_resample(CLI::App& app) {
   cmd->add_option("--power", o->power, "Shepard's power p")->capture_default_str();
   cmd->add_option("--max-gap", o->max_gap_deg,
                   "Leave a cell without data when its nearest sample is farther than this (degrees in theta_i, theta_o, phi_d)")
+      ->capture_default_str();
+  cmd->add_option("--prior", o->prior,
+                  "STORE.h5:PRIOR: fit a learned prior (specula prior build) and fill every valid cell, blending with "
+                  "the kd-tree estimate by per-cell confidence, written beside the grid as NAME.confidence (docs/prior.md)");
+  cmd->add_option("--lambda", o->lambda, "--prior: Tikhonov weight of the fit")->capture_default_str();
+  cmd->add_option("--confidence-reach", o->confidence_reach,
+                  "--prior: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction of --max-gap")
       ->capture_default_str();
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");

@@ -21,6 +21,7 @@ void setup_uplift(CLI::App& app);
 void setup_render(CLI::App& app);
 void setup_encode(CLI::App& app);
 void setup_resample(CLI::App& app);
+void setup_prior(CLI::App& app);
 void setup_eval_resample(CLI::App& app);
 void setup_synth_samples(CLI::App& app);
 void setup_resample_study(CLI::App& app);

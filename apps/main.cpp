@@ -71,6 +71,7 @@ int main(int argc, char** argv) {
   specula::app::setup_render(app);
   specula::app::setup_encode(app);
   specula::app::setup_resample(app);
+  specula::app::setup_prior(app);
   specula::app::setup_eval_resample(app);
   specula::app::setup_synth_samples(app);
   specula::app::setup_resample_study(app);

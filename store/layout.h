@@ -12,7 +12,7 @@ namespace specula::store::layout {
 
 /// The top-level groups that hold objects, one kind each.
 inline constexpr std::string_view kKinds[] = {"images", "collections", "samples", "grids", "bases", "coefficients",
-                                              "acquire"};
+                                              "acquire", "priors"};
 /// True when `kind` is one of kKinds.
 bool is_kind(std::string_view kind);
 

@@ -61,7 +61,7 @@ bool holds(const fs::path& path, const std::string& object) {
 std::pair<std::string, std::string> resolve_object(const Store& store, const std::string& spec) {
   static const std::pair<std::string_view, std::string_view> aliases[] = {
       {"image", "images"}, {"collection", "collections"}, {"grid", "grids"}, {"basis", "bases"},
-      {"coefficient", "coefficients"}, {"map", "coefficients"}, {"calibration", "acquire"}, {"calibrations", "acquire"}};
+      {"coefficient", "coefficients"}, {"map", "coefficients"}, {"calibration", "acquire"}, {"calibrations", "acquire"}, {"prior", "priors"}};
   std::string s = spec;
   if (!s.empty() && s[0] == '/') s = s.substr(1);
   const auto slash = s.find('/');
@@ -72,7 +72,7 @@ std::pair<std::string, std::string> resolve_object(const Store& store, const std
       if (kind == a) kind = k;
     if (!layout::is_kind(kind))
       throw InputError(store.label() + ": '" + spec + "': '" + s.substr(0, slash) +
-                       "' is not a kind of object (images, collections, samples, grids, bases, coefficients, acquire)");
+                       "' is not a kind of object (images, collections, samples, grids, bases, coefficients, acquire, priors)");
     const std::string name = s.substr(slash + 1);
     if (h5::exists(StoreAccess::root(store), "/" + kind) && h5::exists(StoreAccess::root(store), "/" + kind + "/" + name)) return {kind, name};
     throw InputError(store.label() + ": no " + kind + " object '" + name + "'");

@@ -23,6 +23,7 @@
 #include "specula/store/io/gdal.h"
 #include "specula/store/io/mask.h"
 #include "specula/store/io/mat.h"
+#include "specula/store/io/nbrdf.h"
 #include "specula/store/io/text_library.h"
 
 namespace specula::fuzz {
@@ -296,6 +297,19 @@ void rgl_bsdf(std::span<const std::uint8_t> input) {
   }, "fuzz.bsdf");
 }
 
+void nbrdf(std::span<const std::uint8_t> input) {
+  const fs::path p = write("input.h5", text_of(input));
+  expect_clean([&] {
+    const store::NbrdfWeights w = store::read_nbrdf(p);
+    using W = store::NbrdfWeights;
+    check(w.kernel1.size() == W::kInputs * W::kHidden && w.bias1.size() == W::kHidden, "layer 1 shape");
+    check(w.kernel2.size() == W::kHidden * W::kHidden && w.bias2.size() == W::kHidden, "layer 2 shape");
+    check(w.kernel3.size() == W::kHidden * W::kOutputs && w.bias3.size() == W::kOutputs, "layer 3 shape");
+    for (const auto* v : {&w.kernel1, &w.bias1, &w.kernel2, &w.bias2, &w.kernel3, &w.bias3})
+      for (const float x : *v) check(std::isfinite(x), "finite weights");
+  }, p.string());
+}
+
 const std::vector<Target>& targets() {
   static const std::vector<Target> all = {{"envi_header", envi_header}, {"envi", envi},
                                           {"mat", mat},                 {"mask", mask},
@@ -304,7 +318,8 @@ const std::vector<Target>& targets() {
                                           {"spc", spc},
                                           {"spgrid", spgrid},
                                           {"merl", merl},
-                                          {"rgl_bsdf", rgl_bsdf}};
+                                          {"rgl_bsdf", rgl_bsdf},
+                                          {"nbrdf", nbrdf}};
   return all;
 }
 

@@ -52,6 +52,8 @@ void merl(std::span<const std::uint8_t> input);
 
 /// An RGL .bsdf: read_rgl_bsdf, then RglEvaluator at a few direction pairs (finite, non-negative values).
 void rgl_bsdf(std::span<const std::uint8_t> input);
+/// Keras weights of a neural BRDF (.h5) through read_nbrdf: every layer of its shape, every weight finite.
+void nbrdf(std::span<const std::uint8_t> input);
 
 /// Every target, in the order above.
 const std::vector<Target>& targets();

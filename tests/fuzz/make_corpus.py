@@ -224,3 +224,25 @@ def rgl(spectral):
 put("rgl_bsdf", "spectral.bsdf", rgl(True))
 put("rgl_bsdf", "rgb.bsdf", rgl(False))
 put("rgl_bsdf", "truncated.bsdf", rgl(True)[:300])
+
+# nbrdf: Keras weights of a 6 -> 21 -> 21 -> 3 network as Sztrajman et al. save them (tests/codec/nbrdf_test.cpp),
+# float32, small values; a valid file, one with a wrong kernel shape, one with a NaN bias, and a truncated file.
+def nbrdf(name, shapes, nan=False, truncate=0):
+    path = os.path.join(HERE, "nbrdf-tmp.h5")
+    rng = np.random.default_rng(7)
+    with h5py.File(path, "w", libver="earliest") as f:
+        for n, (k, b) in enumerate(shapes, 1):
+            g = f.create_group("dense_%d/dense_%d" % (n, n))
+            g["kernel:0"] = rng.normal(0, 0.3, k).astype(np.float32)
+            g["bias:0"] = np.full(b, np.nan if nan and n == 2 else 0.1, np.float32)
+    with open(path, "rb") as f:
+        data = f.read()
+    os.remove(path)
+    put("nbrdf", name, data[:truncate] if truncate else data)
+
+
+NBRDF = [((6, 21), 21), ((21, 21), 21), ((21, 3), 3)]
+nbrdf("valid.h5", NBRDF)
+nbrdf("wrong-shape.h5", [((6, 21), 21), ((21, 20), 21), ((21, 3), 3)])
+nbrdf("nan-bias.h5", NBRDF, nan=True)
+nbrdf("truncated.h5", NBRDF, truncate=3000)

@@ -1,0 +1,118 @@
+#include "specula/acquire/prior_resample.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/error.h"
+#include "specula/core/parallel.h"
+
+namespace specula::acquire {
+namespace {
+
+// Position of each MERL cell in valid_cells() (-1 below the horizon).
+const std::vector<std::int32_t>& valid_slot() {
+  static const std::vector<std::int32_t> slot = [] {
+    std::vector<std::int32_t> s(brdf::kMerlCells, -1);
+    const auto& cells = valid_cells();
+    for (std::size_t i = 0; i < cells.size(); ++i) s[cells[i]] = std::int32_t(i);
+    return s;
+  }();
+  return slot;
+}
+
+}  // namespace
+
+PriorObservations cell_means(const SampleSource& src) {
+  const std::size_t b = src.bands(), n = src.size(), block = src.block_rows();
+  const auto& slot = valid_slot();
+  std::vector<std::int32_t> obs_of(valid_cells().size(), -1);
+  std::vector<double> sums;
+  std::vector<std::uint32_t> counts;
+  PriorObservations out;
+  std::vector<double> angles;
+  std::vector<float> values;
+  std::vector<std::int32_t> cell_of;
+  for (std::size_t first = 0; first < n; first += block) {
+    const std::size_t count = std::min(block, n - first);
+    angles.resize(count * 4);
+    values.resize(count * b);
+    cell_of.resize(count);
+    src.read_angles(first, count, angles);
+    src.read_values(first, count, values);
+    parallel_for(count, [&](std::size_t s) {
+      const brdf::StdAngles a{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]};
+      const bool ok = std::isfinite(a.theta_i) && std::isfinite(a.theta_o) && a.theta_i < std::numbers::pi / 2 &&
+                      a.theta_o < std::numbers::pi / 2;
+      cell_of[s] = ok ? slot[brdf::merl_index(brdf::merl_cell(a))] : -1;
+    }, 4096);
+    for (std::size_t s = 0; s < count; ++s) {  // in sample order: the sums do not depend on the thread count
+      const std::int32_t v = cell_of[s];
+      if (v < 0) continue;
+      bool finite = true;
+      for (std::size_t k = 0; k < b; ++k) finite &= std::isfinite(values[s * b + k]) && values[s * b + k] >= 0;
+      if (!finite) continue;
+      if (obs_of[std::size_t(v)] < 0) {
+        obs_of[std::size_t(v)] = std::int32_t(out.cell.size());
+        out.cell.push_back(std::uint32_t(v));
+        sums.resize(sums.size() + b, 0.0);
+        counts.push_back(0);
+      }
+      const std::size_t o = std::size_t(obs_of[std::size_t(v)]);
+      for (std::size_t k = 0; k < b; ++k) sums[o * b + k] += values[s * b + k];
+      ++counts[o];
+    }
+  }
+  out.values.resize(sums.size());
+  out.weight.resize(counts.size());
+  for (std::size_t o = 0; o < counts.size(); ++o) {
+    out.weight[o] = float(counts[o]);
+    for (std::size_t k = 0; k < b; ++k) out.values[o * b + k] = float(sums[o * b + k] / counts[o]);
+  }
+  return out;
+}
+
+PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
+                                       std::span<float> grid, std::span<float> confidence) {
+  const std::size_t b = src.bands();
+  if (b != prior.wavelengths.size())
+    throw UsageError("prior: the samples have " + std::to_string(b) + " bands, the prior " +
+                     std::to_string(prior.wavelengths.size()) + "; build the prior on the samples' bands");
+  if (grid.size() != b * brdf::kMerlCells || confidence.size() != brdf::kMerlCells)
+    throw UsageError("prior: grid or confidence of the wrong size");
+  if (!(o.confidence_reach > 0 && o.confidence_reach <= 1))
+    throw UsageError("prior: confidence_reach (the reach of the confidence, a fraction of max_gap) must be in (0, 1]");
+  PriorResampleStats st;
+  const SampleTree tree(src, o.local.mapping);
+  st.local = resample_grid(tree, src, o.local, grid);
+  const auto t0 = std::chrono::steady_clock::now();
+  const PriorObservations obs = cell_means(src);
+  if (obs.cell.empty()) throw InputError("prior: no sample falls in a cell above the horizon");
+  st.observed_cells = obs.cell.size();
+  std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
+  fit_prior(prior, obs, o.fit, fitted);
+  const auto& cells = valid_cells();
+  std::fill(confidence.begin(), confidence.end(), -1.0f);
+  parallel_for(cells.size(), [] { return Neighbours{}; }, [&](std::size_t i, Neighbours& nb) {
+    const std::size_t cell = cells[i];
+    const bool local = grid[cell] >= 0;
+    double c = 0;
+    if (local) {  // falls from 1 at a sample to 0 at the distance where the kd-tree estimate stops (max_gap)
+      tree.nearest(iso_angles(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cell)))), 1, nb);
+      const double r = nb.gap / (o.confidence_reach * o.local.max_gap);
+      c = std::clamp(1 - r * r, 0.0, 1.0);
+    }
+    confidence[cell] = float(c);
+    for (std::size_t k = 0; k < b; ++k) {
+      const std::size_t at = k * brdf::kMerlCells + cell;
+      grid[at] = float(c * (local ? grid[at] : 0.0f) + (1 - c) * fitted[at]);
+    }
+  }, 4096);
+  st.filled_cells = cells.size();
+  st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return st;
+}
+
+}  // namespace specula::acquire

@@ -1,0 +1,37 @@
+#pragma once
+// Resampling scattered samples with a learned prior (acquire/prior.h): the samples averaged per MERL cell are
+// the observations the prior is fitted to (weighted by how many samples each cell averages), the kd-tree
+// estimate of acquire/resample.h is kept where samples are near, and the two are blended by a per-cell
+// confidence c = max(0, 1 - (g / (r max_gap))^2) of the distance g from the cell centre to its nearest sample
+// (config_distance, as the kd-tree's support test); every valid cell gets data.
+#include <span>
+
+#include "specula/acquire/prior.h"
+#include "specula/acquire/resample.h"
+
+namespace specula::acquire {
+
+struct PriorResampleOptions {
+  ResampleOptions local;          ///< the kd-tree estimate
+  PriorFitOptions fit;
+  double confidence_reach = 1;     ///< r: confidence falls to 0 at r * local.max_gap from the nearest sample (0 < r <= 1)
+};
+
+/// What one reconstruction with a prior did.
+struct PriorResampleStats {
+  GridStats local;                ///< the kd-tree pass
+  std::size_t observed_cells = 0; ///< valid cells holding at least one sample (the prior's observations)
+  std::size_t filled_cells = 0;   ///< valid cells with data in the result (all of them)
+  double fit_seconds = 0;
+};
+
+/// Every valid cell of grid (bands x kMerlCells) from src: confidence c per cell (written into
+/// confidence, kMerlCells values, -1 below the horizon), the result c * local + (1 - c) * prior. UsageError on
+/// sizes or bands that differ from the prior's; InputError when no sample falls in a valid cell.
+PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
+                                       std::span<float> grid, std::span<float> confidence);
+
+/// The samples of src averaged per valid cell (values) with their counts as weights (observations of prior.h).
+PriorObservations cell_means(const SampleSource& src);
+
+}  // namespace specula::acquire

@@ -1,0 +1,81 @@
+// specula prior build: a learned BRDF prior (acquire/prior.h, docs/prior.md) from grids, into a store.
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "specula/acquire/prior.h"
+#include "specula/core/error.h"
+#include "specula/store/store.h"
+
+namespace specula::app {
+namespace {
+
+struct PriorBuildOptions {
+  std::vector<std::string> grids;
+  std::vector<std::string> exclude;
+  std::string output;
+  std::string name;
+  std::size_t channels = 8;
+  std::size_t components = 0;
+  double epsilon = 1e-3;
+  bool replace = false;
+};
+
+// Each GRID argument as grid specs: a whole store (.h5 without :NAME) stands for all its grids.
+std::vector<std::string> expand(const PriorBuildOptions& o) {
+  std::vector<std::string> specs;
+  for (const auto& g : o.grids) {
+    const std::filesystem::path p(g);
+    if (p.extension() == ".h5" && g.find(':') == std::string::npos) {
+      for (const auto& name : store::Store::open(p).grids()) specs.push_back(g + ":" + name);
+    } else {
+      specs.push_back(g);
+    }
+  }
+  std::erase_if(specs, [&](const std::string& s) {
+    const std::string name = s.substr(s.rfind(':') == std::string::npos ? 0 : s.rfind(':') + 1);
+    return std::find(o.exclude.begin(), o.exclude.end(), name) != o.exclude.end() ||
+           std::find(o.exclude.begin(), o.exclude.end(), s) != o.exclude.end();
+  });
+  if (specs.size() < 2) throw UsageError("prior build: give at least 2 training grids (after --exclude)");
+  return specs;
+}
+
+void run_prior_build(const PriorBuildOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  store::validate_name(o.name, "prior");
+  const std::vector<std::string> specs = expand(o);
+  const acquire::PriorOptions po{.channels = o.channels, .components = o.components, .epsilon = o.epsilon};
+  const acquire::BrdfPrior prior = acquire::build_prior(
+      specs.size(), [&](std::size_t i) { return load_grid(specs[i], "prior build"); }, specs, po);
+  store::StoreWriter writer(o.output, {.compression = {}, .replace = o.replace, .command_line = command_line()});
+  acquire::write_prior(writer, o.name, prior);
+  writer.commit();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  fmt::print("prior {} of {}: {} components over {} cells, {} channels ({}), from {} grids in {:.1f} s\n", o.name,
+             o.output, prior.k(), prior.cells(), prior.channels(), prior.wavelengths.describe(), specs.size(), seconds);
+}
+
+}  // namespace
+
+void setup_prior(CLI::App& app) {
+  auto* prior = app.add_subcommand("prior", "Learned BRDF priors (docs/prior.md)");
+  prior->require_subcommand(1);
+  auto o = std::make_shared<PriorBuildOptions>();
+  auto* cmd = prior->add_subcommand("build", "Learn a prior (log-relative mapping, PCA) from complete spectral grids");
+  cmd->add_option("grids", o->grids, "STORE.h5:GRID, a .spgrid file, or a whole STORE.h5 (all its grids)")->required();
+  cmd->add_option("-o,--output", o->output, "Store to write the prior to")->required();
+  cmd->add_option("--name", o->name, "Name of the prior in the store")->required();
+  cmd->add_option("--exclude", o->exclude, "Grid names to leave out (e.g. the material a capture is of)");
+  cmd->add_option("--channels", o->channels, "Knots of the spectral basis the prior works in")->capture_default_str();
+  cmd->add_option("--components", o->components, "Principal components kept (0: all)")->capture_default_str();
+  cmd->add_option("--epsilon", o->epsilon, "eps of the log-relative mapping, 1/sr")->capture_default_str();
+  cmd->add_flag("--replace", o->replace, "Replace a prior of the same name");
+  cmd->callback([o] { run_prior_build(*o); });
+}
+
+}  // namespace specula::app

@@ -1,0 +1,189 @@
+// The learned BRDF prior (acquire/prior.h, acquire/prior_resample.h) on analytic materials: a training grid is
+// reproduced from all its cells, a held-out material of the family is recovered from 1 % of its cells, the
+// prior round-trips through the store, and confidence is 0 where no sample falls.
+#include "specula/acquire/prior.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+
+#include <cmath>
+#include <random>
+
+#include "specula/acquire/prior_resample.h"
+#include "specula/core/brdf_models.h"
+#include "test_support.h"
+
+using namespace specula;
+
+namespace {
+
+const WavelengthGrid kBands = WavelengthGrid::range(400, 700, 75);  // 5 bands keep the grids small
+
+// A Ward material with a diffuse colour ramp, a neutral specular lobe and roughness alpha.
+brdf::Ward ward(double red, double blue, double rho_s, double alpha) {
+  Eigen::VectorXd rd(5), rs = Eigen::VectorXd::Constant(5, rho_s), a = Eigen::VectorXd::Constant(5, alpha);
+  for (int i = 0; i < 5; ++i) rd[i] = blue + (red - blue) * i / 4.0;
+  return brdf::Ward(kBands, rd, rs, a);
+}
+
+store::Grid grid_of(const brdf::SpectralModel& m) {
+  store::Grid g;
+  g.wavelengths = kBands;
+  g.brdf.resize(kBands.size() * brdf::kMerlCells);
+  brdf::evaluate_grid(m, g.brdf);
+  return g;
+}
+
+struct Family {
+  std::vector<store::Grid> grids;
+  std::vector<std::string> names;
+  acquire::BrdfPrior prior;
+};
+
+// Seven training materials; built once for the whole file.
+const Family& family() {
+  static const Family f = [] {
+    Family out;
+    const double params[][4] = {{0.6, 0.1, 0.05, 0.05}, {0.2, 0.5, 0.1, 0.1},  {0.4, 0.4, 0.02, 0.2},
+                                {0.1, 0.1, 0.2, 0.07},  {0.7, 0.3, 0.08, 0.15}, {0.3, 0.6, 0.0, 0.1},
+                                {0.5, 0.2, 0.15, 0.3}};
+    for (std::size_t i = 0; i < std::size(params); ++i) {
+      out.grids.push_back(grid_of(ward(params[i][0], params[i][1], params[i][2], params[i][3])));
+      out.names.push_back("m" + std::to_string(i));
+    }
+    out.prior = acquire::build_prior(out.grids.size(), [&](std::size_t i) { return out.grids[i]; }, out.names,
+                                     {.channels = 3, .components = 0, .epsilon = 1e-3});
+    return out;
+  }();
+  return f;
+}
+
+// Observations of grid g at the given valid-cell positions, weight 1.
+acquire::PriorObservations observe(const store::Grid& g, const std::vector<std::size_t>& at) {
+  acquire::PriorObservations obs;
+  const auto& cells = acquire::valid_cells();
+  for (const std::size_t i : at) {
+    obs.cell.push_back(std::uint32_t(i));
+    for (std::size_t k = 0; k < g.bands(); ++k) obs.values.push_back(g.brdf[k * brdf::kMerlCells + cells[i]]);
+    obs.weight.push_back(1);
+  }
+  return obs;
+}
+
+// Cos-weighted relative RMS of a against truth b over the valid cells and bands.
+double cos_weighted_rel_rms(std::span<const float> a, std::span<const float> b, std::size_t bands) {
+  const auto& cells = acquire::valid_cells();
+  const auto& cosines = acquire::valid_cell_cosines();
+  double num = 0, den = 0;
+  for (std::size_t k = 0; k < bands; ++k)
+    for (std::size_t i = 0; i < cells.size(); ++i) {
+      const double w = cosines[i], x = a[k * brdf::kMerlCells + cells[i]], y = b[k * brdf::kMerlCells + cells[i]];
+      num += w * w * (x - y) * (x - y);
+      den += w * w * y * y;
+    }
+  return std::sqrt(num / den);
+}
+
+}  // namespace
+
+TEST(Prior, ReproducesATrainingGridFromAllItsCells) {
+  const Family& f = family();
+  EXPECT_LE(f.prior.k(), 7u * 3u - 1u);  // null directions (channels that move together) are dropped
+  EXPECT_GE(f.prior.k(), 7u);
+  EXPECT_EQ(f.prior.channels(), 3u);
+  const store::Grid& g = f.grids[4];
+  std::vector<std::size_t> all(acquire::valid_cells().size());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
+  std::vector<float> out(g.brdf.size(), -1.0f);
+  acquire::fit_prior(f.prior, observe(g, all), {.lambda = 1e-9}, out);
+  // Exactly what the prior represents: the spectra's projection on its hat functions.
+  const Eigen::MatrixXd hats = acquire::hat_basis(kBands, f.prior.knots);
+  const Eigen::MatrixXd proj = (hats.transpose() * hats).ldlt().solve(hats.transpose());
+  std::vector<float> expect(g.brdf.size(), -1.0f);
+  for (const std::uint32_t cell : acquire::valid_cells()) {
+    Eigen::VectorXd s(5);
+    for (int k = 0; k < 5; ++k) s[k] = g.brdf[std::size_t(k) * brdf::kMerlCells + cell];
+    const Eigen::VectorXd e = hats * (proj * s).cwiseMax(0.0);
+    for (int k = 0; k < 5; ++k) expect[std::size_t(k) * brdf::kMerlCells + cell] = float(e[k]);
+  }
+  EXPECT_LT(cos_weighted_rel_rms(out, expect, 5), 1e-4);
+  for (std::size_t c = 0; c < brdf::kMerlCells; ++c)
+    if (!brdf::merl_cell_valid(brdf::merl_cell(c))) {
+      ASSERT_EQ(out[c], -1.0f) << "cells below the horizon untouched";
+    }
+}
+
+TEST(Prior, RecoversAHeldOutMaterialOfTheFamilyFromOnePercentOfItsCells) {
+  const Family& f = family();
+  const store::Grid truth = grid_of(ward(0.45, 0.25, 0.07, 0.12));  // not a training material
+  std::mt19937 rng(11);
+  std::vector<std::size_t> at;
+  const std::size_t d = acquire::valid_cells().size();
+  std::uniform_int_distribution<std::size_t> pick(0, d - 1);
+  for (std::size_t n = 0; n < d / 100; ++n) at.push_back(pick(rng));
+  std::vector<float> out(truth.brdf.size(), -1.0f);
+  acquire::fit_prior(f.prior, observe(truth, at), {.lambda = 1e-3}, out);
+  const double err = cos_weighted_rel_rms(out, truth.brdf, 5);
+  // The nearest training material, for scale: the fit must do much better than picking it.
+  double nearest = 1e9;
+  for (const auto& g : f.grids) nearest = std::min(nearest, cos_weighted_rel_rms(g.brdf, truth.brdf, 5));
+  EXPECT_LT(err, 0.1) << "nearest training material: " << nearest;
+  EXPECT_LT(err, 0.5 * nearest);
+}
+
+TEST(Prior, RoundTripsThroughTheStore) {
+  test::ScratchDir dir;
+  const Family& f = family();
+  {
+    store::StoreWriter w(dir / "db.h5", {});
+    acquire::write_prior(w, "p", f.prior);
+    w.commit();
+  }
+  const store::Store s = store::Store::open(dir / "db.h5");
+  EXPECT_EQ(acquire::prior_names(s), std::vector<std::string>{"p"});
+  const acquire::BrdfPrior p = acquire::read_prior(s, "p");
+  EXPECT_EQ(p.training, f.names);
+  EXPECT_EQ(p.components, f.prior.components);
+  EXPECT_EQ(p.mean, f.prior.mean);
+  EXPECT_EQ(p.reference, f.prior.reference);
+  EXPECT_EQ(p.variances, f.prior.variances);
+  EXPECT_EQ(p.knots, f.prior.knots);
+  const std::string m = test::error_of([&] { acquire::read_prior(s, "q"); });
+  EXPECT_NE(m.find("db.h5: no prior 'q' (priors: p"), std::string::npos) << m;
+}
+
+TEST(Prior, ConfidenceIsZeroWhereNoSampleFallsAndEveryValidCellGetsData) {
+  const Family& f = family();
+  const brdf::Ward m = ward(0.45, 0.25, 0.07, 0.12);
+  // Samples only with both directions within 40 degrees of the normal.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<double> angles;
+  for (int n = 0; n < 200000; ++n) {
+    const double ti = std::acos(1 - u(rng) * (1 - std::cos(0.7))), to = std::acos(1 - u(rng) * (1 - std::cos(0.7)));
+    angles.insert(angles.end(), {ti, 0.0, to, (2 * u(rng) - 1) * std::numbers::pi});
+  }
+  std::vector<float> values(angles.size() / 4 * 5);
+  brdf::evaluate_at(m, angles, values);
+  const acquire::MemorySamples src(angles, values, 5);
+  std::vector<float> grid(5 * brdf::kMerlCells), conf(brdf::kMerlCells);
+  const acquire::PriorResampleStats st = acquire::resample_with_prior(src, f.prior, {}, grid, conf);
+  EXPECT_EQ(st.filled_cells, acquire::valid_cells().size());
+  std::size_t zero_far = 0, far = 0, high_near = 0, near = 0;
+  for (const std::uint32_t c : acquire::valid_cells()) {
+    ASSERT_GE(grid[c], 0.0f) << "every valid cell has data";
+    const brdf::StdAngles a = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(c)));
+    if (a.theta_i > 1.0 || a.theta_o > 1.0) {
+      ++far;
+      zero_far += conf[c] == 0.0f;
+    } else if (a.theta_i < 0.6 && a.theta_o < 0.6 && brdf::merl_cell(c).theta_h > 40) {
+      ++near;
+      high_near += conf[c] > 0.0f;
+    }
+  }
+  EXPECT_EQ(zero_far, far);
+  EXPECT_GT(far, 100000u);
+  EXPECT_GT(double(high_near), 0.5 * double(near)) << near;
+  EXPECT_LT(cos_weighted_rel_rms(grid, [&] { return grid_of(m).brdf; }(), 5), 0.15);
+}
