@@ -41,18 +41,22 @@ void save_basis(const std::filesystem::path& out, const std::string& name, const
                 const std::string& function) {
   py::gil_scoped_release release;
   store::StoreWriter writer(out, {.compression = {}, .replace = replace, .command_line = python_command_line(function)});
-  writer.add_basis(name, basis);
-  writer.commit();
+  try {
+    writer.add_basis(name, basis);
+    writer.commit();
+  } catch (const InputError& e) {
+    if (std::string(e.what()).find("exists already") == std::string::npos) throw;
+    throw InputError(fmt::format("{}: basis {} exists already; choose another name or give replace=True", out.string(), name));
+  }
+  note_commit();
 }
 
-py::object optional_vector(const Eigen::VectorXd& v) {
-  if (v.size() == 0) return py::none();
-  return to_numpy(v);
-}
-
-py::object optional_matrix(const Eigen::MatrixXd& m) {
-  if (m.size() == 0) return py::none();
-  return to_numpy(m);
+// A basis saved as `name` in the store at `path`, knowing where it lives (its `origin`, the reference .spc files
+// coded on it record, as `specula encode` names it).
+py::object with_origin(store::Basis&& b, const std::filesystem::path& path, const std::string& name) {
+  py::object o = py::cast(std::move(b));
+  o.attr("_origin") = path.filename().string() + ":" + name;
+  return o;
 }
 
 // Projection of spectra (..., B) onto the first k components of a PCA basis or all of an NMF basis by the
@@ -94,10 +98,12 @@ py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, c
   cshape.push_back(py::ssize_t(k));
   rshape.push_back(py::ssize_t(b));
   py::dict out;
+  // float32 spectra give float32 results (computed in float64).
+  const bool f32 = is_float32(spectra_arg);
   out["k"] = k;
-  out["coefficients"] = adopt(std::move(coef), cshape);
-  out["reconstruction"] = adopt(std::move(recon), rshape);
-  out["error"] = adopt(std::move(error), lead);
+  out["coefficients"] = as_dtype(adopt(std::move(coef), cshape), f32);
+  out["reconstruction"] = as_dtype(adopt(std::move(recon), rshape), f32);
+  out["error"] = as_dtype(adopt(std::move(error), lead), f32);
   out["rms"] = summary.rms(std::size_t(b));
   out["max_error"] = summary.max_error;
   return out;
@@ -106,7 +112,7 @@ py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, c
 }  // namespace
 
 void init_analysis(py::module_& m) {
-  py::class_<store::Basis>(m, "Basis",
+  py::class_<store::Basis>(m, "Basis", py::dynamic_attr(),
                            "A learned spectral basis: components are rows (k x bands); PCA bases carry mean, "
                            "eigenvalues, explained variance, covariance; NMF bases weights.")
       .def(py::init([](const std::string& method, const py::object& wavelengths, const py::object& components,
@@ -135,14 +141,46 @@ void init_analysis(py::module_& m) {
       .def_property_readonly("k", &store::Basis::k)
       .def_property_readonly("bands", &store::Basis::bands)
       .def_property_readonly("wavelengths", [](const store::Basis& b) { return wavelengths_array(b.wavelengths); })
-      .def_property_readonly("components", [](const store::Basis& b) { return to_numpy(b.components); })
-      .def_property_readonly("mean", [](const store::Basis& b) { return optional_vector(b.mean); })
-      .def_property_readonly("eigenvalues", [](const store::Basis& b) { return optional_vector(b.eigenvalues); })
+      .def_property_readonly("components", [](py::object b) { return view(b.cast<const store::Basis&>().components, b); },
+                             "The components as rows (k, bands): a read-only view.")
+      .def_property_readonly("mean", [](py::object b) { return view(b.cast<const store::Basis&>().mean, b); })
+      .def_property_readonly("eigenvalues", [](py::object b) { return view(b.cast<const store::Basis&>().eigenvalues, b); })
       .def_property_readonly("explained_variance_ratio",
-                             [](const store::Basis& b) { return optional_vector(b.explained_variance_ratio); })
-      .def_property_readonly("covariance", [](const store::Basis& b) { return optional_matrix(b.covariance); })
-      .def_property_readonly("second_moment", [](const store::Basis& b) { return optional_matrix(b.second_moment); })
-      .def_property_readonly("weights", [](const store::Basis& b) { return optional_vector(b.weights); })
+                             [](py::object b) { return view(b.cast<const store::Basis&>().explained_variance_ratio, b); })
+      .def_property_readonly("covariance", [](py::object b) { return view(b.cast<const store::Basis&>().covariance, b); })
+      .def_property_readonly("second_moment",
+                             [](py::object b) { return view(b.cast<const store::Basis&>().second_moment, b); })
+      .def_property_readonly("weights", [](py::object b) { return view(b.cast<const store::Basis&>().weights, b); })
+      .def(py::pickle(
+          [](const py::object& self) {
+            const auto& b = self.cast<const store::Basis&>();
+            const auto& p = b.provenance;
+            return py::make_tuple(self.attr("__dict__"), b.method, wavelengths_array(b.wavelengths), b.n, to_numpy(b.mean), to_numpy(b.components),
+                                  to_numpy(b.eigenvalues), to_numpy(b.explained_variance_ratio), to_numpy(b.covariance),
+                                  to_numpy(b.second_moment), to_numpy(b.weights), b.source,
+                                  py::make_tuple(p.source_file, p.importer, p.command_line, p.created_utc));
+          },
+          [](py::tuple state) {
+            if (state.size() != 13) throw UsageError("Basis: not a pickled specula.Basis");
+            const py::dict attributes = state[0];
+            const py::tuple t = state[py::slice(1, 13, 1)];
+            store::Basis b;
+            b.method = t[0].cast<std::string>();
+            b.wavelengths = grid_from(t[1], "Basis wavelengths");
+            b.n = t[2].cast<std::uint64_t>();
+            b.mean = vector_from(t[3], "Basis mean");
+            b.components = matrix_from(t[4], "Basis components");
+            b.eigenvalues = vector_from(t[5], "Basis eigenvalues");
+            b.explained_variance_ratio = vector_from(t[6], "Basis explained_variance_ratio");
+            b.covariance = matrix_from(t[7], "Basis covariance");
+            b.second_moment = matrix_from(t[8], "Basis second_moment");
+            b.weights = vector_from(t[9], "Basis weights");
+            b.source = t[10].cast<std::string>();
+            const auto p = t[11].cast<py::tuple>();
+            b.provenance = {p[0].cast<std::string>(), p[1].cast<std::string>(), p[2].cast<std::string>(),
+                            p[3].cast<std::string>()};
+            return std::make_pair(std::move(b), attributes);
+          }))
       .def("__repr__", [](const store::Basis& b) {
         return fmt::format("<specula.Basis {} k={} {} n={}>", b.method, b.k(), b.wavelengths.describe(), b.n);
       });
@@ -150,7 +188,7 @@ void init_analysis(py::module_& m) {
   m.def(
       "pca",
       [](const py::object& stores_arg, const py::object& images, const std::string& collection, std::size_t k,
-         const py::object& name, const py::object& output, bool replace) {
+         const py::object& name, const py::object& output, bool replace) -> py::object {
         const std::vector<store::Store> stores = stores_from(stores_arg);
         if (!name.is_none()) store::validate_name(name.cast<std::string>(), "basis");
         const std::filesystem::path out = output_store(stores, output);
@@ -168,8 +206,9 @@ void init_analysis(py::module_& m) {
         });
         basis.provenance.source_file = source_files(stores);
         basis.provenance.importer = "pca";
-        if (!name.is_none()) save_basis(out, name.cast<std::string>(), basis, replace, "pca");
-        return basis;
+        if (name.is_none()) return py::cast(std::move(basis));
+        save_basis(out, name.cast<std::string>(), basis, replace, "pca");
+        return with_origin(std::move(basis), out, name.cast<std::string>());
       },
       py::arg("stores"), py::arg("images") = py::none(), py::arg("collection") = "", py::arg("k") = 0,
       py::arg("name") = py::none(), py::arg("output") = py::none(), py::arg("replace") = false,
@@ -266,7 +305,7 @@ void init_analysis(py::module_& m) {
         report["nnls_unconverged"] = r.nnls_unconverged;
         report["resumed"] = r.resumed;
         report["warmup_epochs"] = r.warmup_epochs;
-        return py::make_tuple(basis, report);
+        return py::make_tuple(save ? with_origin(std::move(basis), out, *save) : py::cast(std::move(basis)), report);
       },
       py::arg("stores"), py::arg("k"), py::arg("images") = py::none(), py::arg("collection") = "",
       py::arg("init") = "nndsvd", py::arg("seed") = 0, py::arg("restarts") = 1, py::arg("max_epochs") = 100,
@@ -279,7 +318,8 @@ void init_analysis(py::module_& m) {
 
   m.def(
       "project",
-      [](const store::Basis& basis, const py::object& spectra, const py::object& k, const py::object& mask) -> py::object {
+      [](const py::object& basis_arg, const py::object& spectra, const py::object& k, const py::object& mask) -> py::object {
+        const store::Basis& basis = as<store::Basis>(basis_arg, "project", "basis", "Basis");
         if (py::isinstance<py::list>(k) || py::isinstance<py::tuple>(k)) {
           py::dict out;  // several k, as the CLI's -k 1,3,6,31
           for (const auto& one : k) out[one] = project_one(basis, spectra, py::reinterpret_borrow<py::object>(one), mask);
@@ -288,7 +328,7 @@ void init_analysis(py::module_& m) {
         return project_one(basis, spectra, k, mask);
       },
       py::arg("basis"), py::arg("spectra"), py::arg("k") = py::none(), py::arg("mask") = py::none(),
-      "Projects spectra (any shape ending in bands) onto a basis as `specula project` does: the first k components of "
+      "Projects spectra (any shape ending in bands; float32 in, float32 out) onto a basis as `specula project` does: the first k components of "
       "a PCA basis (eqs 7.2-7.3) or NNLS on every component of an NMF basis. Returns a dict: coefficients, "
       "reconstruction, error (per-spectrum L2), rms (per band, over spectra the mask keeps) and max_error; with a list of "
       "k (PCA), a dict of those dicts by k.");

@@ -664,6 +664,7 @@ struct StoreWriter::State {
     std::size_t rows_expected = 0, rows_written = 0;  // images filled by write_image_rows
     std::vector<bool> row_done;
     std::uint64_t valid = 0;
+    bool replace = false;  // may replace a committed object of its name (the options' replace when begun)
   };
   std::filesystem::path root, data;
   layout::Index base;  // the committed state when the transaction began
@@ -767,6 +768,7 @@ hid_t StoreWriter::begin(const std::string& kind, const std::string& name, const
   h5::write_attr(f, "name", std::string_view(name), ctx);
   h5::write_attr(f, "transaction", std::string_view(st.tx->id()), ctx);
   st.pending.push_back({kind, name, rel, f});
+  st.pending.back().replace = options_.replace;
   return f.get();
 }
 
@@ -1354,7 +1356,7 @@ void StoreWriter::commit() {
   for (const auto& [kind, name] : st.removals) unlink_entry(kind, name);
   for (auto& e : added) {
     if (cur.find(e.kind, e.name)) {
-      if (!options_.replace)
+      if (!st.find(e.kind, e.name)->replace)
         throw InputError(ctx + ": " + e.kind + "/" + e.name + " was committed by another writer while this transaction ran; "
                          "nothing was written (choose another name or allow replacing it)");
       unlink_entry(e.kind, e.name);
