@@ -32,7 +32,7 @@ std::string source_files(const std::vector<store::Store>& stores) {
 }
 
 // The store a basis is saved in: `output` when given, else the first input store (as the CLI's basis_output).
-std::filesystem::path output_store(const std::vector<store::Store>& stores, const py::object& output) {
+std::filesystem::path output_store(const std::vector<store::Store>& stores, const OptPath& output) {
   if (output.is_none()) return stores.front().path();
   return py::module_::import("os").attr("fspath")(output).cast<std::string>();
 }
@@ -46,15 +46,15 @@ void save_basis(const std::filesystem::path& out, const std::string& name, const
     writer.commit();
   } catch (const InputError& e) {
     if (std::string(e.what()).find("exists already") == std::string::npos) throw;
-    throw InputError(fmt::format("{}: basis {} exists already; choose another name or give replace=True", out.string(), name));
+    throw InputError(fmt::format("{}: basis '{}' exists already; choose another name or give replace=True", out.string(), name));
   }
   note_commit();
 }
 
 // A basis saved as `name` in the store at `path`, knowing where it lives (its `origin`, the reference .spc files
 // coded on it record, as `specula encode` names it).
-py::object with_origin(store::Basis&& b, const std::filesystem::path& path, const std::string& name) {
-  py::object o = py::cast(std::move(b));
+BasisResult with_origin(store::Basis&& b, const std::filesystem::path& path, const std::string& name) {
+  BasisResult o = py::cast(std::move(b));
   o.attr("_origin") = path.filename().string() + ":" + name;
   return o;
 }
@@ -62,8 +62,8 @@ py::object with_origin(store::Basis&& b, const std::filesystem::path& path, cons
 // Projection of spectra (..., B) onto the first k components of a PCA basis or all of an NMF basis by the
 // projector `specula project` uses (stats/project.h), with the per-spectrum L2 error, rms and max_error over the
 // spectra the mask keeps.
-py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, const py::object& k_arg,
-                     const py::object& mask_arg) {
+py::dict project_one(const store::Basis& basis, const ArrayLike& spectra_arg, const py::object& k_arg,
+                     const OptArray& mask_arg) {
   if (k_arg.is_none() && stats::basis_method(basis) == stats::BasisMethod::pca)
     throw UsageError("project: k is required with a PCA basis (the number of leading components, e.g. 6)");
   const stats::Projector projector(basis, k_arg.is_none() ? std::nullopt : std::optional<long long>(k_arg.cast<long long>()));
@@ -115,8 +115,8 @@ void init_analysis(py::module_& m) {
   py::class_<store::Basis>(m, "Basis", py::dynamic_attr(),
                            "A learned spectral basis: components are rows (k x bands); PCA bases carry mean, "
                            "eigenvalues, explained variance, covariance; NMF bases weights.")
-      .def(py::init([](const std::string& method, const py::object& wavelengths, const py::object& components,
-                       const py::object& mean, const py::object& weights) {
+      .def(py::init([](const std::string& method, const WavelengthsArg& wavelengths, const ArrayLike& components,
+                       const OptArray& mean, const OptArray& weights) {
              store::Basis b;
              if (method != "pca" && method != "nmf")
                throw UsageError(fmt::format("Basis: method '{}': give pca or nmf", method));
@@ -187,8 +187,8 @@ void init_analysis(py::module_& m) {
 
   m.def(
       "pca",
-      [](const py::object& stores_arg, const py::object& images, const std::string& collection, std::size_t k,
-         const py::object& name, const py::object& output, bool replace) -> py::object {
+      [](const StoresArg& stores_arg, const ImagesArg& images, const std::string& collection, std::size_t k,
+         const OptStr& name, const OptPath& output, bool replace) -> BasisResult {
         const std::vector<store::Store> stores = stores_from(stores_arg);
         if (!name.is_none()) store::validate_name(name.cast<std::string>(), "basis");
         const std::filesystem::path out = output_store(stores, output);
@@ -206,7 +206,7 @@ void init_analysis(py::module_& m) {
         });
         basis.provenance.source_file = source_files(stores);
         basis.provenance.importer = "pca";
-        if (name.is_none()) return py::cast(std::move(basis));
+        if (name.is_none()) return BasisResult(py::cast(std::move(basis)));
         save_basis(out, name.cast<std::string>(), basis, replace, "pca");
         return with_origin(std::move(basis), out, name.cast<std::string>());
       },
@@ -218,11 +218,11 @@ void init_analysis(py::module_& m) {
 
   m.def(
       "nmf",
-      [](const py::object& stores_arg, std::size_t k, const py::object& images, const std::string& collection,
+      [](const StoresArg& stores_arg, std::size_t k, const ImagesArg& images, const std::string& collection,
          const std::string& init, std::uint64_t seed, std::size_t restarts, std::size_t max_epochs,
-         std::size_t wave_blocks, double tol, const std::string& negatives, const py::object& name,
-         const py::object& output, const py::object& checkpoint, bool resume, bool replace,
-         const py::object& on_epoch) {
+         std::size_t wave_blocks, double tol, const std::string& negatives, const OptStr& name,
+         const OptPath& output, const OptPath& checkpoint, bool resume, bool replace,
+         const CallbackArg& on_epoch) {
         const std::vector<store::Store> stores = stores_from(stores_arg);
         const std::optional<std::string> save = name.is_none() ? std::nullopt : std::optional(name.cast<std::string>());
         if (save) store::validate_name(*save, "basis");
@@ -318,14 +318,14 @@ void init_analysis(py::module_& m) {
 
   m.def(
       "project",
-      [](const py::object& basis_arg, const py::object& spectra, const py::object& k, const py::object& mask) -> py::object {
+      [](const BasisArg& basis_arg, const ArrayLike& spectra, const KArg& k, const OptArray& mask) -> ProjectResult {
         const store::Basis& basis = as<store::Basis>(basis_arg, "project", "basis", "Basis");
         if (py::isinstance<py::list>(k) || py::isinstance<py::tuple>(k)) {
           py::dict out;  // several k, as the CLI's -k 1,3,6,31
           for (const auto& one : k) out[one] = project_one(basis, spectra, py::reinterpret_borrow<py::object>(one), mask);
-          return out;
+          return ProjectResult(std::move(out));
         }
-        return project_one(basis, spectra, k, mask);
+        return ProjectResult(project_one(basis, spectra, k, mask));
       },
       py::arg("basis"), py::arg("spectra"), py::arg("k") = py::none(), py::arg("mask") = py::none(),
       "Projects spectra (any shape ending in bands; float32 in, float32 out) onto a basis as `specula project` does: the first k components of "

@@ -54,7 +54,7 @@ SpectrumKind parse_kind(const std::string& s) {
   throw UsageError(fmt::format("kind '{}': give reflectance or radiance", s));
 }
 
-Eigen::VectorXd illuminant_from(const py::object& ill, const WavelengthGrid& grid) {
+Eigen::VectorXd illuminant_from(const IlluminantArg& ill, const WavelengthGrid& grid) {
   if (py::isinstance<py::str>(ill)) return parse_illuminant(ill.cast<std::string>(), grid);
   Eigen::VectorXd v = vector_from(ill, "illuminant");
   if (std::size_t(v.size()) != grid.size())
@@ -119,11 +119,11 @@ void init_brdf(py::module_& m) {
       .def("__repr__",
            [](const store::Grid& g) { return fmt::format("<specula.Grid {} scale={}>", g.wavelengths.describe(), g.scale); });
 
-  m.def("read_spgrid", [](const py::object& p) { return codec::read_grid_file(existing_file(p)); }, py::arg("path"),
+  m.def("read_spgrid", [](const PathArg& p) { return codec::read_grid_file(existing_file(p)); }, py::arg("path"),
         "Reads a grid exchange file (.spgrid, docs/grid-format.md).");
   m.def(
       "write_spgrid",
-      [](const py::object& p, const py::object& grid) {
+      [](const PathArg& p, const GridArg& grid) {
         const store::Grid& g = as<store::Grid>(grid, "write_spgrid", "grid", "Grid");
         const std::filesystem::path path = path_from(p);
         py::gil_scoped_release release;
@@ -134,7 +134,7 @@ void init_brdf(py::module_& m) {
   m.attr("MERL_SCALE") = py::make_tuple(codec::kMerlScale[0], codec::kMerlScale[1], codec::kMerlScale[2]);
   m.def(
       "read_merl",
-      [](const py::object& p, bool scaled) {
+      [](const PathArg& p, bool scaled) {
         codec::MerlBrdf b = codec::read_merl(existing_file(p));
         if (scaled)
           for (int c = 0; c < 3; ++c)
@@ -149,7 +149,7 @@ void init_brdf(py::module_& m) {
       "BRDF in 1/sr (stored value times MERL_SCALE; no-data cells keep their negative value).");
   m.def(
       "write_merl",
-      [](const py::object& p, const py::object& values, bool scaled) {
+      [](const PathArg& p, const ArrayLike& values, bool scaled) {
         const auto v = DoubleArray::ensure(values);
         if (!v || v.size() != py::ssize_t(3 * brdf::kMerlCells))
           throw UsageError("write_merl: values must be (3, 90, 90, 180)");
@@ -170,7 +170,7 @@ void init_brdf(py::module_& m) {
 
   m.def(
       "merl_index",
-      [](const py::object& ti, const py::object& pi, const py::object& to, const py::object& po) {
+      [](const ArrayLike& ti, const ArrayLike& pi, const ArrayLike& to, const ArrayLike& po) {
         const auto a = DoubleArray::ensure(ti), b = DoubleArray::ensure(pi), c = DoubleArray::ensure(to),
                    d = DoubleArray::ensure(po);
         if (!a || !b || !c || !d || a.size() != b.size() || a.size() != c.size() || a.size() != d.size())
@@ -193,7 +193,7 @@ void init_brdf(py::module_& m) {
       "The MERL cell (linear index, phi_d fastest) that BRDFRead.cpp reads for each set of standard angles (radians).");
   m.def(
       "brdf_lookup",
-      [](const py::object& grid, const py::object& ti, const py::object& pi, const py::object& to, const py::object& po) {
+      [](const GridArg& grid, const ArrayLike& ti, const ArrayLike& pi, const ArrayLike& to, const ArrayLike& po) {
         const store::Grid& g = as<store::Grid>(grid, "brdf_lookup", "grid", "Grid");
         const auto a = DoubleArray::ensure(ti), b = DoubleArray::ensure(pi), c = DoubleArray::ensure(to),
                    d = DoubleArray::ensure(po);
@@ -225,9 +225,9 @@ void init_brdf(py::module_& m) {
 
   m.def(
       "spc_encode",
-      [](const py::object& grid_arg, const py::object& basis_arg, std::size_t k, std::size_t extra, double max_error,
-         double magnitude_scale, int zstd_level, const py::object& reference, std::optional<double> step,
-         std::optional<double> target_de00, std::optional<double> target_p95, int trials, const py::object& env_arg) {
+      [](const GridArg& grid_arg, const OptBasis& basis_arg, std::size_t k, std::size_t extra, double max_error,
+         double magnitude_scale, int zstd_level, const OptStr& reference, std::optional<double> step,
+         std::optional<double> target_de00, std::optional<double> target_p95, int trials, const EnvArg& env_arg) {
         const store::Grid& grid = as<store::Grid>(grid_arg, "spc_encode", "grid", "Grid");
         if (step && target_de00) throw UsageError("spc_encode: give step or target_de00, not both");
         if (target_p95 && !target_de00) throw UsageError("spc_encode: target_p95 goes with target_de00");
@@ -312,7 +312,7 @@ void init_brdf(py::module_& m) {
       "with the fields of `specula encode --json`.");
   m.def(
       "spc_decode",
-      [](const py::object& data) {
+      [](const SpcData& data) {
         std::vector<std::uint8_t> bytes;
         std::string label = "spc bytes";
         if (py::isinstance<py::bytes>(data) || py::isinstance<py::bytearray>(data) ||
@@ -330,18 +330,18 @@ void init_brdf(py::module_& m) {
       py::arg("data"), "Decodes .spc bytes, or the .spc file at a path, into a Grid (every field and the CRC checked).");
   m.def(
       "write_spc",
-      [](const py::object& p, const py::bytes& data) {
+      [](const PathArg& p, const py::bytes& data) {
         const std::string s = data;
         codec::write_spc_file(path_from(p), std::span(reinterpret_cast<const std::uint8_t*>(s.data()), s.size()));
       },
       py::arg("path"), py::arg("data"), "Writes .spc bytes to a file (complete or not at all).");
 
-  m.def("cmf", [](const py::object& w, const std::string& observer) {
+  m.def("cmf", [](const WavelengthsArg& w, const std::string& observer) {
         return to_numpy(Eigen::MatrixXd(cmf(grid_from(w, "wavelengths"), parse_observer(observer))));
       },
       py::arg("wavelengths"), py::arg("observer") = "cie1931_2deg",
       "The CIE colour-matching functions at the wavelengths, (bands, 3): xbar, ybar, zbar.");
-  m.def("illuminant", [](const std::string& name, const py::object& w) {
+  m.def("illuminant", [](const std::string& name, const WavelengthsArg& w) {
         return to_numpy(Eigen::VectorXd(parse_illuminant(name, grid_from(w, "wavelengths"))));
       },
       py::arg("name"), py::arg("wavelengths"),
@@ -349,7 +349,7 @@ void init_brdf(py::module_& m) {
       "(e.g. D75), blackbody:K or an SPD CSV file.");
   m.def(
       "xyz_weights",
-      [](const py::object& w, const std::string& kind, const py::object& ill, const std::string& observer) {
+      [](const WavelengthsArg& w, const std::string& kind, const IlluminantArg& ill, const std::string& observer) {
         const WavelengthGrid grid = grid_from(w, "wavelengths");
         const SpectrumToXyz t(grid, parse_kind(kind), illuminant_from(ill, grid), parse_observer(observer));
         return py::make_tuple(to_numpy(Eigen::MatrixXd(t.weights())), to_numpy(Eigen::VectorXd(t.white())));
@@ -358,7 +358,7 @@ void init_brdf(py::module_& m) {
       py::arg("observer") = "cie1931_2deg", "(W, white): XYZ = W @ spectrum (W is 3 x bands) and the scene white.");
   m.def(
       "spectra_to_xyz",
-      [](const py::object& spectra, const py::object& w, const std::string& kind, const py::object& ill,
+      [](const ArrayLike& spectra, const WavelengthsArg& w, const std::string& kind, const IlluminantArg& ill,
          const std::string& observer) {
         const WavelengthGrid grid = grid_from(w, "wavelengths");
         const SpectrumToXyz t(grid, parse_kind(kind), illuminant_from(ill, grid), parse_observer(observer));
@@ -380,7 +380,7 @@ void init_brdf(py::module_& m) {
       "perfect white has Y = 1) or radiance (a flat spectrum of 1 has Y = 1).");
   m.def(
       "xyz_to_srgb",
-      [](const py::object& xyz, const py::object& white, double exposure, const std::string& tone, bool adapt,
+      [](const ArrayLike& xyz, const OptArray& white, double exposure, const std::string& tone, bool adapt,
          bool desaturate) {
         std::vector<py::ssize_t> lead;
         const auto x = spectra_rows(xyz, 3, lead, "xyz_to_srgb");
@@ -402,7 +402,7 @@ void init_brdf(py::module_& m) {
       "XYZ), gamut mapping by desaturation. Returns (srgb8 uint8, linear float32), both (..., 3).");
   m.def(
       "spectra_to_srgb",
-      [](const py::object& spectra, const py::object& w, const std::string& kind, const py::object& ill,
+      [](const ArrayLike& spectra, const WavelengthsArg& w, const std::string& kind, const IlluminantArg& ill,
          double exposure, const std::string& tone, bool adapt, bool desaturate) {
         const WavelengthGrid grid = grid_from(w, "wavelengths");
         const SpectrumToXyz t(grid, parse_kind(kind), illuminant_from(ill, grid));

@@ -108,6 +108,39 @@ codec::Environment environment_from(const py::handle& env, const WavelengthGrid&
 /// Counts a commit made through this module (PyStore::get() then refreshes).
 void note_commit();
 
+// Arguments taken as Python objects and checked by the binding, named in signatures and docstrings by what they
+// accept (pybind would say `object`).
+inline bool any_object(PyObject*) { return true; }
+#define SPECULA_PY_ARG(Name) \
+  class Name : public py::object { \
+   public: \
+    PYBIND11_OBJECT_DEFAULT(Name, py::object, any_object) \
+  };
+SPECULA_PY_ARG(ArrayLike)
+SPECULA_PY_ARG(OptArray)
+SPECULA_PY_ARG(WavelengthsArg)
+SPECULA_PY_ARG(PathArg)
+SPECULA_PY_ARG(OptPath)
+SPECULA_PY_ARG(BasisArg)
+SPECULA_PY_ARG(OptBasis)
+SPECULA_PY_ARG(GridArg)
+SPECULA_PY_ARG(BrdfArg)
+SPECULA_PY_ARG(SpcData)
+SPECULA_PY_ARG(DTypeArg)
+SPECULA_PY_ARG(EnvArg)
+SPECULA_PY_ARG(IlluminantArg)
+SPECULA_PY_ARG(ImagesArg)
+SPECULA_PY_ARG(KArg)
+SPECULA_PY_ARG(OptFloat)
+SPECULA_PY_ARG(OptStr)
+SPECULA_PY_ARG(NamesArg)
+SPECULA_PY_ARG(CallbackArg)
+SPECULA_PY_ARG(StoresArg)
+SPECULA_PY_ARG(BasisResult)
+SPECULA_PY_ARG(ProjectResult)
+SPECULA_PY_ARG(OptArrayResult)
+#undef SPECULA_PY_ARG
+
 /// A numpy array of `shape` that takes ownership of `owner` (a heap object holding the data at `data`).
 template <class T, class Owner>
 py::array_t<T> adopt(std::unique_ptr<Owner> owner, const T* data, std::vector<py::ssize_t> shape) {
@@ -205,3 +238,33 @@ std::invoke_result_t<F&> interruptible(F&& f) {
 std::string python_command_line(const std::string& function);
 
 }  // namespace specula::python
+
+#define SPECULA_PY_ARG_NAME(Name, Text)                                                                  \
+  template <>                                                                                        \
+  struct pybind11::detail::handle_type_name<specula::python::Name> {                                 \
+    static constexpr auto name = const_name(Text);                                                   \
+  };
+SPECULA_PY_ARG_NAME(ArrayLike, "numpy.typing.ArrayLike")
+SPECULA_PY_ARG_NAME(OptArray, "numpy.typing.ArrayLike | None")
+SPECULA_PY_ARG_NAME(WavelengthsArg, "str | numpy.typing.ArrayLike")
+SPECULA_PY_ARG_NAME(PathArg, "str | os.PathLike[str]")
+SPECULA_PY_ARG_NAME(OptPath, "str | os.PathLike[str] | None")
+SPECULA_PY_ARG_NAME(BasisArg, "Basis")
+SPECULA_PY_ARG_NAME(OptBasis, "Basis | None")
+SPECULA_PY_ARG_NAME(GridArg, "Grid")
+SPECULA_PY_ARG_NAME(BrdfArg, "Grid | SpcBrdf | numpy.typing.ArrayLike")
+SPECULA_PY_ARG_NAME(SpcData, "bytes | str | os.PathLike[str]")
+SPECULA_PY_ARG_NAME(DTypeArg, "numpy.typing.DTypeLike | None")
+SPECULA_PY_ARG_NAME(EnvArg, "str | os.PathLike[str] | None")
+SPECULA_PY_ARG_NAME(IlluminantArg, "str | numpy.typing.ArrayLike")
+SPECULA_PY_ARG_NAME(ImagesArg, "str | Sequence[str] | None")
+SPECULA_PY_ARG_NAME(KArg, "int | Sequence[int] | None")
+SPECULA_PY_ARG_NAME(OptFloat, "float | None")
+SPECULA_PY_ARG_NAME(OptStr, "str | None")
+SPECULA_PY_ARG_NAME(NamesArg, "Sequence[str] | None")
+SPECULA_PY_ARG_NAME(CallbackArg, "Callable[[dict], None] | None")
+SPECULA_PY_ARG_NAME(StoresArg, "str | os.PathLike[str] | Store | Sequence[str | os.PathLike[str] | Store]")
+SPECULA_PY_ARG_NAME(BasisResult, "Basis")
+SPECULA_PY_ARG_NAME(ProjectResult, "dict[str, Any] | dict[int, dict[str, Any]]")
+SPECULA_PY_ARG_NAME(OptArrayResult, "numpy.ndarray | None")
+#undef SPECULA_PY_ARG_NAME

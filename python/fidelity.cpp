@@ -11,7 +11,7 @@ namespace specula::python {
 void init_fidelity(py::module_& m) {
   m.def(
       "compare_grids",
-      [](const py::object& a_arg, const py::object& b_arg, const py::object& env_arg, std::size_t size) {
+      [](const GridArg& a_arg, const GridArg& b_arg, const EnvArg& env_arg, std::size_t size) {
         const store::Grid& a = as<store::Grid>(a_arg, "compare_grids", "reference", "Grid");
         const store::Grid& b = as<store::Grid>(b_arg, "compare_grids", "grid", "Grid");
         if (size < 8 || size > 4096) throw UsageError(fmt::format("compare_grids: size {}: give 8 to 4096 pixels", size));

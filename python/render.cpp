@@ -22,7 +22,7 @@ namespace {
 constexpr std::uint8_t kBackground = 24;  // the CLI's background grey
 
 // .spc bytes from bytes-like data or a path, and the label messages about them start with.
-std::vector<std::uint8_t> spc_bytes(const py::object& data, std::string& label) {
+std::vector<std::uint8_t> spc_bytes(const SpcData& data, std::string& label) {
   if (py::isinstance<py::bytes>(data) || py::isinstance<py::bytearray>(data) || py::isinstance<py::memoryview>(data)) {
     const std::string s = py::bytes(data);
     label = "spc bytes";
@@ -69,8 +69,8 @@ Eigen::Vector3d light_direction(const std::pair<double, double>& light) {
   return {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)};
 }
 
-py::tuple render(const py::object& brdf, const std::pair<double, double>& light, const py::object& env_arg,
-                 std::size_t size, const py::object& illuminant, double exposure) {
+py::tuple render(const BrdfArg& brdf, const std::pair<double, double>& light, const EnvArg& env_arg,
+                 std::size_t size, const IlluminantArg& illuminant, double exposure) {
   if (!(std::abs(exposure) <= 64)) throw UsageError("render_sphere: exposure must be between -64 and 64 stops");
   const codec::SpcBrdf* spc = py::isinstance<codec::SpcBrdf>(brdf) ? &brdf.cast<const codec::SpcBrdf&>() : nullptr;
   const store::Grid* grid = py::isinstance<store::Grid>(brdf) ? &brdf.cast<const store::Grid&>() : nullptr;
@@ -145,7 +145,7 @@ void init_render(py::module_& m) {
   py::class_<codec::SpcBrdf>(m, "SpcBrdf",
                              "A .spc held in coefficient form (k floats per MERL cell) and evaluated at direction pairs "
                              "without decoding it to a grid, in the cell MERL's BRDFRead.cpp reads.")
-      .def(py::init([](const py::object& data) {
+      .def(py::init([](const SpcData& data) {
              std::string label;
              const std::vector<std::uint8_t> bytes = spc_bytes(data, label);
              py::gil_scoped_release release;
@@ -160,7 +160,7 @@ void init_render(py::module_& m) {
       .def_property_readonly("memory_bytes", &codec::SpcBrdf::memory_bytes)
       .def(
           "evaluate",
-          [](const codec::SpcBrdf& b, const py::object& wi_arg, const py::object& wo_arg) {
+          [](const codec::SpcBrdf& b, const ArrayLike& wi_arg, const ArrayLike& wo_arg) {
             std::vector<py::ssize_t> lead, lead_o;
             const FloatArray wi = directions(wi_arg, "wi", lead), wo = directions(wo_arg, "wo", lead_o);
             if (lead != lead_o) throw UsageError("SpcBrdf.evaluate: wi and wo must have the same shape");

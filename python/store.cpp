@@ -380,7 +380,7 @@ const store::Store& holding(const PyStore& ps, const std::string& kind, const st
                                   have.empty() ? "none" : have));
 }
 
-py::array_t<float> image_array(store::Cube&& c, const py::object& masked) {
+py::array_t<float> image_array(store::Cube&& c, const OptFloat& masked) {
   if (!masked.is_none()) {
     const float fill = masked.cast<float>();
     if (!c.mask.empty())
@@ -438,7 +438,7 @@ void init_store(py::module_& m) {
                       "through this module. `with Store(path, mode='a') as s:` is one transaction: committed on a "
                       "clean exit, abandoned (the store as it was) on an exception; writes outside `with` commit at "
                       "once.")
-      .def(py::init([](const py::object& path, const std::string& mode) { return PyStore(path_from(path), mode); }),
+      .def(py::init([](const PathArg& path, const std::string& mode) { return PyStore(path_from(path), mode); }),
            py::arg("path"), py::arg("mode") = "r")
       .def_property_readonly("path", [](const PyStore& s) { return s.path().string(); }, "The store's absolute path.")
       .def_property_readonly("mode", &PyStore::mode)
@@ -490,7 +490,7 @@ void init_store(py::module_& m) {
            },
            py::arg("name"), "Metadata of one object: a name, or kind/name when several kinds use it.")
       .def("image",
-           [](const PyStore& ps, const std::string& name, const py::object& masked) {
+           [](const PyStore& ps, const std::string& name, const OptFloat& masked) {
              const store::Store& s = holding(ps, "images", name);
              store::Cube c;
              {
@@ -514,7 +514,7 @@ void init_store(py::module_& m) {
            },
            py::arg("name"), "The mask of image `name` as (height, width) uint8, 1 = valid.")
       .def("image_and_mask",
-           [](const PyStore& ps, const std::string& name, const py::object& masked) {
+           [](const PyStore& ps, const std::string& name, const OptFloat& masked) {
              const store::Store& s = holding(ps, "images", name);
              store::Cube c;
              {
@@ -528,12 +528,12 @@ void init_store(py::module_& m) {
            },
            py::arg("name"), py::arg("masked") = py::none(), "(image, mask) read once.")
       .def("pixel",
-           [](const PyStore& ps, const std::string& name, std::size_t x, std::size_t y) -> py::object {
+           [](const PyStore& ps, const std::string& name, std::size_t x, std::size_t y) -> OptArrayResult {
              const store::Store& s = holding(ps, "images", name);
              const store::ImageInfo info = s.image_info(name);
              std::vector<float> v(info.bands);
-             if (!s.read_pixel(name, x, y, v)) return py::none();
-             return adopt(std::move(v), {py::ssize_t(info.bands)});
+             if (!s.read_pixel(name, x, y, v)) return OptArrayResult(py::none());
+             return OptArrayResult(adopt(std::move(v), {py::ssize_t(info.bands)}));
            },
            py::arg("name"), py::arg("x"), py::arg("y"), "The spectrum of pixel (x, y), or None when it is masked.")
       .def("collection",
@@ -575,7 +575,7 @@ void init_store(py::module_& m) {
            py::arg("name"), "BRDF grid `name` (a specula.Grid).")
       .def("basis",
            [](const PyStore& ps, const std::string& name) {
-             py::object b = py::cast(holding(ps, "bases", name).read_basis(name));
+             BasisResult b = py::cast(holding(ps, "bases", name).read_basis(name));
              b.attr("_origin") = ps.path().filename().string() + ":" + name;
              return b;
            },
@@ -602,8 +602,8 @@ void init_store(py::module_& m) {
            py::arg("name"), "The basis stored with coefficient map `name`.")
       .def(
           "blocks",
-          [](const PyStore& ps, const py::object& images, const std::string& collection, const std::string& samples,
-             const py::object& dtype, std::size_t min_block_pixels, std::optional<std::size_t> prefetch) {
+          [](const PyStore& ps, const ImagesArg& images, const std::string& collection, const std::string& samples,
+             const DTypeArg& dtype, std::size_t min_block_pixels, std::optional<std::size_t> prefetch) {
             const bool f64 = is_float64(dtype);
             const store::Store& s = ps.get();
             if (!collection.empty()) holding(ps, "collections", collection);

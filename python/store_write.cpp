@@ -28,14 +28,21 @@ void write(PyStore& ps, bool replace, F&& add) {
       py::gil_scoped_release release;
       ps.commit_single();
     }
+  } catch (const InputError& e) {
+    if (now) ps.abandon_single();
+    const std::string msg = e.what();
+    const std::string library_fix = "allow replacing it";
+    if (msg.find("exists already") == std::string::npos || !msg.ends_with(library_fix)) throw;
+    throw InputError(ps.path().string() + msg.substr(msg.find(':'), msg.size() - msg.find(':') - library_fix.size()) +
+                     "give replace=True");
   } catch (...) {
     if (now) ps.abandon_single();
     throw;
   }
 }
 
-void write_image(PyStore& ps, const std::string& name, const py::object& cube_arg, const py::object& wavelengths,
-                 const py::object& mask_arg, const std::string& units, const py::object& fwhm_arg, bool replace,
+void write_image(PyStore& ps, const std::string& name, const ArrayLike& cube_arg, const WavelengthsArg& wavelengths,
+                 const OptArray& mask_arg, const std::string& units, const OptArray& fwhm_arg, bool replace,
                  const std::string& source) {
   store::validate_name(name, "image");
   const auto cube = FloatArray::ensure(cube_arg);
@@ -45,7 +52,7 @@ void write_image(PyStore& ps, const std::string& name, const py::object& cube_ar
   const WavelengthGrid grid = grid_from(wavelengths, "write_image wavelengths");
   if (grid.size() != b)
     throw UsageError(fmt::format("write_image: {}: {} wavelengths for a cube of {} bands", name, grid.size(), b));
-  U8Array mask;
+  U8Array mask;  // read only when mask_arg is given (a default array_t is an empty array, not a null one)
   if (!mask_arg.is_none()) {
     mask = U8Array::ensure(mask_arg);
     if (!mask || mask.ndim() != 2 || std::size_t(mask.shape(0)) != h || std::size_t(mask.shape(1)) != w)
@@ -62,7 +69,7 @@ void write_image(PyStore& ps, const std::string& name, const py::object& cube_ar
     const std::size_t strip =
         writer.create_image(name, h, w, grid, fwhm, units, python_provenance("Store.write_image", source));
     const float* data = cube.data();
-    const std::uint8_t* m = mask ? mask.data() : nullptr;
+    const std::uint8_t* m = mask_arg.is_none() ? nullptr : mask.data();
     for (std::size_t y = 0; y < h; y += strip) {
       const std::size_t rows = std::min(strip, h - y);
       writer.write_image_rows(name, y, rows, std::span(data + y * w * b, rows * w * b),
@@ -71,8 +78,8 @@ void write_image(PyStore& ps, const std::string& name, const py::object& cube_ar
   });
 }
 
-void write_collection(PyStore& ps, const std::string& name, const py::object& spectra_arg, const py::object& wavelengths,
-                      const py::object& names_arg, const std::string& units, bool replace, const std::string& source) {
+void write_collection(PyStore& ps, const std::string& name, const ArrayLike& spectra_arg, const WavelengthsArg& wavelengths,
+                      const NamesArg& names_arg, const std::string& units, bool replace, const std::string& source) {
   store::validate_name(name, "collection");
   const auto spectra = FloatArray::ensure(spectra_arg);
   if (!spectra || spectra.ndim() != 2)
@@ -118,7 +125,7 @@ void init_store_write(py::module_& m) {
            "Writes collection `name`: (size, bands) spectra, their names (default '0', '1', ...).")
       .def(
           "write_basis",
-          [](PyStore& ps, const std::string& name, const py::object& basis, bool replace) {
+          [](PyStore& ps, const std::string& name, const BasisArg& basis, bool replace) {
             store::validate_name(name, "basis");
             store::Basis b = as<store::Basis>(basis, "write_basis", "basis", "Basis");
             if (b.provenance.importer.empty()) b.provenance = python_provenance("Store.write_basis", "");
@@ -130,7 +137,7 @@ void init_store_write(py::module_& m) {
           py::arg("name"), py::arg("basis"), py::arg("replace") = false, "Writes a specula.Basis as basis `name`.")
       .def(
           "write_grid",
-          [](PyStore& ps, const std::string& name, const py::object& grid, bool replace) {
+          [](PyStore& ps, const std::string& name, const GridArg& grid, bool replace) {
             store::validate_name(name, "grid");
             store::Grid g = as<store::Grid>(grid, "write_grid", "grid", "Grid");
             if (g.provenance.importer.empty()) g.provenance = python_provenance("Store.write_grid", "");
