@@ -134,3 +134,22 @@ def test_float32_in_float32_out(db):
     r32, r64 = specula.project(basis, x, k=3), specula.project(basis, x.astype(np.float64), k=3)
     assert r32["coefficients"].dtype == np.float32 and r64["coefficients"].dtype == np.float64
     np.testing.assert_allclose(r32["reconstruction"], r64["reconstruction"], rtol=1e-6, atol=1e-6)
+
+
+def test_to_xarray_has_wavelength_coordinates(tmp_path):
+    xr = pytest.importorskip("xarray")
+    path = tmp_path / "w.h5"
+    cube, mask = cube_and_mask(6)
+    with specula.Store(path, mode="a") as s:
+        s.write_image("scene", cube, NM, mask=mask, units="reflectance")
+        s.write_collection("chips", cube[1], NM, names=[f"c{i}" for i in range(cube.shape[1])])
+    da = s.to_xarray("scene")
+    assert isinstance(da, xr.DataArray) and da.dims == ("y", "x", "wavelength") and da.attrs["units"] == "reflectance"
+    np.testing.assert_array_equal(da["wavelength"].values, NM)
+    np.testing.assert_array_equal(da.sel(wavelength=550).values[mask], cube[..., 15][mask])
+    assert np.isnan(da.values[~mask]).all()
+    c = s.to_xarray("chips")
+    assert c.dims == ("spectrum", "wavelength") and list(c["spectrum"].values[:2]) == ["c0", "c1"]
+    np.testing.assert_array_equal(c.values, cube[1])
+    g = specula.Grid([400, 500], np.full((2, 90, 90, 180), -1, np.float32), scale=2.0)
+    assert np.isnan(g.to_xarray().values).all()
