@@ -89,6 +89,13 @@ class PyStore {
   void commit_single();
   /// Abandons a writer made for a single write (its files are reclaimed later).
   void abandon_single() { single_.reset(); }
+  /// Releases the open state (file handles) and abandons an open transaction; later calls reopen the store.
+  void close() {
+    tx_.reset();
+    single_.reset();
+    depth_ = 0;
+    snapshot_.reset();
+  }
   void enter();
   void exit(bool commit);
   bool in_transaction() const { return bool(tx_); }

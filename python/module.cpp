@@ -166,7 +166,7 @@ void PyStore::enter() {
 }
 
 void PyStore::exit(bool commit) {
-  if (mode_ != "a" || --depth_ > 0) return;
+  if (mode_ != "a" || (depth_ > 0 && --depth_ > 0)) return;  // depth 0: close() ended the block's transaction
   std::unique_ptr<store::StoreWriter> w = std::move(tx_);
   if (commit && w) {
     w->commit();

@@ -475,7 +475,9 @@ void init_store(py::module_& m) {
              return false;
            },
            py::arg("exc_type"), py::arg("exc_value"), py::arg("traceback"))
-      .def("close", [](PyStore&) {}, "Nothing to release beyond what garbage collection does (kept for symmetry).")
+      .def("close", &PyStore::close,
+           "Closes the store's files and abandons an open transaction (nothing of it is committed); a later call "
+           "reopens the store. Blocks already made keep their own state.")
       .def("info",
            [](const PyStore& ps, const std::string& spec) -> py::dict {
              const store::Store& s = ps.get();

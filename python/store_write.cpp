@@ -66,8 +66,10 @@ void write_image(PyStore& ps, const std::string& name, const ArrayLike& cube_arg
   }
   write(ps, replace, [&](store::StoreWriter& writer) {
     py::gil_scoped_release release;
-    const std::size_t strip =
+    const std::size_t chunk =
         writer.create_image(name, h, w, grid, fwhm, units, python_provenance("Store.write_image", source));
+    // Strips of whole chunks, about 64 MiB: the chunks of a strip are compressed in parallel.
+    const std::size_t strip = chunk * std::max<std::size_t>(1, (std::size_t{64} << 20) / (chunk * w * b * sizeof(float)));
     const float* data = cube.data();
     const std::uint8_t* m = mask_arg.is_none() ? nullptr : mask.data();
     for (std::size_t y = 0; y < h; y += strip) {

@@ -82,6 +82,10 @@ def test_an_exception_rolls_the_transaction_back(tmp_path):
     assert specula.Store(path).images == ["kept"] and s.images == ["kept"]
     with h5py.File(path, "r") as f:
         assert list(f["images"].keys()) == ["kept"]
+    with s:
+        s.write_image("abandoned", cube, NM)
+        s.close()  # abandons the transaction; the block's end then has nothing to commit
+    assert s.images == ["kept"]
     bad = cube.copy()
     bad[0, 0, 0] = np.inf
     with pytest.raises(specula.InputError):
