@@ -75,9 +75,9 @@ def test_spc_brdf_evaluates_what_decoding_and_lookup_give(spgrid):
 
 def test_target_encoding_matches_the_cli_and_compare_grids(spgrid, tmp_path):
     g = specula.read_spgrid(spgrid)
-    data, report = specula.spc_encode(g, k=3, target_de00=1.0, trials=6)
+    data, report = specula.spc_encode(g, k=3, target_de00=1.0, trials=3)
     out = tmp_path / "cli.spc"
-    r = cli("encode", spgrid, "--basis", "self", "-k", 3, "--target-de00", 1.0, "--trials", 6, "-o", out, "--json")
+    r = cli("encode", spgrid, "--basis", "self", "-k", 3, "--target-de00", 1.0, "--trials", 3, "-o", out, "--json")
     want = json.loads(r.stdout)
     for key in ("method", "format_version", "step", "basis", "k", "input_bytes", "output_bytes", "valid_cells",
                 "rms_error", "max_abs_error", "magnitude_scale"):
