@@ -34,6 +34,7 @@ using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>
 
 void init_store(py::module_& m);
 void init_store_write(py::module_& m);
+void init_blocks(py::module_& m);
 void init_analysis(py::module_& m);
 void init_brdf(py::module_& m);
 void init_render(py::module_& m);
@@ -111,6 +112,12 @@ class PyStore {
 
 /// The lighting `env` names on `grid`: "default" (codec::default_environment) or a lat-long EXR path.
 codec::Environment environment_from(const py::handle& env, const WavelengthGrid& grid);
+
+/// The names of objects of `kind` (a plural group name: images, bases, ...) in s.
+std::vector<std::string> names_of(const store::Store& s, const std::string& kind);
+/// The store's current state; MissingObject (a KeyError) naming the store's full path and what it holds when it has
+/// no `kind` (plural) called `name`.
+const store::Store& holding(const PyStore& ps, const std::string& kind, const std::string& name);
 
 /// Counts a commit made through this module (PyStore::get() then refreshes).
 void note_commit();

@@ -255,6 +255,7 @@ PYBIND11_MODULE(_specula, m) {
   });
   sp::init_store(m);
   sp::init_store_write(m);
+  sp::init_blocks(m);
   sp::init_analysis(m);
   sp::init_brdf(m);
   sp::init_render(m);
