@@ -18,7 +18,7 @@ namespace specula::python {
 namespace {
 
 // The store a basis is saved in: `output` when given, else the first input store (as the CLI's basis_output).
-std::filesystem::path output_store(const std::vector<store::Store>& stores, const py::object& output) {
+std::filesystem::path output_store(const std::vector<store::Store>& stores, const OptPath& output) {
   if (output.is_none()) return stores.front().path();
   return py::module_::import("os").attr("fspath")(output).cast<std::string>();
 }
@@ -26,24 +26,28 @@ std::filesystem::path output_store(const std::vector<store::Store>& stores, cons
 void save_basis_released(const std::filesystem::path& out, const std::string& name, const store::Basis& basis, bool replace,
                          const std::string& function) {
   py::gil_scoped_release release;
-  store::save_basis(out, name, basis, replace, python_command_line(function));
+  try {
+    store::save_basis(out, name, basis, replace, python_command_line(function));
+  } catch (const InputError& e) {
+    if (std::string(e.what()).find("exists already") == std::string::npos) throw;
+    throw InputError(fmt::format("{}: basis '{}' exists already; choose another name or give replace=True", out.string(), name));
+  }
+  note_commit();
 }
 
-py::object optional_vector(const Eigen::VectorXd& v) {
-  if (v.size() == 0) return py::none();
-  return to_numpy(v);
-}
-
-py::object optional_matrix(const Eigen::MatrixXd& m) {
-  if (m.size() == 0) return py::none();
-  return to_numpy(m);
+// A basis saved as `name` in the store at `path`, knowing where it lives (its `origin`, the reference .spc files
+// coded on it record, as `specula encode` names it).
+BasisResult with_origin(store::Basis&& b, const std::filesystem::path& path, const std::string& name) {
+  BasisResult o = py::cast(std::move(b));
+  o.attr("_origin") = path.filename().string() + ":" + name;
+  return o;
 }
 
 // Projection of spectra (..., B) onto the first k components of a PCA basis or all of an NMF basis by the
 // projector `specula project` uses (stats/project.h), with the per-spectrum L2 error, rms and max_error over the
 // spectra the mask keeps.
-py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, const py::object& k_arg,
-                     const py::object& mask_arg) {
+py::dict project_one(const store::Basis& basis, const ArrayLike& spectra_arg, const py::object& k_arg,
+                     const OptArray& mask_arg) {
   if (k_arg.is_none() && stats::basis_method(basis) == stats::BasisMethod::pca)
     throw UsageError("project: k is required with a PCA basis (the number of leading components, e.g. 6)");
   const stats::Projector projector(basis, k_arg.is_none() ? std::nullopt : std::optional<long long>(k_arg.cast<long long>()));
@@ -78,10 +82,12 @@ py::dict project_one(const store::Basis& basis, const py::object& spectra_arg, c
   cshape.push_back(py::ssize_t(k));
   rshape.push_back(py::ssize_t(b));
   py::dict out;
+  // float32 spectra give float32 results (computed in float64).
+  const bool f32 = is_float32(spectra_arg);
   out["k"] = k;
-  out["coefficients"] = adopt(std::move(coef), cshape);
-  out["reconstruction"] = adopt(std::move(recon), rshape);
-  out["error"] = adopt(std::move(error), lead);
+  out["coefficients"] = as_dtype(adopt(std::move(coef), cshape), f32);
+  out["reconstruction"] = as_dtype(adopt(std::move(recon), rshape), f32);
+  out["error"] = as_dtype(adopt(std::move(error), lead), f32);
   out["rms"] = summary.rms(std::size_t(b));
   out["max_error"] = summary.max_error;
   return out;
@@ -120,11 +126,11 @@ py::dict nmf_report(const nmf::NmfResult& r) {
 
 // specula.Basis: a learned basis made in Python or read from a store, its arrays as numpy.
 void init_basis(py::module_& m) {
-  py::class_<store::Basis>(m, "Basis",
+  py::class_<store::Basis>(m, "Basis", py::dynamic_attr(),
                            "A learned spectral basis: components are rows (k x bands); PCA bases carry mean, "
                            "eigenvalues, explained variance, covariance; NMF bases weights.")
-      .def(py::init([](const std::string& method, const py::object& wavelengths, const py::object& components,
-                       const py::object& mean, const py::object& weights) {
+      .def(py::init([](const std::string& method, const WavelengthsArg& wavelengths, const ArrayLike& components,
+                       const OptArray& mean, const OptArray& weights) {
              store::Basis b;
              if (method != "pca" && method != "nmf")
                throw UsageError(fmt::format("Basis: method '{}': give pca or nmf", method));
@@ -149,14 +155,46 @@ void init_basis(py::module_& m) {
       .def_property_readonly("k", &store::Basis::k)
       .def_property_readonly("bands", &store::Basis::bands)
       .def_property_readonly("wavelengths", [](const store::Basis& b) { return wavelengths_array(b.wavelengths); })
-      .def_property_readonly("components", [](const store::Basis& b) { return to_numpy(b.components); })
-      .def_property_readonly("mean", [](const store::Basis& b) { return optional_vector(b.mean); })
-      .def_property_readonly("eigenvalues", [](const store::Basis& b) { return optional_vector(b.eigenvalues); })
+      .def_property_readonly("components", [](py::object b) { return view(b.cast<const store::Basis&>().components, b); },
+                             "The components as rows (k, bands): a read-only view.")
+      .def_property_readonly("mean", [](py::object b) { return view(b.cast<const store::Basis&>().mean, b); })
+      .def_property_readonly("eigenvalues", [](py::object b) { return view(b.cast<const store::Basis&>().eigenvalues, b); })
       .def_property_readonly("explained_variance_ratio",
-                             [](const store::Basis& b) { return optional_vector(b.explained_variance_ratio); })
-      .def_property_readonly("covariance", [](const store::Basis& b) { return optional_matrix(b.covariance); })
-      .def_property_readonly("second_moment", [](const store::Basis& b) { return optional_matrix(b.second_moment); })
-      .def_property_readonly("weights", [](const store::Basis& b) { return optional_vector(b.weights); })
+                             [](py::object b) { return view(b.cast<const store::Basis&>().explained_variance_ratio, b); })
+      .def_property_readonly("covariance", [](py::object b) { return view(b.cast<const store::Basis&>().covariance, b); })
+      .def_property_readonly("second_moment",
+                             [](py::object b) { return view(b.cast<const store::Basis&>().second_moment, b); })
+      .def_property_readonly("weights", [](py::object b) { return view(b.cast<const store::Basis&>().weights, b); })
+      .def(py::pickle(
+          [](const py::object& self) {
+            const auto& b = self.cast<const store::Basis&>();
+            const auto& p = b.provenance;
+            return py::make_tuple(self.attr("__dict__"), b.method, wavelengths_array(b.wavelengths), b.n, to_numpy(b.mean), to_numpy(b.components),
+                                  to_numpy(b.eigenvalues), to_numpy(b.explained_variance_ratio), to_numpy(b.covariance),
+                                  to_numpy(b.second_moment), to_numpy(b.weights), b.source,
+                                  py::make_tuple(p.source_file, p.importer, p.command_line, p.created_utc));
+          },
+          [](py::tuple state) {
+            if (state.size() != 13) throw UsageError("Basis: not a pickled specula.Basis");
+            const py::dict attributes = state[0];
+            const py::tuple t = state[py::slice(1, 13, 1)];
+            store::Basis b;
+            b.method = t[0].cast<std::string>();
+            b.wavelengths = grid_from(t[1], "Basis wavelengths");
+            b.n = t[2].cast<std::uint64_t>();
+            b.mean = vector_from(t[3], "Basis mean");
+            b.components = matrix_from(t[4], "Basis components");
+            b.eigenvalues = vector_from(t[5], "Basis eigenvalues");
+            b.explained_variance_ratio = vector_from(t[6], "Basis explained_variance_ratio");
+            b.covariance = matrix_from(t[7], "Basis covariance");
+            b.second_moment = matrix_from(t[8], "Basis second_moment");
+            b.weights = vector_from(t[9], "Basis weights");
+            b.source = t[10].cast<std::string>();
+            const auto p = t[11].cast<py::tuple>();
+            b.provenance = {p[0].cast<std::string>(), p[1].cast<std::string>(), p[2].cast<std::string>(),
+                            p[3].cast<std::string>()};
+            return std::make_pair(std::move(b), attributes);
+          }))
       .def("__repr__", [](const store::Basis& b) {
         return fmt::format("<specula.Basis {} k={} {} n={}>", b.method, b.k(), b.wavelengths.describe(), b.n);
       });
@@ -169,15 +207,16 @@ void init_analysis(py::module_& m) {
 
   m.def(
       "pca",
-      [](const py::object& stores_arg, const py::object& images, const std::string& collection, std::size_t k,
-         const py::object& name, const py::object& output, bool replace) {
+      [](const StoresArg& stores_arg, const ImagesArg& images, const std::string& collection, std::size_t k,
+         const OptStr& name, const OptPath& output, bool replace) -> BasisResult {
         const std::vector<store::Store> stores = stores_from(stores_arg);
         if (!name.is_none()) store::validate_name(name.cast<std::string>(), "basis");
         const std::filesystem::path out = output_store(stores, output);
         const store::Selection sel{.image_globs = globs_from(images), .collection = collection};
         store::Basis basis = interruptible([&] { return stats::learn_pca(stores, sel, k).basis; });
-        if (!name.is_none()) save_basis_released(out, name.cast<std::string>(), basis, replace, "pca");
-        return basis;
+        if (name.is_none()) return BasisResult(py::cast(std::move(basis)));
+        save_basis_released(out, name.cast<std::string>(), basis, replace, "pca");
+        return with_origin(std::move(basis), out, name.cast<std::string>());
       },
       py::arg("stores"), py::arg("images") = py::none(), py::arg("collection") = "", py::arg("k") = 0,
       py::arg("name") = py::none(), py::arg("output") = py::none(), py::arg("replace") = false,
@@ -187,11 +226,11 @@ void init_analysis(py::module_& m) {
 
   m.def(
       "nmf",
-      [](const py::object& stores_arg, std::size_t k, const py::object& images, const std::string& collection,
+      [](const StoresArg& stores_arg, std::size_t k, const ImagesArg& images, const std::string& collection,
          const std::string& init, std::uint64_t seed, std::size_t restarts, std::size_t max_epochs,
-         std::size_t wave_blocks, double tol, const std::string& negatives, const py::object& name,
-         const py::object& output, const py::object& checkpoint, bool resume, bool replace,
-         const py::object& on_epoch) {
+         std::size_t wave_blocks, double tol, const std::string& negatives, const OptStr& name,
+         const OptPath& output, const OptPath& checkpoint, bool resume, bool replace,
+         const CallbackArg& on_epoch) {
         const std::vector<store::Store> stores = stores_from(stores_arg);
         const std::optional<std::string> save = name.is_none() ? std::nullopt : std::optional(name.cast<std::string>());
         if (save) store::validate_name(*save, "basis");
@@ -231,7 +270,7 @@ void init_analysis(py::module_& m) {
           std::error_code ec;
           std::filesystem::remove(opt.checkpoint, ec);
         }
-        return py::make_tuple(basis, nmf_report(r));
+        return py::make_tuple(save ? with_origin(store::Basis(basis), out, *save) : py::cast(basis), nmf_report(r));
       },
       py::arg("stores"), py::arg("k"), py::arg("images") = py::none(), py::arg("collection") = "",
       py::arg("init") = "nndsvd", py::arg("seed") = 0, py::arg("restarts") = 1, py::arg("max_epochs") = 100,
@@ -244,16 +283,17 @@ void init_analysis(py::module_& m) {
 
   m.def(
       "project",
-      [](const store::Basis& basis, const py::object& spectra, const py::object& k, const py::object& mask) -> py::object {
+      [](const BasisArg& basis_arg, const ArrayLike& spectra, const KArg& k, const OptArray& mask) -> ProjectResult {
+        const store::Basis& basis = as<store::Basis>(basis_arg, "project", "basis", "Basis");
         if (py::isinstance<py::list>(k) || py::isinstance<py::tuple>(k)) {
           py::dict out;  // several k, as the CLI's -k 1,3,6,31
           for (const auto& one : k) out[one] = project_one(basis, spectra, py::reinterpret_borrow<py::object>(one), mask);
-          return out;
+          return ProjectResult(std::move(out));
         }
-        return project_one(basis, spectra, k, mask);
+        return ProjectResult(project_one(basis, spectra, k, mask));
       },
       py::arg("basis"), py::arg("spectra"), py::arg("k") = py::none(), py::arg("mask") = py::none(),
-      "Projects spectra (any shape ending in bands) onto a basis as `specula project` does: the first k components of "
+      "Projects spectra (any shape ending in bands; float32 in, float32 out) onto a basis as `specula project` does: the first k components of "
       "a PCA basis (eqs 7.2-7.3) or NNLS on every component of an NMF basis. Returns a dict: coefficients, "
       "reconstruction, error (per-spectrum L2), rms (per band, over spectra the mask keeps) and max_error; with a list of "
       "k (PCA), a dict of those dicts by k.");

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spectral_grid.h"
@@ -13,6 +14,7 @@
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
 #include "specula/core/illuminant.h"
+#include "specula/core/preview.h"
 #include "python/common.h"
 
 namespace specula::python {
@@ -20,12 +22,24 @@ namespace {
 
 constexpr py::ssize_t kDims[3] = {brdf::kMerlThetaH, brdf::kMerlThetaD, brdf::kMerlPhiD};
 
-std::string fspath(const py::object& p) { return py::module_::import("os").attr("fspath")(p).cast<std::string>(); }
-
-// The grid's values as a (bands, 90, 90, 180) float32 view that keeps the Grid alive.
+// The grid's values as a read-only (bands, 90, 90, 180) float32 view that keeps the Grid alive.
 py::array grid_values(py::object self) {
   auto& g = self.cast<store::Grid&>();
-  return py::array_t<float>({py::ssize_t(g.bands()), kDims[0], kDims[1], kDims[2]}, g.brdf.data(), self);
+  return readonly(py::array_t<float>({py::ssize_t(g.bands()), kDims[0], kDims[1], kDims[2]}, g.brdf.data(), self));
+}
+
+// A grid from wavelengths and (bands, 90, 90, 180) values.
+store::Grid make_grid(const py::handle& wavelengths, const py::handle& values, double scale, const std::string& units) {
+  store::Grid g;
+  g.wavelengths = grid_from(wavelengths, "Grid wavelengths");
+  const auto v = FloatArray::ensure(values);
+  if (!v || v.ndim() != 4 || std::size_t(v.shape(0)) != g.bands() || v.shape(1) != kDims[0] || v.shape(2) != kDims[1] ||
+      v.shape(3) != kDims[2])
+    throw UsageError(fmt::format("Grid: values must be ({}, 90, 90, 180)", g.bands()));
+  g.brdf.assign(v.data(), v.data() + v.size());
+  g.scale = scale;
+  g.units = units;
+  return g;
 }
 
 Observer parse_observer(const std::string& s) {
@@ -40,7 +54,7 @@ SpectrumKind parse_kind(const std::string& s) {
   throw UsageError(fmt::format("kind '{}': give reflectance or radiance", s));
 }
 
-Eigen::VectorXd illuminant_from(const py::object& ill, const WavelengthGrid& grid) {
+Eigen::VectorXd illuminant_from(const IlluminantArg& ill, const WavelengthGrid& grid) {
   if (py::isinstance<py::str>(ill)) return parse_illuminant(ill.cast<std::string>(), grid);
   Eigen::VectorXd v = vector_from(ill, "illuminant");
   if (std::size_t(v.size()) != grid.size())
@@ -55,12 +69,6 @@ DoubleArray spectra_rows(const py::object& a, std::size_t bands, std::vector<py:
     throw UsageError(fmt::format("{}: spectra must be an array whose last axis has the {} wavelengths", fn, bands));
   lead.assign(arr.shape(), arr.shape() + arr.ndim() - 1);
   return arr;
-}
-
-ToneMap parse_tone(const std::string& s) {
-  if (s == "clip") return ToneMap::clip;
-  if (s == "reinhard") return ToneMap::reinhard;
-  throw UsageError(fmt::format("tone '{}': give clip or reinhard", s));
 }
 
 // XYZ rows -> (sRGB8, linear RGB) through core's display pipeline.
@@ -84,33 +92,40 @@ void init_brdf(py::module_& m) {
   py::class_<store::Grid>(m, "Grid",
                           "A spectral BRDF on the MERL grid: values (bands, 90 theta_h, 90 theta_d, 180 phi_d) float32; "
                           "value * scale is in 1/sr; a negative value means no data.")
-      .def(py::init([](const py::object& wavelengths, const py::object& values, double scale, const std::string& units) {
-             store::Grid g;
-             g.wavelengths = grid_from(wavelengths, "Grid wavelengths");
-             const auto v = FloatArray::ensure(values);
-             if (!v || v.ndim() != 4 || std::size_t(v.shape(0)) != g.bands() || v.shape(1) != kDims[0] ||
-                 v.shape(2) != kDims[1] || v.shape(3) != kDims[2])
-               throw UsageError(fmt::format("Grid: values must be ({}, 90, 90, 180)", g.bands()));
-             g.brdf.assign(v.data(), v.data() + v.size());
-             g.scale = scale;
-             g.units = units;
-             return g;
-           }),
-           py::arg("wavelengths"), py::arg("values"), py::arg("scale") = 1.0, py::arg("units") = "1/sr")
+      .def(py::init(&make_grid), py::arg("wavelengths"), py::arg("values"), py::arg("scale") = 1.0,
+           py::arg("units") = "1/sr")
       .def_property_readonly("values", &grid_values)
       .def_property_readonly("wavelengths", [](const store::Grid& g) { return wavelengths_array(g.wavelengths); })
       .def_property_readonly("bands", &store::Grid::bands)
       .def_readwrite("scale", &store::Grid::scale)
       .def_readonly("units", &store::Grid::units)
+      .def_property_readonly("source", [](const store::Grid& g) { return g.provenance.source_file; },
+                             "What the grid was made from, as its provenance records it.")
+      .def(py::pickle(
+          [](const store::Grid& g) {
+            const auto& p = g.provenance;
+            return py::make_tuple(wavelengths_array(g.wavelengths),
+                                  py::array_t<float>({py::ssize_t(g.bands()), kDims[0], kDims[1], kDims[2]}, g.brdf.data()),
+                                  g.scale, g.units, py::make_tuple(p.source_file, p.importer, p.command_line, p.created_utc));
+          },
+          [](const py::tuple& t) {
+            if (t.size() != 5) throw UsageError("Grid: not a pickled specula.Grid");
+            store::Grid g = make_grid(t[0], t[1], t[2].cast<double>(), t[3].cast<std::string>());
+            const auto p = t[4].cast<py::tuple>();
+            g.provenance = {p[0].cast<std::string>(), p[1].cast<std::string>(), p[2].cast<std::string>(),
+                            p[3].cast<std::string>()};
+            return g;
+          }))
       .def("__repr__",
            [](const store::Grid& g) { return fmt::format("<specula.Grid {} scale={}>", g.wavelengths.describe(), g.scale); });
 
-  m.def("read_spgrid", [](const py::object& p) { return codec::read_grid_file(fspath(p)); }, py::arg("path"),
+  m.def("read_spgrid", [](const PathArg& p) { return codec::read_grid_file(existing_file(p)); }, py::arg("path"),
         "Reads a grid exchange file (.spgrid, docs/grid-format.md).");
   m.def(
       "write_spgrid",
-      [](const py::object& p, const store::Grid& g) {
-        const std::string path = fspath(p);
+      [](const PathArg& p, const GridArg& grid) {
+        const store::Grid& g = as<store::Grid>(grid, "write_spgrid", "grid", "Grid");
+        const std::filesystem::path path = path_from(p);
         py::gil_scoped_release release;
         codec::write_grid_file(path, g);
       },
@@ -119,8 +134,8 @@ void init_brdf(py::module_& m) {
   m.attr("MERL_SCALE") = py::make_tuple(codec::kMerlScale[0], codec::kMerlScale[1], codec::kMerlScale[2]);
   m.def(
       "read_merl",
-      [](const py::object& p, bool scaled) {
-        codec::MerlBrdf b = codec::read_merl(fspath(p));
+      [](const PathArg& p, bool scaled) {
+        codec::MerlBrdf b = codec::read_merl(existing_file(p));
         if (scaled)
           for (int c = 0; c < 3; ++c)
             for (std::size_t i = 0; i < brdf::kMerlCells; ++i) {
@@ -134,7 +149,7 @@ void init_brdf(py::module_& m) {
       "BRDF in 1/sr (stored value times MERL_SCALE; no-data cells keep their negative value).");
   m.def(
       "write_merl",
-      [](const py::object& p, const py::object& values, bool scaled) {
+      [](const PathArg& p, const ArrayLike& values, bool scaled) {
         const auto v = DoubleArray::ensure(values);
         if (!v || v.size() != py::ssize_t(3 * brdf::kMerlCells))
           throw UsageError("write_merl: values must be (3, 90, 90, 180)");
@@ -146,7 +161,7 @@ void init_brdf(py::module_& m) {
               double& x = b.raw[std::size_t(c) * brdf::kMerlCells + i];
               if (x >= 0) x /= codec::kMerlScale[std::size_t(c)];
             }
-        const std::string path = fspath(p);
+        const std::filesystem::path path = path_from(p);
         py::gil_scoped_release release;
         codec::write_merl(path, b);
       },
@@ -155,7 +170,7 @@ void init_brdf(py::module_& m) {
 
   m.def(
       "merl_index",
-      [](const py::object& ti, const py::object& pi, const py::object& to, const py::object& po) {
+      [](const ArrayLike& ti, const ArrayLike& pi, const ArrayLike& to, const ArrayLike& po) {
         const auto a = DoubleArray::ensure(ti), b = DoubleArray::ensure(pi), c = DoubleArray::ensure(to),
                    d = DoubleArray::ensure(po);
         if (!a || !b || !c || !d || a.size() != b.size() || a.size() != c.size() || a.size() != d.size())
@@ -178,7 +193,8 @@ void init_brdf(py::module_& m) {
       "The MERL cell (linear index, phi_d fastest) that BRDFRead.cpp reads for each set of standard angles (radians).");
   m.def(
       "brdf_lookup",
-      [](const store::Grid& g, const py::object& ti, const py::object& pi, const py::object& to, const py::object& po) {
+      [](const GridArg& grid, const ArrayLike& ti, const ArrayLike& pi, const ArrayLike& to, const ArrayLike& po) {
+        const store::Grid& g = as<store::Grid>(grid, "brdf_lookup", "grid", "Grid");
         const auto a = DoubleArray::ensure(ti), b = DoubleArray::ensure(pi), c = DoubleArray::ensure(to),
                    d = DoubleArray::ensure(po);
         if (!a || !b || !c || !d || a.size() != b.size() || a.size() != c.size() || a.size() != d.size())
@@ -201,56 +217,102 @@ void init_brdf(py::module_& m) {
             }
           }
         }
-        return adopt(std::move(out), shape);
+        return as_dtype(adopt(std::move(out), shape), is_float32(ti));
       },
       py::arg("grid"), py::arg("theta_i"), py::arg("phi_i"), py::arg("theta_o"), py::arg("phi_o"),
       "The grid's BRDF (1/sr) at arrays of standard angles (radians), in the cell BRDFRead.cpp reads: shape of the "
-      "angles + (bands,), NaN where the cell holds no data.");
+      "angles + (bands,), NaN where the cell holds no data; float32 angles give float32 values.");
 
   m.def(
       "spc_encode",
-      [](const store::Grid& grid, const std::optional<store::Basis>& basis, std::size_t k, std::size_t extra,
-         double max_error, double magnitude_scale, int zstd_level, const std::string& reference) {
-        codec::SpcReport rep;
-        std::vector<std::uint8_t> bytes;
+      [](const GridArg& grid_arg, const OptBasis& basis_arg, std::size_t k, std::size_t extra, double max_error,
+         double magnitude_scale, int zstd_level, const OptStr& reference, std::optional<double> step,
+         std::optional<double> target_de00, std::optional<double> target_p95, int trials, const EnvArg& env_arg) {
+        const store::Grid& grid = as<store::Grid>(grid_arg, "spc_encode", "grid", "Grid");
+        if (step && target_de00) throw UsageError("spc_encode: give step or target_de00, not both");
+        if (target_p95 && !target_de00) throw UsageError("spc_encode: target_p95 goes with target_de00");
+        std::optional<store::Basis> basis;
         std::string ref;
+        if (!basis_arg.is_none()) {
+          basis = as<store::Basis>(basis_arg, "spc_encode", "basis", "Basis");
+          if (!reference.is_none()) ref = reference.cast<std::string>();
+          else if (py::hasattr(basis_arg, "_origin")) ref = basis_arg.attr("_origin").cast<std::string>();
+          else ref = basis->source.empty() ? "python" : basis->source;
+        } else if (!reference.is_none()) {
+          throw UsageError("spc_encode: reference names a learned basis; without one the basis is 'self'");
+        }
+        codec::SpcOptions options{.max_error = max_error, .magnitude_scale = magnitude_scale, .zstd_level = zstd_level};
+        if (step || target_de00) options.method = codec::SpcMethod::transform;
+        if (step) options.step = *step;
+        const double p95 = target_p95.value_or(3 * target_de00.value_or(0));
+        std::optional<codec::Environment> env;
+        if (target_de00) env = environment_from(env_arg, grid.wavelengths);
+        codec::SpcReport rep;
+        codec::SpcTargetReport target;
+        std::vector<std::uint8_t> bytes;
+        codec::SpcBasis b;
         {
           py::gil_scoped_release release;
-          codec::SpcBasis b;
           if (!basis) {
             if (extra) throw UsageError("spc_encode: extra extends a learned basis; with no basis raise k instead");
             b = codec::self_basis(grid, k);
           } else {
-            b = codec::augment_basis(codec::coding_basis(*basis, k, reference), grid, extra);
+            b = codec::augment_basis(codec::coding_basis(*basis, k, ref), grid, extra);
           }
-          ref = b.reference;
-          bytes = codec::encode_spc(grid, b,
-                                    {.max_error = max_error, .magnitude_scale = magnitude_scale, .zstd_level = zstd_level},
-                                    &rep);
+          if (target_de00) {
+            const codec::SpcTarget t{.de00_mean = *target_de00, .de00_p95 = p95, .max_trials = trials};
+            bytes = codec::encode_spc_to_target(grid, b, options, t, *env, target, &rep, grid.provenance.source_file);
+          } else {
+            bytes = codec::encode_spc(grid, b, options, &rep, grid.provenance.source_file);
+          }
         }
-        py::dict r;
-        r["basis"] = ref;
+        const bool transform = options.method == codec::SpcMethod::transform;
+        py::dict r;  // the fields of `specula encode --json`
+        r["method"] = transform ? "transform" : "bounded";
+        r["format_version"] = transform ? 2 : 1;
+        if (target_de00) {
+          py::dict t;
+          t["de00_mean"] = *target_de00;
+          t["de00_p95"] = p95;
+          t["reached"] = target.reached;
+          t["trials"] = target.trials;
+          t["step"] = target.step;
+          t["reached_de00_mean"] = target.de00_mean;
+          t["reached_de00_p95"] = target.de00_p95;
+          r["target"] = t;
+        }
+        r["step"] = transform ? rep.magnitude_step : 0.0;
+        r["basis"] = b.reference;
+        r["k"] = b.k();
+        r["max_error"] = transform ? 0.0 : max_error;
         r["input_bytes"] = rep.input_bytes;
         r["output_bytes"] = rep.output_bytes;
+        r["ratio"] = double(rep.input_bytes) / double(rep.output_bytes);
+        r["bits_per_cell"] = 8.0 * double(rep.output_bytes) / double(rep.valid_cells ? rep.valid_cells : 1);
         r["valid_cells"] = rep.valid_cells;
+        r["rms_error"] = rep.rms_error;
+        r["max_abs_error"] = rep.max_abs_error;
+        r["max_shape_residual"] = rep.max_shape_residual;
+        r["max_quantisation_error"] = rep.max_quantisation_error;
         r["magnitude_scale"] = rep.magnitude_scale;
         r["magnitude_step"] = rep.magnitude_step;
         r["shape_step"] = rep.shape_step;
-        r["max_abs_error"] = rep.max_abs_error;
-        r["rms_error"] = rep.rms_error;
-        r["max_shape_residual"] = rep.max_shape_residual;
-        r["max_quantisation_error"] = rep.max_quantisation_error;
         return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()), r);
       },
       py::arg("grid"), py::arg("basis") = py::none(), py::arg("k") = 6, py::arg("extra") = 0,
       py::arg("max_error") = 0.01, py::arg("magnitude_scale") = 0.0, py::arg("zstd_level") = 9,
-      py::arg("reference") = "python",
+      py::arg("reference") = py::none(), py::arg("step") = py::none(), py::arg("target_de00") = py::none(),
+      py::arg("target_p95") = py::none(), py::arg("trials") = 8, py::arg("env") = "default",
       "Encodes a grid as .spc bytes (docs/codec-format.md) as `specula encode` does: on a learned basis (its first k "
-      "as coding_basis takes them, plus `extra` fitted spectra) or, without one, on the grid's own top-k basis. "
-      "Returns (bytes, report).");
+      "as coding_basis takes them, plus `extra` fitted spectra) or, without one, on the grid's own top-k basis; "
+      "bounded (format 1, max_error), or transform (format 2) with a quantisation `step` or the coarsest step whose "
+      "rendering under `env` ('default' or a lat-long EXR) has CIEDE2000 mean at most target_de00 (and 95th "
+      "percentile at most target_p95, default 3x). `reference` (recorded in the file) defaults to where the basis "
+      "came from ('STORE.h5:NAME' for a basis read from or saved in a store). Returns (bytes, report), the report "
+      "with the fields of `specula encode --json`.");
   m.def(
       "spc_decode",
-      [](const py::object& data) {
+      [](const SpcData& data) {
         std::vector<std::uint8_t> bytes;
         std::string label = "spc bytes";
         if (py::isinstance<py::bytes>(data) || py::isinstance<py::bytearray>(data) ||
@@ -258,9 +320,9 @@ void init_brdf(py::module_& m) {
           const std::string s = py::bytes(data);
           bytes.assign(s.begin(), s.end());
         } else {
-          const std::filesystem::path p = fspath(data);
+          const std::filesystem::path p = existing_file(data);
           bytes = codec::read_spc_file(p);
-          label = p.filename().string();
+          label = p.string();
         }
         py::gil_scoped_release release;
         return codec::decode_spc(bytes, label);
@@ -268,18 +330,18 @@ void init_brdf(py::module_& m) {
       py::arg("data"), "Decodes .spc bytes, or the .spc file at a path, into a Grid (every field and the CRC checked).");
   m.def(
       "write_spc",
-      [](const py::object& p, const py::bytes& data) {
+      [](const PathArg& p, const py::bytes& data) {
         const std::string s = data;
-        codec::write_spc_file(fspath(p), std::span(reinterpret_cast<const std::uint8_t*>(s.data()), s.size()));
+        codec::write_spc_file(path_from(p), std::span(reinterpret_cast<const std::uint8_t*>(s.data()), s.size()));
       },
       py::arg("path"), py::arg("data"), "Writes .spc bytes to a file (complete or not at all).");
 
-  m.def("cmf", [](const py::object& w, const std::string& observer) {
+  m.def("cmf", [](const WavelengthsArg& w, const std::string& observer) {
         return to_numpy(Eigen::MatrixXd(cmf(grid_from(w, "wavelengths"), parse_observer(observer))));
       },
       py::arg("wavelengths"), py::arg("observer") = "cie1931_2deg",
       "The CIE colour-matching functions at the wavelengths, (bands, 3): xbar, ybar, zbar.");
-  m.def("illuminant", [](const std::string& name, const py::object& w) {
+  m.def("illuminant", [](const std::string& name, const WavelengthsArg& w) {
         return to_numpy(Eigen::VectorXd(parse_illuminant(name, grid_from(w, "wavelengths"))));
       },
       py::arg("name"), py::arg("wavelengths"),
@@ -287,7 +349,7 @@ void init_brdf(py::module_& m) {
       "(e.g. D75), blackbody:K or an SPD CSV file.");
   m.def(
       "xyz_weights",
-      [](const py::object& w, const std::string& kind, const py::object& ill, const std::string& observer) {
+      [](const WavelengthsArg& w, const std::string& kind, const IlluminantArg& ill, const std::string& observer) {
         const WavelengthGrid grid = grid_from(w, "wavelengths");
         const SpectrumToXyz t(grid, parse_kind(kind), illuminant_from(ill, grid), parse_observer(observer));
         return py::make_tuple(to_numpy(Eigen::MatrixXd(t.weights())), to_numpy(Eigen::VectorXd(t.white())));
@@ -296,7 +358,7 @@ void init_brdf(py::module_& m) {
       py::arg("observer") = "cie1931_2deg", "(W, white): XYZ = W @ spectrum (W is 3 x bands) and the scene white.");
   m.def(
       "spectra_to_xyz",
-      [](const py::object& spectra, const py::object& w, const std::string& kind, const py::object& ill,
+      [](const ArrayLike& spectra, const WavelengthsArg& w, const std::string& kind, const IlluminantArg& ill,
          const std::string& observer) {
         const WavelengthGrid grid = grid_from(w, "wavelengths");
         const SpectrumToXyz t(grid, parse_kind(kind), illuminant_from(ill, grid), parse_observer(observer));
@@ -318,7 +380,7 @@ void init_brdf(py::module_& m) {
       "perfect white has Y = 1) or radiance (a flat spectrum of 1 has Y = 1).");
   m.def(
       "xyz_to_srgb",
-      [](const py::object& xyz, const py::object& white, double exposure, const std::string& tone, bool adapt,
+      [](const ArrayLike& xyz, const OptArray& white, double exposure, const std::string& tone, bool adapt,
          bool desaturate) {
         std::vector<py::ssize_t> lead;
         const auto x = spectra_rows(xyz, 3, lead, "xyz_to_srgb");
@@ -331,7 +393,7 @@ void init_brdf(py::module_& m) {
           if (v.size() != 3) throw UsageError("xyz_to_srgb: white must be 3 values (XYZ)");
           w = v;
         }
-        return display(xf, lead, w, {.exposure_stops = exposure, .tone = parse_tone(tone), .adapt_to_d65 = adapt,
+        return display(xf, lead, w, {.exposure_stops = exposure, .tone = specula::parse_tone(tone), .adapt_to_d65 = adapt,
                                      .desaturate = desaturate});
       },
       py::arg("xyz"), py::arg("white") = py::none(), py::arg("exposure") = 0.0, py::arg("tone") = "clip",
@@ -340,7 +402,7 @@ void init_brdf(py::module_& m) {
       "XYZ), gamut mapping by desaturation. Returns (srgb8 uint8, linear float32), both (..., 3).");
   m.def(
       "spectra_to_srgb",
-      [](const py::object& spectra, const py::object& w, const std::string& kind, const py::object& ill,
+      [](const ArrayLike& spectra, const WavelengthsArg& w, const std::string& kind, const IlluminantArg& ill,
          double exposure, const std::string& tone, bool adapt, bool desaturate) {
         const WavelengthGrid grid = grid_from(w, "wavelengths");
         const SpectrumToXyz t(grid, parse_kind(kind), illuminant_from(ill, grid));
@@ -353,7 +415,7 @@ void init_brdf(py::module_& m) {
           const RowMatrixXf xf = Eigen::Map<const RowMatrixXd>(x.data(), n, Eigen::Index(grid.size())).cast<float>();
           t.apply(xf, xyz);
         }
-        return display(xyz, lead, t.white(), {.exposure_stops = exposure, .tone = parse_tone(tone),
+        return display(xyz, lead, t.white(), {.exposure_stops = exposure, .tone = specula::parse_tone(tone),
                                               .adapt_to_d65 = adapt, .desaturate = desaturate});
       },
       py::arg("spectra"), py::arg("wavelengths"), py::arg("kind") = "reflectance", py::arg("illuminant") = "D65",

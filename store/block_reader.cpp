@@ -330,9 +330,13 @@ template <class T>
 void BlockReader::read_block(std::size_t i, Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& out) const {
   thread_local RawBlock raw;
   read_raw(i, raw);
-  const std::size_t b = bands();
-  out.resize(Eigen::Index(raw.valid), Eigen::Index(b));
-  T* dst = out.data();
+  out.resize(Eigen::Index(raw.valid), Eigen::Index(bands()));
+  compact(raw, bands(), out.data());
+}
+
+template <class T>
+void BlockReader::compact(const RawBlock& raw, std::size_t bands, T* out) {
+  T* dst = out;
   // Copies runs of consecutive valid pixels at once.
   for (std::size_t p = 0; p < raw.pixels;) {
     if (!raw.is_valid(p)) {
@@ -341,14 +345,19 @@ void BlockReader::read_block(std::size_t i, Eigen::Matrix<T, Eigen::Dynamic, Eig
     }
     std::size_t q = p + 1;
     while (q < raw.pixels && raw.is_valid(q)) ++q;
-    const float* src = raw.spectrum(p, b);
-    const std::size_t len = (q - p) * b;
-    if constexpr (std::is_same_v<T, float>) std::memcpy(dst, src, len * sizeof(float));
-    else std::copy(src, src + len, dst);
+    const float* src = raw.spectrum(p, bands);
+    const std::size_t len = (q - p) * bands;
+    if constexpr (std::is_same_v<T, float>) {
+      if (static_cast<const float*>(dst) != src) std::memmove(dst, src, len * sizeof(float));  // in place: dst <= src
+    } else {
+      std::copy(src, src + len, dst);
+    }
     dst += len;
     p = q;
   }
 }
+template void BlockReader::compact<float>(const RawBlock&, std::size_t, float*);
+template void BlockReader::compact<double>(const RawBlock&, std::size_t, double*);
 
 void BlockReader::read(std::size_t i, RowMatrixXf& out) const { read_block(i, out); }
 void BlockReader::read(std::size_t i, RowMatrixXd& out) const { read_block(i, out); }

@@ -69,6 +69,10 @@ class BlockReader {
   };
   /// Reads block i without compacting it: consumers that skip invalid pixels themselves save a copy.
   void read_raw(std::size_t i, RawBlock& out) const;
+  /// The valid spectra of `raw` in order into out (raw.valid x bands, band fastest; float or double); out may be
+  /// raw.values.data() (compacted in place: nothing moves while the pixels before are all valid).
+  template <class T>
+  static void compact(const RawBlock& raw, std::size_t bands, T* out);
   /// Reads block i's valid spectra into out (resized to n x bands, one spectrum per row). Thread-safe.
   void read(std::size_t i, RowMatrixXf& out) const;
   /// As above, in double precision.

@@ -87,7 +87,8 @@ void merge(layout::Index& cur, const WriterState& st, std::vector<layout::Entry>
   for (const auto& [kind, name] : st.removals) unlink_entry(kind, name);
   for (auto& e : added) {
     if (cur.find(e.kind, e.name)) {
-      if (!replace)
+      const WriterState::Pending* pending = st.find(e.kind, e.name);
+      if (!(pending ? pending->replace : replace))
         throw InputError(ctx + ": " + e.kind + "/" + e.name + " was committed by another writer while this transaction ran; "
                          "nothing was written (choose another name or allow replacing it)");
       unlink_entry(e.kind, e.name);

@@ -246,6 +246,8 @@ class StoreWriter {
 
   std::string label() const { return target_.filename().string(); }
   const WriteOptions& options() const { return options_; }
+  /// Whether objects begun from now on may replace committed objects of their name (each keeps the value it began with).
+  void set_replace(bool replace) { options_.replace = replace; }
 
  private:
   /// The open data file of object (kind, name), started by begin() in this transaction; UsageError otherwise.

@@ -81,6 +81,7 @@ std::int64_t StoreWriter::begin(const std::string& kind, const std::string& name
   h5::write_attr(f, "name", std::string_view(name), ctx);
   h5::write_attr(f, "transaction", std::string_view(st.tx->id()), ctx);
   st.pending.push_back({kind, name, rel, f});
+  st.pending.back().replace = options_.replace;
   return f.get();
 }
 

@@ -20,6 +20,7 @@ struct WriterState {
     std::size_t rows_expected = 0, rows_written = 0;  // images filled by write_image_rows
     std::vector<bool> row_done;
     std::uint64_t valid = 0;
+    bool replace = false;  // may replace a committed object of its name (the options' replace when begun)
   };
   std::filesystem::path root, data;
   layout::Index base;  // the committed state when the transaction began
@@ -30,6 +31,11 @@ struct WriterState {
   bool committed = false;
 
   Pending* find(std::string_view kind, std::string_view name) {
+    for (auto& p : pending)
+      if (p.kind == kind && p.name == name) return &p;
+    return nullptr;
+  }
+  const Pending* find(std::string_view kind, std::string_view name) const {
     for (auto& p : pending)
       if (p.kind == kind && p.name == name) return &p;
     return nullptr;

@@ -1,5 +1,6 @@
 """Fixtures for the specula Python module's tests: small stores made by the specula CLI of the same build.
-The module is imported from $SPECULA_BUILD/python (default: build/ beside this source tree)."""
+The package is imported from $SPECULA_BUILD/python (default: build/ beside this source tree), or, with
+SPECULA_TEST_INSTALLED=1 (scripts/test, in a fresh venv), from where pip installed it."""
 import os
 import subprocess
 import sys
@@ -10,8 +11,15 @@ import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BUILD = os.environ.get("SPECULA_BUILD", os.path.join(ROOT, "build"))
-sys.path.insert(0, os.path.join(BUILD, "python"))
+INSTALLED = os.environ.get("SPECULA_TEST_INSTALLED") == "1"
+if not INSTALLED:
+    sys.path.insert(0, os.path.join(BUILD, "python"))
 SPECULA = os.path.join(BUILD, "apps", "specula")
+
+
+def module_env():
+    """The environment a child Python needs to import the same specula as these tests."""
+    return dict(os.environ) if INSTALLED else dict(os.environ, PYTHONPATH=os.path.join(BUILD, "python"))
 
 
 def cli(*args, check=True):

@@ -59,8 +59,12 @@ def test_project_pca_is_the_explicit_formula(db):
     basis = specula.pca(db)
     name = s.images[0]
     img, mask = s.image_and_mask(name)
-    r = specula.project(basis, img, k=3, mask=mask)
     x = img.astype(np.float64)
+    r = specula.project(basis, x, k=3, mask=mask)
+    assert r["coefficients"].dtype == np.float64
+    r32 = specula.project(basis, img, k=3, mask=mask)  # float32 in, float32 out: the float64 results rounded
+    assert r32["coefficients"].dtype == r32["reconstruction"].dtype == r32["error"].dtype == np.float32
+    np.testing.assert_array_equal(r32["reconstruction"], r["reconstruction"].astype(np.float32))
     v = basis.components[:3]
     c = (x - basis.mean) @ v.T
     recon = basis.mean + c @ v
@@ -71,7 +75,7 @@ def test_project_pca_is_the_explicit_formula(db):
     valid = mask.astype(bool)
     np.testing.assert_allclose(r["rms"], np.sqrt((err[valid] ** 2).sum() / (valid.sum() * 31)), rtol=1e-10)
     np.testing.assert_allclose(r["max_error"], err[valid].max(), rtol=1e-12)
-    several = specula.project(basis, img, k=[1, 3, 31], mask=mask)  # as the CLI's -k 1,3,31
+    several = specula.project(basis, x, k=[1, 3, 31], mask=mask)  # as the CLI's -k 1,3,31
     assert sorted(several) == [1, 3, 31]
     np.testing.assert_array_equal(several[3]["reconstruction"], r["reconstruction"])
     assert several[1]["rms"] > several[3]["rms"] > several[31]["rms"]

@@ -3,11 +3,11 @@ import os
 import subprocess
 import sys
 
-from conftest import BUILD, ROOT
+from conftest import ROOT, module_env
 
 
 def test_pca_figures_writes_both_pngs(db, tmp_path):
-    env = dict(os.environ, PYTHONPATH=os.path.join(BUILD, "python"))
+    env = module_env()
     r = subprocess.run([sys.executable, os.path.join(ROOT, "examples", "python", "pca_figures.py"), str(db), "-o",
                         str(tmp_path / "figs")], capture_output=True, text=True, env=env)
     assert r.returncode == 0, r.stderr

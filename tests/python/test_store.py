@@ -147,14 +147,20 @@ def test_blocks_read_from_many_threads_agree(db):
     assert sum(len(g) for g in got) == blocks.spectra
 
 
-def test_errors_are_the_clis_messages(db, tmp_path):
+def test_errors_are_the_clis_messages_or_name_full_paths(db, tmp_path):
     missing = tmp_path / "missing.h5"
-    with pytest.raises(specula.InputError) as e:
+    with pytest.raises(FileNotFoundError) as e:
         specula.Store(missing)
-    assert str(e.value) == cli_error("ls", missing)
-    with pytest.raises(specula.InputError) as e:
+    assert isinstance(e.value, specula.InputError) and isinstance(e.value, specula.MissingFileError)
+    assert str(e.value).startswith(str(missing) + ": no such file")
+    with pytest.raises(KeyError) as e:
         specula.Store(db).image("nope")
-    assert str(e.value) == cli_error("export", db, "nope", "-o", tmp_path / "x.png")
+    assert isinstance(e.value, specula.InputError)
+    assert str(e.value) == f"{db}: no image 'nope' (its images: " + ", ".join(specula.Store(db).images) + ")"
+    with pytest.raises(KeyError, match="no collection 'nope'"):
+        specula.Store(db).blocks(collection="nope")
+    with pytest.raises(KeyError, match=f"^{db}: no object 'nope'"):
+        specula.Store(db).info("nope")
     with pytest.raises(specula.InputError) as e:
         specula.Store(db).blocks(images="nothing*")
     assert str(e.value) == cli_error("pca", db, "--images", "nothing*", "-o", tmp_path / "b.h5")
@@ -163,8 +169,41 @@ def test_errors_are_the_clis_messages(db, tmp_path):
         specula.Store(db).blocks(dtype=np.int32)
 
 
+def test_wrong_argument_types_get_short_messages(db):
+    big = np.zeros((200, 31))
+    for call in (lambda: specula.project(big, big, k=3), lambda: specula.brdf_lookup(big, 0, 0, 0, 0),
+                 lambda: specula.write_spgrid("x.spgrid", big), lambda: specula.Store(big)):
+        with pytest.raises(TypeError) as e:
+            call()
+        assert len(str(e.value)) < 120 and "\n" not in str(e.value), str(e.value)
+
+
 def test_exception_classes():
     assert issubclass(specula.InputError, specula.Error) and issubclass(specula.InputError, ValueError)
-    assert issubclass(specula.UsageError, specula.Error) and not issubclass(specula.UsageError, ValueError)
+    assert issubclass(specula.UsageError, specula.Error) and issubclass(specula.UsageError, ValueError)
+    assert issubclass(specula.MissingFileError, specula.InputError)
+    assert issubclass(specula.MissingFileError, FileNotFoundError)
+    assert issubclass(specula.MissingObjectError, specula.InputError) and issubclass(specula.MissingObjectError, KeyError)
     assert issubclass(specula.LibraryError, specula.Error)
     assert issubclass(specula.Error, Exception)
+
+
+def test_blocks_iterate_again_and_say_what_they_are(db):
+    s = specula.Store(db)
+    blocks = s.blocks(min_block_pixels=1)
+    first = [b.copy() for b in blocks]
+    second = list(blocks)
+    assert len(first) == len(blocks) > 1
+    for a, b in zip(first, second):
+        np.testing.assert_array_equal(a, b)
+    r = repr(blocks)
+    assert r.startswith("<specula.Blocks ") and f"{blocks.spectra} spectra x 31 bands" in r and "float32" in r
+
+
+def test_masked_pixels_filled_on_request(db):
+    s = specula.Store(db)
+    name = s.images[0]
+    img, mask = s.image(name, masked=np.nan), s.mask(name).astype(bool)
+    assert (~mask).any()
+    assert np.isnan(img[~mask]).all() and not np.isnan(img[mask]).any()
+    np.testing.assert_array_equal(img[mask], s.image(name)[mask])

@@ -1,0 +1,46 @@
+// specula.compare_grids: how far a BRDF grid is from a reference, in value and rendered (codec::diff_grids, the
+// comparison `specula brdf-diff` prints). The one place the Python module binds the fidelity comparison.
+#include <fmt/format.h>
+
+#include "specula/codec/diff.h"
+#include "specula/codec/environment.h"
+#include "python/common.h"
+
+namespace specula::python {
+
+void init_fidelity(py::module_& m) {
+  m.def(
+      "compare_grids",
+      [](const GridArg& a_arg, const GridArg& b_arg, const EnvArg& env_arg, std::size_t size) {
+        const store::Grid& a = as<store::Grid>(a_arg, "compare_grids", "reference", "Grid");
+        const store::Grid& b = as<store::Grid>(b_arg, "compare_grids", "grid", "Grid");
+        if (size < 8 || size > 4096) throw UsageError(fmt::format("compare_grids: size {}: give 8 to 4096 pixels", size));
+        const codec::Environment env = environment_from(env_arg, a.wavelengths);
+        codec::GridDiff d;
+        {
+          py::gil_scoped_release release;
+          d = codec::diff_grids(a, b, env, {.size = size});
+        }
+        py::dict r;  // the fields of `specula brdf-diff --json`, and the per-pixel CIEDE2000 map
+        r["environment"] = env.description;
+        r["cells"] = d.cells;
+        r["only_a"] = d.only_a;
+        r["only_b"] = d.only_b;
+        r["rms"] = d.rms;
+        r["max_abs"] = d.max_abs;
+        r["rel_rms_cos"] = d.rel_rms_cos;
+        r["de00_mean"] = d.de00_mean;
+        r["de00_p95"] = d.de00_p95;
+        r["de00_max"] = d.de00_max;
+        r["size"] = size;
+        r["de00"] = adopt(std::move(d.de00), {py::ssize_t(size), py::ssize_t(size)});
+        return r;
+      },
+      py::arg("reference"), py::arg("grid"), py::arg("env") = "default", py::arg("size") = 128,
+      "Compares `grid` with `reference` (specula.Grid on one wavelength grid) as `specula brdf-diff --json` does: "
+      "cells (valid in both), only_a, only_b, rms and max_abs (1/sr), rel_rms_cos (cosine-weighted relative RMS), and "
+      "both rendered on a `size`-pixel sphere under `env` ('default' or a lat-long EXR): de00_mean, de00_p95, "
+      "de00_max and the per-pixel CIEDE2000 map de00 (size, size) float32 (0 off the sphere).");
+}
+
+}  // namespace specula::python
