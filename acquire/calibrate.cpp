@@ -1,7 +1,7 @@
 #include "specula/acquire/calibrate.h"
 
-#include <Eigen/Geometry>
 #include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 #include <Eigen/SVD>
 
 #include <algorithm>
@@ -48,8 +48,10 @@ SimplexResult nelder_mead(const std::function<double(const Eigen::VectorXd&)>& f
     if (fr < v[best]) {
       const Eigen::VectorXd xe = centroid + 2 * (centroid - p[worst]);
       const double fe = f(xe);
-      if (fe < fr) p[worst] = xe, v[worst] = fe;
-      else p[worst] = xr, v[worst] = fr;
+      if (fe < fr)
+        p[worst] = xe, v[worst] = fe;
+      else
+        p[worst] = xr, v[worst] = fr;
       continue;
     }
     if (fr < v[second]) {
@@ -57,7 +59,8 @@ SimplexResult nelder_mead(const std::function<double(const Eigen::VectorXd&)>& f
       continue;
     }
     const bool outside = fr < v[worst];
-    const Eigen::VectorXd xc = outside ? Eigen::VectorXd(centroid + 0.5 * (xr - centroid)) : Eigen::VectorXd(centroid + 0.5 * (p[worst] - centroid));
+    const Eigen::VectorXd xc = outside ? Eigen::VectorXd(centroid + 0.5 * (xr - centroid))
+                                       : Eigen::VectorXd(centroid + 0.5 * (p[worst] - centroid));
     const double fc = f(xc);
     if (fc < (outside ? fr : v[worst])) {
       p[worst] = xc, v[worst] = fc;
@@ -103,18 +106,21 @@ double bilinear(const GreyImage& g, double x, double y) {
   const int u = int(std::floor(fx)), v = int(std::floor(fy));
   if (u < 0 || v < 0 || u + 1 >= g.width || v + 1 >= g.height) return 0;
   const double a = fx - u, b = fy - v;
-  return (1 - a) * (1 - b) * g.at(u, v) + a * (1 - b) * g.at(u + 1, v) + (1 - a) * b * g.at(u, v + 1) + a * b * g.at(u + 1, v + 1);
+  return (1 - a) * (1 - b) * g.at(u, v) + a * (1 - b) * g.at(u + 1, v) + (1 - a) * b * g.at(u, v + 1) +
+         a * b * g.at(u + 1, v + 1);
 }
 
 }  // namespace
 
 Circle detect_circle(const GreyImage& s, int n) {
   const int W = s.width, H = s.height;
-  if (W < 8 || H < 8 || s.value.size() != std::size_t(W) * std::size_t(H)) throw UsageError("detect_circle: image too small or of the wrong size");
+  if (W < 8 || H < 8 || s.value.size() != std::size_t(W) * std::size_t(H))
+    throw UsageError("detect_circle: image too small or of the wrong size");
   std::vector<float> sorted = s.value;
   std::sort(sorted.begin(), sorted.end());
   const double dark = sorted[sorted.size() / 100], bright = sorted[sorted.size() * 9 / 10];
-  if (!(bright > 2 * dark + 10)) throw InputError("silhouette: no dark sphere on a bright board (the image is almost uniform)");
+  if (!(bright > 2 * dark + 10))
+    throw InputError("silhouette: no dark sphere on a bright board (the image is almost uniform)");
   const double threshold = 0.5 * (dark + bright);
   double area = 0, sx = 0, sy = 0;
   for (int v = 0; v < H; ++v)
@@ -140,7 +146,8 @@ Circle detect_circle(const GreyImage& s, int n) {
     }
     return -sum / points;
   };
-  const SimplexResult r = nelder_mead(objective, Eigen::Vector3d(c.cx, c.cy, c.r), Eigen::Vector3d(1, 1, 1), 4000, 1e-12);
+  const SimplexResult r =
+      nelder_mead(objective, Eigen::Vector3d(c.cx, c.cy, c.r), Eigen::Vector3d(1, 1, 1), 4000, 1e-12);
   return {r.x[0], r.x[1], r.x[2]};
 }
 
@@ -152,7 +159,8 @@ bool Sphere::hit(const Eigen::Vector3d& d, double& t) const {
 }
 
 Sphere fit_sphere(const Circle& circle, const Pinhole& camera, double radius, int width, int height) {
-  if (!(radius > 0) || !(camera.focal > 0) || !(circle.r > 0)) throw UsageError("fit_sphere: radius, focal length and circle must be positive");
+  if (!(radius > 0) || !(camera.focal > 0) || !(circle.r > 0))
+    throw UsageError("fit_sphere: radius, focal length and circle must be positive");
   // The cone through the circle: its axis through the circle's centre, its half-angle from the radius.
   const Eigen::Vector3d axis = camera.ray(circle.cx, circle.cy);
   const double half = std::atan(circle.r / camera.focal);
@@ -173,7 +181,8 @@ Sphere fit_sphere(const Circle& circle, const Pinhole& camera, double radius, in
     for (int u = u0; u < u1; ++u) {
       if (std::abs(std::hypot(u + 0.5 - circle.cx, v + 0.5 - circle.cy) - circle.r) > 4) continue;
       ring.emplace_back(u, v);
-      disc.push_back(coverage(u, v, [&](double x, double y) { return std::hypot(x - circle.cx, y - circle.cy) < circle.r; }));
+      disc.push_back(
+          coverage(u, v, [&](double x, double y) { return std::hypot(x - circle.cx, y - circle.cy) < circle.r; }));
     }
   auto objective = [&](const Eigen::VectorXd& c) {
     const Sphere s{Eigen::Vector3d(c[0], c[1], c[2]), radius};
@@ -213,7 +222,8 @@ Eigen::Vector3d light_direction(const GreyImage& m, const Pinhole& camera, const
   // the limb does not pull the mean (eq 5.3 at every pixel, not only at the brightest).
   double floor_value = 1e30;
   for (int dv = -3; dv <= 3; ++dv)
-    for (int du = -3; du <= 3; ++du) floor_value = std::min<double>(floor_value, m.at(std::clamp(bu + du, 0, W - 1), std::clamp(bv + dv, 0, H - 1)));
+    for (int du = -3; du <= 3; ++du)
+      floor_value = std::min<double>(floor_value, m.at(std::clamp(bu + du, 0, W - 1), std::clamp(bv + dv, 0, H - 1)));
   if (best / 9 < floor_value + 50) throw InputError("mirror image: no highlight on the sphere");
   auto reflect_at = [&](double x, double y, Eigen::Vector3d& r, Eigen::Vector3d& point) {
     const Eigen::Vector3d d = camera.ray(x, y);
@@ -234,8 +244,8 @@ Eigen::Vector3d light_direction(const GreyImage& m, const Pinhole& camera, const
       Eigen::Vector3d r, x, ra, rb, rc, rd, tmp;
       if (!(value > 0) || !reflect_at(u + 0.5, v + 0.5, r, x)) continue;
       double solid = 0;
-      if (reflect_at(u + 0.25, v + 0.5, ra, tmp) && reflect_at(u + 0.75, v + 0.5, rb, tmp) && reflect_at(u + 0.5, v + 0.25, rc, tmp) &&
-          reflect_at(u + 0.5, v + 0.75, rd, tmp))
+      if (reflect_at(u + 0.25, v + 0.5, ra, tmp) && reflect_at(u + 0.75, v + 0.5, rb, tmp) &&
+          reflect_at(u + 0.5, v + 0.25, rc, tmp) && reflect_at(u + 0.5, v + 0.75, rd, tmp))
         solid = 4 * (rb - ra).cross(rd - rc).norm();
       const double w = value * solid;
       sum_dir += w * r;

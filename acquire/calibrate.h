@@ -42,7 +42,9 @@ Circle detect_circle(const GreyImage& silhouette, int n = 32);
 struct Pinhole {
   double focal = 0, cx = 0, cy = 0;
   /// Unit ray through pixel position (x, y) (pixel centres at half-integers).
-  Eigen::Vector3d ray(double x, double y) const { return Eigen::Vector3d((x - cx) / focal, (y - cy) / focal, 1).normalized(); }
+  Eigen::Vector3d ray(double x, double y) const {
+    return Eigen::Vector3d((x - cx) / focal, (y - cy) / focal, 1).normalized();
+  }
 };
 
 /// A sphere in camera space (m).
@@ -67,8 +69,8 @@ Sphere fit_sphere(const Circle& circle, const Pinhole& camera, double radius, in
 /// the sphere.
 /// *confidence (optional) gets cos of the angle between the normal at the highlight and the view: near the limb a
 /// pixel spans many degrees of reflected directions and the estimate is poorer.
-Eigen::Vector3d light_direction(const GreyImage& mirror, const Pinhole& camera, const Sphere& sphere, double light_distance,
-                                double* confidence = nullptr);
+Eigen::Vector3d light_direction(const GreyImage& mirror, const Pinhole& camera, const Sphere& sphere,
+                                double light_distance, double* confidence = nullptr);
 
 /// The lights' directions as the arc they lie on: the rotation R taking (cos a, sin a, 0) (a: each light's arc
 /// angle from the manifest) closest to the measured directions in the weighted least-squares sense (Wahba's

@@ -16,17 +16,23 @@ namespace fs = std::filesystem;
 
 std::string kind_name(ImageKind k) {
   switch (k) {
-    case ImageKind::scene: return "scene";
-    case ImageKind::silhouette: return "silhouette";
-    case ImageKind::mirror: return "mirror";
-    case ImageKind::flat: return "flat";
-    case ImageKind::target: return "target";
+    case ImageKind::scene:
+      return "scene";
+    case ImageKind::silhouette:
+      return "silhouette";
+    case ImageKind::mirror:
+      return "mirror";
+    case ImageKind::flat:
+      return "flat";
+    case ImageKind::target:
+      return "target";
   }
   return "?";
 }
 
 ImageKind parse_kind(const std::string& name, const std::string& context) {
-  for (const ImageKind k : {ImageKind::scene, ImageKind::silhouette, ImageKind::mirror, ImageKind::flat, ImageKind::target})
+  for (const ImageKind k :
+       {ImageKind::scene, ImageKind::silhouette, ImageKind::mirror, ImageKind::flat, ImageKind::target})
     if (kind_name(k) == name) return k;
   throw InputError(context + ": unknown image kind '" + name + "' (scene, silhouette, mirror, flat, target)");
 }
@@ -36,14 +42,15 @@ void write_manifest(const fs::path& dir, const Capture& c) {
   j["format"] = kCaptureFormat;
   j["version"] = kCaptureVersion;
   j["description"] = c.description;
-  j["camera"] = {{"width", c.width}, {"height", c.height}, {"bit_depth", c.bit_depth}, {"focal_px", c.focal_px},
-                 {"cx", c.cx}, {"cy", c.cy}};
+  j["camera"] = {{"width", c.width},       {"height", c.height}, {"bit_depth", c.bit_depth},
+                 {"focal_px", c.focal_px}, {"cx", c.cx},         {"cy", c.cy}};
   j["rig"] = {{"sphere_radius_m", c.sphere_radius_m}, {"light_distance_m", c.light_distance_m}};
   j["bands_nm"] = c.bands;
   j["light_angles_deg"] = c.light_angles_deg;
   j["light_spectrum"] = {{"nm", c.light_spectrum_nm}, {"value", c.light_spectrum}};
   j["lctf_transmission"] = json::array();
-  for (std::size_t b = 0; b < c.lctf_nm.size(); ++b) j["lctf_transmission"].push_back({{"nm", c.lctf_nm[b]}, {"value", c.lctf_value[b]}});
+  for (std::size_t b = 0; b < c.lctf_nm.size(); ++b)
+    j["lctf_transmission"].push_back({{"nm", c.lctf_nm[b]}, {"value", c.lctf_value[b]}});
   j["targets"] = json::array();
   for (const auto& t : c.targets) j["targets"].push_back({{"name", t.name}, {"reflectance", t.reflectance}});
   j["images"] = json::array();
@@ -55,8 +62,10 @@ void write_manifest(const fs::path& dir, const Capture& c) {
     j["images"].push_back(e);
   }
   if (c.truth)
-    j["truth"] = {{"sphere_centre_m", c.truth->sphere_centre}, {"sphere_radius_m", c.truth->sphere_radius},
-                  {"light_dirs", c.truth->light_dirs}, {"material", c.truth->material}};
+    j["truth"] = {{"sphere_centre_m", c.truth->sphere_centre},
+                  {"sphere_radius_m", c.truth->sphere_radius},
+                  {"light_dirs", c.truth->light_dirs},
+                  {"material", c.truth->material}};
   AtomicOutput out(dir / "manifest.json");
   {
     std::ofstream f(out.temp_path());
@@ -96,12 +105,14 @@ CaptureImage read_image_entry(const json& e, const Capture& c, const fs::path& d
   const bool needs_band = im.kind == ImageKind::scene || im.kind == ImageKind::flat || im.kind == ImageKind::target;
   if (needs_light != (im.light >= 0) || im.light >= int(c.light_angles_deg.size()))
     throw InputError(ictx + ": light " + std::to_string(im.light) + " is not one of the " +
-                     std::to_string(c.light_angles_deg.size()) + " light positions a " + kind_name(im.kind) + " image needs");
+                     std::to_string(c.light_angles_deg.size()) + " light positions a " + kind_name(im.kind) +
+                     " image needs");
   if (needs_band != (im.band >= 0) || im.band >= int(c.bands.size()))
-    throw InputError(ictx + ": band " + std::to_string(im.band) + " is not one of the " + std::to_string(c.bands.size()) +
-                     " bands a " + kind_name(im.kind) + " image needs");
+    throw InputError(ictx + ": band " + std::to_string(im.band) + " is not one of the " +
+                     std::to_string(c.bands.size()) + " bands a " + kind_name(im.kind) + " image needs");
   if ((im.kind == ImageKind::target) != (im.target >= 0) || im.target >= int(c.targets.size()))
-    throw InputError(ictx + ": target " + std::to_string(im.target) + " is not one of the " + std::to_string(c.targets.size()) + " targets");
+    throw InputError(ictx + ": target " + std::to_string(im.target) + " is not one of the " +
+                     std::to_string(c.targets.size()) + " targets");
   if (!fs::is_regular_file(dir / im.file)) throw InputError(ictx + ": file is missing from " + dir.string());
   return im;
 }
@@ -166,7 +177,8 @@ Capture read_manifest(const fs::path& dir) {
                        std::to_string(c.bands.size()) + " bands");
   }
   for (const json& t : field<json>(j, "targets", ctx)) {
-    CaptureTarget target{field<std::string>(t, "name", ctx + " target"), field<std::vector<double>>(t, "reflectance", ctx + " target")};
+    CaptureTarget target{field<std::string>(t, "name", ctx + " target"),
+                         field<std::vector<double>>(t, "reflectance", ctx + " target")};
     if (target.reflectance.size() != c.bands.size())
       throw InputError(ctx + ": target '" + target.name + "' has " + std::to_string(target.reflectance.size()) +
                        " reflectance values for " + std::to_string(c.bands.size()) + " bands");

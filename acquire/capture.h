@@ -17,12 +17,12 @@ enum class ImageKind { scene, silhouette, mirror, flat, target };
 
 /// One image file of a capture.
 struct CaptureImage {
-  std::string file;            ///< relative to the capture directory
+  std::string file;  ///< relative to the capture directory
   ImageKind kind = ImageKind::scene;
-  int light = -1;              ///< light position index (scene, mirror); -1 otherwise
-  int band = -1;               ///< index into Capture::bands (scene, flat, target); -1 for none (silhouette, mirror)
-  int target = -1;             ///< index into Capture::targets (target images)
-  double exposure_s = 0;       ///< exposure time
+  int light = -1;         ///< light position index (scene, mirror); -1 otherwise
+  int band = -1;          ///< index into Capture::bands (scene, flat, target); -1 for none (silhouette, mirror)
+  int target = -1;        ///< index into Capture::targets (target images)
+  double exposure_s = 0;  ///< exposure time
 };
 
 /// A diffuse target of known reflectance (one value per band of Capture::bands).
@@ -33,21 +33,21 @@ struct CaptureTarget {
 
 /// Ground truth a simulator knows and a real rig does not (absent in real captures).
 struct CaptureTruth {
-  std::vector<double> sphere_centre;          ///< camera frame, m
-  double sphere_radius = 0;                   ///< m
+  std::vector<double> sphere_centre;            ///< camera frame, m
+  double sphere_radius = 0;                     ///< m
   std::vector<std::vector<double>> light_dirs;  ///< per light position: unit vector from the sphere centre
-  std::string material;                       ///< what the sphere is made of
+  std::string material;                         ///< what the sphere is made of
 };
 
 /// The manifest of a capture.
 struct Capture {
   int width = 0, height = 0;
-  int bit_depth = 12;                ///< values in the PNGs are 0 .. 2^bit_depth - 1
-  double focal_px = 0;               ///< pinhole intrinsics: focal length and principal point (pixels)
+  int bit_depth = 12;   ///< values in the PNGs are 0 .. 2^bit_depth - 1
+  double focal_px = 0;  ///< pinhole intrinsics: focal length and principal point (pixels)
   double cx = 0, cy = 0;
-  double sphere_radius_m = 0;        ///< the sample sphere's known radius (0: unknown; the fit then uses 1)
-  double light_distance_m = 0;       ///< the arc's radius, light to sphere centre (0: a distant light)
-  std::vector<double> bands;         ///< LCTF tuning wavelengths (nm)
+  double sphere_radius_m = 0;            ///< the sample sphere's known radius (0: unknown; the fit then uses 1)
+  double light_distance_m = 0;           ///< the arc's radius, light to sphere centre (0: a distant light)
+  std::vector<double> bands;             ///< LCTF tuning wavelengths (nm)
   std::vector<double> light_angles_deg;  ///< arc angle of each light position (from the camera, seen from the sphere)
   std::vector<double> light_spectrum_nm, light_spectrum;  ///< the light's relative spectrum, tabulated
   /// The LCTF's tabulated transmission per band (manufacturer's data; optional, the factored model needs it).

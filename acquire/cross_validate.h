@@ -12,8 +12,8 @@
 namespace specula::acquire {
 
 struct CrossValidationOptions {
-  double holdout = 0.1;                        ///< share of the samples held out, in (0, 1)
-  std::uint64_t seed = 0;                      ///< seed of the shuffle choosing them
+  double holdout = 0.1;                              ///< share of the samples held out, in (0, 1)
+  std::uint64_t seed = 0;                            ///< seed of the shuffle choosing them
   std::vector<std::size_t> ks = {1, 4, 16, 32, 64};  ///< neighbour counts, each at least 1
 };
 
@@ -22,8 +22,8 @@ struct CrossValidationRow {
   Mapping mapping = Mapping::standard;
   std::size_t k = 1;
   Weights weights = Weights::mean;  ///< mean for k = 1 (the nearest sample; Shepard would predict the same)
-  double rel_rms = 0;     ///< sqrt(sum (pred - true)^2 / sum true^2) over predicted held-out samples and bands
-  double median_rel = 0;  ///< median over predicted held-out samples of |pred - true| / |true| (spectra as vectors)
+  double rel_rms = 0;         ///< sqrt(sum (pred - true)^2 / sum true^2) over predicted held-out samples and bands
+  double median_rel = 0;      ///< median over predicted held-out samples of |pred - true| / |true| (spectra as vectors)
   std::size_t predicted = 0;  ///< held-out samples predicted (all: no support limit)
 };
 

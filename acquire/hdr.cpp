@@ -37,36 +37,39 @@ HdrImage merge_exposures(std::span<const std::span<const std::uint16_t>> exposur
   out.status.assign(n, HdrStatus::ok);
   out.pearson.assign(n, 1.0f);
   out.used.assign(n, 0);
-  parallel_for(n, [&](std::size_t p) {
-    double st = 0, sv = 0, stt = 0, svv = 0, stv = 0;
-    int k = 0;
-    for (const std::size_t e : order) {
-      const double v = exposures[e][p];
-      if (v < lo || v > hi) continue;
-      const double t = times[e];
-      st += t, sv += v, stt += t * t, svv += v * v, stv += t * v;
-      ++k;
-    }
-    out.used[p] = std::uint8_t(std::min(k, 255));
-    if (k >= 2) {
-      const double ctt = stt - st * st / k, cvv = svv - sv * sv / k, ctv = stv - st * sv / k;
-      out.rate[p] = ctt > 0 ? float(ctv / ctt) : 0.0f;
-      if (k >= 3) {
-        const double r = ctt > 0 && cvv > 0 ? ctv / std::sqrt(ctt * cvv) : 0.0;
-        out.pearson[p] = float(r);
-        if (r < o.min_pearson) out.status[p] = HdrStatus::nonlinear;
-      }
-    } else if (k == 1) {
-      out.rate[p] = float(sv / st);
-      out.status[p] = HdrStatus::single;
-    } else if (double(exposures[order.front()][p]) > hi) {
-      out.status[p] = HdrStatus::saturated;
-    } else {
-      const std::size_t e = order.back();
-      out.rate[p] = float(double(exposures[e][p]) / times[e]);
-      out.status[p] = HdrStatus::low_signal;
-    }
-  }, 4096);
+  parallel_for(
+      n,
+      [&](std::size_t p) {
+        double st = 0, sv = 0, stt = 0, svv = 0, stv = 0;
+        int k = 0;
+        for (const std::size_t e : order) {
+          const double v = exposures[e][p];
+          if (v < lo || v > hi) continue;
+          const double t = times[e];
+          st += t, sv += v, stt += t * t, svv += v * v, stv += t * v;
+          ++k;
+        }
+        out.used[p] = std::uint8_t(std::min(k, 255));
+        if (k >= 2) {
+          const double ctt = stt - st * st / k, cvv = svv - sv * sv / k, ctv = stv - st * sv / k;
+          out.rate[p] = ctt > 0 ? float(ctv / ctt) : 0.0f;
+          if (k >= 3) {
+            const double r = ctt > 0 && cvv > 0 ? ctv / std::sqrt(ctt * cvv) : 0.0;
+            out.pearson[p] = float(r);
+            if (r < o.min_pearson) out.status[p] = HdrStatus::nonlinear;
+          }
+        } else if (k == 1) {
+          out.rate[p] = float(sv / st);
+          out.status[p] = HdrStatus::single;
+        } else if (double(exposures[order.front()][p]) > hi) {
+          out.status[p] = HdrStatus::saturated;
+        } else {
+          const std::size_t e = order.back();
+          out.rate[p] = float(double(exposures[e][p]) / times[e]);
+          out.status[p] = HdrStatus::low_signal;
+        }
+      },
+      4096);
   return out;
 }
 

@@ -16,14 +16,18 @@ Mapping parse_mapping(std::string_view name) {
   if (name == "standard") return Mapping::standard;
   if (name == "marschner") return Mapping::marschner;
   if (name == "halfdiff") return Mapping::halfdiff;
-  throw UsageError("mapping '" + std::string(name) + "': use standard (M_s), marschner (M_m, eq 5.8) or halfdiff (M_h)");
+  throw UsageError("mapping '" + std::string(name) +
+                   "': use standard (M_s), marschner (M_m, eq 5.8) or halfdiff (M_h)");
 }
 
 std::string_view mapping_name(Mapping m) {
   switch (m) {
-    case Mapping::standard: return "standard";
-    case Mapping::marschner: return "marschner";
-    case Mapping::halfdiff: return "halfdiff";
+    case Mapping::standard:
+      return "standard";
+    case Mapping::marschner:
+      return "marschner";
+    case Mapping::halfdiff:
+      return "halfdiff";
   }
   return "?";
 }
@@ -44,7 +48,8 @@ std::optional<double> incidence_plane_angle(const IsoAngles& a, double theta_i, 
 
 Eigen::Vector3d map_angles(Mapping m, const IsoAngles& a) {
   switch (m) {
-    case Mapping::standard: return {a.theta_i, a.theta_o, a.phi_d};
+    case Mapping::standard:
+      return {a.theta_i, a.theta_o, a.phi_d};
     case Mapping::marschner:
       return {std::sin(a.theta_i) * std::sin(a.theta_o), a.phi_d / pi, std::cos(a.theta_i) * std::cos(a.theta_o)};
     case Mapping::halfdiff: {
@@ -62,7 +67,8 @@ Eigen::Vector3d map_angles(Mapping m, const brdf::StdAngles& a) { return map_ang
 
 IsoAngles unmap(Mapping m, const Eigen::Vector3d& p) {
   switch (m) {
-    case Mapping::standard: return {p[0], p[1], p[2]};
+    case Mapping::standard:
+      return {p[0], p[1], p[2]};
     case Mapping::marschner: {
       // cos(theta_i - theta_o) = c + s and cos(theta_i + theta_o) = c - s.
       const double sum = std::acos(std::clamp(p[2] - p[0], -1.0, 1.0));

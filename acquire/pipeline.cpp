@@ -6,9 +6,9 @@
 #include <numbers>
 
 #include "specula/acquire/scan.h"
-#include "specula/core/parallel.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/parallel.h"
 #include "specula/core/progress.h"
 #include "specula/store/io/png_stack.h"
 
@@ -24,8 +24,8 @@ GreyImage load_grey(const Capture& cap, const fs::path& dir, const std::string& 
   const store::PngImage png = store::read_png(p);
   if (png.channels != 1 || png.width != std::size_t(cap.width) || png.height != std::size_t(cap.height))
     throw InputError(p.string() + ": " + std::to_string(png.width) + " x " + std::to_string(png.height) + " with " +
-                     std::to_string(png.channels) + " channels; the manifest says grey " + std::to_string(cap.width) + " x " +
-                     std::to_string(cap.height));
+                     std::to_string(png.channels) + " channels; the manifest says grey " + std::to_string(cap.width) +
+                     " x " + std::to_string(cap.height));
   return {cap.width, cap.height, std::vector<float>(png.samples.begin(), png.samples.end())};
 }
 
@@ -41,22 +41,26 @@ const CaptureImage& only_image(const Capture& cap, ImageKind kind, int light, co
 namespace {
 
 // Decodes `files` (all of one size) on all threads; an error names its file.
-std::vector<std::vector<std::uint16_t>> decode_all(const Capture& cap, const fs::path& dir, const std::vector<const CaptureImage*>& files) {
+std::vector<std::vector<std::uint16_t>> decode_all(const Capture& cap, const fs::path& dir,
+                                                   const std::vector<const CaptureImage*>& files) {
   std::vector<std::vector<std::uint16_t>> pixels(files.size());
   parallel_for(files.size(), [&](std::size_t i) {
     const CaptureImage& im = *files[i];
     store::PngImage png = store::read_png(dir / im.file);
     if (png.channels != 1 || png.width != std::size_t(cap.width) || png.height != std::size_t(cap.height))
-      throw InputError((dir / im.file).string() + ": not a grey " + std::to_string(cap.width) + " x " + std::to_string(cap.height) + " image");
+      throw InputError((dir / im.file).string() + ": not a grey " + std::to_string(cap.width) + " x " +
+                       std::to_string(cap.height) + " image");
     pixels[i] = std::move(png.samples);
   });
   return pixels;
 }
 
 HdrImage merge_files(const Capture& cap, const fs::path& dir, const std::vector<const CaptureImage*>& files,
-                     const std::vector<std::vector<std::uint16_t>>& pixels, ImageKind kind, int band, const HdrOptions& o) {
+                     const std::vector<std::vector<std::uint16_t>>& pixels, ImageKind kind, int band,
+                     const HdrOptions& o) {
   if (files.empty())
-    throw InputError((dir / "manifest.json").string() + ": no " + kind_name(kind) + " exposures for band " + std::to_string(band));
+    throw InputError((dir / "manifest.json").string() + ": no " + kind_name(kind) + " exposures for band " +
+                     std::to_string(band));
   std::vector<std::span<const std::uint16_t>> views(pixels.begin(), pixels.end());
   std::vector<double> times;
   for (const auto* im : files) times.push_back(im->exposure_s);
@@ -87,7 +91,8 @@ std::vector<HdrImage> merge_light(const Capture& cap, const fs::path& dir, int l
 
 }  // namespace
 
-HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, int light, int target, int band, const HdrOptions& o) {
+HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, int light, int target, int band,
+                      const HdrOptions& o) {
   std::vector<const CaptureImage*> files;
   for (const auto& im : cap.images)
     if (in_series(im, kind, light, target, band)) files.push_back(&im);
@@ -142,7 +147,8 @@ Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const Pip
   if (T == 0) throw InputError((dir / "manifest.json").string() + ": no diffuse targets for spectral calibration");
   Eigen::MatrixXd measured(static_cast<Eigen::Index>(T), static_cast<Eigen::Index>(B));
   Eigen::MatrixXd reflectance(static_cast<Eigen::Index>(T), static_cast<Eigen::Index>(B));
-  const int u0 = int(cap.width * 0.45), u1 = int(cap.width * 0.55) + 1, v0 = int(cap.height * 0.45), v1 = int(cap.height * 0.55) + 1;
+  const int u0 = int(cap.width * 0.45), u1 = int(cap.width * 0.55) + 1, v0 = int(cap.height * 0.45),
+            v1 = int(cap.height * 0.55) + 1;
   for (std::size_t t = 0; t < T; ++t)
     for (std::size_t b = 0; b < B; ++b) {
       const HdrImage h = merge_series(cap, dir, ImageKind::target, -1, int(t), int(b), o.hdr);
@@ -155,13 +161,16 @@ Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const Pip
           sum += h.rate[p] / c.spatial.value[p];
           ++n;
         }
-      if (n == 0) throw InputError(dir.string() + ": target '" + cap.targets[t].name + "' is saturated at " + std::to_string(int(cap.bands[b])) + " nm");
+      if (n == 0)
+        throw InputError(dir.string() + ": target '" + cap.targets[t].name + "' is saturated at " +
+                         std::to_string(int(cap.bands[b])) + " nm");
       measured(Eigen::Index(t), Eigen::Index(b)) = sum / n;
       reflectance(Eigen::Index(t), Eigen::Index(b)) = cap.targets[t].reflectance[b];
     }
   std::vector<Eigen::Index> fit_rows;
   for (std::size_t t = 0; t < T; ++t)
-    if (std::find(o.fit_targets.begin(), o.fit_targets.end(), cap.targets[t].name) != o.fit_targets.end()) fit_rows.push_back(Eigen::Index(t));
+    if (std::find(o.fit_targets.begin(), o.fit_targets.end(), cap.targets[t].name) != o.fit_targets.end())
+      fit_rows.push_back(Eigen::Index(t));
   if (fit_rows.empty()) throw UsageError("spectral calibration: none of the fitting targets is in the capture");
   const Eigen::MatrixXd fit_h = measured(fit_rows, Eigen::all), fit_r = reflectance(fit_rows, Eigen::all);
   const Tabulated light{cap.light_spectrum_nm, cap.light_spectrum};
@@ -221,7 +230,8 @@ Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const Pip
   std::vector<double> weights(L);
   for (std::size_t l = 0; l < L; ++l) weights[l] = c.light_confidence[l] * c.light_confidence[l];
   if (std::count_if(weights.begin(), weights.end(), [](double w) { return w > 0; }) < 2)
-    throw InputError(dir.string() + ": fewer than two mirror images show the light's highlight; the lights cannot be placed");
+    throw InputError(dir.string() +
+                     ": fewer than two mirror images show the light's highlight; the lights cannot be placed");
   c.light_dirs = fit_light_arc(measured_dirs, weights, cap.light_angles_deg);
   (void)P;
   return c;
@@ -237,7 +247,8 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
     for (int u = 0; u < int(W); ++u) {
       bool all = true;
       double t;
-      for (int k = 0; k < 16 && all; ++k) all = c.sphere.hit(camera.ray(u + (k % 4 + 0.5) / 4, v + (k / 4 + 0.5) / 4), t);
+      for (int k = 0; k < 16 && all; ++k)
+        all = c.sphere.hit(camera.ray(u + (k % 4 + 0.5) / 4, v + (k / 4 + 0.5) / 4), t);
       if (!all) continue;
       const Eigen::Vector3d d = camera.ray(u + 0.5, v + 0.5);
       c.sphere.hit(d, t);
@@ -266,14 +277,16 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
         if (hdr[b].status[p] == HdrStatus::saturated) saturated[p] = 1, ++on_sphere;
       }
       if (!pixels.empty() && on_sphere == pixels.size())
-        throw InputError(dir.string() + ": light " + std::to_string(l) + " at " + std::to_string(int(cap.bands[b])) +
-                         " nm is saturated on the whole sphere even at the shortest exposure; capture shorter exposures");
+        throw InputError(
+            dir.string() + ": light " + std::to_string(l) + " at " + std::to_string(int(cap.bands[b])) +
+            " nm is saturated on the whole sphere even at the shortest exposure; capture shorter exposures");
     }
     for (std::size_t p = 0; p < W * H; ++p)
       for (std::size_t b = 0; b < B && !saturated[p]; ++b)
         if (hdr[b].status[p] == HdrStatus::saturated) saturated[p] = 1;
-    const Eigen::Vector3d light = c.light_distance > 0 ? Eigen::Vector3d(c.sphere.centre + c.light_distance * c.light_dirs[l])
-                                                       : Eigen::Vector3d(c.sphere.centre + 1e6 * c.light_dirs[l]);
+    const Eigen::Vector3d light = c.light_distance > 0
+                                      ? Eigen::Vector3d(c.sphere.centre + c.light_distance * c.light_dirs[l])
+                                      : Eigen::Vector3d(c.sphere.centre + 1e6 * c.light_dirs[l]);
     angles.clear();
     values.clear();
     Eigen::VectorXd h(static_cast<Eigen::Index>(B));
@@ -301,8 +314,10 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
       Reject why = Reject::count;
       for (std::size_t b = 0; b < B && why == Reject::count; ++b) {
         const HdrStatus s = hdr[b].status[p];
-        if (s == HdrStatus::low_signal) why = Reject::low_signal;
-        else if (s == HdrStatus::nonlinear) why = Reject::nonlinear;
+        if (s == HdrStatus::low_signal)
+          why = Reject::low_signal;
+        else if (s == HdrStatus::nonlinear)
+          why = Reject::nonlinear;
         h[Eigen::Index(b)] = hdr[b].rate[p] / c.spatial.value[p];
       }
       if (why != Reject::count) {
@@ -333,7 +348,8 @@ void write_calibration(store::StoreWriter& out, const std::string& name, const C
   Eigen::MatrixXd lights(Eigen::Index(c.light_dirs.size()), 3);
   for (std::size_t l = 0; l < c.light_dirs.size(); ++l) lights.row(Eigen::Index(l)) = c.light_dirs[l].transpose();
   r.matrices = {{"spatial_response", s}, {"spectral_recovery", c.spectral.recovery}, {"light_dirs", lights}};
-  r.vectors = {{"spectral_scale", std::vector<double>(c.spectral.scale.data(), c.spectral.scale.data() + c.spectral.scale.size())},
+  r.vectors = {{"spectral_scale",
+                std::vector<double>(c.spectral.scale.data(), c.spectral.scale.data() + c.spectral.scale.size())},
                {"bands_nm", c.spectral.bands},
                {"circle_px", {c.circle.cx, c.circle.cy, c.circle.r}},
                {"sphere_m", {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z(), c.sphere.radius}},

@@ -21,7 +21,7 @@ struct PipelineOptions {
   HdrOptions hdr;
   SpectralModel spectral = SpectralModel::delta;
   std::vector<std::string> fit_targets = {"blue", "white"};  ///< as the reference; the rest are held out
-  int bloom_px = 2;          ///< pixels within this distance of a saturated one are rejected
+  int bloom_px = 2;  ///< pixels within this distance of a saturated one are rejected
 };
 
 /// One target's recovered reflectance under both models against its known reflectance (eq 4.8).
@@ -34,8 +34,8 @@ struct TargetReport {
 
 /// Everything calibration finds.
 struct Calibration {
-  GreyImage spatial;                       ///< S(x, y), 1 at the centre
-  SpectralCalibration spectral;            ///< the model used for recovery
+  GreyImage spatial;             ///< S(x, y), 1 at the centre
+  SpectralCalibration spectral;  ///< the model used for recovery
   std::vector<TargetReport> targets;
   Circle circle;
   Sphere sphere;
@@ -50,7 +50,8 @@ Calibration calibrate_capture(const Capture& capture, const std::filesystem::pat
 
 /// Why a (pixel, light) gave no sample.
 enum class Reject { shadowed, saturated, bloom, low_signal, nonlinear, count };
-inline constexpr std::array<const char*, 5> kRejectNames = {"shadowed", "saturated", "bloom", "low_signal", "nonlinear"};
+inline constexpr std::array<const char*, 5> kRejectNames = {"shadowed", "saturated", "bloom", "low_signal",
+                                                            "nonlinear"};
 
 struct ExtractResult {
   std::uint64_t samples = 0;
@@ -82,7 +83,7 @@ HdrSummary write_hdr_images(const Capture& capture, const std::filesystem::path&
                             store::StoreWriter& out);
 
 /// The directory's scene/flat/target exposure series of one (kind, light or target, band), merged.
-HdrImage merge_series(const Capture& capture, const std::filesystem::path& dir, ImageKind kind, int light, int target, int band,
-                      const HdrOptions& o);
+HdrImage merge_series(const Capture& capture, const std::filesystem::path& dir, ImageKind kind, int light, int target,
+                      int band, const HdrOptions& o);
 
 }  // namespace specula::acquire

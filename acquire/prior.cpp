@@ -58,8 +58,14 @@ Eigen::MatrixXd hat_basis(const WavelengthGrid& wavelengths, std::span<const dou
   Eigen::MatrixXd h = Eigen::MatrixXd::Zero(b, c);
   for (Eigen::Index i = 0; i < b; ++i) {
     const double x = wavelengths[std::size_t(i)];
-    if (x <= knots.front()) { h(i, 0) = 1; continue; }
-    if (x >= knots.back()) { h(i, c - 1) = 1; continue; }
+    if (x <= knots.front()) {
+      h(i, 0) = 1;
+      continue;
+    }
+    if (x >= knots.back()) {
+      h(i, c - 1) = 1;
+      continue;
+    }
     std::size_t j = 0;
     while (knots[j + 1] < x) ++j;
     const double t = (x - knots[j]) / (knots[j + 1] - knots[j]);
@@ -80,14 +86,16 @@ BrdfPrior build_prior(std::size_t count, const std::function<store::Grid(std::si
   BrdfPrior p;
   p.epsilon = o.epsilon;
   p.training.assign(names.begin(), names.end());
-  Eigen::MatrixXf x(static_cast<Eigen::Index>(d), static_cast<Eigen::Index>(m));  // cos-weighted channel values, then mapped
+  Eigen::MatrixXf x(static_cast<Eigen::Index>(d),
+                    static_cast<Eigen::Index>(m));  // cos-weighted channel values, then mapped
   Eigen::MatrixXd proj;
   for (std::size_t g = 0; g < count; ++g) {
     const store::Grid grid = load(g);
     const std::size_t b = grid.bands();
     if (g == 0) {
-      if (b < c) throw InputError("prior: grid '" + names[0] + "' has " + std::to_string(b) + " bands, fewer than the " +
-                                  std::to_string(c) + " channels asked for");
+      if (b < c)
+        throw InputError("prior: grid '" + names[0] + "' has " + std::to_string(b) + " bands, fewer than the " +
+                         std::to_string(c) + " channels asked for");
       p.wavelengths = grid.wavelengths;
       p.knots = even_knots(grid.wavelengths, c);
       proj = projection(hat_basis(p.wavelengths, p.knots));
@@ -114,8 +122,9 @@ BrdfPrior build_prior(std::size_t count, const std::function<store::Grid(std::si
     std::size_t missing = 0;
     for (const std::size_t h : holes) missing += h;
     if (missing)
-      throw InputError("prior: grid '" + names[g] + "' has no data (or a non-finite value) at " + std::to_string(missing) +
-                       " of the " + std::to_string(d) + " valid cells; a prior learns from complete grids");
+      throw InputError("prior: grid '" + names[g] + "' has no data (or a non-finite value) at " +
+                       std::to_string(missing) + " of the " + std::to_string(d) +
+                       " valid cells; a prior learns from complete grids");
   }
   // The reference: per cell the median over observations; then every value mapped and centred.
   p.reference.resize(d);
@@ -191,7 +200,8 @@ void fit_prior(const BrdfPrior& p, const PriorObservations& obs, const PriorFitO
     const double w = obs.weight[s];
     ata.noalias() += w * q * q.transpose();
     for (std::size_t j = 0; j < c; ++j)
-      atb.col(Eigen::Index(j)) += w * (double(mapped(float(ch[Eigen::Index(j)]), p.reference[i], p.epsilon)) - p.mean[i]) * q;
+      atb.col(Eigen::Index(j)) +=
+          w * (double(mapped(float(ch[Eigen::Index(j)]), p.reference[i], p.epsilon)) - p.mean[i]) * q;
   }
   for (std::size_t j = 0; j < k; ++j) ata(Eigen::Index(j), Eigen::Index(j)) += o.lambda / p.variances[j];
   const Eigen::MatrixXd a = ata.ldlt().solve(atb);  // k x c
@@ -204,7 +214,8 @@ void fit_prior(const BrdfPrior& p, const PriorObservations& obs, const PriorFitO
       for (std::size_t j = 0; j < c; ++j)
         y[Eigen::Index(j)] = std::max(0.0, (ref * std::exp(mapped_y[Eigen::Index(j)]) - p.epsilon) / cw);
       const Eigen::VectorXd s = hats * y;
-      for (std::size_t band = 0; band < b; ++band) grid[band * brdf::kMerlCells + cells[i]] = float(s[Eigen::Index(band)]);
+      for (std::size_t band = 0; band < b; ++band)
+        grid[band * brdf::kMerlCells + cells[i]] = float(s[Eigen::Index(band)]);
     }
   });
 }

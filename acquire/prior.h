@@ -22,22 +22,22 @@ namespace specula::acquire {
 
 /// How a prior is learned.
 struct PriorOptions {
-  std::size_t channels = 8;     ///< knots of the spectral basis, spread evenly over the grids' wavelengths (>= 2)
-  std::size_t components = 0;   ///< principal components kept; 0: all (observations - 1)
-  double epsilon = 1e-3;        ///< eps of the log-relative mapping (1/sr, as Nielsen et al.)
+  std::size_t channels = 8;    ///< knots of the spectral basis, spread evenly over the grids' wavelengths (>= 2)
+  std::size_t components = 0;  ///< principal components kept; 0: all (observations - 1)
+  double epsilon = 1e-3;       ///< eps of the log-relative mapping (1/sr, as Nielsen et al.)
 };
 
 /// A learned prior: PCA of log-relative mapped channels over the valid MERL cells (brdf::merl_cell_valid, in
 /// cell order).
 struct BrdfPrior {
-  WavelengthGrid wavelengths;            ///< the training grids' bands
-  std::vector<double> knots;             ///< channel knot wavelengths (nm), ascending, first and last at the ends
+  WavelengthGrid wavelengths;  ///< the training grids' bands
+  std::vector<double> knots;   ///< channel knot wavelengths (nm), ascending, first and last at the ends
   double epsilon = 1e-3;
-  std::vector<float> reference;          ///< per valid cell: the median cos-weighted channel value (1/sr)
-  std::vector<float> mean;               ///< per valid cell: mean mapped value
-  std::vector<float> components;         ///< k x valid cells, row-major, orthonormal rows
-  std::vector<double> variances;         ///< k: variance of the observations along each component
-  std::vector<std::string> training;     ///< the training grids, one name per material
+  std::vector<float> reference;       ///< per valid cell: the median cos-weighted channel value (1/sr)
+  std::vector<float> mean;            ///< per valid cell: mean mapped value
+  std::vector<float> components;      ///< k x valid cells, row-major, orthonormal rows
+  std::vector<double> variances;      ///< k: variance of the observations along each component
+  std::vector<std::string> training;  ///< the training grids, one name per material
 
   std::size_t cells() const { return mean.size(); }
   std::size_t k() const { return variances.size(); }

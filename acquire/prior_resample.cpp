@@ -42,12 +42,15 @@ PriorObservations cell_means(const SampleSource& src) {
     cell_of.resize(count);
     src.read_angles(first, count, angles);
     src.read_values(first, count, values);
-    parallel_for(count, [&](std::size_t s) {
-      const brdf::StdAngles a{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]};
-      const bool ok = std::isfinite(a.theta_i) && std::isfinite(a.theta_o) && a.theta_i < std::numbers::pi / 2 &&
-                      a.theta_o < std::numbers::pi / 2;
-      cell_of[s] = ok ? slot[brdf::merl_index(brdf::merl_cell(a))] : -1;
-    }, 4096);
+    parallel_for(
+        count,
+        [&](std::size_t s) {
+          const brdf::StdAngles a{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]};
+          const bool ok = std::isfinite(a.theta_i) && std::isfinite(a.theta_o) && a.theta_i < std::numbers::pi / 2 &&
+                          a.theta_o < std::numbers::pi / 2;
+          cell_of[s] = ok ? slot[brdf::merl_index(brdf::merl_cell(a))] : -1;
+        },
+        4096);
     for (std::size_t s = 0; s < count; ++s) {  // in sample order: the sums do not depend on the thread count
       const std::int32_t v = cell_of[s];
       if (v < 0) continue;
@@ -95,21 +98,24 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
   fit_prior(prior, obs, o.fit, fitted);
   const auto& cells = valid_cells();
   std::fill(confidence.begin(), confidence.end(), -1.0f);
-  parallel_for(cells.size(), [] { return Neighbours{}; }, [&](std::size_t i, Neighbours& nb) {
-    const std::size_t cell = cells[i];
-    const bool local = grid[cell] >= 0;
-    double c = 0;
-    if (local) {  // falls from 1 at a sample to 0 at the distance where the kd-tree estimate stops (max_gap)
-      tree.nearest(iso_angles(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cell)))), 1, nb);
-      const double r = nb.gap / (o.confidence_reach * o.local.max_gap);
-      c = std::clamp(1 - r * r, 0.0, 1.0);
-    }
-    confidence[cell] = float(c);
-    for (std::size_t k = 0; k < b; ++k) {
-      const std::size_t at = k * brdf::kMerlCells + cell;
-      grid[at] = float(c * (local ? grid[at] : 0.0f) + (1 - c) * fitted[at]);
-    }
-  }, 4096);
+  parallel_for(
+      cells.size(), [] { return Neighbours{}; },
+      [&](std::size_t i, Neighbours& nb) {
+        const std::size_t cell = cells[i];
+        const bool local = grid[cell] >= 0;
+        double c = 0;
+        if (local) {  // falls from 1 at a sample to 0 at the distance where the kd-tree estimate stops (max_gap)
+          tree.nearest(iso_angles(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cell)))), 1, nb);
+          const double r = nb.gap / (o.confidence_reach * o.local.max_gap);
+          c = std::clamp(1 - r * r, 0.0, 1.0);
+        }
+        confidence[cell] = float(c);
+        for (std::size_t k = 0; k < b; ++k) {
+          const std::size_t at = k * brdf::kMerlCells + cell;
+          grid[at] = float(c * (local ? grid[at] : 0.0f) + (1 - c) * fitted[at]);
+        }
+      },
+      4096);
   st.filled_cells = cells.size();
   st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return st;

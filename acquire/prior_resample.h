@@ -12,16 +12,16 @@
 namespace specula::acquire {
 
 struct PriorResampleOptions {
-  ResampleOptions local;          ///< the kd-tree estimate
+  ResampleOptions local;  ///< the kd-tree estimate
   PriorFitOptions fit;
-  double confidence_reach = 1;     ///< r: confidence falls to 0 at r * local.max_gap from the nearest sample (0 < r <= 1)
+  double confidence_reach = 1;  ///< r: confidence falls to 0 at r * local.max_gap from the nearest sample (0 < r <= 1)
 };
 
 /// What one reconstruction with a prior did.
 struct PriorResampleStats {
-  GridStats local;                ///< the kd-tree pass
-  std::size_t observed_cells = 0; ///< valid cells holding at least one sample (the prior's observations)
-  std::size_t filled_cells = 0;   ///< valid cells with data in the result (all of them)
+  GridStats local;                 ///< the kd-tree pass
+  std::size_t observed_cells = 0;  ///< valid cells holding at least one sample (the prior's observations)
+  std::size_t filled_cells = 0;    ///< valid cells with data in the result (all of them)
   double fit_seconds = 0;
 };
 

@@ -28,7 +28,8 @@ void write_f32(hid_t loc, const std::string& name, std::span<const float> v, hsi
   }
   h5::Id ds(h5::check(H5Dcreate2(loc, name.c_str(), H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx,
                       "cannot create " + name));
-  if (!v.empty()) h5::check(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot write " + name);
+  if (!v.empty())
+    h5::check(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot write " + name);
 }
 
 std::vector<float> read_f32(hid_t loc, const std::string& name, hsize_t rows, hsize_t cols, const std::string& ctx) {
@@ -38,7 +39,8 @@ std::vector<float> read_f32(hid_t loc, const std::string& name, hsize_t rows, hs
   if (dims != std::vector<hsize_t>{rows, cols})
     throw InputError(ctx + ": dataset '" + name + "' is not " + std::to_string(rows) + " x " + std::to_string(cols));
   std::vector<float> v(rows * cols);
-  if (!v.empty()) h5::check(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot read " + name);
+  if (!v.empty())
+    h5::check(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot read " + name);
   for (const float x : v)
     if (!std::isfinite(x)) throw InputError(ctx + ": dataset '" + name + "' holds a non-finite value");
   return v;

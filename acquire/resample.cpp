@@ -1,18 +1,18 @@
 #include "specula/acquire/resample.h"
 
-#include <nanoflann.hpp>
 #include <omp.h>
+#include <nanoflann.hpp>
 
 #include <algorithm>
 #include <chrono>
-#include <exception>
 #include <cmath>
+#include <exception>
 #include <limits>
 #include <numeric>
 
-#include "specula/core/parallel.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/parallel.h"
 #include "specula/core/progress.h"
 #include "specula/store/block_reader.h"
 #include "specula/store/store.h"
@@ -33,8 +33,8 @@ struct Cloud {
   }
 };
 
-using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud, float, std::uint32_t>, Cloud,
-                                                   3, std::uint32_t>;
+using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud, float, std::uint32_t>,
+                                                   Cloud, 3, std::uint32_t>;
 using KnnResult = nanoflann::KNNResultSet<float, std::uint32_t>;
 
 // The points are cut into slabs along one axis and every slab gets its own tree, so that the trees are built on
@@ -79,8 +79,8 @@ using ValueReader = std::function<void(std::size_t first, std::size_t count, std
 
 // The second half of resample_grid: neighbours of every cell in passes of at most max_entries entries, values
 // streamed once per pass.
-GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const ValueReader& read, std::size_t block_rows,
-               const ResampleOptions& o, std::span<float> grid) {
+GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const ValueReader& read,
+               std::size_t block_rows, const ResampleOptions& o, std::span<float> grid) {
   check_options(o);
   if (o.mapping != tree.mapping()) throw UsageError("resample: the options' mapping differs from the tree's");
   if (bands == 0 || grid.size() != bands * brdf::kMerlCells)
@@ -112,7 +112,8 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
             b1 - b0, [] { return WeightedNeighbours(); },
             [&](std::size_t i, WeightedNeighbours& wn) {
               const std::size_t c = b0 + i;
-              const brdf::StdAngles centre = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[first + c])));
+              const brdf::StdAngles centre =
+                  brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[first + c])));
               if (!wn.find(tree, iso_angles(centre), o)) return;
               count[c] = std::uint32_t(wn.by_sample.size());
               for (std::size_t j = 0; j < wn.by_sample.size(); ++j) {
@@ -225,10 +226,12 @@ void StoreSamples::read_values(std::size_t first, std::size_t count, std::span<f
   }
   // Whole reader blocks: decoded on every thread at once.
   const std::size_t b0 = first / reader_rows_, nb = (count + reader_rows_ - 1) / reader_rows_;
-  parallel_for(nb, [] { return store::BlockReader::RawBlock(); }, [&](std::size_t i, store::BlockReader::RawBlock& raw) {
-    reader_->read_raw(b0 + i, raw);
-    std::copy(raw.values.begin(), raw.values.end(), out.begin() + std::ptrdiff_t(i * reader_rows_ * bands_));
-  });
+  parallel_for(
+      nb, [] { return store::BlockReader::RawBlock(); },
+      [&](std::size_t i, store::BlockReader::RawBlock& raw) {
+        reader_->read_raw(b0 + i, raw);
+        std::copy(raw.values.begin(), raw.values.end(), out.begin() + std::ptrdiff_t(i * reader_rows_ * bands_));
+      });
 }
 
 // ------------------------------------------------------------------ tree
@@ -242,11 +245,12 @@ struct SampleTree::Index {
   std::vector<float> xyz;             // slab by slab, each in its tree's leaf order
   std::vector<std::uint32_t> sample;  // position -> sample index
   int axis = 0;
-  std::vector<float> cuts;            // slab s holds cuts[s - 1] <= x[axis] < cuts[s]
+  std::vector<float> cuts;  // slab s holds cuts[s - 1] <= x[axis] < cuts[s]
   std::vector<std::unique_ptr<Slab>> slabs;
 };
 
-SampleTree::SampleTree(const SampleSource& src, Mapping m) : mapping_(m), n_(src.size()), index_(std::make_unique<Index>()) {
+SampleTree::SampleTree(const SampleSource& src, Mapping m)
+    : mapping_(m), n_(src.size()), index_(std::make_unique<Index>()) {
   if (n_ == 0) throw InputError("no samples to resample");
   if (n_ >= std::numeric_limits<std::uint32_t>::max())
     throw InputError(std::to_string(n_) + " samples: at most 2^32 - 2 can be resampled at once; split them");
@@ -317,19 +321,22 @@ SampleTree::SampleTree(const SampleSource& src, Mapping m) : mapping_(m), n_(src
   // Each slab's tree, built on its own thread; then its points stored in leaf order (a leaf's points contiguous
   // in memory) and the tree's permutation made the positions themselves.
   parallel_for(slabs, [&](std::size_t s) {
-      const std::size_t first = offset[s], count = offset[s + 1] - offset[s];
-      Index::Slab& slab = *ix.slabs[s];
-      slab.cloud = {ix.xyz.data() + 3 * first, count};
-      if (count == 0) return;
-      slab.tree = std::make_unique<KdTree>(3, slab.cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
-      auto& order = slab.tree->vAcc;
-      std::vector<float> points(ix.xyz.begin() + std::ptrdiff_t(3 * first), ix.xyz.begin() + std::ptrdiff_t(3 * (first + count)));
-      std::vector<std::uint32_t> ids(ix.sample.begin() + std::ptrdiff_t(first), ix.sample.begin() + std::ptrdiff_t(first + count));
-      for (std::size_t j = 0; j < count; ++j) {
-        std::copy_n(points.begin() + std::ptrdiff_t(3 * std::size_t(order[j])), 3, ix.xyz.begin() + std::ptrdiff_t(3 * (first + j)));
-        ix.sample[first + j] = ids[order[j]];
-        order[j] = std::uint32_t(first + j);
-      }
+    const std::size_t first = offset[s], count = offset[s + 1] - offset[s];
+    Index::Slab& slab = *ix.slabs[s];
+    slab.cloud = {ix.xyz.data() + 3 * first, count};
+    if (count == 0) return;
+    slab.tree = std::make_unique<KdTree>(3, slab.cloud, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    auto& order = slab.tree->vAcc;
+    std::vector<float> points(ix.xyz.begin() + std::ptrdiff_t(3 * first),
+                              ix.xyz.begin() + std::ptrdiff_t(3 * (first + count)));
+    std::vector<std::uint32_t> ids(ix.sample.begin() + std::ptrdiff_t(first),
+                                   ix.sample.begin() + std::ptrdiff_t(first + count));
+    for (std::size_t j = 0; j < count; ++j) {
+      std::copy_n(points.begin() + std::ptrdiff_t(3 * std::size_t(order[j])), 3,
+                  ix.xyz.begin() + std::ptrdiff_t(3 * (first + j)));
+      ix.sample[first + j] = ids[order[j]];
+      order[j] = std::uint32_t(first + j);
+    }
   });
   for (auto& slab : ix.slabs) slab->cloud = {ix.xyz.data(), n_};
 }
@@ -385,10 +392,14 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
     for (const float d : dist2) at_zero += d == 0;
     for (std::size_t j = 0; j < n; ++j) {
       const double d2 = dist2[j];
-      if (at_zero) raw[j] = d2 == 0 ? 1.0 : 0.0;
-      else if (power == 1) raw[j] = 1 / std::sqrt(d2);
-      else if (power == 2) raw[j] = 1 / d2;
-      else raw[j] = std::pow(d2, -0.5 * power);
+      if (at_zero)
+        raw[j] = d2 == 0 ? 1.0 : 0.0;
+      else if (power == 1)
+        raw[j] = 1 / std::sqrt(d2);
+      else if (power == 2)
+        raw[j] = 1 / d2;
+      else
+        raw[j] = std::pow(d2, -0.5 * power);
     }
   }
   double sum = 0;
@@ -396,7 +407,8 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
   for (std::size_t j = 0; j < n; ++j) out[j] = float(raw[j] / sum);
 }
 
-GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o, std::span<float> grid) {
+GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
+                        std::span<float> grid) {
   if (tree.size() != src.size()) throw UsageError("resample: the tree was built over other samples");
   return fill(
       tree, src.size(), src.bands(),
@@ -428,7 +440,8 @@ Resampler::Resampler(std::shared_ptr<const SampleTree> tree, std::span<const flo
                      const ResampleOptions& o)
     : tree_(std::move(tree)), values_(values), bands_(bands), o_(o) {
   check_options(o);
-  if (!tree_ || o.mapping != tree_->mapping()) throw UsageError("resample: the options' mapping differs from the tree's");
+  if (!tree_ || o.mapping != tree_->mapping())
+    throw UsageError("resample: the options' mapping differs from the tree's");
   if (bands == 0 || values.size() != tree_->size() * bands) throw UsageError("resample: values must be n x bands");
 }
 
@@ -448,7 +461,9 @@ bool Resampler::predict(const IsoAngles& at, std::span<float> out) const {
 
 bool Resampler::predict(const brdf::StdAngles& at, std::span<float> out) const { return predict(iso_angles(at), out); }
 
-void Resampler::neighbours(const brdf::StdAngles& at, Neighbours& out) const { tree_->nearest(iso_angles(at), o_.k, out); }
+void Resampler::neighbours(const brdf::StdAngles& at, Neighbours& out) const {
+  tree_->nearest(iso_angles(at), o_.k, out);
+}
 
 std::size_t Resampler::fill_grid(std::span<float> grid) const {
   const std::size_t b = bands_;

@@ -22,7 +22,7 @@
 namespace specula::store {
 class Store;
 class BlockReader;
-}
+}  // namespace specula::store
 
 namespace specula::acquire {
 
@@ -104,7 +104,7 @@ class StoreSamples final : public SampleSource {
 struct Neighbours {
   std::vector<std::uint32_t> index;  ///< sample indices, nearest first
   std::vector<float> dist2;          ///< squared distances in the mapped space
-  double gap = 0;                    ///< config_distance from the query to the nearest sample (reciprocal as the mapping)
+  double gap = 0;  ///< config_distance from the query to the nearest sample (reciprocal as the mapping)
 };
 
 /// A kd-tree (nanoflann) over the mapped configurations of a source's samples: 16 bytes per sample.
@@ -144,7 +144,8 @@ struct GridStats {
 /// progress shown, Interrupted between blocks. UsageError for a grid of the wrong size or bad options.
 GridStats resample_grid(const SampleSource& src, const ResampleOptions& o, std::span<float> grid);
 /// resample_grid with a tree already built over src (o.mapping must be the tree's).
-GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o, std::span<float> grid);
+GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
+                        std::span<float> grid);
 
 /// Reconstruction at any configuration from samples in memory (the caller keeps the values alive).
 class Resampler {

@@ -19,12 +19,14 @@ Eigen::Vector3d sphere_centre(const ScanRig& rig) { return {rig.off_axis, rig.of
 void check_rig(const ScanRig& rig) {
   if (!(rig.focal_px > 0) || !(rig.sphere_px >= 1) || !(rig.sphere_px <= 100000))
     throw UsageError("scan rig: the focal length must be positive and the sphere 1 to 100000 pixels across");
-  if (!(rig.distance > 0) || !std::isfinite(rig.off_axis) || !std::isfinite(rig.off_axis_y) || !(rig.light_distance > 0))
+  if (!(rig.distance > 0) || !std::isfinite(rig.off_axis) || !std::isfinite(rig.off_axis_y) ||
+      !(rig.light_distance > 0))
     throw UsageError("scan rig: distances must be positive");
   const double r = sphere_radius(rig);
   if (sphere_centre(rig).norm() <= 1.05 * r) throw UsageError("scan rig: the camera is inside or on the sphere");
   if (rig.light_distance <= 1.05 * r) throw UsageError("scan rig: the light arc passes through the sphere");
-  if (rig.lights == 0 || rig.lights > 100000 || !(std::abs(rig.light_step_deg) > 0) || !std::isfinite(rig.first_light_deg))
+  if (rig.lights == 0 || rig.lights > 100000 || !(std::abs(rig.light_step_deg) > 0) ||
+      !std::isfinite(rig.first_light_deg))
     throw UsageError("scan rig: give 1 to 100000 light positions and a non-zero step");
 }
 
@@ -78,7 +80,8 @@ bool scan_angles(const ScanPixel& p, const Eigen::Vector3d& light, brdf::StdAngl
   return true;
 }
 
-std::size_t scan_light(const ScanRig& rig, std::span<const ScanPixel> pixels, std::size_t j, std::vector<double>& angles) {
+std::size_t scan_light(const ScanRig& rig, std::span<const ScanPixel> pixels, std::size_t j,
+                       std::vector<double>& angles) {
   const Eigen::Vector3d light = light_position(rig, j);
   std::size_t added = 0;
   brdf::StdAngles a;

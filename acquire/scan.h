@@ -14,15 +14,15 @@
 namespace specula::acquire {
 
 struct ScanRig {
-  double focal_px = 2000;             ///< focal length in pixels
-  double sphere_px = 200;             ///< the sphere's diameter on the image, about (pixels)
-  double distance = 1.0;              ///< camera to sphere centre (m)
-  double off_axis = 0.03;             ///< sphere centre's offset from the optical axis along x (m)
-  double off_axis_y = 0.011;          ///< and along y, so that the image is not mirror-symmetric about the arc's plane
-  double light_distance = 1.0;        ///< arc radius: light to sphere centre (m)
-  double first_light_deg = 10;        ///< angle between the first light and the camera, seen from the sphere
-  double light_step_deg = 1;          ///< arc step
-  std::size_t lights = 165;           ///< light positions
+  double focal_px = 2000;       ///< focal length in pixels
+  double sphere_px = 200;       ///< the sphere's diameter on the image, about (pixels)
+  double distance = 1.0;        ///< camera to sphere centre (m)
+  double off_axis = 0.03;       ///< sphere centre's offset from the optical axis along x (m)
+  double off_axis_y = 0.011;    ///< and along y, so that the image is not mirror-symmetric about the arc's plane
+  double light_distance = 1.0;  ///< arc radius: light to sphere centre (m)
+  double first_light_deg = 10;  ///< angle between the first light and the camera, seen from the sphere
+  double light_step_deg = 1;    ///< arc step
+  std::size_t lights = 165;     ///< light positions
 };
 
 /// One visible point of the sphere: its pixel, position (camera frame, m), normal and direction to the camera.
@@ -44,6 +44,7 @@ Eigen::Vector3d light_position(const ScanRig& rig, std::size_t j);
 /// is not lit (light at or below its horizon).
 bool scan_angles(const ScanPixel& p, const Eigen::Vector3d& light, brdf::StdAngles& out);
 /// Every lit sample of light j in pixel order, appended to angles (n x 4). Returns how many were added.
-std::size_t scan_light(const ScanRig& rig, std::span<const ScanPixel> pixels, std::size_t j, std::vector<double>& angles);
+std::size_t scan_light(const ScanRig& rig, std::span<const ScanPixel> pixels, std::size_t j,
+                       std::vector<double>& angles);
 
 }  // namespace specula::acquire

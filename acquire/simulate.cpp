@@ -7,11 +7,11 @@
 #include <numbers>
 #include <random>
 
-#include "specula/core/parallel.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/cie.h"
 #include "specula/core/error.h"
+#include "specula/core/parallel.h"
 #include "specula/store/io/png_stack.h"
 
 namespace specula::acquire {
@@ -69,7 +69,8 @@ struct Sensor {
     double dn = o.dark_dn + rate * t;
     if (o.noise) {
       const double electrons = std::max(0.0, rate * t) * o.electrons_per_dn;
-      const double sigma = std::sqrt(electrons / (o.electrons_per_dn * o.electrons_per_dn) + o.read_noise_dn * o.read_noise_dn);
+      const double sigma =
+          std::sqrt(electrons / (o.electrons_per_dn * o.electrons_per_dn) + o.read_noise_dn * o.read_noise_dn);
       dn += std::normal_distribution<double>(0.0, sigma)(rng);
     }
     return std::uint16_t(std::clamp(std::lround(dn), 0L, long(max_dn)));
@@ -78,7 +79,8 @@ struct Sensor {
 
 class GridMaterial final : public brdf::SpectralModel {
  public:
-  GridMaterial(std::shared_ptr<const store::Grid> grid, WavelengthGrid target) : SpectralModel(std::move(target)), grid_(std::move(grid)) {
+  GridMaterial(std::shared_ptr<const store::Grid> grid, WavelengthGrid target)
+      : SpectralModel(std::move(target)), grid_(std::move(grid)) {
     const WavelengthGrid& from = grid_->wavelengths;
     for (std::size_t k = 0; k < bands(); ++k) {
       const double l = wavelengths()[k];
@@ -100,8 +102,8 @@ class GridMaterial final : public brdf::SpectralModel {
   void eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, std::span<double> out) const override {
     std::fill(out.begin(), out.end(), 0.0);
     if (wi.z() <= 0 || wo.z() <= 0) return;
-    const brdf::StdAngles a{std::acos(std::min(1.0, wi.z())), std::atan2(wi.y(), wi.x()), std::acos(std::min(1.0, wo.z())),
-                            std::atan2(wo.y(), wo.x())};
+    const brdf::StdAngles a{std::acos(std::min(1.0, wi.z())), std::atan2(wi.y(), wi.x()),
+                            std::acos(std::min(1.0, wo.z())), std::atan2(wo.y(), wo.x())};
     const std::size_t cell = brdf::merl_index(brdf::merl_cell(a));
     for (std::size_t k = 0; k < out.size(); ++k) {
       const double va = std::max(0.0f, grid_->brdf[lo_[k] * brdf::kMerlCells + cell]);
@@ -118,7 +120,8 @@ class GridMaterial final : public brdf::SpectralModel {
 
 }  // namespace
 
-std::unique_ptr<brdf::SpectralModel> grid_material(std::shared_ptr<const store::Grid> grid, const WavelengthGrid& target) {
+std::unique_ptr<brdf::SpectralModel> grid_material(std::shared_ptr<const store::Grid> grid,
+                                                   const WavelengthGrid& target) {
   if (!grid || grid->brdf.size() != grid->bands() * brdf::kMerlCells || grid->bands() == 0)
     throw UsageError("grid_material: a grid of bands x 90 x 90 x 180 values");
   return std::make_unique<GridMaterial>(std::move(grid), target);
@@ -129,8 +132,8 @@ void check_simulator(const SimulatorOptions& o) {
     throw UsageError("simulate-capture: the image must be 16 to 8192 pixels a side");
   check_rig(o.rig);
   if (o.rig.sphere_px > 0.9 * std::min(o.width, o.height))
-    throw UsageError(fmt::format("simulate-capture: a sphere {} px across does not fit on a {} x {} image", o.rig.sphere_px,
-                                 o.width, o.height));
+    throw UsageError(fmt::format("simulate-capture: a sphere {} px across does not fit on a {} x {} image",
+                                 o.rig.sphere_px, o.width, o.height));
   for (std::size_t i = 0; i < o.bands.size(); ++i)
     if (!(o.bands[i] >= 400 && o.bands[i] <= 740) || (i && !(o.bands[i] > o.bands[i - 1])))
       throw UsageError("simulate-capture: bands must increase within 400-740 nm");
@@ -141,9 +144,11 @@ void check_simulator(const SimulatorOptions& o) {
     throw UsageError("simulate-capture: passband widths must be positive and the light 1000-20000 K");
   if (!(o.brightness > 0) || !(o.read_noise_dn >= 0) || !(o.electrons_per_dn > 0) || !(o.dark_dn >= 0) ||
       !(o.vignetting >= 0 && o.vignetting < 1))
-    throw UsageError("simulate-capture: brightness and gain must be positive, noise and bias >= 0, vignetting in [0, 1)");
+    throw UsageError(
+        "simulate-capture: brightness and gain must be positive, noise and bias >= 0, vignetting in [0, 1)");
   if (!o.grid && !brdf::material_catalogue().count(o.material))
-    throw UsageError("simulate-capture: unknown material '" + o.material + "' (specula synth-brdf lists the analytic materials)");
+    throw UsageError("simulate-capture: unknown material '" + o.material +
+                     "' (specula synth-brdf lists the analytic materials)");
 }
 
 std::vector<std::vector<double>> simulated_response(const SimulatorOptions& o, const std::vector<double>& nm) {
@@ -156,10 +161,12 @@ std::vector<std::vector<double>> simulated_response(const SimulatorOptions& o, c
       if (k < nm.size()) r[j][k] = quantum_efficiency(bands[j]) / step;
       continue;
     }
-    const double fwhm = o.fwhm_blue_nm + (o.fwhm_red_nm - o.fwhm_blue_nm) * std::clamp((bands[j] - 420) / 300, 0.0, 1.0);
+    const double fwhm =
+        o.fwhm_blue_nm + (o.fwhm_red_nm - o.fwhm_blue_nm) * std::clamp((bands[j] - 420) / 300, 0.0, 1.0);
     const double sigma = fwhm / (2 * std::sqrt(2 * std::log(2.0)));
     for (std::size_t k = 0; k < nm.size(); ++k)
-      r[j][k] = quantum_efficiency(nm[k]) * std::exp(-0.5 * std::pow((nm[k] - bands[j]) / sigma, 2)) / (sigma * std::sqrt(2 * pi));
+      r[j][k] = quantum_efficiency(nm[k]) * std::exp(-0.5 * std::pow((nm[k] - bands[j]) / sigma, 2)) /
+                (sigma * std::sqrt(2 * pi));
   }
   return r;
 }
@@ -185,7 +192,8 @@ void check_sphere_on_image(const SimulatorOptions& o) {
   const double px = o.width / 2.0, py = o.height / 2.0;
   for (const ScanPixel& p : scan_pixels(o.rig))
     if (p.x + px < 0 || p.x + px >= o.width || p.y + py < 0 || p.y + py >= o.height)
-      throw UsageError("simulate-capture: the sphere falls off the image; enlarge the image or bring the sphere to the axis");
+      throw UsageError(
+          "simulate-capture: the sphere falls off the image; enlarge the image or bring the sphere to the axis");
 }
 
 // Per band: the weights' sum (a white flat field) and, per target (t * B + j), the weights times its reflectance.
@@ -198,7 +206,8 @@ std::pair<std::vector<double>, std::vector<double>> flat_and_target_sums(const s
   for (std::size_t j = 0; j < B; ++j) {
     for (std::size_t k = 0; k < L; ++k) flat_sum[j] += w[j][k];
     for (std::size_t t = 0; t < targets.size(); ++t)
-      for (std::size_t k = 0; k < L; ++k) target_sum[t * B + j] += w[j][k] * interpolate(bands, targets[t].reflectance, nm[k]);
+      for (std::size_t k = 0; k < L; ++k)
+        target_sum[t * B + j] += w[j][k] * interpolate(bands, targets[t].reflectance, nm[k]);
   }
   return {flat_sum, target_sum};
 }
@@ -211,7 +220,8 @@ double mirror_rate(int u, int v, double cx, double cy, const Eigen::Vector3d& lp
   for (int sy = 0; sy < 8; ++sy)
     for (int sx = 0; sx < 8; ++sx) {
       const Eigen::Vector3d d =
-          Eigen::Vector3d((u + (sx + 0.5) / 8 - cx) / rig.focal_px, (v + (sy + 0.5) / 8 - cy) / rig.focal_px, 1).normalized();
+          Eigen::Vector3d((u + (sx + 0.5) / 8 - cx) / rig.focal_px, (v + (sy + 0.5) / 8 - cy) / rig.focal_px, 1)
+              .normalized();
       const double b = d.dot(centre), disc = b * b - centre.squaredNorm() + radius * radius;
       if (disc <= 0) continue;
       const Eigen::Vector3d x = (b - std::sqrt(disc)) * d, n = (x - centre) / radius;
@@ -238,23 +248,27 @@ std::vector<Job> image_jobs(const SimulatorOptions& o, const Capture& cap) {
     jobs.push_back({im, std::uint64_t(o.seed) * 1000003ull + jobs.size()});
   };
   add(ImageKind::silhouette, -1, -1, -1, 0.05, "silhouette.png");
-  for (std::size_t l = 0; l < rig.lights; ++l) add(ImageKind::mirror, int(l), -1, -1, 0.01, fmt::format("mirror/L{:03}.png", l));
+  for (std::size_t l = 0; l < rig.lights; ++l)
+    add(ImageKind::mirror, int(l), -1, -1, 0.01, fmt::format("mirror/L{:03}.png", l));
   for (std::size_t j = 0; j < B; ++j)
-    for (const double e : {0.02, 0.05}) add(ImageKind::flat, -1, int(j), -1, e, fmt::format("flat/B{:03}-{:g}ms.png", int(o.bands[j]), e * 1000));
+    for (const double e : {0.02, 0.05})
+      add(ImageKind::flat, -1, int(j), -1, e, fmt::format("flat/B{:03}-{:g}ms.png", int(o.bands[j]), e * 1000));
   for (std::size_t t = 0; t < cap.targets.size(); ++t)
     for (std::size_t j = 0; j < B; ++j)
       for (const double e : {0.02, 0.1, 0.5, 2.0})
-        add(ImageKind::target, -1, int(j), int(t), e, fmt::format("target/{}/B{:03}-{:g}ms.png", cap.targets[t].name, int(o.bands[j]), e * 1000));
+        add(ImageKind::target, -1, int(j), int(t), e,
+            fmt::format("target/{}/B{:03}-{:g}ms.png", cap.targets[t].name, int(o.bands[j]), e * 1000));
   for (std::size_t l = 0; l < rig.lights; ++l)
     for (std::size_t j = 0; j < B; ++j)
       for (const double e : o.exposures_s)
-        add(ImageKind::scene, int(l), int(j), -1, e, fmt::format("scene/L{:03}/B{:03}-{:g}ms.png", l, int(o.bands[j]), e * 1000));
+        add(ImageKind::scene, int(l), int(j), -1, e,
+            fmt::format("scene/L{:03}/B{:03}-{:g}ms.png", l, int(o.bands[j]), e * 1000));
   return jobs;
 }
 
 // band_weight[j][k] = L(k) R_j(k) dl / Z, with Z making the strongest band of a white Lambertian (pi f = 1) 1.
-std::vector<std::vector<double>> band_weights(const Eigen::VectorXd& light, const std::vector<std::vector<double>>& response,
-                                              double dl) {
+std::vector<std::vector<double>> band_weights(const Eigen::VectorXd& light,
+                                              const std::vector<std::vector<double>>& response, double dl) {
   const std::size_t B = response.size(), L = std::size_t(light.size());
   std::vector<std::vector<double>> w(B, std::vector<double>(L));
   double z = 0;
@@ -271,7 +285,8 @@ std::vector<std::vector<double>> band_weights(const Eigen::VectorXd& light, cons
 // The manifest of a simulated capture before its images: camera, rig, light, targets, the filter's transmission data
 // and the truth (sphere and light directions).
 Capture capture_description(const SimulatorOptions& o, const std::vector<double>& nm, const Eigen::VectorXd& light,
-                            const std::vector<std::vector<double>>& response, const Eigen::Vector3d& centre, double radius) {
+                            const std::vector<std::vector<double>>& response, const Eigen::Vector3d& centre,
+                            double radius) {
   const ScanRig& rig = o.rig;
   const int W = o.width, H = o.height;
   const double cx = W / 2.0, cy = H / 2.0;
@@ -286,7 +301,8 @@ Capture capture_description(const SimulatorOptions& o, const std::vector<double>
   cap.bands = o.bands;
   cap.sphere_radius_m = sphere_radius(rig);
   cap.light_distance_m = rig.light_distance;
-  for (std::size_t l = 0; l < rig.lights; ++l) cap.light_angles_deg.push_back(rig.first_light_deg + double(l) * rig.light_step_deg);
+  for (std::size_t l = 0; l < rig.lights; ++l)
+    cap.light_angles_deg.push_back(rig.first_light_deg + double(l) * rig.light_step_deg);
   cap.light_spectrum_nm = nm;
   cap.light_spectrum.assign(light.data(), light.data() + light.size());
   cap.targets = default_targets(o.bands);
@@ -304,9 +320,9 @@ Capture capture_description(const SimulatorOptions& o, const std::vector<double>
     cap.lctf_nm.push_back(tn);
     cap.lctf_value.push_back(tv);
   }
-  cap.description = fmt::format("simulated: {} sphere, {} lights, {} bands, {} exposures, {} passbands{}", o.material, rig.lights, B,
-                                o.exposures_s.size(), o.passband == Passband::delta ? "delta" : "Gaussian",
-                                o.noise ? ", noisy" : ", noise-free");
+  cap.description = fmt::format(
+      "simulated: {} sphere, {} lights, {} bands, {} exposures, {} passbands{}", o.material, rig.lights, B,
+      o.exposures_s.size(), o.passband == Passband::delta ? "delta" : "Gaussian", o.noise ? ", noisy" : ", noise-free");
   CaptureTruth truth;
   truth.sphere_centre = {centre.x(), centre.y(), centre.z()};
   truth.sphere_radius = radius;
@@ -328,7 +344,9 @@ std::vector<float> silhouette_coverage(int W, int H, const ScanRig& rig, const E
       int hits = 0;
       for (int sy = 0; sy < 4; ++sy)
         for (int sx = 0; sx < 4; ++sx) {
-          const Eigen::Vector3d d = Eigen::Vector3d((u + (sx + 0.5) / 4 - cx) / rig.focal_px, (v + (sy + 0.5) / 4 - cy) / rig.focal_px, 1).normalized();
+          const Eigen::Vector3d d =
+              Eigen::Vector3d((u + (sx + 0.5) / 4 - cx) / rig.focal_px, (v + (sy + 0.5) / 4 - cy) / rig.focal_px, 1)
+                  .normalized();
           const double b = d.dot(centre);
           hits += b * b - centre.squaredNorm() + radius * radius > 0;
         }
@@ -412,14 +430,21 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
           const std::size_t p = std::size_t(v * W + u);
           double rate = 0;
           switch (im.kind) {
-            case ImageKind::scene: rate = scene_rate[std::size_t(im.band) * std::size_t(W * H) + p]; break;
-            case ImageKind::silhouette: rate = 60000 * vignette(u, v) * (1 - coverage[p]) + 300 * coverage[p]; break;
-            case ImageKind::flat: rate = 50000 * vignette(u, v) * flat_sum[std::size_t(im.band)]; break;
+            case ImageKind::scene:
+              rate = scene_rate[std::size_t(im.band) * std::size_t(W * H) + p];
+              break;
+            case ImageKind::silhouette:
+              rate = 60000 * vignette(u, v) * (1 - coverage[p]) + 300 * coverage[p];
+              break;
+            case ImageKind::flat:
+              rate = 50000 * vignette(u, v) * flat_sum[std::size_t(im.band)];
+              break;
             case ImageKind::target:
               rate = o.brightness * vignette(u, v) * target_sum[std::size_t(im.target) * B + std::size_t(im.band)];
               break;
             case ImageKind::mirror: {
-              if (coverage[p] > 0) rate = mirror_rate(u, v, cx, cy, light_position(rig, std::size_t(im.light)), rig, centre, radius);
+              if (coverage[p] > 0)
+                rate = mirror_rate(u, v, cx, cy, light_position(rig, std::size_t(im.light)), rig, centre, radius);
               break;
             }
           }

@@ -21,23 +21,23 @@ namespace specula::acquire {
 enum class Passband { delta, gaussian };
 
 struct SimulatorOptions {
-  std::string material = "red-plastic";  ///< a name of core/brdf_materials.h (ignored when grid is set)
+  std::string material = "red-plastic";     ///< a name of core/brdf_materials.h (ignored when grid is set)
   std::shared_ptr<const store::Grid> grid;  ///< a spectral grid to image instead (MERL layout); material names it
   int width = 256, height = 256;
-  ScanRig rig;                           ///< geometry; rig.sphere_px sets the sphere's size on the image
-  std::vector<double> bands;             ///< tuning wavelengths (nm); empty: 420 to 720 every 10
+  ScanRig rig;                ///< geometry; rig.sphere_px sets the sphere's size on the image
+  std::vector<double> bands;  ///< tuning wavelengths (nm); empty: 420 to 720 every 10
   std::vector<double> exposures_s = {1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0, 3.0, 8.0};  ///< 100 us to 8 s
   Passband passband = Passband::gaussian;
   double fwhm_blue_nm = 10, fwhm_red_nm = 20;  ///< Gaussian FWHM at 420 nm, growing linearly to this at 720 nm
   double light_kelvin = 3200;                  ///< tungsten-halogen, as a blackbody
-  double brightness = 20000;   ///< DN/s from a white Lambertian facing light and camera in the strongest band
-  double read_noise_dn = 1.5;  ///< Gaussian read noise (DN)
-  double electrons_per_dn = 4; ///< shot noise: Poisson in electrons (approximated as Gaussian)
-  double dark_dn = 8;          ///< offset every pixel carries (bias)
-  double vignetting = 0.25;    ///< fraction of light lost at the image corner (S = 1 - v (r / r_corner)^2)
+  double brightness = 20000;    ///< DN/s from a white Lambertian facing light and camera in the strongest band
+  double read_noise_dn = 1.5;   ///< Gaussian read noise (DN)
+  double electrons_per_dn = 4;  ///< shot noise: Poisson in electrons (approximated as Gaussian)
+  double dark_dn = 8;           ///< offset every pixel carries (bias)
+  double vignetting = 0.25;     ///< fraction of light lost at the image corner (S = 1 - v (r / r_corner)^2)
   bool noise = true;
   unsigned seed = 1;
-  int threads_hint = 0;        ///< unused by results: the images do not depend on the thread count
+  int threads_hint = 0;  ///< unused by results: the images do not depend on the thread count
 };
 
 /// UsageError stating the rule for a bad option (sizes, bands, exposures, noise, an unknown material, a sphere
@@ -50,7 +50,8 @@ Capture simulate_capture(const SimulatorOptions& o, const std::filesystem::path&
 
 /// A spectral grid as an analytic-style model on `target` wavelengths: looked up as MERL's BRDFRead.cpp does
 /// (no data counts as 0), value * scale, linearly interpolated between the grid's bands and held constant beyond.
-std::unique_ptr<brdf::SpectralModel> grid_material(std::shared_ptr<const store::Grid> grid, const WavelengthGrid& target);
+std::unique_ptr<brdf::SpectralModel> grid_material(std::shared_ptr<const store::Grid> grid,
+                                                   const WavelengthGrid& target);
 
 /// The relative spectral response R_j on `nm` (rows: bands) for the options' passband model and camera
 /// (LCTF transmission times a smooth quantum efficiency), as the simulator uses it.

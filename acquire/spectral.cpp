@@ -30,7 +30,8 @@ void check(std::span<const double> bands, const Eigen::MatrixXd& measured, const
   if (bands.empty() || measured.cols() != Eigen::Index(bands.size()) || reflectance.rows() != measured.rows() ||
       reflectance.cols() != measured.cols() || measured.rows() < 1)
     throw UsageError("spectral calibration: give targets x bands measurements and reflectances, at least one target");
-  if (!measured.allFinite() || !reflectance.allFinite()) throw InputError("spectral calibration: non-finite target data");
+  if (!measured.allFinite() || !reflectance.allFinite())
+    throw InputError("spectral calibration: non-finite target data");
 }
 
 // w = argmin sum_i (H_i - w a_i)^2 per band.
@@ -40,7 +41,8 @@ Eigen::VectorXd least_squares_scale(const Eigen::MatrixXd& measured, const Eigen
     const double den = model.col(j).squaredNorm();
     if (!(den > 0)) throw InputError("spectral calibration: the targets reflect nothing at band " + std::to_string(j));
     w[j] = measured.col(j).dot(model.col(j)) / den;
-    if (!(w[j] > 0)) throw InputError("spectral calibration: band " + std::to_string(j) + " has no signal on the targets");
+    if (!(w[j] > 0))
+      throw InputError("spectral calibration: band " + std::to_string(j) + " has no signal on the targets");
   }
   return w;
 }
@@ -62,8 +64,9 @@ SpectralCalibration fit_delta(std::span<const double> bands, const Tabulated& li
   return c;
 }
 
-SpectralCalibration fit_factored(std::span<const double> bands, const Tabulated& light, std::span<const Tabulated> transmission,
-                                 const Eigen::MatrixXd& measured, const Eigen::MatrixXd& reflectance) {
+SpectralCalibration fit_factored(std::span<const double> bands, const Tabulated& light,
+                                 std::span<const Tabulated> transmission, const Eigen::MatrixXd& measured,
+                                 const Eigen::MatrixXd& reflectance) {
   check(bands, measured, reflectance);
   const Eigen::Index n = Eigen::Index(bands.size());
   if (transmission.size() != bands.size()) throw UsageError("factored model: one transmission curve per band");
@@ -116,7 +119,8 @@ SpectralCalibration fit_factored(std::span<const double> bands, const Tabulated&
     }
   }
   const Eigen::FullPivLU<Eigen::MatrixXd> lu(rl);
-  if (!lu.isInvertible()) throw InputError("factored model: R L is singular on the band grid (passbands too narrow for the band spacing?)");
+  if (!lu.isInvertible())
+    throw InputError("factored model: R L is singular on the band grid (passbands too narrow for the band spacing?)");
   c.recovery = lu.inverse();
   return c;
 }

@@ -24,9 +24,9 @@ struct Tabulated {
 /// A fitted spectral calibration: f = recovery * H, with H the HDR values of the N bands (flat-field corrected).
 struct SpectralCalibration {
   SpectralModel model = SpectralModel::delta;
-  std::vector<double> bands;     ///< tuning wavelengths (nm)
-  Eigen::VectorXd scale;         ///< w_j (delta) or c_j (factored)
-  Eigen::MatrixXd recovery;      ///< (R L)^-1, N x N
+  std::vector<double> bands;  ///< tuning wavelengths (nm)
+  Eigen::VectorXd scale;      ///< w_j (delta) or c_j (factored)
+  Eigen::MatrixXd recovery;   ///< (R L)^-1, N x N
 };
 
 /// Fits the delta model: H_ij = w_j L(lambda_j) rho_i(lambda_j) by least squares over the targets used.
@@ -35,8 +35,9 @@ SpectralCalibration fit_delta(std::span<const double> bands, const Tabulated& li
                               const Eigen::MatrixXd& reflectance);
 /// Fits the factored model: H_ij = c_j integral of T_j L rho_i over transmission[j]'s grid (rho_i linearly
 /// interpolated between bands), then builds R L for the Nystrom system with f piecewise linear between bands.
-SpectralCalibration fit_factored(std::span<const double> bands, const Tabulated& light, std::span<const Tabulated> transmission,
-                                 const Eigen::MatrixXd& measured, const Eigen::MatrixXd& reflectance);
+SpectralCalibration fit_factored(std::span<const double> bands, const Tabulated& light,
+                                 std::span<const Tabulated> transmission, const Eigen::MatrixXd& measured,
+                                 const Eigen::MatrixXd& reflectance);
 
 /// Eq 4.8: root mean square difference of two spectra on the same bands.
 double spectral_rms(const Eigen::VectorXd& a, const Eigen::VectorXd& b);

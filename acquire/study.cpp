@@ -43,7 +43,8 @@ void for_each_pixel(std::size_t size, Fn&& fn) {
 
 SphereRender render_sphere(std::size_t size, const Eigen::Vector3d& light, const IsoBrdf& f) {
   if (size == 0 || size > 16384) throw UsageError("render_sphere: the size must be 1 to 16384 pixels");
-  if (!(light.norm() > 0) || !light.allFinite()) throw UsageError("render_sphere: the light direction must be non-zero");
+  if (!(light.norm() > 0) || !light.allFinite())
+    throw UsageError("render_sphere: the light direction must be non-zero");
   const Eigen::Vector3d l = light.normalized();
   SphereRender out;
   out.size = size;
@@ -65,7 +66,8 @@ std::size_t merl_lookup_cell(const IsoAngles& a) {
 StudyOutput resampling_study(const brdf::SpectralModel& model, std::size_t band, std::span<const double> angles,
                              std::span<const float> values, const StudyOptions& o) {
   const std::size_t bands = model.bands();
-  if (band >= bands) throw UsageError("resampling_study: band " + std::to_string(band) + " of " + std::to_string(bands));
+  if (band >= bands)
+    throw UsageError("resampling_study: band " + std::to_string(band) + " of " + std::to_string(bands));
   if (angles.size() % 4 != 0 || values.size() != angles.size() / 4 * bands)
     throw UsageError("resampling_study: angles must be n x 4 and values n x bands");
   if (o.ks.empty()) throw UsageError("resampling_study: give at least one k");
@@ -130,8 +132,8 @@ StudyOutput resampling_study(const brdf::SpectralModel& model, std::size_t band,
             cells.size(),
             [&](std::size_t c) {
               float x = 0;
-              const bool has =
-                  r.predict(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[c]))), std::span<float>(&x, 1));
+              const bool has = r.predict(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[c]))),
+                                         std::span<float>(&x, 1));
               v[c] = has ? double(x) : std::numeric_limits<double>::quiet_NaN();
             },
             64);

@@ -38,9 +38,9 @@ std::size_t merl_lookup_cell(const IsoAngles& a);
 struct StudyResult {
   Mapping mapping = Mapping::standard;
   std::size_t k = 1;
-  Weights weights = Weights::mean;   ///< irrelevant when k = 1
-  double l1 = 0;                     ///< mean |reconstruction - truth| over the sphere's pixels
-  double max_error = 0;              ///< largest per-pixel difference
+  Weights weights = Weights::mean;      ///< irrelevant when k = 1
+  double l1 = 0;                        ///< mean |reconstruction - truth| over the sphere's pixels
+  double max_error = 0;                 ///< largest per-pixel difference
   std::size_t pixels_without_data = 0;  ///< sphere pixels whose cell has no support
 };
 

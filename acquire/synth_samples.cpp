@@ -8,8 +8,8 @@
 
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
-#include "specula/core/progress.h"
 #include "specula/core/parallel.h"
+#include "specula/core/progress.h"
 
 namespace specula::acquire {
 

@@ -27,15 +27,17 @@ std::pair<double, double> light_direction_error(const Capture& cap, const Calibr
   double sum = 0, worst = 0;
   for (std::size_t l = 0; l < c.light_dirs.size(); ++l) {
     const auto& t = cap.truth->light_dirs[l];
-    const double a = std::acos(std::clamp(c.light_dirs[l].dot(Eigen::Vector3d(t[0], t[1], t[2]).normalized()), -1.0, 1.0)) *
-                     180 / std::numbers::pi;
+    const double a =
+        std::acos(std::clamp(c.light_dirs[l].dot(Eigen::Vector3d(t[0], t[1], t[2]).normalized()), -1.0, 1.0)) * 180 /
+        std::numbers::pi;
     sum += a;
     worst = std::max(worst, a);
   }
   return {sum / double(c.light_dirs.size()), worst};
 }
 
-std::pair<double, double> sample_error(const store::Store& s, const std::string& name, const brdf::SpectralModel& model) {
+std::pair<double, double> sample_error(const store::Store& s, const std::string& name,
+                                       const brdf::SpectralModel& model) {
   const store::SamplesInfo info = s.samples_info(name);
   const std::size_t stride = std::max<std::size_t>(1, info.size / 1000000);
   std::vector<double> err, ratio, f(info.bands);

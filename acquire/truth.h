@@ -21,6 +21,7 @@ std::pair<double, double> light_direction_error(const Capture& capture, const Ca
 
 /// Median of |sample / model - 1| and of sample / model over every band of the samples of `name` whose model value is
 /// above 1e-3 (at most about a million samples, evenly spaced); {-1, -1} when no value qualifies.
-std::pair<double, double> sample_error(const store::Store& s, const std::string& name, const brdf::SpectralModel& model);
+std::pair<double, double> sample_error(const store::Store& s, const std::string& name,
+                                       const brdf::SpectralModel& model);
 
 }  // namespace specula::acquire

@@ -10,6 +10,9 @@
 #include <filesystem>
 #include <numbers>
 
+#include "apps/commands.h"
+#include "apps/common.h"
+#include "apps/gnuplot.h"
 #include "specula/acquire/capture.h"
 #include "specula/acquire/hdr.h"
 #include "specula/acquire/mapping.h"
@@ -17,10 +20,7 @@
 #include "specula/acquire/scan.h"
 #include "specula/acquire/simulate.h"
 #include "specula/acquire/truth.h"
-#include "apps/gnuplot.h"
 #include "specula/core/brdf_materials.h"
-#include "apps/commands.h"
-#include "apps/common.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/progress.h"
@@ -61,15 +61,15 @@ void run_acquire_hdr(const AcquireHdrOptions& o) {
     print_json(j);
     return;
   }
-  fmt::print("merged {} light positions x {} bands into {} ({} of {} pixels valid in every band) in {:.1f} s\n", sum.lights,
-             sum.bands, o.output, sum.valid_pixels, sum.pixels, seconds);
+  fmt::print("merged {} light positions x {} bands into {} ({} of {} pixels valid in every band) in {:.1f} s\n",
+             sum.lights, sum.bands, o.output, sum.valid_pixels, sum.pixels, seconds);
   for (std::size_t s = 0; s < sum.status.size(); ++s) fmt::print("  {:<11} {}\n", name(s), sum.status[s]);
 }
 
 struct AcquireOptions {
   std::string capture;
-  std::string output;             // STORE.h5[:NAME]
-  std::string calibration;        // samples: the stored calibration's name (default: NAME)
+  std::string output;       // STORE.h5[:NAME]
+  std::string calibration;  // samples: the stored calibration's name (default: NAME)
   std::string spectral = "delta";
   std::string plots;
   std::vector<double> plot_theta = {30, 45, 60};
@@ -79,12 +79,14 @@ struct AcquireOptions {
 };
 
 std::pair<std::string, std::string> split_output(const std::string& spec, const std::string& fallback) {
-  if (const auto s = store::parse_object_spec(spec); s && s->file.string().size() > 1) return {s->file.string(), s->name};
+  if (const auto s = store::parse_object_spec(spec); s && s->file.string().size() > 1)
+    return {s->file.string(), s->name};
   return {spec, fallback};
 }
 
 // Figures 4.6-4.9: each target's known reflectance against the delta and factored recoveries.
-void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::path& dir, const acquire::Calibration& c) {
+void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::path& dir,
+                  const acquire::Calibration& c) {
   std::string script;
   for (std::size_t t = 0; t < c.targets.size(); ++t) {
     script += fmt::format("$T{} << EOD\n", t);
@@ -95,17 +97,21 @@ void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::p
     script += "EOD\n";
   }
   const std::size_t n = c.targets.size(), cols = std::min<std::size_t>(n, 3), rows = (n + cols - 1) / cols;
-  script += fmt::format("set multiplot layout {},{}\nset grid\nset key bottom right\nset xlabel 'wavelength (nm)'\nset yrange [0:1.1]\n", rows, cols);
+  script += fmt::format(
+      "set multiplot layout {},{}\nset grid\nset key bottom right\nset xlabel 'wavelength (nm)'\nset yrange [0:1.1]\n",
+      rows, cols);
   for (std::size_t t = 0; t < n; ++t) {
     const auto& r = c.targets[t];
     script += "set title " +
-              gnuplot_quote(fmt::format("{} ({}): RMS delta {:.4f}{}", r.name, r.held_out ? "held out" : "fitted", r.rms_delta,
-                                        r.rms_factored >= 0 ? fmt::format(", factored {:.4f}", r.rms_factored) : std::string())) +
+              gnuplot_quote(
+                  fmt::format("{} ({}): RMS delta {:.4f}{}", r.name, r.held_out ? "held out" : "fitted", r.rms_delta,
+                              r.rms_factored >= 0 ? fmt::format(", factored {:.4f}", r.rms_factored) : std::string())) +
               " noenhanced\n";
-    script += fmt::format("plot $T{0} using 1:2 with lines lw 2 lc rgb '#222222' title 'known', "
-                          "$T{0} using 1:3 with linespoints pt 7 ps 0.5 lc rgb '#d04020' title 'delta', "
-                          "$T{0} using 1:4 with linespoints pt 5 ps 0.5 lc rgb '#2060c0' title 'factored'\n",
-                          t);
+    script += fmt::format(
+        "plot $T{0} using 1:2 with lines lw 2 lc rgb '#222222' title 'known', "
+        "$T{0} using 1:3 with linespoints pt 7 ps 0.5 lc rgb '#d04020' title 'delta', "
+        "$T{0} using 1:4 with linespoints pt 5 ps 0.5 lc rgb '#2060c0' title 'factored'\n",
+        t);
   }
   script += "unset multiplot\n";
   plot_png(gnuplot, dir / "spectral-calibration.png", gnuplot_png_terminal(int(cols) * 420, int(rows) * 320), script);
@@ -114,9 +120,11 @@ void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::p
 // A simulated capture's material on `wavelengths` (a named material or the grid it was simulated from), or null.
 std::unique_ptr<brdf::SpectralModel> truth_model(const acquire::Capture& cap, const WavelengthGrid& wavelengths) {
   if (!cap.truth || cap.truth->material.empty()) return nullptr;
-  if (brdf::material_catalogue().count(cap.truth->material)) return brdf::make_material(cap.truth->material, wavelengths);
+  if (brdf::material_catalogue().count(cap.truth->material))
+    return brdf::make_material(cap.truth->material, wavelengths);
   try {
-    return acquire::grid_material(std::make_shared<const store::Grid>(load_grid(cap.truth->material, "acquire")), wavelengths);
+    return acquire::grid_material(std::make_shared<const store::Grid>(load_grid(cap.truth->material, "acquire")),
+                                  wavelengths);
   } catch (const std::exception&) {
     return nullptr;  // the simulated grid is no longer where the manifest says
   }
@@ -149,35 +157,47 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
       script += "$M << EOD\n";
       std::vector<double> f(info.bands);
       for (int d10 = -895; d10 <= 895; d10 += 5) {
-        model->eval(brdf::StdAngles{o.plot_theta[k] * pi / 180, 0.0, std::abs(d10) / 10.0 * pi / 180, d10 > 0 ? pi : 0.0}, f);
+        model->eval(
+            brdf::StdAngles{o.plot_theta[k] * pi / 180, 0.0, std::abs(d10) / 10.0 * pi / 180, d10 > 0 ? pi : 0.0}, f);
         script += fmt::format("{:.1f} {:.5g}\n", d10 / 10.0, std::cbrt(std::max(0.0, f[band])));
       }
       script += "EOD\n";
     }
-    script += "set grid\nset key top left\nset xrange [-90:90]\nset xlabel 'theta_o (degrees; negative: the light''s side)'\n";
+    script +=
+        "set grid\nset key top left\nset xrange [-90:90]\nset xlabel 'theta_o (degrees; negative: the light''s "
+        "side)'\n";
     script += "set ylabel 'cube root of the BRDF (1/sr)'\n";
-    script += "set title " + gnuplot_quote(fmt::format("{}: incidence plane at theta_i = {} deg, {} nm, samples within 2 deg", name,
-                                                       o.plot_theta[k], info.wavelengths[band])) + " noenhanced\n";
+    script += "set title " +
+              gnuplot_quote(fmt::format("{}: incidence plane at theta_i = {} deg, {} nm, samples within 2 deg", name,
+                                        o.plot_theta[k], info.wavelengths[band])) +
+              " noenhanced\n";
     script += "plot $S using 1:2 with points pt 7 ps 0.5 lc rgb '#d04020' title 'samples'";
-    if (model) script += ", $M using 1:2 with lines lw 2 lc rgb '#2060c0' title " + gnuplot_quote("model (" + cap.truth->material + ")") + " noenhanced";
+    if (model)
+      script += ", $M using 1:2 with lines lw 2 lc rgb '#2060c0' title " +
+                gnuplot_quote("model (" + cap.truth->material + ")") + " noenhanced";
     script += "\n";
-    plot_png(gnuplot, dir / fmt::format("incidence-theta{:g}.png", o.plot_theta[k]), gnuplot_png_terminal(900, 560), script);
+    plot_png(gnuplot, dir / fmt::format("incidence-theta{:g}.png", o.plot_theta[k]), gnuplot_png_terminal(900, 560),
+             script);
   }
 }
 
 void print_calibration(const acquire::Capture& cap, const acquire::Calibration& c) {
-  fmt::print("circle: centre ({:.2f}, {:.2f}) px, radius {:.2f} px; sphere: centre ({:.4f}, {:.4f}, {:.4f}) m, radius {:.4f} m\n", c.circle.cx,
-             c.circle.cy, c.circle.r, c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z(), c.sphere.radius);
+  fmt::print(
+      "circle: centre ({:.2f}, {:.2f}) px, radius {:.2f} px; sphere: centre ({:.4f}, {:.4f}, {:.4f}) m, radius {:.4f} "
+      "m\n",
+      c.circle.cx, c.circle.cy, c.circle.r, c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z(),
+      c.sphere.radius);
   std::size_t seen = 0;
   for (const double w : c.light_confidence) seen += w > 0;
   fmt::print("lights: {} on the arc, {} placed from mirror highlights\n", c.light_dirs.size(), seen);
-  fmt::print("spectral model: {} (fitted on targets", c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored");
+  fmt::print("spectral model: {} (fitted on targets",
+             c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored");
   for (const auto& t : c.targets)
     if (!t.held_out) fmt::print(" {}", t.name);
   fmt::print(")\n  target      RMS delta   RMS factored (eq 4.8)\n");
   for (const auto& t : c.targets)
-    fmt::print("  {:<10}  {:.5f}     {}{}\n", t.name, t.rms_delta, t.rms_factored >= 0 ? fmt::format("{:.5f}", t.rms_factored) : "-",
-               t.held_out ? "" : "   (fitted)");
+    fmt::print("  {:<10}  {:.5f}     {}{}\n", t.name, t.rms_delta,
+               t.rms_factored >= 0 ? fmt::format("{:.5f}", t.rms_factored) : "-", t.held_out ? "" : "   (fitted)");
   (void)cap;
 }
 
@@ -186,10 +206,12 @@ void print_calibration(const acquire::Capture& cap, const acquire::Calibration& 
 void add_calibration_json(Json& j, const acquire::Capture& cap, const acquire::Calibration& c) {
   Json targets = Json::array();
   for (const auto& t : c.targets)
-    targets.push_back({{"name", t.name}, {"held_out", t.held_out}, {"rms_delta", t.rms_delta}, {"rms_factored", t.rms_factored}});
+    targets.push_back(
+        {{"name", t.name}, {"held_out", t.held_out}, {"rms_delta", t.rms_delta}, {"rms_factored", t.rms_factored}});
   const auto [mean, worst] = acquire::light_direction_error(cap, c);
   j["circle"] = {{"cx", c.circle.cx}, {"cy", c.circle.cy}, {"r", c.circle.r}};
-  j["sphere"] = {{"centre", {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z()}}, {"radius", c.sphere.radius}};
+  j["sphere"] = {{"centre", {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z()}},
+                 {"radius", c.sphere.radius}};
   j["targets"] = std::move(targets);
   if (mean >= 0) {
     j["light_dir_error_deg"] = mean;
@@ -218,8 +240,8 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
   } else {
     c = acquire::read_calibration(store::Store::open(store_path), o.calibration.empty() ? name : o.calibration);
     if (c.spectral.bands != cap.bands)
-      throw InputError(store_path + ": the stored calibration has " + std::to_string(c.spectral.bands.size()) + " bands, the capture " +
-                       std::to_string(cap.bands.size()));
+      throw InputError(store_path + ": the stored calibration has " + std::to_string(c.spectral.bands.size()) +
+                       " bands, the capture " + std::to_string(cap.bands.size()));
   }
   const double calibrate_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cal).count();
   const auto t_ext = std::chrono::steady_clock::now();
@@ -264,25 +286,31 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
   if (const auto [mean, worst] = acquire::light_direction_error(cap, c); mean >= 0)
     fmt::print("light directions against the manifest's truth: mean {:.3f} deg, largest {:.3f} deg\n", mean, worst);
   if (extract) {
-    fmt::print("{} samples from {} sphere pixels x {} lights into {}:{}; rejected:", r.samples, r.sphere_pixels, cap.light_angles_deg.size(),
-               store_path, name);
+    fmt::print("{} samples from {} sphere pixels x {} lights into {}:{}; rejected:", r.samples, r.sphere_pixels,
+               cap.light_angles_deg.size(), store_path, name);
     for (std::size_t k = 0; k < r.rejected.size(); ++k) fmt::print(" {} {}", acquire::kRejectNames[k], r.rejected[k]);
     fmt::print("\n");
     if (truth_err >= 0)
-      fmt::print("against the simulated material: median relative error {:.4f}, median sample / model {:.4f}\n", truth_err, truth_ratio);
+      fmt::print("against the simulated material: median relative error {:.4f}, median sample / model {:.4f}\n",
+                 truth_err, truth_ratio);
   }
   fmt::print("{:.1f} s{}\n", seconds, o.plots.empty() ? "" : "; plots in " + o.plots);
 }
 
 void add_pipeline_options(CLI::App* cmd, AcquireOptions& o, bool calibrates, bool extracts) {
   cmd->add_option("capture", o.capture, "Capture directory (manifest.json)")->required();
-  cmd->add_option("-o,--output", o.output, "STORE.h5[:NAME] (NAME: the samples and calibration; default scan)")->required();
-  if (calibrates) cmd->add_option("--spectral-model", o.spectral, "delta (eq 4.4) or factored (eq 4.6)")->capture_default_str();
+  cmd->add_option("-o,--output", o.output, "STORE.h5[:NAME] (NAME: the samples and calibration; default scan)")
+      ->required();
+  if (calibrates)
+    cmd->add_option("--spectral-model", o.spectral, "delta (eq 4.4) or factored (eq 4.6)")->capture_default_str();
   if (!calibrates) cmd->add_option("--calibration", o.calibration, "Stored calibration to use (default: NAME)");
   cmd->add_option("--plots", o.plots, "Directory for PNG figures");
   if (extracts) {
-    cmd->add_option("--plot-theta", o.plot_theta, "theta_i of the incidence-plane plots (degrees)")->delimiter(',')->capture_default_str();
-    cmd->add_option("--plot-band", o.plot_band_nm, "Wavelength of the incidence-plane plots (nm; default the middle band)");
+    cmd->add_option("--plot-theta", o.plot_theta, "theta_i of the incidence-plane plots (degrees)")
+        ->delimiter(',')
+        ->capture_default_str();
+    cmd->add_option("--plot-band", o.plot_band_nm,
+                    "Wavelength of the incidence-plane plots (nm; default the middle band)");
   }
   cmd->add_flag("--replace", o.replace, "Replace samples or a calibration of the same name");
   cmd->add_flag("--json", o.json, "Print one JSON object");
@@ -298,14 +326,17 @@ void setup_acquire(CLI::App& app) {
   hdr->add_option("capture", o->capture, "Capture directory (manifest.json)")->required();
   hdr->add_option("-o,--output", o->output, "Store (.h5) to add hdr-L<index> images to")->required();
   hdr->add_option("--low", o->low, "Lowest value in the linear range (fraction of full scale)")->capture_default_str();
-  hdr->add_option("--high", o->high, "Highest value in the linear range (fraction of full scale)")->capture_default_str();
-  hdr->add_option("--min-pearson", o->min_pearson, "Fits with a lower Pearson r are flagged non-linear")->capture_default_str();
+  hdr->add_option("--high", o->high, "Highest value in the linear range (fraction of full scale)")
+      ->capture_default_str();
+  hdr->add_option("--min-pearson", o->min_pearson, "Fits with a lower Pearson r are flagged non-linear")
+      ->capture_default_str();
   hdr->add_flag("--replace", o->replace, "Replace images of the same names");
   hdr->add_flag("--json", o->json, "Print one JSON object");
   hdr->callback([o] { run_acquire_hdr(*o); });
 
   auto cal = std::make_shared<AcquireOptions>();
-  auto* c = cmd->add_subcommand("calibrate", "Spatial, spectral, sphere and light calibration, stored under /acquire/NAME");
+  auto* c =
+      cmd->add_subcommand("calibrate", "Spatial, spectral, sphere and light calibration, stored under /acquire/NAME");
   add_pipeline_options(c, *cal, true, false);
   c->callback([cal] { run_acquire(*cal, true, false); });
   auto smp = std::make_shared<AcquireOptions>();

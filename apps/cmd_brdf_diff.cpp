@@ -27,15 +27,16 @@ struct BrdfDiffOptions {
 };
 
 // sRGB of an XYZ rendering, the white mapped to 1 after adaptation to D65; off-sphere pixels dark grey.
-void paint(const codec::SphereRenders& r, const std::vector<float>& xyz, std::vector<std::uint8_t>& rgb, std::size_t stride,
-           std::size_t x0) {
+void paint(const codec::SphereRenders& r, const std::vector<float>& xyz, std::vector<std::uint8_t>& rgb,
+           std::size_t stride, std::size_t x0) {
   const Eigen::Matrix3d m = rendering_to_linear_srgb(r.white);
   for (std::size_t y = 0; y < r.size; ++y)
     for (std::size_t x = 0; x < r.size; ++x) {
       const std::size_t p = y * r.size + x;
       const Eigen::Vector3d c = m * Eigen::Vector3d(xyz[3 * p], xyz[3 * p + 1], xyz[3 * p + 2]);
       for (std::size_t k = 0; k < 3; ++k)
-        rgb[3 * (y * stride + x0 + x) + k] = r.covered[p] ? std::uint8_t(std::lround(255 * srgb_encode(c[Eigen::Index(k)]))) : 24;
+        rgb[3 * (y * stride + x0 + x) + k] =
+            r.covered[p] ? std::uint8_t(std::lround(255 * srgb_encode(c[Eigen::Index(k)]))) : 24;
     }
 }
 
@@ -52,7 +53,8 @@ void write_suite_panel(const codec::LightingSuite& suite, const codec::SuiteRend
   const auto& px = suite.pixels();
   for (std::size_t i = 0; i < px.size(); ++i) {
     r.covered[px[i]] = 1;
-    for (std::size_t k = 0; k < 3; ++k) xa[3 * px[i] + k] = ra.xyz[c][3 * i + k], xb[3 * px[i] + k] = rb.xyz[c][3 * i + k];
+    for (std::size_t k = 0; k < 3; ++k)
+      xa[3 * px[i] + k] = ra.xyz[c][3 * i + k], xb[3 * px[i] + k] = rb.xyz[c][3 * i + k];
   }
   if (!map_only) {
     paint(r, xa, rgb, w, 0);
@@ -73,9 +75,10 @@ void print_suite(const BrdfDiffOptions& o, const codec::LightingSuite& suite, co
              d.de00_p95, d.de00_max);
   fmt::print("  worst condition {}: mean {:.3f}, 95th percentile {:.3f}, max {:.3f}\n", worst.name,
              d.conditions[d.worst].de00_mean, d.conditions[d.worst].de00_p95, d.conditions[d.worst].de00_max);
-  fmt::print("  holes: {} of the reference's {} cells have no data in the second grid (rendered black; they light {} of "
-             "the suite's pixels); {} cells have data only in the second\n",
-             d.hole_cells, d.cells, d.hole_pixels, d.extra_cells);
+  fmt::print(
+      "  holes: {} of the reference's {} cells have no data in the second grid (rendered black; they light {} of "
+      "the suite's pixels); {} cells have data only in the second\n",
+      d.hole_cells, d.cells, d.hole_pixels, d.extra_cells);
   fmt::print("  cos-weighted relative RMS {:.4g}\n", d.rel_rms_cos);
   fmt::print("  directional albedo (luminance, D65):");
   for (std::size_t i = 0; i < codec::kSuiteAlbedoAngles.size(); ++i)
@@ -113,13 +116,15 @@ void run_suite_diff(const BrdfDiffOptions& o) {
   print_suite(o, suite, d);
   if (!o.panel.empty())
     fmt::print("  panel ({}: reference | second | CIEDE2000 0 to 2): {}\n", suite.conditions()[d.worst].name, o.panel);
-  if (!o.heatmap.empty()) fmt::print("  CIEDE2000 map of {} (0 to 2 across the ramp): {}\n", suite.conditions()[d.worst].name, o.heatmap);
+  if (!o.heatmap.empty())
+    fmt::print("  CIEDE2000 map of {} (0 to 2 across the ramp): {}\n", suite.conditions()[d.worst].name, o.heatmap);
 }
 
 void run_brdf_diff(const BrdfDiffOptions& o) {
   const std::size_t size = o.size.value_or(o.env ? 128 : 64);
   if (size < (o.env ? 8u : 16u) || size > (o.env ? 4096u : 1024u))
-    throw UsageError(fmt::format("brdf-diff: --size {}: give {} pixels", size, o.env ? "8 to 4096" : "16 to 1024 (suite)"));
+    throw UsageError(
+        fmt::format("brdf-diff: --size {}: give {} pixels", size, o.env ? "8 to 4096" : "16 to 1024 (suite)"));
   for (const auto& [flag, path] : {std::pair{"--panel", &o.panel}, std::pair{"--heatmap", &o.heatmap}})
     if (!path->empty() && std::filesystem::path(*path).extension() != ".png")
       throw UsageError(fmt::format("brdf-diff: {} must name a .png file, not {}", flag, *path));
@@ -131,7 +136,8 @@ void run_brdf_diff(const BrdfDiffOptions& o) {
   store::Grid a, b;
   (b_first ? b : a) = load_grid(b_first ? o.b : o.a, "brdf-diff", default_uplift_wavelengths());
   const WavelengthGrid grid = (b_first ? b : a).wavelengths;
-  const codec::Environment env = *o.env == "default" ? codec::default_environment(grid) : codec::read_environment(*o.env, grid);
+  const codec::Environment env =
+      *o.env == "default" ? codec::default_environment(grid) : codec::read_environment(*o.env, grid);
   (b_first ? a : b) = load_grid(b_first ? o.a : o.b, "brdf-diff", grid);
   if (!a.wavelengths.approx_equal(b.wavelengths))
     throw InputError(fmt::format("brdf-diff: {} has {}, {} has {}; compare grids on one wavelength grid", o.a,
@@ -181,17 +187,27 @@ void run_brdf_diff(const BrdfDiffOptions& o) {
 
 void setup_brdf_diff(CLI::App& app) {
   auto o = std::make_shared<BrdfDiffOptions>();
-  auto* cmd = app.add_subcommand("brdf-diff", "Compare two spectral BRDF grids under the lighting suite (CIEDE2000 per "
-                                              "condition, holes, albedo), or under one environment (--env)");
-  cmd->add_option("a", o->a, "Reference grid: STORE.h5:GRID, a .spgrid file, a .spc (decoded), an RGL .bsdf (RGB ones uplifted), or an RGB MERL .binary (uplifted)")->required();
-  cmd->add_option("b", o->b, "Grid to compare: STORE.h5:GRID, a .spgrid file, a .spc (decoded), an RGL .bsdf (RGB ones uplifted), or an RGB MERL .binary (uplifted)")->required();
-  cmd->add_option("--env", o->env,
-                  "Instead of the suite, one picture under this lighting: 'default' (built-in sky, ground and sun) or a "
-                  "lat-long EXR (spectral or RGB)");
+  auto* cmd = app.add_subcommand("brdf-diff",
+                                 "Compare two spectral BRDF grids under the lighting suite (CIEDE2000 per "
+                                 "condition, holes, albedo), or under one environment (--env)");
+  cmd->add_option("a", o->a,
+                  "Reference grid: STORE.h5:GRID, a .spgrid file, a .spc (decoded), an RGL .bsdf (RGB ones uplifted), "
+                  "or an RGB MERL .binary (uplifted)")
+      ->required();
+  cmd->add_option("b", o->b,
+                  "Grid to compare: STORE.h5:GRID, a .spgrid file, a .spc (decoded), an RGL .bsdf (RGB ones uplifted), "
+                  "or an RGB MERL .binary (uplifted)")
+      ->required();
+  cmd->add_option(
+      "--env", o->env,
+      "Instead of the suite, one picture under this lighting: 'default' (built-in sky, ground and sun) or a "
+      "lat-long EXR (spectral or RGB)");
   cmd->add_option("--size", o->size, "Sphere size in pixels (suite: 64, --env: 128)");
-  cmd->add_option("--panel", o->panel, "PNG: the two renderings and the CIEDE2000 map side by side (suite: its worst condition)");
+  cmd->add_option("--panel", o->panel,
+                  "PNG: the two renderings and the CIEDE2000 map side by side (suite: its worst condition)");
   cmd->add_option("--heatmap", o->heatmap, "PNG: the CIEDE2000 map alone (0 to 2 across the ramp)");
-  cmd->add_flag("--json", o->json, "Print one JSON object (suite: pooled and every condition; --env: rms, de00_mean, ...)");
+  cmd->add_flag("--json", o->json,
+                "Print one JSON object (suite: pooled and every condition; --env: rms, de00_mean, ...)");
   cmd->callback([o] { run_brdf_diff(*o); });
 }
 

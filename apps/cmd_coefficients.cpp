@@ -69,7 +69,8 @@ void write_plot(const fs::path& path, const store::Store& s, const std::string& 
     }
     canvas.blit(x0 + (panel_w - w) / 2, y0 + line, w, h, picture);
     const std::string hi = number_label(range[j]), lo = nmf ? "0" : number_label(-range[j]);
-    colour_bar(canvas, x0, y0 + line + h + pad, panel_w, nmf ? std::function<Rgb(double)>(heat) : diverging, "", lo, hi, sc);
+    colour_bar(canvas, x0, y0 + line + h + pad, panel_w, nmf ? std::function<Rgb(double)>(heat) : diverging, "", lo, hi,
+               sc);
   }
   canvas.save_png(path);
 }
@@ -94,7 +95,8 @@ void run_coefficients(const CoefficientsOptions& o) {
     names[i] = o.name.empty() ? images[i] + "." + o.basis : o.name;
     store::validate_name(names[i], "coefficient map");
     if (!o.replace && std::find(existing.begin(), existing.end(), names[i]) != existing.end())
-      throw UsageError(s.label() + ": coefficient map " + names[i] + " exists already; pass --replace or choose --name");
+      throw UsageError(s.label() + ": coefficient map " + names[i] +
+                       " exists already; pass --replace or choose --name");
   }
   if (!o.plots.empty()) {
     if (fs::exists(o.plots) && !fs::is_directory(o.plots))
@@ -156,9 +158,11 @@ void run_coefficients(const CoefficientsOptions& o) {
 void setup_coefficients(CLI::App& app) {
   auto o = std::make_shared<CoefficientsOptions>();
   auto* cmd = app.add_subcommand(
-      "coefficients", "Write the coefficient maps of images on a PCA or NMF basis into the store (chunked), with pictures");
+      "coefficients",
+      "Write the coefficient maps of images on a PCA or NMF basis into the store (chunked), with pictures");
   cmd->add_option("store", o->store, "Store file (the maps are added to it)")->required();
-  cmd->add_option("--basis", o->basis, "PCA basis (first k components) or NMF basis (NNLS on all components)")->required();
+  cmd->add_option("--basis", o->basis, "PCA basis (first k components) or NMF basis (NNLS on all components)")
+      ->required();
   cmd->add_option("--images", o->images, "Image name globs (default: every image)");
   cmd->add_option("-k", o->k, "PCA components to keep (default: all the basis has); NMF: must equal the basis's k")
       ->check(CLI::Range(1LL, 100000LL));
@@ -166,8 +170,9 @@ void setup_coefficients(CLI::App& app) {
   cmd->add_option("--plots", o->plots, "Directory for <map>.png: each coefficient as an image with its colour bar");
   cmd->add_flag("--replace", o->replace, "Replace maps of the same names");
   cmd->add_flag("--json", o->json, "Print the result as JSON: maps (name, image, size, rel_error, rms, plot), seconds");
-  cmd->footer("rel_error = ||X - X'||_F / ||X||_F over the image's valid pixels, X' reconstructed from the coefficients "
-              "(double precision, before they are stored as float32); rms = sqrt(mean squared error per band).");
+  cmd->footer(
+      "rel_error = ||X - X'||_F / ||X||_F over the image's valid pixels, X' reconstructed from the coefficients "
+      "(double precision, before they are stored as float32); rms = sqrt(mean squared error per band).");
   cmd->callback([o] { run_coefficients(*o); });
 }
 

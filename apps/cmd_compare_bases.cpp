@@ -36,7 +36,8 @@ void write_plot(const std::filesystem::path& gnuplot, const std::filesystem::pat
   for (std::size_t w = 0; w < a.bands(); ++w) {
     script += fmt::format("{}", a.wavelengths[w]);
     for (std::size_t c = 0; c < k; ++c) script += fmt::format(" {}", first_a(Eigen::Index(c), Eigen::Index(w)));
-    for (std::size_t c = 0; c < k; ++c) script += fmt::format(" {}", aligned.components(Eigen::Index(c), Eigen::Index(w)));
+    for (std::size_t c = 0; c < k; ++c)
+      script += fmt::format(" {}", aligned.components(Eigen::Index(c), Eigen::Index(w)));
     script += "\n";
   }
   script += "EOD\n";
@@ -45,7 +46,8 @@ void write_plot(const std::filesystem::path& gnuplot, const std::filesystem::pat
                                       label_a, label_b)) +
             " noenhanced\n";
   script += "set grid\nset xzeroaxis lt -1 lw 0.5\nset key top right\nset xlabel 'wavelength (nm)'\n";
-  script += fmt::format("set xrange [{}:{}]\nset yrange [{}:{}]\n", a.wavelengths.front(), a.wavelengths.back(), -top, top);
+  script +=
+      fmt::format("set xrange [{}:{}]\nset yrange [{}:{}]\n", a.wavelengths.front(), a.wavelengths.back(), -top, top);
   script += "set ylabel 'component weight'\nset title " + gnuplot_quote(label_a) + " noenhanced\nplot ";
   for (std::size_t c = 0; c < k; ++c)
     script += fmt::format("{}$D using 1:{} with lines lw 2 lc {} title 'a{}'", c ? ", " : "", c + 2, c + 1, c + 1);
@@ -65,9 +67,10 @@ void run_compare_bases(const CompareBasesOptions& o) {
   const std::string label_a = fmt::format("{} ({})", o.basis_a, sa.label());
   const std::string label_b = fmt::format("{} ({})", o.basis_b, sb.label());
   if (!a.wavelengths.approx_equal(b.wavelengths, 1e-6))
-    throw InputError(fmt::format("basis {} is on {} but {} is on {}; import both with the same --wavelengths "
-                                 "FIRST:LAST:STEP and learn them again",
-                                 label_a, a.wavelengths.describe(), label_b, b.wavelengths.describe()));
+    throw InputError(
+        fmt::format("basis {} is on {} but {} is on {}; import both with the same --wavelengths "
+                    "FIRST:LAST:STEP and learn them again",
+                    label_a, a.wavelengths.describe(), label_b, b.wavelengths.describe()));
   const std::size_t most = std::min(a.k(), b.k());
   if (most == 0) throw InputError(fmt::format("basis {} has no components", a.k() == 0 ? label_a : label_b));
   if (o.k > most)
@@ -77,8 +80,8 @@ void run_compare_bases(const CompareBasesOptions& o) {
 
   std::vector<std::vector<double>> degrees;
   for (std::size_t k = 1; k <= k_max; ++k) {
-    const Eigen::VectorXd angles = stats::principal_angles(a.components.topRows(Eigen::Index(k)),
-                                                           b.components.topRows(Eigen::Index(k)));
+    const Eigen::VectorXd angles =
+        stats::principal_angles(a.components.topRows(Eigen::Index(k)), b.components.topRows(Eigen::Index(k)));
     std::vector<double> row(std::size_t(angles.size()));
     for (Eigen::Index i = 0; i < angles.size(); ++i) row[std::size_t(i)] = angles[i] * 180.0 / std::numbers::pi;
     degrees.push_back(std::move(row));

@@ -57,9 +57,11 @@ void setup_decode(CLI::App& app) {
   auto o = std::make_shared<DecodeOptions>();
   auto* cmd = app.add_subcommand("decode", "Decode a .spc file into a spectral grid");
   cmd->add_option("spc", o->input, ".spc file")->required();
-  cmd->add_option("-o,--output", o->output, "STORE.h5:GRID, a .spgrid file, or an RGB .binary (CIE 1931, D65)")->required();
+  cmd->add_option("-o,--output", o->output, "STORE.h5:GRID, a .spgrid file, or an RGB .binary (CIE 1931, D65)")
+      ->required();
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
-  cmd->add_flag("--json", o->json, "Print one JSON object (sizes, decode seconds and MB/s, to the grid and to the coefficient form)");
+  cmd->add_flag("--json", o->json,
+                "Print one JSON object (sizes, decode seconds and MB/s, to the grid and to the coefficient form)");
   cmd->callback([o] { run_decode(*o); });
 }
 

@@ -57,7 +57,8 @@ void run_encode(const EncodeOptions& o) {
   const codec::SpcBasis basis = load_basis(o, grid);
   if (o.step && o.target_de00) throw UsageError("encode: give --step or --target-de00, not both");
   if (o.target_p95 && !o.target_de00) throw UsageError("encode: --target-p95 goes with --target-de00");
-  const codec::SpcBoundedOptions bounded{.max_error = o.max_error, .magnitude_scale = o.magnitude_scale, .zstd_level = o.level};
+  const codec::SpcBoundedOptions bounded{
+      .max_error = o.max_error, .magnitude_scale = o.magnitude_scale, .zstd_level = o.level};
   codec::SpcTransformOptions options{.magnitude_scale = o.magnitude_scale};
   if (o.step) options.step = *o.step;
   const bool transform = o.step || o.target_de00;
@@ -66,8 +67,9 @@ void run_encode(const EncodeOptions& o) {
   codec::SpcTargetReport target_report;
   std::vector<std::uint8_t> bytes;
   if (o.target_de00) {
-    const codec::LightingSuite suite = o.env == "default" ? codec::LightingSuite(grid.wavelengths)
-                                                          : codec::LightingSuite(codec::read_environment(o.env, grid.wavelengths), {});
+    const codec::LightingSuite suite = o.env == "default"
+                                           ? codec::LightingSuite(grid.wavelengths)
+                                           : codec::LightingSuite(codec::read_environment(o.env, grid.wavelengths), {});
     const codec::SpcTarget target{
         .de00_mean = *o.target_de00, .de00_p95 = p95, .condition_mean = 2 * *o.target_de00, .max_trials = o.trials};
     bytes = codec::encode_spc_to_target(grid, basis, options, target, suite, target_report, &rep, o.input);
@@ -80,42 +82,48 @@ void run_encode(const EncodeOptions& o) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double ratio = double(rep.input_bytes) / double(rep.output_bytes);
   const std::string target_json =
-      o.target_de00 ? fmt::format(R"("target":{{"de00_mean":{},"de00_p95":{},"reached":{},"trials":{},"step":{},)"
-                                      R"("reached_de00_mean":{:.4f},"reached_de00_p95":{:.4f},"condition_mean":{},"worst_condition":{},)"
-                                      R"("worst_de00_mean":{:.4f},"measure":"lighting suite"}},)",
-                                      *o.target_de00, p95,
-                                      target_report.reached, target_report.trials, target_report.step,
-                                      target_report.de00_mean, target_report.de00_p95, 2 * *o.target_de00,
-                                      json_string(target_report.worst_condition), target_report.worst_mean)
-                        : std::string();
+      o.target_de00
+          ? fmt::format(
+                R"("target":{{"de00_mean":{},"de00_p95":{},"reached":{},"trials":{},"step":{},)"
+                R"("reached_de00_mean":{:.4f},"reached_de00_p95":{:.4f},"condition_mean":{},"worst_condition":{},)"
+                R"("worst_de00_mean":{:.4f},"measure":"lighting suite"}},)",
+                *o.target_de00, p95, target_report.reached, target_report.trials, target_report.step,
+                target_report.de00_mean, target_report.de00_p95, 2 * *o.target_de00,
+                json_string(target_report.worst_condition), target_report.worst_mean)
+          : std::string();
   if (o.json) {
-    fmt::print(R"({{"input":{},"output":{},"method":"{}","format_version":{},{}"step":{},"basis":{},"k":{},"max_error":{},"input_bytes":{},"output_bytes":{},)"
-               R"("ratio":{:.3f},"bits_per_cell":{:.4f},"valid_cells":{},"seconds":{:.6f},"encode_mb_per_s":{:.1f},)"
-               R"("rms_error":{},"max_abs_error":{},"max_shape_residual":{},"max_quantisation_error":{},)"
-               R"("magnitude_scale":{},"threads":{}}})"
-               "\n",
-               json_string(o.input), json_string(o.output), transform ? "transform" : "bounded", transform ? 2 : 1,
-               target_json, transform ? rep.magnitude_step : 0.0, json_string(basis.reference), basis.k(),
-               transform ? 0.0 : o.max_error,
-               rep.input_bytes, rep.output_bytes, ratio, 8.0 * double(rep.output_bytes) / double(rep.valid_cells ? rep.valid_cells : 1),
-               rep.valid_cells, seconds, double(rep.input_bytes) / 1e6 / seconds, rep.rms_error, rep.max_abs_error,
-               rep.max_shape_residual, rep.max_quantisation_error, rep.magnitude_scale, omp_get_max_threads());
+    fmt::print(
+        R"({{"input":{},"output":{},"method":"{}","format_version":{},{}"step":{},"basis":{},"k":{},"max_error":{},"input_bytes":{},"output_bytes":{},)"
+        R"("ratio":{:.3f},"bits_per_cell":{:.4f},"valid_cells":{},"seconds":{:.6f},"encode_mb_per_s":{:.1f},)"
+        R"("rms_error":{},"max_abs_error":{},"max_shape_residual":{},"max_quantisation_error":{},)"
+        R"("magnitude_scale":{},"threads":{}}})"
+        "\n",
+        json_string(o.input), json_string(o.output), transform ? "transform" : "bounded", transform ? 2 : 1,
+        target_json, transform ? rep.magnitude_step : 0.0, json_string(basis.reference), basis.k(),
+        transform ? 0.0 : o.max_error, rep.input_bytes, rep.output_bytes, ratio,
+        8.0 * double(rep.output_bytes) / double(rep.valid_cells ? rep.valid_cells : 1), rep.valid_cells, seconds,
+        double(rep.input_bytes) / 1e6 / seconds, rep.rms_error, rep.max_abs_error, rep.max_shape_residual,
+        rep.max_quantisation_error, rep.magnitude_scale, omp_get_max_threads());
     return;
   }
   fmt::print("encoded {} ({} valid cells) on {} with k = {}: {} bytes, {:.1f}x smaller than float64, in {:.2f} s\n",
              o.input, rep.valid_cells, basis.reference, basis.k(), rep.output_bytes, ratio, seconds);
   if (o.target_de00)
-    fmt::print("{}: step {:.4g} after {} trial codings; under the lighting suite CIEDE2000 mean {:.3f}, 95th "
-               "percentile {:.3f}, worst condition {} mean {:.3f} (target {}, {} and {} per condition)\n",
-               target_report.reached ? "target met" : "target NOT met (finest step tried)", target_report.step,
-               target_report.trials, target_report.de00_mean, target_report.de00_p95, target_report.worst_condition,
-               target_report.worst_mean, *o.target_de00, p95, 2 * *o.target_de00);
+    fmt::print(
+        "{}: step {:.4g} after {} trial codings; under the lighting suite CIEDE2000 mean {:.3f}, 95th "
+        "percentile {:.3f}, worst condition {} mean {:.3f} (target {}, {} and {} per condition)\n",
+        target_report.reached ? "target met" : "target NOT met (finest step tried)", target_report.step,
+        target_report.trials, target_report.de00_mean, target_report.de00_p95, target_report.worst_condition,
+        target_report.worst_mean, *o.target_de00, p95, 2 * *o.target_de00);
   if (transform)
-    fmt::print("error: RMS {:.4g} 1/sr, max {:.4g} 1/sr; shape: basis residual up to {:.4g}, quantisation up to {:.4g}\n",
-               rep.rms_error, rep.max_abs_error, rep.max_shape_residual, rep.max_quantisation_error);
+    fmt::print(
+        "error: RMS {:.4g} 1/sr, max {:.4g} 1/sr; shape: basis residual up to {:.4g}, quantisation up to {:.4g}\n",
+        rep.rms_error, rep.max_abs_error, rep.max_shape_residual, rep.max_quantisation_error);
   else
-    fmt::print("error: RMS {:.4g} 1/sr, max {:.4g} 1/sr; shape: basis residual up to {:.4g}, quantisation up to {:.4g} (bound {})\n",
-               rep.rms_error, rep.max_abs_error, rep.max_shape_residual, rep.max_quantisation_error, o.max_error);
+    fmt::print(
+        "error: RMS {:.4g} 1/sr, max {:.4g} 1/sr; shape: basis residual up to {:.4g}, quantisation up to {:.4g} (bound "
+        "{})\n",
+        rep.rms_error, rep.max_abs_error, rep.max_shape_residual, rep.max_quantisation_error, o.max_error);
 }
 
 }  // namespace
@@ -135,14 +143,18 @@ void setup_encode(CLI::App& app) {
   cmd->add_option("--step", o->step,
                   "Transform coding (format 2) with this quantisation step of log(1 + m / s); shapes and finer bands "
                   "scale from it (docs/codec-format.md)");
-  cmd->add_option("--target-de00", o->target_de00,
-                  "Transform coding with the coarsest step whose CIEDE2000 under the lighting suite (brdf-diff's measure) "
-                  "has at most this pooled mean, and no condition's mean over twice it");
-  cmd->add_option("--target-p95", o->target_p95, "With --target-de00: the most the 95th percentile may be (default 3x the mean)");
+  cmd->add_option(
+      "--target-de00", o->target_de00,
+      "Transform coding with the coarsest step whose CIEDE2000 under the lighting suite (brdf-diff's measure) "
+      "has at most this pooled mean, and no condition's mean over twice it");
+  cmd->add_option("--target-p95", o->target_p95,
+                  "With --target-de00: the most the 95th percentile may be (default 3x the mean)");
   cmd->add_option("--trials", o->trials, "With --target-de00: trial codings at most (2 to 32)")->capture_default_str();
-  cmd->add_option("--env", o->env, "With --target-de00: the suite's environment: 'default' (built in) or a lat-long EXR")
+  cmd->add_option("--env", o->env,
+                  "With --target-de00: the suite's environment: 'default' (built in) or a lat-long EXR")
       ->capture_default_str();
-  cmd->add_option("--magnitude-scale", o->magnitude_scale, "s of the mapping log(1 + m / s), in the grid's stored units (0: a tenth of the median magnitude)")
+  cmd->add_option("--magnitude-scale", o->magnitude_scale,
+                  "s of the mapping log(1 + m / s), in the grid's stored units (0: a tenth of the median magnitude)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1e30));
   cmd->add_option("--level", o->level, "zstd level")->capture_default_str()->check(CLI::Range(1, 19));

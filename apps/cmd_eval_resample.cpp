@@ -5,9 +5,9 @@
 
 #include <memory>
 
-#include "specula/acquire/cross_validate.h"
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/acquire/cross_validate.h"
 #include "specula/core/error.h"
 #include "specula/store/store.h"
 
@@ -59,8 +59,8 @@ void run_eval_resample(const EvalResampleOptions& o) {
     print_json(j);
     return;
   }
-  fmt::print("{}: {} samples, {} held out (seed {}); relative RMS error of the held-out spectra:\n", o.samples, info.size,
-             held, o.seed);
+  fmt::print("{}: {} samples, {} held out (seed {}); relative RMS error of the held-out spectra:\n", o.samples,
+             info.size, held, o.seed);
   fmt::print("| mapping | k | weights | relative RMS | median relative error |\n|---|---|---|---|---|\n");
   for (const auto& r : cv.rows)
     fmt::print("| {} | {} | {} | {:.4f} | {:.4f} |\n", acquire::mapping_name(r.mapping), r.k, weights(r), r.rel_rms,
@@ -71,7 +71,8 @@ void run_eval_resample(const EvalResampleOptions& o) {
 
 void setup_eval_resample(CLI::App& app) {
   auto o = std::make_shared<EvalResampleOptions>();
-  auto* cmd = app.add_subcommand("eval-resample", "Hold-out cross-validation of resampling per mapping, k and weighting");
+  auto* cmd =
+      app.add_subcommand("eval-resample", "Hold-out cross-validation of resampling per mapping, k and weighting");
   cmd->add_option("store", o->store, "Store holding the samples")->required();
   cmd->add_option("samples", o->samples, "Name of the scattered samples")->required();
   cmd->add_option("--holdout", o->holdout, "Fraction of samples held out")->capture_default_str();

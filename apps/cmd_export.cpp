@@ -4,13 +4,13 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "specula/core/illuminant.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/rgl_bsdf.h"
 #include "specula/codec/rgl_export.h"
 #include "specula/codec/rgl_scene.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/error.h"
+#include "specula/core/illuminant.h"
 #include "specula/store/io/csv.h"
 #include "specula/store/io/envi.h"
 #include "specula/store/io/exr.h"
@@ -35,8 +35,8 @@ struct ExportOptions {
 // An RGL .bsdf from a BRDF named as STORE.h5 GRID, STORE.h5:GRID, a .spgrid, a .spc or an RGB MERL .binary.
 void export_bsdf(const ExportOptions& o) {
   const std::string spec = o.object.empty() ? o.store : o.store + ":" + o.object;
-  const codec::RglExportSettings settings{.theta_i = o.theta_i, .resolution = o.resolution,
-                                          .description = "specula export of " + spec};
+  const codec::RglExportSettings settings{
+      .theta_i = o.theta_i, .resolution = o.resolution, .description = "specula export of " + spec};
   const bool merl = std::filesystem::path(spec).extension() == ".binary";
   codec::RglBsdf bsdf;
   if (o.rgb) {
@@ -44,7 +44,11 @@ void export_bsdf(const ExportOptions& o) {
       bsdf = codec::export_rgl(codec::read_merl(spec), settings);
     } else {
       const store::Grid grid = load_grid(spec, "export");
-      bsdf = codec::export_rgl(codec::grid_to_merl(grid, codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths))).brdf, settings);
+      bsdf = codec::export_rgl(
+          codec::grid_to_merl(
+              grid, codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths)))
+              .brdf,
+          settings);
     }
   } else {
     bsdf = codec::export_rgl(load_grid(spec, "export", default_uplift_wavelengths()), settings);
@@ -59,8 +63,10 @@ void export_bsdf(const ExportOptions& o) {
   const std::filesystem::path out(o.output);
   const std::string name = out.filename().string(), stem = out.stem().string();
   for (const auto& scene : o.scenes) {
-    const std::filesystem::path path = std::filesystem::path(out).replace_filename(stem + (scene == "pbrt" ? ".pbrt" : ".xml"));
-    codec::write_scene(path, scene == "pbrt" ? codec::pbrt_scene(name, stem + "_pbrt.exr") : codec::mitsuba_scene(name, !bsdf.rgb));
+    const std::filesystem::path path =
+        std::filesystem::path(out).replace_filename(stem + (scene == "pbrt" ? ".pbrt" : ".xml"));
+    codec::write_scene(
+        path, scene == "pbrt" ? codec::pbrt_scene(name, stem + "_pbrt.exr") : codec::mitsuba_scene(name, !bsdf.rgb));
     fmt::print("wrote {}\n", path.string());
   }
 }
@@ -72,7 +78,8 @@ std::string format_of(const ExportOptions& o) {
   if (ext == ".exr") return "exr";
   if (ext == ".png") return "png";
   if (ext == ".csv") return "csv";
-  if (ext == ".hdr" || ext == ".raw" || ext == ".img" || ext == ".dat" || ext == ".bsq" || ext == ".bil" || ext == ".bip")
+  if (ext == ".hdr" || ext == ".raw" || ext == ".img" || ext == ".dat" || ext == ".bsq" || ext == ".bil" ||
+      ext == ".bip")
     return "envi";
   throw UsageError(o.output + ": cannot tell the format from the extension '" + ext +
                    "'; pass --format exr|envi|png|rgb-exr|csv");
@@ -89,7 +96,8 @@ void run_export(const ExportOptions& o) {
     const store::Grid grid = s.read_grid(o.object);
     const std::string ext = std::filesystem::path(o.output).extension().string();
     if (ext == ".binary") {
-      const auto weights = codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths));
+      const auto weights =
+          codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths));
       const codec::RgbExport rgb = codec::grid_to_merl(grid, weights);
       codec::write_merl(o.output, rgb.brdf);
       fmt::print("wrote {} (RGB under {}; {} out-of-gamut channel values clamped to 0)\n", o.output,
@@ -98,7 +106,8 @@ void run_export(const ExportOptions& o) {
       codec::write_grid_file(o.output, grid);
       fmt::print("wrote {}\n", o.output);
     } else {
-      throw UsageError(s.label() + ": '" + o.object + "' is a BRDF grid; export it as an RGB MERL .binary or a .spgrid file");
+      throw UsageError(s.label() + ": '" + o.object +
+                       "' is a BRDF grid; export it as an RGB MERL .binary or a .spgrid file");
     }
     return;
   }
@@ -111,14 +120,15 @@ void run_export(const ExportOptions& o) {
     fmt::print("wrote {}\n", o.output);
     return;
   }
-  if (format == "csv") throw UsageError(s.label() + ": '" + o.object + "' is not a collection; CSV export is for collections");
+  if (format == "csv")
+    throw UsageError(s.label() + ": '" + o.object + "' is not a collection; CSV export is for collections");
   const store::Cube cube = s.read_image(o.object);
   if (format == "exr") {
     store::write_spectral_exr(o.output, cube);
   } else if (format == "envi") {
     std::filesystem::path data = o.output;
     if (data.extension() == ".hdr") data.replace_extension(".raw");
-    const store::Interleave il = o.interleave == "bil" ? store::Interleave::bil
+    const store::Interleave il = o.interleave == "bil"   ? store::Interleave::bil
                                  : o.interleave == "bip" ? store::Interleave::bip
                                                          : store::Interleave::bsq;
     store::write_envi(data, cube, il);
@@ -138,14 +148,25 @@ void run_export(const ExportOptions& o) {
 
 void setup_export(CLI::App& app) {
   auto o = std::make_shared<ExportOptions>();
-  auto* cmd = app.add_subcommand("export", "Write an object as spectral EXR, ENVI, CSV, or an sRGB preview (PNG, linear EXR)");
-  cmd->add_option("store", o->store, "Store file; for .bsdf output also a BRDF: STORE.h5:GRID, .spgrid, .spc or RGB MERL .binary")->required();
+  auto* cmd =
+      app.add_subcommand("export", "Write an object as spectral EXR, ENVI, CSV, or an sRGB preview (PNG, linear EXR)");
+  cmd->add_option("store", o->store,
+                  "Store file; for .bsdf output also a BRDF: STORE.h5:GRID, .spgrid, .spc or RGB MERL .binary")
+      ->required();
   cmd->add_option("object", o->object, "Image, collection or BRDF grid name");
-  cmd->add_option("-o,--output", o->output, "Output file; the extension picks the format (.exr .hdr .png .csv; .binary .spgrid .bsdf for grids)")->required();
+  cmd->add_option("-o,--output", o->output,
+                  "Output file; the extension picks the format (.exr .hdr .png .csv; .binary .spgrid .bsdf for grids)")
+      ->required();
   cmd->add_flag("--rgb", o->rgb, ".bsdf: an RGB file (under --illuminant) instead of the spectral one pbrt-v4 needs");
-  cmd->add_option("--theta-i", o->theta_i, ".bsdf: incident elevations (uniform in projected area)")->check(CLI::Range(2, 90))->capture_default_str();
-  cmd->add_option("--resolution", o->resolution, ".bsdf: sample grid nodes per side")->check(CLI::Range(2, 512))->capture_default_str();
-  cmd->add_option("--scene", o->scenes, ".bsdf: also write a minimal scene beside it: pbrt (pbrt-v4, X.pbrt) and/or mitsuba (Mitsuba 3, X.xml)")
+  cmd->add_option("--theta-i", o->theta_i, ".bsdf: incident elevations (uniform in projected area)")
+      ->check(CLI::Range(2, 90))
+      ->capture_default_str();
+  cmd->add_option("--resolution", o->resolution, ".bsdf: sample grid nodes per side")
+      ->check(CLI::Range(2, 512))
+      ->capture_default_str();
+  cmd->add_option(
+         "--scene", o->scenes,
+         ".bsdf: also write a minimal scene beside it: pbrt (pbrt-v4, X.pbrt) and/or mitsuba (Mitsuba 3, X.xml)")
       ->check(CLI::IsMember({"pbrt", "mitsuba"}));
   cmd->add_option("--format", o->format, "auto, exr (spectral), envi, png (sRGB 8-bit), rgb-exr (linear sRGB), csv")
       ->check(CLI::IsMember({"auto", "exr", "envi", "png", "rgb-exr", "csv"}))

@@ -19,7 +19,8 @@ void run_gc(const std::string& path) {
 
 void setup_gc(CLI::App& app) {
   auto path = std::make_shared<std::string>();
-  auto* cmd = app.add_subcommand("gc", "Reclaim the space of removed or replaced objects and of abandoned transactions");
+  auto* cmd =
+      app.add_subcommand("gc", "Reclaim the space of removed or replaced objects and of abandoned transactions");
   cmd->add_option("store", *path, "Store file")->required();
   cmd->callback([path] { run_gc(*path); });
 }

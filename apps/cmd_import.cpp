@@ -45,16 +45,20 @@ std::string with_flags(std::string m);
 
 // RGL .bsdf materials become grids evaluated at the MERL cell centres (RGB ones uplifted), in one transaction.
 void import_bsdf(const ImportOptions& o) {
-  if (!o.name.empty() && o.inputs.size() > 1) throw UsageError("import: --name names one .bsdf file; " + std::to_string(o.inputs.size()) + " given");
+  if (!o.name.empty() && o.inputs.size() > 1)
+    throw UsageError("import: --name names one .bsdf file; " + std::to_string(o.inputs.size()) + " given");
   // RGB files are uplifted onto --wavelengths (default 400-700 nm step 10); spectral ones keep their own.
-  const WavelengthGrid onto = o.wavelengths.empty() ? default_uplift_wavelengths() : WavelengthGrid::parse(o.wavelengths);
+  const WavelengthGrid onto =
+      o.wavelengths.empty() ? default_uplift_wavelengths() : WavelengthGrid::parse(o.wavelengths);
   std::vector<std::pair<std::string, store::Grid>> grids;
   for (const auto& in : o.inputs) {
-    grids.emplace_back(o.name.empty() ? std::filesystem::path(in).stem().string() : o.name, load_grid(in, "import", onto));
+    grids.emplace_back(o.name.empty() ? std::filesystem::path(in).stem().string() : o.name,
+                       load_grid(in, "import", onto));
     grids.back().second.provenance.command_line = command_line();
   }
-  store::StoreWriter writer(o.output, {.compression = store::Compression::parse(o.compression), .replace = o.replace,
-                                       .command_line = command_line()});
+  store::StoreWriter writer(
+      o.output,
+      {.compression = store::Compression::parse(o.compression), .replace = o.replace, .command_line = command_line()});
   for (const auto& [name, grid] : grids) writer.add_grid(name, grid);
   writer.commit();
   for (const auto& [name, grid] : grids)
@@ -95,15 +99,17 @@ void run_nbrdf_import(const ImportOptions& o) {
     return;
   }
   if (!o.uplift)
-    throw UsageError("import: a store holds spectral grids: pass --uplift to turn the NBRDF's RGB into spectra "
-                     "(Appendix A, onto --wavelengths), or evaluate it to an RGB MERL .binary with `specula "
-                     "import X.h5 --format nbrdf -o X.binary`");
+    throw UsageError(
+        "import: a store holds spectral grids: pass --uplift to turn the NBRDF's RGB into spectra "
+        "(Appendix A, onto --wavelengths), or evaluate it to an RGB MERL .binary with `specula "
+        "import X.h5 --format nbrdf -o X.binary`");
   codec::NbrdfImportOptions options;
   options.name = o.name;
   options.wavelengths = WavelengthGrid::parse(o.wavelengths.empty() ? "400:700:10" : o.wavelengths);
   options.illuminant = parse_illuminant(o.illuminant, options.wavelengths);
-  store::StoreWriter writer(o.output, {.compression = store::Compression::parse(o.compression), .replace = o.replace,
-                                       .command_line = command_line()});
+  store::StoreWriter writer(
+      o.output,
+      {.compression = store::Compression::parse(o.compression), .replace = o.replace, .command_line = command_line()});
   const auto lines = codec::import_nbrdf(writer, files, options);
   writer.commit();
   for (const auto& line : lines) fmt::print("{}\n", line);
@@ -130,8 +136,9 @@ void run_import(const ImportOptions& o) {
   options.memory_budget = std::uint64_t(o.memory_gib * double(std::uint64_t{1} << 30));
   const std::vector<std::filesystem::path> inputs(o.inputs.begin(), o.inputs.end());
 
-  store::StoreWriter writer(o.output, {.compression = store::Compression::parse(o.compression), .replace = o.replace,
-                                       .command_line = command_line()});
+  store::StoreWriter writer(
+      o.output,
+      {.compression = store::Compression::parse(o.compression), .replace = o.replace, .command_line = command_line()});
   const store::ImportReport report = store::import_files(writer, inputs, options);
   writer.commit();
   for (const auto& skip : report.skipped) fmt::print(stderr, "{}\n", with_flags(skip));
@@ -158,7 +165,11 @@ std::string with_flags(std::string m) {
 
 void setup_import(CLI::App& app) {
   auto o = std::make_shared<ImportOptions>();
-  auto* cmd = app.add_subcommand("import", "Import spectral images (ENVI, .mat, PNG stack, spectral EXR, GeoTIFF and other GDAL rasters) and spectral libraries (CSV, .mat, ENVI .sli, USGS, ECOSTRESS) and RGL .bsdf materials (as BRDF grids) into a store, whole directories in one transaction (docs/import.md)");
+  auto* cmd =
+      app.add_subcommand("import",
+                         "Import spectral images (ENVI, .mat, PNG stack, spectral EXR, GeoTIFF and other GDAL rasters) "
+                         "and spectral libraries (CSV, .mat, ENVI .sli, USGS, ECOSTRESS) and RGL .bsdf materials (as "
+                         "BRDF grids) into a store, whole directories in one transaction (docs/import.md)");
   cmd->add_option("inputs", o->inputs,
                   "Files, directories or quoted glob patterns ('db/*.mat'). A directory or pattern imports every file "
                   "it holds that a reader recognises and prints a line for each file it skips; a directory whose only "
@@ -169,16 +180,23 @@ void setup_import(CLI::App& app) {
   cmd->add_option("--wavelengths", o->wavelengths,
                   "Target grid FIRST:LAST:STEP or a comma list; data is resampled linearly onto it (no extrapolation). "
                   "Also the data's own grid when it carries none (PNG stacks)");
-  cmd->add_option("--source-wavelengths", o->source_wavelengths, "The data's own grid when it carries none and --wavelengths resamples");
-  cmd->add_option("--mask", o->mask, "Mask: a PNG or a one-band ENVI image (nonzero = valid), or for .mat the name of a mask variable");
-  cmd->add_option("--var", o->var, "Cube or spectra variable in a .mat file (default: detected, e.g. ref, rad, cube, Y, data)");
-  cmd->add_option("--format", o->format, "auto, envi, mat, png, exr, csv, usgs (splib07a ASCII), ecostress, gdal (any raster GDAL reads; .tif/.tiff are gdal by default) or nbrdf (Keras weights of a neural BRDF; .h5 files holding dense_1 are nbrdf by default)")
+  cmd->add_option("--source-wavelengths", o->source_wavelengths,
+                  "The data's own grid when it carries none and --wavelengths resamples");
+  cmd->add_option("--mask", o->mask,
+                  "Mask: a PNG or a one-band ENVI image (nonzero = valid), or for .mat the name of a mask variable");
+  cmd->add_option("--var", o->var,
+                  "Cube or spectra variable in a .mat file (default: detected, e.g. ref, rad, cube, Y, data)");
+  cmd->add_option("--format", o->format,
+                  "auto, envi, mat, png, exr, csv, usgs (splib07a ASCII), ecostress, gdal (any raster GDAL reads; "
+                  ".tif/.tiff are gdal by default) or nbrdf (Keras weights of a neural BRDF; .h5 files holding dense_1 "
+                  "are nbrdf by default)")
       ->check(CLI::IsMember({"auto", "envi", "mat", "png", "exr", "csv", "usgs", "ecostress", "gdal", "nbrdf"}))
       ->capture_default_str();
   cmd->add_option("--nan", o->nan, "NaN/Inf in valid pixels: reject (default) or mask")
       ->check(CLI::IsMember({"reject", "mask"}))
       ->capture_default_str();
-  cmd->add_option("--compression", o->compression, "none, deflate or deflate:LEVEL (shuffle + deflate)")->capture_default_str();
+  cmd->add_option("--compression", o->compression, "none, deflate or deflate:LEVEL (shuffle + deflate)")
+      ->capture_default_str();
   cmd->add_option("--units", o->units, "Override the units: reflectance, radiance, counts, ...");
   cmd->add_flag("--replace", o->replace, "Replace objects of the same name");
   cmd->add_flag("--strict", o->strict, "Any file skipped in a directory or pattern is an error (nothing is imported)");
@@ -195,9 +213,11 @@ void setup_import(CLI::App& app) {
   cmd->add_flag("--uplift", o->uplift,
                 "NBRDF: turn the network's RGB into spectra on --wavelengths (default 400:700:10) by Appendix A, "
                 "non-negative");
-  cmd->add_option("--illuminant", o->illuminant, "NBRDF --uplift: illuminant under which the RGB was seen (as for uplift)")
+  cmd->add_option("--illuminant", o->illuminant,
+                  "NBRDF --uplift: illuminant under which the RGB was seen (as for uplift)")
       ->capture_default_str();
-  cmd->add_flag("--keep-bad-bands", o->keep_bad_bands, "Keep the bands an ENVI header's bbl marks bad (dropped by default)");
+  cmd->add_flag("--keep-bad-bands", o->keep_bad_bands,
+                "Keep the bands an ENVI header's bbl marks bad (dropped by default)");
   cmd->callback([o] {
     try {
       run_import(*o);

@@ -1,9 +1,9 @@
 // specula info and specula ls: what a store holds, for people (text) and programs (--json).
 #include <fmt/format.h>
 
-#include "specula/acquire/pipeline.h"
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/acquire/pipeline.h"
 #include "specula/core/error.h"
 #include "specula/store/store.h"
 
@@ -17,8 +17,9 @@ struct InfoOptions {
 };
 
 std::string provenance_json(const store::Provenance& p) {
-  return fmt::format(R"({{"source_file":{},"importer":{},"command_line":{},"created_utc":{}}})", json_string(p.source_file),
-                     json_string(p.importer), json_string(p.command_line), json_string(p.created_utc));
+  return fmt::format(R"({{"source_file":{},"importer":{},"command_line":{},"created_utc":{}}})",
+                     json_string(p.source_file), json_string(p.importer), json_string(p.command_line),
+                     json_string(p.created_utc));
 }
 
 std::string image_json(const store::ImageInfo& i) {
@@ -31,15 +32,17 @@ std::string image_json(const store::ImageInfo& i) {
 }
 
 std::string collection_json(const store::CollectionInfo& c) {
-  return fmt::format(R"({{"kind":"collection","name":{},"size":{},"bands":{},"wavelengths":{},"units":{},"provenance":{}}})",
-                     json_string(c.name), c.size, c.bands, json_array(c.wavelengths.values()), json_string(c.units),
-                     provenance_json(c.provenance));
+  return fmt::format(
+      R"({{"kind":"collection","name":{},"size":{},"bands":{},"wavelengths":{},"units":{},"provenance":{}}})",
+      json_string(c.name), c.size, c.bands, json_array(c.wavelengths.values()), json_string(c.units),
+      provenance_json(c.provenance));
 }
 
 std::string samples_json(const store::SamplesInfo& s) {
-  return fmt::format(R"({{"kind":"samples","name":{},"size":{},"bands":{},"wavelengths":{},"units":{},"provenance":{}}})",
-                     json_string(s.name), s.size, s.bands, json_array(s.wavelengths.values()), json_string(s.units),
-                     provenance_json(s.provenance));
+  return fmt::format(
+      R"({{"kind":"samples","name":{},"size":{},"bands":{},"wavelengths":{},"units":{},"provenance":{}}})",
+      json_string(s.name), s.size, s.bands, json_array(s.wavelengths.values()), json_string(s.units),
+      provenance_json(s.provenance));
 }
 
 std::string image_line(const store::ImageInfo& i) {
@@ -54,10 +57,11 @@ std::string samples_line(const store::SamplesInfo& s) {
 }
 
 std::string coefficients_json(const store::CoefficientsInfo& c) {
-  return fmt::format(R"({{"kind":"coefficients","name":{},"image":{},"basis":{},"method":{},"height":{},"width":{},"k":{},)"
-                     R"("valid_pixels":{},"provenance":{}}})",
-                     json_string(c.name), json_string(c.image), json_string(c.basis), json_string(c.method), c.height,
-                     c.width, c.k, c.valid_pixels, provenance_json(c.provenance));
+  return fmt::format(
+      R"({{"kind":"coefficients","name":{},"image":{},"basis":{},"method":{},"height":{},"width":{},"k":{},)"
+      R"("valid_pixels":{},"provenance":{}}})",
+      json_string(c.name), json_string(c.image), json_string(c.basis), json_string(c.method), c.height, c.width, c.k,
+      c.valid_pixels, provenance_json(c.provenance));
 }
 std::string coefficients_line(const store::CoefficientsInfo& c) {
   return fmt::format("coefficients {:<23} {}x{}  {} {} coefficients of image {} on basis {}  [{}]", c.name, c.height,
@@ -69,18 +73,21 @@ void list_objects(const store::Store& s, bool json) {
   for (const auto& n : s.images()) rows.push_back(json ? image_json(s.image_info(n)) : image_line(s.image_info(n)));
   for (const auto& n : s.collections())
     rows.push_back(json ? collection_json(s.collection_info(n)) : collection_line(s.collection_info(n)));
-  for (const auto& n : s.samples()) rows.push_back(json ? samples_json(s.samples_info(n)) : samples_line(s.samples_info(n)));
-  for (const auto& n : s.grids()) rows.push_back(json ? fmt::format(R"({{"kind":"grid","name":{}}})", json_string(n)) : "grid        " + n);
-  for (const auto& n : s.bases()) rows.push_back(json ? fmt::format(R"({{"kind":"basis","name":{}}})", json_string(n)) : "basis       " + n);
+  for (const auto& n : s.samples())
+    rows.push_back(json ? samples_json(s.samples_info(n)) : samples_line(s.samples_info(n)));
+  for (const auto& n : s.grids())
+    rows.push_back(json ? fmt::format(R"({{"kind":"grid","name":{}}})", json_string(n)) : "grid        " + n);
+  for (const auto& n : s.bases())
+    rows.push_back(json ? fmt::format(R"({{"kind":"basis","name":{}}})", json_string(n)) : "basis       " + n);
   for (const auto& n : s.coefficients())
     rows.push_back(json ? coefficients_json(s.coefficients_info(n)) : coefficients_line(s.coefficients_info(n)));
   for (const auto& n : s.objects("acquire")) {
     const acquire::Calibration c = acquire::read_calibration(s, n);
     const char* model = c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored";
-    rows.push_back(json ? fmt::format(R"({{"kind":"calibration","name":{},"spectral_model":"{}","lights":{}}})", json_string(n), model,
-                                      c.light_dirs.size())
-                        : fmt::format("calibration {:<24} {} spectral model, {} lights, sphere {:.4f} m at {:.4f} m", n, model,
-                                      c.light_dirs.size(), c.sphere.radius, c.sphere.centre.norm()));
+    rows.push_back(json ? fmt::format(R"({{"kind":"calibration","name":{},"spectral_model":"{}","lights":{}}})",
+                                      json_string(n), model, c.light_dirs.size())
+                        : fmt::format("calibration {:<24} {} spectral model, {} lights, sphere {:.4f} m at {:.4f} m", n,
+                                      model, c.light_dirs.size(), c.sphere.radius, c.sphere.centre.norm()));
   }
   if (json) {
     fmt::print("[");
@@ -99,9 +106,10 @@ void run_info(const InfoOptions& o) {
     const auto bytes = store::store_bytes(s);
     const std::string created = s.created_utc();
     if (o.json) {
-      fmt::print(R"({{"store":{},"format_version":{},"generation":{},"bytes":{},"created_utc":{},"valid_spectra":{},"objects":)",
-                 json_string(s.path().string()), s.format_version(), s.index().generation, bytes, json_string(created),
-                 spectra);
+      fmt::print(
+          R"({{"store":{},"format_version":{},"generation":{},"bytes":{},"created_utc":{},"valid_spectra":{},"objects":)",
+          json_string(s.path().string()), s.format_version(), s.index().generation, bytes, json_string(created),
+          spectra);
       list_objects(s, true);
       fmt::print("}}\n");
       return;
@@ -117,10 +125,12 @@ void run_info(const InfoOptions& o) {
     return;
   }
   std::string name = o.object;
-  for (const char* prefix : {"images/", "collections/", "samples/", "bases/", "coefficients/", "/images/", "/collections/",
-                             "/samples/", "/bases/", "/coefficients/"})
+  for (const char* prefix : {"images/", "collections/", "samples/", "bases/", "coefficients/", "/images/",
+                             "/collections/", "/samples/", "/bases/", "/coefficients/"})
     if (name.rfind(prefix, 0) == 0) name = name.substr(std::string(prefix).size());
-  auto has = [](const std::vector<std::string>& v, const std::string& n) { return std::find(v.begin(), v.end(), n) != v.end(); };
+  auto has = [](const std::vector<std::string>& v, const std::string& n) {
+    return std::find(v.begin(), v.end(), n) != v.end();
+  };
   if (has(s.images(), name)) {
     const auto i = s.image_info(name);
     if (o.json) return fmt::print("{}\n", image_json(i));
@@ -139,15 +149,17 @@ void run_info(const InfoOptions& o) {
   } else if (has(s.bases(), name)) {
     const store::Basis b = s.read_basis(name);
     if (o.json)
-      return fmt::print(R"({{"kind":"basis","name":{},"method":{},"k":{},"n":{},"bands":{},"wavelengths":{},"source":{},)"
-                        R"("fit":{},"created":{},"command_line":{}}})"
-                        "\n",
-                        json_string(name), json_string(b.method), b.k(), b.n, b.bands(), json_array(b.wavelengths.values()),
-                        json_string(b.source), json_string(b.provenance.importer), json_string(b.provenance.created_utc),
-                        json_string(b.provenance.command_line));
-    fmt::print("basis {}: {}, {} components on {}, learned from {} spectra\n  source {}\n  fit {}\n  created {} by: {}\n",
-               name, b.method, b.k(), b.wavelengths.describe(), b.n, b.source, b.provenance.importer,
-               b.provenance.created_utc, b.provenance.command_line);
+      return fmt::print(
+          R"({{"kind":"basis","name":{},"method":{},"k":{},"n":{},"bands":{},"wavelengths":{},"source":{},)"
+          R"("fit":{},"created":{},"command_line":{}}})"
+          "\n",
+          json_string(name), json_string(b.method), b.k(), b.n, b.bands(), json_array(b.wavelengths.values()),
+          json_string(b.source), json_string(b.provenance.importer), json_string(b.provenance.created_utc),
+          json_string(b.provenance.command_line));
+    fmt::print(
+        "basis {}: {}, {} components on {}, learned from {} spectra\n  source {}\n  fit {}\n  created {} by: {}\n",
+        name, b.method, b.k(), b.wavelengths.describe(), b.n, b.source, b.provenance.importer, b.provenance.created_utc,
+        b.provenance.command_line);
   } else if (has(s.coefficients(), name)) {
     const auto c = s.coefficients_info(name);
     if (o.json) return fmt::print("{}\n", coefficients_json(c));

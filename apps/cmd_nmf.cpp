@@ -55,7 +55,8 @@ void print_nmf_json(const NmfCliOptions& o, const std::string& store, const std:
   for (const auto& e : epochs)
     if (e.restart == r.best) t.push_back(e.seconds);
   Json components = Json::array();
-  for (Eigen::Index i = 0; i < best.basis.rows(); ++i) components.push_back(json_numbers(Eigen::VectorXd(best.basis.row(i).transpose())));
+  for (Eigen::Index i = 0; i < best.basis.rows(); ++i)
+    components.push_back(json_numbers(Eigen::VectorXd(best.basis.row(i).transpose())));
   Json j;
   j["store"] = store;
   j["basis"] = name;
@@ -91,17 +92,17 @@ void run_nmf(const NmfCliOptions& o) {
   const std::string name = o.name.empty() ? nmf::default_basis_name(o.k) : o.name;
   store::validate_name(name, "basis");
   const std::string out = basis_output(o.stores, o.output);
-  nmf::NmfOptions opt{.k = o.k,
-                      .init = nmf::parse_init(o.init),
-                      .seed = o.seed,
-                      .restarts = o.restarts,
-                      .max_epochs = o.max_epochs,
-                      .tol = o.tol,
-                      .negatives = nmf::parse_negatives(o.negatives),
-                      .wave_blocks = o.wave_blocks,
-                      .checkpoint = o.checkpoint.empty() ? nmf::default_checkpoint(out, name)
-                                                         : std::filesystem::path(o.checkpoint),
-                      .resume = o.resume};
+  nmf::NmfOptions opt{
+      .k = o.k,
+      .init = nmf::parse_init(o.init),
+      .seed = o.seed,
+      .restarts = o.restarts,
+      .max_epochs = o.max_epochs,
+      .tol = o.tol,
+      .negatives = nmf::parse_negatives(o.negatives),
+      .wave_blocks = o.wave_blocks,
+      .checkpoint = o.checkpoint.empty() ? nmf::default_checkpoint(out, name) : std::filesystem::path(o.checkpoint),
+      .resume = o.resume};
   const std::vector<store::Store> stores = open_stores(o.stores);
   const store::Store& s = stores.front();
   if (!o.replace && !o.resume && store::holds_basis(out, name))  // refuse before hours of work
@@ -137,10 +138,11 @@ void run_nmf(const NmfCliOptions& o) {
     print_nmf_json(o, s.path().string(), name, out, learned, epochs, seconds);
     return;
   }
-  fmt::print("NMF of {} spectra ({}), k = {}: relative error {:.6f} (rank-{} SVD bound {:.6f}, {:+.1f} %) after {} epochs{}\n",
-             r.n, learned.basis.wavelengths.describe(), o.k, r.rel_error, o.k, r.svd_bound,
-             r.svd_bound > 0 ? 100 * (r.rel_error / r.svd_bound - 1) : 0.0, best.epochs,
-             best.converged ? "" : " (max epochs reached)");
+  fmt::print(
+      "NMF of {} spectra ({}), k = {}: relative error {:.6f} (rank-{} SVD bound {:.6f}, {:+.1f} %) after {} epochs{}\n",
+      r.n, learned.basis.wavelengths.describe(), o.k, r.rel_error, o.k, r.svd_bound,
+      r.svd_bound > 0 ? 100 * (r.rel_error / r.svd_bound - 1) : 0.0, best.epochs,
+      best.converged ? "" : " (max epochs reached)");
   if (r.restarts.size() > 1) {
     fmt::print("restart  rel error   epochs  mean/max angle to best\n");
     for (std::size_t i = 0; i < r.restarts.size(); ++i) {
@@ -163,7 +165,8 @@ void run_nmf(const NmfCliOptions& o) {
 
 void setup_nmf(CLI::App& app) {
   auto o = std::make_shared<NmfCliOptions>();
-  auto* cmd = app.add_subcommand("nmf", "Non-negative matrix factorisation of every valid spectrum, out of core (§7.4)");
+  auto* cmd =
+      app.add_subcommand("nmf", "Non-negative matrix factorisation of every valid spectrum, out of core (§7.4)");
   cmd->add_option("stores", o->stores, "Store file(s); several are analysed as one database")->required();
   cmd->add_option("-k", o->k, "Number of basis spectra")->required()->check(CLI::Range(1, 64));
   cmd->add_option("--images", o->images, "Image name globs (default: every image)");

@@ -57,7 +57,8 @@ void plot_panel(const store::Store& s, const PlotBasisOptions& o, const std::fil
     if (b.k() == 0) throw InputError(fmt::format("{}: basis '{}' has no components", s.label(), o.bases[i]));
     if (!b.wavelengths.approx_equal(bases.front().wavelengths))
       throw InputError(fmt::format("{}: basis {} has {}, basis {} has {}; a panel needs bases on one grid", s.label(),
-                                   o.bases[i], b.wavelengths.describe(), o.bases.front(), bases.front().wavelengths.describe()));
+                                   o.bases[i], b.wavelengths.describe(), o.bases.front(),
+                                   bases.front().wavelengths.describe()));
     std::string csv = "wavelength_nm", rows_text;
     for (std::size_t c = 0; c < b.k(); ++c) csv += fmt::format(",c{}", c + 1);
     csv += "\n";
@@ -83,7 +84,8 @@ void plot_panel(const store::Store& s, const PlotBasisOptions& o, const std::fil
   for (std::size_t i = 0; i < bases.size(); ++i) {
     const store::Basis& b = bases[i];
     script += "set title " +
-              gnuplot_quote(fmt::format("{} ({}, k = {}, {} spectra)", o.bases[i], b.method, b.k(), b.n)) + " noenhanced\n";
+              gnuplot_quote(fmt::format("{} ({}, k = {}, {} spectra)", o.bases[i], b.method, b.k(), b.n)) +
+              " noenhanced\n";
     script += fmt::format("plot for [i=2:{}] $B{} using 1:i with lines lw 2\n", b.k() + 1, i);
   }
   script += "unset multiplot\n";
@@ -154,7 +156,8 @@ void run_plot_basis(const PlotBasisOptions& o) {
     plot_png(gnuplot, dir / "eigenvalues.png", gnuplot_png_terminal(900, 600), script);
   }
   std::string script = "$C << EOD\n" + comp_rows + "EOD\n";
-  script += "set title " + gnuplot_quote(fmt::format("First {} {} components of {}", n, method, label)) + " noenhanced\n";
+  script +=
+      "set title " + gnuplot_quote(fmt::format("First {} {} components of {}", n, method, label)) + " noenhanced\n";
   script += "set grid\nset xzeroaxis lt -1 lw 0.5\nset key outside right top\n";
   script += "set xlabel 'wavelength (nm)'\nset ylabel 'component weight'\n";
   script += fmt::format("set xrange [{}:{}]\n", b.wavelengths.front(), b.wavelengths.back());

@@ -65,7 +65,7 @@ void write_error_png(const fs::path& path, const std::vector<float>& err, const 
 struct KResult {
   std::size_t k = 0;
   double rms = 0, max_error = 0;
-  std::vector<float> error;          // per-pixel L2 error over bands
+  std::vector<float> error;           // per-pixel L2 error over bands
   std::vector<std::uint8_t> preview;  // sRGB8 of the reconstruction
 };
 
@@ -152,8 +152,9 @@ void run_project(const ProjectOptions& o) {
       throw UsageError("-o " + o.output + " names one reconstruction; with several -k give a directory");
     const store::ImageInfo info = s.image_info(o.image);
     stats::Projector(basis, std::nullopt, o.basis)
-        .check_wavelengths(info.wavelengths, s.label() + ": image " + o.image,
-                           "import the image with --wavelengths to match the basis, or learn a basis on the image's grid");
+        .check_wavelengths(
+            info.wavelengths, s.label() + ": image " + o.image,
+            "import the image with --wavelengths to match the basis, or learn a basis on the image's grid");
     if (info.valid_pixels == 0) throw InputError(s.label() + ": image " + o.image + " has no valid pixels");
     if (!o.into_store.empty()) {
       const auto images = s.images();
@@ -176,7 +177,8 @@ void run_project(const ProjectOptions& o) {
 
   const PreviewSettings preview = shared_settings(cube, o.preview);
   std::unique_ptr<store::StoreWriter> writer;
-  if (!o.into_store.empty()) writer = std::make_unique<store::StoreWriter>(o.store, store::WriteOptions{{}, false, command_line()});
+  if (!o.into_store.empty())
+    writer = std::make_unique<store::StoreWriter>(o.store, store::WriteOptions{{}, false, command_line()});
   Cube recon;
   recon.height = cube.height;
   recon.width = cube.width;
@@ -227,7 +229,8 @@ void run_project(const ProjectOptions& o) {
     print_json(j);
     return;
   }
-  for (const KResult& r : results) fmt::print("k={}: rms {:.3g}, max {:.3g} (L2 over bands)\n", r.k, r.rms, r.max_error);
+  for (const KResult& r : results)
+    fmt::print("k={}: rms {:.3g}, max {:.3g} (L2 over bands)\n", r.k, r.rms, r.max_error);
   for (const std::string& f : outputs) fmt::print("wrote {}\n", f);
   for (const std::string& n : store_images) fmt::print("added image {} to {}\n", n, o.store);
 }
@@ -237,11 +240,14 @@ void run_project(const ProjectOptions& o) {
 void setup_project(CLI::App& app) {
   auto o = std::make_shared<ProjectOptions>();
   auto* cmd = app.add_subcommand(
-      "project", "Reconstruct an image from k principal components (figure 7.4) or an NMF basis (figure 7.7), with error maps");
+      "project",
+      "Reconstruct an image from k principal components (figure 7.4) or an NMF basis (figure 7.7), with error maps");
   cmd->add_option("store", o->store, "Store file")->required();
-  cmd->add_option("--basis", o->basis, "PCA or NMF basis in the store (NMF: non-negative least squares on all its components)")
+  cmd->add_option("--basis", o->basis,
+                  "PCA or NMF basis in the store (NMF: non-negative least squares on all its components)")
       ->required();
-  cmd->add_option("-k", o->ks, "PCA components to keep, e.g. 3 or 1,3,6,31 (several also write panel.png)")->delimiter(',');
+  cmd->add_option("-k", o->ks, "PCA components to keep, e.g. 3 or 1,3,6,31 (several also write panel.png)")
+      ->delimiter(',');
   cmd->add_option("--image", o->image, "Image in the store, on the basis's wavelength grid")->required();
   cmd->add_option("-o,--output", o->output,
                   "Directory for reconstruction-k<K>.exr, preview-k<K>.png, error-k<K>.png (and panel.png); "

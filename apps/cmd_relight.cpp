@@ -26,7 +26,6 @@ struct RelightOptions {
   bool json = false;
 };
 
-
 void run_relight(const RelightOptions& o) {
   const store::Store s = store::Store::open(o.store);
   const store::Cube cube = s.read_image(o.image);
@@ -69,9 +68,10 @@ void run_relight(const RelightOptions& o) {
     j["output"] = o.output;
     print_json(j);
   } else {
-    fmt::print("{}: relit from {} to {}: mean CIEDE2000 between spectral and RGB relighting {:.3f} "
-               "(95th percentile {:.3f}, max {:.3f}) over {} pixels\n",
-               o.image, o.from, o.to, r.mean_ciede2000, r.p95_ciede2000, r.max_ciede2000, r.pixels);
+    fmt::print(
+        "{}: relit from {} to {}: mean CIEDE2000 between spectral and RGB relighting {:.3f} "
+        "(95th percentile {:.3f}, max {:.3f}) over {} pixels\n",
+        o.image, o.from, o.to, r.mean_ciede2000, r.p95_ciede2000, r.max_ciede2000, r.pixels);
     fmt::print("wrote {} (panels: under {}, spectral relighting to {}, RGB relighting to {}, CIEDE2000 map 0-10)\n",
                o.output, o.from, o.to, o.to);
   }
@@ -81,7 +81,8 @@ void run_relight(const RelightOptions& o) {
 
 void setup_relight(CLI::App& app) {
   auto o = std::make_shared<RelightOptions>();
-  auto* cmd = app.add_subcommand("relight", "Relight an image spectrally (eq 4.9) and in RGB (eq 4.10); compare with CIEDE2000");
+  auto* cmd = app.add_subcommand("relight",
+                                 "Relight an image spectrally (eq 4.9) and in RGB (eq 4.10); compare with CIEDE2000");
   cmd->add_option("store", o->store, "Store file")->required();
   cmd->add_option("image", o->image, "Image name")->required();
   cmd->add_option("--from", o->from,

@@ -9,7 +9,6 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "specula/core/illuminant.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/render.h"
@@ -19,6 +18,7 @@
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
+#include "specula/core/illuminant.h"
 #include "specula/store/io/exr.h"
 #include "specula/store/io/png_stack.h"
 #include "specula/store/store.h"
@@ -42,7 +42,8 @@ codec::SpcBrdf load_spc(const std::string& path) {
 
 // An RGB .binary as it is, a spectral grid seen under --illuminant.
 codec::SphereImage render_rgb(const RenderOptions& o, const Eigen::Vector3d& light) {
-  if (std::filesystem::path(o.input).extension() == ".binary") return codec::render_sphere(codec::read_merl(o.input), o.size, light);
+  if (std::filesystem::path(o.input).extension() == ".binary")
+    return codec::render_sphere(codec::read_merl(o.input), o.size, light);
   if (std::filesystem::path(o.input).extension() == ".bsdf") {
     const codec::RglBsdf b = codec::read_rgl_bsdf(o.input);
     if (b.rgb) return codec::render_sphere(codec::rgl_to_merl(b), o.size, light);
@@ -79,7 +80,8 @@ void run_render(const RenderOptions& o) {
       if (grid.provenance.importer == "uplift-clamp") note = " (uplifted to " + grid.wavelengths.describe() + ")";
     }
     if (!(r.white.y() > 0))
-      throw InputError("render: " + env.description + " sends no light to a surface facing the viewer; nothing maps to white");
+      throw InputError("render: " + env.description +
+                       " sends no light to a surface facing the viewer; nothing maps to white");
     // Linear sRGB with the environment's white (a white Lambertian facing the viewer) adapted to D65 and at 1.
     const Eigen::Matrix3d m = rendering_to_linear_srgb(r.white);
     std::vector<float> linear(3 * o.size * o.size, 0.0f);
@@ -100,8 +102,9 @@ void run_render(const RenderOptions& o) {
   codec::SphereImage img;
   if (coded) {
     const codec::SpcBrdf brdf = load_spc(o.input);
-    img = codec::render_sphere(brdf, codec::rgb_weights(brdf.wavelengths(), parse_illuminant(o.illuminant, brdf.wavelengths())),
-                               o.size, light);
+    img = codec::render_sphere(
+        brdf, codec::rgb_weights(brdf.wavelengths(), parse_illuminant(o.illuminant, brdf.wavelengths())), o.size,
+        light);
   } else {
     img = render_rgb(o, light);
   }
@@ -118,17 +121,22 @@ void run_render(const RenderOptions& o) {
 void setup_render(CLI::App& app) {
   auto o = std::make_shared<RenderOptions>();
   auto* cmd = app.add_subcommand("render", "A sphere under a directional light from a BRDF (sRGB PNG and linear EXR)");
-  cmd->add_option("brdf", o->input, "MERL .binary, spectral grid file, STORE.h5:GRID, an RGL .bsdf, or a .spc (evaluated from its code, not decoded)")->required();
+  cmd->add_option("brdf", o->input,
+                  "MERL .binary, spectral grid file, STORE.h5:GRID, an RGL .bsdf, or a .spc (evaluated from its code, "
+                  "not decoded)")
+      ->required();
   cmd->add_option("-o,--output", o->output, "PNG to write; the linear EXR goes beside it")->required();
   cmd->add_option("--size", o->size, "Image width and height in pixels")->capture_default_str();
   cmd->add_option("--light", o->light, "Light direction THETA,PHI in degrees (theta from the viewer)")
       ->delimiter(',')
       ->expected(2)
       ->capture_default_str();
-  cmd->add_option("--illuminant", o->illuminant, "Light SPD for spectral grids: D65, D50, A, E, D<CCT>, blackbody:K or CSV")
+  cmd->add_option("--illuminant", o->illuminant,
+                  "Light SPD for spectral grids: D65, D50, A, E, D<CCT>, blackbody:K or CSV")
       ->capture_default_str();
   cmd->add_option("--env", o->env,
-                  "Light by a spectral environment instead: 'default' (built-in sky, ground, sun) or a lat-long EXR (spectral or RGB); a .binary is uplifted to 400-700 nm step 10");
+                  "Light by a spectral environment instead: 'default' (built-in sky, ground, sun) or a lat-long EXR "
+                  "(spectral or RGB); a .binary is uplifted to 400-700 nm step 10");
   cmd->add_option("--exposure", o->exposure, "Stops of gain before sRGB encoding of the PNG")->capture_default_str();
   cmd->callback([o] { run_render(*o); });
 }

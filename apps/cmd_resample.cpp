@@ -8,10 +8,10 @@
 #include <filesystem>
 #include <numbers>
 
-#include "specula/acquire/prior_resample.h"
-#include "specula/acquire/resample.h"
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/acquire/prior_resample.h"
+#include "specula/acquire/resample.h"
 #include "specula/core/error.h"
 #include "specula/store/object_spec.h"
 #include "specula/store/store.h"
@@ -49,7 +49,8 @@ void check_output(const std::string& spec, bool replace) {
   if (!replace && std::filesystem::exists(file)) {
     const auto grids = store::Store::open(file).grids();
     if (std::find(grids.begin(), grids.end(), name) != grids.end())
-      throw InputError(file.filename().string() + ": grid '" + name + "' exists already; choose another name or pass --replace");
+      throw InputError(file.filename().string() + ": grid '" + name +
+                       "' exists already; choose another name or pass --replace");
   }
 }
 
@@ -57,7 +58,8 @@ void check_output(const std::string& spec, bool replace) {
 std::string confidence_output(const std::string& output) {
   const std::filesystem::path p(output);
   if (p.extension() == ".spgrid") return (p.parent_path() / (p.stem().string() + ".confidence.spgrid")).string();
-  if (p.extension() == ".binary") throw UsageError("resample --prior: write STORE.h5:NAME or a .spgrid (the confidence goes beside it)");
+  if (p.extension() == ".binary")
+    throw UsageError("resample --prior: write STORE.h5:NAME or a .spgrid (the confidence goes beside it)");
   return output + ".confidence";
 }
 
@@ -68,7 +70,8 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   if (colon == std::string::npos) throw UsageError("resample --prior: give STORE.h5:PRIOR");
   const std::string conf_out = confidence_output(o.output);
   check_output(conf_out, o.replace);
-  const acquire::BrdfPrior prior = acquire::read_prior(store::Store::open(o.prior.substr(0, colon)), o.prior.substr(colon + 1));
+  const acquire::BrdfPrior prior =
+      acquire::read_prior(store::Store::open(o.prior.substr(0, colon)), o.prior.substr(colon + 1));
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);
@@ -79,7 +82,8 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   conf.wavelengths = WavelengthGrid({info.wavelengths[info.bands / 2]});
   conf.units = "confidence";
   conf.brdf.resize(brdf::kMerlCells);
-  const acquire::PriorResampleOptions po{.local = ro, .fit = {.lambda = o.lambda}, .confidence_reach = o.confidence_reach};
+  const acquire::PriorResampleOptions po{
+      .local = ro, .fit = {.lambda = o.lambda}, .confidence_reach = o.confidence_reach};
   const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, conf.brdf);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
   grid.provenance.importer = fmt::format("resample prior={} lambda={} confidence_reach={} mapping={} k={} weights={}",
@@ -96,9 +100,10 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
                json_string(o.prior), json_string(o.output), json_string(conf_out), omp_get_max_threads());
     return;
   }
-  fmt::print("resampled {} samples of {} with prior {} onto all {} valid cells ({} observed) in {:.2f} s: {}; "
-             "confidence in {}\n",
-             info.size, o.samples, o.prior, st.filled_cells, st.observed_cells, seconds, what, conf_out);
+  fmt::print(
+      "resampled {} samples of {} with prior {} onto all {} valid cells ({} observed) in {:.2f} s: {}; "
+      "confidence in {}\n",
+      info.size, o.samples, o.prior, st.filled_cells, st.observed_cells, seconds, what, conf_out);
 }
 
 void run_resample(const ResampleCliOptions& o) {
@@ -145,8 +150,8 @@ void run_resample(const ResampleCliOptions& o) {
     print_json(j);
     return;
   }
-  fmt::print("resampled {} samples of {} onto {} of {} cells ({} mapping, k = {}, {} weights) in {:.2f} s: {}\n", info.size,
-             o.samples, stats.valid_cells, brdf::kMerlCells, o.mapping, o.k, o.weights, seconds, what);
+  fmt::print("resampled {} samples of {} onto {} of {} cells ({} mapping, k = {}, {} weights) in {:.2f} s: {}\n",
+             info.size, o.samples, stats.valid_cells, brdf::kMerlCells, o.mapping, o.k, o.weights, seconds, what);
 }
 
 }  // namespace
@@ -157,16 +162,19 @@ void setup_resample(CLI::App& app) {
   cmd->add_option("store", o->store, "Store holding the samples")->required();
   cmd->add_option("samples", o->samples, "Name of the scattered samples in the store")->required();
   cmd->add_option("-o,--output", o->output, "STORE.h5:GRID, a .spgrid file, or an RGB .binary")->required();
-  cmd->add_option("--mapping", o->mapping, "standard (M_s), marschner (M_m, eq 5.8) or halfdiff (M_h)")->capture_default_str();
+  cmd->add_option("--mapping", o->mapping, "standard (M_s), marschner (M_m, eq 5.8) or halfdiff (M_h)")
+      ->capture_default_str();
   cmd->add_option("-k", o->k, "Nearest samples per cell")->capture_default_str();
   cmd->add_option("--weights", o->weights, "shepard (eqs 5.9-5.10) or mean")->capture_default_str();
   cmd->add_option("--power", o->power, "Shepard's power p")->capture_default_str();
-  cmd->add_option("--max-gap", o->max_gap_deg,
-                  "Leave a cell without data when its nearest sample is farther than this (degrees in theta_i, theta_o, phi_d)")
+  cmd->add_option(
+         "--max-gap", o->max_gap_deg,
+         "Leave a cell without data when its nearest sample is farther than this (degrees in theta_i, theta_o, phi_d)")
       ->capture_default_str();
-  cmd->add_option("--prior", o->prior,
-                  "STORE.h5:PRIOR: fit a learned prior (specula prior build) and fill every valid cell, blending with "
-                  "the kd-tree estimate by per-cell confidence, written beside the grid as NAME.confidence (docs/prior.md)");
+  cmd->add_option(
+      "--prior", o->prior,
+      "STORE.h5:PRIOR: fit a learned prior (specula prior build) and fill every valid cell, blending with "
+      "the kd-tree estimate by per-cell confidence, written beside the grid as NAME.confidence (docs/prior.md)");
   cmd->add_option("--lambda", o->lambda, "--prior: Tikhonov weight of the fit")->capture_default_str();
   cmd->add_option("--confidence-reach", o->confidence_reach,
                   "--prior: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction of --max-gap")

@@ -11,11 +11,11 @@
 #include <filesystem>
 #include <numbers>
 
-#include "specula/acquire/scan.h"
-#include "specula/acquire/study.h"
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/gnuplot.h"
+#include "specula/acquire/scan.h"
+#include "specula/acquire/study.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
@@ -39,8 +39,11 @@ struct ResampleStudyOptions {
 };
 
 std::string row_label(const acquire::StudyResult& r) {
-  const char* m = r.mapping == acquire::Mapping::standard ? "M_s" : r.mapping == acquire::Mapping::marschner ? "M_m" : "M_h";
-  return r.k == 1 ? std::string(m) : fmt::format("{}, {}", m, r.weights == acquire::Weights::mean ? "Avg." : "Weighted Avg.");
+  const char* m = r.mapping == acquire::Mapping::standard    ? "M_s"
+                  : r.mapping == acquire::Mapping::marschner ? "M_m"
+                                                             : "M_h";
+  return r.k == 1 ? std::string(m)
+                  : fmt::format("{}, {}", m, r.weights == acquire::Weights::mean ? "Avg." : "Weighted Avg.");
 }
 
 // One sheet: the truth, the model sampled at cell centres, then every reconstruction, in rows of `per_row`,
@@ -73,11 +76,13 @@ void write_sheet(const std::filesystem::path& path, const acquire::StudyOutput& 
 void incidence_plot(const std::filesystem::path& path, const std::string& material, const brdf::SpectralModel& model,
                     std::span<const double> angles, std::span<const float> values, std::size_t k, double max_gap) {
   const auto gnuplot = find_gnuplot();
-  if (gnuplot.empty()) throw UsageError("resample-study: --out draws the incidence-plane plot with gnuplot; install it");
+  if (gnuplot.empty())
+    throw UsageError("resample-study: --out draws the incidence-plane plot with gnuplot; install it");
   const double ti = pi / 4, eps = 2 * pi / 180;
   std::string script = "$S << EOD\n";
   for (std::size_t i = 0; i < angles.size() / 4; ++i) {
-    const acquire::IsoAngles a = acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
+    const acquire::IsoAngles a =
+        acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
     if (const auto x = acquire::incidence_plane_angle(a, ti, eps))
       script += fmt::format("{:.3f} {:.5g}\n", *x * 180 / pi, std::cbrt(std::max(0.0f, values[i])));
   }
@@ -92,8 +97,8 @@ void incidence_plot(const std::filesystem::path& path, const std::string& materi
     float v = 0;
     const bool has = r.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), std::span<float>(&v, 1));
     model.eval(brdf::StdAngles{ti, 0.0, to, a.phi_d}, f);
-    script += fmt::format("{:.1f} {} {:.5g}\n", deg10 / 10.0, has ? fmt::format("{:.5g}", std::cbrt(std::max(0.0f, v))) : "NaN",
-                          std::cbrt(f[0]));
+    script += fmt::format("{:.1f} {} {:.5g}\n", deg10 / 10.0,
+                          has ? fmt::format("{:.5g}", std::cbrt(std::max(0.0f, v))) : "NaN", std::cbrt(f[0]));
   }
   script += "EOD\n";
   script += "set grid\nset key top left\nset xlabel 'theta_o (degrees; negative: same side as the light)'\n";
@@ -103,9 +108,10 @@ void incidence_plot(const std::filesystem::path& path, const std::string& materi
                                       "M_s, k = {}, Shepard (grid lookup)",
                                       material, k)) +
             " noenhanced\n";
-  script += "plot $S using 1:2 with points pt 7 ps 0.4 lc rgb '#808080' title 'samples', "
-            "$R using 1:3 with lines lw 2 lc rgb '#2060c0' title 'model', "
-            "$R using 1:2 with lines lw 2 lc rgb '#d04020' title 'reconstruction'\n";
+  script +=
+      "plot $S using 1:2 with points pt 7 ps 0.4 lc rgb '#808080' title 'samples', "
+      "$R using 1:3 with lines lw 2 lc rgb '#2060c0' title 'model', "
+      "$R using 1:2 with lines lw 2 lc rgb '#d04020' title 'reconstruction'\n";
   plot_png(gnuplot, path, gnuplot_png_terminal(1000, 600), script);
 }
 
@@ -188,12 +194,14 @@ void run_resample_study(const ResampleStudyOptions& o) {
 
 void setup_resample_study(CLI::App& app) {
   auto o = std::make_shared<ResampleStudyOptions>();
-  auto* cmd = app.add_subcommand("resample-study",
-                                 "The reference's resampling study (§5.4): scan samples of analytic BRDFs reconstructed per "
-                                 "mapping, k and weighting, rendered and compared");
+  auto* cmd =
+      app.add_subcommand("resample-study",
+                         "The reference's resampling study (§5.4): scan samples of analytic BRDFs reconstructed per "
+                         "mapping, k and weighting, rendered and compared");
   cmd->add_option("--material", o->materials, "Materials (see synth-samples)")->delimiter(',')->capture_default_str();
   cmd->add_option("-k", o->ks, "Neighbour counts")->delimiter(',')->capture_default_str();
-  cmd->add_option("--sphere-px", o->rig.sphere_px, "Scan: the sphere's diameter on the image (pixels)")->capture_default_str();
+  cmd->add_option("--sphere-px", o->rig.sphere_px, "Scan: the sphere's diameter on the image (pixels)")
+      ->capture_default_str();
   cmd->add_option("--lights", o->rig.lights, "Scan: light positions on the arc")->capture_default_str();
   cmd->add_option("--render-size", o->render_size, "Rendered sphere's size (pixels)")->capture_default_str();
   cmd->add_option("--light", o->light, "Render light THETA,PHI in degrees (theta from the viewer)")

@@ -31,9 +31,11 @@ void run_rm(const RmOptions& o) {
 
 void setup_rm(CLI::App& app) {
   auto o = std::make_shared<RmOptions>();
-  auto* cmd = app.add_subcommand("rm", "Remove objects from a store (one transaction; space is reclaimed when no reader needs it)");
+  auto* cmd = app.add_subcommand(
+      "rm", "Remove objects from a store (one transaction; space is reclaimed when no reader needs it)");
   cmd->add_option("store", o->store, "Store file")->required();
-  cmd->add_option("objects", o->objects, "Objects: KIND/NAME (e.g. images/scene, bases/pca) or a name used by one kind")->required();
+  cmd->add_option("objects", o->objects, "Objects: KIND/NAME (e.g. images/scene, bases/pca) or a name used by one kind")
+      ->required();
   cmd->callback([o] { run_rm(*o); });
 }
 

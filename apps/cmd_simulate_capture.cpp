@@ -6,9 +6,9 @@
 #include <chrono>
 #include <filesystem>
 
-#include "specula/acquire/simulate.h"
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/acquire/simulate.h"
 #include "specula/core/atomic_file.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/error.h"
@@ -30,12 +30,14 @@ struct SimulateCaptureOptions {
 void run_simulate_capture(SimulateCaptureOptions o) {
   const auto t0 = std::chrono::steady_clock::now();
   int w = 0, h = 0;
-  if (std::sscanf(o.size.c_str(), "%dx%d", &w, &h) != 2) throw UsageError("simulate-capture: --size is WIDTHxHEIGHT, e.g. 256x256");
+  if (std::sscanf(o.size.c_str(), "%dx%d", &w, &h) != 2)
+    throw UsageError("simulate-capture: --size is WIDTHxHEIGHT, e.g. 256x256");
   o.sim.width = w;
   o.sim.height = h;
   const WavelengthGrid bands = WavelengthGrid::parse(o.bands);
   o.sim.bands.assign(bands.values().begin(), bands.values().end());
-  if (o.passband != "gaussian" && o.passband != "delta") throw UsageError("simulate-capture: --passband is gaussian or delta");
+  if (o.passband != "gaussian" && o.passband != "delta")
+    throw UsageError("simulate-capture: --passband is gaussian or delta");
   o.sim.passband = o.passband == "delta" ? acquire::Passband::delta : acquire::Passband::gaussian;
   o.sim.noise = !o.no_noise;
   // The sphere sits a little off the optical axis (5 % and 2 % of its image diameter), as on the real rig.
@@ -43,7 +45,8 @@ void run_simulate_capture(SimulateCaptureOptions o) {
   o.sim.rig.off_axis_y = 0.02 * o.sim.rig.sphere_px / o.sim.rig.focal_px * o.sim.rig.distance;
   // A store grid (STORE.h5:GRID), a .spgrid or an RGB MERL .binary (uplifted) instead of a named material.
   if (!brdf::material_catalogue().count(o.sim.material) &&
-      (o.sim.material.find(':') != std::string::npos || o.sim.material.ends_with(".spgrid") || o.sim.material.ends_with(".binary")))
+      (o.sim.material.find(':') != std::string::npos || o.sim.material.ends_with(".spgrid") ||
+       o.sim.material.ends_with(".binary")))
     o.sim.grid = std::make_shared<const store::Grid>(load_grid(o.sim.material, "simulate-capture"));
   acquire::check_simulator(o.sim);
   // Written under a temporary name and renamed, so an interrupted run leaves no half capture behind.
@@ -73,25 +76,34 @@ void run_simulate_capture(SimulateCaptureOptions o) {
 
 void setup_simulate_capture(CLI::App& app) {
   auto o = std::make_shared<SimulateCaptureOptions>();
-  auto* cmd = app.add_subcommand("simulate-capture", "Simulate a capture of the reference's BRDF rig, with known truth");
-  cmd->add_option("--material", o->sim.material, "The sphere's material: a name (see synth-brdf), STORE.h5:GRID, .spgrid or .binary")
+  auto* cmd =
+      app.add_subcommand("simulate-capture", "Simulate a capture of the reference's BRDF rig, with known truth");
+  cmd->add_option("--material", o->sim.material,
+                  "The sphere's material: a name (see synth-brdf), STORE.h5:GRID, .spgrid or .binary")
       ->capture_default_str();
   cmd->add_option("-o,--output", o->output, "New capture directory")->required();
   cmd->add_option("--size", o->size, "Sensor WIDTHxHEIGHT (pixels)")->capture_default_str();
-  cmd->add_option("--sphere-px", o->sim.rig.sphere_px, "The sphere's diameter on the image (pixels)")->capture_default_str();
+  cmd->add_option("--sphere-px", o->sim.rig.sphere_px, "The sphere's diameter on the image (pixels)")
+      ->capture_default_str();
   cmd->add_option("--focal", o->sim.rig.focal_px, "Focal length (pixels)")->capture_default_str();
   cmd->add_option("--lights", o->sim.rig.lights, "Light positions on the arc")->capture_default_str();
   cmd->add_option("--light-step", o->sim.rig.light_step_deg, "Arc step (degrees)")->capture_default_str();
-  cmd->add_option("--first-light", o->sim.rig.first_light_deg, "First light's angle from the camera (degrees)")->capture_default_str();
-  cmd->add_option("--bands", o->bands, "LCTF tuning wavelengths (first:last:step or a list, nm)")->capture_default_str();
+  cmd->add_option("--first-light", o->sim.rig.first_light_deg, "First light's angle from the camera (degrees)")
+      ->capture_default_str();
+  cmd->add_option("--bands", o->bands, "LCTF tuning wavelengths (first:last:step or a list, nm)")
+      ->capture_default_str();
   cmd->add_option("--exposures", o->sim.exposures_s, "Exposure times (seconds)")->delimiter(',')->capture_default_str();
-  cmd->add_option("--passband", o->passband, "LCTF passband model: gaussian (widening to the red) or delta")->capture_default_str();
-  cmd->add_option("--brightness", o->sim.brightness, "DN/s of a white Lambertian facing light and camera")->capture_default_str();
-  cmd->add_option("--light-kelvin", o->sim.light_kelvin, "The light's colour temperature (a blackbody)")->capture_default_str();
+  cmd->add_option("--passband", o->passband, "LCTF passband model: gaussian (widening to the red) or delta")
+      ->capture_default_str();
+  cmd->add_option("--brightness", o->sim.brightness, "DN/s of a white Lambertian facing light and camera")
+      ->capture_default_str();
+  cmd->add_option("--light-kelvin", o->sim.light_kelvin, "The light's colour temperature (a blackbody)")
+      ->capture_default_str();
   cmd->add_option("--fwhm", o->sim.fwhm_blue_nm, "Passband FWHM at 420 nm (nm)")->capture_default_str();
   cmd->add_option("--fwhm-red", o->sim.fwhm_red_nm, "Passband FWHM at 720 nm (nm)")->capture_default_str();
   cmd->add_option("--read-noise", o->sim.read_noise_dn, "Read noise (DN)")->capture_default_str();
-  cmd->add_option("--vignetting", o->sim.vignetting, "Fraction of light lost at the image corner")->capture_default_str();
+  cmd->add_option("--vignetting", o->sim.vignetting, "Fraction of light lost at the image corner")
+      ->capture_default_str();
   cmd->add_option("--seed", o->sim.seed, "Noise seed")->capture_default_str();
   cmd->add_flag("--no-noise", o->no_noise, "Noise-free sensor (still quantised to 12 bits and clipped)");
   cmd->add_flag("--json", o->json, "Print one JSON object");

@@ -33,8 +33,7 @@ std::pair<std::size_t, std::size_t> parse_size(const std::string& s) {
     const unsigned long h = std::stoul(s.substr(0, x), &p1), w = std::stoul(s.substr(x + 1), &p2);
     if (x != std::string::npos && p1 == x && p2 == s.size() - x - 1 && h > 0 && w > 0 && h <= 65536 && w <= 65536)
       return {h, w};
-  } catch (...) {
-  }
+  } catch (...) {}
   throw UsageError("--size '" + s + "': use HEIGHTxWIDTH with each 1-65536, e.g. 1040x1392");
 }
 
@@ -49,9 +48,9 @@ void run_synth_db(const SynthDbOptions& o) {
   if (!(o.noise >= 0 && o.noise <= 1)) throw UsageError("--noise must be between 0 and 1");
   store::validate_name(o.prefix, "--prefix");
   const auto digits = std::to_string(o.images - 1).size();
-  store::StoreWriter writer(o.output, {.compression = store::Compression::parse(o.compression),
-                                       .replace = o.replace,
-                                       .command_line = command_line()});
+  store::StoreWriter writer(
+      o.output,
+      {.compression = store::Compression::parse(o.compression), .replace = o.replace, .command_line = command_line()});
   Progress bar("synth-db", o.images);
   set_progress_quiet(true);  // one bar for the whole database, none per image
   std::size_t done = 0;
@@ -85,7 +84,8 @@ void run_synth_db(const SynthDbOptions& o) {
 
 void setup_synth_db(CLI::App& app) {
   auto o = std::make_shared<SynthDbOptions>();
-  auto* cmd = app.add_subcommand("synth-db", "Write a synthetic database of natural-looking hyperspectral radiance images");
+  auto* cmd =
+      app.add_subcommand("synth-db", "Write a synthetic database of natural-looking hyperspectral radiance images");
   cmd->add_option("-o,--output", o->output, "Store to create or add to")->required();
   cmd->add_option("--images", o->images, "Number of images")->capture_default_str();
   cmd->add_option("--size", o->size, "HEIGHTxWIDTH of each image")->capture_default_str();

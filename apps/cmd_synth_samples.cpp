@@ -6,10 +6,10 @@
 #include <chrono>
 #include <filesystem>
 
-#include "specula/acquire/scan.h"
-#include "specula/acquire/synth_samples.h"
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/acquire/scan.h"
+#include "specula/acquire/synth_samples.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
@@ -51,22 +51,24 @@ void run_synth_samples(const SynthSamplesOptions& o) {
   const auto model = brdf::make_material(o.material, g);
   const std::size_t b = g.size();
 
-  store::StoreWriter writer(file, {.compression = store::Compression::parse(o.compression),
-                                   .replace = o.replace,
-                                   .command_line = command_line()});
+  store::StoreWriter writer(
+      file,
+      {.compression = store::Compression::parse(o.compression), .replace = o.replace, .command_line = command_line()});
   store::Provenance prov;
   prov.importer = fmt::format("synth-samples {} ({}) at {} configurations, noise {}", o.material,
                               brdf::material_catalogue().at(o.material), o.geometry, o.noise);
   writer.create_samples(name, g, "1/sr", prov);
-  const acquire::SynthesisCount made = acquire::synthesize_samples(
-      *model,
-      {.geometry = o.geometry == "scan" ? acquire::SampleSynthesis::Geometry::scan
-                                        : acquire::SampleSynthesis::Geometry::random,
-       .rig = o.rig,
-       .count = o.count,
-       .noise = o.noise,
-       .seed = o.seed},
-      [&](std::span<const double> angles, std::span<const float> values) { writer.append_samples(name, angles, values); });
+  const acquire::SynthesisCount made =
+      acquire::synthesize_samples(*model,
+                                  {.geometry = o.geometry == "scan" ? acquire::SampleSynthesis::Geometry::scan
+                                                                    : acquire::SampleSynthesis::Geometry::random,
+                                   .rig = o.rig,
+                                   .count = o.count,
+                                   .noise = o.noise,
+                                   .seed = o.seed},
+                                  [&](std::span<const double> angles, std::span<const float> values) {
+                                    writer.append_samples(name, angles, values);
+                                  });
   const std::size_t written = made.samples, pixels = made.pixels;
   writer.commit();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -82,17 +84,18 @@ void run_synth_samples(const SynthSamplesOptions& o) {
     print_json(j);
     return;
   }
-  fmt::print("wrote {} samples of {} ({}) at {} configurations{} to {} in {:.1f} s\n", written, o.material, g.describe(),
-             o.geometry, o.geometry == "scan" ? fmt::format(" ({} sphere pixels x {} lights)", pixels, o.rig.lights) : "",
-             o.output, seconds);
+  fmt::print("wrote {} samples of {} ({}) at {} configurations{} to {} in {:.1f} s\n", written, o.material,
+             g.describe(), o.geometry,
+             o.geometry == "scan" ? fmt::format(" ({} sphere pixels x {} lights)", pixels, o.rig.lights) : "", o.output,
+             seconds);
 }
 
 }  // namespace
 
 void setup_synth_samples(CLI::App& app) {
   auto o = std::make_shared<SynthSamplesOptions>();
-  auto* cmd = app.add_subcommand("synth-samples",
-                                 "Scattered samples of an analytic BRDF at a simulated scan's (or random) configurations");
+  auto* cmd = app.add_subcommand(
+      "synth-samples", "Scattered samples of an analytic BRDF at a simulated scan's (or random) configurations");
   std::string help = "Material:";
   for (const auto& [n, d] : brdf::material_catalogue()) help += " " + n + " (" + d + ");";
   cmd->add_option("material", o->material, help)->required();
@@ -100,9 +103,11 @@ void setup_synth_samples(CLI::App& app) {
   cmd->add_option("--geometry", o->geometry, "scan (the reference's rig, computed directly) or random (uniform)")
       ->capture_default_str();
   cmd->add_option("-n", o->count, "random: number of samples; scan: thin evenly to at most this many");
-  cmd->add_option("--sphere-px", o->rig.sphere_px, "scan: the sphere's diameter on the image (pixels)")->capture_default_str();
+  cmd->add_option("--sphere-px", o->rig.sphere_px, "scan: the sphere's diameter on the image (pixels)")
+      ->capture_default_str();
   cmd->add_option("--lights", o->rig.lights, "scan: light positions on the arc")->capture_default_str();
-  cmd->add_option("--light-step", o->rig.light_step_deg, "scan: degrees between light positions")->capture_default_str();
+  cmd->add_option("--light-step", o->rig.light_step_deg, "scan: degrees between light positions")
+      ->capture_default_str();
   cmd->add_option("--first-light", o->rig.first_light_deg, "scan: degrees between the camera and the first light")
       ->capture_default_str();
   cmd->add_option("--wavelengths", o->wavelengths, "Band grid FIRST:LAST:STEP")->capture_default_str();

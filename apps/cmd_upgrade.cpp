@@ -18,7 +18,8 @@ void run_upgrade(const std::string& path) {
 
 void setup_upgrade(CLI::App& app) {
   auto path = std::make_shared<std::string>();
-  auto* cmd = app.add_subcommand("upgrade", "Convert a format-1 store in place to the current format (no copy of the data)");
+  auto* cmd =
+      app.add_subcommand("upgrade", "Convert a format-1 store in place to the current format (no copy of the data)");
   cmd->add_option("store", *path, "Store file")->required();
   cmd->callback([path] { run_upgrade(*path); });
 }

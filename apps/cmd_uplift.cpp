@@ -7,11 +7,11 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
-#include "specula/core/illuminant.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/codec/uplift.h"
 #include "specula/core/error.h"
+#include "specula/core/illuminant.h"
 #include "specula/store/io/exr.h"
 #include "specula/store/store.h"
 
@@ -46,9 +46,8 @@ void uplift_environment(const UpliftOptions& o) {
   cube.units = "radiance";
   std::size_t constrained = 0;
   try {
-    constrained = codec::uplift_image(rgb, w, h, uplift,
-                                      o.nonnegative ? codec::UpliftMethod::nonnegative : codec::UpliftMethod::clamp,
-                                      cube.data);
+    constrained = codec::uplift_image(
+        rgb, w, h, uplift, o.nonnegative ? codec::UpliftMethod::nonnegative : codec::UpliftMethod::clamp, cube.data);
   } catch (const InputError& e) {
     throw InputError(o.input + ": " + e.what());
   }
@@ -72,8 +71,8 @@ void run_uplift(const UpliftOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   const codec::MerlBrdf rgb = codec::read_merl(o.input);
   codec::UpliftReport report;
-  store::Grid g = codec::uplift_merl(rgb, grid, uplift,
-                                     o.nonnegative ? codec::UpliftMethod::nonnegative : codec::UpliftMethod::clamp, &report);
+  store::Grid g = codec::uplift_merl(
+      rgb, grid, uplift, o.nonnegative ? codec::UpliftMethod::nonnegative : codec::UpliftMethod::clamp, &report);
   g.provenance.source_file = o.input;
   g.provenance.importer = o.nonnegative ? "uplift-nonnegative" : "uplift-clamp";
   g.provenance.command_line = command_line();
@@ -85,11 +84,12 @@ void run_uplift(const UpliftOptions& o) {
     writer.commit();
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  fmt::print("uplifted {} cells of {} to {} ({}, alpha {}, {}) in {:.2f} s; {} cells {}; max RGB error {:.2e} of the "
-             "cell's largest channel\n",
-             report.cells, o.input, o.output.empty() ? o.store + ":" + o.name : o.output, grid.describe(), o.alpha,
-             o.nonnegative ? "non-negative" : "clamped", seconds, report.constrained,
-             o.nonnegative ? "met the bound x >= 0" : "had negative values clamped", report.max_rgb_error);
+  fmt::print(
+      "uplifted {} cells of {} to {} ({}, alpha {}, {}) in {:.2f} s; {} cells {}; max RGB error {:.2e} of the "
+      "cell's largest channel\n",
+      report.cells, o.input, o.output.empty() ? o.store + ":" + o.name : o.output, grid.describe(), o.alpha,
+      o.nonnegative ? "non-negative" : "clamped", seconds, report.constrained,
+      o.nonnegative ? "met the bound x >= 0" : "had negative values clamped", report.max_rgb_error);
 }
 
 }  // namespace
@@ -97,13 +97,16 @@ void run_uplift(const UpliftOptions& o) {
 void setup_uplift(CLI::App& app) {
   auto o = std::make_shared<UpliftOptions>();
   auto* cmd = app.add_subcommand(
-      "uplift", "RGB MERL BRDF (.binary) or RGB EXR environment map to spectra by regularised least squares (Appendix A)");
-  cmd->add_option("input", o->input, "MERL .binary file, or an RGB EXR environment map (written as a spectral EXR)")->required();
+      "uplift",
+      "RGB MERL BRDF (.binary) or RGB EXR environment map to spectra by regularised least squares (Appendix A)");
+  cmd->add_option("input", o->input, "MERL .binary file, or an RGB EXR environment map (written as a spectral EXR)")
+      ->required();
   cmd->add_option("-o,--output", o->output, "Spectral grid file to write (docs/grid-format.md)");
   cmd->add_option("--store", o->store, "Store to add the grid to instead (created if absent)");
   cmd->add_option("--name", o->name, "Grid name in the store");
   cmd->add_option("--wavelengths", o->wavelengths, "Output bands, FIRST:LAST:STEP or a list")->capture_default_str();
-  cmd->add_option("--illuminant", o->illuminant, "Illuminant under which RGB was seen: D65, D50, A, E, D<CCT>, blackbody:K or a CSV file")
+  cmd->add_option("--illuminant", o->illuminant,
+                  "Illuminant under which RGB was seen: D65, D50, A, E, D<CCT>, blackbody:K or a CSV file")
       ->capture_default_str();
   cmd->add_option("--alpha", o->alpha, "Weight of the second differences in eq A.3 (larger: smoother, looser RGB fit)")
       ->capture_default_str();

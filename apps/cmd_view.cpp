@@ -41,10 +41,11 @@ void run_view(const ViewOptions& o) {
     res.set_header("Cache-Control", "no-store");
     res.set_content(r.body, r.content_type.c_str());
   });
-  const int port = o.port == 0 ? server.bind_to_any_port(o.host.c_str()) : (server.bind_to_port(o.host.c_str(), o.port) ? o.port : -1);
+  const int port = o.port == 0 ? server.bind_to_any_port(o.host.c_str())
+                               : (server.bind_to_port(o.host.c_str(), o.port) ? o.port : -1);
   if (port < 0)
-    throw InputError(fmt::format("view: cannot listen on {}:{} (in use, or not an address of this machine); try --port 0",
-                                 o.host, o.port));
+    throw InputError(fmt::format(
+        "view: cannot listen on {}:{} (in use, or not an address of this machine); try --port 0", o.host, o.port));
   fmt::print("serving {} at http://{}:{}/ (Ctrl-C stops)\n", o.store, o.host, port);
   std::fflush(stdout);
   running = &server;

@@ -69,24 +69,39 @@ SpectrumKind cube_kind(const Cube& cube) {
   return cube.units == "reflectance" ? SpectrumKind::reflectance : SpectrumKind::radiance;
 }
 
-Picture render(const Cube& cube, const PreviewOptions& o) { return render(cube, preview_settings(o, cube.wavelengths)); }
+Picture render(const Cube& cube, const PreviewOptions& o) {
+  return render(cube, preview_settings(o, cube.wavelengths));
+}
 
 Picture render(const Cube& cube, const PreviewSettings& settings) {
-  return render_preview(cube_rows(cube), cube.width, cube.height, cube.wavelengths, cube_kind(cube), cube.mask, settings);
+  return render_preview(cube_rows(cube), cube.width, cube.height, cube.wavelengths, cube_kind(cube), cube.mask,
+                        settings);
 }
 
 std::string json_string(std::string_view s) {
   std::string out = "\"";
   for (char c : s) {
     switch (c) {
-      case '"': out += "\\\""; break;
-      case '\\': out += "\\\\"; break;
-      case '\n': out += "\\n"; break;
-      case '\t': out += "\\t"; break;
-      case '\r': out += "\\r"; break;
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
       default:
-        if (static_cast<unsigned char>(c) < 0x20) out += fmt::format("\\u{:04x}", int(c));
-        else out += c;
+        if (static_cast<unsigned char>(c) < 0x20)
+          out += fmt::format("\\u{:04x}", int(c));
+        else
+          out += c;
     }
   }
   return out + "\"";
@@ -94,13 +109,16 @@ std::string json_string(std::string_view s) {
 
 std::string json_array(std::span<const double> v) {
   std::string out = "[";
-  for (std::size_t i = 0; i < v.size(); ++i) out += (i ? "," : "") + (std::isfinite(v[i]) ? fmt::format("{}", v[i]) : "null");
+  for (std::size_t i = 0; i < v.size(); ++i)
+    out += (i ? "," : "") + (std::isfinite(v[i]) ? fmt::format("{}", v[i]) : "null");
   return out + "]";
 }
 
 Json json_numbers(std::span<const double> v) { return Json(std::vector<double>(v.begin(), v.end())); }
 
-Json json_numbers(const Eigen::VectorXd& v) { return json_numbers(std::span<const double>(v.data(), std::size_t(v.size()))); }
+Json json_numbers(const Eigen::VectorXd& v) {
+  return json_numbers(std::span<const double>(v.data(), std::size_t(v.size())));
+}
 
 void print_json(const Json& j) { fmt::print("{}\n", j.dump(-1, ' ', false, Json::error_handler_t::replace)); }
 
@@ -127,11 +145,13 @@ std::optional<std::pair<std::string, std::string>> store_spec(const std::string&
 }
 }  // namespace
 
-store::Grid load_grid(const std::string& spec, const std::string& command, const std::optional<WavelengthGrid>& uplift_onto) {
+store::Grid load_grid(const std::string& spec, const std::string& command,
+                      const std::optional<WavelengthGrid>& uplift_onto) {
   if (const auto s = store_spec(spec, false)) return store::Store::open(s->first).read_grid(s->second);
   const std::filesystem::path in(spec);
   if (in.extension() == ".h5")
-    throw UsageError(command + ": " + spec + " is a store; name the grid as " + spec + ":GRID (see `specula ls " + spec + "`)");
+    throw UsageError(command + ": " + spec + " is a store; name the grid as " + spec + ":GRID (see `specula ls " +
+                     spec + "`)");
   std::optional<codec::RglBsdf> rgl;
   if (in.extension() == ".bsdf") {
     rgl = codec::read_rgl_bsdf(in);
@@ -139,10 +159,12 @@ store::Grid load_grid(const std::string& spec, const std::string& command, const
   }
   if (in.extension() == ".binary" || rgl) {
     if (!uplift_onto)
-      throw UsageError(command + ": " + spec +
-                       (rgl ? " is an RGB RGL file; make a spectral grid of it with `specula import " + spec + " -o STORE.h5` first"
-                            : " is an RGB MERL file; make a spectral grid of it with `specula uplift` first"));
-    const codec::Uplift uplift(codec::rgb_weights(*uplift_onto, illuminant("D65", *uplift_onto)), codec::kDefaultUpliftAlpha);
+      throw UsageError(
+          command + ": " + spec +
+          (rgl ? " is an RGB RGL file; make a spectral grid of it with `specula import " + spec + " -o STORE.h5` first"
+               : " is an RGB MERL file; make a spectral grid of it with `specula uplift` first"));
+    const codec::Uplift uplift(codec::rgb_weights(*uplift_onto, illuminant("D65", *uplift_onto)),
+                               codec::kDefaultUpliftAlpha);
     store::Grid g = codec::uplift_merl(rgl ? codec::rgl_to_merl(*rgl) : codec::read_merl(in), *uplift_onto, uplift,
                                        codec::UpliftMethod::clamp);
     g.provenance.source_file = spec;
@@ -167,10 +189,10 @@ std::string save_grid(const store::Grid& grid, const std::string& spec, bool rep
     const auto weights = codec::rgb_weights(grid.wavelengths, illuminant("D65", grid.wavelengths));
     const auto rgb = codec::grid_to_merl(grid, weights);
     codec::write_merl(out, rgb.brdf);
-    return "RGB MERL file " + spec + (rgb.clamped ? " (" + std::to_string(rgb.clamped) + " out-of-gamut values clamped)" : "");
+    return "RGB MERL file " + spec +
+           (rgb.clamped ? " (" + std::to_string(rgb.clamped) + " out-of-gamut values clamped)" : "");
   }
-  if (out.extension() == ".h5")
-    throw UsageError(command + ": name the grid to write as " + spec + ":NAME");
+  if (out.extension() == ".h5") throw UsageError(command + ": name the grid to write as " + spec + ":NAME");
   if (out.extension() != ".spgrid")
     throw UsageError(command + ": " + spec + ": write STORE.h5:NAME, a .spgrid exchange file or an RGB .binary");
   codec::write_grid_file(out, grid);

@@ -43,9 +43,10 @@ std::string gnuplot_quote(std::string_view s) {
 
 /// The terminal line of a PNG of width x height pixels: pngcairo when this gnuplot has it, else png.
 std::string gnuplot_png_terminal(int width, int height) {
-  return fmt::format("if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {{ set terminal pngcairo size {0},{1} "
-                     "font 'sans,11' linewidth 1.5 }} else {{ set terminal png size {0},{1} }}\n",
-                     width, height);
+  return fmt::format(
+      "if (strstrt(GPVAL_TERMINALS, 'pngcairo') > 0) {{ set terminal pngcairo size {0},{1} "
+      "font 'sans,11' linewidth 1.5 }} else {{ set terminal png size {0},{1} }}\n",
+      width, height);
 }
 
 /// Runs gnuplot with `script` on its stdin; throws LibraryError naming `what` with gnuplot's last message.
@@ -73,7 +74,8 @@ void run_gnuplot(const std::filesystem::path& gnuplot, const std::string& script
     std::fclose(log);
     throw LibraryError(what + ": cannot run " + gnuplot.string() + ": " + std::strerror(spawned));
   }
-  struct sigaction ignore {}, previous {};
+  struct sigaction ignore {
+  }, previous{};
   ignore.sa_handler = SIG_IGN;
   ::sigaction(SIGPIPE, &ignore, &previous);
   for (std::size_t done = 0; done < script.size();) {
@@ -85,8 +87,7 @@ void run_gnuplot(const std::filesystem::path& gnuplot, const std::string& script
   ::close(in[1]);
   ::sigaction(SIGPIPE, &previous, nullptr);
   int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
   std::string output;
   std::rewind(log);
   char buf[4096];
@@ -108,7 +109,8 @@ void run_gnuplot(const std::filesystem::path& gnuplot, const std::string& script
 void plot_png(const std::filesystem::path& gnuplot, const std::filesystem::path& target, const std::string& terminal,
               const std::string& body) {
   AtomicOutput out(target);
-  run_gnuplot(gnuplot, terminal + "set output " + gnuplot_quote(out.temp_path().string()) + "\n" + body + "set output\n",
+  run_gnuplot(gnuplot,
+              terminal + "set output " + gnuplot_quote(out.temp_path().string()) + "\n" + body + "set output\n",
               target.string());
   std::error_code ec;
   if (std::filesystem::file_size(out.temp_path(), ec) == 0 || ec)

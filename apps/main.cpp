@@ -54,7 +54,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.fallthrough();
   app.set_version_flag("--version", SPECULA_VERSION);
-  app.add_flag_callback("-q,--quiet", [] { specula::set_progress_quiet(true); }, "No progress bars");
+  app.add_flag_callback(
+      "-q,--quiet", [] { specula::set_progress_quiet(true); }, "No progress bars");
   specula::app::setup_import(app);
   specula::app::setup_export(app);
   specula::app::setup_relight(app);

@@ -75,7 +75,8 @@ struct Traversal {
           std::int64_t r = 0;
           if (bit(ctx.low_zero, d != 0)) {
             const unsigned negative = direct(d < 0, 1);
-            const std::uint32_t mag = exp_golomb(kDecode ? 0 : std::uint32_t(std::llabs(d) - 1), ctx.low_exponent.data()) + 1;
+            const std::uint32_t mag =
+                exp_golomb(kDecode ? 0 : std::uint32_t(std::llabs(d) - 1), ctx.low_exponent.data()) + 1;
             r = negative ? -std::int64_t(mag) : std::int64_t(mag);
           }
           if constexpr (kDecode) q[at] = std::int32_t(std::clamp<std::int64_t>(pred + r, INT32_MIN, INT32_MAX));
@@ -144,8 +145,8 @@ struct Traversal {
   }
 
   void coefficients(int, int, const std::array<std::array<std::size_t, 2>, 3>& b,
-                    const std::array<std::array<std::size_t, 2>, 3>& r, const std::array<std::array<std::size_t, 2>, 3>& pr,
-                    bool has_parent, int lc) {
+                    const std::array<std::array<std::size_t, 2>, 3>& r,
+                    const std::array<std::array<std::size_t, 2>, 3>& pr, bool has_parent, int lc) {
     const std::size_t s1 = c.dims[2], s0 = c.dims[1] * c.dims[2];
     for (std::size_t i = b[0][0]; i < b[0][1]; ++i)
       for (std::size_t j = b[1][0]; j < b[1][1]; ++j)

@@ -56,48 +56,52 @@ GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environmen
     std::vector<double> w;
   };
   parallel_for(
-      blocks, [] { return BlockState{std::vector<std::uint8_t>(kBlock), std::vector<std::uint8_t>(kBlock), std::vector<double>(kBlock)}; },
+      blocks,
+      [] {
+        return BlockState{std::vector<std::uint8_t>(kBlock), std::vector<std::uint8_t>(kBlock),
+                          std::vector<double>(kBlock)};
+      },
       [&](std::size_t blk, BlockState& st) {
-      std::vector<std::uint8_t>&va = st.va, &vb = st.vb;
-      std::vector<double>& w = st.w;
-      const std::size_t c0 = std::size_t(blk) * kBlock, n = std::min(kBlock, cells - c0);
-      std::fill(va.begin(), va.end(), 1);
-      std::fill(vb.begin(), vb.end(), 1);
-      for (std::size_t k = 0; k < bands; ++k) {
-        const float* pa = a.brdf.data() + k * cells + c0;
-        const float* pb = b.brdf.data() + k * cells + c0;
+        std::vector<std::uint8_t>&va = st.va, &vb = st.vb;
+        std::vector<double>& w = st.w;
+        const std::size_t c0 = std::size_t(blk) * kBlock, n = std::min(kBlock, cells - c0);
+        std::fill(va.begin(), va.end(), 1);
+        std::fill(vb.begin(), vb.end(), 1);
+        for (std::size_t k = 0; k < bands; ++k) {
+          const float* pa = a.brdf.data() + k * cells + c0;
+          const float* pb = b.brdf.data() + k * cells + c0;
+          for (std::size_t i = 0; i < n; ++i) {
+            va[i] &= pa[i] >= 0;
+            vb[i] &= pb[i] >= 0;
+          }
+        }
         for (std::size_t i = 0; i < n; ++i) {
-          va[i] &= pa[i] >= 0;
-          vb[i] &= pb[i] >= 0;
+          if (va[i] != vb[i]) {
+            only_a_b[std::size_t(blk)] += va[i];
+            only_b_b[std::size_t(blk)] += vb[i];
+          }
+          va[i] &= vb[i];
+          both_b[std::size_t(blk)] += va[i];
+          const brdf::StdAngles ang = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(c0 + i)));
+          w[i] = std::max(0.0, std::cos(ang.theta_i)) * std::max(0.0, std::cos(ang.theta_o));
         }
-      }
-      for (std::size_t i = 0; i < n; ++i) {
-        if (va[i] != vb[i]) {
-          only_a_b[std::size_t(blk)] += va[i];
-          only_b_b[std::size_t(blk)] += vb[i];
+        double sq = 0, wsq = 0, wref = 0, mx = 0;
+        for (std::size_t k = 0; k < bands; ++k) {
+          const float* pa = a.brdf.data() + k * cells + c0;
+          const float* pb = b.brdf.data() + k * cells + c0;
+          for (std::size_t i = 0; i < n; ++i) {
+            if (!va[i]) continue;
+            const double x = double(pa[i]) * a.scale, y = double(pb[i]) * b.scale, e = x - y;
+            sq += e * e;
+            wsq += w[i] * e * e;
+            wref += w[i] * x * x;
+            mx = std::max(mx, std::abs(e));
+          }
         }
-        va[i] &= vb[i];
-        both_b[std::size_t(blk)] += va[i];
-        const brdf::StdAngles ang = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(c0 + i)));
-        w[i] = std::max(0.0, std::cos(ang.theta_i)) * std::max(0.0, std::cos(ang.theta_o));
-      }
-      double sq = 0, wsq = 0, wref = 0, mx = 0;
-      for (std::size_t k = 0; k < bands; ++k) {
-        const float* pa = a.brdf.data() + k * cells + c0;
-        const float* pb = b.brdf.data() + k * cells + c0;
-        for (std::size_t i = 0; i < n; ++i) {
-          if (!va[i]) continue;
-          const double x = double(pa[i]) * a.scale, y = double(pb[i]) * b.scale, e = x - y;
-          sq += e * e;
-          wsq += w[i] * e * e;
-          wref += w[i] * x * x;
-          mx = std::max(mx, std::abs(e));
-        }
-      }
-      sq_b[std::size_t(blk)] = sq;
-      wsq_b[std::size_t(blk)] = wsq;
-      wref_b[std::size_t(blk)] = wref;
-      mx_b[std::size_t(blk)] = mx;
+        sq_b[std::size_t(blk)] = sq;
+        wsq_b[std::size_t(blk)] = wsq;
+        wref_b[std::size_t(blk)] = wref;
+        mx_b[std::size_t(blk)] = mx;
       },
       4);
   double sq = 0, wsq = 0, wref = 0, mx = 0;
@@ -121,8 +125,9 @@ GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environmen
   d.renders = render_spheres({&a, &b}, env, o.size);
   const auto& r = d.renders;
   if (!(r.white.y() > 0))
-    throw InputError("environment " + env.description +
-                     " sends no light to a surface facing the viewer, so there is no white for CIELAB; light the front");
+    throw InputError(
+        "environment " + env.description +
+        " sends no light to a surface facing the viewer, so there is no white for CIELAB; light the front");
   De00 e = de00_of_renders(r.xyz[0], r.xyz[1], r.covered, r.white);
   d.de00 = std::move(e.per_pixel);
   d.de00_mean = e.mean;

@@ -25,12 +25,12 @@ struct DiffOptions {
 /// pixel; de00_mean the mean, de00_p95 the value of rank ceil(0.95 n) among the n sorted pixel values, de00_max
 /// the largest.
 struct GridDiff {
-  std::uint64_t cells = 0;           ///< valid in both
+  std::uint64_t cells = 0;               ///< valid in both
   std::uint64_t only_a = 0, only_b = 0;  ///< valid in one grid only (not in the value metrics)
   double rms = 0, max_abs = 0, rel_rms_cos = 0;
   double de00_mean = 0, de00_p95 = 0, de00_max = 0;
-  SphereRenders renders;             ///< the two renderings compared
-  std::vector<float> de00;           ///< per pixel (0 off the sphere)
+  SphereRenders renders;    ///< the two renderings compared
+  std::vector<float> de00;  ///< per pixel (0 off the sphere)
 };
 
 /// CIEDE2000 per pixel of two renderings of one sphere under one light (xyz: 3 floats a pixel), each pixel's XYZ
@@ -46,6 +46,7 @@ De00 de00_of_renders(std::span<const float> a, std::span<const float> b, std::sp
 
 /// Compares a (the reference) with b; InputError if their wavelength grids differ (naming both) or if env gives
 /// no white (no light on a surface facing the viewer).
-GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environment& env, const DiffOptions& options = {});
+GridDiff diff_grids(const store::Grid& a, const store::Grid& b, const Environment& env,
+                    const DiffOptions& options = {});
 
 }  // namespace specula::codec

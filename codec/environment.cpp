@@ -131,7 +131,8 @@ Environment default_environment(const WavelengthGrid& grid) {
   Eigen::VectorXd ground(static_cast<Eigen::Index>(b));  // a green-brown soil: rising towards the red, a green bump
   for (std::size_t k = 0; k < b; ++k) {
     const double l = grid[k];
-    ground[Eigen::Index(k)] = 0.08 + 0.17 / (1 + std::exp(-(l - 600) / 30)) + 0.06 * std::exp(-0.5 * std::pow((l - 545) / 25, 2));
+    ground[Eigen::Index(k)] =
+        0.08 + 0.17 / (1 + std::exp(-(l - 600) / 30)) + 0.06 * std::exp(-0.5 * std::pow((l - 545) / 25, 2));
   }
   e.radiance.resize(e.width * e.height * b);
   for (std::size_t y = 0; y < e.height; ++y) {
@@ -212,23 +213,26 @@ Environment read_environment(const std::filesystem::path& path, const Wavelength
     Eigen::VectorXd x, sum;
   };
   parallel_for(
-      e.height, [&] { return RowState{Eigen::VectorXd(Eigen::Index(b)), Eigen::VectorXd(Eigen::Index(b))}; },
+      e.height,
+      [&] {
+        return RowState{Eigen::VectorXd(Eigen::Index(b)), Eigen::VectorXd(Eigen::Index(b))};
+      },
       [&](std::size_t oy, RowState& st) {
-      Eigen::VectorXd &x = st.x, &sum = st.sum;
-      UpliftCache cache;  // one per output row, so the result does not depend on the thread count
-      for (std::size_t ox = 0; ox < e.width; ++ox) {
-        sum.setZero();
-        double omega = 0;
-        for (std::size_t y = std::size_t(oy) * f; y < (std::size_t(oy) + 1) * f; ++y)
-          for (std::size_t xx = ox * f; xx < (ox + 1) * f; ++xx) {
-            const float* c = rgb.data() + 3 * (y * w + xx);
-            up.nonnegative(Eigen::Vector3d(c[0], c[1], c[2]), x, &cache);
-            sum += geo.solid_angle(xx, y) * x;
-            omega += geo.solid_angle(xx, y);
-          }
-        for (std::size_t k = 0; k < b; ++k)
-          e.radiance[(std::size_t(oy) * e.width + ox) * b + k] = float(sum[Eigen::Index(k)] / omega);
-      }
+        Eigen::VectorXd &x = st.x, &sum = st.sum;
+        UpliftCache cache;  // one per output row, so the result does not depend on the thread count
+        for (std::size_t ox = 0; ox < e.width; ++ox) {
+          sum.setZero();
+          double omega = 0;
+          for (std::size_t y = std::size_t(oy) * f; y < (std::size_t(oy) + 1) * f; ++y)
+            for (std::size_t xx = ox * f; xx < (ox + 1) * f; ++xx) {
+              const float* c = rgb.data() + 3 * (y * w + xx);
+              up.nonnegative(Eigen::Vector3d(c[0], c[1], c[2]), x, &cache);
+              sum += geo.solid_angle(xx, y) * x;
+              omega += geo.solid_angle(xx, y);
+            }
+          for (std::size_t k = 0; k < b; ++k)
+            e.radiance[(std::size_t(oy) * e.width + ox) * b + k] = float(sum[Eigen::Index(k)] / omega);
+        }
       });
   return e;
 }
@@ -285,7 +289,8 @@ SphereRenders render_with(std::size_t count, const Environment& env, std::size_t
         const Eigen::Vector3d n(x, y, std::sqrt(1 - x * x - y * y));
         // Any tangent frame will do: the BRDFs are isotropic.
         const Eigen::Vector3d t =
-            (std::abs(n.y()) < 0.9 ? Eigen::Vector3d::UnitY().cross(n) : Eigen::Vector3d::UnitX().cross(n)).normalized();
+            (std::abs(n.y()) < 0.9 ? Eigen::Vector3d::UnitY().cross(n) : Eigen::Vector3d::UnitX().cross(n))
+                .normalized();
         const Eigen::Vector3d s = n.cross(t);
         const Eigen::Vector3d wo(t.z(), s.z(), n.z());
         for (std::size_t j = 0; j < nl; ++j) {
@@ -295,7 +300,8 @@ SphereRenders render_with(std::size_t count, const Environment& env, std::size_t
           const float wi[3] = {float(t.dot(d)), float(s.dot(d)), float(c)};
           wis.insert(wis.end(), wi, wi + 3);
           wos.insert(wos.end(), {float(wo.x()), float(wo.y()), float(wo.z())});
-          pairs.push_back({0, std::uint32_t(std::size_t(r) * size + px), std::uint32_t(j), float(c * lights.length[j])});
+          pairs.push_back(
+              {0, std::uint32_t(std::size_t(r) * size + px), std::uint32_t(j), float(c * lights.length[j])});
         }
       }
       std::vector<std::uint32_t> cells(pairs.size());
@@ -329,7 +335,8 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
   const std::size_t b = env.wavelengths.size();
   for (const auto* g : grids) {
     check_wavelengths(g->wavelengths, env, "grid");
-    if (g->brdf.size() != b * brdf::kMerlCells) throw UsageError("render: grid values do not match bands x 90 x 90 x 180");
+    if (g->brdf.size() != b * brdf::kMerlCells)
+      throw UsageError("render: grid values do not match bands x 90 x 90 x 180");
   }
   // Per block, the pairs sorted by cell (counting sort on buckets of 256 cells, stable), so that each band plane
   // of a grid is swept once per block in increasing address order. Each pixel's sum runs in that fixed order, so

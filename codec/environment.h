@@ -20,9 +20,9 @@ namespace specula::codec {
 struct Environment {
   WavelengthGrid wavelengths;
   std::size_t width = 0, height = 0;
-  std::vector<float> radiance;         ///< height x width x bands, spectral radiance (relative units)
+  std::vector<float> radiance;  ///< height x width x bands, spectral radiance (relative units)
   Eigen::Vector3d sun_direction{0, 1, 0};
-  Eigen::VectorXd sun_irradiance;      ///< bands values at normal incidence; empty: no sun
+  Eigen::VectorXd sun_irradiance;  ///< bands values at normal incidence; empty: no sun
   std::string description;
 };
 
@@ -68,9 +68,9 @@ struct SphereRenders {
 /// centre (normal n, viewer +z): L = sum over regions j of f(d_j, wo) P_j (n . m_j) + f(sun, wo) E_sun (n . sun),
 /// over lights with n . d > 0, where region j (see kEnvironmentRegionsW) has power P_j = integral of L_env
 /// d_omega, mean vector m_j = (integral of d d_omega) / (its solid angle), direction d_j = m_j / |m_j|; f looked
-/// up in the grid's cell as MERL's BRDFRead.cpp does (of the directions rounded to float, merl_indices) (no data counts as 0), value * scale; XYZ by the CIE 1931
-/// 2 degree CMFs. Deterministic and independent of the thread count. Grids must share env's wavelengths
-/// (InputError).
+/// up in the grid's cell as MERL's BRDFRead.cpp does (of the directions rounded to float, merl_indices) (no data counts
+/// as 0), value * scale; XYZ by the CIE 1931 2 degree CMFs. Deterministic and independent of the thread count. Grids
+/// must share env's wavelengths (InputError).
 SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const Environment& env, std::size_t size);
 /// As above for coded BRDFs evaluated from their coefficients (SpcBrdf::evaluate_cell in the same cells), without
 /// a grid: equal to rendering their expand_spc grids to float precision.

@@ -51,19 +51,20 @@ MerlBrdf read_merl(const std::filesystem::path& path) {
   in.seekg(0, std::ios::end);
   const auto size = static_cast<std::uint64_t>(in.tellg());
   in.seekg(0);
-  const std::string expected = std::to_string(kMerlFileBytes) +
-                               " bytes (12-byte header + 3 x 90 x 90 x 180 float64, the MERL layout)";
+  const std::string expected =
+      std::to_string(kMerlFileBytes) + " bytes (12-byte header + 3 x 90 x 90 x 180 float64, the MERL layout)";
   if (size < 12)
     throw InputError(name + ": truncated MERL BRDF: " + std::to_string(size) + " bytes, expected " + expected);
   std::int32_t dims[3];
   in.read(reinterpret_cast<char*>(dims), sizeof dims);
   if (dims[0] != brdf::kMerlThetaH || dims[1] != brdf::kMerlThetaD || dims[2] != brdf::kMerlPhiD)
     throw InputError(name + ": not a MERL BRDF: header dimensions " + std::to_string(dims[0]) + " x " +
-                     std::to_string(dims[1]) + " x " + std::to_string(dims[2]) + ", expected 90 x 90 x 180 (the file has " +
-                     std::to_string(size) + " bytes, expected " + expected + ")");
+                     std::to_string(dims[1]) + " x " + std::to_string(dims[2]) +
+                     ", expected 90 x 90 x 180 (the file has " + std::to_string(size) + " bytes, expected " + expected +
+                     ")");
   if (size != kMerlFileBytes)
-    throw InputError(name + ": " + (size < kMerlFileBytes ? "truncated" : "oversized") + " MERL BRDF: " +
-                     std::to_string(size) + " bytes, expected " + expected);
+    throw InputError(name + ": " + (size < kMerlFileBytes ? "truncated" : "oversized") +
+                     " MERL BRDF: " + std::to_string(size) + " bytes, expected " + expected);
   MerlBrdf b;
   in.read(reinterpret_cast<char*>(b.raw.data()), std::streamsize(b.raw.size() * sizeof(double)));
   if (!in) throw InputError(name + ": read error after the header (" + std::strerror(errno) + ")");
@@ -76,7 +77,8 @@ MerlBrdf read_merl(const std::filesystem::path& path) {
 
 void write_merl(const std::filesystem::path& path, const MerlBrdf& b) {
   if (b.raw.size() != 3 * brdf::kMerlCells)
-    throw UsageError(path.string() + ": a MERL BRDF holds 3 x 90 x 90 x 180 values, not " + std::to_string(b.raw.size()));
+    throw UsageError(path.string() + ": a MERL BRDF holds 3 x 90 x 90 x 180 values, not " +
+                     std::to_string(b.raw.size()));
   AtomicOutput out(path);
   {
     std::ofstream f(out.temp_path(), std::ios::binary | std::ios::trunc);

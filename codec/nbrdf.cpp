@@ -43,7 +43,8 @@ MerlBrdf nbrdf_to_merl(const NbrdfWeights& w, NbrdfGridReport* report) {
       const brdf::MerlCell c = brdf::merl_cell(cell);
       if (!brdf::merl_cell_valid(c)) continue;
       const brdf::HalfDiff hd = brdf::merl_cell_centre(c);
-      Eigen::Vector3d rgb = nbrdf_value(w, brdf::direction(hd.theta_h, hd.phi_h), brdf::direction(hd.theta_d, hd.phi_d));
+      Eigen::Vector3d rgb =
+          nbrdf_value(w, brdf::direction(hd.theta_h, hd.phi_h), brdf::direction(hd.theta_d, hd.phi_d));
       for (int k = 0; k < 3; ++k)
         if (!(rgb[k] >= 0)) {
           rgb[k] = 0;

@@ -29,9 +29,9 @@ MerlBrdf nbrdf_to_merl(const store::NbrdfWeights& w, NbrdfGridReport* report = n
 
 /// How NBRDF files become store grids.
 struct NbrdfImportOptions {
-  std::string name;                  ///< grid name for a single input; empty: the file's stem
-  WavelengthGrid wavelengths;        ///< bands of the uplifted grids
-  Eigen::VectorXd illuminant;        ///< SPD on `wavelengths` under which the RGB was seen (rgb_weights())
+  std::string name;            ///< grid name for a single input; empty: the file's stem
+  WavelengthGrid wavelengths;  ///< bands of the uplifted grids
+  Eigen::VectorXd illuminant;  ///< SPD on `wavelengths` under which the RGB was seen (rgb_weights())
   double alpha = kDefaultUpliftAlpha;
 };
 

@@ -15,7 +15,8 @@ namespace {
 template <class Rgb>
 SphereImage render_with(std::size_t size, const Eigen::Vector3d& light, Rgb&& rgb) {
   if (size == 0 || size > 16384) throw UsageError("render: size " + std::to_string(size) + " must be 1-16384 pixels");
-  if (!(light.norm() > 0) || !light.allFinite()) throw UsageError("render: the light direction must be a non-zero vector");
+  if (!(light.norm() > 0) || !light.allFinite())
+    throw UsageError("render: the light direction must be a non-zero vector");
   const Eigen::Vector3d l = light.normalized(), v(0, 0, 1);
   SphereImage img;
   img.size = size;
@@ -49,15 +50,16 @@ SphereImage render_sphere(const MerlBrdf& merl, std::size_t size, const Eigen::V
   return render_with(size, light, [&](const brdf::StdAngles& a) { return merl.lookup(a); });
 }
 
-SphereImage render_sphere(const SpcBrdf& coded, const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, std::size_t size,
-                          const Eigen::Vector3d& light) {
+SphereImage render_sphere(const SpcBrdf& coded, const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights,
+                          std::size_t size, const Eigen::Vector3d& light) {
   if (std::size_t(weights.cols()) != coded.bands())
     throw UsageError("render: RGB weights have " + std::to_string(weights.cols()) + " columns for a BRDF of " +
                      std::to_string(coded.bands()) + " bands; give one per band");
   std::vector<float> f(coded.bands());
   return render_with(size, light, [&](const brdf::StdAngles& a) {
     coded.evaluate_cell(brdf::merl_index(brdf::merl_cell(a)), f);
-    const Eigen::Vector3d rgb = weights * Eigen::Map<const Eigen::VectorXf>(f.data(), Eigen::Index(f.size())).cast<double>();
+    const Eigen::Vector3d rgb =
+        weights * Eigen::Map<const Eigen::VectorXf>(f.data(), Eigen::Index(f.size())).cast<double>();
     return rgb.cwiseMax(0.0).eval();
   });
 }

@@ -30,8 +30,8 @@ SphereImage render_sphere(const MerlBrdf& brdf, std::size_t size, const Eigen::V
 /// As above for a coded BRDF evaluated in the same cells, its spectrum taken to RGB by `weights` (3 x B, e.g.
 /// rgb_weights(); else UsageError) with negative channels set to 0: render_sphere(grid_to_merl(expand_spc(...),
 /// weights).brdf, ...) to float precision, without the grid.
-SphereImage render_sphere(const SpcBrdf& brdf, const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, std::size_t size,
-                          const Eigen::Vector3d& light);
+SphereImage render_sphere(const SpcBrdf& brdf, const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights,
+                          std::size_t size, const Eigen::Vector3d& light);
 /// As above for a spectral grid seen under `illuminant` (its SPD on the grid's wavelengths): the grid taken to RGB
 /// through the CIE 1931 CMFs under that light (grid_to_merl with rgb_weights) and rendered as a MERL BRDF.
 SphereImage render_sphere(const store::Grid& grid, const Eigen::VectorXd& illuminant, std::size_t size,

@@ -18,27 +18,31 @@ std::string shape_text(const Shape& s) {
   return t + "]";
 }
 
-const TensorField& need(const TensorFile& f, std::string_view name, std::size_t rank, TensorType type, const std::string& label) {
+const TensorField& need(const TensorFile& f, std::string_view name, std::size_t rank, TensorType type,
+                        const std::string& label) {
   const TensorField* x = f.find(name);
   if (!x) throw InputError(label + ": not an RGL material: tensor field '" + std::string(name) + "' is missing");
   if (x->shape.size() != rank)
     throw InputError(label + ": field '" + x->name + "' has rank " + std::to_string(x->shape.size()) + " (shape " +
                      shape_text(x->shape) + "); the format needs rank " + std::to_string(rank));
   if (x->type != type)
-    throw InputError(label + ": field '" + x->name + "' is " + tensor_type_name(x->type) + "; the format needs " + tensor_type_name(type));
+    throw InputError(label + ": field '" + x->name + "' is " + tensor_type_name(x->type) + "; the format needs " +
+                     tensor_type_name(type));
   return *x;
 }
 
-void expect_extent(const TensorField& f, std::size_t dim, std::uint64_t want, const std::string& what, const std::string& label) {
+void expect_extent(const TensorField& f, std::size_t dim, std::uint64_t want, const std::string& what,
+                   const std::string& label) {
   if (f.shape[dim] != want)
-    throw InputError(label + ": field '" + f.name + "' has shape " + shape_text(f.shape) + "; extent " + std::to_string(dim) +
-                     " must be " + std::to_string(want) + " (" + what + ")");
+    throw InputError(label + ": field '" + f.name + "' has shape " + shape_text(f.shape) + "; extent " +
+                     std::to_string(dim) + " must be " + std::to_string(want) + " (" + what + ")");
 }
 
 void check_values(const std::vector<float>& v, const std::string& name, bool non_negative, const std::string& label) {
   for (std::size_t i = 0; i < v.size(); ++i)
     if (!std::isfinite(v[i]) || (non_negative && v[i] < 0))
-      throw InputError(label + ": field '" + name + "' holds " + std::to_string(v[i]) + " at element " + std::to_string(i) +
+      throw InputError(label + ": field '" + name + "' holds " + std::to_string(v[i]) + " at element " +
+                       std::to_string(i) +
                        (non_negative ? "; its values must be finite and non-negative" : "; its values must be finite"));
 }
 
@@ -106,9 +110,10 @@ RglBsdf from_tensor(const TensorFile& f, const std::string& label) {
   const std::size_t t = b.theta_i.size();
   if (t < 1) throw InputError(label + ": field 'theta_i' is empty");
   for (std::size_t i = 0; i < t; ++i)
-    if (!(b.theta_i[i] >= 0 && b.theta_i[i] <= float(std::numbers::pi / 2) + 1e-6f) || (i && !(b.theta_i[i] > b.theta_i[i - 1])))
-      throw InputError(label + ": field 'theta_i' holds " + std::to_string(b.theta_i[i]) + " at element " + std::to_string(i) +
-                       "; it must ascend within [0, pi/2]");
+    if (!(b.theta_i[i] >= 0 && b.theta_i[i] <= float(std::numbers::pi / 2) + 1e-6f) ||
+        (i && !(b.theta_i[i] > b.theta_i[i - 1])))
+      throw InputError(label + ": field 'theta_i' holds " + std::to_string(b.theta_i[i]) + " at element " +
+                       std::to_string(i) + "; it must ascend within [0, pi/2]");
   if (jacobian.shape[0] != 1) expect_extent(jacobian, 0, 1, "one flag", label);
   b.jacobian = std::to_integer<int>(jacobian.data[0]) != 0;
   b.description.assign(reinterpret_cast<const char*>(description.data.data()), description.data.size());
@@ -119,7 +124,8 @@ RglBsdf from_tensor(const TensorFile& f, const std::string& label) {
   b.sigma_width = sigma.shape[1];
   for (const TensorField* x : {&ndf, &sigma})
     if (x->shape[0] < 2 || x->shape[1] < 2)
-      throw InputError(label + ": field '" + x->name + "' has shape " + shape_text(x->shape) + "; it needs at least 2 x 2 nodes");
+      throw InputError(label + ": field '" + x->name + "' has shape " + shape_text(x->shape) +
+                       "; it needs at least 2 x 2 nodes");
   expect_extent(vndf, 0, 1, "phi_i", label);
   expect_extent(vndf, 1, t, "theta_i", label);
   if (vndf.shape[2] < 2 || vndf.shape[3] < 2)
@@ -129,7 +135,9 @@ RglBsdf from_tensor(const TensorFile& f, const std::string& label) {
   expect_extent(luminance, 0, 1, "phi_i", label);
   expect_extent(luminance, 1, t, "theta_i", label);
   b.resolution = luminance.shape[2];
-  if (b.resolution < 2) throw InputError(label + ": field 'luminance' has shape " + shape_text(luminance.shape) + "; it needs at least 2 x 2 nodes");
+  if (b.resolution < 2)
+    throw InputError(label + ": field 'luminance' has shape " + shape_text(luminance.shape) +
+                     "; it needs at least 2 x 2 nodes");
   expect_extent(luminance, 3, b.resolution, "a square sample grid", label);
   expect_extent(values, 0, 1, "phi_i", label);
   expect_extent(values, 1, t, "theta_i", label);
@@ -139,7 +147,8 @@ RglBsdf from_tensor(const TensorFile& f, const std::string& label) {
   if (!b.rgb) {
     if (b.wavelengths.empty()) throw InputError(label + ": field 'wavelengths' is empty");
     for (std::size_t i = 0; i < b.wavelengths.size(); ++i)
-      if (!(b.wavelengths[i] > 0 && std::isfinite(b.wavelengths[i])) || (i && !(b.wavelengths[i] > b.wavelengths[i - 1])))
+      if (!(b.wavelengths[i] > 0 && std::isfinite(b.wavelengths[i])) ||
+          (i && !(b.wavelengths[i] > b.wavelengths[i - 1])))
         throw InputError(label + ": field 'wavelengths' holds " + std::to_string(b.wavelengths[i]) + " at element " +
                          std::to_string(i) + "; wavelengths must be positive and ascending");
   }
@@ -152,7 +161,8 @@ RglBsdf from_tensor(const TensorFile& f, const std::string& label) {
   check_values(b.sigma, "sigma", true, label);
   for (std::size_t i = 0; i < b.sigma.size(); ++i)
     if (!(b.sigma[i] > 0))
-      throw InputError(label + ": field 'sigma' holds 0 at element " + std::to_string(i) + "; the renderers divide by it");
+      throw InputError(label + ": field 'sigma' holds 0 at element " + std::to_string(i) +
+                       "; the renderers divide by it");
   check_values(b.vndf, "vndf", true, label);
   check_values(b.luminance, "luminance", true, label);
   check_values(b.values, values.name, false, label);
@@ -169,8 +179,12 @@ RglBsdf from_tensor(const TensorFile& f, const std::string& label) {
   return b;
 }
 
-RglBsdf read_rgl_bsdf(const std::filesystem::path& path) { return from_tensor(read_tensor_file(path), path.filename().string()); }
+RglBsdf read_rgl_bsdf(const std::filesystem::path& path) {
+  return from_tensor(read_tensor_file(path), path.filename().string());
+}
 
-void write_rgl_bsdf(const std::filesystem::path& path, const RglBsdf& bsdf) { write_tensor_file(path, to_tensor(bsdf)); }
+void write_rgl_bsdf(const std::filesystem::path& path, const RglBsdf& bsdf) {
+  write_tensor_file(path, to_tensor(bsdf));
+}
 
 }  // namespace specula::codec

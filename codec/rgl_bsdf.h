@@ -18,21 +18,22 @@ namespace specula::codec {
 /// The material, arrays row-major as in the file (last index fastest).
 struct RglBsdf {
   std::string description;
-  std::vector<float> phi_i = {0.0f};  ///< one value: isotropic (files with more are refused)
-  std::vector<float> theta_i;         ///< ascending, radians
+  std::vector<float> phi_i = {0.0f};          ///< one value: isotropic (files with more are refused)
+  std::vector<float> theta_i;                 ///< ascending, radians
   std::size_t ndf_width = 0, ndf_height = 2;  ///< ndf: ndf_height (v, phi) x ndf_width (u, theta)
   std::vector<float> ndf;
   std::size_t sigma_width = 0, sigma_height = 2;  ///< sigma: the same over the incident direction
   std::vector<float> sigma;
   std::size_t vndf_width = 0, vndf_height = 0;  ///< vndf: theta_i x vndf_height (v, phi) x vndf_width (u, theta)
   std::vector<float> vndf;
-  std::size_t resolution = 0;   ///< the sample square's nodes per side
-  std::vector<float> luminance;  ///< theta_i x resolution x resolution
-  bool rgb = false;             ///< `rgb` field instead of `wavelengths` + `spectra`
+  std::size_t resolution = 0;      ///< the sample square's nodes per side
+  std::vector<float> luminance;    ///< theta_i x resolution x resolution
+  bool rgb = false;                ///< `rgb` field instead of `wavelengths` + `spectra`
   std::vector<float> wavelengths;  ///< nm, ascending (spectral files only)
-  std::vector<float> values;    ///< theta_i x channels x resolution x resolution (channels: wavelengths or 3)
+  std::vector<float> values;       ///< theta_i x channels x resolution x resolution (channels: wavelengths or 3)
   bool jacobian = true;
-  std::vector<std::uint8_t> valid;  ///< bits, most significant first, of theta_i x resolution x resolution: wo above the horizon
+  std::vector<std::uint8_t>
+      valid;  ///< bits, most significant first, of theta_i x resolution x resolution: wo above the horizon
   std::vector<std::uint32_t> version = {1, 0};
 
   std::size_t channels() const { return rgb ? 3 : wavelengths.size(); }

@@ -52,7 +52,9 @@ Eigen::Vector2d RglEvaluator::sample_point(const Eigen::Vector3d& wi, const Eige
 }
 
 void RglEvaluator::eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, std::span<double> out) const {
-  if (out.size() != channels_) throw UsageError("RglEvaluator::eval: out holds " + std::to_string(out.size()) + " values, the material " + std::to_string(channels_));
+  if (out.size() != channels_)
+    throw UsageError("RglEvaluator::eval: out holds " + std::to_string(out.size()) + " values, the material " +
+                     std::to_string(channels_));
   std::fill(out.begin(), out.end(), 0.0);
   if (!(wi.z() > 0 && wo.z() > 0)) return;
   const Eigen::Vector3d m = (wi + wo).normalized();
@@ -64,7 +66,8 @@ void RglEvaluator::eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, st
   const double params[2] = {phi_i, theta_i};
   const WarpPoint s = vndf_.invert(u_m, v_m, params);
   double factor = 1 / wo.z();
-  if (jacobian_) factor *= ndf_.eval(u_m, v_m, {}) / (4 * sigma_.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(phi_i), {}));
+  if (jacobian_)
+    factor *= ndf_.eval(u_m, v_m, {}) / (4 * sigma_.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(phi_i), {}));
   for (std::size_t c = 0; c < channels_; ++c) {
     const double p[3] = {phi_i, theta_i, double(c)};
     out[c] = std::max(0.0, values_.eval(s.x, s.y, p)) * factor;
@@ -79,7 +82,8 @@ std::vector<double> RglEvaluator::albedo(double theta_i, std::size_t n) const {
     for (std::size_t i = 0; i < n; ++i) {
       const WarpPoint p = vndf_.sample((double(i) + 0.5) / double(n), (double(j) + 0.5) / double(n), params);
       const double theta_m = rgl_u_to_theta(p.x), phi_m = rgl_v_to_phi(p.y);
-      const Eigen::Vector3d m(std::sin(theta_m) * std::cos(phi_m), std::sin(theta_m) * std::sin(phi_m), std::cos(theta_m));
+      const Eigen::Vector3d m(std::sin(theta_m) * std::cos(phi_m), std::sin(theta_m) * std::sin(phi_m),
+                              std::cos(theta_m));
       const Eigen::Vector3d wo = 2 * wi.dot(m) * m - wi;
       if (!(wo.z() > 0) || !(wi.dot(m) > 0) || !(p.pdf > 0)) continue;
       // Density of wo: the square's density over the Jacobian of (u, v) -> m (2 pi^2 u sin theta_m) and of m -> wo.

@@ -8,8 +8,8 @@
 #include "specula/codec/rgl_warp.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/brdf_geometry.h"
-#include "specula/core/error.h"
 #include "specula/core/cie.h"
+#include "specula/core/error.h"
 #include "specula/core/parallel.h"
 
 namespace specula::codec {
@@ -53,7 +53,8 @@ class MerlField {
     double total = 0;
     for (int corner = 0; corner < 8; ++corner) {
       const int a = corner & 1 ? i1[0] : i0[0], b = corner & 2 ? i1[1] : i0[1], c = corner & 4 ? i1[2] : i0[2];
-      const double w = (corner & 1 ? w1[0] : 1 - w1[0]) * (corner & 2 ? w1[1] : 1 - w1[1]) * (corner & 4 ? w1[2] : 1 - w1[2]);
+      const double w =
+          (corner & 1 ? w1[0] : 1 - w1[0]) * (corner & 2 ? w1[1] : 1 - w1[1]) * (corner & 4 ? w1[2] : 1 - w1[2]);
       const std::size_t cell = brdf::merl_index({a, b, c});
       if (w <= 0 || !has_data(cell)) continue;
       total += w;
@@ -193,8 +194,8 @@ RglBsdf build(const MerlField& field, std::span<const double> lum_weights, const
       for (std::size_t x = 0; x < V; ++x) {
         const double u = double(x) / double(V - 1), theta_m = rgl_u_to_theta(u);
         const Eigen::Vector3d m = brdf::direction(theta_m, rgl_v_to_phi(double(y) / double(V - 1)));
-        vndf[y * V + x] = float((ndf_table.eval(u, 0, {}) + s.vndf_floor / kPi) * std::max(0.0, wi.dot(m)) * 2 * kPi * kPi * u *
-                                std::sin(theta_m));
+        vndf[y * V + x] = float((ndf_table.eval(u, 0, {}) + s.vndf_floor / kPi) * std::max(0.0, wi.dot(m)) * 2 * kPi *
+                                kPi * u * std::sin(theta_m));
       }
     const Warp2D warp({vndf, V * V}, V, V, {}, true);
     const double sigma_i = sigma_table.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(0), {});
@@ -274,7 +275,8 @@ std::vector<double> rgl_ndf_from_retro(std::span<const double> retro, std::size_
 
 RglBsdf export_rgl(const store::Grid& grid, const RglExportSettings& settings) {
   if (grid.brdf.size() != grid.bands() * brdf::kMerlCells)
-    throw UsageError("RGL export: the grid holds " + std::to_string(grid.brdf.size()) + " values, not bands x 90 x 90 x 180");
+    throw UsageError("RGL export: the grid holds " + std::to_string(grid.brdf.size()) +
+                     " values, not bands x 90 x 90 x 180");
   const Eigen::Matrix<double, 3, Eigen::Dynamic> w = rgb_weights(grid.wavelengths, illuminant("D65", grid.wavelengths));
   const Eigen::RowVectorXd y = Eigen::RowVector3d(0.2126, 0.7152, 0.0722) * w;
   const std::vector<double> lum(y.data(), y.data() + y.size());

@@ -28,7 +28,7 @@ struct RglExportSettings {
   /// The vndf table (which only places the sample nodes; stored values use the ndf) is (D(m) + floor / pi) <wi . m>+:
   /// a floor > 0 keeps nodes off the peak of a glossy material, where its diffuse part lives.
   double vndf_floor = 0.1;
-  std::string description;           ///< empty: "specula export"
+  std::string description;  ///< empty: "specula export"
 };
 
 /// A spectral grid as a spectral file on the grid's wavelengths (luminance: CIE Y under D65 as sRGB's luminance).

@@ -17,16 +17,27 @@ static_assert(std::endian::native == std::endian::little, "tensor files are litt
 
 std::size_t tensor_type_size(TensorType type) {
   switch (type) {
-    case TensorType::uint8: case TensorType::int8: return 1;
-    case TensorType::uint16: case TensorType::int16: case TensorType::float16: return 2;
-    case TensorType::uint32: case TensorType::int32: case TensorType::float32: return 4;
-    case TensorType::uint64: case TensorType::int64: case TensorType::float64: return 8;
+    case TensorType::uint8:
+    case TensorType::int8:
+      return 1;
+    case TensorType::uint16:
+    case TensorType::int16:
+    case TensorType::float16:
+      return 2;
+    case TensorType::uint32:
+    case TensorType::int32:
+    case TensorType::float32:
+      return 4;
+    case TensorType::uint64:
+    case TensorType::int64:
+    case TensorType::float64:
+      return 8;
   }
   throw UsageError("tensor_type_size: type " + std::to_string(int(type)) + " is not a tensor file type (1-11)");
 }
 
 const char* tensor_type_name(TensorType type) {
-  static const char* names[] = {"uint8", "int8", "uint16", "int16", "uint32", "int32",
+  static const char* names[] = {"uint8",  "int8",  "uint16",  "int16",   "uint32", "int32",
                                 "uint64", "int64", "float16", "float32", "float64"};
   const int t = int(type);
   return t >= 1 && t <= 11 ? names[t - 1] : "invalid";
@@ -92,7 +103,8 @@ std::vector<float> float32_values(const TensorField& field, const std::string& l
 
 TensorFile parse_tensor_file(std::span<const std::byte> bytes, const std::string& label) {
   if (bytes.size() < sizeof(kTensorMagic) + 2 + 4)
-    throw InputError(label + ": not a tensor file: " + std::to_string(bytes.size()) + " bytes, fewer than its 18-byte header");
+    throw InputError(label + ": not a tensor file: " + std::to_string(bytes.size()) +
+                     " bytes, fewer than its 18-byte header");
   if (std::memcmp(bytes.data(), kTensorMagic, sizeof(kTensorMagic)) != 0)
     throw InputError(label + ": not a tensor file (.bsdf): it does not start with \"tensor_file\"");
   Cursor c{bytes, sizeof(kTensorMagic), label};
@@ -111,14 +123,17 @@ TensorFile parse_tensor_file(std::span<const std::byte> bytes, const std::string
     TensorField f;
     const auto name_length = c.get<std::uint16_t>("a field name length");
     if (bytes.size() - c.at < name_length)
-      throw InputError(label + ": truncated tensor file header: field " + std::to_string(i) + "'s name runs past the end");
+      throw InputError(label + ": truncated tensor file header: field " + std::to_string(i) +
+                       "'s name runs past the end");
     f.name.assign(reinterpret_cast<const char*>(bytes.data() + c.at), name_length);
     c.at += name_length;
-    if (!names.insert(f.name).second) throw InputError(label + ": tensor field '" + printable(f.name) + "' appears twice");
+    if (!names.insert(f.name).second)
+      throw InputError(label + ": tensor field '" + printable(f.name) + "' appears twice");
     const auto rank = c.get<std::uint16_t>("a field rank");
     const auto type = c.get<std::uint8_t>("a field type");
     if (type < 1 || type > 11)
-      throw InputError(label + ": tensor field '" + printable(f.name) + "' has type " + std::to_string(type) + "; types are 1 (uint8) to 11 (float64)");
+      throw InputError(label + ": tensor field '" + printable(f.name) + "' has type " + std::to_string(type) +
+                       "; types are 1 (uint8) to 11 (float64)");
     f.type = TensorType(type);
     const auto offset = c.get<std::uint64_t>("a field offset");
     std::uint64_t count = 1;
@@ -131,9 +146,9 @@ TensorFile parse_tensor_file(std::span<const std::byte> bytes, const std::string
     }
     const std::uint64_t size = count * tensor_type_size(f.type);
     if (offset > bytes.size() || size > bytes.size() - offset)
-      throw InputError(label + ": tensor field '" + printable(f.name) + "' (" + std::to_string(size) + " bytes at offset " +
-                       std::to_string(offset) + ") runs past the end of the " + std::to_string(bytes.size()) +
-                       "-byte file; truncated?");
+      throw InputError(label + ": tensor field '" + printable(f.name) + "' (" + std::to_string(size) +
+                       " bytes at offset " + std::to_string(offset) + ") runs past the end of the " +
+                       std::to_string(bytes.size()) + "-byte file; truncated?");
     f.data.assign(bytes.begin() + std::ptrdiff_t(offset), bytes.begin() + std::ptrdiff_t(offset + size));
     file.fields.push_back(std::move(f));
   }

@@ -18,7 +18,17 @@ inline constexpr char kTensorMagic[12] = {'t', 'e', 'n', 's', 'o', 'r', '_', 'f'
 
 /// Element types, numbered as Mitsuba's Struct::Type in the published files (uint8 = 1 ... float64 = 11).
 enum class TensorType : std::uint8_t {
-  uint8 = 1, int8, uint16, int16, uint32, int32, uint64, int64, float16, float32, float64
+  uint8 = 1,
+  int8,
+  uint16,
+  int16,
+  uint32,
+  int32,
+  uint64,
+  int64,
+  float16,
+  float32,
+  float64
 };
 /// Bytes of one element of `type`.
 std::size_t tensor_type_size(TensorType type);

@@ -31,10 +31,12 @@ double safe_sqrt(double v) { return std::sqrt(std::max(v, 0.0)); }
 
 }  // namespace
 
-Warp2D::Warp2D(std::span<const float> data, std::size_t width, std::size_t height, std::vector<std::vector<float>> params,
-               bool density)
+Warp2D::Warp2D(std::span<const float> data, std::size_t width, std::size_t height,
+               std::vector<std::vector<float>> params, bool density)
     : w_(width), h_(height), params_(std::move(params)), density_(density) {
-  if (w_ < 2 || h_ < 2) throw UsageError("Warp2D: a grid needs at least 2 x 2 nodes, not " + std::to_string(w_) + " x " + std::to_string(h_));
+  if (w_ < 2 || h_ < 2)
+    throw UsageError("Warp2D: a grid needs at least 2 x 2 nodes, not " + std::to_string(w_) + " x " +
+                     std::to_string(h_));
   if (params_.size() > 3) throw UsageError("Warp2D: at most 3 parameters");
   std::size_t slices = 1;
   param_stride_.assign(params_.size(), 0);
@@ -45,8 +47,8 @@ Warp2D::Warp2D(std::span<const float> data, std::size_t width, std::size_t heigh
   }
   const std::size_t n = w_ * h_;
   if (data.size() != slices * n)
-    throw UsageError("Warp2D: " + std::to_string(data.size()) + " values for " + std::to_string(slices) + " slices of " +
-                     std::to_string(w_) + " x " + std::to_string(h_));
+    throw UsageError("Warp2D: " + std::to_string(data.size()) + " values for " + std::to_string(slices) +
+                     " slices of " + std::to_string(w_) + " x " + std::to_string(h_));
   data_.assign(data.begin(), data.end());
   if (!density_) return;
   marginal_.assign(slices * h_, 0.0f);
@@ -128,7 +130,8 @@ WarpPoint Warp2D::sample(double x, double y, std::span<const double> param) cons
   auto marginal = [&](std::size_t k) { return lookup(marginal_, h_, k, c); };
   const std::size_t row = find_interval(h_, [&](std::size_t k) { return marginal(k) < y; });
   y -= marginal(row);
-  const double r0 = lookup(conditional_, n, row * w_ + w_ - 1, c), r1 = lookup(conditional_, n, row * w_ + 2 * w_ - 1, c);
+  const double r0 = lookup(conditional_, n, row * w_ + w_ - 1, c),
+               r1 = lookup(conditional_, n, row * w_ + 2 * w_ - 1, c);
   bool flat = std::abs(r0 - r1) < 1e-4 * (r0 + r1);
   y = flat ? 2 * y / (r0 + r1) : (r0 - safe_sqrt(r0 * r0 - 2 * y * (r0 - r1))) / (r0 - r1);
   x *= (1 - y) * r0 + y * r1;

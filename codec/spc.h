@@ -70,13 +70,13 @@ struct SpcTransformOptions {
 
 /// What encoding measured.
 struct SpcReport {
-  std::uint64_t input_bytes = 0;    ///< the grid as float64 (bands x 1,458,000 x 8), as MERL stores RGB
+  std::uint64_t input_bytes = 0;  ///< the grid as float64 (bands x 1,458,000 x 8), as MERL stores RGB
   std::uint64_t output_bytes = 0;
   std::uint64_t valid_cells = 0;
   double magnitude_scale = 0, magnitude_step = 0, shape_step = 0;
-  double max_abs_error = 0;         ///< max over valid cells and bands of |x' - x| (scaled units, 1/sr)
-  double rms_error = 0;             ///< RMS of x' - x over valid cells and bands (1/sr)
-  double max_shape_residual = 0;    ///< max over cells and bands of |r - r_k|: what the basis cannot express
+  double max_abs_error = 0;           ///< max over valid cells and bands of |x' - x| (scaled units, 1/sr)
+  double rms_error = 0;               ///< RMS of x' - x over valid cells and bands (1/sr)
+  double max_shape_residual = 0;      ///< max over cells and bands of |r - r_k|: what the basis cannot express
   double max_quantisation_error = 0;  ///< max over cells and bands of |r' - r_k| (at most max_error)
 };
 
@@ -91,8 +91,8 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
 /// folded into the shape coefficients), so the decoded spectrum is x'_b = max(0, sum_j a_j V_jb) in stored units.
 struct SpcCoefficients {
   WavelengthGrid wavelengths;
-  Eigen::MatrixXd basis;            ///< k x B, the rows V
-  double scale = 1;                 ///< value x scale is 1/sr
+  Eigen::MatrixXd basis;  ///< k x B, the rows V
+  double scale = 1;       ///< value x scale is 1/sr
   std::string units, source, reference;
   std::vector<float> values;        ///< kMerlCells x k, cell-major (MERL cell order); 0 in cells without data
   std::vector<std::uint8_t> valid;  ///< kMerlCells; 1 where the cell has data

@@ -22,7 +22,8 @@ SpcBasis coding_basis(const store::Basis& basis, std::size_t k, const std::strin
   const std::size_t have = basis.k() + (pca ? 1 : 0);
   if (k < 1 || k > std::min(have, basis.bands()))
     throw UsageError("k = " + std::to_string(k) + ": basis " + reference + " gives 1 to " +
-                     std::to_string(std::min(have, basis.bands())) + " spectra" + (pca ? " (its mean and components)" : ""));
+                     std::to_string(std::min(have, basis.bands())) + " spectra" +
+                     (pca ? " (its mean and components)" : ""));
   Eigen::MatrixXd m(Eigen::Index(basis.bands()), Eigen::Index(k));
   std::size_t col = 0;
   if (pca) m.col(Eigen::Index(col++)) = basis.mean;
@@ -31,7 +32,8 @@ SpcBasis coding_basis(const store::Basis& basis, std::size_t k, const std::strin
   const Eigen::MatrixXd q = qr.householderQ() * Eigen::MatrixXd::Identity(m.rows(), m.cols());
   const Eigen::VectorXd diag = qr.matrixQR().diagonal();
   if (diag.cwiseAbs().minCoeff() <= 1e-10 * diag.cwiseAbs().maxCoeff())
-    throw InputError(reference + ": its first " + std::to_string(k) + " spectra are linearly dependent; use a smaller -k");
+    throw InputError(reference + ": its first " + std::to_string(k) +
+                     " spectra are linearly dependent; use a smaller -k");
   return {basis.wavelengths, q.transpose(), reference};
 }
 
@@ -43,24 +45,25 @@ Eigen::MatrixXd shape_moment(const store::Grid& grid, const Eigen::MatrixXd& rem
   if (grid.brdf.size() != b * kMerlCells) throw UsageError("basis fit: grid values do not match bands x 90 x 90 x 180");
   std::vector<Eigen::MatrixXd> part(kMerlThetaH, Eigen::MatrixXd::Zero(Eigen::Index(b), Eigen::Index(b)));
   std::vector<std::uint64_t> count(kMerlThetaH, 0);
-  parallel_for(std::size_t(kMerlThetaH), [&] { return Eigen::VectorXd(static_cast<Eigen::Index>(b)); },
-               [&](std::size_t h, Eigen::VectorXd& r) {
-    for (std::size_t c = h * kSlab; c < (h + 1) * kSlab; ++c) {
-      double m = 0;
-      bool valid = true;
-      for (std::size_t j = 0; j < b; ++j) {
-        const float v = grid.brdf[j * kMerlCells + c];
-        valid &= v >= 0;
-        r[Eigen::Index(j)] = v;
-        m += v;
-      }
-      if (!valid || !(m > 0) || !std::isfinite(m)) continue;
-      r *= double(b) / m;
-      if (remove.rows() > 0) r -= remove.transpose() * (remove * r);
-      part[h].selfadjointView<Eigen::Lower>().rankUpdate(r);
-      ++count[h];
-    }
-  });
+  parallel_for(
+      std::size_t(kMerlThetaH), [&] { return Eigen::VectorXd(static_cast<Eigen::Index>(b)); },
+      [&](std::size_t h, Eigen::VectorXd& r) {
+        for (std::size_t c = h * kSlab; c < (h + 1) * kSlab; ++c) {
+          double m = 0;
+          bool valid = true;
+          for (std::size_t j = 0; j < b; ++j) {
+            const float v = grid.brdf[j * kMerlCells + c];
+            valid &= v >= 0;
+            r[Eigen::Index(j)] = v;
+            m += v;
+          }
+          if (!valid || !(m > 0) || !std::isfinite(m)) continue;
+          r *= double(b) / m;
+          if (remove.rows() > 0) r -= remove.transpose() * (remove * r);
+          part[h].selfadjointView<Eigen::Lower>().rankUpdate(r);
+          ++count[h];
+        }
+      });
   Eigen::MatrixXd g = Eigen::MatrixXd::Zero(Eigen::Index(b), Eigen::Index(b));
   n = 0;
   for (int h = 0; h < kMerlThetaH; ++h) g += part[std::size_t(h)], n += count[std::size_t(h)];
@@ -69,12 +72,15 @@ Eigen::MatrixXd shape_moment(const store::Grid& grid, const Eigen::MatrixXd& rem
 }
 
 // The top k eigenvectors of symmetric g as rows, each with its largest entry positive.
-Eigen::MatrixXd top_rows(const Eigen::MatrixXd& g, std::size_t k) { return symmetric_eigenpairs(g, k).vectors.transpose(); }
+Eigen::MatrixXd top_rows(const Eigen::MatrixXd& g, std::size_t k) {
+  return symmetric_eigenpairs(g, k).vectors.transpose();
+}
 }  // namespace
 
 SpcBasis self_basis(const store::Grid& grid, std::size_t k) {
   const std::size_t b = grid.bands();
-  if (k < 1 || k > b) throw UsageError("k = " + std::to_string(k) + ": give 1 to " + std::to_string(b) + " for a self basis");
+  if (k < 1 || k > b)
+    throw UsageError("k = " + std::to_string(k) + ": give 1 to " + std::to_string(b) + " for a self basis");
   std::uint64_t n = 0;
   const Eigen::MatrixXd g = shape_moment(grid, Eigen::MatrixXd(0, Eigen::Index(b)), n);
   if (n == 0) throw InputError("the grid has no valid cell with a non-zero spectrum to fit a basis to");

@@ -16,13 +16,13 @@ namespace {
 // theta_d: the plane through three of them when all are valid, else the nearest valid one, else 0.
 inline std::int64_t predict(const std::int32_t* q, const std::uint8_t* valid, std::size_t d, std::size_t p) {
   const std::size_t i = d * kMerlPhiD + p;
-  const bool a = p > 0 && valid[i - 1], b = d > 0 && valid[i - kMerlPhiD], c = p > 0 && d > 0 && valid[i - kMerlPhiD - 1];
+  const bool a = p > 0 && valid[i - 1], b = d > 0 && valid[i - kMerlPhiD],
+             c = p > 0 && d > 0 && valid[i - kMerlPhiD - 1];
   if (a && b && c) return std::int64_t(q[i - 1]) + q[i - kMerlPhiD] - q[i - kMerlPhiD - 1];
   if (a) return q[i - 1];
   if (b) return q[i - kMerlPhiD];
   return 0;
 }
-
 
 // The coded quantities of one file: everything decode and the encoder's error measurement share.
 struct Coding {
@@ -37,7 +37,6 @@ inline void coefficients(const Coding& cd, std::int64_t qm, const std::int32_t* 
   for (std::size_t j = 0; j < cd.k; ++j) a[j] = float(m * (double(qc[j * stride]) * cd.step_c));
 }
 
-
 std::vector<std::uint8_t> zstd_compress(const std::vector<std::uint8_t>& raw, int level) {
   std::vector<std::uint8_t> out(ZSTD_compressBound(raw.size()));
   const std::size_t n = ZSTD_compress(out.data(), out.size(), raw.data(), raw.size(), level);
@@ -46,18 +45,19 @@ std::vector<std::uint8_t> zstd_compress(const std::vector<std::uint8_t>& raw, in
   return out;
 }
 
-void zstd_decompress(const std::uint8_t* src, std::size_t size, std::vector<std::uint8_t>& out, const std::string& label,
-                     const char* what) {
+void zstd_decompress(const std::uint8_t* src, std::size_t size, std::vector<std::uint8_t>& out,
+                     const std::string& label, const char* what) {
   const unsigned long long content = ZSTD_getFrameContentSize(src, size);
   if (content != out.size())
     throw InputError(label + ": .spc section " + what + " is corrupt: its zstd frame holds " +
-                     (content == ZSTD_CONTENTSIZE_ERROR || content == ZSTD_CONTENTSIZE_UNKNOWN ? std::string("an unknown size")
-                                                                                                 : std::to_string(content)) +
+                     (content == ZSTD_CONTENTSIZE_ERROR || content == ZSTD_CONTENTSIZE_UNKNOWN
+                          ? std::string("an unknown size")
+                          : std::to_string(content)) +
                      " bytes, the header says " + std::to_string(out.size()));
   const std::size_t n = ZSTD_decompress(out.data(), out.size(), src, size);
   if (ZSTD_isError(n) || n != out.size())
-    throw InputError(label + ": .spc section " + what + " is corrupt: " +
-                     (ZSTD_isError(n) ? std::string(ZSTD_getErrorName(n)) : "short frame"));
+    throw InputError(label + ": .spc section " + what +
+                     " is corrupt: " + (ZSTD_isError(n) ? std::string(ZSTD_getErrorName(n)) : "short frame"));
 }
 
 // Residuals of one channel as 1 (int8), 2 (int16) or 4 (int32) bytes, split into byte planes so zstd sees the
@@ -83,11 +83,10 @@ std::int32_t unplane(const std::uint8_t* p, std::size_t n, std::uint8_t width, s
 
 std::int32_t to_code(double v, const std::string& what) {
   const double r = std::nearbyint(v);
-  if (!(std::abs(r) < 2e9)) throw UsageError("encode: " + what + " needs a code of " + std::to_string(r) +
-                                             ", beyond 32 bits; raise max_error");
+  if (!(std::abs(r) < 2e9))
+    throw UsageError("encode: " + what + " needs a code of " + std::to_string(r) + ", beyond 32 bits; raise max_error");
   return std::int32_t(r);
 }
-
 
 struct Parsed {
   Coding cd;
@@ -112,7 +111,8 @@ Parsed parse_header(std::span<const std::uint8_t> bytes, const std::string& labe
   for (const auto& [v, what] : {std::pair{p.cd.scale, "scale"}, std::pair{p.cd.s, "magnitude scale"},
                                 std::pair{p.cd.step_m, "magnitude step"}, std::pair{p.cd.step_c, "shape step"}})
     if (!(std::isfinite(v) && v > 0))
-      throw InputError(label + ": .spc header field '" + what + "' is " + std::to_string(v) + "; it must be finite and positive");
+      throw InputError(label + ": .spc header field '" + what + "' is " + std::to_string(v) +
+                       "; it must be finite and positive");
   std::vector<double> wl(bands);
   std::memcpy(wl.data(), r.take(8 * bands, "wavelengths"), 8 * bands);
   p.wavelengths = checked_wavelengths(std::move(wl), label);
@@ -133,7 +133,8 @@ Parsed parse_header(std::span<const std::uint8_t> bytes, const std::string& labe
 std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis& basis, const SpcBoundedOptions& o,
                                          SpcReport* report, const std::string& source) {
   const std::size_t bands = grid.bands(), k = basis.k();
-  if (grid.brdf.size() != bands * kMerlCells) throw UsageError("encode: grid values do not match bands x 90 x 90 x 180");
+  if (grid.brdf.size() != bands * kMerlCells)
+    throw UsageError("encode: grid values do not match bands x 90 x 90 x 180");
   if (!(std::isfinite(o.max_error) && o.max_error > 0 && o.max_error <= 1))
     throw UsageError("max_error = " + std::to_string(o.max_error) + ": give a number in (0, 1]");
   if (!(std::isfinite(o.magnitude_scale) && o.magnitude_scale >= 0))
@@ -160,8 +161,10 @@ std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis
 
   // Codes (channel 0: magnitude, 1..k: shape) and their residuals, slab by slab.
   const std::size_t channels = k + 1;
-  std::vector<std::vector<std::vector<std::int32_t>>> residuals(kMerlThetaH, std::vector<std::vector<std::int32_t>>(channels));
-  std::vector<double> slab_sq(kMerlThetaH, 0), slab_max(kMerlThetaH, 0), slab_resid(kMerlThetaH, 0), slab_quant(kMerlThetaH, 0);
+  std::vector<std::vector<std::vector<std::int32_t>>> residuals(kMerlThetaH,
+                                                                std::vector<std::vector<std::int32_t>>(channels));
+  std::vector<double> slab_sq(kMerlThetaH, 0), slab_max(kMerlThetaH, 0), slab_resid(kMerlThetaH, 0),
+      slab_quant(kMerlThetaH, 0);
   struct SlabScratch {
     std::vector<std::int32_t> q;
     Eigen::VectorXd r, c;
@@ -189,7 +192,8 @@ std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis
       q[i] = to_code(std::log1p(m / cd.s) / cd.step_m, "the magnitude");
       for (std::size_t b = 0; b < bands; ++b) r[Eigen::Index(b)] = m > 0 ? grid.brdf[b * kMerlCells + cell] / m : 0.0;
       c.noalias() = basis.rows * r;
-      for (std::size_t j = 0; j < k; ++j) q[(j + 1) * kSlab + i] = to_code(c[Eigen::Index(j)] / cd.step_c, "a shape coefficient");
+      for (std::size_t j = 0; j < k; ++j)
+        q[(j + 1) * kSlab + i] = to_code(c[Eigen::Index(j)] / cd.step_c, "a shape coefficient");
       // What the decoder will produce, for the report.
       coefficients(cd, q[i], q.data() + kSlab + i, kSlab, a.data());
       expand_cell(cd.basis, a.data(), out.data(), 1);
@@ -201,7 +205,8 @@ std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis
         if (m > 0) {
           resid = std::max(resid, std::abs(r[Eigen::Index(b)] - rk[Eigen::Index(b)]));
           double shape_b = 0;  // r'_b = (V^T c')_b
-          for (std::size_t j = 0; j < k; ++j) shape_b += double(q[(j + 1) * kSlab + i]) * cd.step_c * basis.rows(Eigen::Index(j), Eigen::Index(b));
+          for (std::size_t j = 0; j < k; ++j)
+            shape_b += double(q[(j + 1) * kSlab + i]) * cd.step_c * basis.rows(Eigen::Index(j), Eigen::Index(b));
           quant = std::max(quant, std::abs(shape_b - rk[Eigen::Index(b)]));
         }
       }
@@ -372,8 +377,9 @@ SpcCoefficients decode_bounded(std::span<const std::uint8_t> bytes, const std::s
       coefficients(cd, q[i], q.data() + kSlab + i, kSlab, a);
       for (std::size_t j = 0; j < cd.k; ++j)
         if (!std::isfinite(a[j]))
-          throw InputError(label + ": .spc codes decode to values beyond float range; the file was not written by "
-                                   "specula encode");
+          throw InputError(label +
+                           ": .spc codes decode to values beyond float range; the file was not written by "
+                           "specula encode");
     }
   });
   g.valid = std::move(valid);

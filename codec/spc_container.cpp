@@ -27,18 +27,21 @@ std::uint64_t magnitudes(const store::Grid& grid, std::vector<float>& mag, std::
   const std::size_t bands = grid.bands();
   mag.assign(kMerlCells, 0.0f);
   valid.assign(kMerlCells, 0);
-  parallel_for(kMerlCells, [&](std::size_t c) {
-    double m = 0;
-    bool ok = true;
-    for (std::size_t b = 0; b < bands; ++b) {
-      const float v = grid.brdf[b * kMerlCells + c];
-      if (!std::isfinite(v)) throw InputError("the grid holds a non-finite value; it cannot be coded");
-      ok &= v >= 0;
-      m += v;
-    }
-    valid[c] = ok;
-    if (ok) mag[c] = float(m / double(bands));
-  }, kSlab);
+  parallel_for(
+      kMerlCells,
+      [&](std::size_t c) {
+        double m = 0;
+        bool ok = true;
+        for (std::size_t b = 0; b < bands; ++b) {
+          const float v = grid.brdf[b * kMerlCells + c];
+          if (!std::isfinite(v)) throw InputError("the grid holds a non-finite value; it cannot be coded");
+          ok &= v >= 0;
+          m += v;
+        }
+        valid[c] = ok;
+        if (ok) mag[c] = float(m / double(bands));
+      },
+      kSlab);
   return std::uint64_t(std::count(valid.begin(), valid.end(), std::uint8_t(1)));
 }
 
@@ -51,7 +54,6 @@ double magnitude_scale(const std::vector<float>& mag, const std::vector<std::uin
   std::nth_element(positive.begin(), positive.begin() + std::ptrdiff_t(positive.size() / 2), positive.end());
   return 0.1 * double(positive[positive.size() / 2]);
 }
-
 
 std::pair<std::uint32_t, std::uint32_t> read_shape(Reader& r, const std::string& label) {
   const auto bands = r.get<std::uint32_t>("bands");
@@ -70,11 +72,11 @@ WavelengthGrid checked_wavelengths(std::vector<double> wl, const std::string& la
   }
 }
 
-
 std::uint32_t check_container(std::span<const std::uint8_t> bytes, const std::string& label) {
   if (bytes.size() < sizeof kSpcMagic + 4 || std::memcmp(bytes.data(), kSpcMagic, sizeof kSpcMagic) != 0)
     throw InputError(label + ": not a .spc file (it does not start with the SPECUSPC magic)");
-  if (bytes.size() < 12 + 4) throw InputError(label + ": .spc file is truncated (" + std::to_string(bytes.size()) + " bytes)");
+  if (bytes.size() < 12 + 4)
+    throw InputError(label + ": .spc file is truncated (" + std::to_string(bytes.size()) + " bytes)");
   // The CRC first: a corrupt byte anywhere is reported as such, not as whichever field it happens to hit.
   std::uint32_t stored;
   std::memcpy(&stored, bytes.data() + bytes.size() - 4, 4);
@@ -131,9 +133,12 @@ store::Grid expand_spc(const SpcCoefficients& c) {
   g.provenance.source_file = c.source;
   g.provenance.importer = "decode " + c.reference;
   g.brdf.assign(bands * kMerlCells, -1.0f);
-  parallel_for(kMerlCells, [&](std::size_t cell) {
-    if (c.valid[cell]) detail::expand_cell(c.basis, c.values.data() + cell * k, g.brdf.data() + cell, kMerlCells);
-  }, kSlab);
+  parallel_for(
+      kMerlCells,
+      [&](std::size_t cell) {
+        if (c.valid[cell]) detail::expand_cell(c.basis, c.values.data() + cell * k, g.brdf.data() + cell, kMerlCells);
+      },
+      kSlab);
   return g;
 }
 

@@ -52,8 +52,8 @@ class Reader {
   }
   const std::uint8_t* take(std::size_t n, const char* what) {
     if (n > b_.size() - at_)
-      throw InputError(label_ + ": .spc file is truncated: " + what + " needs " + std::to_string(n) + " bytes at byte " +
-                       std::to_string(at_) + ", " + std::to_string(b_.size() - at_) + " remain");
+      throw InputError(label_ + ": .spc file is truncated: " + what + " needs " + std::to_string(n) +
+                       " bytes at byte " + std::to_string(at_) + ", " + std::to_string(b_.size() - at_) + " remain");
     const std::uint8_t* p = b_.data() + at_;
     at_ += n;
     return p;

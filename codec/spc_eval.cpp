@@ -3,9 +3,9 @@
 #include <sys/mman.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <new>
-#include <cmath>
 #include <numbers>
 #include <string>
 
@@ -116,7 +116,8 @@ SpcBrdf::SpcBrdf(SpcCoefficients&& c)
   bands_ = c.bands();
   if (k_ == 0 || bands_ == 0 || bands_ != wavelengths_.size())
     throw UsageError("SpcBrdf: a basis of " + std::to_string(k_) + " x " + std::to_string(bands_) + " on " +
-                     std::to_string(wavelengths_.size()) + " wavelengths; give k >= 1 rows of one value per wavelength");
+                     std::to_string(wavelengths_.size()) +
+                     " wavelengths; give k >= 1 rows of one value per wavelength");
   if (c.values.size() != k_ * kMerlCells || c.valid.size() != kMerlCells)
     throw UsageError("SpcBrdf: " + std::to_string(c.values.size()) + " coefficients and " +
                      std::to_string(c.valid.size()) + " validity flags; expected k x 90 x 90 x 180 = " +
@@ -165,10 +166,14 @@ void SpcBrdf::expand(std::size_t cell, float* out) const {
   const float* a = values_.get() + cell * k_;
   const float* v = basis_.data();
   switch (padded_) {
-    case 8: return expand_padded<8>(a, k_, v, out, bands_);
-    case 16: return expand_padded<16>(a, k_, v, out, bands_);
-    case 32: return expand_padded<32>(a, k_, v, out, bands_);
-    default: break;
+    case 8:
+      return expand_padded<8>(a, k_, v, out, bands_);
+    case 16:
+      return expand_padded<16>(a, k_, v, out, bands_);
+    case 32:
+      return expand_padded<32>(a, k_, v, out, bands_);
+    default:
+      break;
   }
   for (std::size_t b = 0; b < bands_; ++b) out[b] = a[0] * v[b];
   for (std::size_t j = 1; j < k_; ++j)

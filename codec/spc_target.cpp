@@ -21,7 +21,8 @@ struct Trial {
 
 void check_target(const SpcTarget& t) {
   for (const double v : {t.de00_mean, t.de00_p95, t.condition_mean})
-    if (!(std::isfinite(v) && v > 0)) throw UsageError("target: de00_mean, de00_p95 and condition_mean must be positive");
+    if (!(std::isfinite(v) && v > 0))
+      throw UsageError("target: de00_mean, de00_p95 and condition_mean must be positive");
   if (t.max_trials < 2 || t.max_trials > 32) throw UsageError("target: max_trials must be 2 to 32");
   if (!(std::isfinite(t.first_step) && t.first_step > 0 && t.first_step <= 10))
     throw UsageError("target: first_step must be in (0, 10]");

@@ -25,7 +25,7 @@ struct SpcTarget {
 struct SpcTargetReport {
   bool reached = false;  ///< false: no trial met the target; the finest step tried was coded
   int trials = 0;
-  double step = 0;       ///< the step coded
+  double step = 0;                     ///< the step coded
   double de00_mean = 0, de00_p95 = 0;  ///< pooled over the suite, what the coded file renders to
   double worst_mean = 0;               ///< the largest condition mean
   std::string worst_condition;

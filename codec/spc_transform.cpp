@@ -30,7 +30,8 @@ const std::vector<std::uint8_t>& horizon_mask() {
   }();
   return m;
 }
-constexpr std::array<std::size_t, 3> kGridDims{std::size_t(kMerlThetaH), std::size_t(kMerlThetaD), std::size_t(kMerlPhiD)};
+constexpr std::array<std::size_t, 3> kGridDims{std::size_t(kMerlThetaH), std::size_t(kMerlThetaD),
+                                               std::size_t(kMerlPhiD)};
 
 CubeLayout cube_layout(int levels) { return {{std::size_t(kMerlThetaH), std::size_t(kMerlThetaD), kFold}, levels}; }
 
@@ -84,7 +85,8 @@ void fill(std::vector<float>& v, std::vector<std::uint8_t> known) {
           const float right = t < n[axis] ? v[base + t * stride[axis]] : v[base + std::size_t(last) * stride[axis]];
           const float left = last >= 0 ? v[base + std::size_t(last) * stride[axis]] : right;
           for (std::size_t u = std::size_t(last + 1); u < t; ++u) {
-            const double w = last >= 0 && t < n[axis] ? double(u - std::size_t(last)) / double(t - std::size_t(last)) : 0.0;
+            const double w =
+                last >= 0 && t < n[axis] ? double(u - std::size_t(last)) / double(t - std::size_t(last)) : 0.0;
             v[base + u * stride[axis]] = float(left + w * (right - left));
             known[base + u * stride[axis]] = 1;
           }
@@ -132,42 +134,53 @@ Model transform_model(const store::Grid& grid, const SpcBasis& basis, const SpcT
   std::vector<std::uint8_t> shaped(kMerlCells, 0);
   const bool all = md.n_valid == kMerlCells, horizon = md.valid == horizon_mask();
   md.validity = all ? Validity::all : horizon ? Validity::horizon : Validity::coded;
-  parallel_for(kMerlCells, [&](std::size_t c) {
-    if (!md.valid[c]) return;
-    const double m = mag[c];
-    ch[0][c] = float(std::log1p(m / md.s));
-    if (!(m > 0)) return;
-    shaped[c] = 1;
-    for (std::size_t j = 0; j < k; ++j) {
-      double v = 0;
-      for (std::size_t b = 0; b < bands; ++b) v += basis.rows(Eigen::Index(j), Eigen::Index(b)) * grid.brdf[b * kMerlCells + c];
-      ch[j + 1][c] = float(v / m);
-    }
-  }, kSlab);
+  parallel_for(
+      kMerlCells,
+      [&](std::size_t c) {
+        if (!md.valid[c]) return;
+        const double m = mag[c];
+        ch[0][c] = float(std::log1p(m / md.s));
+        if (!(m > 0)) return;
+        shaped[c] = 1;
+        for (std::size_t j = 0; j < k; ++j) {
+          double v = 0;
+          for (std::size_t b = 0; b < bands; ++b)
+            v += basis.rows(Eigen::Index(j), Eigen::Index(b)) * grid.brdf[b * kMerlCells + c];
+          ch[j + 1][c] = float(v / m);
+        }
+      },
+      kSlab);
   md.cubes.resize(2 * (k + 1));
   const CubeLayout layout = cube_layout(o.levels);
-  parallel_for(k + 1, [&](std::size_t j) {
-    fill(ch[j], j == 0 ? md.valid : shaped);
-    fold(ch[j], md.cubes[2 * j], md.cubes[2 * j + 1]);
-    std::vector<float>().swap(ch[j]);
-    wavelet::forward_cube(md.cubes[2 * j], layout);
-    wavelet::forward_cube(md.cubes[2 * j + 1], layout);
-  }, 1);
+  parallel_for(
+      k + 1,
+      [&](std::size_t j) {
+        fill(ch[j], j == 0 ? md.valid : shaped);
+        fold(ch[j], md.cubes[2 * j], md.cubes[2 * j + 1]);
+        std::vector<float>().swap(ch[j]);
+        wavelet::forward_cube(md.cubes[2 * j], layout);
+        wavelet::forward_cube(md.cubes[2 * j + 1], layout);
+      },
+      1);
   return md;
 }
 
 std::vector<std::vector<std::int32_t>> quantise(const Model& md, const Transform& t) {
   std::vector<std::vector<std::int32_t>> q(md.cubes.size(), std::vector<std::int32_t>(kCube));
   const CubeLayout layout = cube_layout(t.levels);
-  parallel_for(md.cubes.size(), [&](std::size_t cube) {
-    const std::vector<float>& w = md.cubes[cube];
-    std::int32_t* out = q[cube].data();
-    for_each_coefficient(layout, t, cube / 2, [&](std::size_t i, double step) {
-      const double a = std::floor(std::abs(double(w[i])) / step + kRounding);
-      if (!(a < kMaxCode)) throw UsageError("encode: a transform coefficient needs a code beyond 2^28; raise the step");
-      out[i] = std::int32_t(w[i] < 0 ? -a : a);
-    });
-  }, 1);
+  parallel_for(
+      md.cubes.size(),
+      [&](std::size_t cube) {
+        const std::vector<float>& w = md.cubes[cube];
+        std::int32_t* out = q[cube].data();
+        for_each_coefficient(layout, t, cube / 2, [&](std::size_t i, double step) {
+          const double a = std::floor(std::abs(double(w[i])) / step + kRounding);
+          if (!(a < kMaxCode))
+            throw UsageError("encode: a transform coefficient needs a code beyond 2^28; raise the step");
+          out[i] = std::int32_t(w[i] < 0 ? -a : a);
+        });
+      },
+      1);
   return q;
 }
 
@@ -177,37 +190,44 @@ SpcCoefficients reconstruct(const std::vector<std::vector<std::int32_t>>& q, con
                             double s, const std::vector<std::uint8_t>& valid, const std::string& label) {
   const CubeLayout layout = cube_layout(t.levels);
   std::vector<std::vector<float>> channel(k + 1, std::vector<float>(kMerlCells));
-  parallel_for(k + 1, [&](std::size_t j) {
-    std::array<std::vector<float>, 2> w{std::vector<float>(kCube), std::vector<float>(kCube)};
-    for (std::size_t half = 0; half < 2; ++half) {
-      const std::int32_t* in = q[2 * j + half].data();
-      float* out = w[half].data();
-      for_each_coefficient(layout, t, j, [&](std::size_t i, double step) {
-        const std::int32_t v = in[i];
-        out[i] = v == 0 ? 0.0f : float((v < 0 ? -1.0 : 1.0) * (std::abs(double(v)) + t.reconstruction) * step);
-      });
-      wavelet::inverse_cube(w[half], layout);
-    }
-    float* v = channel[j].data();
-    for (std::size_t hd = 0; hd < std::size_t(kMerlThetaH) * kMerlThetaD; ++hd)
-      for (std::size_t p = 0; p < kFold; ++p) {
-        const float sum = w[0][hd * kFold + p], diff = w[1][hd * kFold + p];
-        v[hd * kMerlPhiD + p] = sum + diff;
-        v[hd * kMerlPhiD + kMerlPhiD - 1 - p] = sum - diff;
-      }
-  }, 1);
+  parallel_for(
+      k + 1,
+      [&](std::size_t j) {
+        std::array<std::vector<float>, 2> w{std::vector<float>(kCube), std::vector<float>(kCube)};
+        for (std::size_t half = 0; half < 2; ++half) {
+          const std::int32_t* in = q[2 * j + half].data();
+          float* out = w[half].data();
+          for_each_coefficient(layout, t, j, [&](std::size_t i, double step) {
+            const std::int32_t v = in[i];
+            out[i] = v == 0 ? 0.0f : float((v < 0 ? -1.0 : 1.0) * (std::abs(double(v)) + t.reconstruction) * step);
+          });
+          wavelet::inverse_cube(w[half], layout);
+        }
+        float* v = channel[j].data();
+        for (std::size_t hd = 0; hd < std::size_t(kMerlThetaH) * kMerlThetaD; ++hd)
+          for (std::size_t p = 0; p < kFold; ++p) {
+            const float sum = w[0][hd * kFold + p], diff = w[1][hd * kFold + p];
+            v[hd * kMerlPhiD + p] = sum + diff;
+            v[hd * kMerlPhiD + kMerlPhiD - 1 - p] = sum - diff;
+          }
+      },
+      1);
   SpcCoefficients out;
   out.values.assign(k * kMerlCells, 0.0f);
-  parallel_for(kMerlCells, [&](std::size_t c) {
-    if (!valid[c]) return;
-    const double m = s * std::expm1(std::max(0.0, double(channel[0][c])));
-    for (std::size_t j = 0; j < k; ++j) {
-      const float a = float(m * double(channel[j + 1][c]));
-      if (!std::isfinite(a))
-        throw InputError(label + ": .spc coefficients decode beyond float range; the file was not written by specula encode");
-      out.values[c * k + j] = a;
-    }
-  }, kSlab);
+  parallel_for(
+      kMerlCells,
+      [&](std::size_t c) {
+        if (!valid[c]) return;
+        const double m = s * std::expm1(std::max(0.0, double(channel[0][c])));
+        for (std::size_t j = 0; j < k; ++j) {
+          const float a = float(m * double(channel[j + 1][c]));
+          if (!std::isfinite(a))
+            throw InputError(
+                label + ": .spc coefficients decode beyond float range; the file was not written by specula encode");
+          out.values[c * k + j] = a;
+        }
+      },
+      kSlab);
   out.valid = valid;
   return out;
 }
@@ -216,7 +236,8 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
                                   const std::vector<std::vector<std::int32_t>>& q, const std::string& source) {
   std::vector<std::vector<std::uint8_t>> streams(q.size());
   const CubeLayout layout = cube_layout(t.levels);
-  parallel_for(q.size(), [&](std::size_t i) { streams[i] = encode_cube(q[i], layout); }, 1);
+  parallel_for(
+      q.size(), [&](std::size_t i) { streams[i] = encode_cube(q[i], layout); }, 1);
   std::size_t total = 1024 + 8 * md.bands * (md.k + 1) + grid.units.size() + source.size() + basis.reference.size();
   for (const auto& st : streams) total += 4 + st.size();
   std::vector<std::uint8_t> out;
@@ -264,7 +285,8 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
 }
 
 Transform transform_of(const SpcTransformOptions& o, double step) {
-  return {o.levels, step, step * o.shape_step_ratio, o.frequency_factor, kReconstruction, o.specular_factor, o.specular_extent};
+  return {o.levels,         step, step * o.shape_step_ratio, o.frequency_factor, kReconstruction, o.specular_factor,
+          o.specular_extent};
 }
 
 // The finest step (of options o's ratios) whose codes all stay below kMaxCode / 2.
@@ -272,16 +294,20 @@ double finest_step(const Model& md, const SpcTransformOptions& o) {
   const Transform unit = transform_of(o, 1);
   const CubeLayout layout = cube_layout(unit.levels);
   std::vector<double> need(md.cubes.size(), 0);
-  parallel_for(md.cubes.size(), [&](std::size_t cube) {
-    for_each_coefficient(layout, unit, cube / 2, [&](std::size_t i, double step) {
-      need[cube] = std::max(need[cube], std::abs(double(md.cubes[cube][i])) / step);
-    });
-  }, 1);
+  parallel_for(
+      md.cubes.size(),
+      [&](std::size_t cube) {
+        for_each_coefficient(layout, unit, cube / 2, [&](std::size_t i, double step) {
+          need[cube] = std::max(need[cube], std::abs(double(md.cubes[cube][i])) / step);
+        });
+      },
+      1);
   return *std::max_element(need.begin(), need.end()) / (kMaxCode / 2);
 }
 
 void check_transform_options(const store::Grid& grid, const SpcBasis& basis, const SpcTransformOptions& o) {
-  if (grid.brdf.size() != grid.bands() * kMerlCells) throw UsageError("encode: grid values do not match bands x 90 x 90 x 180");
+  if (grid.brdf.size() != grid.bands() * kMerlCells)
+    throw UsageError("encode: grid values do not match bands x 90 x 90 x 180");
   if (!(std::isfinite(o.step) && o.step > 0 && o.step <= 10))
     throw UsageError("step = " + std::to_string(o.step) + ": give a number in (0, 10]");
   if (!(std::isfinite(o.shape_step_ratio) && o.shape_step_ratio > 0 && o.shape_step_ratio <= 1000))
@@ -302,34 +328,37 @@ void check_transform_options(const store::Grid& grid, const SpcBasis& basis, con
 }
 
 // Errors of a decoding against the grid, for SpcReport (values x scale, 1/sr), and the shape quantisation error.
-void measure(const store::Grid& grid, const SpcCoefficients& c, const SpcBasis& basis, std::uint64_t bytes, SpcReport& r) {
+void measure(const store::Grid& grid, const SpcCoefficients& c, const SpcBasis& basis, std::uint64_t bytes,
+             SpcReport& r) {
   const std::size_t bands = grid.bands(), k = c.k();
   std::vector<double> sq(kMerlThetaH, 0), mx(kMerlThetaH, 0), resid(kMerlThetaH, 0), quant(kMerlThetaH, 0);
-  parallel_for(std::size_t(kMerlThetaH), [&] { return std::vector<float>(bands); }, [&](std::size_t h, std::vector<float>& x) {
-    Eigen::VectorXd r(static_cast<Eigen::Index>(bands)), a(static_cast<Eigen::Index>(k));
-    for (std::size_t cell = h * kSlab; cell < (h + 1) * kSlab; ++cell) {
-      if (!c.valid[cell]) continue;
-      expand_cell(c.basis, c.values.data() + cell * k, x.data(), 1);
-      double m = 0;
-      for (std::size_t b = 0; b < bands; ++b) {
-        const double e = (double(x[b]) - grid.brdf[b * kMerlCells + cell]) * grid.scale;
-        sq[h] += e * e;
-        mx[h] = std::max(mx[h], std::abs(e));
-        r[Eigen::Index(b)] = grid.brdf[b * kMerlCells + cell];
-        m += r[Eigen::Index(b)];
-      }
-      m /= double(bands);
-      if (!(m > 0)) continue;
-      r /= m;
-      const Eigen::VectorXd coef = basis.rows * r;
-      const Eigen::VectorXd rk = basis.rows.transpose() * coef;
-      for (std::size_t j = 0; j < k; ++j) a[Eigen::Index(j)] = c.values[cell * k + j];
-      const double ma = (c.basis.transpose() * a).mean();
-      const Eigen::VectorXd rq = ma > 0 ? Eigen::VectorXd(c.basis.transpose() * a / ma) : Eigen::VectorXd(rk);
-      resid[h] = std::max(resid[h], (r - rk).cwiseAbs().maxCoeff());
-      quant[h] = std::max(quant[h], (rq - rk).cwiseAbs().maxCoeff());
-    }
-  });
+  parallel_for(
+      std::size_t(kMerlThetaH), [&] { return std::vector<float>(bands); },
+      [&](std::size_t h, std::vector<float>& x) {
+        Eigen::VectorXd r(static_cast<Eigen::Index>(bands)), a(static_cast<Eigen::Index>(k));
+        for (std::size_t cell = h * kSlab; cell < (h + 1) * kSlab; ++cell) {
+          if (!c.valid[cell]) continue;
+          expand_cell(c.basis, c.values.data() + cell * k, x.data(), 1);
+          double m = 0;
+          for (std::size_t b = 0; b < bands; ++b) {
+            const double e = (double(x[b]) - grid.brdf[b * kMerlCells + cell]) * grid.scale;
+            sq[h] += e * e;
+            mx[h] = std::max(mx[h], std::abs(e));
+            r[Eigen::Index(b)] = grid.brdf[b * kMerlCells + cell];
+            m += r[Eigen::Index(b)];
+          }
+          m /= double(bands);
+          if (!(m > 0)) continue;
+          r /= m;
+          const Eigen::VectorXd coef = basis.rows * r;
+          const Eigen::VectorXd rk = basis.rows.transpose() * coef;
+          for (std::size_t j = 0; j < k; ++j) a[Eigen::Index(j)] = c.values[cell * k + j];
+          const double ma = (c.basis.transpose() * a).mean();
+          const Eigen::VectorXd rq = ma > 0 ? Eigen::VectorXd(c.basis.transpose() * a / ma) : Eigen::VectorXd(rk);
+          resid[h] = std::max(resid[h], (r - rk).cwiseAbs().maxCoeff());
+          quant[h] = std::max(quant[h], (rq - rk).cwiseAbs().maxCoeff());
+        }
+      });
   r = {};
   double total = 0;
   for (int h = 0; h < kMerlThetaH; ++h) {
@@ -344,7 +373,8 @@ void measure(const store::Grid& grid, const SpcCoefficients& c, const SpcBasis& 
   r.rms_error = r.valid_cells ? std::sqrt(total / double(r.valid_cells * bands)) : 0.0;
 }
 
-SpcCoefficients with_header(SpcCoefficients c, const store::Grid& grid, const SpcBasis& basis, const std::string& source) {
+SpcCoefficients with_header(SpcCoefficients c, const store::Grid& grid, const SpcBasis& basis,
+                            const std::string& source) {
   c.wavelengths = grid.wavelengths;
   c.basis = basis.rows.cast<float>().cast<double>();  // as the file stores it
   c.scale = grid.scale;
@@ -355,8 +385,9 @@ SpcCoefficients with_header(SpcCoefficients c, const store::Grid& grid, const Sp
 }
 
 // The file of a transformed model at one step, and what it measures against the grid when asked.
-std::vector<std::uint8_t> code_model(const Model& md, const store::Grid& grid, const SpcBasis& basis, const SpcTransformOptions& o,
-                                     double step, SpcReport* report, const std::string& source) {
+std::vector<std::uint8_t> code_model(const Model& md, const store::Grid& grid, const SpcBasis& basis,
+                                     const SpcTransformOptions& o, double step, SpcReport* report,
+                                     const std::string& source) {
   const Transform t = transform_of(o, step);
   const auto q = quantise(md, t);
   auto bytes = pack_v2(md, basis, grid, t, q, source);
@@ -379,7 +410,8 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
   const double s = r.get<double>("magnitude scale");
   for (const auto& [v, what] : {std::pair{c.scale, "scale"}, std::pair{s, "magnitude scale"}})
     if (!(std::isfinite(v) && v > 0))
-      throw InputError(label + ": .spc header field '" + what + "' is " + std::to_string(v) + "; it must be finite and positive");
+      throw InputError(label + ": .spc header field '" + what + "' is " + std::to_string(v) +
+                       "; it must be finite and positive");
   const auto wl_kind = r.get<std::uint8_t>("wavelength kind");
   std::vector<double> wl(bands);
   if (wl_kind == 0) {
@@ -388,7 +420,8 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
   } else if (wl_kind == 1) {
     std::memcpy(wl.data(), r.take(8 * bands, "wavelengths"), 8 * bands);
   } else {
-    throw InputError(label + ": .spc wavelength kind " + std::to_string(wl_kind) + " is neither 0 (uniform) nor 1 (list)");
+    throw InputError(label + ": .spc wavelength kind " + std::to_string(wl_kind) +
+                     " is neither 0 (uniform) nor 1 (list)");
   }
   c.wavelengths = checked_wavelengths(std::move(wl), label);
   c.basis = read_basis<float>(r, k, bands, label);
@@ -408,7 +441,8 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
     if (!decode_mask({r.take(z, "validity"), z}, horizon_mask(), kGridDims, c.valid))
       throw InputError(label + ": .spc validity stream ends before its cells; the file is corrupt");
   } else {
-    throw InputError(label + ": .spc validity kind " + std::to_string(kind) + " is not 0 (all), 1 (horizon) or 2 (coded)");
+    throw InputError(label + ": .spc validity kind " + std::to_string(kind) +
+                     " is not 0 (all), 1 (horizon) or 2 (coded)");
   }
   const auto counted = std::uint64_t(std::count(c.valid.begin(), c.valid.end(), std::uint8_t(1)));
   if (counted != n_valid)
@@ -422,7 +456,8 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
   t.reconstruction = r.get<double>("reconstruction offset");
   t.specular = r.get<double>("specular factor");
   t.extent = r.get<double>("specular extent");
-  if (t.levels < 1 || t.levels > 5) throw InputError(label + ": .spc has " + std::to_string(t.levels) + " levels; 1 to 5 are valid");
+  if (t.levels < 1 || t.levels > 5)
+    throw InputError(label + ": .spc has " + std::to_string(t.levels) + " levels; 1 to 5 are valid");
   for (const auto& [v, what] : {std::pair{t.step_y, "magnitude step"}, std::pair{t.step_c, "shape step"},
                                 std::pair{t.frequency, "frequency factor"}})
     if (!(std::isfinite(v) && v > 0 && v <= 1e6))
@@ -432,7 +467,8 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
   if (!(std::isfinite(t.extent) && t.extent >= 1 && t.extent <= 90))
     throw InputError(label + ": .spc specular extent " + std::to_string(t.extent) + " is outside [1, 90]");
   if (!(std::isfinite(t.reconstruction) && std::abs(t.reconstruction) < 1))
-    throw InputError(label + ": .spc reconstruction offset " + std::to_string(t.reconstruction) + " is outside (-1, 1)");
+    throw InputError(label + ": .spc reconstruction offset " + std::to_string(t.reconstruction) +
+                     " is outside (-1, 1)");
   const std::size_t cubes = 2 * (std::size_t(k) + 1);
   std::vector<std::span<const std::uint8_t>> streams(cubes);
   for (std::size_t i = 0; i < cubes; ++i) {
@@ -440,13 +476,16 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
     streams[i] = {r.take(n, "stream"), n};
   }
   if (r.at() != bytes.size() - 4)
-    throw InputError(label + ": .spc file has " + std::to_string(bytes.size() - 4 - r.at()) + " unexpected bytes before its CRC");
+    throw InputError(label + ": .spc file has " + std::to_string(bytes.size() - 4 - r.at()) +
+                     " unexpected bytes before its CRC");
   std::vector<std::vector<std::int32_t>> q(cubes, std::vector<std::int32_t>(kCube));
   std::vector<std::uint8_t> ok(cubes, 1);
   const CubeLayout layout = cube_layout(t.levels);
-  parallel_for(cubes, [&](std::size_t i) { ok[i] = decode_cube(streams[i], layout, q[i]); }, 1);
+  parallel_for(
+      cubes, [&](std::size_t i) { ok[i] = decode_cube(streams[i], layout, q[i]); }, 1);
   for (std::size_t i = 0; i < cubes; ++i)
-    if (!ok[i]) throw InputError(label + ": .spc stream " + std::to_string(i) + " ends before its cube; the file is corrupt");
+    if (!ok[i])
+      throw InputError(label + ": .spc stream " + std::to_string(i) + " ends before its cube; the file is corrupt");
   SpcCoefficients v = reconstruct(q, t, k, s, c.valid, label);
   c.values = std::move(v.values);
   return c;
@@ -459,7 +498,6 @@ std::vector<std::uint8_t> encode_transform(const store::Grid& grid, const SpcBas
   check_transform_options(grid, basis, o);
   return code_model(transform_model(grid, basis, o), grid, basis, o, o.step, report, source);
 }
-
 
 SpcCoefficients decode_transform(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only) {
   return decode_v2(bytes, label, header_only);

@@ -69,8 +69,9 @@ std::uint64_t grid_file_bytes(std::size_t bands) {
 void write_grid_file(const std::filesystem::path& path, const store::Grid& grid) {
   const std::size_t b = grid.bands();
   if (b == 0 || b > kGridMaxBands || grid.brdf.size() != b * brdf::kMerlCells)
-    throw UsageError(path.string() + ": a grid needs 1-" + std::to_string(kGridMaxBands) + " bands and bands x 90 x 90 x 180 values (" +
-                     std::to_string(b) + " bands, " + std::to_string(grid.brdf.size()) + " values)");
+    throw UsageError(path.string() + ": a grid needs 1-" + std::to_string(kGridMaxBands) +
+                     " bands and bands x 90 x 90 x 180 values (" + std::to_string(b) + " bands, " +
+                     std::to_string(grid.brdf.size()) + " values)");
   if (!std::isfinite(grid.scale) || grid.scale <= 0)
     throw UsageError(path.string() + ": grid scale " + num(grid.scale) + " must be finite and positive");
   std::string header(kGridMagic, sizeof kGridMagic);
@@ -111,11 +112,13 @@ store::Grid read_grid_file(const std::filesystem::path& path) {
     throw InputError(name + ": truncated spectral grid: " + std::to_string(size) + " bytes, shorter than the " +
                      std::to_string(kHeaderBytes) + "-byte header");
   if (std::memcmp(h, kGridMagic, sizeof kGridMagic) != 0)
-    throw InputError(name + ": not a specula spectral grid (the file does not begin with \"SPECGRID\"; see docs/grid-format.md)");
+    throw InputError(
+        name + ": not a specula spectral grid (the file does not begin with \"SPECGRID\"; see docs/grid-format.md)");
   const auto version = get<std::uint32_t>(h + 8), bands = get<std::uint32_t>(h + 12);
   if (version == 0 || version > kGridFileVersion)
-    throw InputError(name + ": spectral grid version " + std::to_string(version) + " is not one this specula reads (up to " +
-                     std::to_string(kGridFileVersion) + "); upgrade specula");
+    throw InputError(name + ": spectral grid version " + std::to_string(version) +
+                     " is not one this specula reads (up to " + std::to_string(kGridFileVersion) +
+                     "); upgrade specula");
   if (bands == 0 || bands > kGridMaxBands)
     throw InputError(name + ": spectral grid declares " + std::to_string(bands) + " bands; expected 1-" +
                      std::to_string(kGridMaxBands));
@@ -132,9 +135,9 @@ store::Grid read_grid_file(const std::filesystem::path& path) {
     throw InputError(name + ": spectral grid scale is " + num(grid.scale) + "; it must be finite and positive");
   const std::uint64_t expected = grid_file_bytes(bands);
   if (size != expected)
-    throw InputError(name + ": " + (size < expected ? "truncated" : "oversized") + " spectral grid: " +
-                     std::to_string(size) + " bytes, expected " + std::to_string(expected) + " for " +
-                     std::to_string(bands) + " bands");
+    throw InputError(name + ": " + (size < expected ? "truncated" : "oversized") +
+                     " spectral grid: " + std::to_string(size) + " bytes, expected " + std::to_string(expected) +
+                     " for " + std::to_string(bands) + " bands");
   std::vector<double> nm(bands);
   grid.brdf.resize(std::size_t(bands) * brdf::kMerlCells);
   std::uint32_t stored_crc = 0;

@@ -3,8 +3,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 #include <nlohmann/json.hpp>
+#include <numbers>
 
 #include "specula/codec/spc_eval.h"
 #include "specula/core/brdf_geometry.h"
@@ -20,17 +20,11 @@ using std::numbers::pi;
 constexpr double kDeg = pi / 180;
 constexpr double kOffNormalDeg = 60;  // the second view
 // The directional lights: (angle from the normal, azimuth) in degrees; 0 once, the others at two azimuths. Seen
-// head-on, every pixel of a light at angle a has theta_d = a / 2, so a is an odd number of degrees (31, not 30): theta_d
-// then falls on a cell centre of the MERL grid instead of on a boundary, where float rounding would pick the cell.
-constexpr std::array<std::array<double, 2>, 9> kLights{{{0, 0},
-                                                        {31, 0},
-                                                        {31, 90},
-                                                        {61, 0},
-                                                        {61, 90},
-                                                        {81, 0},
-                                                        {81, 90},
-                                                        {105, 0},
-                                                        {105, 90}}};
+// head-on, every pixel of a light at angle a has theta_d = a / 2, so a is an odd number of degrees (31, not 30):
+// theta_d then falls on a cell centre of the MERL grid instead of on a boundary, where float rounding would pick the
+// cell.
+constexpr std::array<std::array<double, 2>, 9> kLights{
+    {{0, 0}, {31, 0}, {31, 90}, {61, 0}, {61, 90}, {81, 0}, {81, 90}, {105, 0}, {105, 90}}};
 constexpr double kExposurePercentile = 0.99;
 
 // Rank ceil(q n) (1-based) of n sorted values.
@@ -52,7 +46,8 @@ void check_grid(const store::Grid& g, const WavelengthGrid& wl, const char* what
   if (!g.wavelengths.approx_equal(wl))
     throw InputError(std::string("the ") + what + " has " + g.wavelengths.describe() + ", the lighting suite " +
                      wl.describe() + "; compare grids on one wavelength grid");
-  if (g.brdf.size() != g.bands() * brdf::kMerlCells) throw UsageError("suite: grid values do not match bands x 90 x 90 x 180");
+  if (g.brdf.size() != g.bands() * brdf::kMerlCells)
+    throw UsageError("suite: grid values do not match bands x 90 x 90 x 180");
 }
 
 }  // namespace
@@ -81,7 +76,8 @@ const Eigen::VectorXd& LightingSuite::illuminant(std::size_t condition) const {
 }
 
 void LightingSuite::setup(const Environment& env, const SuiteOptions& o) {
-  if (o.size < 16 || o.size > 1024) throw UsageError("suite: sphere size " + std::to_string(o.size) + ": give 16 to 1024 pixels");
+  if (o.size < 16 || o.size > 1024)
+    throw UsageError("suite: sphere size " + std::to_string(o.size) + ": give 16 to 1024 pixels");
   wavelengths_ = env.wavelengths;
   size_ = o.size;
   const std::size_t b = wavelengths_.size();
@@ -106,8 +102,8 @@ void LightingSuite::setup(const Environment& env, const SuiteOptions& o) {
                               std::cos(el * kDeg));
       geometry_.push_back({view, false, {}, {}, {}, {}, {}});
       for (const char* ill : {"D65", "A"}) {
-        conditions_.push_back({vname + " " + ill + " " + std::to_string(int(el)) + "/" + std::to_string(int(az)), view, ill,
-                               el, az, d});
+        conditions_.push_back(
+            {vname + " " + ill + " " + std::to_string(int(el)) + "/" + std::to_string(int(az)), view, ill, el, az, d});
         cond_geometry_.push_back(geometry_.size() - 1);
       }
     }
@@ -137,7 +133,8 @@ void LightingSuite::setup(const Environment& env, const SuiteOptions& o) {
       const double x = 2 * (double(pixels_[p] % size_) + 0.5) / double(size_) - 1;
       const double y = 1 - 2 * (double(pixels_[p] / size_) + 0.5) / double(size_);
       const Eigen::Vector3d n(x, y, std::sqrt(1 - x * x - y * y));
-      const Eigen::Vector3d t = (std::abs(n.y()) < 0.9 ? Eigen::Vector3d::UnitY().cross(n) : Eigen::Vector3d::UnitX().cross(n)).normalized();
+      const Eigen::Vector3d t =
+          (std::abs(n.y()) < 0.9 ? Eigen::Vector3d::UnitY().cross(n) : Eigen::Vector3d::UnitX().cross(n)).normalized();
       const Eigen::Vector3d s = n.cross(t);
       for (std::size_t j = 0; j < dirs.size(); ++j) {
         const double c = n.dot(dirs[j]);
@@ -211,8 +208,8 @@ SuiteRenders LightingSuite::render(const store::Grid& grid) const {
         const auto& cs = conds[i / np];
         for (const std::size_t c : cs) {
           if (c == SIZE_MAX) continue;
-          const Eigen::Vector3d xyz =
-              g.environment ? Eigen::Vector3d(to_xyz_ * l) : Eigen::Vector3d((conditions_[c].light == "A" ? w_a : w_d65) * l);
+          const Eigen::Vector3d xyz = g.environment ? Eigen::Vector3d(to_xyz_ * l)
+                                                    : Eigen::Vector3d((conditions_[c].light == "A" ? w_a : w_d65) * l);
           for (std::size_t k = 0; k < 3; ++k) out.xyz[c][3 * p + k] = float(xyz[Eigen::Index(k)]);
         }
       },
@@ -301,7 +298,8 @@ SuiteDiff LightingSuite::compare(const SuiteRenders& ref, const SuiteRenders& te
 }
 
 std::array<double, 4> suite_albedo(const store::Grid& grid) {
-  if (grid.brdf.size() != grid.bands() * brdf::kMerlCells) throw UsageError("albedo: grid values do not match bands x 90 x 90 x 180");
+  if (grid.brdf.size() != grid.bands() * brdf::kMerlCells)
+    throw UsageError("albedo: grid values do not match bands x 90 x 90 x 180");
   constexpr std::size_t kU = 128, kPhi = 180;
   const std::size_t b = grid.bands();
   const Eigen::VectorXd e = illuminant("D65", grid.wavelengths);
@@ -391,23 +389,39 @@ std::string suite_json(const SuiteDiff& d, const LightingSuite& suite) {
   for (std::size_t c = 0; c < d.conditions.size(); ++c) {
     const SuiteCondition& sc = suite.conditions().at(c);
     const ConditionDiff& cd = d.conditions[c];
-    conditions.push_back({{"name", sc.name}, {"view", sc.view == 0 ? "head-on" : "60 deg off the normal"},
-                          {"light", sc.light}, {"elevation_deg", sc.elevation_deg}, {"azimuth_deg", sc.azimuth_deg},
-                          {"de00_mean", cd.de00_mean}, {"de00_p95", cd.de00_p95}, {"de00_max", cd.de00_max},
-                          {"pixels", cd.pixels}, {"hole_pixels", cd.hole_pixels},
+    conditions.push_back({{"name", sc.name},
+                          {"view", sc.view == 0 ? "head-on" : "60 deg off the normal"},
+                          {"light", sc.light},
+                          {"elevation_deg", sc.elevation_deg},
+                          {"azimuth_deg", sc.azimuth_deg},
+                          {"de00_mean", cd.de00_mean},
+                          {"de00_p95", cd.de00_p95},
+                          {"de00_max", cd.de00_max},
+                          {"pixels", cd.pixels},
+                          {"hole_pixels", cd.hole_pixels},
                           {"unseen_pixels", cd.unseen_pixels}});
   }
   json albedo = json::array();
   for (std::size_t i = 0; i < kSuiteAlbedoAngles.size(); ++i)
-    albedo.push_back({{"theta_i_deg", kSuiteAlbedoAngles[i]}, {"reference", d.albedo_a[i]}, {"compared", d.albedo_b[i]},
+    albedo.push_back({{"theta_i_deg", kSuiteAlbedoAngles[i]},
+                      {"reference", d.albedo_a[i]},
+                      {"compared", d.albedo_b[i]},
                       {"relative_error", finite(d.albedo_rel_error[i])}});
   const json j = {{"suite", {{"conditions", d.conditions.size()}, {"size", suite.size()}}},
-                  {"de00_mean", d.de00_mean}, {"de00_p95", d.de00_p95}, {"de00_max", d.de00_max},
-                  {"pixels", d.pixels}, {"hole_pixels", d.hole_pixels}, {"unseen_pixels", d.unseen_pixels},
+                  {"de00_mean", d.de00_mean},
+                  {"de00_p95", d.de00_p95},
+                  {"de00_max", d.de00_max},
+                  {"pixels", d.pixels},
+                  {"hole_pixels", d.hole_pixels},
+                  {"unseen_pixels", d.unseen_pixels},
                   {"worst_condition", d.conditions.empty() ? "" : suite.conditions().at(d.worst).name},
                   {"worst_de00_mean", d.conditions.empty() ? 0.0 : d.conditions[d.worst].de00_mean},
-                  {"cells", d.cells}, {"hole_cells", d.hole_cells}, {"extra_cells", d.extra_cells},
-                  {"rel_rms_cos", finite(d.rel_rms_cos)}, {"albedo", albedo}, {"conditions", conditions}};
+                  {"cells", d.cells},
+                  {"hole_cells", d.hole_cells},
+                  {"extra_cells", d.extra_cells},
+                  {"rel_rms_cos", finite(d.rel_rms_cos)},
+                  {"albedo", albedo},
+                  {"conditions", conditions}};
   return j.dump();
 }
 

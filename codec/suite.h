@@ -19,11 +19,11 @@ namespace specula::codec {
 /// One rendering condition of the suite. Lights and views are given in the world frame, whose +z is the
 /// sample normal (the head-on view); +y is up (the environment's zenith).
 struct SuiteCondition {
-  std::string name;                ///< e.g. "head-on D65 60/90"
-  std::size_t view = 0;            ///< 0: head-on, 1: 60 degrees off the normal
-  std::string light;               ///< "environment", "D65" or "A"
-  double elevation_deg = 0;        ///< directional: angle of the light from the normal (+z); environment: 0
-  double azimuth_deg = 0;          ///< directional: azimuth of the light around +z from +x
+  std::string name;                    ///< e.g. "head-on D65 60/90"
+  std::size_t view = 0;                ///< 0: head-on, 1: 60 degrees off the normal
+  std::string light;                   ///< "environment", "D65" or "A"
+  double elevation_deg = 0;            ///< directional: angle of the light from the normal (+z); environment: 0
+  double azimuth_deg = 0;              ///< directional: azimuth of the light around +z from +x
   Eigen::Vector3d direction{0, 0, 1};  ///< directional: unit vector towards the light, world frame
 };
 
@@ -45,9 +45,9 @@ struct SuiteRenders {
 /// the reference has data for (at least one of their cells).
 struct ConditionDiff {
   double de00_mean = 0, de00_p95 = 0, de00_max = 0;
-  std::size_t pixels = 0;       ///< pixels compared
+  std::size_t pixels = 0;         ///< pixels compared
   std::size_t unseen_pixels = 0;  ///< lit pixels the reference has no data for: black in it, not compared
-  std::size_t hole_pixels = 0;  ///< of them, lit through a cell the reference has and the compared grid lacks
+  std::size_t hole_pixels = 0;    ///< of them, lit through a cell the reference has and the compared grid lacks
   Eigen::Vector3d white = Eigen::Vector3d::Zero();  ///< the exposure's reference white (XYZ)
 };
 
@@ -61,9 +61,9 @@ struct SuiteDiff {
   /// Per condition, ΔE00 per disc pixel (0 where not compared); filled when asked (keep_maps).
   std::vector<std::vector<float>> de00;
   /// Value metrics (suite_value_metrics); filled by suite_diff.
-  std::uint64_t cells = 0;      ///< valid in the reference
-  std::uint64_t hole_cells = 0; ///< valid in the reference, without data in b (render black)
-  std::uint64_t extra_cells = 0;///< with data in b only
+  std::uint64_t cells = 0;        ///< valid in the reference
+  std::uint64_t hole_cells = 0;   ///< valid in the reference, without data in b (render black)
+  std::uint64_t extra_cells = 0;  ///< with data in b only
   double rel_rms_cos = 0;
   std::array<double, 4> albedo_a{}, albedo_b{}, albedo_rel_error{};  ///< at kSuiteAlbedoAngles
 };

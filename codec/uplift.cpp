@@ -17,7 +17,8 @@ namespace specula::codec {
 Uplift::Uplift(const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, double alpha) : alpha_(alpha) {
   const Eigen::Index b = weights.cols();
   if (b < 3) throw UsageError("uplift: needs at least 3 bands, got " + std::to_string(b));
-  if (!std::isfinite(alpha) || alpha < 0) throw UsageError("uplift: alpha is " + num(alpha) + "; it must be finite and >= 0");
+  if (!std::isfinite(alpha) || alpha < 0)
+    throw UsageError("uplift: alpha is " + num(alpha) + "; it must be finite and >= 0");
   if (!weights.allFinite()) throw UsageError("uplift: the RGB weights hold non-finite values");
   system_ = Eigen::MatrixXd::Zero(3 + b - 2, b);
   system_.topRows(3) = weights;
@@ -28,8 +29,8 @@ Uplift::Uplift(const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, double a
   }
   const Eigen::ColPivHouseholderQR<Eigen::MatrixXd> qr(system_);
   if (qr.rank() < b)
-    throw UsageError("uplift: eq A.3 is rank deficient (rank " + std::to_string(qr.rank()) + " of " + std::to_string(b) +
-                     "); use alpha > 0 and RGB weights that are not all linear in wavelength");
+    throw UsageError("uplift: eq A.3 is rank deficient (rank " + std::to_string(qr.rank()) + " of " +
+                     std::to_string(b) + "); use alpha > 0 and RGB weights that are not all linear in wavelength");
   Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(system_.rows(), 3);
   rhs.topRows(3).setIdentity();
   solve_ = qr.solve(rhs);
@@ -40,7 +41,8 @@ Uplift::Uplift(const Eigen::Matrix<double, 3, Eigen::Dynamic>& weights, double a
 
 void Uplift::solve(const Eigen::Vector3d& rgb, Eigen::Ref<Eigen::VectorXd> x) const {
   if (x.size() != system_.cols())
-    throw UsageError("uplift: output has " + std::to_string(x.size()) + " bands, expected " + std::to_string(system_.cols()));
+    throw UsageError("uplift: output has " + std::to_string(x.size()) + " bands, expected " +
+                     std::to_string(system_.cols()));
   x = solve_ * rgb;
 }
 
@@ -113,7 +115,8 @@ store::Grid uplift_merl(const MerlBrdf& rgb, const WavelengthGrid& wavelengths, 
                         UpliftMethod method, UpliftReport* report) {
   const std::size_t b = uplift.bands();
   if (wavelengths.size() != b)
-    throw UsageError("uplift: " + std::to_string(wavelengths.size()) + " wavelengths for " + std::to_string(b) + " bands");
+    throw UsageError("uplift: " + std::to_string(wavelengths.size()) + " wavelengths for " + std::to_string(b) +
+                     " bands");
   store::Grid grid;
   grid.wavelengths = wavelengths;
   grid.scale = 1.0;
@@ -166,14 +169,17 @@ std::size_t uplift_image(std::span<const float> rgb, std::size_t width, std::siz
                        ") has a negative channel; radiance must be non-negative");
   // Per-row counts and caches: which pixels a cache answers depends only on the row, not on the thread.
   std::vector<std::size_t> constrained(height, 0);
-  parallel_for(height, [&] { return Eigen::VectorXd(Eigen::Index(b)); }, [&](std::size_t y, Eigen::VectorXd& x) {
-    UpliftCache cache;
-    for (std::size_t p = y * width; p < (y + 1) * width; ++p) {
-      const Eigen::Vector3d c(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]);
-      constrained[y] += method == UpliftMethod::nonnegative ? uplift.nonnegative(c, x, &cache) : uplift.clamped(c, x);
-      for (std::size_t k = 0; k < b; ++k) out[p * b + k] = float(x[Eigen::Index(k)]);
-    }
-  });
+  parallel_for(
+      height, [&] { return Eigen::VectorXd(Eigen::Index(b)); },
+      [&](std::size_t y, Eigen::VectorXd& x) {
+        UpliftCache cache;
+        for (std::size_t p = y * width; p < (y + 1) * width; ++p) {
+          const Eigen::Vector3d c(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]);
+          constrained[y] +=
+              method == UpliftMethod::nonnegative ? uplift.nonnegative(c, x, &cache) : uplift.clamped(c, x);
+          for (std::size_t k = 0; k < b; ++k) out[p * b + k] = float(x[Eigen::Index(k)]);
+        }
+      });
   std::size_t total = 0;
   for (const std::size_t c : constrained) total += c;
   return total;

@@ -2,8 +2,8 @@
 // RGB -> spectrum (reference Appendix A): the RGB equations A x = c stacked with second differences
 // weighted by alpha (eq A.3) and solved in the least-squares sense, then negative values clamped to 0; and a
 // non-negative variant that solves the same least squares subject to x >= 0 (bounded least squares).
-#include <Eigen/Core>
 #include <Eigen/Cholesky>
+#include <Eigen/Core>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -70,9 +70,9 @@ enum class UpliftMethod { clamp, nonnegative };
 
 /// What an uplift of a whole BRDF did.
 struct UpliftReport {
-  std::size_t cells = 0;          ///< cells with data in all three channels
-  std::size_t constrained = 0;    ///< cells where clamping or a bound changed the solution
-  double max_rgb_error = 0;       ///< max over cells of |A x - rgb|_inf / max(|rgb|_inf, tiny)
+  std::size_t cells = 0;        ///< cells with data in all three channels
+  std::size_t constrained = 0;  ///< cells where clamping or a bound changed the solution
+  double max_rgb_error = 0;     ///< max over cells of |A x - rgb|_inf / max(|rgb|_inf, tiny)
 };
 
 /// Uplifts every cell with data of `rgb` into a grid on `uplift`'s wavelengths (scale 1, units 1/sr); cells

@@ -1,10 +1,10 @@
 #include "specula/core/atomic_file.h"
 
 #include <fcntl.h>
+#include <linux/fs.h>
 #include <sys/ioctl.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#include <linux/fs.h>
 
 #include <array>
 #include <atomic>

@@ -53,7 +53,8 @@ int merl_theta_d_index(double theta_d);
 int merl_phi_d_index(double phi_d);
 /// Linear index phi_d + 180 (theta_d + 90 theta_h) of a cell.
 constexpr std::size_t merl_index(const MerlCell& c) {
-  return std::size_t(c.phi_d) + std::size_t(kMerlPhiD) * (std::size_t(c.theta_d) + std::size_t(kMerlThetaD) * std::size_t(c.theta_h));
+  return std::size_t(c.phi_d) +
+         std::size_t(kMerlPhiD) * (std::size_t(c.theta_d) + std::size_t(kMerlThetaD) * std::size_t(c.theta_h));
 }
 /// The cell holding half/difference angles h (phi_h ignored: isotropy).
 MerlCell merl_cell(const HalfDiff& h);

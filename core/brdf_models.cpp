@@ -65,7 +65,8 @@ double fresnel_dielectric(double theta, double eta) {
   return 0.5 * (a * a + b * b);
 }
 
-Lambertian::Lambertian(WavelengthGrid grid, Eigen::VectorXd rho) : SpectralModel(std::move(grid)), rho_(std::move(rho)) {
+Lambertian::Lambertian(WavelengthGrid grid, Eigen::VectorXd rho)
+    : SpectralModel(std::move(grid)), rho_(std::move(rho)) {
   check(grid_, rho_, "Lambertian", "rho", 0, false, 1);
 }
 
@@ -134,8 +135,8 @@ void evaluate_at(const SpectralModel& model, std::span<const double> angles, std
 void evaluate_grid(const SpectralModel& model, std::span<float> grid) {
   const std::size_t b = model.bands();
   if (grid.size() != b * kMerlCells)
-    throw UsageError("evaluate_grid: the grid holds " + std::to_string(grid.size()) + " values; " +
-                     std::to_string(b) + " bands need " + std::to_string(b * kMerlCells));
+    throw UsageError("evaluate_grid: the grid holds " + std::to_string(grid.size()) + " values; " + std::to_string(b) +
+                     " bands need " + std::to_string(b * kMerlCells));
   std::vector<double> f(b);
   Eigen::Vector3d wi, wo;
   for (std::size_t idx = 0; idx < kMerlCells; ++idx) {

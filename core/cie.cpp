@@ -11,7 +11,6 @@
 namespace specula {
 namespace {
 
-
 // log(exp(a) - 1) for a > 0 without overflow.
 double log_expm1(double a) { return a > 30.0 ? a + std::log1p(-std::exp(-a)) : std::log(std::expm1(a)); }
 
@@ -35,8 +34,7 @@ Eigen::VectorXd illuminant(std::string_view name, const WavelengthGrid& grid) {
 
 Eigen::VectorXd daylight(double cct_kelvin, const WavelengthGrid& grid) {
   if (!(cct_kelvin >= 4000.0 && cct_kelvin <= 25000.0))
-    throw UsageError("daylight CCT " + num(cct_kelvin) +
-                     " K is outside the CIE daylight locus; choose 4000-25000 K");
+    throw UsageError("daylight CCT " + num(cct_kelvin) + " K is outside the CIE daylight locus; choose 4000-25000 K");
   // CIE 15:2004: chromaticity on the daylight locus, then the basis weights M1, M2
   // rounded to three decimals as the CIE prescribes.
   const double t = cct_kelvin;

@@ -29,7 +29,8 @@ CieTable daylight_basis_table();
 Eigen::MatrixX3d cmf(const WavelengthGrid& grid, Observer observer = Observer::cie1931_2deg);
 /// Relative SPD of "D65", "D50", "A" or "E" (equal energy) at `grid`; throws UsageError naming the known names.
 Eigen::VectorXd illuminant(std::string_view name, const WavelengthGrid& grid);
-/// CIE daylight of correlated colour temperature cct (4000-25000 K, else UsageError) from S0 + M1 S1 + M2 S2, 100 at 560 nm.
+/// CIE daylight of correlated colour temperature cct (4000-25000 K, else UsageError) from S0 + M1 S1 + M2 S2, 100 at
+/// 560 nm.
 Eigen::VectorXd daylight(double cct_kelvin, const WavelengthGrid& grid);
 /// Planck's law at temperature kelvin, normalised to 1 at 560 nm.
 Eigen::VectorXd blackbody(double kelvin, const WavelengthGrid& grid);

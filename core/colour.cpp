@@ -14,7 +14,6 @@
 namespace specula {
 namespace {
 
-
 std::string describe_xyz(const Eigen::Vector3d& v) {
   return "(" + num(v[0]) + ", " + num(v[1]) + ", " + num(v[2]) + ")";
 }
@@ -29,9 +28,7 @@ namespace {
 
 Eigen::Matrix3d bradford_matrix() {
   Eigen::Matrix3d m;
-  m << 0.8951, 0.2664, -0.1614,
-      -0.7502, 1.7135, 0.0367,
-       0.0389, -0.0685, 1.0296;
+  m << 0.8951, 0.2664, -0.1614, -0.7502, 1.7135, 0.0367, 0.0389, -0.0685, 1.0296;
   return m;
 }
 
@@ -159,8 +156,10 @@ double ciede2000(const Eigen::Vector3d& lab1, const Eigen::Vector3d& lab2) {
   double dh = 0.0;
   if (cc != 0.0) {
     dh = h2p - h1p;
-    if (dh > 180.0) dh -= 360.0;
-    else if (dh < -180.0) dh += 360.0;
+    if (dh > 180.0)
+      dh -= 360.0;
+    else if (dh < -180.0)
+      dh += 360.0;
   }
   const double dH = 2.0 * std::sqrt(cc) * std::sin(0.5 * dh * deg);
 
@@ -168,9 +167,12 @@ double ciede2000(const Eigen::Vector3d& lab1, const Eigen::Vector3d& lab2) {
   const double cp_bar = 0.5 * (c1p + c2p);
   double h_bar = h1p + h2p;
   if (cc != 0.0) {
-    if (std::abs(h1p - h2p) <= 180.0) h_bar *= 0.5;
-    else if (h_bar < 360.0) h_bar = 0.5 * (h_bar + 360.0);
-    else h_bar = 0.5 * (h_bar - 360.0);
+    if (std::abs(h1p - h2p) <= 180.0)
+      h_bar *= 0.5;
+    else if (h_bar < 360.0)
+      h_bar = 0.5 * (h_bar + 360.0);
+    else
+      h_bar = 0.5 * (h_bar - 360.0);
   }
   const double t = 1.0 - 0.17 * std::cos((h_bar - 30.0) * deg) + 0.24 * std::cos(2.0 * h_bar * deg) +
                    0.32 * std::cos((3.0 * h_bar + 6.0) * deg) - 0.20 * std::cos((4.0 * h_bar - 63.0) * deg);
@@ -226,11 +228,11 @@ void xyz_to_display(const Eigen::Ref<const RowMatrixX3f>& xyz, const Eigen::Vect
                     std::span<std::uint8_t> srgb8_out) {
   const Eigen::Index n = xyz.rows();
   if (linear_out.rows() != 0 && linear_out.rows() != n)
-    throw UsageError("display conversion: linear output has " + std::to_string(linear_out.rows()) +
-                     " rows for " + std::to_string(n) + " colours; size it N x 3 or leave it empty");
+    throw UsageError("display conversion: linear output has " + std::to_string(linear_out.rows()) + " rows for " +
+                     std::to_string(n) + " colours; size it N x 3 or leave it empty");
   if (!srgb8_out.empty() && srgb8_out.size() != std::size_t(3 * n))
-    throw UsageError("display conversion: 8-bit output has " + std::to_string(srgb8_out.size()) +
-                     " bytes for " + std::to_string(n) + " colours; give 3 N bytes or none");
+    throw UsageError("display conversion: 8-bit output has " + std::to_string(srgb8_out.size()) + " bytes for " +
+                     std::to_string(n) + " colours; give 3 N bytes or none");
   if (!std::isfinite(options.exposure_stops))
     throw UsageError("display conversion: exposure " + num(options.exposure_stops) +
                      " stops is not finite; give a finite number of stops");

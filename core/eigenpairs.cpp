@@ -1,8 +1,8 @@
 #include "specula/core/eigenpairs.h"
 
-#include <Eigen/Eigenvalues>
 #include <Spectra/MatOp/DenseSymMatProd.h>
 #include <Spectra/SymEigsSolver.h>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <string>
 

@@ -36,7 +36,8 @@ Eigen::VectorXd read_spd_file(const std::string& path, const WavelengthGrid& gri
     std::replace(line.begin(), line.end(), ';', ',');
     const auto comma = line.find(',');
     double a = 0, b = 0;
-    if (comma == std::string::npos || !parse_double(line.substr(0, comma), a) || !parse_double(line.substr(comma + 1), b)) {
+    if (comma == std::string::npos || !parse_double(line.substr(0, comma), a) ||
+        !parse_double(line.substr(comma + 1), b)) {
       if (nm.empty()) continue;  // header
       throw InputError(path + ":" + std::to_string(lineno) + ": expected 'wavelength_nm,value'");
     }

@@ -1,8 +1,8 @@
 #include "specula/core/interrupt.h"
 
+#include <unistd.h>
 #include <atomic>
 #include <csignal>
-#include <unistd.h>
 
 #include "specula/core/atomic_file.h"
 #include "specula/core/error.h"

@@ -54,8 +54,8 @@ bool try_hint_k(std::size_t k, const double* q, const double* h, std::uint64_t m
 
 GramNnls::GramNnls(const Eigen::Ref<const Eigen::MatrixXd>& gram) : k_(std::size_t(gram.rows())), gram_(gram) {
   if (gram.rows() != gram.cols() || k_ < 1)
-    throw UsageError("GramNnls: the Gram matrix must be square with at least one row, got " + std::to_string(gram.rows()) +
-                     " x " + std::to_string(gram.cols()));
+    throw UsageError("GramNnls: the Gram matrix must be square with at least one row, got " +
+                     std::to_string(gram.rows()) + " x " + std::to_string(gram.cols()));
   if (!gram_.allFinite()) throw UsageError("GramNnls: the Gram matrix has non-finite entries");
   gram_ = 0.5 * (gram_ + gram_.transpose()).eval();
   const double ridge = 1e-12 * std::max(gram_.trace(), std::numeric_limits<double>::min());

@@ -13,8 +13,8 @@ namespace specula {
 
 /// Outcome of one NNLS solve.
 struct NnlsStatus {
-  int iterations = 0;      ///< passive-set changes
-  bool converged = true;   ///< false if the iteration cap was reached (c is then feasible but not optimal)
+  int iterations = 0;     ///< passive-set changes
+  bool converged = true;  ///< false if the iteration cap was reached (c is then feasible but not optimal)
 };
 
 /// An NNLS solver for one Gram matrix G (k x k), reused for many right-hand sides. For k <= 10 the inverses

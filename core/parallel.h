@@ -17,7 +17,7 @@ namespace specula {
 /// rethrows the first exception (or Interrupted) here. Results that must not depend on the thread count belong in
 /// per-index slots merged in index order by the caller.
 template <class MakeState, class Body>
-  requires std::invocable<MakeState&>
+requires std::invocable<MakeState&>
 void parallel_for(std::size_t n, MakeState&& make_state, Body&& body, std::size_t grain = 1) {
   if (grain == 0) grain = 1;
   const long long chunks = static_cast<long long>((n + grain - 1) / grain);
@@ -47,7 +47,8 @@ void parallel_for(std::size_t n, MakeState&& make_state, Body&& body, std::size_
 /// As above for loops that need no per-thread state: body(i).
 template <class Body>
 void parallel_for(std::size_t n, Body&& body, std::size_t grain = 1) {
-  parallel_for(n, [] { return 0; }, [&](std::size_t i, int&) { body(i); }, grain);
+  parallel_for(
+      n, [] { return 0; }, [&](std::size_t i, int&) { body(i); }, grain);
 }
 
 }  // namespace specula

@@ -69,7 +69,8 @@ void paint_masked(std::span<std::uint8_t> srgb8, std::span<const std::uint8_t> m
 }
 
 Picture render_xyz(const Eigen::Ref<const RowMatrixX3f>& xyz, const Eigen::Vector3d& white, std::size_t width,
-                   std::size_t height, std::span<const std::uint8_t> mask, SpectrumKind kind, const PreviewSettings& settings) {
+                   std::size_t height, std::span<const std::uint8_t> mask, SpectrumKind kind,
+                   const PreviewSettings& settings) {
   if (std::size_t(xyz.rows()) != width * height)
     throw UsageError("render: " + std::to_string(xyz.rows()) + " colours for a " + std::to_string(width) + " x " +
                      std::to_string(height) + " picture; give one per pixel");
@@ -98,17 +99,20 @@ Picture render_preview(const Eigen::Ref<const RowMatrixXf>& spectra, std::size_t
 }
 
 Rgb8 heat(double t) {
-  static const double stops[6][3] = {{0, 0, 0}, {30, 30, 140}, {150, 40, 150}, {240, 100, 40}, {250, 220, 60}, {255, 255, 255}};
+  static const double stops[6][3] = {{0, 0, 0},      {30, 30, 140},  {150, 40, 150},
+                                     {240, 100, 40}, {250, 220, 60}, {255, 255, 255}};
   t = std::clamp(std::isfinite(t) ? t : 0.0, 0.0, 1.0) * 5.0;
   const int i = std::min(4, int(t));
   const double f = t - i;
   Rgb8 c{};
-  for (int k = 0; k < 3; ++k) c[std::size_t(k)] = std::uint8_t(std::lround(stops[i][k] * (1 - f) + stops[i + 1][k] * f));
+  for (int k = 0; k < 3; ++k)
+    c[std::size_t(k)] = std::uint8_t(std::lround(stops[i][k] * (1 - f) + stops[i + 1][k] * f));
   return c;
 }
 
 Eigen::Matrix3d rendering_to_linear_srgb(const Eigen::Vector3d& white) {
-  if (!(white.y() > 0)) throw UsageError("rendering white has luminance " + std::to_string(white.y()) + "; it must be positive");
+  if (!(white.y() > 0))
+    throw UsageError("rendering white has luminance " + std::to_string(white.y()) + "; it must be positive");
   return xyz_to_linear_srgb() * bradford_adaptation(white / white.y(), d65_white()) / white.y();
 }
 

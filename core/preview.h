@@ -47,14 +47,16 @@ double quantile(std::vector<float>& values, double q);
 double auto_exposure_stops(const Eigen::Ref<const RowMatrixX3f>& xyz, std::span<const std::uint8_t> mask,
                            SpectrumKind kind);
 
-/// XYZ of spectra (N x B rows on `grid`) as `kind` says, under `illuminant` for reflectance; white gets the scene white.
+/// XYZ of spectra (N x B rows on `grid`) as `kind` says, under `illuminant` for reflectance; white gets the scene
+/// white.
 RowMatrixX3f spectra_to_xyz(const Eigen::Ref<const RowMatrixXf>& spectra, const WavelengthGrid& grid, SpectrumKind kind,
                             const Eigen::VectorXd& illuminant, Eigen::Vector3d& white);
 
 /// Draws width x height pixels of XYZ (rows, row-major image order) relative to scene white `white`: the settings'
 /// exposure (automatic when unset), tone and gamut mapping, masked pixels in kMaskColour.
 Picture render_xyz(const Eigen::Ref<const RowMatrixX3f>& xyz, const Eigen::Vector3d& white, std::size_t width,
-                   std::size_t height, std::span<const std::uint8_t> mask, SpectrumKind kind, const PreviewSettings& settings);
+                   std::size_t height, std::span<const std::uint8_t> mask, SpectrumKind kind,
+                   const PreviewSettings& settings);
 /// Renders a width x height image of spectra (one row per pixel, row-major) on `grid`: XYZ, then render_xyz.
 Picture render_preview(const Eigen::Ref<const RowMatrixXf>& spectra, std::size_t width, std::size_t height,
                        const WavelengthGrid& grid, SpectrumKind kind, std::span<const std::uint8_t> mask,

@@ -1,20 +1,23 @@
 #include "specula/core/progress.h"
 
-#include <cstdio>
 #include <unistd.h>
+#include <cstdio>
 
 namespace specula {
 namespace {
 std::atomic<bool> g_quiet{false};
 std::atomic<bool> g_drawing{false};  // one bar on the terminal at a time
-}
+}  // namespace
 
 void set_progress_quiet(bool quiet) noexcept { g_quiet = quiet; }
 bool progress_enabled() noexcept { return !g_quiet && ::isatty(STDERR_FILENO) == 1; }
 
 Progress::Progress(std::string label, std::uint64_t total)
-    : label_(std::move(label)), total_(total), start_(std::chrono::steady_clock::now()),
-      last_draw_(start_), enabled_(false) {
+    : label_(std::move(label)),
+      total_(total),
+      start_(std::chrono::steady_clock::now()),
+      last_draw_(start_),
+      enabled_(false) {
   bool idle = false;
   enabled_ = progress_enabled() && g_drawing.compare_exchange_strong(idle, true);
 }

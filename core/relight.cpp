@@ -28,7 +28,8 @@ Relighting relight(const Eigen::Ref<const RowMatrixXf>& spectra, const Wavelengt
   const auto valid = [&](Eigen::Index i) { return mask.empty() || mask[std::size_t(i)] != 0; };
 
   // Reflectance f: the data itself, or the radiance with the old light divided out (eq 4.9).
-  RowMatrixXf f = reflectance ? RowMatrixXf(spectra) : RowMatrixXf(spectra.array().rowwise() / from.transpose().cast<float>().array());
+  RowMatrixXf f = reflectance ? RowMatrixXf(spectra)
+                              : RowMatrixXf(spectra.array().rowwise() / from.transpose().cast<float>().array());
   const SpectrumToXyz under_from(grid, SpectrumKind::reflectance, from);
   const SpectrumToXyz under_to(grid, SpectrumKind::reflectance, to);
   Relighting r;

@@ -13,9 +13,9 @@ namespace specula {
 
 /// Both relightings of one image, as XYZ rows (one per pixel) with their scene whites, and their difference.
 struct Relighting {
-  RowMatrixX3f original;   ///< under the old light (radiance: scaled so its 99th-percentile Y is 1)
-  RowMatrixX3f spectral;   ///< eq 4.9 under the new light
-  RowMatrixX3f rgb;        ///< eq 4.10 under the new light
+  RowMatrixX3f original;  ///< under the old light (radiance: scaled so its 99th-percentile Y is 1)
+  RowMatrixX3f spectral;  ///< eq 4.9 under the new light
+  RowMatrixX3f rgb;       ///< eq 4.10 under the new light
   Eigen::Vector3d white_from, white_to;
   std::vector<double> ciede2000;  ///< per pixel between spectral and rgb (0 where masked)
   std::size_t pixels = 0;         ///< valid pixels

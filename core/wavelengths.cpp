@@ -12,7 +12,6 @@
 namespace specula {
 namespace {
 
-
 double parse_number(std::string_view text, std::string_view spec) {
   while (!text.empty() && text.front() == ' ') text.remove_prefix(1);
   while (!text.empty() && text.back() == ' ') text.remove_suffix(1);
@@ -32,8 +31,8 @@ WavelengthGrid::WavelengthGrid(std::vector<double> nm, std::string_view context)
       throw InputError(std::string(context) + ": wavelength " + std::to_string(i) + " is " + num(nm_[i]) +
                        "; wavelengths must be finite and positive (nm)");
     if (i > 0 && !(nm_[i] > nm_[i - 1]))
-      throw InputError(std::string(context) + ": wavelengths are not increasing (" + num(nm_[i - 1]) +
-                       " nm then " + num(nm_[i]) + " nm at index " + std::to_string(i) + ")");
+      throw InputError(std::string(context) + ": wavelengths are not increasing (" + num(nm_[i - 1]) + " nm then " +
+                       num(nm_[i]) + " nm at index " + std::to_string(i) + ")");
   }
 }
 
@@ -61,8 +60,9 @@ WavelengthGrid WavelengthGrid::range(double first, double last, double step) {
     throw UsageError("wavelength range " + num(first) + ":" + num(last) + ":" + num(step) +
                      " is invalid; need 0 < FIRST <= LAST and STEP > 0");
   const double count = std::floor((last - first) / step + 1e-3) + 1;
-  if (count > 1e6) throw UsageError("wavelength range " + num(first) + ":" + num(last) + ":" + num(step) +
-                                    " has more than a million bands");
+  if (count > 1e6)
+    throw UsageError("wavelength range " + num(first) + ":" + num(last) + ":" + num(step) +
+                     " has more than a million bands");
   std::vector<double> nm;
   for (std::size_t i = 0; i < static_cast<std::size_t>(count); ++i) nm.push_back(first + step * double(i));
   return WavelengthGrid(std::move(nm));

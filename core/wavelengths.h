@@ -14,7 +14,8 @@ namespace specula {
 class WavelengthGrid {
  public:
   WavelengthGrid() = default;
-  /// Takes wavelengths in nm; throws InputError (prefixed by `context`) unless finite, positive and strictly increasing.
+  /// Takes wavelengths in nm; throws InputError (prefixed by `context`) unless finite, positive and strictly
+  /// increasing.
   explicit WavelengthGrid(std::vector<double> nm, std::string_view context = "wavelengths");
   /// Grid first, first+step, ... up to last inclusive (within step/1000); throws UsageError on a bad range.
   static WavelengthGrid range(double first, double last, double step);
@@ -40,9 +41,9 @@ class WavelengthGrid {
   std::vector<double> nm_;
 };
 
-/// `bands` (indices into `nm`) in ascending order of their wavelengths: a list given unsorted is kept exactly, permuted,
-/// never resampled. For a wavelength listed twice calls `repeated(first, second)` (indices, first < second), which
-/// throws the caller's InputError naming the file; LibraryError if it returns.
+/// `bands` (indices into `nm`) in ascending order of their wavelengths: a list given unsorted is kept exactly,
+/// permuted, never resampled. For a wavelength listed twice calls `repeated(first, second)` (indices, first < second),
+/// which throws the caller's InputError naming the file; LibraryError if it returns.
 std::vector<std::size_t> ascending_band_order(std::span<const double> nm, std::vector<std::size_t> bands,
                                               const std::function<void(std::size_t, std::size_t)>& repeated);
 /// ascending_band_order of every band 0..nm.size()-1.
@@ -55,8 +56,7 @@ Eigen::MatrixXd resample_matrix(const WavelengthGrid& from, const WavelengthGrid
                                 std::string_view context = "resampling");
 
 /// Samples the piecewise-linear function (x, y) at `grid`; zero outside [x.front(), x.back()] (for CMFs and SPDs).
-Eigen::VectorXd sample_tabulated(std::span<const double> x, std::span<const double> y,
-                                 const WavelengthGrid& grid);
+Eigen::VectorXd sample_tabulated(std::span<const double> x, std::span<const double> y, const WavelengthGrid& grid);
 
 /// Trapezoid-rule quadrature weights for integrating a function sampled on `grid`.
 Eigen::VectorXd trapezoid_weights(const WavelengthGrid& grid);

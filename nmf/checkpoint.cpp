@@ -58,7 +58,8 @@ Checkpoint load_checkpoint(const std::filesystem::path& path) {
     throw InputError(ctx + ": not an HDF5 file (a truncated or foreign checkpoint; delete it and start afresh)");
   const hid_t opened = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (opened < 0)
-    throw InputError(ctx + ": cannot open the checkpoint (" + h5::last_error() + "); it is truncated or damaged: delete it and start afresh");
+    throw InputError(ctx + ": cannot open the checkpoint (" + h5::last_error() +
+                     "); it is truncated or damaged: delete it and start afresh");
   h5::Id file(opened);
   if (!h5::has_attr(file, "specula_format") || h5::read_string_attr(file, "specula_format", ctx) != "nmf-checkpoint")
     throw InputError(ctx + ": not a specula NMF checkpoint");
@@ -89,8 +90,8 @@ Checkpoint load_checkpoint(const std::filesystem::path& path) {
       !c.wave_ctc.allFinite() || !c.wave_ctx.allFinite())
     throw InputError(ctx + ": checkpoint wave statistics are malformed; delete it and start afresh");
   if (c.history.size() != c.epoch || finished != c.restart)
-    throw InputError(ctx + ": checkpoint is inconsistent (history of " + std::to_string(c.history.size()) + " epochs for " +
-                     std::to_string(c.epoch) + "); delete it and start afresh");
+    throw InputError(ctx + ": checkpoint is inconsistent (history of " + std::to_string(c.history.size()) +
+                     " epochs for " + std::to_string(c.epoch) + "); delete it and start afresh");
   for (std::size_t r = 0; r < finished; ++r) {
     const std::string p = "restart" + std::to_string(r);
     c.done_bases.push_back(h5::read_matrix(file, p + "_basis", ctx));

@@ -13,12 +13,12 @@ namespace specula::nmf {
 struct Checkpoint {
   std::string fingerprint;  ///< options and data identity; a resumed run must match it
   std::uint64_t n = 0, negatives = 0, values = 0;
-  Eigen::MatrixXd gram;  ///< X^T X (B x B) from the first pass
-  std::size_t restart = 0, epoch = 0;  ///< the restart in progress and its finished epochs
-  Eigen::MatrixXd basis;               ///< that restart's current basis (k x B)
-  std::vector<double> history;         ///< its errors so far
-  Eigen::MatrixXd wave_ctc, wave_ctx;  ///< per wave (rows): C^T C and C^T X of its latest coefficients, flattened
-  std::vector<double> wave_xx;         ///< per wave: ||X||^2
+  Eigen::MatrixXd gram;                     ///< X^T X (B x B) from the first pass
+  std::size_t restart = 0, epoch = 0;       ///< the restart in progress and its finished epochs
+  Eigen::MatrixXd basis;                    ///< that restart's current basis (k x B)
+  std::vector<double> history;              ///< its errors so far
+  Eigen::MatrixXd wave_ctc, wave_ctx;       ///< per wave (rows): C^T C and C^T X of its latest coefficients, flattened
+  std::vector<double> wave_xx;              ///< per wave: ||X||^2
   std::vector<Eigen::MatrixXd> done_bases;  ///< finished restarts
   std::vector<std::vector<double>> done_histories;
   std::vector<int> done_converged;

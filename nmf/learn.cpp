@@ -30,9 +30,9 @@ LearnedBasis learn_basis(const std::vector<store::Store>& stores, const store::S
   basis.second_moment = r.second_moment;
   basis.source = store::selection_source(reader, selection);
   basis.provenance.source_file = store::source_files(stores);
-  basis.provenance.importer = fmt::format("nmf k={} init={} seed={} restarts={} rel_error={:.9g} svd_bound={:.9g}",
-                                          options.k, init_name(options.init), options.seed, options.restarts,
-                                          r.rel_error, r.svd_bound);
+  basis.provenance.importer =
+      fmt::format("nmf k={} init={} seed={} restarts={} rel_error={:.9g} svd_bound={:.9g}", options.k,
+                  init_name(options.init), options.seed, options.restarts, r.rel_error, r.svd_bound);
   return out;
 }
 

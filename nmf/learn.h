@@ -27,7 +27,8 @@ std::string default_basis_name(std::size_t k);
 std::filesystem::path default_checkpoint(const std::filesystem::path& output, const std::string& name);
 
 /// Factors every valid spectrum of `selection` in `stores` (read as one database) by factorize() and returns the best
-/// basis with its source, the stores' paths and the settings and errors of the run as provenance. Throws as factorize().
+/// basis with its source, the stores' paths and the settings and errors of the run as provenance. Throws as
+/// factorize().
 LearnedBasis learn_basis(const std::vector<store::Store>& stores, const store::Selection& selection,
                          const NmfOptions& options, const Collective& ranks = single_process());
 

@@ -11,12 +11,12 @@
 #include <random>
 #include <sstream>
 
-#include "specula/core/parallel.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/nnls.h"
+#include "specula/core/parallel.h"
 #include "specula/core/progress.h"
 #include "specula/nmf/checkpoint.h"
-#include "specula/core/nnls.h"
 
 namespace specula::nmf {
 namespace {
@@ -53,12 +53,14 @@ Stats reduce_range(const Collective& ranks, const BlockReader& reader, const Sta
   first += share.first * stride;
   const std::size_t n = share.last - share.first;
   std::vector<Stats> part(n, zero);
-  parallel_for(n, [] { return BlockReader::RawBlock(); }, [&](std::size_t j, BlockReader::RawBlock& raw) {
-    const std::size_t block = first + j * stride;
-    reader.read_raw(block, raw);
-    fn(block, raw, part[j]);
-    progress.advance(raw.valid);
-  });
+  parallel_for(
+      n, [] { return BlockReader::RawBlock(); },
+      [&](std::size_t j, BlockReader::RawBlock& raw) {
+        const std::size_t block = first + j * stride;
+        reader.read_raw(block, raw);
+        fn(block, raw, part[j]);
+        progress.advance(raw.valid);
+      });
   Stats total = zero;
   for (const auto& p : part) total += p;
   sum_over_ranks(ranks, total);
@@ -72,7 +74,8 @@ Stats reduce_all(const Collective& ranks, const BlockReader& reader, const Stats
   Stats total = zero;
   const Share share = share_of(ranks, reader.block_count());
   for (std::size_t first = share.first; first < share.last; first += kRangeBlocks)
-    total += reduce_range(single_process(), reader, zero, first, std::min(share.last, first + kRangeBlocks), progress, fn);
+    total +=
+        reduce_range(single_process(), reader, zero, first, std::min(share.last, first + kRangeBlocks), progress, fn);
   sum_over_ranks(ranks, total);
   return total;
 }
@@ -96,7 +99,8 @@ inline void clip_spectrum(const float* x, std::size_t b, double* t, unsigned& ba
     const __m256 v = _mm256_loadu_ps(x + k);
     const __m256 finite = _mm256_cmp_ps(_mm256_sub_ps(v, v), zero, _CMP_EQ_OQ);  // false for NaN and +-Inf
     const __m256 negative = _mm256_cmp_ps(v, zero, _CMP_LT_OQ);
-    nbad = _mm256_sub_epi32(nbad, _mm256_castps_si256(_mm256_xor_ps(finite, _mm256_castsi256_ps(_mm256_set1_epi32(-1)))));
+    nbad =
+        _mm256_sub_epi32(nbad, _mm256_castps_si256(_mm256_xor_ps(finite, _mm256_castsi256_ps(_mm256_set1_epi32(-1)))));
     nneg = _mm256_sub_epi32(nneg, _mm256_castps_si256(negative));
     const __m256 c = _mm256_max_ps(v, zero);
     const __m256d lo = _mm256_cvtps_pd(_mm256_castps256_ps128(c)), hi = _mm256_cvtps_pd(_mm256_extractf128_ps(c, 1));
@@ -171,19 +175,27 @@ void times_basis(const double* x, std::size_t n, std::size_t ld, const double* s
     for (std::size_t b = 0; b < ld; ++b) {
       const __m256d s0 = _mm256_loadu_pd(st + b * kPad), s1 = _mm256_loadu_pd(st + b * kPad + 4);
       __m256d v = _mm256_broadcast_sd(x0 + b);
-      a00 = _mm256_fmadd_pd(v, s0, a00); a01 = _mm256_fmadd_pd(v, s1, a01);
+      a00 = _mm256_fmadd_pd(v, s0, a00);
+      a01 = _mm256_fmadd_pd(v, s1, a01);
       v = _mm256_broadcast_sd(x0 + ld + b);
-      a10 = _mm256_fmadd_pd(v, s0, a10); a11 = _mm256_fmadd_pd(v, s1, a11);
+      a10 = _mm256_fmadd_pd(v, s0, a10);
+      a11 = _mm256_fmadd_pd(v, s1, a11);
       v = _mm256_broadcast_sd(x0 + 2 * ld + b);
-      a20 = _mm256_fmadd_pd(v, s0, a20); a21 = _mm256_fmadd_pd(v, s1, a21);
+      a20 = _mm256_fmadd_pd(v, s0, a20);
+      a21 = _mm256_fmadd_pd(v, s1, a21);
       v = _mm256_broadcast_sd(x0 + 3 * ld + b);
-      a30 = _mm256_fmadd_pd(v, s0, a30); a31 = _mm256_fmadd_pd(v, s1, a31);
+      a30 = _mm256_fmadd_pd(v, s0, a30);
+      a31 = _mm256_fmadd_pd(v, s1, a31);
     }
     double* o = h + r * kPad;
-    _mm256_storeu_pd(o, a00); _mm256_storeu_pd(o + 4, a01);
-    _mm256_storeu_pd(o + 8, a10); _mm256_storeu_pd(o + 12, a11);
-    _mm256_storeu_pd(o + 16, a20); _mm256_storeu_pd(o + 20, a21);
-    _mm256_storeu_pd(o + 24, a30); _mm256_storeu_pd(o + 28, a31);
+    _mm256_storeu_pd(o, a00);
+    _mm256_storeu_pd(o + 4, a01);
+    _mm256_storeu_pd(o + 8, a10);
+    _mm256_storeu_pd(o + 12, a11);
+    _mm256_storeu_pd(o + 16, a20);
+    _mm256_storeu_pd(o + 20, a21);
+    _mm256_storeu_pd(o + 24, a30);
+    _mm256_storeu_pd(o + 28, a31);
   }
 #endif
   for (; r < n; ++r) {
@@ -204,13 +216,17 @@ void outer_accumulate(const double* a, std::size_t lda, std::size_t rows, const 
       const double* at = a + t * lda + i0;
       const __m256d c0 = _mm256_loadu_pd(ct), c1 = _mm256_loadu_pd(ct + 4);
       __m256d v = _mm256_broadcast_sd(at);
-      a00 = _mm256_fmadd_pd(v, c0, a00); a01 = _mm256_fmadd_pd(v, c1, a01);
+      a00 = _mm256_fmadd_pd(v, c0, a00);
+      a01 = _mm256_fmadd_pd(v, c1, a01);
       v = _mm256_broadcast_sd(at + 1);
-      a10 = _mm256_fmadd_pd(v, c0, a10); a11 = _mm256_fmadd_pd(v, c1, a11);
+      a10 = _mm256_fmadd_pd(v, c0, a10);
+      a11 = _mm256_fmadd_pd(v, c1, a11);
       v = _mm256_broadcast_sd(at + 2);
-      a20 = _mm256_fmadd_pd(v, c0, a20); a21 = _mm256_fmadd_pd(v, c1, a21);
+      a20 = _mm256_fmadd_pd(v, c0, a20);
+      a21 = _mm256_fmadd_pd(v, c1, a21);
       v = _mm256_broadcast_sd(at + 3);
-      a30 = _mm256_fmadd_pd(v, c0, a30); a31 = _mm256_fmadd_pd(v, c1, a31);
+      a30 = _mm256_fmadd_pd(v, c0, a30);
+      a31 = _mm256_fmadd_pd(v, c1, a31);
     }
     double* o = out + i0 * kPad;
     const __m256d acc[8] = {a00, a01, a10, a11, a20, a21, a30, a31};
@@ -277,20 +293,22 @@ struct EpochStats {
 GramStats gram_pass(const Collective& ranks, const BlockReader& reader, Negatives policy) {
   const auto b = Eigen::Index(reader.bands());
   GramStats zero{Eigen::MatrixXd::Zero(b, b)};
-  GramStats s = reduce_blocks(ranks, reader, zero, "nmf: X^T X", [&](std::size_t i, const BlockReader::RawBlock& raw, GramStats& out) {
-    thread_local RowMatrixXd tile;
-    out.negatives += for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
-      out.gram.selfadjointView<Eigen::Lower>().rankUpdate(t.transpose());
-      out.n += std::uint64_t(t.rows());
-    });
-  });
+  GramStats s = reduce_blocks(ranks, reader, zero, "nmf: X^T X",
+                              [&](std::size_t i, const BlockReader::RawBlock& raw, GramStats& out) {
+                                thread_local RowMatrixXd tile;
+                                out.negatives += for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
+                                  out.gram.selfadjointView<Eigen::Lower>().rankUpdate(t.transpose());
+                                  out.n += std::uint64_t(t.rows());
+                                });
+                              });
   s.gram.triangularView<Eigen::StrictlyUpper>() = s.gram.transpose();
   return s;
 }
 
 // Coefficients of the spectra of blocks [first, last) for `basis` (exact NNLS) and their statistics.
-EpochStats coefficient_pass(const Collective& ranks, const BlockReader& reader, const Eigen::MatrixXd& basis, Negatives policy, std::size_t first,
-                            std::size_t last, Progress& progress, std::size_t stride = 1) {
+EpochStats coefficient_pass(const Collective& ranks, const BlockReader& reader, const Eigen::MatrixXd& basis,
+                            Negatives policy, std::size_t first, std::size_t last, Progress& progress,
+                            std::size_t stride = 1) {
   const Eigen::Index k = basis.rows(), b = basis.cols();
   const GramNnls solver(basis * basis.transpose());
   const EpochStats zero{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
@@ -298,46 +316,59 @@ EpochStats coefficient_pass(const Collective& ranks, const BlockReader& reader, 
     // Fast path: coefficients padded to 8, tile rows to a multiple of 4; per-block sums in padded form.
     const std::size_t ld = (std::size_t(b) + 3) / 4 * 4;
     Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> st =
-        Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>::Zero(Eigen::Index(ld), Eigen::Index(kPad));
+        Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>::Zero(Eigen::Index(ld),
+                                                                                     Eigen::Index(kPad));
     st.topLeftCorner(b, k) = basis.transpose();
-    return reduce_range(ranks, reader, zero, first, last, progress, [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
-      thread_local RowMatrixXd tile;
-      thread_local std::vector<double> h, c, ctx, ctc;
-      h.assign(kTile * kPad, 0.0);
-      c.assign(kTile * kPad, 0.0);  // entries beyond k stay zero
-      ctx.assign(ld * kPad, 0.0);
-      ctc.assign(kPad * kPad, 0.0);
-      std::uint64_t hint = 0;  // neighbouring spectra usually share their passive set
-      for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
-        const std::size_t n = std::size_t(t.rows());
-        times_basis(t.data(), n, ld, st.data(), h.data());
-        for (std::size_t r = 0; r < n; ++r) {
-          const NnlsStatus s = solver.solve(h.data() + r * kPad, c.data() + r * kPad, hint);
-          out.unconverged += !s.converged;
-        }
-        outer_accumulate(t.data(), ld, ld, c.data(), n, ctx.data());
-        outer_accumulate(c.data(), kPad, kPad, c.data(), n, ctc.data());
-      }, ld, &out.xx);
-      for (Eigen::Index p = 0; p < k; ++p) {
-        for (Eigen::Index q = 0; q < k; ++q) out.ctc(p, q) += ctc[std::size_t(p) * kPad + std::size_t(q)];
-        for (Eigen::Index j = 0; j < b; ++j) out.ctx(p, j) += ctx[std::size_t(j) * kPad + std::size_t(p)];
-      }
-    }, stride);
+    return reduce_range(
+        ranks, reader, zero, first, last, progress,
+        [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
+          thread_local RowMatrixXd tile;
+          thread_local std::vector<double> h, c, ctx, ctc;
+          h.assign(kTile * kPad, 0.0);
+          c.assign(kTile * kPad, 0.0);  // entries beyond k stay zero
+          ctx.assign(ld * kPad, 0.0);
+          ctc.assign(kPad * kPad, 0.0);
+          std::uint64_t hint = 0;  // neighbouring spectra usually share their passive set
+          for_each_tile(
+              reader, i, raw, policy, tile,
+              [&](const auto& t) {
+                const std::size_t n = std::size_t(t.rows());
+                times_basis(t.data(), n, ld, st.data(), h.data());
+                for (std::size_t r = 0; r < n; ++r) {
+                  const NnlsStatus s = solver.solve(h.data() + r * kPad, c.data() + r * kPad, hint);
+                  out.unconverged += !s.converged;
+                }
+                outer_accumulate(t.data(), ld, ld, c.data(), n, ctx.data());
+                outer_accumulate(c.data(), kPad, kPad, c.data(), n, ctc.data());
+              },
+              ld, &out.xx);
+          for (Eigen::Index p = 0; p < k; ++p) {
+            for (Eigen::Index q = 0; q < k; ++q) out.ctc(p, q) += ctc[std::size_t(p) * kPad + std::size_t(q)];
+            for (Eigen::Index j = 0; j < b; ++j) out.ctx(p, j) += ctx[std::size_t(j) * kPad + std::size_t(p)];
+          }
+        },
+        stride);
   }
-  return reduce_range(ranks, reader, zero, first, last, progress, [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
-    thread_local RowMatrixXd tile, h, c;
-    std::uint64_t hint = 0;
-    for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
-      h.noalias() = t * basis.transpose();
-      c.resize(t.rows(), k);
-      for (Eigen::Index r = 0; r < t.rows(); ++r) {
-        const NnlsStatus st = solver.solve(h.data() + r * k, c.data() + r * k, hint);
-        out.unconverged += !st.converged;
-      }
-      out.ctc.noalias() += c.transpose() * c;
-      out.ctx.noalias() += c.transpose() * t;
-    }, 0, &out.xx);
-  }, stride);
+  return reduce_range(
+      ranks, reader, zero, first, last, progress,
+      [&](std::size_t i, const BlockReader::RawBlock& raw, EpochStats& out) {
+        thread_local RowMatrixXd tile, h, c;
+        std::uint64_t hint = 0;
+        for_each_tile(
+            reader, i, raw, policy, tile,
+            [&](const auto& t) {
+              h.noalias() = t * basis.transpose();
+              c.resize(t.rows(), k);
+              for (Eigen::Index r = 0; r < t.rows(); ++r) {
+                const NnlsStatus st = solver.solve(h.data() + r * k, c.data() + r * k, hint);
+                out.unconverged += !st.converged;
+              }
+              out.ctc.noalias() += c.transpose() * c;
+              out.ctx.noalias() += c.transpose() * t;
+            },
+            0, &out.xx);
+      },
+      stride);
 }
 
 // The exact S step: min_{S >= 0} ||X - C S||^2 given C^T C and C^T X, one NNLS per band.
@@ -355,8 +386,8 @@ Eigen::MatrixXd solve_basis(const EpochStats& s) {
 }
 
 double certified_error(const EpochStats& s, const Eigen::MatrixXd& basis) {
-  const double err2 = s.xx - 2 * (s.ctx.array() * basis.array()).sum() +
-                      (s.ctc.array() * (basis * basis.transpose()).array()).sum();
+  const double err2 =
+      s.xx - 2 * (s.ctx.array() * basis.array()).sum() + (s.ctc.array() * (basis * basis.transpose()).array()).sum();
   return s.xx > 0 ? std::sqrt(std::max(0.0, err2) / s.xx) : 0.0;
 }
 
@@ -401,21 +432,22 @@ Eigen::MatrixXd random_init(Eigen::Index k, Eigen::Index b, std::uint64_t seed) 
 // NNDSVD (Boutsidis and Gallopoulos 2008) for the basis factor: the top k right singular vectors v_j of X,
 // each split into its positive and negative parts; the part whose product with the norm of the matching part
 // of u_j = X v_j / sigma_j is larger is kept. The u norms take one more pass.
-Eigen::MatrixXd nndsvd_init(const Collective& ranks, const BlockReader& reader, const Eigen::MatrixXd& gram, Eigen::Index k, Negatives policy,
-                            std::uint64_t seed, std::size_t& passes) {
+Eigen::MatrixXd nndsvd_init(const Collective& ranks, const BlockReader& reader, const Eigen::MatrixXd& gram,
+                            Eigen::Index k, Negatives policy, std::uint64_t seed, std::size_t& passes) {
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
   const Eigen::Index b = gram.rows();
   Eigen::MatrixXd v(b, k);
   for (Eigen::Index j = 0; j < k; ++j) v.col(j) = eig.eigenvectors().col(b - 1 - j);
   const SignStats zero{Eigen::VectorXd::Zero(k), Eigen::VectorXd::Zero(k)};
-  const SignStats signs = reduce_blocks(ranks, reader, zero, "nmf: nndsvd", [&](std::size_t i, const BlockReader::RawBlock& raw, SignStats& out) {
-    thread_local RowMatrixXd tile, u;
-    for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
-      u.noalias() = t * v;
-      out.pos += u.cwiseMax(0.0).colwise().squaredNorm().transpose();
-      out.neg += u.cwiseMin(0.0).colwise().squaredNorm().transpose();
-    });
-  });
+  const SignStats signs = reduce_blocks(ranks, reader, zero, "nmf: nndsvd",
+                                        [&](std::size_t i, const BlockReader::RawBlock& raw, SignStats& out) {
+                                          thread_local RowMatrixXd tile, u;
+                                          for_each_tile(reader, i, raw, policy, tile, [&](const auto& t) {
+                                            u.noalias() = t * v;
+                                            out.pos += u.cwiseMax(0.0).colwise().squaredNorm().transpose();
+                                            out.neg += u.cwiseMin(0.0).colwise().squaredNorm().transpose();
+                                          });
+                                        });
   ++passes;
   std::mt19937_64 rng(seed);
   Eigen::MatrixXd s(k, b);
@@ -431,9 +463,9 @@ Eigen::MatrixXd nndsvd_init(const Collective& ranks, const BlockReader& reader, 
 std::string fingerprint(const BlockReader& reader, const NmfOptions& o) {
   std::ostringstream f;
   f << "k=" << o.k << " init=" << (o.init == Init::nndsvd ? "nndsvd" : "random") << " seed=" << o.seed
-    << " restarts=" << o.restarts << " warmup_blocks=" << o.warmup_blocks << " wave_blocks=" << o.wave_blocks << " negatives=" << (o.negatives == Negatives::clip ? "clip" : "reject")
-    << " bands=" << reader.bands() << " spectra=" << reader.spectra() << " blocks=" << reader.block_count()
-    << " sources=";
+    << " restarts=" << o.restarts << " warmup_blocks=" << o.warmup_blocks << " wave_blocks=" << o.wave_blocks
+    << " negatives=" << (o.negatives == Negatives::clip ? "clip" : "reject") << " bands=" << reader.bands()
+    << " spectra=" << reader.spectra() << " blocks=" << reader.block_count() << " sources=";
   for (const auto& n : reader.source_names()) f << n << ",";
   return f.str();
 }
@@ -512,7 +544,8 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
   if (o.k < 1 || o.k > reader.bands())
     throw UsageError("k = " + std::to_string(o.k) + ": give between 1 and " + std::to_string(reader.bands()) +
                      " components (the data has " + std::to_string(reader.bands()) + " bands)");
-  if (o.restarts < 1 || o.restarts > 1000) throw UsageError("restarts " + std::to_string(o.restarts) + ": give 1 to 1000");
+  if (o.restarts < 1 || o.restarts > 1000)
+    throw UsageError("restarts " + std::to_string(o.restarts) + ": give 1 to 1000");
   if (o.max_epochs < 1) throw UsageError("max_epochs must be at least 1");
   if (o.wave_blocks < 1 || o.wave_blocks > 1000000)
     throw UsageError("wave_blocks " + std::to_string(o.wave_blocks) + ": give 1 to 1000000 blocks per basis update");
@@ -529,8 +562,8 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
   if (o.resume) {
     cp = load_checkpoint(o.checkpoint);
     if (cp.fingerprint != print)
-      throw UsageError(o.checkpoint.string() + ": the checkpoint is of another run: " +
-                       describe_difference(cp.fingerprint, print) +
+      throw UsageError(o.checkpoint.string() +
+                       ": the checkpoint is of another run: " + describe_difference(cp.fingerprint, print) +
                        "; rerun with the same options, or start afresh instead of resuming");
     resumed = true;
   } else {
@@ -566,144 +599,147 @@ NmfResult factorize(const BlockReader& reader, const NmfOptions& o, const Collec
   const std::size_t wave = o.wave_blocks;
   const std::size_t n_waves = (reader.block_count() + wave - 1) / wave;
   try {
-  for (std::size_t r = cp.restart; r < o.restarts; ++r) {
-    Eigen::MatrixXd s;
-    std::vector<double> history;
-    if (resumed && r == cp.restart && cp.epoch > 0) {
-      s = cp.basis;
-      history = cp.history;
-      if (s.rows() != k || s.cols() != b)
-        throw InputError(o.checkpoint.string() + ": checkpoint basis has the wrong shape; delete it and start afresh");
-    } else if (r == 0 && o.init == Init::nndsvd) {
-      s = nndsvd_init(ranks, reader, cp.gram, k, o.negatives, o.seed, result.passes);
-    } else {
-      s = random_init(k, b, o.seed + r);
-    }
-    std::mt19937_64 rng(o.seed * 1000003 + r);
-    bool converged = false;
-    // Block-coordinate descent in waves: each wave's coefficients are solved exactly for the current basis,
-    // then the basis is solved exactly from every wave's latest statistics. Those statistics are exact for
-    // the coefficients currently held (implicitly) for every spectrum, so the error they give is certified
-    // and never increases. A resumed run restarts from the epoch's end, where all waves are current.
-    std::vector<EpochStats> waves(n_waves, EpochStats{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)});
-    std::vector<char> seen(n_waves, 0);
-    if (resumed && r == cp.restart && cp.epoch > 0) {
-      if (cp.wave_xx.size() != n_waves)
-        throw InputError(o.checkpoint.string() + ": checkpoint holds " + std::to_string(cp.wave_xx.size()) +
-                         " waves, this run has " + std::to_string(n_waves) + "; delete it and start afresh");
-      for (std::size_t w = 0; w < n_waves; ++w) {
-        waves[w].ctc = Eigen::Map<const Eigen::MatrixXd>(cp.wave_ctc.row(Eigen::Index(w)).data(), k, k);
-        waves[w].ctx = Eigen::Map<const Eigen::MatrixXd>(cp.wave_ctx.row(Eigen::Index(w)).data(), k, b);
-        waves[w].xx = cp.wave_xx[w];
-        seen[w] = 1;
+    for (std::size_t r = cp.restart; r < o.restarts; ++r) {
+      Eigen::MatrixXd s;
+      std::vector<double> history;
+      if (resumed && r == cp.restart && cp.epoch > 0) {
+        s = cp.basis;
+        history = cp.history;
+        if (s.rows() != k || s.cols() != b)
+          throw InputError(o.checkpoint.string() +
+                           ": checkpoint basis has the wrong shape; delete it and start afresh");
+      } else if (r == 0 && o.init == Init::nndsvd) {
+        s = nndsvd_init(ranks, reader, cp.gram, k, o.negatives, o.seed, result.passes);
+      } else {
+        s = random_init(k, b, o.seed + r);
       }
-    }
-    auto total_of = [&] {
-      EpochStats t{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
-      for (std::size_t w = 0; w < n_waves; ++w)
-        if (seen[w]) t += waves[w];
-      return t;
-    };
-    // One epoch of block-coordinate descent over the blocks first, first + stride, ... in waves of `wave` blocks.
-    auto run_epoch = [&](std::vector<EpochStats>& ws, std::vector<char>& on, std::size_t step, Progress& progress) {
-      for (std::size_t w = 0; w < ws.size(); ++w) {
-        const std::size_t first = w * wave * step;
-        const std::size_t last = std::min(reader.block_count(), first + wave * step);
-        ws[w] = coefficient_pass(ranks, reader, s, o.negatives, first, last, progress, step);
-        on[w] = 1;
-        result.nnls_unconverged += ws[w].unconverged;
+      std::mt19937_64 rng(o.seed * 1000003 + r);
+      bool converged = false;
+      // Block-coordinate descent in waves: each wave's coefficients are solved exactly for the current basis,
+      // then the basis is solved exactly from every wave's latest statistics. Those statistics are exact for
+      // the coefficients currently held (implicitly) for every spectrum, so the error they give is certified
+      // and never increases. A resumed run restarts from the epoch's end, where all waves are current.
+      std::vector<EpochStats> waves(n_waves, EpochStats{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)});
+      std::vector<char> seen(n_waves, 0);
+      if (resumed && r == cp.restart && cp.epoch > 0) {
+        if (cp.wave_xx.size() != n_waves)
+          throw InputError(o.checkpoint.string() + ": checkpoint holds " + std::to_string(cp.wave_xx.size()) +
+                           " waves, this run has " + std::to_string(n_waves) + "; delete it and start afresh");
+        for (std::size_t w = 0; w < n_waves; ++w) {
+          waves[w].ctc = Eigen::Map<const Eigen::MatrixXd>(cp.wave_ctc.row(Eigen::Index(w)).data(), k, k);
+          waves[w].ctx = Eigen::Map<const Eigen::MatrixXd>(cp.wave_ctx.row(Eigen::Index(w)).data(), k, b);
+          waves[w].xx = cp.wave_xx[w];
+          seen[w] = 1;
+        }
+      }
+      auto total_of = [&] {
         EpochStats t{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
-        for (std::size_t v = 0; v < ws.size(); ++v)
-          if (on[v]) t += ws[v];
-        s = solve_basis(t);
-        const Eigen::VectorXd d = normalise_rows(s, rng);
-        for (std::size_t v = 0; v < ws.size(); ++v)
-          if (on[v]) rescale(ws[v], d);
+        for (std::size_t w = 0; w < n_waves; ++w)
+          if (seen[w]) t += waves[w];
+        return t;
+      };
+      // One epoch of block-coordinate descent over the blocks first, first + stride, ... in waves of `wave` blocks.
+      auto run_epoch = [&](std::vector<EpochStats>& ws, std::vector<char>& on, std::size_t step, Progress& progress) {
+        for (std::size_t w = 0; w < ws.size(); ++w) {
+          const std::size_t first = w * wave * step;
+          const std::size_t last = std::min(reader.block_count(), first + wave * step);
+          ws[w] = coefficient_pass(ranks, reader, s, o.negatives, first, last, progress, step);
+          on[w] = 1;
+          result.nnls_unconverged += ws[w].unconverged;
+          EpochStats t{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
+          for (std::size_t v = 0; v < ws.size(); ++v)
+            if (on[v]) t += ws[v];
+          s = solve_basis(t);
+          const Eigen::VectorXd d = normalise_rows(s, rng);
+          for (std::size_t v = 0; v < ws.size(); ++v)
+            if (on[v]) rescale(ws[v], d);
+        }
+      };
+      // Warm-up on a sample of whole blocks (every stride-th, about warmup_blocks of them) when the data is
+      // large: the same descent on the sample until it stalls moves the basis close to its optimum at a small
+      // fraction of a pass, so the full epochs start near it. Skipped on resume.
+      const std::size_t stride = o.warmup_blocks ? reader.block_count() / o.warmup_blocks : 0;
+      if (stride >= 2 && history.empty()) {
+        const std::size_t sample = (reader.block_count() + stride - 1) / stride;
+        std::vector<EpochStats> ws((sample + wave - 1) / wave,
+                                   EpochStats{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)});
+        std::vector<char> on(ws.size(), 0);
+        double prev = std::numeric_limits<double>::infinity();
+        for (std::size_t e = 0; e < kWarmupEpochs; ++e) {
+          Progress progress("nmf: restart " + std::to_string(r + 1) + " warm-up " + std::to_string(e + 1),
+                            reader.spectra() / stride);
+          run_epoch(ws, on, stride, progress);
+          EpochStats t{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
+          for (const auto& x : ws) t += x;
+          const double err = certified_error(t, s);
+          result.warmup_epochs = e + 1;
+          result.warmup_pass_equivalent += double(sample) / double(reader.block_count());
+          if (prev - err <= 1e-4 * err) break;
+          prev = err;
+        }
+        result.warmup_blocks = sample;
       }
-    };
-    // Warm-up on a sample of whole blocks (every stride-th, about warmup_blocks of them) when the data is
-    // large: the same descent on the sample until it stalls moves the basis close to its optimum at a small
-    // fraction of a pass, so the full epochs start near it. Skipped on resume.
-    const std::size_t stride = o.warmup_blocks ? reader.block_count() / o.warmup_blocks : 0;
-    if (stride >= 2 && history.empty()) {
-      const std::size_t sample = (reader.block_count() + stride - 1) / stride;
-      std::vector<EpochStats> ws((sample + wave - 1) / wave,
-                                 EpochStats{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)});
-      std::vector<char> on(ws.size(), 0);
-      double prev = std::numeric_limits<double>::infinity();
-      for (std::size_t e = 0; e < kWarmupEpochs; ++e) {
-        Progress progress("nmf: restart " + std::to_string(r + 1) + " warm-up " + std::to_string(e + 1),
-                          reader.spectra() / stride);
-        run_epoch(ws, on, stride, progress);
-        EpochStats t{Eigen::MatrixXd::Zero(k, k), Eigen::MatrixXd::Zero(k, b)};
-        for (const auto& x : ws) t += x;
-        const double err = certified_error(t, s);
-        result.warmup_epochs = e + 1;
-        result.warmup_pass_equivalent += double(sample) / double(reader.block_count());
-        if (prev - err <= 1e-4 * err) break;
-        prev = err;
+      while (history.size() < o.max_epochs) {
+        const std::size_t epoch = history.size() + 1;
+        Progress progress("nmf: restart " + std::to_string(r + 1) + " epoch " + std::to_string(epoch),
+                          reader.spectra());
+        run_epoch(waves, seen, 1, progress);
+        ++result.passes;
+        const double err = certified_error(total_of(), s);
+        const double prev = history.empty() ? std::numeric_limits<double>::infinity() : history.back();
+        history.push_back(err);
+        if (o.on_epoch) o.on_epoch({r, epoch, err, elapsed()});
+        cp.restart = r;
+        cp.epoch = history.size();
+        cp.basis = s;
+        cp.history = history;
+        cp.wave_ctc.resize(Eigen::Index(n_waves), k * k);
+        cp.wave_ctx.resize(Eigen::Index(n_waves), k * b);
+        cp.wave_xx.resize(n_waves);
+        for (std::size_t w = 0; w < n_waves; ++w) {
+          cp.wave_ctc.row(Eigen::Index(w)) = Eigen::Map<const Eigen::RowVectorXd>(waves[w].ctc.data(), k * k);
+          cp.wave_ctx.row(Eigen::Index(w)) = Eigen::Map<const Eigen::RowVectorXd>(waves[w].ctx.data(), k * b);
+          cp.wave_xx[w] = waves[w].xx;
+        }
+        if (!o.checkpoint.empty() && ranks.rank() == 0) save_checkpoint(o.checkpoint, cp);
+        if (prev - err <= o.tol * err) {
+          converged = true;
+          break;
+        }
+        check_interrupt();
       }
-      result.warmup_blocks = sample;
-    }
-    while (history.size() < o.max_epochs) {
-      const std::size_t epoch = history.size() + 1;
-      Progress progress("nmf: restart " + std::to_string(r + 1) + " epoch " + std::to_string(epoch), reader.spectra());
-      run_epoch(waves, seen, 1, progress);
-      ++result.passes;
-      const double err = certified_error(total_of(), s);
-      const double prev = history.empty() ? std::numeric_limits<double>::infinity() : history.back();
-      history.push_back(err);
-      if (o.on_epoch) o.on_epoch({r, epoch, err, elapsed()});
-      cp.restart = r;
-      cp.epoch = history.size();
+      RestartResult rr;
+      rr.basis = s;
+      rr.history = history;
+      rr.epochs = history.size();
+      rr.rel_error = history.back();
+      rr.converged = converged;
+      result.restarts.push_back(rr);
+      cp.done_bases.push_back(s);
+      cp.done_histories.push_back(history);
+      cp.done_converged.push_back(converged);
+      cp.restart = r + 1;
+      cp.epoch = 0;
+      cp.history.clear();
+      cp.wave_ctc.resize(0, 0);
+      cp.wave_ctx.resize(0, 0);
+      cp.wave_xx.clear();
       cp.basis = s;
-      cp.history = history;
-      cp.wave_ctc.resize(Eigen::Index(n_waves), k * k);
-      cp.wave_ctx.resize(Eigen::Index(n_waves), k * b);
-      cp.wave_xx.resize(n_waves);
-      for (std::size_t w = 0; w < n_waves; ++w) {
-        cp.wave_ctc.row(Eigen::Index(w)) = Eigen::Map<const Eigen::RowVectorXd>(waves[w].ctc.data(), k * k);
-        cp.wave_ctx.row(Eigen::Index(w)) = Eigen::Map<const Eigen::RowVectorXd>(waves[w].ctx.data(), k * b);
-        cp.wave_xx[w] = waves[w].xx;
-      }
-      if (!o.checkpoint.empty() && ranks.rank() == 0) save_checkpoint(o.checkpoint, cp);
-      if (prev - err <= o.tol * err) {
-        converged = true;
-        break;
-      }
-      check_interrupt();
+      if (!o.checkpoint.empty() && ranks.rank() == 0 && r + 1 < o.restarts) save_checkpoint(o.checkpoint, cp);
     }
-    RestartResult rr;
-    rr.basis = s;
-    rr.history = history;
-    rr.epochs = history.size();
-    rr.rel_error = history.back();
-    rr.converged = converged;
-    result.restarts.push_back(rr);
-    cp.done_bases.push_back(s);
-    cp.done_histories.push_back(history);
-    cp.done_converged.push_back(converged);
-    cp.restart = r + 1;
-    cp.epoch = 0;
-    cp.history.clear();
-    cp.wave_ctc.resize(0, 0);
-    cp.wave_ctx.resize(0, 0);
-    cp.wave_xx.clear();
-    cp.basis = s;
-    if (!o.checkpoint.empty() && ranks.rank() == 0 && r + 1 < o.restarts) save_checkpoint(o.checkpoint, cp);
-  }
   } catch (const Interrupted&) {
-    const std::string kept = std::to_string(cp.epoch) + " finished epoch" + (cp.epoch == 1 ? "" : "s") + " of restart " +
-                             std::to_string(cp.restart + 1);
-    throw Interrupted("interrupted; " +
-                      (o.checkpoint.empty() ? kept + " were not saved (no checkpoint)"
-                                            : kept + " kept in " + o.checkpoint.string() + ": resume from it to continue"));
+    const std::string kept = std::to_string(cp.epoch) + " finished epoch" + (cp.epoch == 1 ? "" : "s") +
+                             " of restart " + std::to_string(cp.restart + 1);
+    throw Interrupted("interrupted; " + (o.checkpoint.empty() ? kept + " were not saved (no checkpoint)"
+                                                              : kept + " kept in " + o.checkpoint.string() +
+                                                                    ": resume from it to continue"));
   }
   std::size_t best = 0;
   for (std::size_t r = 1; r < result.restarts.size(); ++r)
     if (result.restarts[r].rel_error < result.restarts[best].rel_error) best = r;
   result.best = best;
-  for (auto& rr : result.restarts) std::tie(rr.mean_angle_deg, rr.max_angle_deg) = basis_angles(rr.basis, result.restarts[best].basis);
+  for (auto& rr : result.restarts)
+    std::tie(rr.mean_angle_deg, rr.max_angle_deg) = basis_angles(rr.basis, result.restarts[best].basis);
   // The certifying pass: the best basis's exact coefficients give its own error and the RMS coefficient of
   // each component.
   Progress progress("nmf: certifying pass", reader.spectra());

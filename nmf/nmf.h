@@ -58,8 +58,8 @@ struct RestartResult {
   Eigen::MatrixXd basis;  ///< k x B, rows of unit L2 norm
   double rel_error = 0;
   std::size_t epochs = 0;
-  bool converged = false;      ///< stopped on tol (false: max_epochs reached)
-  std::vector<double> history;  ///< certified error after each epoch
+  bool converged = false;                        ///< stopped on tol (false: max_epochs reached)
+  std::vector<double> history;                   ///< certified error after each epoch
   double mean_angle_deg = 0, max_angle_deg = 0;  ///< to the best restart's basis, components matched
 };
 
@@ -68,19 +68,19 @@ struct NmfResult {
   /// The best basis's own error: ||X - C* S|| / ||X|| with C* its exact NNLS coefficients, from a final
   /// certifying pass (at most the last epoch's error).
   double rel_error = 0;
-  std::size_t best = 0;          ///< index of the restart with the lowest error
-  Eigen::VectorXd weights;       ///< RMS coefficient of each component of the best basis
-  std::uint64_t n = 0;           ///< spectra factored
-  std::uint64_t negatives = 0;   ///< values below zero (clipped)
-  std::uint64_t values = 0;      ///< n x bands
+  std::size_t best = 0;           ///< index of the restart with the lowest error
+  Eigen::VectorXd weights;        ///< RMS coefficient of each component of the best basis
+  std::uint64_t n = 0;            ///< spectra factored
+  std::uint64_t negatives = 0;    ///< values below zero (clipped)
+  std::uint64_t values = 0;       ///< n x bands
   Eigen::MatrixXd second_moment;  ///< uncentred X^T X / n (after clipping)
-  double svd_bound = 0;          ///< the rank-k truncated-SVD error ||X - X_k|| / ||X||: no rank-k C S does better
-  std::size_t passes = 0;        ///< passes over the data in this process (a resumed run counts its own)
+  double svd_bound = 0;           ///< the rank-k truncated-SVD error ||X - X_k|| / ||X||: no rank-k C S does better
+  std::size_t passes = 0;         ///< passes over the data in this process (a resumed run counts its own)
   std::uint64_t nnls_unconverged = 0;  ///< coefficient solves that hit the iteration cap (expected 0)
   bool resumed = false;
-  std::size_t warmup_epochs = 0;        ///< epochs on the warm-up sample (large data only; summed over restarts)
-  std::size_t warmup_blocks = 0;        ///< blocks in that sample
-  double warmup_pass_equivalent = 0;   ///< the warm-up's reading, in passes over the whole data
+  std::size_t warmup_epochs = 0;      ///< epochs on the warm-up sample (large data only; summed over restarts)
+  std::size_t warmup_blocks = 0;      ///< blocks in that sample
+  double warmup_pass_equivalent = 0;  ///< the warm-up's reading, in passes over the whole data
   const RestartResult& best_result() const { return restarts.at(best); }
 };
 

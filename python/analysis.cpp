@@ -6,9 +6,9 @@
 #include <cmath>
 #include <filesystem>
 
+#include "python/common.h"
 #include "specula/core/error.h"
 #include "specula/nmf/learn.h"
-#include "python/common.h"
 #include "specula/stats/learn_pca.h"
 #include "specula/stats/pca.h"
 #include "specula/stats/project.h"
@@ -23,14 +23,15 @@ std::filesystem::path output_store(const std::vector<store::Store>& stores, cons
   return py::module_::import("os").attr("fspath")(output).cast<std::string>();
 }
 
-void save_basis_released(const std::filesystem::path& out, const std::string& name, const store::Basis& basis, bool replace,
-                         const std::string& function) {
+void save_basis_released(const std::filesystem::path& out, const std::string& name, const store::Basis& basis,
+                         bool replace, const std::string& function) {
   py::gil_scoped_release release;
   try {
     store::save_basis(out, name, basis, replace, python_command_line(function));
   } catch (const InputError& e) {
     if (std::string(e.what()).find("exists already") == std::string::npos) throw;
-    throw InputError(fmt::format("{}: basis '{}' exists already; choose another name or give replace=True", out.string(), name));
+    throw InputError(
+        fmt::format("{}: basis '{}' exists already; choose another name or give replace=True", out.string(), name));
   }
   note_commit();
 }
@@ -50,20 +51,20 @@ py::dict project_one(const store::Basis& basis, const ArrayLike& spectra_arg, co
                      const OptArray& mask_arg) {
   if (k_arg.is_none() && stats::basis_method(basis) == stats::BasisMethod::pca)
     throw UsageError("project: k is required with a PCA basis (the number of leading components, e.g. 6)");
-  const stats::Projector projector(basis, k_arg.is_none() ? std::nullopt : std::optional<long long>(k_arg.cast<long long>()));
+  const stats::Projector projector(basis,
+                                   k_arg.is_none() ? std::nullopt : std::optional<long long>(k_arg.cast<long long>()));
   const std::size_t k = projector.k();
   const auto spectra = DoubleArray::ensure(spectra_arg);
   if (!spectra || spectra.ndim() < 1 || std::size_t(spectra.shape(spectra.ndim() - 1)) != basis.bands())
-    throw UsageError(fmt::format("project: spectra must be an array whose last axis has the basis's {} bands",
-                                 basis.bands()));
+    throw UsageError(
+        fmt::format("project: spectra must be an array whose last axis has the basis's {} bands", basis.bands()));
   std::vector<py::ssize_t> lead(spectra.shape(), spectra.shape() + spectra.ndim() - 1);
   py::ssize_t n = 1;
   for (auto s : lead) n *= s;
   std::vector<std::uint8_t> mask;
   if (!mask_arg.is_none()) {
     const auto ma = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>::ensure(mask_arg);
-    if (!ma || ma.size() != n)
-      throw UsageError(fmt::format("project: mask must have one entry per spectrum ({})", n));
+    if (!ma || ma.size() != n) throw UsageError(fmt::format("project: mask must have one entry per spectrum ({})", n));
     mask.assign(ma.data(), ma.data() + n);
   }
   const Eigen::Index b = Eigen::Index(basis.bands());
@@ -138,8 +139,8 @@ void init_basis(py::module_& m) {
              b.wavelengths = grid_from(wavelengths, "Basis wavelengths");
              b.components = matrix_from(components, "Basis components");
              if (std::size_t(b.components.cols()) != b.bands())
-               throw UsageError(fmt::format("Basis: components have {} columns for {} wavelengths",
-                                            b.components.cols(), b.bands()));
+               throw UsageError(
+                   fmt::format("Basis: components have {} columns for {} wavelengths", b.components.cols(), b.bands()));
              if (!mean.is_none()) b.mean = vector_from(mean, "Basis mean");
              if (!weights.is_none()) b.weights = vector_from(weights, "Basis weights");
              if (method == "pca" && std::size_t(b.mean.size()) != b.bands())
@@ -155,13 +156,17 @@ void init_basis(py::module_& m) {
       .def_property_readonly("k", &store::Basis::k)
       .def_property_readonly("bands", &store::Basis::bands)
       .def_property_readonly("wavelengths", [](const store::Basis& b) { return wavelengths_array(b.wavelengths); })
-      .def_property_readonly("components", [](py::object b) { return view(b.cast<const store::Basis&>().components, b); },
-                             "The components as rows (k, bands): a read-only view.")
+      .def_property_readonly(
+          "components", [](py::object b) { return view(b.cast<const store::Basis&>().components, b); },
+          "The components as rows (k, bands): a read-only view.")
       .def_property_readonly("mean", [](py::object b) { return view(b.cast<const store::Basis&>().mean, b); })
-      .def_property_readonly("eigenvalues", [](py::object b) { return view(b.cast<const store::Basis&>().eigenvalues, b); })
-      .def_property_readonly("explained_variance_ratio",
-                             [](py::object b) { return view(b.cast<const store::Basis&>().explained_variance_ratio, b); })
-      .def_property_readonly("covariance", [](py::object b) { return view(b.cast<const store::Basis&>().covariance, b); })
+      .def_property_readonly("eigenvalues",
+                             [](py::object b) { return view(b.cast<const store::Basis&>().eigenvalues, b); })
+      .def_property_readonly(
+          "explained_variance_ratio",
+          [](py::object b) { return view(b.cast<const store::Basis&>().explained_variance_ratio, b); })
+      .def_property_readonly("covariance",
+                             [](py::object b) { return view(b.cast<const store::Basis&>().covariance, b); })
       .def_property_readonly("second_moment",
                              [](py::object b) { return view(b.cast<const store::Basis&>().second_moment, b); })
       .def_property_readonly("weights", [](py::object b) { return view(b.cast<const store::Basis&>().weights, b); })
@@ -169,8 +174,9 @@ void init_basis(py::module_& m) {
           [](const py::object& self) {
             const auto& b = self.cast<const store::Basis&>();
             const auto& p = b.provenance;
-            return py::make_tuple(self.attr("__dict__"), b.method, wavelengths_array(b.wavelengths), b.n, to_numpy(b.mean), to_numpy(b.components),
-                                  to_numpy(b.eigenvalues), to_numpy(b.explained_variance_ratio), to_numpy(b.covariance),
+            return py::make_tuple(self.attr("__dict__"), b.method, wavelengths_array(b.wavelengths), b.n,
+                                  to_numpy(b.mean), to_numpy(b.components), to_numpy(b.eigenvalues),
+                                  to_numpy(b.explained_variance_ratio), to_numpy(b.covariance),
                                   to_numpy(b.second_moment), to_numpy(b.weights), b.source,
                                   py::make_tuple(p.source_file, p.importer, p.command_line, p.created_utc));
           },
@@ -228,9 +234,8 @@ void init_analysis(py::module_& m) {
       "nmf",
       [](const StoresArg& stores_arg, std::size_t k, const ImagesArg& images, const std::string& collection,
          const std::string& init, std::uint64_t seed, std::size_t restarts, std::size_t max_epochs,
-         std::size_t wave_blocks, double tol, const std::string& negatives, const OptStr& name,
-         const OptPath& output, const OptPath& checkpoint, bool resume, bool replace,
-         const CallbackArg& on_epoch) {
+         std::size_t wave_blocks, double tol, const std::string& negatives, const OptStr& name, const OptPath& output,
+         const OptPath& checkpoint, bool resume, bool replace, const CallbackArg& on_epoch) {
         const std::vector<store::Store> stores = stores_from(stores_arg);
         const std::optional<std::string> save = name.is_none() ? std::nullopt : std::optional(name.cast<std::string>());
         if (save) store::validate_name(*save, "basis");
@@ -287,15 +292,18 @@ void init_analysis(py::module_& m) {
         const store::Basis& basis = as<store::Basis>(basis_arg, "project", "basis", "Basis");
         if (py::isinstance<py::list>(k) || py::isinstance<py::tuple>(k)) {
           py::dict out;  // several k, as the CLI's -k 1,3,6,31
-          for (const auto& one : k) out[one] = project_one(basis, spectra, py::reinterpret_borrow<py::object>(one), mask);
+          for (const auto& one : k)
+            out[one] = project_one(basis, spectra, py::reinterpret_borrow<py::object>(one), mask);
           return ProjectResult(std::move(out));
         }
         return ProjectResult(project_one(basis, spectra, k, mask));
       },
       py::arg("basis"), py::arg("spectra"), py::arg("k") = py::none(), py::arg("mask") = py::none(),
-      "Projects spectra (any shape ending in bands; float32 in, float32 out) onto a basis as `specula project` does: the first k components of "
+      "Projects spectra (any shape ending in bands; float32 in, float32 out) onto a basis as `specula project` does: "
+      "the first k components of "
       "a PCA basis (eqs 7.2-7.3) or NNLS on every component of an NMF basis. Returns a dict: coefficients, "
-      "reconstruction, error (per-spectrum L2), rms (per band, over spectra the mask keeps) and max_error; with a list of "
+      "reconstruction, error (per-spectrum L2), rms (per band, over spectra the mask keeps) and max_error; with a list "
+      "of "
       "k (PCA), a dict of those dicts by k.");
 }
 

@@ -11,8 +11,8 @@
 #include <thread>
 #include <variant>
 
-#include "specula/core/error.h"
 #include "python/common.h"
+#include "specula/core/error.h"
 #include "specula/store/block_reader.h"
 
 namespace specula::python {
@@ -84,7 +84,8 @@ class BlockStream {
  public:
   using Value = T;
   BlockStream(std::shared_ptr<const store::BlockReader> reader, std::size_t depth)
-      : reader_(std::move(reader)), depth_(std::max<std::size_t>(1, depth)),
+      : reader_(std::move(reader)),
+        depth_(std::max<std::size_t>(1, depth)),
         pool_(std::make_shared<BufferPool<T>>(reader_->max_block_spectra() * reader_->bands(), 2 * depth_ + 2)) {}
   BlockStream(const BlockStream&) = delete;
   BlockStream& operator=(const BlockStream&) = delete;
@@ -215,8 +216,8 @@ class Blocks {
 
   py::array read(std::size_t i) const {
     if (i >= reader_->block_count())
-      throw UsageError(fmt::format("read: block {} of {}; give 0 to {}", i, reader_->block_count(),
-                                   reader_->block_count() - 1));
+      throw UsageError(
+          fmt::format("read: block {} of {}; give 0 to {}", i, reader_->block_count(), reader_->block_count() - 1));
     return std::visit(
         [&](auto& s) -> py::array {
           using T = typename std::decay_t<decltype(*s)>::Value;
@@ -235,8 +236,10 @@ class Blocks {
 
  private:
   void start() {
-    if (f64_) stream_ = std::make_unique<BlockStream<double>>(reader_, depth_);
-    else stream_ = std::make_unique<BlockStream<float>>(reader_, depth_);
+    if (f64_)
+      stream_ = std::make_unique<BlockStream<double>>(reader_, depth_);
+    else
+      stream_ = std::make_unique<BlockStream<float>>(reader_, depth_);
     started_ = false;
   }
   std::shared_ptr<const store::BlockReader> reader_;
@@ -251,48 +254,57 @@ bool is_float64(const py::handle& dtype) {
   const py::dtype dt = py::dtype::from_args(py::reinterpret_borrow<py::object>(dtype));
   if (dt.is(py::dtype::of<double>()) || dt.equal(py::dtype::of<double>())) return true;
   if (dt.equal(py::dtype::of<float>())) return false;
-  throw UsageError(fmt::format("dtype {}: blocks are numpy.float32 or numpy.float64",
-                               dt.attr("name").cast<std::string>()));
+  throw UsageError(
+      fmt::format("dtype {}: blocks are numpy.float32 or numpy.float64", dt.attr("name").cast<std::string>()));
 }
 
 }  // namespace
 
 void init_blocks(py::module_& m) {
-  py::class_<Blocks>(m, "Blocks",
-                     "The valid spectra of a selection in blocks (n x bands arrays, each owned by the caller) that follow "
-                     "the storage chunks; the next blocks are read on worker threads while Python works on this one. "
-                     "Every iteration (a for loop, list()) is a fresh pass from the first block.")
-      .def("__iter__", [](py::object self) {
-        self.cast<Blocks&>().rewind();
-        return self;
-      })
+  py::class_<Blocks>(
+      m, "Blocks",
+      "The valid spectra of a selection in blocks (n x bands arrays, each owned by the caller) that follow "
+      "the storage chunks; the next blocks are read on worker threads while Python works on this one. "
+      "Every iteration (a for loop, list()) is a fresh pass from the first block.")
+      .def("__iter__",
+           [](py::object self) {
+             self.cast<Blocks&>().rewind();
+             return self;
+           })
       .def("__next__", &Blocks::next)
       .def("__len__", [](const Blocks& b) { return b.reader().block_count(); })
-      .def("__repr__", [](const Blocks& b) {
-        const auto& r = b.reader();
-        std::string sources;
-        for (std::size_t i = 0; i < r.source_names().size() && i < 4; ++i) sources += (i ? ", " : "") + r.source_names()[i];
-        if (r.source_names().size() > 4) sources += fmt::format(", ... ({} sources)", r.source_names().size());
-        return fmt::format("<specula.Blocks {} blocks, {} spectra x {} bands ({}), {}, from {}>", r.block_count(),
-                           r.spectra(), r.bands(), r.wavelengths().describe(), b.f64() ? "float64" : "float32", sources);
-      })
+      .def("__repr__",
+           [](const Blocks& b) {
+             const auto& r = b.reader();
+             std::string sources;
+             for (std::size_t i = 0; i < r.source_names().size() && i < 4; ++i)
+               sources += (i ? ", " : "") + r.source_names()[i];
+             if (r.source_names().size() > 4) sources += fmt::format(", ... ({} sources)", r.source_names().size());
+             return fmt::format("<specula.Blocks {} blocks, {} spectra x {} bands ({}), {}, from {}>", r.block_count(),
+                                r.spectra(), r.bands(), r.wavelengths().describe(), b.f64() ? "float64" : "float32",
+                                sources);
+           })
       .def("read", &Blocks::read, py::arg("index"), "Block `index` alone (random access).")
-      .def_property_readonly("spectra", [](const Blocks& b) { return b.reader().spectra(); }, "Valid spectra in all blocks.")
+      .def_property_readonly(
+          "spectra", [](const Blocks& b) { return b.reader().spectra(); }, "Valid spectra in all blocks.")
       .def_property_readonly("bands", [](const Blocks& b) { return b.reader().bands(); })
       .def_property_readonly("block_count", [](const Blocks& b) { return b.reader().block_count(); })
       .def_property_readonly("max_block_spectra", [](const Blocks& b) { return b.reader().max_block_spectra(); })
       .def_property_readonly("wavelengths", [](const Blocks& b) { return wavelengths_array(b.reader().wavelengths()); })
       .def_property_readonly("units", [](const Blocks& b) { return b.reader().units(); })
       .def_property_readonly("sources", [](const Blocks& b) { return b.reader().source_names(); })
-      .def_property_readonly("dtype", [](const Blocks& b) {
-        return b.f64() ? py::dtype::of<double>() : py::dtype::of<float>();
-      })
-      .def("block_source", [](const Blocks& b, std::size_t i) { return b.reader().source_names().at(b.reader().block_source(i)); },
-           py::arg("index"), "The source (image or collection) block `index` comes from.")
-      .def("block_first_row", [](const Blocks& b, std::size_t i) { return b.reader().block_first_row(i); },
-           py::arg("index"), "The first row (image row or spectrum) of block `index` in its source.")
-      .def("describe_block", [](const Blocks& b, std::size_t i) { return b.reader().describe_block(i); },
-           py::arg("index"), "Where block `index` lies, as messages name it.");
+      .def_property_readonly("dtype",
+                             [](const Blocks& b) { return b.f64() ? py::dtype::of<double>() : py::dtype::of<float>(); })
+      .def(
+          "block_source",
+          [](const Blocks& b, std::size_t i) { return b.reader().source_names().at(b.reader().block_source(i)); },
+          py::arg("index"), "The source (image or collection) block `index` comes from.")
+      .def(
+          "block_first_row", [](const Blocks& b, std::size_t i) { return b.reader().block_first_row(i); },
+          py::arg("index"), "The first row (image row or spectrum) of block `index` in its source.")
+      .def(
+          "describe_block", [](const Blocks& b, std::size_t i) { return b.reader().describe_block(i); },
+          py::arg("index"), "Where block `index` lies, as messages name it.");
 
   py::class_<PyStore>(py::reinterpret_borrow<py::object>(m.attr("Store")))
       .def(
@@ -313,11 +325,11 @@ void init_blocks(py::module_& m) {
                                             prefetch ? *prefetch : std::size_t(std::max(1, omp_get_max_threads() - 1)));
           },
           py::arg("images") = py::none(), py::arg("collection") = "", py::arg("samples") = "",
-          py::arg("dtype") = py::none(), py::arg("min_block_pixels") = 32768,
-          py::arg("prefetch") = py::none(),
+          py::arg("dtype") = py::none(), py::arg("min_block_pixels") = 32768, py::arg("prefetch") = py::none(),
           "Every valid spectrum of the selected images (globs; all when None), or of one collection or samples set, "
           "as a re-iterable specula.Blocks of (n, bands) arrays of `dtype` (numpy.float32, the default, or "
-          "numpy.float64).");;
+          "numpy.float64).");
+  ;
 }
 
 }  // namespace specula::python

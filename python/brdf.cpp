@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 
+#include "python/common.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/spc.h"
@@ -15,7 +16,6 @@
 #include "specula/core/error.h"
 #include "specula/core/illuminant.h"
 #include "specula/core/preview.h"
-#include "python/common.h"
 
 namespace specula::python {
 namespace {
@@ -89,9 +89,10 @@ py::tuple display(const Eigen::Ref<const RowMatrixX3f>& xyz, const std::vector<p
 }  // namespace
 
 void init_brdf(py::module_& m) {
-  py::class_<store::Grid>(m, "Grid",
-                          "A spectral BRDF on the MERL grid: values (bands, 90 theta_h, 90 theta_d, 180 phi_d) float32; "
-                          "value * scale is in 1/sr; a negative value means no data.")
+  py::class_<store::Grid>(
+      m, "Grid",
+      "A spectral BRDF on the MERL grid: values (bands, 90 theta_h, 90 theta_d, 180 phi_d) float32; "
+      "value * scale is in 1/sr; a negative value means no data.")
       .def(py::init(&make_grid), py::arg("wavelengths"), py::arg("values"), py::arg("scale") = 1.0,
            py::arg("units") = "1/sr")
       .def_property_readonly("values", &grid_values)
@@ -99,14 +100,16 @@ void init_brdf(py::module_& m) {
       .def_property_readonly("bands", &store::Grid::bands)
       .def_readwrite("scale", &store::Grid::scale)
       .def_readonly("units", &store::Grid::units)
-      .def_property_readonly("source", [](const store::Grid& g) { return g.provenance.source_file; },
-                             "What the grid was made from, as its provenance records it.")
+      .def_property_readonly(
+          "source", [](const store::Grid& g) { return g.provenance.source_file; },
+          "What the grid was made from, as its provenance records it.")
       .def(py::pickle(
           [](const store::Grid& g) {
             const auto& p = g.provenance;
-            return py::make_tuple(wavelengths_array(g.wavelengths),
-                                  py::array_t<float>({py::ssize_t(g.bands()), kDims[0], kDims[1], kDims[2]}, g.brdf.data()),
-                                  g.scale, g.units, py::make_tuple(p.source_file, p.importer, p.command_line, p.created_utc));
+            return py::make_tuple(
+                wavelengths_array(g.wavelengths),
+                py::array_t<float>({py::ssize_t(g.bands()), kDims[0], kDims[1], kDims[2]}, g.brdf.data()), g.scale,
+                g.units, py::make_tuple(p.source_file, p.importer, p.command_line, p.created_utc));
           },
           [](const py::tuple& t) {
             if (t.size() != 5) throw UsageError("Grid: not a pickled specula.Grid");
@@ -116,11 +119,13 @@ void init_brdf(py::module_& m) {
                             p[3].cast<std::string>()};
             return g;
           }))
-      .def("__repr__",
-           [](const store::Grid& g) { return fmt::format("<specula.Grid {} scale={}>", g.wavelengths.describe(), g.scale); });
+      .def("__repr__", [](const store::Grid& g) {
+        return fmt::format("<specula.Grid {} scale={}>", g.wavelengths.describe(), g.scale);
+      });
 
-  m.def("read_spgrid", [](const PathArg& p) { return codec::read_grid_file(existing_file(p)); }, py::arg("path"),
-        "Reads a grid exchange file (.spgrid, docs/grid-format.md).");
+  m.def(
+      "read_spgrid", [](const PathArg& p) { return codec::read_grid_file(existing_file(p)); }, py::arg("path"),
+      "Reads a grid exchange file (.spgrid, docs/grid-format.md).");
   m.def(
       "write_spgrid",
       [](const PathArg& p, const GridArg& grid) {
@@ -182,7 +187,8 @@ void init_brdf(py::module_& m) {
           py::gil_scoped_release release;
           for (py::ssize_t i = 0; i < n; ++i) {
             const brdf::StdAngles s{a.data()[i], b.data()[i], c.data()[i], d.data()[i]};
-            if (!std::isfinite(s.theta_i) || !std::isfinite(s.phi_i) || !std::isfinite(s.theta_o) || !std::isfinite(s.phi_o))
+            if (!std::isfinite(s.theta_i) || !std::isfinite(s.phi_i) || !std::isfinite(s.theta_o) ||
+                !std::isfinite(s.phi_o))
               throw UsageError(fmt::format("merl_index: angles of entry {} are not finite", i));
             o[i] = std::int64_t(brdf::merl_index(brdf::merl_cell(s)));
           }
@@ -208,7 +214,8 @@ void init_brdf(py::module_& m) {
           py::gil_scoped_release release;
           for (py::ssize_t i = 0; i < n; ++i) {
             const brdf::StdAngles s{a.data()[i], b.data()[i], c.data()[i], d.data()[i]};
-            if (!std::isfinite(s.theta_i) || !std::isfinite(s.phi_i) || !std::isfinite(s.theta_o) || !std::isfinite(s.phi_o))
+            if (!std::isfinite(s.theta_i) || !std::isfinite(s.phi_i) || !std::isfinite(s.theta_o) ||
+                !std::isfinite(s.phi_o))
               throw UsageError(fmt::format("brdf_lookup: angles of entry {} are not finite", i));
             const std::size_t cell = brdf::merl_index(brdf::merl_cell(s));
             for (std::size_t k = 0; k < bands; ++k) {
@@ -235,9 +242,12 @@ void init_brdf(py::module_& m) {
         std::string ref;
         if (!basis_arg.is_none()) {
           basis = as<store::Basis>(basis_arg, "spc_encode", "basis", "Basis");
-          if (!reference.is_none()) ref = reference.cast<std::string>();
-          else if (py::hasattr(basis_arg, "_origin")) ref = basis_arg.attr("_origin").cast<std::string>();
-          else ref = basis->source.empty() ? "python" : basis->source;
+          if (!reference.is_none())
+            ref = reference.cast<std::string>();
+          else if (py::hasattr(basis_arg, "_origin"))
+            ref = basis_arg.attr("_origin").cast<std::string>();
+          else
+            ref = basis->source.empty() ? "python" : basis->source;
         } else if (!reference.is_none()) {
           throw UsageError("spc_encode: reference names a learned basis; without one the basis is 'self'");
         }
@@ -327,7 +337,8 @@ void init_brdf(py::module_& m) {
         py::gil_scoped_release release;
         return codec::decode_spc(bytes, label);
       },
-      py::arg("data"), "Decodes .spc bytes, or the .spc file at a path, into a Grid (every field and the CRC checked).");
+      py::arg("data"),
+      "Decodes .spc bytes, or the .spc file at a path, into a Grid (every field and the CRC checked).");
   m.def(
       "write_spc",
       [](const PathArg& p, const py::bytes& data) {
@@ -336,12 +347,16 @@ void init_brdf(py::module_& m) {
       },
       py::arg("path"), py::arg("data"), "Writes .spc bytes to a file (complete or not at all).");
 
-  m.def("cmf", [](const WavelengthsArg& w, const std::string& observer) {
+  m.def(
+      "cmf",
+      [](const WavelengthsArg& w, const std::string& observer) {
         return to_numpy(Eigen::MatrixXd(cmf(grid_from(w, "wavelengths"), parse_observer(observer))));
       },
       py::arg("wavelengths"), py::arg("observer") = "cie1931_2deg",
       "The CIE colour-matching functions at the wavelengths, (bands, 3): xbar, ybar, zbar.");
-  m.def("illuminant", [](const std::string& name, const WavelengthsArg& w) {
+  m.def(
+      "illuminant",
+      [](const std::string& name, const WavelengthsArg& w) {
         return to_numpy(Eigen::VectorXd(parse_illuminant(name, grid_from(w, "wavelengths"))));
       },
       py::arg("name"), py::arg("wavelengths"),
@@ -385,16 +400,19 @@ void init_brdf(py::module_& m) {
         std::vector<py::ssize_t> lead;
         const auto x = spectra_rows(xyz, 3, lead, "xyz_to_srgb");
         const Eigen::Index n = x.size() / 3;
-        const RowMatrixX3f xf = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(x.data(), n, 3)
-                                    .cast<float>();
+        const RowMatrixX3f xf =
+            Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(x.data(), n, 3).cast<float>();
         Eigen::Vector3d w(0.95047, 1.0, 1.08883);
         if (!white.is_none()) {
           const Eigen::VectorXd v = vector_from(white, "white");
           if (v.size() != 3) throw UsageError("xyz_to_srgb: white must be 3 values (XYZ)");
           w = v;
         }
-        return display(xf, lead, w, {.exposure_stops = exposure, .tone = specula::parse_tone(tone), .adapt_to_d65 = adapt,
-                                     .desaturate = desaturate});
+        return display(xf, lead, w,
+                       {.exposure_stops = exposure,
+                        .tone = specula::parse_tone(tone),
+                        .adapt_to_d65 = adapt,
+                        .desaturate = desaturate});
       },
       py::arg("xyz"), py::arg("white") = py::none(), py::arg("exposure") = 0.0, py::arg("tone") = "clip",
       py::arg("adapt") = true, py::arg("desaturate") = true,
@@ -415,8 +433,11 @@ void init_brdf(py::module_& m) {
           const RowMatrixXf xf = Eigen::Map<const RowMatrixXd>(x.data(), n, Eigen::Index(grid.size())).cast<float>();
           t.apply(xf, xyz);
         }
-        return display(xyz, lead, t.white(), {.exposure_stops = exposure, .tone = specula::parse_tone(tone),
-                                              .adapt_to_d65 = adapt, .desaturate = desaturate});
+        return display(xyz, lead, t.white(),
+                       {.exposure_stops = exposure,
+                        .tone = specula::parse_tone(tone),
+                        .adapt_to_d65 = adapt,
+                        .desaturate = desaturate});
       },
       py::arg("spectra"), py::arg("wavelengths"), py::arg("kind") = "reflectance", py::arg("illuminant") = "D65",
       py::arg("exposure") = 0.0, py::arg("tone") = "clip", py::arg("adapt") = true, py::arg("desaturate") = true,

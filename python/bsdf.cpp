@@ -2,13 +2,13 @@
 // from a Grid.
 #include <string>
 
+#include "python/common.h"
 #include "specula/codec/rgl_eval.h"
 #include "specula/codec/rgl_export.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/cie.h"
 #include "specula/core/error.h"
-#include "python/common.h"
 
 namespace specula::python {
 namespace {
@@ -47,7 +47,9 @@ void init_bsdf(py::module_& m) {
         py::gil_scoped_release release;
         const codec::RglExportSettings s{.theta_i = theta_i, .resolution = resolution, .description = description};
         const codec::RglBsdf b =
-            rgb ? codec::export_rgl(codec::grid_to_merl(g, codec::rgb_weights(g.wavelengths, illuminant("D65", g.wavelengths))).brdf, s)
+            rgb ? codec::export_rgl(
+                      codec::grid_to_merl(g, codec::rgb_weights(g.wavelengths, illuminant("D65", g.wavelengths))).brdf,
+                      s)
                 : codec::export_rgl(g, s);
         codec::write_rgl_bsdf(path, b);
       },

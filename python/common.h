@@ -10,11 +10,11 @@
 #include <chrono>
 #include <filesystem>
 #include <future>
-#include <optional>
 #include <memory>
+#include <optional>
+#include <string>
 #include <thread>
 #include <type_traits>
-#include <string>
 #include <vector>
 
 #include "specula/core/error.h"
@@ -126,9 +126,9 @@ void note_commit();
 // Arguments taken as Python objects and checked by the binding, named in signatures and docstrings by what they
 // accept (pybind would say `object`).
 inline bool any_object(PyObject*) { return true; }
-#define SPECULA_PY_ARG(Name) \
-  class Name : public py::object { \
-   public: \
+#define SPECULA_PY_ARG(Name)                              \
+  class Name : public py::object {                        \
+   public:                                                \
     PYBIND11_OBJECT_DEFAULT(Name, py::object, any_object) \
   };
 SPECULA_PY_ARG(ArrayLike)
@@ -244,8 +244,7 @@ std::invoke_result_t<F&> interruptible(F&& f) {
     result.get();
   } catch (const Interrupted&) {
     throw;  // the library's message says what was kept
-  } catch (...) {
-  }
+  } catch (...) {}
   throw signal_error;
 }
 
@@ -254,10 +253,10 @@ std::string python_command_line(const std::string& function);
 
 }  // namespace specula::python
 
-#define SPECULA_PY_ARG_NAME(Name, Text)                                                                  \
-  template <>                                                                                        \
-  struct pybind11::detail::handle_type_name<specula::python::Name> {                                 \
-    static constexpr auto name = const_name(Text);                                                   \
+#define SPECULA_PY_ARG_NAME(Name, Text)                              \
+  template <>                                                        \
+  struct pybind11::detail::handle_type_name<specula::python::Name> { \
+    static constexpr auto name = const_name(Text);                   \
   };
 SPECULA_PY_ARG_NAME(ArrayLike, "numpy.typing.ArrayLike")
 SPECULA_PY_ARG_NAME(OptArray, "numpy.typing.ArrayLike | None")

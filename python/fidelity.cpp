@@ -2,9 +2,9 @@
 // comparison `specula brdf-diff` prints). The one place the Python module binds the fidelity comparison.
 #include <fmt/format.h>
 
+#include "python/common.h"
 #include "specula/codec/diff.h"
 #include "specula/codec/environment.h"
-#include "python/common.h"
 
 namespace specula::python {
 
@@ -14,7 +14,8 @@ void init_fidelity(py::module_& m) {
       [](const GridArg& a_arg, const GridArg& b_arg, const EnvArg& env_arg, std::size_t size) {
         const store::Grid& a = as<store::Grid>(a_arg, "compare_grids", "reference", "Grid");
         const store::Grid& b = as<store::Grid>(b_arg, "compare_grids", "grid", "Grid");
-        if (size < 8 || size > 4096) throw UsageError(fmt::format("compare_grids: size {}: give 8 to 4096 pixels", size));
+        if (size < 8 || size > 4096)
+          throw UsageError(fmt::format("compare_grids: size {}: give 8 to 4096 pixels", size));
         const codec::Environment env = environment_from(env_arg, a.wavelengths);
         codec::GridDiff d;
         {

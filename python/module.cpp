@@ -3,8 +3,8 @@
 
 #include <atomic>
 
-#include "specula/core/error.h"
 #include "python/common.h"
+#include "specula/core/error.h"
 #include "specula/version.h"
 
 namespace specula::python {
@@ -39,7 +39,7 @@ py::array_t<double> to_numpy(const Eigen::VectorXd& v) {
 py::array_t<double> to_numpy(const Eigen::MatrixXd& m) {
   py::array_t<double> out({py::ssize_t(m.rows()), py::ssize_t(m.cols())});
   Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(out.mutable_data(), m.rows(),
-                                                                                        m.cols()) = m;
+                                                                                     m.cols()) = m;
   return out;
 }
 
@@ -73,8 +73,7 @@ std::pair<std::string, std::string> resolve(const PyStore& ps, const std::string
 
 Eigen::MatrixXd matrix_from(const py::handle& a, const std::string& what) {
   const auto arr = DoubleArray::ensure(a);
-  if (!arr || arr.ndim() != 2)
-    throw UsageError(fmt::format("{}: expected a 2-D array of numbers", what));
+  if (!arr || arr.ndim() != 2) throw UsageError(fmt::format("{}: expected a 2-D array of numbers", what));
   return Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
       arr.data(), arr.shape(0), arr.shape(1));
 }
@@ -115,7 +114,8 @@ void note_commit() { ++commit_count; }
 
 PyStore::PyStore(std::filesystem::path path, std::string mode) : path_(std::move(path)), mode_(std::move(mode)) {
   if (mode_ != "r" && mode_ != "a")
-    throw UsageError(fmt::format("Store: mode '{}': give 'r' (read) or 'a' (read and write; created if absent)", mode_));
+    throw UsageError(
+        fmt::format("Store: mode '{}': give 'r' (read) or 'a' (read and write; created if absent)", mode_));
   if (mode_ == "r" && !std::filesystem::exists(path_))
     throw MissingFile(path_.string() + ": no such file (give mode=\"a\" to create a store)");
   if (exists()) refresh();
@@ -134,7 +134,9 @@ void PyStore::refresh() const {
 
 const store::Store& PyStore::get() const {
   if (seen_ != commit_count || !snapshot_) refresh();
-  if (!snapshot_) throw MissingFile(path_.string() + ": no such file yet (a store opened with mode \"a\" is created by its first write)");
+  if (!snapshot_)
+    throw MissingFile(path_.string() +
+                      ": no such file yet (a store opened with mode \"a\" is created by its first write)");
   return *snapshot_;
 }
 
@@ -145,7 +147,8 @@ store::StoreWriter& PyStore::writer(bool replace, bool& commit_now) {
   store::StoreWriter* w = tx_.get();
   if (!w) {
     single_ = std::make_unique<store::StoreWriter>(
-        path_, store::WriteOptions{.compression = {}, .replace = replace, .command_line = python_command_line("Store")});
+        path_,
+        store::WriteOptions{.compression = {}, .replace = replace, .command_line = python_command_line("Store")});
     w = single_.get();
   }
   w->set_replace(replace);
@@ -210,7 +213,8 @@ PYBIND11_MODULE(_specula, m) {
   sp::error_type = sp::add_exception(m, "Error", PyExc_Exception, "Base of every error specula raises.");
   {
     py::tuple bases = py::make_tuple(py::handle(sp::error_type), py::handle(PyExc_ValueError));
-    sp::usage_type = sp::add_exception(m, "UsageError", bases.ptr(), "A rule of the API was broken; the message states it.");
+    sp::usage_type =
+        sp::add_exception(m, "UsageError", bases.ptr(), "A rule of the API was broken; the message states it.");
   }
   {
     py::tuple bases = py::make_tuple(py::handle(sp::error_type), py::handle(PyExc_ValueError));
@@ -219,20 +223,21 @@ PYBIND11_MODULE(_specula, m) {
   }
   {
     py::tuple bases = py::make_tuple(py::handle(sp::input_type), py::handle(PyExc_FileNotFoundError));
-    sp::missing_file_type = sp::add_exception(m, "MissingFileError", bases.ptr(),
-                                              "A file specula was asked to read is not there (the message gives its full path).");
+    sp::missing_file_type =
+        sp::add_exception(m, "MissingFileError", bases.ptr(),
+                          "A file specula was asked to read is not there (the message gives its full path).");
   }
   {
     py::tuple bases = py::make_tuple(py::handle(sp::input_type), py::handle(PyExc_KeyError));
-    sp::missing_object_type = sp::add_exception(m, "MissingObjectError", bases.ptr(),
-                                                "A store holds no object of the name asked for.");
+    sp::missing_object_type =
+        sp::add_exception(m, "MissingObjectError", bases.ptr(), "A store holds no object of the name asked for.");
   }
-  sp::library_type = sp::add_exception(m, "LibraryError", sp::error_type,
-                                       "HDF5, zstd, the OS or another library reported a failure.");
+  sp::library_type =
+      sp::add_exception(m, "LibraryError", sp::error_type, "HDF5, zstd, the OS or another library reported a failure.");
   {
     py::tuple bases = py::make_tuple(py::handle(sp::error_type), py::handle(PyExc_KeyboardInterrupt));
-    sp::interrupted_type = sp::add_exception(m, "Interrupted", bases.ptr(),
-                                             "Ctrl-C stopped the work; the message says what was kept.");
+    sp::interrupted_type =
+        sp::add_exception(m, "Interrupted", bases.ptr(), "Ctrl-C stopped the work; the message says what was kept.");
   }
   py::register_exception_translator([](std::exception_ptr p) {
     try {

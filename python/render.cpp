@@ -5,6 +5,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "python/common.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/render.h"
@@ -14,7 +15,6 @@
 #include "specula/core/colour.h"
 #include "specula/core/illuminant.h"
 #include "specula/core/preview.h"
-#include "python/common.h"
 
 namespace specula::python {
 namespace {
@@ -69,15 +69,16 @@ Eigen::Vector3d light_direction(const std::pair<double, double>& light) {
   return {std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)};
 }
 
-py::tuple render(const BrdfArg& brdf, const std::pair<double, double>& light, const EnvArg& env_arg,
-                 std::size_t size, const IlluminantArg& illuminant, double exposure) {
+py::tuple render(const BrdfArg& brdf, const std::pair<double, double>& light, const EnvArg& env_arg, std::size_t size,
+                 const IlluminantArg& illuminant, double exposure) {
   if (!(std::abs(exposure) <= 64)) throw UsageError("render_sphere: exposure must be between -64 and 64 stops");
   const codec::SpcBrdf* spc = py::isinstance<codec::SpcBrdf>(brdf) ? &brdf.cast<const codec::SpcBrdf&>() : nullptr;
   const store::Grid* grid = py::isinstance<store::Grid>(brdf) ? &brdf.cast<const store::Grid&>() : nullptr;
   if (!env_arg.is_none()) {
     if (!spc && !grid)
-      throw py::type_error("render_sphere: under an environment, brdf must be a specula.Grid or specula.SpcBrdf (uplift "
-                           "an RGB MERL BRDF to a spectral grid first)");
+      throw py::type_error(
+          "render_sphere: under an environment, brdf must be a specula.Grid or specula.SpcBrdf (uplift "
+          "an RGB MERL BRDF to a spectral grid first)");
     const codec::Environment env = environment_from(env_arg, spc ? spc->wavelengths() : grid->wavelengths);
     codec::SphereRenders r;
     {
@@ -97,8 +98,8 @@ py::tuple render(const BrdfArg& brdf, const std::pair<double, double>& light, co
                                     ? parse_illuminant(illuminant.cast<std::string>(), wavelengths)
                                     : vector_from(illuminant, "render_sphere illuminant");
     if (std::size_t(spd.size()) != wavelengths.size())
-      throw UsageError(fmt::format("render_sphere: illuminant has {} values for {} wavelengths", spd.size(),
-                                   wavelengths.size()));
+      throw UsageError(
+          fmt::format("render_sphere: illuminant has {} values for {} wavelengths", spd.size(), wavelengths.size()));
     return codec::rgb_weights(wavelengths, spd);
   };
   codec::SphereImage img;
@@ -113,8 +114,9 @@ py::tuple render(const BrdfArg& brdf, const std::pair<double, double>& light, co
   } else {
     const auto v = DoubleArray::ensure(brdf);
     if (!v || v.size() != py::ssize_t(3 * brdf::kMerlCells))
-      throw py::type_error("render_sphere: brdf must be a specula.Grid, a specula.SpcBrdf or a MERL array (3, 90, 90, "
-                           "180) of stored values as read_merl gives");
+      throw py::type_error(
+          "render_sphere: brdf must be a specula.Grid, a specula.SpcBrdf or a MERL array (3, 90, 90, "
+          "180) of stored values as read_merl gives");
     codec::MerlBrdf merl;
     merl.raw.assign(v.data(), v.data() + v.size());
     py::gil_scoped_release release;
@@ -127,9 +129,10 @@ py::tuple render(const BrdfArg& brdf, const std::pair<double, double>& light, co
 FloatArray directions(const py::object& a, const char* name, std::vector<py::ssize_t>& lead) {
   auto arr = FloatArray::ensure(a);
   if (!arr || arr.ndim() < 1 || arr.shape(arr.ndim() - 1) != 3)
-    throw UsageError(fmt::format("SpcBrdf.evaluate: {} must be an array of directions (..., 3): x y z in the local "
-                                 "frame, z the normal",
-                                 name));
+    throw UsageError(
+        fmt::format("SpcBrdf.evaluate: {} must be an array of directions (..., 3): x y z in the local "
+                    "frame, z the normal",
+                    name));
   lead.assign(arr.shape(), arr.shape() + arr.ndim() - 1);
   return arr;
 }
@@ -142,9 +145,10 @@ codec::Environment environment_from(const py::handle& env, const WavelengthGrid&
 }
 
 void init_render(py::module_& m) {
-  py::class_<codec::SpcBrdf>(m, "SpcBrdf",
-                             "A .spc held in coefficient form (k floats per MERL cell) and evaluated at direction pairs "
-                             "without decoding it to a grid, in the cell MERL's BRDFRead.cpp reads.")
+  py::class_<codec::SpcBrdf>(
+      m, "SpcBrdf",
+      "A .spc held in coefficient form (k floats per MERL cell) and evaluated at direction pairs "
+      "without decoding it to a grid, in the cell MERL's BRDFRead.cpp reads.")
       .def(py::init([](const SpcData& data) {
              std::string label;
              const std::vector<std::uint8_t> bytes = spc_bytes(data, label);
@@ -177,17 +181,19 @@ void init_render(py::module_& m) {
           "The BRDF (1/sr) at direction pairs wi, wo (..., 3) (local frame, z the normal, any length): float32 "
           "(..., bands), 0 where the cell holds no data.")
       .def("__repr__", [](const codec::SpcBrdf& b) {
-        return fmt::format("<specula.SpcBrdf k={} {} reference='{}'>", b.k(), b.wavelengths().describe(), b.reference());
+        return fmt::format("<specula.SpcBrdf k={} {} reference='{}'>", b.k(), b.wavelengths().describe(),
+                           b.reference());
       });
 
-  m.def("render_sphere", &render, py::arg("brdf"), py::arg("light") = std::pair<double, double>(45.0, 135.0),
-        py::arg("env") = py::none(), py::arg("size") = 256, py::arg("illuminant") = "D65", py::arg("exposure") = 0.0,
-        "A sphere as `specula render` draws it, as arrays: (srgb uint8 (size, size, 3), linear float32 (size, size, 3)). "
-        "brdf: a specula.Grid, a specula.SpcBrdf (evaluated from its coefficients) or a MERL array (3, 90, 90, 180) as "
-        "read_merl gives. Without env: one directional light from `light` = (theta, phi) degrees (theta from the "
-        "viewer), spectral BRDFs taken to RGB under `illuminant` (a name as the CLI takes, or an SPD). With env "
-        "('default' or a lat-long EXR): the spectral rendering under that environment, its white mapped to 1. sRGB "
-        "after `exposure` stops; pixels off the sphere are grey 24 (linear 0).");
+  m.def(
+      "render_sphere", &render, py::arg("brdf"), py::arg("light") = std::pair<double, double>(45.0, 135.0),
+      py::arg("env") = py::none(), py::arg("size") = 256, py::arg("illuminant") = "D65", py::arg("exposure") = 0.0,
+      "A sphere as `specula render` draws it, as arrays: (srgb uint8 (size, size, 3), linear float32 (size, size, 3)). "
+      "brdf: a specula.Grid, a specula.SpcBrdf (evaluated from its coefficients) or a MERL array (3, 90, 90, 180) as "
+      "read_merl gives. Without env: one directional light from `light` = (theta, phi) degrees (theta from the "
+      "viewer), spectral BRDFs taken to RGB under `illuminant` (a name as the CLI takes, or an SPD). With env "
+      "('default' or a lat-long EXR): the spectral rendering under that environment, its white mapped to 1. sRGB "
+      "after `exposure` stops; pixels off the sphere are grey 24 (linear 0).");
 }
 
 }  // namespace specula::python

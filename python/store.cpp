@@ -4,8 +4,8 @@
 
 #include <algorithm>
 
-#include "specula/core/error.h"
 #include "python/common.h"
+#include "specula/core/error.h"
 
 namespace specula::python {
 namespace {
@@ -139,9 +139,11 @@ const store::Store& holding(const PyStore& ps, const std::string& kind, const st
   if (std::find(names.begin(), names.end(), name) != names.end()) return s;
   std::string have;
   for (const auto& n : names) have += (have.empty() ? "" : ", ") + n;
-  const std::string one = kind == "bases" ? "basis" : kind == "samples" || kind == "coefficients" ? kind : kind.substr(0, kind.size() - 1);
-  throw MissingObject(fmt::format("{}: no {} '{}' (its {}: {})", ps.path().string(), one, name, kind,
-                                  have.empty() ? "none" : have));
+  const std::string one = kind == "bases"                               ? "basis"
+                          : kind == "samples" || kind == "coefficients" ? kind
+                                                                        : kind.substr(0, kind.size() - 1);
+  throw MissingObject(
+      fmt::format("{}: no {} '{}' (its {}: {})", ps.path().string(), one, name, kind, have.empty() ? "none" : have));
 }
 
 void init_store(py::module_& m) {
@@ -156,7 +158,8 @@ void init_store(py::module_& m) {
                       "once.")
       .def(py::init([](const PathArg& path, const std::string& mode) { return PyStore(path_from(path), mode); }),
            py::arg("path"), py::arg("mode") = "r")
-      .def_property_readonly("path", [](const PyStore& s) { return s.path().string(); }, "The store's absolute path.")
+      .def_property_readonly(
+          "path", [](const PyStore& s) { return s.path().string(); }, "The store's absolute path.")
       .def_property_readonly("mode", &PyStore::mode)
       .def_property_readonly("format_version", [](const PyStore& s) { return s.get().format_version(); })
       .def_property_readonly("images", list("images"))
@@ -165,159 +168,182 @@ void init_store(py::module_& m) {
       .def_property_readonly("grids", list("grids"))
       .def_property_readonly("bases", list("bases"))
       .def_property_readonly("coefficients", list("coefficients"))
-      .def("objects",
-           [](const PyStore& ps) {
-             py::list out;
-             if (!ps.exists()) return out;
-             const store::Store& s = ps.get();
-             for (const auto& [kind, plural] : {std::pair{"image", "images"}, {"collection", "collections"},
-                                                {"samples", "samples"}, {"grid", "grids"}, {"basis", "bases"},
-                                                {"coefficients", "coefficients"}})
-               for (const auto& n : names_of(s, plural)) out.append(py::make_tuple(kind, n));
-             return out;
-           },
-           "Every object as (kind, name) pairs.")
+      .def(
+          "objects",
+          [](const PyStore& ps) {
+            py::list out;
+            if (!ps.exists()) return out;
+            const store::Store& s = ps.get();
+            for (const auto& [kind, plural] : {std::pair{"image", "images"},
+                                               {"collection", "collections"},
+                                               {"samples", "samples"},
+                                               {"grid", "grids"},
+                                               {"basis", "bases"},
+                                               {"coefficients", "coefficients"}})
+              for (const auto& n : names_of(s, plural)) out.append(py::make_tuple(kind, n));
+            return out;
+          },
+          "Every object as (kind, name) pairs.")
       .def("refresh", &PyStore::refresh, "Reads the latest committed state (what other processes committed since).")
-      .def("stale", [](const PyStore& s) { return s.get().stale(); },
-           "True when a commit replaced the state this object reads (refresh() to see it).")
-      .def("__repr__", [](const PyStore& s) { return fmt::format("<specula.Store '{}' mode='{}'>", s.path().string(), s.mode()); })
-      .def("__enter__", [](py::object self) {
-        self.cast<PyStore&>().enter();
-        return self;
-      })
-      .def("__exit__",
-           [](PyStore& s, const py::object& type, const py::object&, const py::object&) {
-             s.exit(type.is_none());
-             return false;
-           },
-           py::arg("exc_type"), py::arg("exc_value"), py::arg("traceback"))
+      .def(
+          "stale", [](const PyStore& s) { return s.get().stale(); },
+          "True when a commit replaced the state this object reads (refresh() to see it).")
+      .def("__repr__",
+           [](const PyStore& s) { return fmt::format("<specula.Store '{}' mode='{}'>", s.path().string(), s.mode()); })
+      .def("__enter__",
+           [](py::object self) {
+             self.cast<PyStore&>().enter();
+             return self;
+           })
+      .def(
+          "__exit__",
+          [](PyStore& s, const py::object& type, const py::object&, const py::object&) {
+            s.exit(type.is_none());
+            return false;
+          },
+          py::arg("exc_type"), py::arg("exc_value"), py::arg("traceback"))
       .def("close", &PyStore::close,
            "Closes the store's files and abandons an open transaction (nothing of it is committed); a later call "
            "reopens the store. Blocks already made keep their own state.")
-      .def("info",
-           [](const PyStore& ps, const std::string& spec) -> py::dict {
-             const store::Store& s = ps.get();
-             const auto [kind, name] = resolve(ps, spec);
-             if (kind == "images") return info_dict(s.image_info(name));
-             if (kind == "collections") return info_dict(s.collection_info(name));
-             if (kind == "samples") return info_dict(s.samples_info(name));
-             if (kind == "grids") return info_dict(s.grid_info(name));
-             if (kind == "bases") return basis_info(s.read_basis(name), name);
-             if (kind == "coefficients") return info_dict(s.coefficients_info(name));
-             throw UsageError(fmt::format("{}: info: object {} is a {}, which has no info dict", ps.path().string(), spec, kind));
-           },
-           py::arg("name"), "Metadata of one object: a name, or kind/name when several kinds use it.")
-      .def("image",
-           [](const PyStore& ps, const std::string& name, const OptFloat& masked) {
-             const store::Store& s = holding(ps, "images", name);
-             store::Cube c;
-             {
-               py::gil_scoped_release release;
-               c = s.read_image(name);
-             }
-             return image_array(std::move(c), masked);
-           },
-           py::arg("name"), py::arg("masked") = py::none(),
-           "Image `name` as a (height, width, bands) float32 array (a new copy); with masked=v (e.g. numpy.nan) the "
-           "spectra of masked pixels are v.")
-      .def("mask",
-           [](const PyStore& ps, const std::string& name) {
-             const store::Store& s = holding(ps, "images", name);
-             store::Cube c;
-             {
-               py::gil_scoped_release release;
-               c = s.read_image(name);
-             }
-             return mask_array(c);
-           },
-           py::arg("name"), "The mask of image `name` as (height, width) uint8, 1 = valid.")
-      .def("image_and_mask",
-           [](const PyStore& ps, const std::string& name, const OptFloat& masked) {
-             const store::Store& s = holding(ps, "images", name);
-             store::Cube c;
-             {
-               py::gil_scoped_release release;
-               c = s.read_image(name);
-             }
-             if (c.mask.empty()) c.mask.assign(c.height * c.width, 1);
-             std::vector<std::uint8_t> mask = c.mask;
-             const py::ssize_t h = py::ssize_t(c.height), w = py::ssize_t(c.width);
-             return py::make_tuple(image_array(std::move(c), masked), adopt(std::move(mask), {h, w}));
-           },
-           py::arg("name"), py::arg("masked") = py::none(), "(image, mask) read once.")
-      .def("pixel",
-           [](const PyStore& ps, const std::string& name, std::size_t x, std::size_t y) -> OptArrayResult {
-             const store::Store& s = holding(ps, "images", name);
-             const store::ImageInfo info = s.image_info(name);
-             std::vector<float> v(info.bands);
-             if (!s.read_pixel(name, x, y, v)) return OptArrayResult(py::none());
-             return OptArrayResult(adopt(std::move(v), {py::ssize_t(info.bands)}));
-           },
-           py::arg("name"), py::arg("x"), py::arg("y"), "The spectrum of pixel (x, y), or None when it is masked.")
-      .def("collection",
-           [](const PyStore& ps, const std::string& name) {
-             store::Collection c = holding(ps, "collections", name).read_collection(name);
-             const std::size_t n = c.size(), b = c.bands();
-             return adopt(std::move(c.values), {py::ssize_t(n), py::ssize_t(b)});
-           },
-           py::arg("name"), "Collection `name` as a (size, bands) float32 array.")
-      .def("collection_names",
-           [](const PyStore& ps, const std::string& name) { return holding(ps, "collections", name).read_collection(name).names; },
-           py::arg("name"), "The names of the spectra of collection `name`, in order.")
-      .def("samples_data",
-           [](const PyStore& ps, const std::string& name, std::size_t first, std::optional<std::size_t> count) {
-             const store::Store& s = holding(ps, "samples", name);
-             const store::SamplesInfo info = s.samples_info(name);
-             if (first > info.size)
-               throw UsageError(fmt::format("{}: samples {} hold {} samples; first = {} is beyond them", ps.path().string(),
-                                            name, info.size, first));
-             const std::size_t n = count ? *count : info.size - first;
-             std::vector<double> angles(n * 4);
-             std::vector<float> values(n * info.bands);
-             {
-               py::gil_scoped_release release;
-               s.read_samples(name, first, n, angles, values);
-             }
-             return py::make_tuple(adopt(std::move(angles), {py::ssize_t(n), 4}),
-                                   adopt(std::move(values), {py::ssize_t(n), py::ssize_t(info.bands)}));
-           },
-           py::arg("name"), py::arg("first") = 0, py::arg("count") = py::none(),
-           "(angles, values) of samples `name`: (n, 4) float64 theta_i, phi_i, theta_o, phi_o in radians, (n, bands) "
-           "float32.")
-      .def("grid",
-           [](const PyStore& ps, const std::string& name) {
-             const store::Store& s = holding(ps, "grids", name);
-             py::gil_scoped_release release;
-             return s.read_grid(name);
-           },
-           py::arg("name"), "BRDF grid `name` (a specula.Grid).")
-      .def("basis",
-           [](const PyStore& ps, const std::string& name) {
-             BasisResult b = py::cast(holding(ps, "bases", name).read_basis(name));
-             b.attr("_origin") = ps.path().filename().string() + ":" + name;
-             return b;
-           },
-           py::arg("name"), "Basis `name` (a specula.Basis; its origin is 'STORE.h5:NAME').")
-      .def("coefficient_map",
-           [](const PyStore& ps, const std::string& name) {
-             const store::Store& s = holding(ps, "coefficients", name);
-             const store::CoefficientsInfo info = s.coefficients_info(name);
-             std::vector<float> c(info.height * info.width * info.k);
-             std::vector<std::uint8_t> mask(info.height * info.width);
-             {
-               py::gil_scoped_release release;
-               s.read_coefficient_rows(name, 0, info.height, c, mask);
-             }
-             return py::make_tuple(
-                 adopt(std::move(c), {py::ssize_t(info.height), py::ssize_t(info.width), py::ssize_t(info.k)}),
-                 adopt(std::move(mask), {py::ssize_t(info.height), py::ssize_t(info.width)}));
-           },
-           py::arg("name"), "(coefficients (height, width, k) float32, mask (height, width) uint8) of map `name`.")
-      .def("coefficient_basis",
-           [](const PyStore& ps, const std::string& name) {
-             return holding(ps, "coefficients", name).coefficients_basis(name);
-           },
-           py::arg("name"), "The basis stored with coefficient map `name`.");
+      .def(
+          "info",
+          [](const PyStore& ps, const std::string& spec) -> py::dict {
+            const store::Store& s = ps.get();
+            const auto [kind, name] = resolve(ps, spec);
+            if (kind == "images") return info_dict(s.image_info(name));
+            if (kind == "collections") return info_dict(s.collection_info(name));
+            if (kind == "samples") return info_dict(s.samples_info(name));
+            if (kind == "grids") return info_dict(s.grid_info(name));
+            if (kind == "bases") return basis_info(s.read_basis(name), name);
+            if (kind == "coefficients") return info_dict(s.coefficients_info(name));
+            throw UsageError(
+                fmt::format("{}: info: object {} is a {}, which has no info dict", ps.path().string(), spec, kind));
+          },
+          py::arg("name"), "Metadata of one object: a name, or kind/name when several kinds use it.")
+      .def(
+          "image",
+          [](const PyStore& ps, const std::string& name, const OptFloat& masked) {
+            const store::Store& s = holding(ps, "images", name);
+            store::Cube c;
+            {
+              py::gil_scoped_release release;
+              c = s.read_image(name);
+            }
+            return image_array(std::move(c), masked);
+          },
+          py::arg("name"), py::arg("masked") = py::none(),
+          "Image `name` as a (height, width, bands) float32 array (a new copy); with masked=v (e.g. numpy.nan) the "
+          "spectra of masked pixels are v.")
+      .def(
+          "mask",
+          [](const PyStore& ps, const std::string& name) {
+            const store::Store& s = holding(ps, "images", name);
+            store::Cube c;
+            {
+              py::gil_scoped_release release;
+              c = s.read_image(name);
+            }
+            return mask_array(c);
+          },
+          py::arg("name"), "The mask of image `name` as (height, width) uint8, 1 = valid.")
+      .def(
+          "image_and_mask",
+          [](const PyStore& ps, const std::string& name, const OptFloat& masked) {
+            const store::Store& s = holding(ps, "images", name);
+            store::Cube c;
+            {
+              py::gil_scoped_release release;
+              c = s.read_image(name);
+            }
+            if (c.mask.empty()) c.mask.assign(c.height * c.width, 1);
+            std::vector<std::uint8_t> mask = c.mask;
+            const py::ssize_t h = py::ssize_t(c.height), w = py::ssize_t(c.width);
+            return py::make_tuple(image_array(std::move(c), masked), adopt(std::move(mask), {h, w}));
+          },
+          py::arg("name"), py::arg("masked") = py::none(), "(image, mask) read once.")
+      .def(
+          "pixel",
+          [](const PyStore& ps, const std::string& name, std::size_t x, std::size_t y) -> OptArrayResult {
+            const store::Store& s = holding(ps, "images", name);
+            const store::ImageInfo info = s.image_info(name);
+            std::vector<float> v(info.bands);
+            if (!s.read_pixel(name, x, y, v)) return OptArrayResult(py::none());
+            return OptArrayResult(adopt(std::move(v), {py::ssize_t(info.bands)}));
+          },
+          py::arg("name"), py::arg("x"), py::arg("y"), "The spectrum of pixel (x, y), or None when it is masked.")
+      .def(
+          "collection",
+          [](const PyStore& ps, const std::string& name) {
+            store::Collection c = holding(ps, "collections", name).read_collection(name);
+            const std::size_t n = c.size(), b = c.bands();
+            return adopt(std::move(c.values), {py::ssize_t(n), py::ssize_t(b)});
+          },
+          py::arg("name"), "Collection `name` as a (size, bands) float32 array.")
+      .def(
+          "collection_names",
+          [](const PyStore& ps, const std::string& name) {
+            return holding(ps, "collections", name).read_collection(name).names;
+          },
+          py::arg("name"), "The names of the spectra of collection `name`, in order.")
+      .def(
+          "samples_data",
+          [](const PyStore& ps, const std::string& name, std::size_t first, std::optional<std::size_t> count) {
+            const store::Store& s = holding(ps, "samples", name);
+            const store::SamplesInfo info = s.samples_info(name);
+            if (first > info.size)
+              throw UsageError(fmt::format("{}: samples {} hold {} samples; first = {} is beyond them",
+                                           ps.path().string(), name, info.size, first));
+            const std::size_t n = count ? *count : info.size - first;
+            std::vector<double> angles(n * 4);
+            std::vector<float> values(n * info.bands);
+            {
+              py::gil_scoped_release release;
+              s.read_samples(name, first, n, angles, values);
+            }
+            return py::make_tuple(adopt(std::move(angles), {py::ssize_t(n), 4}),
+                                  adopt(std::move(values), {py::ssize_t(n), py::ssize_t(info.bands)}));
+          },
+          py::arg("name"), py::arg("first") = 0, py::arg("count") = py::none(),
+          "(angles, values) of samples `name`: (n, 4) float64 theta_i, phi_i, theta_o, phi_o in radians, (n, bands) "
+          "float32.")
+      .def(
+          "grid",
+          [](const PyStore& ps, const std::string& name) {
+            const store::Store& s = holding(ps, "grids", name);
+            py::gil_scoped_release release;
+            return s.read_grid(name);
+          },
+          py::arg("name"), "BRDF grid `name` (a specula.Grid).")
+      .def(
+          "basis",
+          [](const PyStore& ps, const std::string& name) {
+            BasisResult b = py::cast(holding(ps, "bases", name).read_basis(name));
+            b.attr("_origin") = ps.path().filename().string() + ":" + name;
+            return b;
+          },
+          py::arg("name"), "Basis `name` (a specula.Basis; its origin is 'STORE.h5:NAME').")
+      .def(
+          "coefficient_map",
+          [](const PyStore& ps, const std::string& name) {
+            const store::Store& s = holding(ps, "coefficients", name);
+            const store::CoefficientsInfo info = s.coefficients_info(name);
+            std::vector<float> c(info.height * info.width * info.k);
+            std::vector<std::uint8_t> mask(info.height * info.width);
+            {
+              py::gil_scoped_release release;
+              s.read_coefficient_rows(name, 0, info.height, c, mask);
+            }
+            return py::make_tuple(
+                adopt(std::move(c), {py::ssize_t(info.height), py::ssize_t(info.width), py::ssize_t(info.k)}),
+                adopt(std::move(mask), {py::ssize_t(info.height), py::ssize_t(info.width)}));
+          },
+          py::arg("name"), "(coefficients (height, width, k) float32, mask (height, width) uint8) of map `name`.")
+      .def(
+          "coefficient_basis",
+          [](const PyStore& ps, const std::string& name) {
+            return holding(ps, "coefficients", name).coefficients_basis(name);
+          },
+          py::arg("name"), "The basis stored with coefficient map `name`.");
 }
 
 }  // namespace specula::python

@@ -13,7 +13,8 @@ namespace {
 using U8Array = py::array_t<std::uint8_t, py::array::c_style | py::array::forcecast>;
 
 store::Provenance python_provenance(const std::string& function, const std::string& source) {
-  return {.source_file = source, .importer = "python", .command_line = python_command_line(function), .created_utc = {}};
+  return {
+      .source_file = source, .importer = "python", .command_line = python_command_line(function), .created_utc = {}};
 }
 
 // Runs add(writer) in the open transaction or in one of its own, committed when add returns; a failure abandons a
@@ -69,7 +70,8 @@ void write_image(PyStore& ps, const std::string& name, const ArrayLike& cube_arg
     const std::size_t chunk =
         writer.create_image(name, h, w, grid, fwhm, units, python_provenance("Store.write_image", source));
     // Strips of whole chunks, about 64 MiB: the chunks of a strip are compressed in parallel.
-    const std::size_t strip = chunk * std::max<std::size_t>(1, (std::size_t{64} << 20) / (chunk * w * b * sizeof(float)));
+    const std::size_t strip =
+        chunk * std::max<std::size_t>(1, (std::size_t{64} << 20) / (chunk * w * b * sizeof(float)));
     const float* data = cube.data();
     const std::uint8_t* m = mask_arg.is_none() ? nullptr : mask.data();
     for (std::size_t y = 0; y < h; y += strip) {
@@ -80,8 +82,9 @@ void write_image(PyStore& ps, const std::string& name, const ArrayLike& cube_arg
   });
 }
 
-void write_collection(PyStore& ps, const std::string& name, const ArrayLike& spectra_arg, const WavelengthsArg& wavelengths,
-                      const NamesArg& names_arg, const std::string& units, bool replace, const std::string& source) {
+void write_collection(PyStore& ps, const std::string& name, const ArrayLike& spectra_arg,
+                      const WavelengthsArg& wavelengths, const NamesArg& names_arg, const std::string& units,
+                      bool replace, const std::string& source) {
   store::validate_name(name, "collection");
   const auto spectra = FloatArray::ensure(spectra_arg);
   if (!spectra || spectra.ndim() != 2)
@@ -90,8 +93,8 @@ void write_collection(PyStore& ps, const std::string& name, const ArrayLike& spe
   c.wavelengths = grid_from(wavelengths, "write_collection wavelengths");
   const std::size_t n = std::size_t(spectra.shape(0));
   if (c.bands() != std::size_t(spectra.shape(1)))
-    throw UsageError(fmt::format("write_collection: {}: {} wavelengths for spectra of {} bands", name, c.bands(),
-                                 spectra.shape(1)));
+    throw UsageError(
+        fmt::format("write_collection: {}: {} wavelengths for spectra of {} bands", name, c.bands(), spectra.shape(1)));
   if (names_arg.is_none()) {
     for (std::size_t i = 0; i < n; ++i) c.names.push_back(std::to_string(i));
   } else {

@@ -20,7 +20,8 @@ std::vector<CoefficientMap> write_coefficient_maps(const store::Store& store, co
   if (names.size() != images.size())
     throw UsageError("write_coefficient_maps: " + std::to_string(names.size()) + " names for " +
                      std::to_string(images.size()) + " images; give one name per image");
-  projector.check_wavelengths(reader.wavelengths(), store.label() + ": the images", "learn a basis on the images' grid");
+  projector.check_wavelengths(reader.wavelengths(), store.label() + ": the images",
+                              "learn a basis on the images' grid");
   std::vector<CoefficientMap> maps(images.size());
   for (std::size_t i = 0; i < images.size(); ++i) {
     CoefficientMap& m = maps[i];
@@ -59,31 +60,33 @@ std::vector<CoefficientMap> write_coefficient_maps(const store::Store& store, co
   };
   for (std::size_t first = 0; first < blocks; first += wave) {
     const std::size_t n = std::min(wave, blocks - first);
-    parallel_for(n, [] { return Scratch{}; }, [&](std::size_t j, Scratch& t) {
-      store::BlockReader::RawBlock& r = raw[j];
-      reader.read_raw(first + j, r);
-      t.x.resize(Eigen::Index(r.valid), Eigen::Index(bands));
-      for (std::size_t p = 0, v = 0; p < r.pixels; ++p)
-        if (r.is_valid(p))
-          t.x.row(Eigen::Index(v++)) =
-              Eigen::Map<const Eigen::RowVectorXf>(r.spectrum(p, bands), Eigen::Index(bands)).cast<double>();
-      t.coef.resize(t.x.rows(), Eigen::Index(k));
-      t.recon.resize(t.x.rows(), t.x.cols());
-      t.e2.resize(t.x.rows());
-      projector.project(t.x, t.coef);
-      projector.reconstruct(t.coef, t.recon);
-      squared_errors(t.x, t.recon, t.e2);
-      errors[j] = {};
-      for (Eigen::Index i = 0; i < t.e2.size(); ++i) errors[j].add(t.e2[i]);
-      sum_sq[j] = t.x.squaredNorm();
-      std::vector<float>& c = out[j];
-      c.assign(r.pixels * k, 0.0f);
-      for (std::size_t p = 0, v = 0; p < r.pixels; ++p)
-        if (r.is_valid(p)) {
-          for (std::size_t i = 0; i < k; ++i) c[p * k + i] = float(t.coef(Eigen::Index(v), Eigen::Index(i)));
-          ++v;
-        }
-    });
+    parallel_for(
+        n, [] { return Scratch{}; },
+        [&](std::size_t j, Scratch& t) {
+          store::BlockReader::RawBlock& r = raw[j];
+          reader.read_raw(first + j, r);
+          t.x.resize(Eigen::Index(r.valid), Eigen::Index(bands));
+          for (std::size_t p = 0, v = 0; p < r.pixels; ++p)
+            if (r.is_valid(p))
+              t.x.row(Eigen::Index(v++)) =
+                  Eigen::Map<const Eigen::RowVectorXf>(r.spectrum(p, bands), Eigen::Index(bands)).cast<double>();
+          t.coef.resize(t.x.rows(), Eigen::Index(k));
+          t.recon.resize(t.x.rows(), t.x.cols());
+          t.e2.resize(t.x.rows());
+          projector.project(t.x, t.coef);
+          projector.reconstruct(t.coef, t.recon);
+          squared_errors(t.x, t.recon, t.e2);
+          errors[j] = {};
+          for (Eigen::Index i = 0; i < t.e2.size(); ++i) errors[j].add(t.e2[i]);
+          sum_sq[j] = t.x.squaredNorm();
+          std::vector<float>& c = out[j];
+          c.assign(r.pixels * k, 0.0f);
+          for (std::size_t p = 0, v = 0; p < r.pixels; ++p)
+            if (r.is_valid(p)) {
+              for (std::size_t i = 0; i < k; ++i) c[p * k + i] = float(t.coef(Eigen::Index(v), Eigen::Index(i)));
+              ++v;
+            }
+        });
     for (std::size_t j = 0; j < n; ++j) {
       const std::size_t b = first + j;
       CoefficientMap& m = maps[reader.block_source(b)];

@@ -29,8 +29,8 @@ struct CoefficientMap {
 
 /// What the maps record besides their data.
 struct CoefficientMapsOptions {
-  std::string basis_name;         ///< the basis's name in the store, stored with each map
-  store::Provenance provenance;   ///< of every map
+  std::string basis_name;        ///< the basis's name in the store, stored with each map
+  store::Provenance provenance;  ///< of every map
 };
 
 /// Creates map names[i] of source image i of `reader` (images of `store`, on the basis's wavelengths) in `writer`,

@@ -12,7 +12,7 @@ namespace specula::stats {
 
 /// A learned PCA basis and the time it took.
 struct LearnedPca {
-  store::Basis basis;          ///< with source, provenance (the stores' paths, importer "pca")
+  store::Basis basis;         ///< with source, provenance (the stores' paths, importer "pca")
   double seconds = 0;         ///< streaming and decomposition
   double stream_seconds = 0;  ///< streaming alone
 };

@@ -8,9 +8,9 @@
 #include <mutex>
 #include <optional>
 
-#include "specula/core/parallel.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/parallel.h"
 #include "specula/core/progress.h"
 
 namespace specula::stats {
@@ -34,13 +34,17 @@ void gram_tile_add(const double* tile, std::size_t n, std::size_t ld, double* gr
       for (std::size_t t = 0; t < n; ++t, x += ld) {
         const __m256d c0 = _mm256_loadu_pd(x + j0), c1 = _mm256_loadu_pd(x + j0 + 4);
         __m256d b = _mm256_broadcast_sd(x + i0);
-        a00 = _mm256_fmadd_pd(b, c0, a00); a01 = _mm256_fmadd_pd(b, c1, a01);
+        a00 = _mm256_fmadd_pd(b, c0, a00);
+        a01 = _mm256_fmadd_pd(b, c1, a01);
         b = _mm256_broadcast_sd(x + i0 + 1);
-        a10 = _mm256_fmadd_pd(b, c0, a10); a11 = _mm256_fmadd_pd(b, c1, a11);
+        a10 = _mm256_fmadd_pd(b, c0, a10);
+        a11 = _mm256_fmadd_pd(b, c1, a11);
         b = _mm256_broadcast_sd(x + i0 + 2);
-        a20 = _mm256_fmadd_pd(b, c0, a20); a21 = _mm256_fmadd_pd(b, c1, a21);
+        a20 = _mm256_fmadd_pd(b, c0, a20);
+        a21 = _mm256_fmadd_pd(b, c1, a21);
         b = _mm256_broadcast_sd(x + i0 + 3);
-        a30 = _mm256_fmadd_pd(b, c0, a30); a31 = _mm256_fmadd_pd(b, c1, a31);
+        a30 = _mm256_fmadd_pd(b, c0, a30);
+        a31 = _mm256_fmadd_pd(b, c1, a31);
       }
       double* g = gram + i0 * ld + j0;
       const __m256d acc[4][2] = {{a00, a01}, {a10, a11}, {a20, a21}, {a30, a31}};
@@ -68,7 +72,8 @@ void gram_tile_add(const double* tile, std::size_t n, std::size_t ld, double* gr
 
 // `rows_in` rows of `bands` values, `stride` apart; rows whose mask entry is zero are skipped (no mask: all).
 template <class T>
-Moments block_moments(const T* x, std::size_t stride, std::size_t rows_in, const std::uint8_t* mask, std::size_t bands) {
+Moments block_moments(const T* x, std::size_t stride, std::size_t rows_in, const std::uint8_t* mask,
+                      std::size_t bands) {
   Moments m(bands);
   const std::size_t b = bands, ld = (bands + 1 + 7) / 8 * 8;
   std::size_t first = 0;
@@ -178,16 +183,20 @@ Moments stream_moments(const store::BlockReader& reader, const Collective& ranks
   for (std::size_t first = share.first; first < share.last; first += wave) {
     const std::size_t n = std::min(wave, share.last - first);
     part.assign(n, Moments(bands));
-    parallel_for(n, [] { return store::BlockReader::RawBlock(); }, [&](std::size_t j, store::BlockReader::RawBlock& raw) {
-      const std::size_t block = first + j;
-      reader.read_raw(block, raw);
-      part[j] = block_moments(raw.values.data(), bands, raw.pixels, raw.mask.empty() ? nullptr : raw.mask.data(), bands);
-      // A NaN or infinity anywhere in the block makes its mean non-finite.
-      if (!part[j].mean().allFinite() || !part[j].scatter().allFinite())
-        throw InputError(reader.describe_block(block) +
-                         ": a valid spectrum holds a non-finite value; PCA needs finite data (re-import, or mask the pixel)");
-      progress.advance(std::uint64_t(raw.valid));
-    });
+    parallel_for(
+        n, [] { return store::BlockReader::RawBlock(); },
+        [&](std::size_t j, store::BlockReader::RawBlock& raw) {
+          const std::size_t block = first + j;
+          reader.read_raw(block, raw);
+          part[j] =
+              block_moments(raw.values.data(), bands, raw.pixels, raw.mask.empty() ? nullptr : raw.mask.data(), bands);
+          // A NaN or infinity anywhere in the block makes its mean non-finite.
+          if (!part[j].mean().allFinite() || !part[j].scatter().allFinite())
+            throw InputError(
+                reader.describe_block(block) +
+                ": a valid spectrum holds a non-finite value; PCA needs finite data (re-import, or mask the pixel)");
+          progress.advance(std::uint64_t(raw.valid));
+        });
     for (auto& m : part) push(std::move(m));
   }
   Moments total(bands);

@@ -31,7 +31,7 @@ class Moments {
   /// Uncentred second moment E[x x^T] = scatter / n + mean mean^T.
   Eigen::MatrixXd second_moment() const;
 
- /// Merges statistics given as their parts (count, mean, centred scatter).
+  /// Merges statistics given as their parts (count, mean, centred scatter).
   void merge_raw(std::uint64_t n, const Eigen::VectorXd& mean, const Eigen::MatrixXd& scatter);
 
  private:

@@ -46,10 +46,11 @@ double ProjectionError::rms(std::size_t bands) const {
 
 void squared_errors(const Eigen::Ref<const RowMatrixXd>& spectra, const Eigen::Ref<const RowMatrixXd>& reconstruction,
                     Eigen::Ref<Eigen::VectorXd> squared) {
-  if (reconstruction.rows() != spectra.rows() || reconstruction.cols() != spectra.cols() || squared.size() != spectra.rows())
+  if (reconstruction.rows() != spectra.rows() || reconstruction.cols() != spectra.cols() ||
+      squared.size() != spectra.rows())
     throw UsageError("squared_errors: spectra " + sizes(spectra.rows(), spectra.cols()) + ", reconstruction " +
-                     sizes(reconstruction.rows(), reconstruction.cols()) + ", squared " + std::to_string(squared.size()) +
-                     " do not match");
+                     sizes(reconstruction.rows(), reconstruction.cols()) + ", squared " +
+                     std::to_string(squared.size()) + " do not match");
   for (Eigen::Index i = 0; i < spectra.rows(); ++i) squared[i] = (spectra.row(i) - reconstruction.row(i)).squaredNorm();
 }
 
@@ -81,9 +82,11 @@ Projector::Projector(const store::Basis& basis, std::optional<long long> k, cons
                      " components; give k between 1 and " + std::to_string(all));
   if (method_ == BasisMethod::nmf && k && *k != all)
     throw UsageError("k = " + std::to_string(*k) + ": NMF " + (name.empty() ? "basis" : label_) + " has " +
-                     std::to_string(all) + " components and projects onto all of them (NMF bases are not nested: a "
-                     "basis projects onto all of its " + std::to_string(all) + " components, and its first " +
-                     std::to_string(*k) + " are no " + std::to_string(*k) + "-component basis)");
+                     std::to_string(all) +
+                     " components and projects onto all of them (NMF bases are not nested: a "
+                     "basis projects onto all of its " +
+                     std::to_string(all) + " components, and its first " + std::to_string(*k) + " are no " +
+                     std::to_string(*k) + "-component basis)");
   const Eigen::Index used = method_ == BasisMethod::pca && k ? Eigen::Index(*k) : Eigen::Index(all);
   basis_.method = basis.method;
   basis_.wavelengths = basis.wavelengths;
@@ -121,9 +124,9 @@ void Projector::project(const Eigen::Ref<const RowMatrixXd>& spectra, Eigen::Ref
 void Projector::reconstruct(const Eigen::Ref<const RowMatrixXd>& coefficients, Eigen::Ref<RowMatrixXd> spectra) const {
   const auto k = Eigen::Index(this->k()), b = Eigen::Index(bands());
   if (coefficients.cols() != k || spectra.rows() != coefficients.rows() || spectra.cols() != b)
-    throw UsageError("reconstruct: coefficients are " + sizes(coefficients.rows(), coefficients.cols()) + " and spectra " +
-                     sizes(spectra.rows(), spectra.cols()) + "; " + label_ + " takes " + std::to_string(k) +
-                     " coefficients and gives " + std::to_string(b) + " bands per spectrum");
+    throw UsageError("reconstruct: coefficients are " + sizes(coefficients.rows(), coefficients.cols()) +
+                     " and spectra " + sizes(spectra.rows(), spectra.cols()) + "; " + label_ + " takes " +
+                     std::to_string(k) + " coefficients and gives " + std::to_string(b) + " bands per spectrum");
   if (method_ == BasisMethod::pca) {
     pca_reconstruct(basis_, coefficients, spectra);
     return;
@@ -134,8 +137,8 @@ void Projector::reconstruct(const Eigen::Ref<const RowMatrixXd>& coefficients, E
 ImageProjection project_image(const store::Cube& cube, const Projector& projector, std::span<float> reconstruction) {
   const std::size_t w = cube.width, b = cube.bands, k = projector.k();
   if (reconstruction.size() != cube.data.size())
-    throw UsageError("project_image: " + std::to_string(reconstruction.size()) + " values for the reconstruction of a " +
-                     std::to_string(cube.data.size()) + "-value image");
+    throw UsageError("project_image: " + std::to_string(reconstruction.size()) +
+                     " values for the reconstruction of a " + std::to_string(cube.data.size()) + "-value image");
   const std::size_t rows_per_block = std::max<std::size_t>(1, (std::size_t(1) << 20) / (w * b));
   ImageProjection r;
   r.k = k;

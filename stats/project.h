@@ -86,8 +86,8 @@ class Projector {
 
  private:
   BasisMethod method_;
-  std::string label_;    // "basis <name>" or "the basis"
-  store::Basis basis_;   // method, wavelengths, mean and the k components used
+  std::string label_;             // "basis <name>" or "the basis"
+  store::Basis basis_;            // method, wavelengths, mean and the k components used
   std::optional<GramNnls> nnls_;  // NMF: the solver for S S^T
 };
 

@@ -12,8 +12,7 @@ namespace specula::stats {
 namespace {
 
 void check_pair(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b, const char* what) {
-  if (a.rows() == 0 || b.rows() == 0)
-    throw UsageError(std::string(what) + ": both bases need at least one component");
+  if (a.rows() == 0 || b.rows() == 0) throw UsageError(std::string(what) + ": both bases need at least one component");
   if (a.cols() != b.cols())
     throw UsageError(std::string(what) + ": the bases have " + std::to_string(a.cols()) + " and " +
                      std::to_string(b.cols()) + " bands; they must share a wavelength grid");

@@ -41,7 +41,8 @@ void StoreWriter::add_basis(const std::string& name, const Basis& basis) {
     throw UsageError(ctx + ": a basis needs k x B components on its wavelength grid");
   auto check_len = [&](const Eigen::VectorXd& v, const char* what) {
     if (v.size() != 0 && v.size() != b && std::string(what) != "weights")
-      throw UsageError(ctx + ": " + what + " has " + std::to_string(v.size()) + " entries for " + std::to_string(b) + " bands");
+      throw UsageError(ctx + ": " + what + " has " + std::to_string(v.size()) + " entries for " + std::to_string(b) +
+                       " bands");
   };
   check_len(basis.mean, "mean");
   check_len(basis.eigenvalues, "eigenvalues");

@@ -2,8 +2,8 @@
 
 #include <fcntl.h>
 #include <fnmatch.h>
-#include <unistd.h>
 #include <libdeflate.h>
+#include <unistd.h>
 
 #include <cstring>
 #include <memory>
@@ -15,7 +15,8 @@
 namespace specula::store {
 namespace {
 
-std::shared_ptr<h5::Id> open_with_cache(hid_t file, const std::string& path, std::size_t cache_bytes, std::string_view ctx) {
+std::shared_ptr<h5::Id> open_with_cache(hid_t file, const std::string& path, std::size_t cache_bytes,
+                                        std::string_view ctx) {
   h5::Id dapl(h5::check(H5Pcreate(H5P_DATASET_ACCESS), ctx, "H5Pcreate"));
   h5::check(H5Pset_chunk_cache(dapl, 1031, cache_bytes, 1.0), ctx, "H5Pset_chunk_cache");
   return std::make_shared<h5::Id>(h5::check(H5Dopen2(file, path.c_str(), dapl), ctx, "cannot open " + path));
@@ -70,9 +71,12 @@ void BlockReader::map_chunks(SourceData& sd, std::size_t rows) const {
     unsigned flags = 0, values[8];
     std::size_t nvalues = 8;
     const H5Z_filter_t f = H5Pget_filter2(dcpl, unsigned(i), &flags, &nvalues, values, 0, nullptr, nullptr);
-    if (f == H5Z_FILTER_SHUFFLE && i == 0) sd.shuffle = true;
-    else if (f == H5Z_FILTER_DEFLATE && i == nf - 1) sd.deflate = true;
-    else return;  // an unknown pipeline: HDF5 decodes it
+    if (f == H5Z_FILTER_SHUFFLE && i == 0)
+      sd.shuffle = true;
+    else if (f == H5Z_FILTER_DEFLATE && i == nf - 1)
+      sd.deflate = true;
+    else
+      return;  // an unknown pipeline: HDF5 decodes it
   }
   hsize_t cdims[3] = {0, 0, 0};
   const int rank = H5Pget_chunk(dcpl, 3, cdims);
@@ -135,8 +139,8 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
       const std::size_t nx = std::min(src.chunk_cols, src.width - x0);
       if (ref.size == chunk_values * sizeof(float) && !src.deflate && !src.shuffle && src.chunk_cols == src.width) {
         // Plain whole-row chunk: its first ny rows go straight into the block, without a staging copy.
-        pread_all(src, reinterpret_cast<unsigned char*>(out + (y0 - row0) * src.width * b), ny * src.width * b * sizeof(float),
-                  ref.address);
+        pread_all(src, reinterpret_cast<unsigned char*>(out + (y0 - row0) * src.width * b),
+                  ny * src.width * b * sizeof(float), ref.address);
         continue;
       }
       const float* values = nullptr;
@@ -155,10 +159,12 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
           thread_local std::unique_ptr<libdeflate_decompressor, void (*)(libdeflate_decompressor*)> inflater(
               libdeflate_alloc_decompressor(), libdeflate_free_decompressor);
           std::size_t len = 0;
-          if (!inflater || libdeflate_zlib_decompress(inflater.get(), data, size, plain.data(), plain.size(), &len) !=
-                               LIBDEFLATE_SUCCESS ||
+          if (!inflater ||
+              libdeflate_zlib_decompress(inflater.get(), data, size, plain.data(), plain.size(), &len) !=
+                  LIBDEFLATE_SUCCESS ||
               len != plain.size())
-            throw InputError(stores_[src.store].label() + ": corrupt compressed chunk at byte " + std::to_string(ref.address));
+            throw InputError(stores_[src.store].label() + ": corrupt compressed chunk at byte " +
+                             std::to_string(ref.address));
           data = plain.data();
           size = len;
         } else if (size != plain.size()) {
@@ -174,7 +180,8 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
       }
       // Chunk rows [y0, y0 + ny) x columns [x0, x0 + nx) into the block buffer.
       for (std::size_t y = 0; y < ny; ++y)
-        std::memcpy(out + ((y0 + y - row0) * src.width + x0) * b, values + y * src.chunk_cols * b, nx * b * sizeof(float));
+        std::memcpy(out + ((y0 + y - row0) * src.width + x0) * b, values + y * src.chunk_cols * b,
+                    nx * b * sizeof(float));
     }
   }
 }
@@ -230,8 +237,10 @@ void BlockReader::add_store(std::size_t index, const Selection& selection, std::
     SourceData sd;
     sd.store = index;
     sd.kind = samples ? "samples" : "collection";
-    sd.cube = open_with_cache(StoreAccess::root(store), (samples ? "/samples/" : "/collections/") + info.name + (samples ? "/values" : "/spectra"),
-                              rows_per_block * info.bands * sizeof(float) * 2, ctx);
+    sd.cube =
+        open_with_cache(StoreAccess::root(store),
+                        (samples ? "/samples/" : "/collections/") + info.name + (samples ? "/values" : "/spectra"),
+                        rows_per_block * info.bands * sizeof(float) * 2, ctx);
     sd.width = 1;
     map_chunks(sd, info.size);
     const std::size_t source = names_.size();
@@ -284,9 +293,11 @@ std::string BlockReader::describe_block(std::size_t i) const {
   const Block& blk = blocks_.at(i);
   const SourceData& src = sources_[blk.source];
   std::string name = names_[blk.source];
-  if (const auto colon = name.find(':'); stores_.size() > 1 && colon != std::string::npos) name = name.substr(colon + 1);
-  return stores_[src.store].label() + ": " + src.kind + " '" + name + "' " + ((src.mask != nullptr) ? "rows " : "spectra ") +
-         std::to_string(blk.row0) + "-" + std::to_string(blk.row0 + blk.rows - 1);
+  if (const auto colon = name.find(':'); stores_.size() > 1 && colon != std::string::npos)
+    name = name.substr(colon + 1);
+  return stores_[src.store].label() + ": " + src.kind + " '" + name + "' " +
+         ((src.mask != nullptr) ? "rows " : "spectra ") + std::to_string(blk.row0) + "-" +
+         std::to_string(blk.row0 + blk.rows - 1);
 }
 
 void BlockReader::read_raw(std::size_t i, RawBlock& out) const {
@@ -319,7 +330,8 @@ void BlockReader::read_raw(std::size_t i, RawBlock& out) const {
   h5::Id fspace(h5::check(H5Dget_space(*src.mask), ctx, "H5Dget_space"));
   h5::check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start, nullptr, count3, nullptr), ctx, "H5Sselect_hyperslab");
   h5::Id mspace(h5::check(H5Screate_simple(2, count3, nullptr), ctx, "H5Screate_simple"));
-  h5::check(H5Dread(*src.mask, H5T_NATIVE_UINT8, mspace, fspace, H5P_DEFAULT, out.mask.data()), ctx, "cannot read mask");
+  h5::check(H5Dread(*src.mask, H5T_NATIVE_UINT8, mspace, fspace, H5P_DEFAULT, out.mask.data()), ctx,
+            "cannot read mask");
   std::size_t valid = 0;
   for (std::size_t p = 0; p < px; ++p) valid += out.mask[p] != 0;
   out.valid = valid;
@@ -327,7 +339,8 @@ void BlockReader::read_raw(std::size_t i, RawBlock& out) const {
 }
 
 template <class T>
-void BlockReader::read_block(std::size_t i, Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& out) const {
+void BlockReader::read_block(std::size_t i,
+                             Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>& out) const {
   thread_local RawBlock raw;
   read_raw(i, raw);
   out.resize(Eigen::Index(raw.valid), Eigen::Index(bands()));

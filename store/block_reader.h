@@ -59,8 +59,8 @@ class BlockReader {
 
   /// Block i as read from the file, before the mask is applied: caller-owned buffers reused across calls.
   struct RawBlock {
-    std::vector<float> values;        // pixels x bands, band-fastest
-    std::vector<std::uint8_t> mask;   // pixels entries (nonzero: valid); empty when every pixel is valid
+    std::vector<float> values;       // pixels x bands, band-fastest
+    std::vector<std::uint8_t> mask;  // pixels entries (nonzero: valid); empty when every pixel is valid
     std::size_t pixels = 0, valid = 0;
     /// Spectrum p (valid or not) of the block.
     const float* spectrum(std::size_t p, std::size_t bands) const { return values.data() + p * bands; }
@@ -86,11 +86,11 @@ class BlockReader {
     unsigned filter_mask = 0;             // bit i set: filter i was skipped for this chunk
   };
   struct SourceData {
-    std::size_t store = 0;  // index into stores_
+    std::size_t store = 0;               // index into stores_
     std::shared_ptr<h5::Id> cube, mask;  // mask null for collections and samples
-    std::string kind;       // "image", "collection" or "samples"
-    std::size_t width = 0;  // pixels per row (1 for collections)
-    bool direct = false;    // chunk map below is usable (filters: none, or shuffle then deflate)
+    std::string kind;                    // "image", "collection" or "samples"
+    std::size_t width = 0;               // pixels per row (1 for collections)
+    bool direct = false;                 // chunk map below is usable (filters: none, or shuffle then deflate)
     bool shuffle = false, deflate = false;
     std::size_t chunk_rows = 0, chunk_cols = 0, col_chunks = 0;
     std::vector<ChunkRef> chunks;  // row-chunk major
@@ -124,10 +124,12 @@ class BlockReader {
 template <class T, class Fn>
 void for_each_block(const BlockReader& reader, Fn&& fn) {
   using Matrix = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-  parallel_for(reader.block_count(), [] { return Matrix(); }, [&](std::size_t i, Matrix& buffer) {
-    reader.read(i, buffer);
-    fn(i, static_cast<const Matrix&>(buffer), omp_get_thread_num());
-  });
+  parallel_for(
+      reader.block_count(), [] { return Matrix(); },
+      [&](std::size_t i, Matrix& buffer) {
+        reader.read(i, buffer);
+        fn(i, static_cast<const Matrix&>(buffer), omp_get_thread_num());
+      });
 }
 
 }  // namespace specula::store

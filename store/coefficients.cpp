@@ -26,7 +26,8 @@ CoefficientsInfo Store::coefficients_info(const std::string& name) const {
   info.provenance = read_provenance(g, ctx);
   h5::Id ds = open_dataset(g, "coefficients", ctx);
   const auto dims = h5::shape(ds, ctx);
-  if (dims.size() != 3 || dims[2] == 0) throw InputError(ctx + "/coefficients: expected 3 dimensions (height, width, k)");
+  if (dims.size() != 3 || dims[2] == 0)
+    throw InputError(ctx + "/coefficients: expected 3 dimensions (height, width, k)");
   info.height = dims[0];
   info.width = dims[1];
   info.k = dims[2];
@@ -98,8 +99,7 @@ void StoreWriter::create_coefficients(const std::string& name, const Coefficient
   write_provenance(g, info.provenance, options_.command_line, ctx);
   write_grid(g, basis.wavelengths, ctx);
   h5::write_matrix(g, "components", basis.components, ctx);
-  if (basis.method == "pca")
-    h5::write_vector(g, "mean", std::span<const double>(basis.mean.data(), b), ctx);
+  if (basis.method == "pca") h5::write_vector(g, "mean", std::span<const double>(basis.mean.data(), b), ctx);
 
   const hsize_t rows = std::min<hsize_t>(info.chunk_rows, info.height);
   const hsize_t dims[3] = {info.height, info.width, k}, chunk[3] = {rows, info.width, k};
@@ -117,8 +117,8 @@ void StoreWriter::create_coefficients(const std::string& name, const Coefficient
 void StoreWriter::write_coefficient_rows(const std::string& name, std::size_t y0, std::size_t rows,
                                          std::span<const float> coefficients, std::span<const std::uint8_t> mask) {
   const std::string path = "/coefficients/" + name, ctx = label() + ": " + path;
-  h5::Id g = open_group(object_file("coefficients", name, "create the map with create_coefficients before writing rows"),
-                        path, ctx);
+  h5::Id g = open_group(
+      object_file("coefficients", name, "create the map with create_coefficients before writing rows"), path, ctx);
   h5::Id ds = open_dataset(g, "coefficients", ctx);
   const auto dims = h5::shape(ds, ctx);
   const std::size_t width = dims[1], k = dims[2];

@@ -42,7 +42,8 @@ Collection Store::read_collection(const std::string& name) const {
   c.values.resize(info.size * info.bands);
   h5::Id ds = open_dataset(g, "spectra", ctx);
   if (!c.values.empty())
-    h5::check(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, c.values.data()), ctx, "cannot read spectra");
+    h5::check(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, c.values.data()), ctx,
+              "cannot read spectra");
   h5::Id names = open_dataset(g, "names", ctx);
   if (h5::shape(names, ctx) != std::vector<hsize_t>{info.size})
     throw InputError(ctx + "/names: expected one name per spectrum");
@@ -82,7 +83,8 @@ void StoreWriter::add_collection(const std::string& name, const Collection& col)
   const hsize_t chunk[2] = {std::min<hsize_t>(n, std::max<hsize_t>(1, kChunkBytes / (b * sizeof(float)))), b};
   h5::Id space(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
   h5::Id dcpl = chunked_dcpl(chunk, options_.compression, ctx);
-  h5::Id ds(h5::check(H5Dcreate2(g, "spectra", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx, "cannot create spectra"));
+  h5::Id ds(h5::check(H5Dcreate2(g, "spectra", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx,
+                      "cannot create spectra"));
   for (hsize_t r0 = 0; r0 < n; r0 += chunk[0]) {
     check_interrupt();
     const hsize_t start[2] = {r0, 0}, count[2] = {std::min<hsize_t>(chunk[0], n - r0), b};
@@ -91,7 +93,8 @@ void StoreWriter::add_collection(const std::string& name, const Collection& col)
   const hsize_t ndims[1] = {n};
   h5::Id nspace(h5::check(H5Screate_simple(1, ndims, nullptr), ctx, "H5Screate_simple"));
   h5::Id type = vlen_string_type(ctx);
-  h5::Id nds(h5::check(H5Dcreate2(g, "names", type, nspace, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx, "cannot create names"));
+  h5::Id nds(h5::check(H5Dcreate2(g, "names", type, nspace, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx,
+                       "cannot create names"));
   std::vector<const char*> ptrs;
   for (const auto& s : col.names) ptrs.push_back(s.c_str());
   h5::check(H5Dwrite(nds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()), ctx, "cannot write names");

@@ -47,7 +47,10 @@ std::vector<layout::Entry> make_durable(WriterState& st, const std::string& ctx)
   layout::crash_point("data-written");
   for (const auto& k : dirs) layout::sync_path(st.data / "objects" / k, true);
   layout::sync_path(st.data / "objects", true);
-  { const int fd = ::open((st.data / "readers").c_str(), O_RDONLY | O_CREAT | O_CLOEXEC, 0644); if (fd >= 0) ::close(fd); }
+  {
+    const int fd = ::open((st.data / "readers").c_str(), O_RDONLY | O_CREAT | O_CLOEXEC, 0644);
+    if (fd >= 0) ::close(fd);
+  }
   layout::sync_path(st.data, true);
   return added;
 }
@@ -58,10 +61,12 @@ layout::Index current_index(const WriterState& st, const std::string& ctx) {
   if (std::filesystem::exists(st.root)) {
     h5::Id f = open_root(st.root, ctx);
     if (!h5::has_attr(f, "format_version") || h5::read_int_attr(f, "format_version", ctx) != kFormatVersion)
-      throw InputError(ctx + ": the store was replaced by a file of another format while this transaction ran; nothing was written");
+      throw InputError(
+          ctx + ": the store was replaced by a file of another format while this transaction ran; nothing was written");
     cur = layout::read_index(f, ctx);
     if (cur.data_dir != st.base.data_dir)
-      throw InputError(ctx + ": another store was created at this path while this transaction ran; nothing was written");
+      throw InputError(ctx +
+                       ": another store was created at this path while this transaction ran; nothing was written");
   } else {
     cur = st.base;
     cur.generation = 0;
@@ -89,7 +94,8 @@ void merge(layout::Index& cur, const WriterState& st, std::vector<layout::Entry>
     if (cur.find(e.kind, e.name)) {
       const WriterState::Pending* pending = st.find(e.kind, e.name);
       if (!(pending ? pending->replace : replace))
-        throw InputError(ctx + ": " + e.kind + "/" + e.name + " was committed by another writer while this transaction ran; "
+        throw InputError(ctx + ": " + e.kind + "/" + e.name +
+                         " was committed by another writer while this transaction ran; "
                          "nothing was written (choose another name or allow replacing it)");
       unlink_entry(e.kind, e.name);
     }
@@ -147,8 +153,7 @@ void StoreWriter::commit() {
   // Step 4: reclaim what no reader can see; a failure here leaves garbage for the next commit, never a lost commit.
   try {
     reclaimed_ = layout::collect(st.root, st.data, cur, layout::transactions_in_flight(st.data, st.tx->id()) == 0);
-  } catch (const std::exception&) {
-  }
+  } catch (const std::exception&) {}
   layout::crash_point("collected");
 }
 

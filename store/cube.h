@@ -24,8 +24,8 @@ struct Cube {
   std::vector<float> data;
   std::vector<std::uint8_t> mask;  ///< empty = every pixel valid; else height*width, 1 = valid
   WavelengthGrid wavelengths;
-  std::vector<double> fwhm;        ///< empty or one per band (nm)
-  std::string units = "unknown";   ///< "reflectance", "radiance", "counts" or free text
+  std::vector<double> fwhm;       ///< empty or one per band (nm)
+  std::string units = "unknown";  ///< "reflectance", "radiance", "counts" or free text
   Provenance provenance;
 
   float* pixel(std::size_t y, std::size_t x) { return data.data() + (y * width + x) * bands; }
@@ -33,7 +33,9 @@ struct Cube {
   bool valid(std::size_t y, std::size_t x) const { return mask.empty() || mask[y * width + x] != 0; }
   /// Allocates data for h x w x b (zeroed) and clears the mask.
   void resize(std::size_t h, std::size_t w, std::size_t b) {
-    height = h; width = w; bands = b;
+    height = h;
+    width = w;
+    bands = b;
     data.assign(h * w * b, 0.0f);
     mask.clear();
   }

@@ -27,7 +27,8 @@ std::size_t shuffle_deflate(const float* plain, std::size_t elems, int level, st
 }
 
 void write_rows_deflated(hid_t ds, const float* data, const std::uint8_t* mask, std::size_t y0, std::size_t h,
-                         std::size_t w, std::size_t b, std::size_t ch, std::size_t cw, int level, const std::string& ctx) {
+                         std::size_t w, std::size_t b, std::size_t ch, std::size_t cw, int level,
+                         const std::string& ctx) {
   const std::size_t row_chunks = (h + ch - 1) / ch, col_chunks = (w + cw - 1) / cw;
   write_chunks_deflated(
       ds, row_chunks * col_chunks, ch * cw * b, level, ctx,
@@ -41,7 +42,9 @@ void write_rows_deflated(hid_t ds, const float* data, const std::uint8_t* mask, 
             if (!mask || mask[p]) std::copy_n(data + p * b, b, plain.data() + (y * cw + x) * b);
           }
       },
-      [&](std::size_t k) { return std::array<hsize_t, 3>{y0 + (k / col_chunks) * ch, (k % col_chunks) * cw, 0}; });
+      [&](std::size_t k) {
+        return std::array<hsize_t, 3>{y0 + (k / col_chunks) * ch, (k % col_chunks) * cw, 0};
+      });
 }
 
 }  // namespace specula::store

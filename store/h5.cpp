@@ -122,8 +122,7 @@ std::string read_string_attr(hid_t obj, const std::string& name, std::string_vie
   if (!has_attr(obj, name)) throw InputError(cat(ctx, "attribute '" + name + "' is missing"));
   Id attr(check(H5Aopen(obj, name.c_str(), H5P_DEFAULT), ctx, "cannot open attribute " + name));
   Id type(check(H5Aget_type(attr), ctx, "H5Aget_type"));
-  if (H5Tget_class(type) != H5T_STRING)
-    throw InputError(cat(ctx, "attribute '" + name + "' is not a string"));
+  if (H5Tget_class(type) != H5T_STRING) throw InputError(cat(ctx, "attribute '" + name + "' is not a string"));
   if (H5Tis_variable_str(type) > 0) {
     Id mem(check(H5Tcopy(H5T_C_S1), ctx, "H5Tcopy"));
     check(H5Tset_size(mem, H5T_VARIABLE), ctx, "H5Tset_size");
@@ -146,8 +145,7 @@ long long read_int_attr(hid_t obj, const std::string& name, std::string_view ctx
   if (!has_attr(obj, name)) throw InputError(cat(ctx, "attribute '" + name + "' is missing"));
   Id attr(check(H5Aopen(obj, name.c_str(), H5P_DEFAULT), ctx, "cannot open attribute " + name));
   Id type(check(H5Aget_type(attr), ctx, "H5Aget_type"));
-  if (H5Tget_class(type) != H5T_INTEGER)
-    throw InputError(cat(ctx, "attribute '" + name + "' is not an integer"));
+  if (H5Tget_class(type) != H5T_INTEGER) throw InputError(cat(ctx, "attribute '" + name + "' is not an integer"));
   long long v = 0;
   check(H5Aread(attr, H5T_NATIVE_LLONG, &v), ctx, "cannot read attribute " + name);
   return v;
@@ -176,7 +174,8 @@ std::vector<double> read_vector(hid_t loc, const std::string& name, std::string_
   auto dims = shape(ds, ctx);
   if (dims.size() != 1) throw InputError(cat(ctx, "dataset '" + name + "' is not one-dimensional"));
   std::vector<double> v(dims[0]);
-  if (!v.empty()) check(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot read " + name);
+  if (!v.empty())
+    check(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot read " + name);
   return v;
 }
 
@@ -186,7 +185,8 @@ void write_matrix(hid_t loc, const std::string& name, const Eigen::MatrixXd& m, 
   h5::Id ds(h5::check(H5Dcreate2(loc, name.c_str(), H5T_IEEE_F64LE, space, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), ctx,
                       "cannot create " + name));
   const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rm = m;
-  if (m.size()) h5::check(H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rm.data()), ctx, "cannot write " + name);
+  if (m.size())
+    h5::check(H5Dwrite(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rm.data()), ctx, "cannot write " + name);
 }
 
 Eigen::MatrixXd read_matrix(hid_t loc, const std::string& name, std::string_view ctx) {
@@ -194,8 +194,10 @@ Eigen::MatrixXd read_matrix(hid_t loc, const std::string& name, std::string_view
   h5::Id ds(h5::check(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), ctx, "cannot open " + name));
   const auto dims = h5::shape(ds, ctx);
   if (dims.size() != 2) throw InputError(std::string(ctx) + ": dataset '" + name + "' is not two-dimensional");
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rm{Eigen::Index(dims[0]), Eigen::Index(dims[1])};
-  if (rm.size()) h5::check(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rm.data()), ctx, "cannot read " + name);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rm{Eigen::Index(dims[0]),
+                                                                            Eigen::Index(dims[1])};
+  if (rm.size())
+    h5::check(H5Dread(ds, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rm.data()), ctx, "cannot read " + name);
   return rm;
 }
 

@@ -24,10 +24,17 @@ class Id {
  public:
   Id() = default;
   explicit Id(hid_t id) : id_(id) {}
-  Id(const Id& o) : id_(o.id_) { if (id_ > 0) H5Iinc_ref(id_); }
+  Id(const Id& o) : id_(o.id_) {
+    if (id_ > 0) H5Iinc_ref(id_);
+  }
   Id(Id&& o) noexcept : id_(o.id_) { o.id_ = H5I_INVALID_HID; }
-  Id& operator=(Id o) noexcept { std::swap(id_, o.id_); return *this; }
-  ~Id() { if (id_ > 0 && H5Iis_valid(id_) > 0) H5Idec_ref(id_); }
+  Id& operator=(Id o) noexcept {
+    std::swap(id_, o.id_);
+    return *this;
+  }
+  ~Id() {
+    if (id_ > 0 && H5Iis_valid(id_) > 0) H5Idec_ref(id_);
+  }
   hid_t get() const { return id_; }
   operator hid_t() const { return id_; }
   bool valid() const { return id_ > 0; }

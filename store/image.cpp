@@ -70,7 +70,8 @@ bool Store::read_pixel(const std::string& name, std::size_t x, std::size_t y, st
     throw UsageError(ctx + ": pixel (" + std::to_string(x) + ", " + std::to_string(y) + ") is outside the " +
                      std::to_string(info.width) + " x " + std::to_string(info.height) + " image");
   if (out.size() != info.bands)
-    throw UsageError(ctx + ": a pixel has " + std::to_string(info.bands) + " bands, the buffer " + std::to_string(out.size()));
+    throw UsageError(ctx + ": a pixel has " + std::to_string(info.bands) + " bands, the buffer " +
+                     std::to_string(out.size()));
   h5::Id g = open_group(StoreAccess::root(*this), "/images/" + name, ctx);
   {
     h5::Id cube = open_dataset(g, "cube", ctx);
@@ -102,13 +103,15 @@ void StoreWriter::add_image(const std::string& name, const Cube& cube) {
   if (cube.height == 0 || cube.width == 0 || cube.bands == 0)
     throw InputError(src + ": image is empty (" + std::to_string(cube.height) + "x" + std::to_string(cube.width) + "x" +
                      std::to_string(cube.bands) + ")");
-  if (cube.data.size() != cube.height * cube.width * cube.bands || (!cube.mask.empty() && cube.mask.size() != cube.height * cube.width))
+  if (cube.data.size() != cube.height * cube.width * cube.bands ||
+      (!cube.mask.empty() && cube.mask.size() != cube.height * cube.width))
     throw UsageError(ctx + ": cube buffers do not match its dimensions");
   if (cube.wavelengths.size() != cube.bands)
     throw InputError(src + ": image has " + std::to_string(cube.bands) + " bands but " +
                      std::to_string(cube.wavelengths.size()) + " wavelengths");
   if (!cube.fwhm.empty() && cube.fwhm.size() != cube.bands)
-    throw InputError(src + ": " + std::to_string(cube.fwhm.size()) + " FWHM values for " + std::to_string(cube.bands) + " bands");
+    throw InputError(src + ": " + std::to_string(cube.fwhm.size()) + " FWHM values for " + std::to_string(cube.bands) +
+                     " bands");
   // Non-finite values in valid pixels are the importer's business; here they are a hard error.
   std::uint64_t valid = 0;
   for (std::size_t p = 0; p < cube.height * cube.width; ++p) {
@@ -156,11 +159,13 @@ ImageDatasets create_image_datasets(hid_t file, const std::string& name, std::si
   const hsize_t chunk[3] = {d.chunk_rows, d.chunk_cols, bands};
   h5::Id space(h5::check(H5Screate_simple(3, dims, nullptr), ctx, "H5Screate_simple"));
   h5::Id dcpl = chunked_dcpl(chunk, options_.compression, ctx);
-  d.cube = h5::Id(h5::check(H5Dcreate2(g, "cube", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx, "cannot create cube"));
+  d.cube = h5::Id(h5::check(H5Dcreate2(g, "cube", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx,
+                            "cannot create cube"));
   h5::write_attr(d.cube, "axes", std::string_view("height,width,band"), ctx);
   h5::Id mspace(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
   h5::Id mdcpl = chunked_dcpl(std::span<const hsize_t>(chunk, 2), options_.compression, ctx);
-  d.mask = h5::Id(h5::check(H5Dcreate2(g, "mask", H5T_STD_U8LE, mspace, H5P_DEFAULT, mdcpl, H5P_DEFAULT), ctx, "cannot create mask"));
+  d.mask = h5::Id(h5::check(H5Dcreate2(g, "mask", H5T_STD_U8LE, mspace, H5P_DEFAULT, mdcpl, H5P_DEFAULT), ctx,
+                            "cannot create mask"));
   return d;
 }
 
@@ -174,8 +179,8 @@ void write_image_objects(hid_t file, const std::string& name, const Cube& cube, 
   bool ch_written_by_chunks = false;
 
   if (options_.compression.kind == Compression::Kind::deflate) {
-    write_rows_deflated(ds, cube.data.data(), cube.mask.empty() ? nullptr : cube.mask.data(), 0, cube.height, cube.width,
-                        cube.bands, ch, cw, options_.compression.level, ctx);
+    write_rows_deflated(ds, cube.data.data(), cube.mask.empty() ? nullptr : cube.mask.data(), 0, cube.height,
+                        cube.width, cube.bands, ch, cw, options_.compression.level, ctx);
     ch_written_by_chunks = true;
   }
   // Write by chunk rows; masked pixels are stored as zeros so the cube holds only finite numbers.
@@ -205,19 +210,21 @@ void write_image_objects(hid_t file, const std::string& name, const Cube& cube, 
 }  // namespace
 
 std::size_t StoreWriter::create_image(const std::string& name, std::size_t height, std::size_t width,
-                               const WavelengthGrid& wavelengths, std::span<const double> fwhm, const std::string& units,
-                               const Provenance& provenance) {
+                                      const WavelengthGrid& wavelengths, std::span<const double> fwhm,
+                                      const std::string& units, const Provenance& provenance) {
   const std::string ctx = label() + ": /images/" + name;
   const std::string src = provenance.source_file.empty() ? name : provenance.source_file;
   if (height == 0 || width == 0 || wavelengths.empty())
     throw InputError(src + ": image is empty (" + std::to_string(height) + "x" + std::to_string(width) + "x" +
                      std::to_string(wavelengths.size()) + ")");
   if (!fwhm.empty() && fwhm.size() != wavelengths.size())
-    throw InputError(src + ": " + std::to_string(fwhm.size()) + " FWHM values for " + std::to_string(wavelengths.size()) + " bands");
+    throw InputError(src + ": " + std::to_string(fwhm.size()) + " FWHM values for " +
+                     std::to_string(wavelengths.size()) + " bands");
   const hid_t f = begin("images", name, "image");
   std::size_t chunk_rows = 0;
   try {
-    chunk_rows = create_image_datasets(f, name, height, width, wavelengths, fwhm, units, provenance, options_, ctx).chunk_rows;
+    chunk_rows =
+        create_image_datasets(f, name, height, width, wavelengths, fwhm, units, provenance, options_, ctx).chunk_rows;
   } catch (...) {
     state_->drop("images", name);
     throw;
@@ -231,7 +238,8 @@ std::size_t StoreWriter::create_image(const std::string& name, std::size_t heigh
 void StoreWriter::write_image_rows(const std::string& name, std::size_t y0, std::size_t rows,
                                    std::span<const float> spectra, std::span<const std::uint8_t> mask) {
   const std::string path = "/images/" + name, ctx = label() + ": " + path;
-  h5::Id g = open_group(object_file("images", name, "create the image with create_image before writing rows"), path, ctx);
+  h5::Id g =
+      open_group(object_file("images", name, "create the image with create_image before writing rows"), path, ctx);
   WriterState::Pending& p = *state_->find("images", name);
   h5::Id ds = open_dataset(g, "cube", ctx);
   const auto dims = h5::shape(ds, ctx);
@@ -257,13 +265,15 @@ void StoreWriter::write_image_rows(const std::string& name, std::size_t y0, std:
     for (std::size_t b = 0; b < bands; ++b)
       if (!std::isfinite(s[b]))
         throw InputError(ctx + ": non-finite value at row " + std::to_string(y0 + q / width) + ", column " +
-                         std::to_string(q % width) + ", band " + std::to_string(b) + "; mask such pixels before storing");
+                         std::to_string(q % width) + ", band " + std::to_string(b) +
+                         "; mask such pixels before storing");
   }
   for (std::size_t y = y0; y < y0 + rows; ++y)
     if (p.row_done[y]) throw UsageError(ctx + ": row " + std::to_string(y) + " is written twice");
   const hsize_t start[3] = {y0, 0, 0}, cnt[3] = {rows, width, bands};
   const auto [ch, cw] = image_chunk(dims[0], width, bands);
-  if (options_.compression.kind == Compression::Kind::deflate && y0 % ch == 0 && (rows % ch == 0 || y0 + rows == dims[0]))
+  if (options_.compression.kind == Compression::Kind::deflate && y0 % ch == 0 &&
+      (rows % ch == 0 || y0 + rows == dims[0]))
     write_rows_deflated(ds, values.data(), nullptr, y0, rows, width, bands, ch, cw, options_.compression.level, ctx);
   else
     write_hyperslab(ds, H5T_NATIVE_FLOAT, start, cnt, values.data(), ctx);

@@ -74,10 +74,11 @@ NanCount find_nan(std::span<const float> data, std::size_t bands, std::span<std:
 
 std::string nan_message(const std::string& src, const NanCount& c, std::size_t width, std::size_t row0,
                         const WavelengthGrid& wl, const char* scope) {
-  return fmt::format("{}: {} NaN/Inf values in {} pixels{} (first at row {}, column {}, band {} = {} nm); "
-                     "set the `nan` option to \"mask\" to keep the image with those pixels masked",
-                     src, c.values, c.pixels, scope, row0 + c.first / width, c.first % width, c.first_band,
-                     wl.empty() ? 0.0 : wl[c.first_band]);
+  return fmt::format(
+      "{}: {} NaN/Inf values in {} pixels{} (first at row {}, column {}, band {} = {} nm); "
+      "set the `nan` option to \"mask\" to keep the image with those pixels masked",
+      src, c.values, c.pixels, scope, row0 + c.first / width, c.first % width, c.first_band,
+      wl.empty() ? 0.0 : wl[c.first_band]);
 }
 
 // Applies the NaN/Inf policy: reject (one line naming the count and the first position) or mask.
@@ -101,7 +102,8 @@ void apply_mask(Cube& c, const std::string& path) {
 
 std::string default_name(const std::filesystem::path& p) {
   std::string s = p.filename().string();
-  if (std::filesystem::is_directory(p) || s.empty()) s = std::filesystem::absolute(p).lexically_normal().filename().string();
+  if (std::filesystem::is_directory(p) || s.empty())
+    s = std::filesystem::absolute(p).lexically_normal().filename().string();
   if (s.empty()) s = "image";
   const auto dot = s.find('.');
   if (dot != std::string::npos && dot > 0) s = s.substr(0, dot);
@@ -115,8 +117,8 @@ std::string default_name(const std::filesystem::path& p) {
 std::string detect_import_format(const std::filesystem::path& p) {
   if (std::filesystem::is_directory(p)) return "png";
   const std::string ext = lower(p.extension().string());
-  if (ext == ".hdr" || ext == ".raw" || ext == ".img" || ext == ".dat" || ext == ".bsq" || ext == ".bil" || ext == ".bip" ||
-      ext == ".sli")
+  if (ext == ".hdr" || ext == ".raw" || ext == ".img" || ext == ".dat" || ext == ".bsq" || ext == ".bil" ||
+      ext == ".bip" || ext == ".sli")
     return "envi";  // an ENVI Spectral Library among them is told by its header (file type)
   if (ext == ".mat") return "mat";
   if (ext == ".png") return "png";
@@ -128,13 +130,14 @@ std::string detect_import_format(const std::filesystem::path& p) {
     const std::string kind = sniff_text_library(p);
     if (kind == "usgs" || kind == "usgs-wavelengths") return "usgs";
     if (kind == "ecostress") return "ecostress";
-    throw UsageError(p.string() + ": a .txt that is neither a USGS splib07a spectrum (title \"splib07a Record=...\") "
-                     "nor an ECOSTRESS spectrum (first line \"Name: ...\"); give the `format` option (usgs, ecostress or csv)");
+    throw UsageError(
+        p.string() +
+        ": a .txt that is neither a USGS splib07a spectrum (title \"splib07a Record=...\") "
+        "nor an ECOSTRESS spectrum (first line \"Name: ...\"); give the `format` option (usgs, ecostress or csv)");
   }
   throw UsageError(p.string() + ": cannot tell the format from the extension '" + ext +
                    "'; give the `format` option (envi, mat, png, exr, csv, brdf, usgs, ecostress or gdal)");
 }
-
 
 namespace {
 
@@ -155,7 +158,8 @@ std::vector<std::filesystem::path> glob_paths(const std::string& pattern) {
 bool is_pattern(const std::string& s) { return s.find_first_of("*?[") != std::string::npos; }
 
 bool is_envi_data_ext(const std::string& ext) {
-  return ext == ".raw" || ext == ".img" || ext == ".dat" || ext == ".bsq" || ext == ".bil" || ext == ".bip" || ext == ".sli";
+  return ext == ".raw" || ext == ".img" || ext == ".dat" || ext == ".bsq" || ext == ".bil" || ext == ".bip" ||
+         ext == ".sli";
 }
 
 // The .hdr that describes ENVI data file `p` (NAME.hdr or NAME.EXT.hdr), or empty.
@@ -192,8 +196,9 @@ class Expander {
       return skip(p, "an ENVI data file without its .hdr header");
     }
     if (ext == ".png" && o_.format == "auto")
-      return skip(p, "a PNG outside a band-stack directory (a directory whose only recognised files are PNGs is one "
-                     "stack; or name the PNGs of one stack together)");
+      return skip(p,
+                  "a PNG outside a band-stack directory (a directory whose only recognised files are PNGs is one "
+                  "stack; or name the PNGs of one stack together)");
     std::string format;
     try {
       format = detect_import_format(p);
@@ -219,8 +224,7 @@ class Expander {
         try {
           detect_import_format(e.path());
           other = true;
-        } catch (const UsageError&) {
-        }
+        } catch (const UsageError&) {}
       }
     }
     if (png && !other && o_.format == "auto") {
@@ -312,8 +316,7 @@ std::uint64_t estimate_bytes(const Item& item, const ImportOptions& o) {
       }
       for (const auto& f : pngs) floats += png_pixels(f) * (sizeof(float) + sizeof(std::uint16_t));
     }
-  } catch (const Error&) {
-  }
+  } catch (const Error&) {}
   if (floats == 0)
     for (const auto& f : item.files) floats += 4 * file_bytes(f);
   return o.wavelengths.empty() ? floats + floats / 4 : 2 * floats + floats / 4;
@@ -370,8 +373,10 @@ void read_library(const Item& item, const ImportOptions& o, Loaded& out) {
     std::vector<std::filesystem::path> spectra, wl;
     for (const auto& f : item.files) (sniff_text_library(f) == "usgs-wavelengths" ? wl : spectra).push_back(f);
     if (wl.size() != 1 || spectra.empty())
-      throw UsageError(fmt::format("{}: USGS splib07a spectra need exactly one Wavelengths file among the inputs "
-                                   "(found {}) and at least one spectrum (found {})", src, wl.size(), spectra.size()));
+      throw UsageError(
+          fmt::format("{}: USGS splib07a spectra need exactly one Wavelengths file among the inputs "
+                      "(found {}) and at least one spectrum (found {})",
+                      src, wl.size(), spectra.size()));
     lib = read_usgs_spectra(spectra, wl.front());
     label = spectra.front().string();
   }
@@ -400,7 +405,8 @@ Cube read_image_item(const Item& item, const ImportOptions& o, std::vector<std::
     cube = read_mat(first, o.var, o.mask.empty() ? std::nullopt : std::optional<std::string>(o.mask), given);
   } else if (item.format == "png") {
     if (given.empty())
-      throw UsageError(src + ": a PNG band stack carries no wavelengths; give the `wavelengths` option FIRST:LAST:STEP");
+      throw UsageError(src +
+                       ": a PNG band stack carries no wavelengths; give the `wavelengths` option FIRST:LAST:STEP");
     cube = read_png_stack(item.files, given);
   } else if (item.format == "exr") {
     cube = read_spectral_exr(first);
@@ -475,7 +481,8 @@ std::string write_gdal(StoreWriter& writer, const std::string& name, const std::
   if (!o.mask.empty()) {
     mask_file = read_mask(o.mask);
     if (mask_file->width != w || mask_file->height != h)
-      throw InputError(fmt::format("{}: mask is {}x{}, image is {}x{}", o.mask, mask_file->width, mask_file->height, w, h));
+      throw InputError(
+          fmt::format("{}: mask is {}x{}, image is {}x{}", o.mask, mask_file->width, mask_file->height, w, h));
   }
   Provenance prov;
   prov.source_file = src;
@@ -501,10 +508,14 @@ std::string write_gdal(StoreWriter& writer, const std::string& name, const std::
         if (!mask_file->valid[y0 * w + p]) m[p] = 0;
     const NanCount bad = find_nan(s, nb, m, o.nan == NanPolicy::mask);
     if (bad.values && o.nan == NanPolicy::reject)
-      throw InputError(nan_message(src, bad, w, y0, r.wavelengths(), fmt::format(" of rows {} to {}", y0, y0 + n - 1).c_str()));
+      throw InputError(
+          nan_message(src, bad, w, y0, r.wavelengths(), fmt::format(" of rows {} to {}", y0, y0 + n - 1).c_str()));
     nan_pixels += bad.pixels;
     for (std::size_t p = 0; p < px; ++p)
-      if (m[p]) ++valid; else std::fill_n(s.data() + p * nb, nb, 0.0f);
+      if (m[p])
+        ++valid;
+      else
+        std::fill_n(s.data() + p * nb, nb, 0.0f);
     std::span<const float> values = s;
     if (resampling) {
       Eigen::Map<const RowMatrixXf> in(s.data(), Eigen::Index(px), Eigen::Index(nb));
@@ -515,7 +526,8 @@ std::string write_gdal(StoreWriter& writer, const std::string& name, const std::
     writer.write_image_rows(name, y0, n, values, m);
   }
   if (nan_pixels) notes.push_back(fmt::format("{}: masked {} pixels holding NaN/Inf", src, nan_pixels));
-  return fmt::format("imported image {}: {}x{}, {}, {} valid pixels, units {}", name, h, w, grid.describe(), valid, units);
+  return fmt::format("imported image {}: {}x{}, {}, {} valid pixels, units {}", name, h, w, grid.describe(), valid,
+                     units);
 }
 
 // Adds what read_item produced to the transaction; returns the report line.
@@ -531,12 +543,13 @@ std::string write_item(StoreWriter& writer, const Item& item, Loaded& l, const I
     prov.importer = "brdf-irregular";
     writer.create_samples(l.name, b->wavelengths, o.units.empty() ? "1/sr" : o.units, prov);
     writer.append_samples(l.name, b->angles, b->values);
-    return fmt::format("imported samples {}: {} scattered BRDF samples, {}", l.name, b->size(), b->wavelengths.describe());
+    return fmt::format("imported samples {}: {} scattered BRDF samples, {}", l.name, b->size(),
+                       b->wavelengths.describe());
   }
   const Cube& cube = std::get<Cube>(l.object);
   writer.add_image(l.name, cube);
-  const std::size_t valid = cube.mask.empty() ? cube.height * cube.width
-                                              : std::size_t(std::count(cube.mask.begin(), cube.mask.end(), 1));
+  const std::size_t valid =
+      cube.mask.empty() ? cube.height * cube.width : std::size_t(std::count(cube.mask.begin(), cube.mask.end(), 1));
   return fmt::format("imported image {}: {}x{}, {}, {} valid pixels, units {}", l.name, cube.height, cube.width,
                      cube.wavelengths.describe(), valid, cube.units);
 }
@@ -603,9 +616,10 @@ ImportReport import_files(StoreWriter& writer, const std::vector<std::filesystem
   ImportInputs found = expand_import_inputs(inputs, o);
   report.skipped = found.skipped;
   if (o.strict && !found.skipped.empty())
-    throw InputError(fmt::format("{} ({} file{} skipped in all); the `strict` option makes a skip an error: remove the "
-                                 "file, or import without `strict`", found.skipped.front(), found.skipped.size(),
-                                 found.skipped.size() == 1 ? "" : "s"));
+    throw InputError(
+        fmt::format("{} ({} file{} skipped in all); the `strict` option makes a skip an error: remove the "
+                    "file, or import without `strict`",
+                    found.skipped.front(), found.skipped.size(), found.skipped.size() == 1 ? "" : "s"));
   if (found.files.empty())
     throw InputError("no file to import among the inputs" +
                      (found.skipped.empty() ? std::string() : ": " + found.skipped.front()));
@@ -621,8 +635,10 @@ ImportReport import_files(StoreWriter& writer, const std::vector<std::filesystem
       items.push_back({fmt_, {in}});
   }
   if (!o.name.empty() && items.size() > 1)
-    throw UsageError(fmt::format("the `name` option names one object but the inputs make {}; leave it empty to name "
-                                 "them by file", items.size()));
+    throw UsageError(
+        fmt::format("the `name` option names one object but the inputs make {}; leave it empty to name "
+                    "them by file",
+                    items.size()));
 
   const std::size_t n = items.size();
   std::vector<std::uint64_t> bytes(n);

@@ -26,13 +26,13 @@ struct ImportOptions {
   std::string var;                    ///< the .mat variable (empty: detected, store/io/mat.h)
   std::string format = "auto";        ///< auto, envi, mat, png, exr, csv, brdf, usgs, ecostress or gdal
   NanPolicy nan = NanPolicy::reject;
-  std::string units;                  ///< overrides the units the files give
-  bool honour_bbl = true;             ///< drop the bands an ENVI bbl marks bad
-  bool strict = false;                ///< a file skipped in a directory or glob is an error (nothing is imported)
-  unsigned jobs = 1;                  ///< files read at once, at most (also at most the OpenMP threads)
+  std::string units;       ///< overrides the units the files give
+  bool honour_bbl = true;  ///< drop the bands an ENVI bbl marks bad
+  bool strict = false;     ///< a file skipped in a directory or glob is an error (nothing is imported)
+  unsigned jobs = 1;       ///< files read at once, at most (also at most the OpenMP threads)
   std::uint64_t memory_budget = std::uint64_t{1} << 30;  ///< bytes the files read at once may take, estimated from
                                                          ///< their headers; a file larger than this is read alone
-  std::uint64_t strip_bytes = std::uint64_t{32} << 20;  ///< bytes of rows a streamed (GDAL) raster reads at once
+  std::uint64_t strip_bytes = std::uint64_t{32} << 20;   ///< bytes of rows a streamed (GDAL) raster reads at once
 };
 
 /// What an import added ("imported image a: ...", one line per object) and what it noted on the way.
@@ -63,6 +63,7 @@ std::string detect_import_format(const std::filesystem::path& path);
 /// USGS/ECOSTRESS spectra one collection) and adds its objects to `writer` in input order without committing; GDAL
 /// rasters are streamed by row strips. InputError/UsageError naming the file and the option to set, also for a skip
 /// when `strict`; with several failures, the first input's.
-ImportReport import_files(StoreWriter& writer, const std::vector<std::filesystem::path>& inputs, const ImportOptions& options);
+ImportReport import_files(StoreWriter& writer, const std::vector<std::filesystem::path>& inputs,
+                          const ImportOptions& options);
 
 }  // namespace specula::store

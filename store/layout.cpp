@@ -1,11 +1,11 @@
 #include "specula/store/layout.h"
 
 #include <fcntl.h>
+#include <libdeflate.h>
 #include <signal.h>
 #include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#include <libdeflate.h>
 
 #include <nlohmann/json.hpp>
 
@@ -116,7 +116,9 @@ std::uint64_t file_size_or_zero(const fs::path& p) {
 
 }  // namespace
 
-bool is_kind(std::string_view kind) { return std::find(std::begin(kKinds), std::end(kKinds), kind) != std::end(kKinds); }
+bool is_kind(std::string_view kind) {
+  return std::find(std::begin(kKinds), std::end(kKinds), kind) != std::end(kKinds);
+}
 
 const Entry* Index::find(std::string_view kind, std::string_view name) const {
   for (const auto& e : entries)
@@ -196,8 +198,12 @@ void write_root(const fs::path& path, const Index& index) {
       const std::string target = index.data_dir + "/" + e.file, object = "/" + e.kind + "/" + e.name;
       h5::check(H5Lcreate_external(target.c_str(), object.c_str(), g, e.name.c_str(), H5P_DEFAULT, H5P_DEFAULT), ctx,
                 "cannot link " + object);
-      j["objects"].push_back({{"kind", e.kind}, {"name", e.name}, {"file", e.file}, {"bytes", e.bytes},
-                              {"crc32", hex32(e.crc32)}, {"generation", e.generation}});
+      j["objects"].push_back({{"kind", e.kind},
+                              {"name", e.name},
+                              {"file", e.file},
+                              {"bytes", e.bytes},
+                              {"crc32", hex32(e.crc32)},
+                              {"generation", e.generation}});
     }
     const std::string text = j.dump();
     h5::Id type(h5::check(H5Tcopy(H5T_C_S1), ctx, "H5Tcopy"));
@@ -258,8 +264,7 @@ FileLock::FileLock(const fs::path& path, bool wait) : path_(path) {
     const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (fd < 0) throw LibraryError(os_error(path, "cannot open lock file"));
     int rc;
-    while ((rc = ::flock(fd, LOCK_EX | (wait ? 0 : LOCK_NB))) != 0 && errno == EINTR) {
-    }
+    while ((rc = ::flock(fd, LOCK_EX | (wait ? 0 : LOCK_NB))) != 0 && errno == EINTR) {}
     if (rc != 0) {
       const int saved = errno;
       ::close(fd);
@@ -268,7 +273,8 @@ FileLock::FileLock(const fs::path& path, bool wait) : path_(path) {
       throw LibraryError(os_error(path, "cannot lock"));
     }
     // A lock file unlinked by its previous holder is no lock: take the one now at the path.
-    struct stat held {}, now {};
+    struct stat held {
+    }, now{};
     if (::fstat(fd, &held) == 0 && ::stat(path.c_str(), &now) == 0 && held.st_ino == now.st_ino &&
         held.st_dev == now.st_dev) {
       fd_ = fd;
@@ -407,8 +413,8 @@ Reclaimed collect(const fs::path& root, const fs::path& data, const Index& curre
   }
   if (orphans) {
     std::error_code ec;
-    for (auto it = fs::recursive_directory_iterator(data / "objects", ec); !ec && it != fs::recursive_directory_iterator();
-         it.increment(ec)) {
+    for (auto it = fs::recursive_directory_iterator(data / "objects", ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
       if (!it->is_regular_file()) continue;
       const std::string rel = fs::relative(it->path(), data).string();
       if (referenced.count(rel) || listed.count(rel)) continue;
@@ -419,8 +425,10 @@ Reclaimed collect(const fs::path& root, const fs::path& data, const Index& curre
       const std::string f = d.path().filename().string();
       if (!f.ends_with(".lock")) continue;
       FileLock stale(d.path(), false);
-      if (stale.held()) stale.remove();
-      else ++r.in_flight;
+      if (stale.held())
+        stale.remove();
+      else
+        ++r.in_flight;
     }
     // Roots of commits that died before their rename.
     const fs::path parent = root.parent_path().empty() ? fs::path(".") : root.parent_path();
@@ -452,7 +460,8 @@ void claim_data_dir(const fs::path& root, const fs::path& data) {
       const hid_t f = H5Fopen(other.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
       if (f >= 0) {
         h5::Id file(f);
-        shares = h5::has_attr(file, "data_dir") && h5::read_string_attr(file, "data_dir", owner) == data.filename().string();
+        shares =
+            h5::has_attr(file, "data_dir") && h5::read_string_attr(file, "data_dir", owner) == data.filename().string();
       }
       H5Eclear2(H5E_DEFAULT);
       if (shares)

@@ -11,8 +11,8 @@
 namespace specula::store::layout {
 
 /// The top-level groups that hold objects, one kind each.
-inline constexpr std::string_view kKinds[] = {"images", "collections", "samples", "grids", "bases", "coefficients",
-                                              "acquire", "priors"};
+inline constexpr std::string_view kKinds[] = {"images", "collections",  "samples", "grids",
+                                              "bases",  "coefficients", "acquire", "priors"};
 /// True when `kind` is one of kKinds.
 bool is_kind(std::string_view kind);
 
@@ -28,10 +28,10 @@ struct Entry {
 
 /// The committed state a root file describes.
 struct Index {
-  long long generation = 0;     ///< number of commits so far
-  std::string created_utc;      ///< when the store was created
-  std::string data_dir;         ///< the data directory's name, beside the root
-  std::vector<Entry> entries;   ///< sorted by (kind, name)
+  long long generation = 0;    ///< number of commits so far
+  std::string created_utc;     ///< when the store was created
+  std::string data_dir;        ///< the data directory's name, beside the root
+  std::vector<Entry> entries;  ///< sorted by (kind, name)
 
   /// The entry of (kind, name), or nullptr.
   const Entry* find(std::string_view kind, std::string_view name) const;
@@ -117,8 +117,8 @@ class ReaderLock {
 struct Reclaimed {
   std::size_t files = 0;
   std::uint64_t bytes = 0;
-  std::size_t in_use = 0;      ///< garbage still visible to a reader
-  std::size_t in_flight = 0;   ///< transactions still running
+  std::size_t in_use = 0;     ///< garbage still visible to a reader
+  std::size_t in_flight = 0;  ///< transactions still running
 };
 
 /// Under the commit lock of the store at `root`: deletes garbage no reader can see and, when `orphans`, the files of

@@ -60,8 +60,9 @@ bool holds(const fs::path& path, const std::string& object) {
 
 std::pair<std::string, std::string> resolve_object(const Store& store, const std::string& spec) {
   static const std::pair<std::string_view, std::string_view> aliases[] = {
-      {"image", "images"}, {"collection", "collections"}, {"grid", "grids"}, {"basis", "bases"},
-      {"coefficient", "coefficients"}, {"map", "coefficients"}, {"calibration", "acquire"}, {"calibrations", "acquire"}, {"prior", "priors"}};
+      {"image", "images"},        {"collection", "collections"},   {"grid", "grids"},
+      {"basis", "bases"},         {"coefficient", "coefficients"}, {"map", "coefficients"},
+      {"calibration", "acquire"}, {"calibrations", "acquire"},     {"prior", "priors"}};
   std::string s = spec;
   if (!s.empty() && s[0] == '/') s = s.substr(1);
   const auto slash = s.find('/');
@@ -71,14 +72,18 @@ std::pair<std::string, std::string> resolve_object(const Store& store, const std
     for (const auto& [a, k] : aliases)
       if (kind == a) kind = k;
     if (!layout::is_kind(kind))
-      throw InputError(store.label() + ": '" + spec + "': '" + s.substr(0, slash) +
-                       "' is not a kind of object (images, collections, samples, grids, bases, coefficients, acquire, priors)");
+      throw InputError(
+          store.label() + ": '" + spec + "': '" + s.substr(0, slash) +
+          "' is not a kind of object (images, collections, samples, grids, bases, coefficients, acquire, priors)");
     const std::string name = s.substr(slash + 1);
-    if (h5::exists(StoreAccess::root(store), "/" + kind) && h5::exists(StoreAccess::root(store), "/" + kind + "/" + name)) return {kind, name};
+    if (h5::exists(StoreAccess::root(store), "/" + kind) &&
+        h5::exists(StoreAccess::root(store), "/" + kind + "/" + name))
+      return {kind, name};
     throw InputError(store.label() + ": no " + kind + " object '" + name + "'");
   }
   for (const auto kind : layout::kKinds)
-    if (h5::exists(StoreAccess::root(store), "/" + std::string(kind)) && h5::exists(StoreAccess::root(store), "/" + std::string(kind) + "/" + s))
+    if (h5::exists(StoreAccess::root(store), "/" + std::string(kind)) &&
+        h5::exists(StoreAccess::root(store), "/" + std::string(kind) + "/" + s))
       found.emplace_back(kind, s);
   if (found.size() == 1) return found.front();
   if (found.empty()) throw InputError(store.label() + ": no object '" + spec + "'; `specula ls` lists them");
@@ -100,8 +105,8 @@ std::vector<Problem> check(const fs::path& path) {
   const Store s = Store::open(path);
   const std::string ctx = s.label();
   if (s.format_version() < 2)
-    throw InputError(ctx + ": a format-1 store records no checksums; convert it with `specula upgrade " + path.string() +
-                     "`, then check it");
+    throw InputError(ctx + ": a format-1 store records no checksums; convert it with `specula upgrade " +
+                     path.string() + "`, then check it");
   const layout::Index& index = s.index();
   const fs::path data = s.data_dir();
   std::vector<Problem> out;
@@ -144,7 +149,8 @@ std::vector<Problem> check(const fs::path& path) {
   }
   for (const auto kind : layout::kKinds)
     for (const auto& name : h5::list(StoreAccess::root(s), "/" + std::string(kind)))
-      if (!index.find(kind, name)) out.push_back({std::string(kind) + "/" + name + ": linked from the root but not in the index"});
+      if (!index.find(kind, name))
+        out.push_back({std::string(kind) + "/" + name + ": linked from the root but not in the index"});
   return out;
 }
 
@@ -154,8 +160,8 @@ layout::Reclaimed collect_garbage(const fs::path& path) {
   {
     const Store s = Store::open(path);
     if (s.format_version() < 2)
-      throw InputError(ctx + ": a format-1 store is one file with nothing to collect; `specula upgrade " + path.string() +
-                       "` converts it");
+      throw InputError(ctx + ": a format-1 store is one file with nothing to collect; `specula upgrade " +
+                       path.string() + "` converts it");
     data = s.data_dir();
   }
   layout::claim_data_dir(path, data);
@@ -172,8 +178,11 @@ void upgrade(const fs::path& path) {
   {
     const Store s = Store::open(path);
     if (s.format_version() != 1)
-      throw InputError(ctx + ": already store format version " + std::to_string(s.format_version()) + "; nothing to upgrade");
-    created = h5::has_attr(StoreAccess::root(s), "created_utc") ? h5::read_string_attr(StoreAccess::root(s), "created_utc", ctx) : utc_now();
+      throw InputError(ctx + ": already store format version " + std::to_string(s.format_version()) +
+                       "; nothing to upgrade");
+    created = h5::has_attr(StoreAccess::root(s), "created_utc")
+                  ? h5::read_string_attr(StoreAccess::root(s), "created_utc", ctx)
+                  : utc_now();
     for (const auto kind : layout::kKinds)
       for (const auto& name : h5::list(StoreAccess::root(s), "/" + std::string(kind))) {
         validate_name(name, std::string(kind) + " name");
@@ -211,7 +220,8 @@ void upgrade(const fs::path& path) {
       now.st_size != before.st_size) {
     std::error_code ec;
     fs::remove(legacy, ec);
-    throw InputError(ctx + ": the store changed while it was being upgraded; nothing was converted, run the upgrade again");
+    throw InputError(ctx +
+                     ": the store changed while it was being upgraded; nothing was converted, run the upgrade again");
   }
   layout::Index index;
   index.generation = 1;

@@ -13,8 +13,6 @@ namespace {
 std::atomic<long long> g_fail_after{-2};  // -2: not yet read from the environment
 }  // namespace
 
-
-
 std::string join(const std::vector<std::string>& v) {
   if (v.empty()) return "none";
   std::string s;
@@ -68,7 +66,8 @@ h5::Id open_group(hid_t loc, const std::string& path, std::string_view ctx) {
     if (H5Lget_val(loc, path.c_str(), buf.data(), buf.size(), H5P_DEFAULT) >= 0 &&
         H5Lunpack_elink_val(buf.data(), info.u.val_size, &flags, &file, &object) >= 0 && file)
       throw InputError(std::string(ctx) + ": its data file " + file +
-                       " cannot be opened (missing or corrupt); `specula check` lists what is damaged (HDF5: " + lib + ")");
+                       " cannot be opened (missing or corrupt); `specula check` lists what is damaged (HDF5: " + lib +
+                       ")");
   }
   H5Eclear2(H5E_DEFAULT);
   throw LibraryError(std::string(ctx) + ": cannot open " + path + ": " + lib);
@@ -88,9 +87,12 @@ std::string compression_of(hid_t ds, std::string_view ctx) {
     std::size_t nvalues = 8;
     char name[64] = {0};
     const H5Z_filter_t f = H5Pget_filter2(dcpl, unsigned(i), &flags, &nvalues, values, sizeof name, name, nullptr);
-    if (f == H5Z_FILTER_SHUFFLE) s += s.empty() ? "shuffle" : "+shuffle";
-    else if (f == H5Z_FILTER_DEFLATE) s += (s.empty() ? "deflate:" : "+deflate:") + std::to_string(nvalues ? values[0] : 0);
-    else s += (s.empty() ? "" : "+") + std::string(name);
+    if (f == H5Z_FILTER_SHUFFLE)
+      s += s.empty() ? "shuffle" : "+shuffle";
+    else if (f == H5Z_FILTER_DEFLATE)
+      s += (s.empty() ? "deflate:" : "+deflate:") + std::to_string(nvalues ? values[0] : 0);
+    else
+      s += (s.empty() ? "" : "+") + std::string(name);
   }
   return s.empty() ? "none" : s;
 }
@@ -119,8 +121,8 @@ void write_hyperslab(hid_t ds, hid_t memtype, std::span<const hsize_t> start, st
   h5::check(H5Dwrite(ds, memtype, mspace, fspace, H5P_DEFAULT, data), ctx, "cannot write data");
 }
 
-void read_hyperslab(hid_t ds, hid_t memtype, std::span<const hsize_t> start, std::span<const hsize_t> count,
-                    void* data, const std::string& ctx) {
+void read_hyperslab(hid_t ds, hid_t memtype, std::span<const hsize_t> start, std::span<const hsize_t> count, void* data,
+                    const std::string& ctx) {
   h5::Id fspace(h5::check(H5Dget_space(ds), ctx, "H5Dget_space"));
   h5::check(H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start.data(), nullptr, count.data(), nullptr), ctx,
             "H5Sselect_hyperslab");

@@ -67,10 +67,13 @@ Record Store::read_record(const std::string& kind, const std::string& name) cons
   for (const auto& member : h5::list(root, path)) {
     h5::Id ds = open_dataset(g, member, r.label);
     const auto dims = h5::shape(ds, r.label);
-    if (dims.size() == 1) r.vectors.emplace_back(member, h5::read_vector(g, member, r.label));
-    else if (dims.size() == 2) r.matrices.emplace_back(member, h5::read_matrix(g, member, r.label));
-    else throw InputError(r.label + "/" + member + ": a record holds 1-D and 2-D datasets, this one has " +
-                          std::to_string(dims.size()) + " dimensions");
+    if (dims.size() == 1)
+      r.vectors.emplace_back(member, h5::read_vector(g, member, r.label));
+    else if (dims.size() == 2)
+      r.matrices.emplace_back(member, h5::read_matrix(g, member, r.label));
+    else
+      throw InputError(r.label + "/" + member + ": a record holds 1-D and 2-D datasets, this one has " +
+                       std::to_string(dims.size()) + " dimensions");
   }
   for (const auto& a : attribute_names(g, r.label))
     if (std::find(std::begin(kProvenanceAttributes), std::end(kProvenanceAttributes), a) ==

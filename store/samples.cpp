@@ -65,13 +65,16 @@ void StoreWriter::create_samples(const std::string& name, const WavelengthGrid& 
   h5::Id vspace(h5::check(H5Screate_simple(2, vdims0, vmax), ctx, "H5Screate_simple"));
   h5::Id adcpl = chunked_dcpl(achunk, options_.compression, ctx);
   h5::Id vdcpl = chunked_dcpl(vchunk, options_.compression, ctx);
-  h5::Id a(h5::check(H5Dcreate2(g, "angles", H5T_IEEE_F64LE, aspace, H5P_DEFAULT, adcpl, H5P_DEFAULT), ctx, "cannot create angles"));
+  h5::Id a(h5::check(H5Dcreate2(g, "angles", H5T_IEEE_F64LE, aspace, H5P_DEFAULT, adcpl, H5P_DEFAULT), ctx,
+                     "cannot create angles"));
   h5::write_attr(a, "columns", std::string_view("theta_i,phi_i,theta_o,phi_o"), ctx);
   h5::write_attr(a, "units", std::string_view("rad"), ctx);
-  h5::Id v(h5::check(H5Dcreate2(g, "values", H5T_IEEE_F32LE, vspace, H5P_DEFAULT, vdcpl, H5P_DEFAULT), ctx, "cannot create values"));
+  h5::Id v(h5::check(H5Dcreate2(g, "values", H5T_IEEE_F32LE, vspace, H5P_DEFAULT, vdcpl, H5P_DEFAULT), ctx,
+                     "cannot create values"));
 }
 
-void StoreWriter::append_samples(const std::string& name, std::span<const double> angles, std::span<const float> values) {
+void StoreWriter::append_samples(const std::string& name, std::span<const double> angles,
+                                 std::span<const float> values) {
   const std::string ctx = label() + ": /samples/" + name;
   h5::Id g = open_group(object_file("samples", name, "create_samples first"), "/samples/" + name, ctx);
   h5::Id a = open_dataset(g, "angles", ctx);
@@ -82,9 +85,11 @@ void StoreWriter::append_samples(const std::string& name, std::span<const double
     throw UsageError(ctx + ": append_samples needs n x 4 angles and n x " + std::to_string(b) + " values");
   const hsize_t n = angles.size() / 4;
   for (std::size_t i = 0; i < angles.size(); ++i)
-    if (!std::isfinite(angles[i])) throw InputError(ctx + ": non-finite angle in sample " + std::to_string(vd[0] + i / 4));
+    if (!std::isfinite(angles[i]))
+      throw InputError(ctx + ": non-finite angle in sample " + std::to_string(vd[0] + i / 4));
   for (std::size_t i = 0; i < values.size(); ++i)
-    if (!std::isfinite(values[i])) throw InputError(ctx + ": non-finite value in sample " + std::to_string(vd[0] + i / b));
+    if (!std::isfinite(values[i]))
+      throw InputError(ctx + ": non-finite value in sample " + std::to_string(vd[0] + i / b));
   if (n == 0) return;
   const hsize_t new_a[2] = {vd[0] + n, 4}, new_v[2] = {vd[0] + n, b};
   h5::check(H5Dset_extent(a, new_a), ctx, "cannot extend angles");

@@ -35,8 +35,9 @@ void validate_name(const std::string& name, const std::string& kind) {
   for (char c : name)
     ok = ok && (std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.' || c == '+');
   if (!ok)
-    throw UsageError(kind + " name '" + name +
-                     "' is not allowed: use 1-255 characters of letters, digits, '_', '-', '.', '+', not starting with '.'");
+    throw UsageError(
+        kind + " name '" + name +
+        "' is not allowed: use 1-255 characters of letters, digits, '_', '-', '.', '+', not starting with '.'");
 }
 
 std::string utc_now() {
@@ -68,7 +69,8 @@ Store Store::open(const std::filesystem::path& path) {
     const htri_t is = H5Fis_hdf5(path.c_str());
     if (is <= 0) {
       H5Eclear2(H5E_DEFAULT);
-      throw InputError(ctx + ": not an HDF5 file, so not a specula store (create one with `specula import` or `specula synth-db`)");
+      throw InputError(
+          ctx + ": not an HDF5 file, so not a specula store (create one with `specula import` or `specula synth-db`)");
     }
     h5::Id f = open_root(path, ctx);
     if (!h5::has_attr(f, "specula_format") || h5::read_string_attr(f, "specula_format", ctx) != kFormatName)

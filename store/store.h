@@ -104,7 +104,7 @@ struct CoefficientsInfo {
 /// Store::read_record.
 struct Record {
   std::string label;  ///< "<store>: /<kind>/<name>", the prefix of messages about it (set by read_record)
-  std::vector<std::pair<std::string, Eigen::MatrixXd>> matrices;      ///< 2-D datasets (row-major on disk)
+  std::vector<std::pair<std::string, Eigen::MatrixXd>> matrices;     ///< 2-D datasets (row-major on disk)
   std::vector<std::pair<std::string, std::vector<double>>> vectors;  ///< 1-D datasets
   std::vector<std::pair<std::string, std::string>> texts;            ///< string attributes besides provenance
   Provenance provenance;
@@ -193,8 +193,8 @@ class Store {
 /// Options for a write transaction.
 struct WriteOptions {
   Compression compression;
-  bool replace = false;               ///< allow replacing an object of the same name
-  std::string command_line;           ///< recorded as provenance on every object written
+  bool replace = false;      ///< allow replacing an object of the same name
+  std::string command_line;  ///< recorded as provenance on every object written
 };
 
 /// A transaction on a store: each object goes to its own new data file; commit() links them all into the root at
@@ -209,10 +209,14 @@ class StoreWriter {
 
   /// Adds image `name` (chunked by rows, compressed); throws InputError on NaN/Inf, size or name problems.
   void add_image(const std::string& name, const Cube& cube);
-  /// Creates image `name` (height x width x wavelengths.size(), chunked as add_image does) to be filled by write_image_rows; fwhm empty or one per band. Returns the rows per storage chunk: strips of whole chunks write fastest.
-  std::size_t create_image(const std::string& name, std::size_t height, std::size_t width, const WavelengthGrid& wavelengths,
-                    std::span<const double> fwhm, const std::string& units, const Provenance& provenance);
-  /// Writes rows [y0, y0 + rows): spectra (rows x width x bands, band fastest) and mask (rows x width, 1 = valid; empty = all valid); InputError on a non-finite value at a valid pixel. Every row must be written before commit().
+  /// Creates image `name` (height x width x wavelengths.size(), chunked as add_image does) to be filled by
+  /// write_image_rows; fwhm empty or one per band. Returns the rows per storage chunk: strips of whole chunks write
+  /// fastest.
+  std::size_t create_image(const std::string& name, std::size_t height, std::size_t width,
+                           const WavelengthGrid& wavelengths, std::span<const double> fwhm, const std::string& units,
+                           const Provenance& provenance);
+  /// Writes rows [y0, y0 + rows): spectra (rows x width x bands, band fastest) and mask (rows x width, 1 = valid; empty
+  /// = all valid); InputError on a non-finite value at a valid pixel. Every row must be written before commit().
   void write_image_rows(const std::string& name, std::size_t y0, std::size_t rows, std::span<const float> spectra,
                         std::span<const std::uint8_t> mask);
   /// Adds collection `name`.
@@ -246,7 +250,8 @@ class StoreWriter {
 
   std::string label() const { return target_.filename().string(); }
   const WriteOptions& options() const { return options_; }
-  /// Whether objects begun from now on may replace committed objects of their name (each keeps the value it began with).
+  /// Whether objects begun from now on may replace committed objects of their name (each keeps the value it began
+  /// with).
   void set_replace(bool replace) { options_.replace = replace; }
 
  private:
@@ -260,8 +265,8 @@ class StoreWriter {
   layout::Reclaimed reclaimed_;
 };
 
-/// (kind, name) of the object `spec` names in `store`: "kind/name" (kind singular or plural, e.g. image/scene) or a name
-/// that only one kind uses; InputError naming the candidates otherwise.
+/// (kind, name) of the object `spec` names in `store`: "kind/name" (kind singular or plural, e.g. image/scene) or a
+/// name that only one kind uses; InputError naming the candidates otherwise.
 std::pair<std::string, std::string> resolve_object(const Store& store, const std::string& spec);
 /// Bytes the store occupies: the root plus every data file it references (each counted once).
 std::uint64_t store_bytes(const Store& store);

@@ -185,7 +185,10 @@ class NormalStream {
         for (std::size_t l = 0; l < kLanes; ++l) out[k * kLanes + l] = table[idx[l]];
       }
     }
-    s0_ = s0; s1_ = s1; s2_ = s2; s3_ = s3;
+    s0_ = s0;
+    s1_ = s1;
+    s2_ = s2;
+    s3_ = s3;
     pos_ = 0;
   }
   Lanes s0_, s1_, s2_, s3_;
@@ -254,8 +257,7 @@ std::vector<double> make_reflectance(Rng& rng, std::span<const double> nm) {
   }
   // near-neutral: stone, concrete, ash
   const double level = rng.uniform(0.08, 0.6), tilt = rng.uniform(-0.08, 0.12);
-  for (std::size_t i = 0; i < n; ++i)
-    r[i] = std::clamp(level * (1 + tilt * (nm[i] - 580) / 200), 0.02, 0.95);
+  for (std::size_t i = 0; i < n; ++i) r[i] = std::clamp(level * (1 + tilt * (nm[i] - 580) / 200), 0.02, 0.95);
   return r;
 }
 
@@ -330,12 +332,14 @@ struct Scene {
   std::vector<std::uint32_t> object_region;
   std::vector<std::uint32_t> corner_label;  // labels at block corners, ncx x ncy
   std::size_t ncx = 0, ncy = 0;
-  std::vector<Wave> shading;                // slowly varying shading field
-  std::vector<Wave> patterns;               // texture patterns
+  std::vector<Wave> shading;   // slowly varying shading field
+  std::vector<Wave> patterns;  // texture patterns
   std::vector<Ellipse> shadows;
-  std::vector<float> shadow_softness;       // in units of q
+  std::vector<float> shadow_softness;  // in units of q
   std::vector<StraightShadow> straight_shadows;
-  struct Rect { std::size_t y0, y1, x0, x1; };
+  struct Rect {
+    std::size_t y0, y1, x0, x1;
+  };
   std::vector<Rect> masked;
   float grain = 0;
 
@@ -345,7 +349,10 @@ struct Scene {
     for (std::size_t i = 0; i < seed_x.size(); ++i) {
       const float dx = x - seed_x[i], dy = y - seed_y[i];
       const float d = dx * dx + dy * dy - seed_w[i];
-      if (d < best_d) { best_d = d; best = static_cast<std::uint32_t>(i); }
+      if (d < best_d) {
+        best_d = d;
+        best = static_cast<std::uint32_t>(i);
+      }
     }
     return best;
   }
@@ -464,7 +471,6 @@ void add_layout(Scene& sc, Rng& rng, double H, double W, int materials) {
     sc.object_region.push_back(static_cast<std::uint32_t>(sc.regions.size()));
     sc.regions.push_back(new_region());
   }
-
 }
 
 // Shading waves and cast shadows (soft ellipses, sometimes one straight edge).
@@ -474,7 +480,8 @@ void add_shading_and_shadows(Scene& sc, Rng& rng, double H, double W) {
   for (int i = 0; i < 3; ++i) {
     const double period = rng.uniform(0.6, 2.5) * big, theta = rng.uniform(0, 2 * kPi);
     const double k = 2 * kPi / period;
-    sc.shading.push_back({k * std::cos(theta), k * std::sin(theta), rng.uniform(0, 2 * kPi), rng.uniform(0.03, 0.12), {}, {}});
+    sc.shading.push_back(
+        {k * std::cos(theta), k * std::sin(theta), rng.uniform(0, 2 * kPi), rng.uniform(0.03, 0.12), {}, {}});
   }
 
   // cast shadows
@@ -492,7 +499,6 @@ void add_shading_and_shadows(Scene& sc, Rng& rng, double H, double W) {
     const double cover = rng.uniform(0.1, 0.35);
     sc.straight_shadows.push_back({nx, ny, pmax - cover * (pmax - pmin), rng.uniform(1.5, 8)});
   }
-
 }
 
 // 0-3 masked rectangles.
@@ -510,7 +516,6 @@ void add_mask(Scene& sc, Rng& rng, const SynthOptions& o) {
     r.x1 = std::min(o.width, std::max(r.x0 + 1, static_cast<std::size_t>(x0 + w)));
     sc.masked.push_back(r);
   }
-
 }
 
 Scene make_scene(const SynthOptions& o, std::uint64_t image_seed) {
@@ -542,8 +547,8 @@ Scene make_scene(const SynthOptions& o, std::uint64_t image_seed) {
   sc.corner_label.resize(sc.ncx * sc.ncy);
   for (std::size_t j = 0; j < sc.ncy; ++j)
     for (std::size_t i = 0; i < sc.ncx; ++i)
-      sc.corner_label[j * sc.ncx + i] = sc.cell_at(float(std::min(i * kBlock, o.width - 1)),
-                                                   float(std::min(j * kBlock, o.height - 1)));
+      sc.corner_label[j * sc.ncx + i] =
+          sc.cell_at(float(std::min(i * kBlock, o.width - 1)), float(std::min(j * kBlock, o.height - 1)));
   return sc;
 }
 
@@ -579,8 +584,7 @@ Cube synthesize_image(const SynthOptions& options, std::size_t index) {
   if (options.height == 0 || options.width == 0)
     throw UsageError("synthetic image size must be at least 1x1, got " + std::to_string(options.height) + "x" +
                      std::to_string(options.width));
-  if (options.wavelengths.empty())
-    throw UsageError("synthetic images need a non-empty wavelength grid");
+  if (options.wavelengths.empty()) throw UsageError("synthetic images need a non-empty wavelength grid");
   if (index >= options.images)
     throw UsageError("synthetic image index " + std::to_string(index) + " is out of range: the database has " +
                      std::to_string(options.images) + " image(s)");
@@ -594,7 +598,8 @@ Cube synthesize_image(const SynthOptions& options, std::size_t index) {
                        " nm; got " + options.wavelengths.describe());
   }
   const std::size_t H = options.height, W = options.width, B = options.wavelengths.size();
-  if (W > (std::size_t{1} << 24) || H > (std::size_t{1} << 24) || H * W > std::numeric_limits<std::size_t>::max() / 4 / B)
+  if (W > (std::size_t{1} << 24) || H > (std::size_t{1} << 24) ||
+      H * W > std::numeric_limits<std::size_t>::max() / 4 / B)
     throw UsageError("synthetic image " + std::to_string(H) + "x" + std::to_string(W) + "x" + std::to_string(B) +
                      " is too large");
 
@@ -610,7 +615,8 @@ Cube synthesize_image(const SynthOptions& options, std::size_t index) {
   cube.provenance.importer = "synth-db";
   cube.mask.assign(H * W, 1);
   for (const auto& r : sc.masked)
-    for (std::size_t y = r.y0; y < r.y1; ++y) std::fill_n(cube.mask.begin() + std::ptrdiff_t(y * W + r.x0), r.x1 - r.x0, 0);
+    for (std::size_t y = r.y0; y < r.y1; ++y)
+      std::fill_n(cube.mask.begin() + std::ptrdiff_t(y * W + r.x0), r.x1 - r.x0, 0);
 
   // mean noise-free radiance from up to 64 sampled rows, for the noise scale
   double mean = 0;

@@ -26,7 +26,8 @@ StoreWriter::StoreWriter(const std::filesystem::path& path, WriteOptions options
   } else {
     const auto dir = path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path();
     if (path.filename().empty()) throw UsageError("store path '" + path.string() + "' names no file");
-    if (!std::filesystem::is_directory(dir)) throw InputError(path.string() + ": directory " + dir.string() + " does not exist");
+    if (!std::filesystem::is_directory(dir))
+      throw InputError(path.string() + ": directory " + dir.string() + " does not exist");
     st.data = layout::default_data_dir(path);
     st.base.data_dir = st.data.filename().string();
     st.base.created_utc = utc_now();
@@ -65,7 +66,8 @@ std::int64_t StoreWriter::begin(const std::string& kind, const std::string& name
     st.drop(kind, name);
   }
   if (st.base.find(kind, name) && !options_.replace)
-    throw InputError(label() + ": " + what + " '" + name + "' exists already; choose another name or allow replacing it");
+    throw InputError(label() + ": " + what + " '" + name +
+                     "' exists already; choose another name or allow replacing it");
   const std::string rel = layout::object_file(kind, name, st.tx->id());
   layout::create_directories_synced(st.data / "objects" / kind);
   const std::string ctx = label() + ": /" + kind + "/" + name;
@@ -93,8 +95,7 @@ std::int64_t StoreWriter::object_file(const std::string& kind, const std::string
 
 void StoreWriter::remove(const std::string& kind, const std::string& name) {
   if (!layout::is_kind(kind)) throw UsageError(label() + ": '" + kind + "' is not a kind of object");
-  if (!state_->base.find(kind, name))
-    throw InputError(label() + ": no " + kind + " '" + name + "' to remove");
+  if (!state_->base.find(kind, name)) throw InputError(label() + ": no " + kind + " '" + name + "' to remove");
   state_->removals.emplace_back(kind, name);
 }
 

@@ -20,7 +20,7 @@ namespace specula::test {
 /// 31 bands, 400-700 nm at whole nm, mean step 10 nm as on the usual grid but spaced 3 to 5 nm up to 460 nm and
 /// 12 to 20 nm beyond: a code that assumed a uniform step would weight the blue half of the bands four times over.
 inline WavelengthGrid irregular_grid() {
-  const std::vector<double> steps{3, 5, 4, 3, 5, 3, 5, 4, 3, 5, 3, 5, 4, 3, 5,
+  const std::vector<double> steps{3,  5,  4,  3,  5,  3,  5,  4,  3,  5,  3,  5,  4,  3,  5,
                                   12, 20, 16, 14, 18, 12, 20, 16, 14, 18, 12, 20, 16, 14, 18};
   std::vector<double> nm{400};
   for (const double h : steps) nm.push_back(nm.back() + h);

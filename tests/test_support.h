@@ -9,9 +9,9 @@
 #include <iterator>
 #include <string>
 
-#include "specula/core/error.h"
 #include <sys/wait.h>
 #include <unistd.h>
+#include "specula/core/error.h"
 
 namespace specula::test {
 
@@ -22,10 +22,10 @@ inline std::filesystem::path shared_dir() {
 }
 
 /// Skips the current test with a clear message when ../shared is absent.
-#define SPECULA_REQUIRE_SHARED()                                                             \
-  do {                                                                                       \
-    if (::specula::test::shared_dir().empty())                                               \
-      GTEST_SKIP() << "../shared (real reference data) is absent beside the project";        \
+#define SPECULA_REQUIRE_SHARED()                                                      \
+  do {                                                                                \
+    if (::specula::test::shared_dir().empty())                                        \
+      GTEST_SKIP() << "../shared (real reference data) is absent beside the project"; \
   } while (0)
 
 /// A fresh directory under the system temp dir, removed with everything in it on destruction.
@@ -42,7 +42,10 @@ class ScratchDir {
     std::filesystem::remove_all(path_);
     std::filesystem::create_directories(path_);
   }
-  ~ScratchDir() { std::error_code ec; std::filesystem::remove_all(path_, ec); }
+  ~ScratchDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
   const std::filesystem::path& path() const { return path_; }
   std::filesystem::path operator/(const std::string& s) const { return path_ / s; }
 
@@ -107,7 +110,9 @@ inline RunResult run_shell(const std::string& command) {
 }
 
 /// Runs `args` (a shell command line, already quoted) with the specula binary prepended.
-inline RunResult run_specula(const std::string& args) { return run_shell(std::string("'") + SPECULA_BINARY + "' " + args); }
+inline RunResult run_specula(const std::string& args) {
+  return run_shell(std::string("'") + SPECULA_BINARY + "' " + args);
+}
 
 /// The number after "key": in a one-line JSON object, or NaN when the key is absent.
 inline double json_number(const std::string& json, const std::string& key) {

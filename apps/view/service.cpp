@@ -50,7 +50,8 @@ double number(const Query& q, const std::string& key, double fallback, double lo
   const auto r = std::from_chars(it->second.data(), end, v);
   if (r.ec != std::errc() || r.ptr != end || !std::isfinite(v))
     throw HttpError(400, "parameter '" + key + "' is not a number: '" + it->second + "'");
-  if (v < lo || v > hi) throw HttpError(400, fmt::format("parameter '{}' = {} is outside [{}, {}]", key, it->second, lo, hi));
+  if (v < lo || v > hi)
+    throw HttpError(400, fmt::format("parameter '{}' = {} is outside [{}, {}]", key, it->second, lo, hi));
   return v;
 }
 
@@ -60,13 +61,16 @@ std::size_t index(const Query& q, const std::string& key, std::size_t size, cons
   const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
   if (r.ec != std::errc() || r.ptr != s.data() + s.size())
     throw HttpError(400, "parameter '" + key + "' is not a whole number: '" + s + "'");
-  if (v >= size) throw HttpError(400, fmt::format("parameter '{}' = {} is out of range: the {} runs from 0 to {}", key, v, what, size - 1));
+  if (v >= size)
+    throw HttpError(
+        400, fmt::format("parameter '{}' = {} is out of range: the {} runs from 0 to {}", key, v, what, size - 1));
   return v;
 }
 
 // The object `name` of a kind, checked against the store's own list: a name that is not listed (including any
 // path such as ../x) never reaches HDF5.
-std::string object(const Query& q, const std::vector<std::string>& listed, const std::string& kind, const std::string& file) {
+std::string object(const Query& q, const std::vector<std::string>& listed, const std::string& kind,
+                   const std::string& file) {
   const std::string name = required(q, "name");
   if (std::find(listed.begin(), listed.end(), name) == listed.end())
     throw HttpError(404, file + ": no " + kind + " '" + name + "'");
@@ -113,9 +117,11 @@ Eigen::VectorXd page_illuminant(const std::string& spec, const store::Store& st,
     throw HttpError(404, st.label() + ": no collection '" + m[1].str() + "' for the illuminant");
   const store::Collection c = st.read_collection(m[1].str());
   const std::size_t i = std::stoul(m[2].str());
-  if (i >= c.size()) throw HttpError(400, fmt::format("illuminant '{}': the collection has {} spectra", spec, c.size()));
+  if (i >= c.size())
+    throw HttpError(400, fmt::format("illuminant '{}': the collection has {} spectra", spec, c.size()));
   if (!c.wavelengths.approx_equal(grid))
-    throw HttpError(400, "illuminant '" + spec + "' is on " + c.wavelengths.describe() + ", the image on " + grid.describe());
+    throw HttpError(
+        400, "illuminant '" + spec + "' is on " + c.wavelengths.describe() + ", the image on " + grid.describe());
   Eigen::VectorXd v(Eigen::Index(grid.size()));
   for (std::size_t b = 0; b < grid.size(); ++b) v[Eigen::Index(b)] = c.values[i * c.bands() + b];
   return v;
@@ -170,23 +176,24 @@ Response Service::store_listing() {
   first = true;
   for (const auto& n : store_.collections()) {
     const store::CollectionInfo c = store_.collection_info(n);
-    s += fmt::format("{}{{\"name\":{},\"size\":{},\"bands\":{}}}", first ? "" : ",", app::json_string(n), c.size, c.bands);
+    s += fmt::format("{}{{\"name\":{},\"size\":{},\"bands\":{}}}", first ? "" : ",", app::json_string(n), c.size,
+                     c.bands);
     first = false;
   }
   s += "],\"grids\":[";
   first = true;
   for (const auto& n : store_.grids()) {
     const store::GridInfo g = store_.grid_info(n);
-    s += fmt::format("{}{{\"name\":{},\"bands\":{},\"wavelengths\":{}}}", first ? "" : ",", app::json_string(n), g.bands,
-                     json_wavelengths(g.wavelengths));
+    s += fmt::format("{}{{\"name\":{},\"bands\":{},\"wavelengths\":{}}}", first ? "" : ",", app::json_string(n),
+                     g.bands, json_wavelengths(g.wavelengths));
     first = false;
   }
   s += "],\"samples\":[";
   first = true;
   for (const auto& n : store_.samples()) {
     const store::SamplesInfo i = store_.samples_info(n);
-    s += fmt::format("{}{{\"name\":{},\"size\":{},\"bands\":{},\"wavelengths\":{}}}", first ? "" : ",", app::json_string(n),
-                     i.size, i.bands, json_wavelengths(i.wavelengths));
+    s += fmt::format("{}{{\"name\":{},\"size\":{},\"bands\":{},\"wavelengths\":{}}}", first ? "" : ",",
+                     app::json_string(n), i.size, i.bands, json_wavelengths(i.wavelengths));
     first = false;
   }
   s += "],\"bases\":[";
@@ -266,9 +273,10 @@ Response Service::image_spectrum(const Query& q) {
   const std::size_t y = index(q, "y", info.height, "image's y");
   std::vector<float> v(info.bands);
   const bool valid = store_.read_pixel(name, x, y, v);
-  std::string s = fmt::format("{{\"image\":{},\"x\":{},\"y\":{},\"valid\":{},\"units\":{},\"wavelengths\":{},\"values\":{}",
-                              app::json_string(name), x, y, valid ? "true" : "false", app::json_string(info.units),
-                              json_wavelengths(info.wavelengths), json_numbers(v));
+  std::string s =
+      fmt::format("{{\"image\":{},\"x\":{},\"y\":{},\"valid\":{},\"units\":{},\"wavelengths\":{},\"values\":{}",
+                  app::json_string(name), x, y, valid ? "true" : "false", app::json_string(info.units),
+                  json_wavelengths(info.wavelengths), json_numbers(v));
   if (const auto it = q.find("basis"); it != q.end() && !it->second.empty() && valid) {
     const std::string bname = object({{"name", it->second}}, store_.bases(), "basis", store_.label());
     const store::Basis b = store_.read_basis(bname);
@@ -291,8 +299,11 @@ Response Service::image_spectrum(const Query& q) {
       throw HttpError(400, e.what());
     }
     const double err = (xv - r).norm(), norm = xv.norm();
-    s += fmt::format(",\"reconstruction\":{{\"basis\":{},\"method\":{},\"k\":{},\"values\":{},\"l2_error\":{},\"relative_error\":{}}}",
-                     app::json_string(bname), app::json_string(b.method), k, json_numbers(Eigen::VectorXd(r.row(0).transpose())), err, norm > 0 ? err / norm : 0.0);
+    s += fmt::format(
+        ",\"reconstruction\":{{\"basis\":{},\"method\":{},\"k\":{},\"values\":{},\"l2_error\":{},\"relative_error\":{}}"
+        "}",
+        app::json_string(bname), app::json_string(b.method), k, json_numbers(Eigen::VectorXd(r.row(0).transpose())),
+        err, norm > 0 ? err / norm : 0.0);
   }
   return {200, "application/json", s + "}"};
 }
@@ -335,8 +346,8 @@ Response Service::grid_incidence(const Query& q) {
     values += (deg == -89 ? "" : ",") + row + "]";
   }
   return {200, "application/json",
-          fmt::format("{{\"grid\":{},\"theta_i\":{},\"wavelengths\":{},\"theta_o\":{}],\"values\":{}]}}", app::json_string(name),
-                      theta_i * 180 / pi, json_wavelengths(g.wavelengths), angles, values)};
+          fmt::format("{{\"grid\":{},\"theta_i\":{},\"wavelengths\":{},\"theta_o\":{}],\"values\":{}]}}",
+                      app::json_string(name), theta_i * 180 / pi, json_wavelengths(g.wavelengths), angles, values)};
 }
 
 Response Service::samples_incidence(const Query& q) {
@@ -372,9 +383,11 @@ Response Service::samples_incidence(const Query& q) {
       ++found;
     }
   }
-  return {200, "application/json",
-          fmt::format("{{\"samples\":{},\"theta_i\":{},\"eps\":{},\"band\":{},\"wavelength\":{},\"scanned\":{},\"points\":{}]}}",
-                      app::json_string(name), theta_i * 180 / pi, eps * 180 / pi, band, info.wavelengths[band], scanned, points)};
+  return {
+      200, "application/json",
+      fmt::format(
+          "{{\"samples\":{},\"theta_i\":{},\"eps\":{},\"band\":{},\"wavelength\":{},\"scanned\":{},\"points\":{}]}}",
+          app::json_string(name), theta_i * 180 / pi, eps * 180 / pi, band, info.wavelengths[band], scanned, points)};
 }
 
 }  // namespace specula::view

@@ -1,7 +1,8 @@
 // Evaluations per second of SpcBrdf's array API against the decoded float32 grid looked up by nearest cell (the
 // straightforward grid path: the double-precision MERL lookup, then 31 band values gathered from the band planes;
-// and the same with the evaluator's cell index), on the same random direction pairs, same threads, one run. Writes the pairs and the decoded grid for the numpy
-// peer (bench/codec/eval_peer.py). Usage: spc_eval_bench OUT_DIR [PAIRS] [REPEATS] -> JSON lines.
+// and the same with the evaluator's cell index), on the same random direction pairs, same threads, one run. Writes the
+// pairs and the decoded grid for the numpy peer (bench/codec/eval_peer.py). Usage: spc_eval_bench OUT_DIR [PAIRS]
+// [REPEATS] -> JSON lines.
 #include <fmt/format.h>
 
 #include <chrono>
@@ -84,7 +85,8 @@ int main(int argc, char** argv) {
       parallel_for(
           n,
           [&](std::size_t i) {
-            const Eigen::Vector3d a(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]), o(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
+            const Eigen::Vector3d a(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]),
+                o(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]);
             const std::size_t cell = brdf::merl_index(brdf::merl_cell(brdf::half_diff(a, o)));
             for (std::size_t band = 0; band < b; ++band)
               peer[i * b + band] = std::max(decoded.brdf[band * N + cell], 0.0f) * scale;
@@ -93,16 +95,15 @@ int main(int argc, char** argv) {
     });
     // The same grid with the evaluator's cell index (merl_indices), to separate the layout from the lookup.
     const double t_grid_fast = best_time(repeats, [&] {
-      parallel_for(
-          (n + 4095) / 4096, [] { return std::vector<std::uint32_t>(4096); },
-          [&](std::size_t block, std::vector<std::uint32_t>& cells) {
-            const std::size_t first = block * 4096, m = std::min<std::size_t>(4096, n - first);
-            codec::merl_indices(std::span(wi).subspan(3 * first, 3 * m), std::span(wo).subspan(3 * first, 3 * m),
-                                std::span(cells).first(m));
-            for (std::size_t i = 0; i < m; ++i)
-              for (std::size_t band = 0; band < b; ++band)
-                peer[(first + i) * b + band] = std::max(decoded.brdf[band * N + cells[i]], 0.0f) * scale;
-          });
+      parallel_for((n + 4095) / 4096, [] { return std::vector<std::uint32_t>(4096); },
+                   [&](std::size_t block, std::vector<std::uint32_t>& cells) {
+                     const std::size_t first = block * 4096, m = std::min<std::size_t>(4096, n - first);
+                     codec::merl_indices(std::span(wi).subspan(3 * first, 3 * m),
+                                         std::span(wo).subspan(3 * first, 3 * m), std::span(cells).first(m));
+                     for (std::size_t i = 0; i < m; ++i)
+                       for (std::size_t band = 0; band < b; ++band)
+                         peer[(first + i) * b + band] = std::max(decoded.brdf[band * N + cells[i]], 0.0f) * scale;
+                   });
     });
     double max_diff = 0, max_value = 0;
     for (std::size_t i = 0; i < out.size(); ++i) {
@@ -113,10 +114,12 @@ int main(int argc, char** argv) {
       write_raw(out_dir / "grid.f32", decoded.brdf.data(), decoded.brdf.size());
       std::ofstream(out_dir / "grid.json") << fmt::format("{{\"bands\": {}, \"scale\": {}}}\n", b, decoded.scale);
     }
-    fmt::print("{{\"k\": {}, \"pairs\": {}, \"spc_eval_per_s\": {:.4g}, \"grid_lookup_per_s\": {:.4g}, \"grid_fast_index_per_s\": {:.4g}, "
-               "\"memory_bytes\": {}, \"grid_bytes\": {}, \"max_abs_diff\": {:.3g}, \"max_value\": {:.3g}}}\n",
-               k, n, double(n) / t_eval, double(n) / t_grid, double(n) / t_grid_fast, f.memory_bytes(), decoded.brdf.size() * sizeof(float),
-               max_diff, max_value);
+    fmt::print(
+        "{{\"k\": {}, \"pairs\": {}, \"spc_eval_per_s\": {:.4g}, \"grid_lookup_per_s\": {:.4g}, "
+        "\"grid_fast_index_per_s\": {:.4g}, "
+        "\"memory_bytes\": {}, \"grid_bytes\": {}, \"max_abs_diff\": {:.3g}, \"max_value\": {:.3g}}}\n",
+        k, n, double(n) / t_eval, double(n) / t_grid, double(n) / t_grid_fast, f.memory_bytes(),
+        decoded.brdf.size() * sizeof(float), max_diff, max_value);
     std::fflush(stdout);
   }
   return 0;

@@ -43,11 +43,12 @@ int main(int argc, char** argv) {
     rusage ru{};
     getrusage(RUSAGE_SELF, &ru);
     const double bytes = double(reader.spectra()) * double(reader.bands()) * 4.0;
-    fmt::print(R"({{"spectra":{},"bands":{},"blocks":{},"bytes":{},"seconds":{:.4f},"spectra_per_s":{:.0f},"gb_per_s":{:.3f},)"
-               R"("threads":{},"type":"{}","peak_rss_mb":{:.1f},"checksum":{:.6e}}})"
-               "\n",
-               reader.spectra(), reader.bands(), reader.block_count(), bytes, best, double(reader.spectra()) / best,
-               bytes / best / 1e9, omp_get_max_threads(), type, double(ru.ru_maxrss) / 1024.0, checksum);
+    fmt::print(
+        R"({{"spectra":{},"bands":{},"blocks":{},"bytes":{},"seconds":{:.4f},"spectra_per_s":{:.0f},"gb_per_s":{:.3f},)"
+        R"("threads":{},"type":"{}","peak_rss_mb":{:.1f},"checksum":{:.6e}}})"
+        "\n",
+        reader.spectra(), reader.bands(), reader.block_count(), bytes, best, double(reader.spectra()) / best,
+        bytes / best / 1e9, omp_get_max_threads(), type, double(ru.ru_maxrss) / 1024.0, checksum);
   } catch (const Error& e) {
     std::fprintf(stderr, "block_reader_bench: %s\n", e.what());
     return 1;

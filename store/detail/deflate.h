@@ -33,12 +33,14 @@ void write_chunks_deflated(hid_t ds, std::size_t chunks, std::size_t chunk_elems
   for (std::size_t first = 0; first < chunks; first += batch) {
     check_interrupt();
     const std::size_t n = std::min(batch, chunks - first);
-    parallel_for(n, [] { return std::vector<float>(); }, [&](std::size_t j, std::vector<float>& plain) {
-      plain.assign(chunk_elems, 0.0f);
-      fill(first + j, plain);
-      out_size[j] = shuffle_deflate(plain.data(), chunk_elems, level, out[j]);
-      if (out_size[j] == 0) throw LibraryError(ctx + ": libdeflate failed to compress a chunk");
-    });
+    parallel_for(
+        n, [] { return std::vector<float>(); },
+        [&](std::size_t j, std::vector<float>& plain) {
+          plain.assign(chunk_elems, 0.0f);
+          fill(first + j, plain);
+          out_size[j] = shuffle_deflate(plain.data(), chunk_elems, level, out[j]);
+          if (out_size[j] == 0) throw LibraryError(ctx + ": libdeflate failed to compress a chunk");
+        });
     for (std::size_t j = 0; j < n; ++j) {
       const auto at = offset(first + j);
       maybe_fail_write(ctx);
@@ -55,6 +57,7 @@ void write_chunks_deflated(hid_t ds, std::size_t chunks, std::size_t chunk_elems
 /// chunk rows (h may end at the cube's last row); the bytes are what HDF5's own filters would store. Pixels whose
 /// mask byte is 0 (mask may be null) are stored as zeros.
 void write_rows_deflated(hid_t ds, const float* data, const std::uint8_t* mask, std::size_t y0, std::size_t h,
-                         std::size_t w, std::size_t b, std::size_t ch, std::size_t cw, int level, const std::string& ctx);
+                         std::size_t w, std::size_t b, std::size_t ch, std::size_t cw, int level,
+                         const std::string& ctx);
 
 }  // namespace specula::store

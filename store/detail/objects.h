@@ -57,8 +57,8 @@ std::pair<hsize_t, hsize_t> image_chunk(std::size_t h, std::size_t w, std::size_
 void write_hyperslab(hid_t ds, hid_t memtype, std::span<const hsize_t> start, std::span<const hsize_t> count,
                      const void* data, const std::string& ctx);
 /// Reads a hyperslab of `ds` into `data`.
-void read_hyperslab(hid_t ds, hid_t memtype, std::span<const hsize_t> start, std::span<const hsize_t> count,
-                    void* data, const std::string& ctx);
+void read_hyperslab(hid_t ds, hid_t memtype, std::span<const hsize_t> start, std::span<const hsize_t> count, void* data,
+                    const std::string& ctx);
 /// A variable-length UTF-8 string type.
 h5::Id vlen_string_type(std::string_view ctx);
 /// The wavelengths dataset of an object group.

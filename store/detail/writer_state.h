@@ -15,8 +15,8 @@ namespace specula::store {
 /// What a StoreWriter transaction holds.
 struct WriterState {
   struct Pending {
-    std::string kind, name, file;  // file: relative to the data directory
-    h5::Id h5;                     // open until the object is complete
+    std::string kind, name, file;                     // file: relative to the data directory
+    h5::Id h5;                                        // open until the object is complete
     std::size_t rows_expected = 0, rows_written = 0;  // images filled by write_image_rows
     std::vector<bool> row_done;
     std::uint64_t valid = 0;

@@ -60,13 +60,15 @@ class Tokens {
 IrregularBrdf read_brdf_irregular(const std::filesystem::path& path) {
   Tokens t(path);
   double v = 0;
-  if (!t.next(v, "the number of wavelengths")) throw InputError(path.string() + ": empty; expected the number of wavelengths");
+  if (!t.next(v, "the number of wavelengths"))
+    throw InputError(path.string() + ": empty; expected the number of wavelengths");
   if (v < 1 || v > 1024 || v != std::floor(v))
     throw InputError(t.where() + ": " + std::to_string(v) + " wavelengths; expected a whole number from 1 to 1024");
   const auto bands = std::size_t(v);
   std::vector<double> nm(bands);
   for (auto& w : nm)
-    if (!t.next(w, "a wavelength")) throw InputError(path.string() + ": ends within the list of " + std::to_string(bands) + " wavelengths");
+    if (!t.next(w, "a wavelength"))
+      throw InputError(path.string() + ": ends within the list of " + std::to_string(bands) + " wavelengths");
   IrregularBrdf out;
   out.wavelengths = WavelengthGrid(nm, path.string());
   const std::size_t per = 4 + bands;
@@ -90,8 +92,8 @@ IrregularBrdf read_brdf_irregular(const std::filesystem::path& path) {
         ++extra;
       }
       throw InputError(path.string() + " line " + std::to_string(line) + ": sample " + std::to_string(out.size() + 1) +
-                       " has " + std::to_string(got + extra) + " numbers; expected " + std::to_string(per) + " (4 angles and " +
-                       std::to_string(bands) + " values, one sample per line)");
+                       " has " + std::to_string(got + extra) + " numbers; expected " + std::to_string(per) +
+                       " (4 angles and " + std::to_string(bands) + " values, one sample per line)");
     }
     for (const std::size_t polar : {std::size_t(0), std::size_t(2)})
       if (sample[polar] < 0 || sample[polar] > std::numbers::pi / 2 + 1e-9)

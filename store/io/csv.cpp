@@ -109,10 +109,14 @@ class Reader {
       const auto content = trim(line);
       if (content.empty() || content.front() == '#') continue;
       if (!delim) {
-        if (line.find(',') != std::string_view::npos) delim = ',';
-        else if (line.find('\t') != std::string_view::npos) delim = '\t';
-        else if (line.find(';') != std::string_view::npos) delim = ';';
-        else delim = ',';
+        if (line.find(',') != std::string_view::npos)
+          delim = ',';
+        else if (line.find('\t') != std::string_view::npos)
+          delim = '\t';
+        else if (line.find(';') != std::string_view::npos)
+          delim = ';';
+        else
+          delim = ',';
       }
       rows.push_back(Row{line_no, split(line, delim, line_no)});
     }
@@ -163,9 +167,9 @@ class Reader {
     for (std::size_t i = 0; i < wl.size(); ++i)
       if (wl[i] <= 0) fail(lines[i], columns[i], "wavelength " + format(wl[i]) + " is not positive; " + hint);
     return ascending_band_order(wl, [&](std::size_t first, std::size_t second) {
-      fail(lines[second], columns[second], "wavelength " + format(wl[second]) + " appears twice (also at line " +
-                                               std::to_string(lines[first]) + ", column " +
-                                               std::to_string(columns[first]) + "); remove one of them");
+      fail(lines[second], columns[second],
+           "wavelength " + format(wl[second]) + " appears twice (also at line " + std::to_string(lines[first]) +
+               ", column " + std::to_string(columns[first]) + "); remove one of them");
     });
   }
 
@@ -196,8 +200,8 @@ bool looks_like_wavelength_label(std::string_view s) {
 }
 
 std::string quoted(const std::string& name) {
-  const bool needs = name.empty() || name.find_first_of(",\";\t#") != std::string::npos || name.front() == ' ' ||
-                     name.back() == ' ';
+  const bool needs =
+      name.empty() || name.find_first_of(",\";\t#") != std::string::npos || name.front() == ' ' || name.back() == ' ';
   if (!needs) return name;
   std::string out = "\"";
   for (char c : name) {
@@ -293,8 +297,9 @@ RowLayout row_layout(const Reader& rd, const Row& head, const WavelengthGrid& wa
     if (wl.empty()) rd.fail(head.line, 0, "the header row has no wavelengths; " + hint);
     order = rd.band_order(wl, lines, columns, hint);
     if (wl[order.back()] < 100)
-      rd.fail(head.line, 0, "header values " + format(wl[order.front()]) + " to " + format(wl[order.back()]) +
-                                " are not wavelengths in nm; " + hint);
+      rd.fail(head.line, 0,
+              "header values " + format(wl[order.front()]) + " to " + format(wl[order.back()]) +
+                  " are not wavelengths in nm; " + hint);
     B = wl.size();
     name_col = head_named ? 1 : 0;
     first_data = 1;
@@ -311,7 +316,8 @@ RowLayout row_layout(const Reader& rd, const Row& head, const WavelengthGrid& wa
               "the header row lists " + std::to_string(head_wl.size()) + " wavelengths " + format(head_wl.front()) +
                   "-" + format(head_wl.back()) + " nm but the `wavelengths` option gives " + std::to_string(B) +
                   "; drop the `wavelengths` option to use the file's");
-    if (hc.size() == B + 1) name_col = 1;
+    if (hc.size() == B + 1)
+      name_col = 1;
     else if (hc.size() != B)
       rd.fail(head.line, 0,
               "row has " + std::to_string(hc.size()) + " cells but the `wavelengths` option has " + std::to_string(B) +
@@ -364,8 +370,7 @@ Collection read_csv_collection(const std::filesystem::path& path, const Waveleng
   const auto& hc = head.cells;
 
   bool transposed = false;
-  if (hc.size() >= 2 && !Reader::is_number(hc[0].text) && looks_like_wavelength_label(hc[0].text))
-    transposed = true;
+  if (hc.size() >= 2 && !Reader::is_number(hc[0].text) && looks_like_wavelength_label(hc[0].text)) transposed = true;
   if (hc.size() >= 2) {
     bool any_numeric = false;
     for (std::size_t i = 1; i < hc.size(); ++i) any_numeric = any_numeric || Reader::is_number(hc[i].text);
@@ -406,8 +411,8 @@ void write_csv_collection(const std::filesystem::path& path, const Collection& c
 
   AtomicOutput tmp(path);
   std::FILE* f = std::fopen(tmp.temp_path().c_str(), "wb");
-  if (!f) throw LibraryError(path.string() + ": cannot create " + tmp.temp_path().string() + ": " +
-                             std::strerror(errno));
+  if (!f)
+    throw LibraryError(path.string() + ": cannot create " + tmp.temp_path().string() + ": " + std::strerror(errno));
   const bool ok = std::fwrite(out.data(), 1, out.size(), f) == out.size();
   const int err = errno;
   if (std::fclose(f) != 0 || !ok)

@@ -22,14 +22,11 @@
 namespace specula::store {
 namespace envi_detail {
 
-bool iequals_ext(const std::filesystem::path& p, std::string_view ext) {
-  return lower(p.extension().string()) == ext;
-}
+bool iequals_ext(const std::filesystem::path& p, std::string_view ext) { return lower(p.extension().string()) == ext; }
 
 std::size_t rows_per_block(std::size_t width, std::size_t bands) {
   return std::max<std::size_t>(1, (std::size_t{2} << 20) / (width * bands * sizeof(float)));
 }
-
 
 }  // namespace envi_detail
 
@@ -97,14 +94,13 @@ bool is_file(const std::filesystem::path& p) {
 }
 
 Paths locate(const std::filesystem::path& path) {
-  if (!is_file(path))
-    throw InputError(path.string() + ": no such file; give the ENVI .hdr or its data file");
+  if (!is_file(path)) throw InputError(path.string() + ": no such file; give the ENVI .hdr or its data file");
   std::vector<std::filesystem::path> tried;
   if (iequals_ext(path, ".hdr")) {
     std::filesystem::path base = path;
     base.replace_extension();
-    for (const char* ext : {"", ".raw", ".img", ".dat", ".bsq", ".bil", ".bip", ".sli", ".RAW", ".IMG", ".DAT",
-                            ".BSQ", ".BIL", ".BIP", ".SLI"}) {
+    for (const char* ext : {"", ".raw", ".img", ".dat", ".bsq", ".bil", ".bip", ".sli", ".RAW", ".IMG", ".DAT", ".BSQ",
+                            ".BIL", ".BIP", ".SLI"}) {
       std::filesystem::path cand = base;
       cand += ext;
       if (is_file(cand)) return {path, cand};
@@ -123,8 +119,8 @@ Paths locate(const std::filesystem::path& path) {
   appended += ".hdr";
   for (const auto& cand : {replaced, upper, appended})
     if (is_file(cand)) return {cand, path};
-  throw InputError(path.string() + ": no ENVI header beside it (looked for " + replaced.filename().string() +
-                   " and " + appended.filename().string() + "); give the .hdr path");
+  throw InputError(path.string() + ": no ENVI header beside it (looked for " + replaced.filename().string() + " and " +
+                   appended.filename().string() + "); give the .hdr path");
 }
 
 std::string read_text(const std::filesystem::path& p) {
@@ -295,8 +291,9 @@ Cube read_envi(const std::filesystem::path& path, const WavelengthGrid& fallback
     for (double& v : fwhm) v *= factor;
   } else if (!fallback.empty()) {
     if (fallback.size() != h.bands)
-      throw InputError(hname + ": the image has " + std::to_string(h.bands) + " bands but the `wavelengths` option gives " +
-                       std::to_string(fallback.size()) + "; pass one wavelength per band");
+      throw InputError(hname + ": the image has " + std::to_string(h.bands) +
+                       " bands but the `wavelengths` option gives " + std::to_string(fallback.size()) +
+                       "; pass one wavelength per band");
     nm.assign(fallback.values().begin(), fallback.values().end());
   } else {
     throw InputError(hname + ": " + problem);
@@ -393,7 +390,7 @@ Collection read_envi_library(const std::filesystem::path& path, bool honour_bbl,
     }
   for (std::size_t i = 0; i < N; ++i)
     col.names.push_back(h.spectra_names.empty() || h.spectra_names[i].empty() ? "spectrum_" + std::to_string(i + 1)
-                                                                             : h.spectra_names[i]);
+                                                                              : h.spectra_names[i]);
   for (const char* key : {"specula units", "units"}) {
     const auto it = fields.find(std::string_view(key));
     if (it != fields.end() && !trim(it->second.value).empty()) {

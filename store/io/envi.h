@@ -21,18 +21,18 @@ enum class Interleave { bsq, bil, bip };
 struct EnviHeader {
   std::size_t samples = 0, lines = 0, bands = 0;
   std::size_t header_offset = 0;
-  int data_type = 0;          ///< 1 u8, 2 i16, 3 i32, 4 f32, 5 f64, 12 u16
+  int data_type = 0;  ///< 1 u8, 2 i16, 3 i32, 4 f32, 5 f64, 12 u16
   Interleave interleave = Interleave::bsq;
-  int byte_order = 0;         ///< 0 little endian, 1 big endian
-  std::vector<double> wavelength;       ///< as written in the header
-  std::string wavelength_units;         ///< "nanometers", "micrometers", ... (empty if absent)
+  int byte_order = 0;              ///< 0 little endian, 1 big endian
+  std::vector<double> wavelength;  ///< as written in the header
+  std::string wavelength_units;    ///< "nanometers", "micrometers", ... (empty if absent)
   std::vector<double> fwhm;
   std::optional<double> data_ignore_value;
   std::vector<std::string> band_names;
   std::string description;
-  std::string file_type;                ///< e.g. "ENVI Standard", "ENVI Spectral Library" (empty if absent)
+  std::string file_type;                   ///< e.g. "ENVI Standard", "ENVI Spectral Library" (empty if absent)
   std::vector<std::string> spectra_names;  ///< libraries: one per spectrum (line)
-  std::vector<bool> bbl;                ///< empty, or one per band (per sample for libraries): false = bad band
+  std::vector<bool> bbl;                   ///< empty, or one per band (per sample for libraries): false = bad band
 
   /// True for file type = ENVI Spectral Library (samples are bands, lines are spectra).
   bool is_library() const;

@@ -92,13 +92,20 @@ Fields parse_fields(std::string_view text, const std::string& filename) {
 
 std::size_t bytes_per_sample(int data_type) {
   switch (data_type) {
-    case 1: return 1;
-    case 2: return 2;
-    case 3: return 4;
-    case 4: return 4;
-    case 5: return 8;
-    case 12: return 2;
-    default: return 0;
+    case 1:
+      return 1;
+    case 2:
+      return 2;
+    case 3:
+      return 4;
+    case 4:
+      return 4;
+    case 5:
+      return 8;
+    case 12:
+      return 2;
+    default:
+      return 0;
   }
 }
 
@@ -190,8 +197,7 @@ struct FieldLookup {
   const Field& require(const char* key, const char* example) const {
     const Field* f = find(key);
     if (!f)
-      throw InputError(filename + ": required field '" + key + "' is missing; add a line such as '" + example +
-                       "'");
+      throw InputError(filename + ": required field '" + key + "' is missing; add a line such as '" + example + "'");
     return *f;
   }
 };
@@ -200,7 +206,9 @@ struct FieldLookup {
 void parse_layout(const FieldLookup& lookup, EnviHeader& h) {
   const std::string& filename = lookup.filename;
   const auto find = [&](const char* key) { return lookup.find(key); };
-  const auto require = [&](const char* key, const char* example) -> const Field& { return lookup.require(key, example); };
+  const auto require = [&](const char* key, const char* example) -> const Field& {
+    return lookup.require(key, example);
+  };
   const auto dimension = [&](const char* key, const char* example) {
     const Field& f = require(key, example);
     const std::uint64_t v = parse_unsigned(filename, key, f);
@@ -224,10 +232,14 @@ void parse_layout(const FieldLookup& lookup, EnviHeader& h) {
   {
     const Field& f = require("interleave", "interleave = bsq");
     const std::string v = lower(trim(f.value));
-    if (v == "bsq") h.interleave = Interleave::bsq;
-    else if (v == "bil") h.interleave = Interleave::bil;
-    else if (v == "bip") h.interleave = Interleave::bip;
-    else bad_field(filename, "interleave", f, "is not one of bsq, bil, bip");
+    if (v == "bsq")
+      h.interleave = Interleave::bsq;
+    else if (v == "bil")
+      h.interleave = Interleave::bil;
+    else if (v == "bip")
+      h.interleave = Interleave::bip;
+    else
+      bad_field(filename, "interleave", f, "is not one of bsq, bil, bip");
   }
   if (const Field* f = find("byte order")) {
     const std::uint64_t v = parse_unsigned(filename, "byte order", *f);

@@ -28,13 +28,15 @@ constexpr double kWriteIgnoreValue = -9999.0;
 
 const char* interleave_name(Interleave il) {
   switch (il) {
-    case Interleave::bsq: return "bsq";
-    case Interleave::bil: return "bil";
-    case Interleave::bip: return "bip";
+    case Interleave::bsq:
+      return "bsq";
+    case Interleave::bil:
+      return "bil";
+    case Interleave::bip:
+      return "bip";
   }
   return "bsq";
 }
-
 
 // An open output file that remembers the first failure instead of throwing mid-write.
 class Sink {
@@ -63,8 +65,8 @@ class Sink {
 void write_file(const std::filesystem::path& target, const std::function<void(Sink&)>& fill) {
   AtomicOutput out(target);
   std::FILE* f = std::fopen(out.temp_path().c_str(), "wb");
-  if (!f) throw LibraryError(target.string() + ": cannot create " + out.temp_path().string() + ": " +
-                             std::strerror(errno));
+  if (!f)
+    throw LibraryError(target.string() + ": cannot create " + out.temp_path().string() + ": " + std::strerror(errno));
   Sink sink(f);
   try {
     fill(sink);
@@ -81,7 +83,6 @@ void write_file(const std::filesystem::path& target, const std::function<void(Si
   if (!ok) throw LibraryError(target.string() + ": write failed: " + std::strerror(err));
   out.commit();
 }
-
 
 }  // namespace
 
@@ -144,8 +145,8 @@ void write_envi(const std::filesystem::path& data_path, const Cube& cube, Interl
 
   std::string hdr = "ENVI\ndescription = {written by specula}\n";
   hdr += "samples = " + std::to_string(W) + "\nlines = " + std::to_string(H) + "\nbands = " + std::to_string(B) +
-         "\nheader offset = 0\nfile type = ENVI Standard\ndata type = 4\ninterleave = " +
-         interleave_name(interleave) + "\nbyte order = 0\n";
+         "\nheader offset = 0\nfile type = ENVI Standard\ndata type = 4\ninterleave = " + interleave_name(interleave) +
+         "\nbyte order = 0\n";
   const auto list = [](std::span<const double> v) {
     std::string s = "{";
     for (std::size_t k = 0; k < v.size(); ++k) s += (k ? ", " : " ") + format_real(v[k]);

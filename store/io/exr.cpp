@@ -69,15 +69,13 @@ struct SpectralChannel {
   double nm = 0.0;
 };
 
-double power_of_ten(int k) {
-  return k >= 0 ? std::pow(10.0, k) : 1.0 / std::pow(10.0, -k);
-}
+double power_of_ten(int k) { return k >= 0 ? std::pow(10.0, k) : 1.0 / std::pow(10.0, -k); }
 
 std::optional<int> si_prefix_exponent(std::string_view prefix) {
   static constexpr std::array<std::pair<std::string_view, int>, 19> table{{
-      {"", 0},    {"Y", 24},  {"Z", 21},  {"E", 18},  {"P", 15},       {"T", 12},       {"G", 9},
-      {"M", 6},   {"k", 3},   {"h", 2},   {"da", 1},  {"d", -1},       {"c", -2},       {"m", -3},
-      {"u", -6},  {"n", -9},  {"p", -12}, {"\xc2\xb5", -6}, {"\xce\xbc", -6},
+      {"", 0},   {"Y", 24}, {"Z", 21},  {"E", 18},        {"P", 15},        {"T", 12}, {"G", 9},
+      {"M", 6},  {"k", 3},  {"h", 2},   {"da", 1},        {"d", -1},        {"c", -2}, {"m", -3},
+      {"u", -6}, {"n", -9}, {"p", -12}, {"\xc2\xb5", -6}, {"\xce\xbc", -6},
   }};
   for (const auto& [text, exponent] : table)
     if (text == prefix) return exponent;
@@ -214,8 +212,7 @@ Cube read_spectral_exr(const fs::path& path) {
     const Imath::Box2i window = header.dataWindow();
     const long long width = static_cast<long long>(window.max.x) - window.min.x + 1;
     const long long height = static_cast<long long>(window.max.y) - window.min.y + 1;
-    if (width <= 0 || height <= 0)
-      throw InputError(path.string() + ": empty OpenEXR data window");
+    if (width <= 0 || height <= 0) throw InputError(path.string() + ": empty OpenEXR data window");
     if (static_cast<double>(width) * static_cast<double>(height) * static_cast<double>(channels.size()) > 0x1p32)
       throw InputError(path.string() + ": data window " + std::to_string(width) + " x " + std::to_string(height) +
                        " with " + std::to_string(channels.size()) +
@@ -271,7 +268,8 @@ std::vector<float> read_exr_rgb(const fs::path& path, std::size_t& width, std::s
     Imf::FrameBuffer frame;
     const char* names[3] = {"R", "G", "B"};
     for (std::size_t c = 0; c < 3; ++c)
-      frame.insert(names[c], Imf::Slice::Make(Imf::FLOAT, rgb.data() + c, window, 3 * sizeof(float), 3 * sizeof(float) * width));
+      frame.insert(names[c],
+                   Imf::Slice::Make(Imf::FLOAT, rgb.data() + c, window, 3 * sizeof(float), 3 * sizeof(float) * width));
     file.setFrameBuffer(frame);
     file.readPixels(window.min.y, window.max.y);
     for (std::size_t i = 0; i < rgb.size(); ++i)

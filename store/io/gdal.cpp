@@ -121,8 +121,7 @@ GdalRaster::GdalRaster(const std::filesystem::path& path, const WavelengthGrid& 
   if (!std::filesystem::is_regular_file(path, ec))
     throw InputError(file_ + ": no such file; give the path of a raster GDAL reads (GeoTIFF, ...)");
   dataset_ = GDALOpenEx(file_.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
-  if (!dataset_)
-    throw InputError(file_ + ": not a raster GDAL can read (GDAL: " + QuietErrors::message() + ")");
+  if (!dataset_) throw InputError(file_ + ": not a raster GDAL can read (GDAL: " + QuietErrors::message() + ")");
   try {
     GDALDatasetH d = ds(dataset_);
     driver_ = GDALGetDriverShortName(GDALGetDatasetDriver(d));
@@ -133,8 +132,8 @@ GdalRaster::GdalRaster(const std::filesystem::path& path, const WavelengthGrid& 
       throw InputError(file_ + ": the " + driver_ + " raster holds no bands or no pixels");
     std::vector<double> wl, fwhm;
     bool wl_all = true, fwhm_all = true, nm_given = false;
-    static const std::regex in_description(R"(([0-9]+(\.[0-9]*)?)\s*(nm|nanometers?|um|µm|micrometers?|microns?)\s*\)?\s*$)",
-                                           std::regex::icase);
+    static const std::regex in_description(
+        R"(([0-9]+(\.[0-9]*)?)\s*(nm|nanometers?|um|µm|micrometers?|microns?)\s*\)?\s*$)", std::regex::icase);
     for (int b = 1; b <= nb; ++b) {
       GDALRasterBandH band = GDALGetRasterBand(d, b);
       const GDALDataType t = GDALGetRasterDataType(band);
@@ -171,7 +170,10 @@ GdalRaster::GdalRaster(const std::filesystem::path& path, const WavelengthGrid& 
           nm_given = true;
         }
       }
-      if (w) wl.push_back(*w); else wl_all = false;
+      if (w)
+        wl.push_back(*w);
+      else
+        wl_all = false;
       std::optional<double> f;
       if (const std::string v = band_item(band, {"fwhm"}); !v.empty()) {
         if ((f = number(v)))
@@ -179,10 +181,14 @@ GdalRaster::GdalRaster(const std::filesystem::path& path, const WavelengthGrid& 
       } else if (const std::string um = band_item(band, {"FWHM_UM"}); !um.empty()) {
         if ((f = number(um))) *f *= 1000;
       }
-      if (f) fwhm.push_back(*f); else fwhm_all = false;
+      if (f)
+        fwhm.push_back(*f);
+      else
+        fwhm_all = false;
     }
     if (!wl_all) {  // the dataset's ENVI domain: wavelength = { ... }
-      wl = number_list(GDALGetMetadataItem(d, "wavelength", "ENVI") ? GDALGetMetadataItem(d, "wavelength", "ENVI") : "");
+      wl =
+          number_list(GDALGetMetadataItem(d, "wavelength", "ENVI") ? GDALGetMetadataItem(d, "wavelength", "ENVI") : "");
       const char* u = GDALGetMetadataItem(d, "wavelength_units", "ENVI");
       nm_given = false;
       if (wl.size() == std::size_t(nb) && u)

@@ -64,7 +64,8 @@ Mask read_mask(const std::filesystem::path& path) {
   // What the file says it is decides before any header that happens to lie beside it (m.png next to m.hdr).
   if (path.extension() != ".hdr" && (png_signature(path) || path.extension() == ".png")) return png_mask(path);
   if (const std::filesystem::path hdr = envi_header(path); !hdr.empty()) return envi_mask(path, hdr);
-  throw InputError(path.string() + ": a mask is a PNG or a one-band ENVI image, and this is neither (no .hdr beside it)");
+  throw InputError(path.string() +
+                   ": a mask is a PNG or a one-band ENVI image, and this is neither (no .hdr beside it)");
 }
 
 }  // namespace specula::store

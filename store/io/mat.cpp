@@ -72,7 +72,8 @@ class V5Layout {
     const bool read = size_ >= 128 && in_.read(header, 128);
     const std::string endian = read ? std::string(header + 126, 2) : std::string();
     if (endian != "IM" && endian != "MI")
-      throw InputError(file_ + ": not a MATLAB .mat file in v5 or v7.3 format (no 128-byte MAT-file header; v4 files "
+      throw InputError(file_ +
+                       ": not a MATLAB .mat file in v5 or v7.3 format (no 128-byte MAT-file header; v4 files "
                        "are not read); save it from MATLAB with save(..., '-v7') or '-v7.3'");
     swap_ = endian == "MI";
     if (u16(reinterpret_cast<const unsigned char*>(header) + 124) != 0x0100) return;  // 0x0200: v7.3
@@ -129,7 +130,11 @@ class V5Layout {
           if (__builtin_mul_overflow(promised, std::uint64_t{u32(data + k)}, &promised)) promised = UINT64_MAX;
       if (cap == n && array_class >= 6 && array_class <= 15) {  // mxDOUBLE_CLASS ... mxUINT64_CLASS
         const std::uint32_t t = small ? type & 0xffff : type;
-        const std::uint64_t size = t == 1 || t == 2 ? 1 : t == 3 || t == 4 ? 2 : t >= 5 && t <= 7 ? 4 : t == 9 || t >= 12 ? 8 : 0;
+        const std::uint64_t size = t == 1 || t == 2    ? 1
+                                   : t == 3 || t == 4  ? 2
+                                   : t >= 5 && t <= 7  ? 4
+                                   : t == 9 || t >= 12 ? 8
+                                                       : 0;
         if (size != 0 && t <= 13 && len / size != promised)
           throw InputError(file_ + ": corrupt MATLAB v5 file: the variable at byte " + std::to_string(at) +
                            " has dimensions for " + std::to_string(promised) + " values but its data holds " +
@@ -192,10 +197,14 @@ class MatFile {
 
   std::string version() const {
     switch (Mat_GetVersion(mat_)) {
-      case MAT_FT_MAT73: return "v7.3";
-      case MAT_FT_MAT5: return "v5/v7";
-      case MAT_FT_MAT4: return "v4";
-      default: return "unknown version";
+      case MAT_FT_MAT73:
+        return "v7.3";
+      case MAT_FT_MAT5:
+        return "v5/v7";
+      case MAT_FT_MAT4:
+        return "v4";
+      default:
+        return "unknown version";
     }
   }
 
@@ -210,8 +219,8 @@ class MatFile {
     // A name with control characters cannot come from MATLAB and would break one-line messages: such
     // variables are not offered.
     for (std::size_t i = 0; i < n; ++i)
-      if (dir[i] && std::none_of(dir[i], dir[i] + std::strlen(dir[i]),
-                                 [](char c) { return (c >= 0 && c < 0x20) || c == 0x7f; }))
+      if (dir[i] &&
+          std::none_of(dir[i], dir[i] + std::strlen(dir[i]), [](char c) { return (c >= 0 && c < 0x20) || c == 0x7f; }))
         out.emplace_back(dir[i]);
     return out;
   }
@@ -263,24 +272,42 @@ class MatFile {
 
 const char* class_name(matio_classes c) {
   switch (c) {
-    case MAT_C_EMPTY: return "empty";
-    case MAT_C_CELL: return "a cell array";
-    case MAT_C_STRUCT: return "a struct";
-    case MAT_C_OBJECT: return "an object";
-    case MAT_C_CHAR: return "char";
-    case MAT_C_SPARSE: return "sparse";
-    case MAT_C_DOUBLE: return "double";
-    case MAT_C_SINGLE: return "single";
-    case MAT_C_INT8: return "int8";
-    case MAT_C_UINT8: return "uint8";
-    case MAT_C_INT16: return "int16";
-    case MAT_C_UINT16: return "uint16";
-    case MAT_C_INT32: return "int32";
-    case MAT_C_UINT32: return "uint32";
-    case MAT_C_INT64: return "int64";
-    case MAT_C_UINT64: return "uint64";
-    case MAT_C_FUNCTION: return "a function handle";
-    case MAT_C_OPAQUE: return "opaque";
+    case MAT_C_EMPTY:
+      return "empty";
+    case MAT_C_CELL:
+      return "a cell array";
+    case MAT_C_STRUCT:
+      return "a struct";
+    case MAT_C_OBJECT:
+      return "an object";
+    case MAT_C_CHAR:
+      return "char";
+    case MAT_C_SPARSE:
+      return "sparse";
+    case MAT_C_DOUBLE:
+      return "double";
+    case MAT_C_SINGLE:
+      return "single";
+    case MAT_C_INT8:
+      return "int8";
+    case MAT_C_UINT8:
+      return "uint8";
+    case MAT_C_INT16:
+      return "int16";
+    case MAT_C_UINT16:
+      return "uint16";
+    case MAT_C_INT32:
+      return "int32";
+    case MAT_C_UINT32:
+      return "uint32";
+    case MAT_C_INT64:
+      return "int64";
+    case MAT_C_UINT64:
+      return "uint64";
+    case MAT_C_FUNCTION:
+      return "a function handle";
+    case MAT_C_OPAQUE:
+      return "opaque";
   }
   return "unknown";
 }
@@ -324,20 +351,28 @@ template <typename Fn>
 void visit_data(const MatFile& f, const matvar_t& v, const std::string& name, std::size_t n, Fn&& fn) {
   check_data(f, v, name, n);
   switch (v.class_type) {
-    case MAT_C_DOUBLE: fn(static_cast<const double*>(v.data)); break;
-    case MAT_C_SINGLE: fn(static_cast<const float*>(v.data)); break;
-    case MAT_C_UINT8: fn(static_cast<const std::uint8_t*>(v.data)); break;
-    case MAT_C_UINT16: fn(static_cast<const std::uint16_t*>(v.data)); break;
-    case MAT_C_INT16: fn(static_cast<const std::int16_t*>(v.data)); break;
+    case MAT_C_DOUBLE:
+      fn(static_cast<const double*>(v.data));
+      break;
+    case MAT_C_SINGLE:
+      fn(static_cast<const float*>(v.data));
+      break;
+    case MAT_C_UINT8:
+      fn(static_cast<const std::uint8_t*>(v.data));
+      break;
+    case MAT_C_UINT16:
+      fn(static_cast<const std::uint16_t*>(v.data));
+      break;
+    case MAT_C_INT16:
+      fn(static_cast<const std::int16_t*>(v.data));
+      break;
     default:
       throw UsageError("visit_data: unsupported class " + std::string(class_name(v.class_type)));
   }
 }
 
 bool numeric(const matvar_t& v) { return supported_class(v.class_type) && !v.isComplex; }
-bool is_vector(const matvar_t& v) {
-  return v.rank == 2 && (v.dims[0] == 1 || v.dims[1] == 1) && element_count(v) > 0;
-}
+bool is_vector(const matvar_t& v) { return v.rank == 2 && (v.dims[0] == 1 || v.dims[1] == 1) && element_count(v) > 0; }
 
 std::vector<double> read_doubles(MatFile& mf, const std::string& name, std::size_t n) {
   const Var v = mf.read(name);
@@ -435,8 +470,9 @@ std::optional<std::string> detect_cube_var(const MatFile& mf, const std::vector<
         if (c == known) return c;
     std::string list;
     for (const auto& c : cubes) list += (list.empty() ? "" : ", ") + c;
-    throw InputError(mf.file() + ": several 3-D variables (" + list +
-                     ") and none of the known names ref, rad, cube, reflectances, data; give its name as the `var` option");
+    throw InputError(
+        mf.file() + ": several 3-D variables (" + list +
+        ") and none of the known names ref, rad, cube, reflectances, data; give its name as the `var` option");
   }
   return std::nullopt;
 }
@@ -497,9 +533,9 @@ Layout image_layout(MatFile& mf, const std::vector<Entry>& all, const std::strin
     } else if (head->dims[0] == px) {
       l.order = Order::pb, l.bands = head->dims[1];
     } else {
-      throw InputError(file + ": variable '" + var + "' is " + dims_text(*head) + " but nRow x nCol = " +
-                       std::to_string(r) + " x " + std::to_string(c) + " = " + std::to_string(px) +
-                       " pixels; give a bands x pixels matrix");
+      throw InputError(file + ": variable '" + var + "' is " + dims_text(*head) +
+                       " but nRow x nCol = " + std::to_string(r) + " x " + std::to_string(c) + " = " +
+                       std::to_string(px) + " pixels; give a bands x pixels matrix");
     }
   } else if (head->rank == 2) {
     l.rows = head->dims[0], l.cols = head->dims[1], l.bands = 1;
@@ -557,13 +593,15 @@ BandGrid resolve_grid(MatFile& mf, const std::vector<Entry>& all, const std::opt
                         std::to_string(bands) + " bands of '" + var + "'"
                   : file + ": variable '" + fg->name + "' is " + (e->head->isComplex ? "complex " : "") +
                         class_name(e->head->class_type) + " " + dims_text(*e->head) + " but '" + var + "' has " +
-                        std::to_string(bands) + " bands; store one wavelength in nm per band or give the `wavelengths` option";
+                        std::to_string(bands) +
+                        " bands; store one wavelength in nm per band or give the `wavelengths` option";
   }
   if (given.empty())
-    throw InputError(!problem.empty() ? problem
-                                      : file + ": no wavelength variable (wavelength, wavelengths, bands, wl or lambda) for the " +
-                                            std::to_string(bands) + " bands of '" + var +
-                                            "'; give the `wavelengths` option FIRST:LAST:STEP");
+    throw InputError(!problem.empty()
+                         ? problem
+                         : file + ": no wavelength variable (wavelength, wavelengths, bands, wl or lambda) for the " +
+                               std::to_string(bands) + " bands of '" + var +
+                               "'; give the `wavelengths` option FIRST:LAST:STEP");
   if (given.size() == bands) return sorted_grid({given.values().begin(), given.values().end()}, file, var);
   if (const Entry* sel = find_ci(all, {"slectbands", "selectbands"});
       sel && numeric(*sel->head) && is_vector(*sel->head) && element_count(*sel->head) == bands) {
@@ -578,8 +616,9 @@ BandGrid resolve_grid(MatFile& mf, const std::vector<Entry>& all, const std::opt
     }
     return sorted_grid(nm, file, sel->name);
   }
-  throw InputError(file + ": variable '" + var + "' has " + std::to_string(bands) + " bands but the `wavelengths` option gives " +
-                   std::to_string(given.size()) + "; pass one wavelength per band");
+  throw InputError(file + ": variable '" + var + "' has " + std::to_string(bands) +
+                   " bands but the `wavelengths` option gives " + std::to_string(given.size()) +
+                   "; pass one wavelength per band");
 }
 
 // The 2-D library matrix (given or detected), or nullopt when there is none.
@@ -624,15 +663,18 @@ template <class T>
 void transpose_column_major(const T* in, std::size_t rows, std::size_t cols, std::size_t bands, float* out) {
   constexpr std::size_t kTileRows = 64, kTileCols = 8;
   const std::size_t row_tiles = (rows + kTileRows - 1) / kTileRows, col_tiles = (cols + kTileCols - 1) / kTileCols;
-  parallel_for(row_tiles * col_tiles, [&](std::size_t t) {
-    const std::size_t r0 = (t / col_tiles) * kTileRows, c0 = (t % col_tiles) * kTileCols;
-    const std::size_t r1 = std::min(rows, r0 + kTileRows), c1 = std::min(cols, c0 + kTileCols);
-    for (std::size_t b = 0; b < bands; ++b)
-      for (std::size_t c = c0; c < c1; ++c) {
-        const T* src = in + rows * (c + cols * b);
-        for (std::size_t r = r0; r < r1; ++r) out[(r * cols + c) * bands + b] = static_cast<float>(src[r]);
-      }
-  }, 16);
+  parallel_for(
+      row_tiles * col_tiles,
+      [&](std::size_t t) {
+        const std::size_t r0 = (t / col_tiles) * kTileRows, c0 = (t % col_tiles) * kTileCols;
+        const std::size_t r1 = std::min(rows, r0 + kTileRows), c1 = std::min(cols, c0 + kTileCols);
+        for (std::size_t b = 0; b < bands; ++b)
+          for (std::size_t c = c0; c < c1; ++c) {
+            const T* src = in + rows * (c + cols * b);
+            for (std::size_t r = r0; r < r1; ++r) out[(r * cols + c) * bands + b] = static_cast<float>(src[r]);
+          }
+      },
+      16);
 }
 }  // namespace
 
@@ -647,8 +689,8 @@ std::uint64_t mat_decoded_bytes(const std::filesystem::path& path) {
   return total;
 }
 
-Cube read_mat(const std::filesystem::path& path, const std::string& var_in,
-              const std::optional<std::string>& mask_var, const WavelengthGrid& wavelengths) {
+Cube read_mat(const std::filesystem::path& path, const std::string& var_in, const std::optional<std::string>& mask_var,
+              const WavelengthGrid& wavelengths) {
   MatFile mf(path);
   const std::string& file = mf.file();
   std::vector<Entry> all = scan(mf);
@@ -671,8 +713,8 @@ Cube read_mat(const std::filesystem::path& path, const std::string& var_in,
   if (mask_var) {
     const Var mi = mf.info_or_throw(*mask_var, "mask ");
     check_numeric(mf, *mi, *mask_var);
-    const bool shape_ok = (mi->rank == 2 || (mi->rank == 3 && mi->dims[2] == 1)) && mi->dims[0] == rows &&
-                          mi->dims[1] == cols;
+    const bool shape_ok =
+        (mi->rank == 2 || (mi->rank == 3 && mi->dims[2] == 1)) && mi->dims[0] == rows && mi->dims[1] == cols;
     if (!shape_ok)
       throw InputError(file + ": mask variable '" + *mask_var + "' is " + dims_text(*mi) + " but '" + var + "' is " +
                        std::to_string(rows) + " x " + std::to_string(cols) + " pixels; give a rows x cols mask");
@@ -726,7 +768,9 @@ Collection read_mat_collection(const std::filesystem::path& path, const std::str
   std::string var = var_in;
   if (var.empty()) {
     auto d = detect_library_var(all, fg);
-    if (!d) throw InputError(file + ": no 2-D spectra matrix 'data' (" + list_names(all) + "); give its name as the `var` option");
+    if (!d)
+      throw InputError(file + ": no 2-D spectra matrix 'data' (" + list_names(all) +
+                       "); give its name as the `var` option");
     var = *d;
   }
   const Var head = mf.info_or_throw(var, "");
@@ -734,7 +778,8 @@ Collection read_mat_collection(const std::filesystem::path& path, const std::str
   if (head->rank != 2 || element_count(*head) == 0)
     throw InputError(file + ": variable '" + var + "' is " + dims_text(*head) + "; expected bands x spectra (2-D)");
   if (element_count(*head) > kMaxElements)
-    throw InputError(file + ": variable '" + var + "' is " + dims_text(*head) + ", more than the 1 TiB limit; split it");
+    throw InputError(file + ": variable '" + var + "' is " + dims_text(*head) +
+                     ", more than the 1 TiB limit; split it");
   const std::size_t d0 = head->dims[0], d1 = head->dims[1];
   const std::size_t nwl = fg && !fg->numbering && !fg->nm.empty() ? fg->length : wavelengths.size();
   const bool columns = nwl == 0 || d0 == nwl || d1 != nwl;  // ISETCam: one spectrum per column

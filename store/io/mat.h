@@ -42,8 +42,8 @@ std::uint64_t mat_decoded_bytes(const std::filesystem::path& path);
 
 /// Reads the cube variable `var` (empty: detect, see above) as a Cube with an optional 2-D mask variable
 /// (nonzero = valid) and wavelengths from the file, else `wavelengths`; throws InputError naming the file.
-Cube read_mat(const std::filesystem::path& path, const std::string& var,
-              const std::optional<std::string>& mask_var, const WavelengthGrid& wavelengths);
+Cube read_mat(const std::filesystem::path& path, const std::string& var, const std::optional<std::string>& mask_var,
+              const WavelengthGrid& wavelengths);
 
 /// Reads a spectral library: 2-D `var` (empty: `data`, else the only 2-D matrix), spectra as columns when
 /// dim 0 equals the band count, else as rows; names are VAR_1, VAR_2, ...; throws InputError naming the file.

@@ -105,8 +105,8 @@ bool png_step_write(PngWriteState* s, png_uint_32 width, png_uint_32 height, int
     png_set_compression_level(s->png, 1);
     png_set_filter(s->png, PNG_FILTER_TYPE_BASE, PNG_FILTER_SUB);
   }
-  png_set_IHDR(s->png, s->info, width, height, bit_depth, color_type, PNG_INTERLACE_NONE,
-               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_IHDR(s->png, s->info, width, height, bit_depth, color_type, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
+               PNG_FILTER_TYPE_DEFAULT);
   png_write_info(s->png, s->info);
   png_write_image(s->png, rows);
   png_write_end(s->png, nullptr);
@@ -154,15 +154,13 @@ std::string read_file_bytes(const fs::path& path) {
   return bytes;
 }
 
-void check_size(const fs::path& path, std::size_t width, std::size_t height, std::size_t given,
-                std::size_t per_pixel) {
+void check_size(const fs::path& path, std::size_t width, std::size_t height, std::size_t given, std::size_t per_pixel) {
   if (width == 0 || height == 0 || width > PNG_UINT_31_MAX || height > PNG_UINT_31_MAX)
     throw UsageError(path.string() + ": PNG size must be between 1 and 2^31-1 pixels per side, got " +
                      std::to_string(width) + " x " + std::to_string(height));
   if (given != width * height * per_pixel)
-    throw UsageError(path.string() + ": expected " + std::to_string(width * height * per_pixel) +
-                     " samples for a " + std::to_string(width) + " x " + std::to_string(height) +
-                     " PNG, got " + std::to_string(given));
+    throw UsageError(path.string() + ": expected " + std::to_string(width * height * per_pixel) + " samples for a " +
+                     std::to_string(width) + " x " + std::to_string(height) + " PNG, got " + std::to_string(given));
 }
 
 void write_png(const fs::path& path, std::size_t width, std::size_t height, int bit_depth, int color_type,
@@ -172,8 +170,8 @@ void write_png(const fs::path& path, std::size_t width, std::size_t height, int 
   if (!file) throw LibraryError(out.temp_path().string() + ": cannot create file: " + std::strerror(errno));
   {
     WriteHandle handle(path, file.get());
-    if (!png_step_write(handle.get(), static_cast<png_uint_32>(width), static_cast<png_uint_32>(height),
-                        bit_depth, color_type, rows.data(), fast))
+    if (!png_step_write(handle.get(), static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), bit_depth,
+                        color_type, rows.data(), fast))
       throw LibraryError(path.string() + ": libpng failed to write: " + handle.get()->message);
   }
   if (std::fflush(file.get()) != 0 || std::ferror(file.get()))
@@ -219,8 +217,9 @@ std::vector<fs::path> pngs_in_directory(const fs::path& dir) {
     if (ext == ".png" && it->is_regular_file()) found.push_back(it->path());
   }
   if (ec) throw InputError(dir.string() + ": cannot list directory: " + ec.message());
-  std::sort(found.begin(), found.end(),
-            [](const fs::path& a, const fs::path& b) { return natural_less(a.filename().string(), b.filename().string()); });
+  std::sort(found.begin(), found.end(), [](const fs::path& a, const fs::path& b) {
+    return natural_less(a.filename().string(), b.filename().string());
+  });
   if (found.empty()) throw InputError(dir.string() + ": no *.png files in this directory");
   return found;
 }
@@ -235,15 +234,14 @@ PngImage read_png(const fs::path& path) {
   s->size = bytes.size();
 
   PngHeader h;
-  if (!png_step_read_header(s, &h))
-    throw InputError(path.string() + ": corrupt or truncated PNG: " + s->message);
+  if (!png_step_read_header(s, &h)) throw InputError(path.string() + ": corrupt or truncated PNG: " + s->message);
   // Deflate cannot compress by more than ~1032:1, so a header promising more pixels than the file could
   // hold is corrupt; rejecting it here avoids a huge allocation before libpng notices.
   const double claimed = (static_cast<double>(h.file_rowbytes) + 1.0) * h.height;
   if (claimed > 1040.0 * static_cast<double>(bytes.size()) + 65536.0)
-    throw InputError(path.string() + ": corrupt or truncated PNG: header claims " + std::to_string(h.width) +
-                     " x " + std::to_string(h.height) + " pixels, more than " +
-                     std::to_string(bytes.size()) + " bytes can encode");
+    throw InputError(path.string() + ": corrupt or truncated PNG: header claims " + std::to_string(h.width) + " x " +
+                     std::to_string(h.height) + " pixels, more than " + std::to_string(bytes.size()) +
+                     " bytes can encode");
   if (h.bit_depth != 8 && h.bit_depth != 16)
     throw InputError(path.string() + ": unsupported PNG bit depth " + std::to_string(h.bit_depth));
 
@@ -264,8 +262,7 @@ PngImage read_png(const fs::path& path) {
     const unsigned char* src = rows[y];
     std::uint16_t* dst = image.samples.data() + y * per_row;
     if (h.bit_depth == 16) {
-      for (std::size_t i = 0; i < per_row; ++i)
-        dst[i] = static_cast<std::uint16_t>((src[2 * i] << 8) | src[2 * i + 1]);
+      for (std::size_t i = 0; i < per_row; ++i) dst[i] = static_cast<std::uint16_t>((src[2 * i] << 8) | src[2 * i + 1]);
     } else {
       for (std::size_t i = 0; i < per_row; ++i) dst[i] = src[i];
     }
@@ -273,8 +270,7 @@ PngImage read_png(const fs::path& path) {
   return image;
 }
 
-void write_png_rgb8(const fs::path& path, std::size_t width, std::size_t height,
-                    std::span<const std::uint8_t> rgb) {
+void write_png_rgb8(const fs::path& path, std::size_t width, std::size_t height, std::span<const std::uint8_t> rgb) {
   check_size(path, width, height, rgb.size(), 3);
   std::vector<png_bytep> rows(height);
   for (std::size_t y = 0; y < height; ++y) rows[y] = const_cast<png_bytep>(rgb.data() + y * width * 3);
@@ -304,8 +300,8 @@ std::vector<std::uint8_t> encode_png_rgb8(std::size_t width, std::size_t height,
                                    reinterpret_cast<const std::uint8_t*>(buffer) + size);
 }
 
-void write_png_gray16(const fs::path& path, std::size_t width, std::size_t height,
-                      std::span<const std::uint16_t> value, bool fast) {
+void write_png_gray16(const fs::path& path, std::size_t width, std::size_t height, std::span<const std::uint16_t> value,
+                      bool fast) {
   check_size(path, width, height, value.size(), 1);
   std::vector<unsigned char> big_endian(value.size() * 2);
   for (std::size_t i = 0; i < value.size(); ++i) {

@@ -132,7 +132,8 @@ TextLibrary read_usgs_spectra(std::span<const std::filesystem::path> spectra,
     kept.push_back(std::move(f));
   }
   if (kept.empty())
-    throw InputError(spectra.front().string() + ": no spectrum holds any valid value (all -1.23e34); nothing to import");
+    throw InputError(spectra.front().string() +
+                     ": no spectrum holds any valid value (all -1.23e34); nothing to import");
 
   // Bands kept: valid wavelength and valid in every kept spectrum; ascending wavelength order.
   std::vector<std::size_t> order;
@@ -142,7 +143,8 @@ TextLibrary read_usgs_spectra(std::span<const std::filesystem::path> spectra,
     if (ok) order.push_back(b);
   }
   if (order.empty())
-    throw InputError(spectra.front().string() + ": no band is valid in every spectrum (missing -1.23e34 values "
+    throw InputError(spectra.front().string() +
+                     ": no band is valid in every spectrum (missing -1.23e34 values "
                      "cover each band somewhere); import the spectra separately");
   if (order.size() < B)
     out.notes.push_back(spectra.front().string() + (kept.size() > 1 ? " and the others" : "") + ": dropped " +
@@ -162,8 +164,7 @@ TextLibrary read_usgs_spectra(std::span<const std::filesystem::path> spectra,
     for (std::size_t b : order) col.values.push_back(static_cast<float>(f.values[b]));
   col.units = "reflectance";
   col.provenance.source_file = spectra.front().string();
-  col.provenance.importer = "usgs-splib07 (wavelengths from " + wavelengths.filename().string() +
-                            ", micrometers->nm)";
+  col.provenance.importer = "usgs-splib07 (wavelengths from " + wavelengths.filename().string() + ", micrometers->nm)";
   return out;
 }
 
@@ -173,7 +174,7 @@ struct EcoFile {
   std::string name;
   std::vector<double> nm;  // ascending
   std::vector<double> values;
-  std::string y_kind;      // "reflectance", "transmittance", ...
+  std::string y_kind;  // "reflectance", "transmittance", ...
   bool percent = false;
   bool micrometers = false;
 };
@@ -208,13 +209,17 @@ EcoFile read_ecostress_file(const std::filesystem::path& p) {
     const std::string value(trim(t.substr(colon + 1)));
     if (i == 0 && key != "name")
       bad_line(p, 1, "\"" + printable(t) + "\" is not an ECOSTRESS header (it starts with \"Name:\")");
-    if (key == "name") f.name = value;
-    else if (key == "x units") x_units = value;
-    else if (key == "y units") y_units = value;
+    if (key == "name")
+      f.name = value;
+    else if (key == "x units")
+      x_units = value;
+    else if (key == "y units")
+      y_units = value;
     else if (key == "number of x values") {
       double d = 0;
       if (!parse_number(value, d) || d < 1 || d != std::floor(d) || d > 4294967295.0)
-        bad_line(p, i + 1, "Number of X Values = \"" + printable(value) + "\" is not a whole number from 1 to 2^32 - 1");
+        bad_line(p, i + 1,
+                 "Number of X Values = \"" + printable(value) + "\" is not a whole number from 1 to 2^32 - 1");
       declared = static_cast<std::size_t>(d);
       declared_line = i + 1;
     }
@@ -257,9 +262,10 @@ EcoFile read_ecostress_file(const std::filesystem::path& p) {
   }
   if (rows.empty()) throw InputError(p.string() + ": header but no data rows; the file is truncated");
   if (declared != 0 && declared != rows.size())
-    bad_line(p, declared_line, "Number of X Values says " + std::to_string(declared) + " but the file has " +
-                                   std::to_string(rows.size()) + " data rows" +
-                                   (rows.size() < declared ? "; the file is truncated" : "; fix the count"));
+    bad_line(p, declared_line,
+             "Number of X Values says " + std::to_string(declared) + " but the file has " +
+                 std::to_string(rows.size()) + " data rows" +
+                 (rows.size() < declared ? "; the file is truncated" : "; fix the count"));
   std::vector<double> x;
   for (const auto& r : rows) x.push_back(r.first);
   const std::vector<std::size_t> order = ascending_band_order(x, [&](std::size_t, std::size_t second) {

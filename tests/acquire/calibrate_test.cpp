@@ -6,12 +6,12 @@
 #include <cmath>
 #include <numbers>
 
+#include "small_rig.h"
 #include "specula/acquire/calibrate.h"
 #include "specula/acquire/capture.h"
 #include "specula/acquire/pipeline.h"
 #include "specula/acquire/simulate.h"
 #include "specula/store/io/png_stack.h"
-#include "small_rig.h"
 #include "test_support.h"
 
 using namespace specula;
@@ -37,7 +37,8 @@ struct Simulated {
     o.exposures_s = {0.01, 0.1};
     cap = simulate_capture(o, dir / "cap");
     camera = {cap.focal_px, cap.cx, cap.cy};
-    truth = {Eigen::Vector3d(cap.truth->sphere_centre[0], cap.truth->sphere_centre[1], cap.truth->sphere_centre[2]), cap.truth->sphere_radius};
+    truth = {Eigen::Vector3d(cap.truth->sphere_centre[0], cap.truth->sphere_centre[1], cap.truth->sphere_centre[2]),
+             cap.truth->sphere_radius};
   }
   // The traced silhouette's centroid and equivalent radius, 16 x 16 samples per pixel.
   Circle truth_circle() const {
@@ -92,10 +93,13 @@ TEST(Calibrate, CircleSphereAndLightsMatchTheTruth) {
       truth.emplace_back(t[0], t[1], t[2]);
     }
     ASSERT_EQ(measured.size(), 6u);
-    auto degrees = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / pi; };
+    auto degrees = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+      return std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / pi;
+    };
     EXPECT_LT(degrees(measured[0], truth[0]), 0.25);  // facing the camera, a single highlight is already this good
     const std::vector<Eigen::Vector3d> arc = fit_light_arc(measured, weights, s.cap.light_angles_deg);
-    for (std::size_t l = 0; l < arc.size(); ++l) EXPECT_LT(degrees(arc[l], truth[l]), 0.25) << "light " << l << " noise " << noise;
+    for (std::size_t l = 0; l < arc.size(); ++l)
+      EXPECT_LT(degrees(arc[l], truth[l]), 0.25) << "light " << l << " noise " << noise;
     // The arc also places a light whose highlight was not used.
     std::vector<double> without = weights;
     without[5] = 0;

@@ -94,7 +94,8 @@ TEST(CrossValidate, MeanPredictionsMatchABruteForceNearestNeighbourSearch) {
       for (std::size_t j = 0; j < held; ++j) {
         const Eigen::Vector3f q = map_angles(m, at(order[j])).cast<float>();
         std::vector<std::pair<float, std::size_t>> d;
-        for (std::size_t t = held; t < n; ++t) d.push_back({(map_angles(m, at(order[t])).cast<float>() - q).squaredNorm(), order[t]});
+        for (std::size_t t = held; t < n; ++t)
+          d.push_back({(map_angles(m, at(order[t])).cast<float>() - q).squaredNorm(), order[t]});
         std::partial_sort(d.begin(), d.begin() + std::ptrdiff_t(k), d.end());
         double se = 0, st = 0;
         for (std::size_t c = 0; c < b; ++c) {

@@ -13,7 +13,8 @@ using namespace specula::acquire;
 
 namespace {
 
-HdrImage merge(const std::vector<std::vector<std::uint16_t>>& images, const std::vector<double>& times, const HdrOptions& o = {}) {
+HdrImage merge(const std::vector<std::vector<std::uint16_t>>& images, const std::vector<double>& times,
+               const HdrOptions& o = {}) {
   std::vector<std::span<const std::uint16_t>> views(images.begin(), images.end());
   return merge_exposures(views, times, 12, o);
 }
@@ -61,7 +62,10 @@ TEST(Hdr, OrderOfExposuresDoesNotMatter) {
   std::vector<std::vector<std::uint16_t>> a(4, std::vector<std::uint16_t>(50)), b(4, std::vector<std::uint16_t>(50));
   for (std::size_t p = 0; p < 50; ++p)
     for (std::size_t e = 0; e < 4; ++e) {
-      const auto v = [&](double t) { return std::uint16_t(std::min(4095.0, 5 + (30.0 + 40.0 * double(p)) * t + double((p * 7 + std::size_t(t)) % 5))); };
+      const auto v = [&](double t) {
+        return std::uint16_t(
+            std::min(4095.0, 5 + (30.0 + 40.0 * double(p)) * t + double((p * 7 + std::size_t(t)) % 5)));
+      };
       a[e][p] = v(times[e]);
       b[e][p] = v(shuffled[e]);
     }

@@ -26,8 +26,8 @@ TEST(IncidencePlane, SignedOutgoingAngle) {
 }
 
 TEST(IncidencePlane, OffThePlaneOrTheAngle) {
-  EXPECT_FALSE(at(45 * deg, 0.0, 30 * deg, pi / 2));       // across the plane
-  EXPECT_FALSE(at(45 * deg, 0.0, 30 * deg, 3 * deg));      // just outside eps of phi_d = 0
-  EXPECT_FALSE(at(48 * deg, 0.0, 30 * deg, pi));           // theta_i 3 degrees off
+  EXPECT_FALSE(at(45 * deg, 0.0, 30 * deg, pi / 2));   // across the plane
+  EXPECT_FALSE(at(45 * deg, 0.0, 30 * deg, 3 * deg));  // just outside eps of phi_d = 0
+  EXPECT_FALSE(at(48 * deg, 0.0, 30 * deg, pi));       // theta_i 3 degrees off
   EXPECT_TRUE(at(48 * deg, 0.0, 30 * deg, pi, 45 * deg, 4 * deg));
 }

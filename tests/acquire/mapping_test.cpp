@@ -46,7 +46,8 @@ TEST(Mapping, MarschnerAndHalfDiffIdentifyReciprocalConfigurationsAndStandardDoe
     const brdf::StdAngles swapped{a.theta_o, a.phi_o, a.theta_i, a.phi_i};  // eq 5.7
     // Eq 5.8 written out independently.
     const double pd = std::acos(std::cos(a.phi_o - a.phi_i));
-    const Eigen::Vector3d mm(std::sin(a.theta_i) * std::sin(a.theta_o), pd / pi, std::cos(a.theta_i) * std::cos(a.theta_o));
+    const Eigen::Vector3d mm(std::sin(a.theta_i) * std::sin(a.theta_o), pd / pi,
+                             std::cos(a.theta_i) * std::cos(a.theta_o));
     EXPECT_LT((map_angles(Mapping::marschner, a) - mm).norm(), 1e-9);
     EXPECT_LT((map_angles(Mapping::marschner, swapped) - map_angles(Mapping::marschner, a)).norm(), 1e-12);
     EXPECT_LT((map_angles(Mapping::halfdiff, swapped) - map_angles(Mapping::halfdiff, a)).norm(), 1e-9);

@@ -6,12 +6,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include "small_rig.h"
 #include "specula/acquire/pipeline.h"
 #include "specula/acquire/simulate.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/store/io/png_stack.h"
 #include "specula/store/store.h"
-#include "small_rig.h"
 #include "test_support.h"
 
 using namespace specula;
@@ -99,14 +99,16 @@ TEST(Pipeline, BrokenCapturesAreRefusedWithOneLine) {
   // Every exposure of light 1 at 550 nm saturated, as a capture with too long exposures would be.
   const std::vector<std::uint16_t> white(128 * 128, 4095);
   for (const auto& im : sat.images)
-    if (im.kind == ImageKind::scene && im.light == 1 && im.band == 1) store::write_png_gray16(dir / "sat" / im.file, 128, 128, white);
+    if (im.kind == ImageKind::scene && im.light == 1 && im.band == 1)
+      store::write_png_gray16(dir / "sat" / im.file, 128, 128, white);
   const Calibration c = calibrate_capture(sat, dir / "sat", {});
   store::StoreWriter w(dir / "x.h5", {});
   try {
     extract_samples(sat, dir / "sat", c, {}, w, "scan");
     ADD_FAILURE() << "an all-saturated capture was accepted";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("light 1 at 550 nm is saturated on the whole sphere"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("light 1 at 550 nm is saturated on the whole sphere"), std::string::npos)
+        << e.what();
   }
   // A silhouette without a sphere.
   simulate_capture(rig(false), dir / "cap");
@@ -123,14 +125,16 @@ TEST(Pipeline, BrokenCapturesAreRefusedWithOneLine) {
 
 TEST(Pipeline, RunPrintsTheIssuesJsonKeys) {
   test::ScratchDir dir;
-  ASSERT_EQ(test::run_specula("simulate-capture --size 128x128 --sphere-px 90 --lights 5 --light-step 25 --bands 500,600 -o '" +
-                              (dir / "cap").string() + "'")
+  ASSERT_EQ(test::run_specula(
+                "simulate-capture --size 128x128 --sphere-px 90 --lights 5 --light-step 25 --bands 500,600 -o '" +
+                (dir / "cap").string() + "'")
                 .status,
             0);
-  const auto r = test::run_specula("acquire run '" + (dir / "cap").string() + "' -o '" + (dir / "s.h5").string() + ":red' --json");
+  const auto r =
+      test::run_specula("acquire run '" + (dir / "cap").string() + "' -o '" + (dir / "s.h5").string() + ":red' --json");
   ASSERT_EQ(r.status, 0) << r.output;
-  for (const char* key : {"\"samples\"", "\"rejected\"", "\"shadowed\"", "\"saturated\"", "\"bloom\"", "\"low_signal\"", "\"sphere\"",
-                          "\"circle\"", "\"light_dir_error_deg\"", "\"seconds\""})
+  for (const char* key : {"\"samples\"", "\"rejected\"", "\"shadowed\"", "\"saturated\"", "\"bloom\"", "\"low_signal\"",
+                          "\"sphere\"", "\"circle\"", "\"light_dir_error_deg\"", "\"seconds\""})
     EXPECT_NE(r.output.find(key), std::string::npos) << key << " not in " << r.output;
   EXPECT_LT(test::json_number(r.output, "light_dir_error_max_deg"), 0.25);
   EXPECT_GT(test::json_number(r.output, "samples"), 1000);
@@ -138,7 +142,8 @@ TEST(Pipeline, RunPrintsTheIssuesJsonKeys) {
   EXPECT_EQ(s.samples(), std::vector<std::string>{"red"});
   // A second run without --replace refuses and leaves the store as it was.
   const std::string before = test::read_bytes(dir / "s.h5");
-  const auto again = test::run_specula("acquire run '" + (dir / "cap").string() + "' -o '" + (dir / "s.h5").string() + ":red'");
+  const auto again =
+      test::run_specula("acquire run '" + (dir / "cap").string() + "' -o '" + (dir / "s.h5").string() + ":red'");
   EXPECT_EQ(again.status, 1) << again.output;
   EXPECT_EQ(test::read_bytes(dir / "s.h5"), before);
 }
@@ -152,10 +157,13 @@ TEST(Pipeline, GridMaterialIsRecovered) {
   test::ScratchDir dir;
   const std::string store = (dir / "m.h5").string();
   ASSERT_EQ(test::run_specula("synth-brdf green-matte -o '" + store + ":g'").status, 0);
-  const auto sim = test::run_specula("simulate-capture --material '" + store + ":g' --size 128x128 --sphere-px 90 --lights 5 "
-                                     "--light-step 25 --bands 450,550,650 --passband delta --no-noise -o '" + (dir / "cap").string() + "'");
+  const auto sim = test::run_specula("simulate-capture --material '" + store +
+                                     ":g' --size 128x128 --sphere-px 90 --lights 5 "
+                                     "--light-step 25 --bands 450,550,650 --passband delta --no-noise -o '" +
+                                     (dir / "cap").string() + "'");
   ASSERT_EQ(sim.status, 0) << sim.output;
-  const auto r = test::run_specula("acquire run '" + (dir / "cap").string() + "' -o '" + (dir / "s.h5").string() + "' --json");
+  const auto r =
+      test::run_specula("acquire run '" + (dir / "cap").string() + "' -o '" + (dir / "s.h5").string() + "' --json");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_LT(test::json_number(r.output, "truth_median_rel_error"), 0.01) << r.output;
   EXPECT_NEAR(test::json_number(r.output, "truth_median_ratio"), 1.0, 0.01) << r.output;

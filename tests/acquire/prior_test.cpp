@@ -45,7 +45,7 @@ struct Family {
 const Family& family() {
   static const Family f = [] {
     Family out;
-    const double params[][4] = {{0.6, 0.1, 0.05, 0.05}, {0.2, 0.5, 0.1, 0.1},  {0.4, 0.4, 0.02, 0.2},
+    const double params[][4] = {{0.6, 0.1, 0.05, 0.05}, {0.2, 0.5, 0.1, 0.1},   {0.4, 0.4, 0.02, 0.2},
                                 {0.1, 0.1, 0.2, 0.07},  {0.7, 0.3, 0.08, 0.15}, {0.3, 0.6, 0.0, 0.1},
                                 {0.5, 0.2, 0.15, 0.3}};
     for (std::size_t i = 0; i < std::size(params); ++i) {
@@ -185,5 +185,7 @@ TEST(Prior, ConfidenceIsZeroWhereNoSampleFallsAndEveryValidCellGetsData) {
   EXPECT_EQ(zero_far, far);
   EXPECT_GT(far, 100000u);
   EXPECT_GT(double(high_near), 0.5 * double(near)) << near;
-  EXPECT_LT(cos_weighted_rel_rms(grid, [&] { return grid_of(m).brdf; }(), 5), 0.15);
+  EXPECT_LT(cos_weighted_rel_rms(
+                grid, [&] { return grid_of(m).brdf; }(), 5),
+            0.15);
 }

@@ -29,7 +29,9 @@ struct Samples {
   std::vector<double> angles;
   std::vector<float> values;
   std::size_t size() const { return angles.size() / 4; }
-  brdf::StdAngles at(std::size_t i) const { return {angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]}; }
+  brdf::StdAngles at(std::size_t i) const {
+    return {angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]};
+  }
 };
 
 // n random samples with `bands` values that vary smoothly with the configuration.
@@ -40,7 +42,8 @@ Samples random_samples(std::size_t n, std::size_t bands, std::uint64_t seed) {
     const auto a = random_angles(rng);
     s.angles.insert(s.angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
     for (std::size_t q = 0; q < bands; ++q)
-      s.values.push_back(float(1 + std::cos(a.theta_i + 0.1 * double(q)) * std::cos(a.theta_o) + 0.1 * std::cos(a.phi_o - a.phi_i)));
+      s.values.push_back(
+          float(1 + std::cos(a.theta_i + 0.1 * double(q)) * std::cos(a.theta_o) + 0.1 * std::cos(a.phi_o - a.phi_i)));
   }
   return s;
 }
@@ -56,7 +59,8 @@ TEST(Resampler, NeighboursEqualABruteForceSearch) {
       r.neighbours(at, nb);
       std::vector<std::pair<double, std::uint32_t>> all;
       const Eigen::Vector3d p = map_angles(m, at);
-      for (std::size_t i = 0; i < s.size(); ++i) all.push_back({(map_angles(m, s.at(i)) - p).squaredNorm(), std::uint32_t(i)});
+      for (std::size_t i = 0; i < s.size(); ++i)
+        all.push_back({(map_angles(m, s.at(i)) - p).squaredNorm(), std::uint32_t(i)});
       std::sort(all.begin(), all.end());
       ASSERT_EQ(nb.index.size(), 9u);
       for (std::size_t j = 0; j < 9; ++j) {
@@ -159,7 +163,8 @@ TEST(Resampler, SamplesAtCellCentresAreReproducedExactlyWithOneNeighbour) {
         ASSERT_EQ(grid[brdf::kMerlCells + cells[j]], s.values[2 * j + 1]);
         continue;
       }
-      const auto other = std::size_t(std::find(s.values.begin(), s.values.end(), grid[cells[j]]) - s.values.begin()) / 2;
+      const auto other =
+          std::size_t(std::find(s.values.begin(), s.values.end(), grid[cells[j]]) - s.values.begin()) / 2;
       ASSERT_LT(other, cells.size()) << mapping_name(m) << " cell " << cells[j];
       ASSERT_EQ((map_angles(m, s.at(other)).cast<float>() - map_angles(m, s.at(j)).cast<float>()).norm(), 0.0f)
           << mapping_name(m) << " cell " << cells[j];

@@ -46,7 +46,8 @@ TEST(Scan, LightsMoveOnAnArcInEqualStepsAndSamplesHaveTheRightAngles) {
     const Eigen::Vector3d a = light_position(rig, j) - c, b = light_position(rig, j + 1) - c;
     EXPECT_NEAR(a.norm(), rig.light_distance, 1e-12);
     EXPECT_NEAR(std::acos(a.normalized().dot(b.normalized())), pi / 180, 1e-9);
-    EXPECT_NEAR(std::acos(a.normalized().dot(to_camera)) * 180 / pi, std::min(180.0, rig.first_light_deg + double(j)), 1e-6);
+    EXPECT_NEAR(std::acos(a.normalized().dot(to_camera)) * 180 / pi, std::min(180.0, rig.first_light_deg + double(j)),
+                1e-6);
   }
   // The angles of a sample are those of its vectors: cosines against the normal and the angle between the
   // projections on the tangent plane.

@@ -7,11 +7,11 @@
 #include <fstream>
 #include <regex>
 
+#include "small_rig.h"
 #include "specula/acquire/capture.h"
 #include "specula/acquire/hdr.h"
 #include "specula/acquire/simulate.h"
 #include "specula/store/io/png_stack.h"
-#include "small_rig.h"
 #include "test_support.h"
 
 using namespace specula;
@@ -36,7 +36,8 @@ TEST(Simulator, SilhouetteIsTheRayTracedSphereOfItsTruth) {
   std::size_t disagree = 0, inside = 0;
   for (int v = 0; v < 96; ++v)
     for (int u = 0; u < 96; ++u) {
-      const Eigen::Vector3d d = Eigen::Vector3d((u + 0.5 - c.cx) / c.focal_px, (v + 0.5 - c.cy) / c.focal_px, 1).normalized();
+      const Eigen::Vector3d d =
+          Eigen::Vector3d((u + 0.5 - c.cx) / c.focal_px, (v + 0.5 - c.cy) / c.focal_px, 1).normalized();
       const double b = d.dot(centre), disc = b * b - centre.squaredNorm() + r * r;
       // Centre-of-pixel test against the image: dark (sphere) or bright (board); edge pixels are mixed.
       const bool hit = disc > 0;
@@ -50,9 +51,12 @@ TEST(Simulator, SilhouetteIsTheRayTracedSphereOfItsTruth) {
 
 TEST(Simulator, FilesDoNotDependOnTheThreadCount) {
   test::ScratchDir dir;
-  const std::string args = "simulate-capture --size 64x64 --sphere-px 40 --lights 2 --bands 500,600 --exposures 0.01,0.1 ";
-  const auto one = test::run_shell("OMP_NUM_THREADS=1 '" SPECULA_BINARY "' " + args + "-o '" + (dir / "a").string() + "'");
-  const auto two = test::run_shell("OMP_NUM_THREADS=2 '" SPECULA_BINARY "' " + args + "-o '" + (dir / "b").string() + "'");
+  const std::string args =
+      "simulate-capture --size 64x64 --sphere-px 40 --lights 2 --bands 500,600 --exposures 0.01,0.1 ";
+  const auto one =
+      test::run_shell("OMP_NUM_THREADS=1 '" SPECULA_BINARY "' " + args + "-o '" + (dir / "a").string() + "'");
+  const auto two =
+      test::run_shell("OMP_NUM_THREADS=2 '" SPECULA_BINARY "' " + args + "-o '" + (dir / "b").string() + "'");
   ASSERT_EQ(one.status, 0) << one.output;
   ASSERT_EQ(two.status, 0) << two.output;
   const auto diff = test::run_shell("diff -r '" + (dir / "a").string() + "' '" + (dir / "b").string() + "'");
@@ -110,8 +114,10 @@ TEST(Simulator, BadCapturesAreRefusedWithOneLine) {
   refuse("{ not json", "not valid JSON");
   refuse(std::regex_replace(good, std::regex("specula-capture"), "other"), "not a specula capture manifest");
   refuse(std::regex_replace(good, std::regex("\"version\": 1"), "\"version\": 9"), "version 9");
-  refuse(std::regex_replace(good, std::regex("\"band\": 2"), "\"band\": 7", std::regex_constants::format_first_only), "band 7");
-  refuse(std::regex_replace(good, std::regex("scene/L000/B450-1ms.png"), "../escape.png"), "inside the capture directory");
+  refuse(std::regex_replace(good, std::regex("\"band\": 2"), "\"band\": 7", std::regex_constants::format_first_only),
+         "band 7");
+  refuse(std::regex_replace(good, std::regex("scene/L000/B450-1ms.png"), "../escape.png"),
+         "inside the capture directory");
   std::ofstream(manifest) << good;
   std::filesystem::remove(dir / "cap" / "scene" / "L001" / "B550-10ms.png");
   refuse(good, "file is missing");
@@ -124,7 +130,8 @@ TEST(Simulator, BadCapturesAreRefusedWithOneLine) {
     ASSERT_NE(close, std::string::npos);
     without.erase(open, close + 1 - open + (close + 1 < without.size() && without[close + 1] == ',' ? 1 : 0));
   }
-  std::filesystem::copy_file(dir / "cap" / "scene" / "L001" / "B550-1ms.png", dir / "cap" / "scene" / "L001" / "B550-10ms.png");
+  std::filesystem::copy_file(dir / "cap" / "scene" / "L001" / "B550-1ms.png",
+                             dir / "cap" / "scene" / "L001" / "B550-10ms.png");
   refuse(std::regex_replace(without, std::regex(R"(,\s*\])"), "]"), "no scene exposure for light 2 at 650 nm");
 }
 

@@ -7,8 +7,8 @@
 
 namespace specula::test {
 
-inline acquire::SimulatorOptions small_rig(int size, double sphere_px, std::size_t lights, double step_deg, std::vector<double> bands,
-                                           bool noise) {
+inline acquire::SimulatorOptions small_rig(int size, double sphere_px, std::size_t lights, double step_deg,
+                                           std::vector<double> bands, bool noise) {
   acquire::SimulatorOptions o;
   o.width = o.height = size;
   o.rig.sphere_px = sphere_px;

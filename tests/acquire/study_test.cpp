@@ -40,7 +40,9 @@ TEST(Study, LookupCellIsMerlsCell) {
   std::uniform_real_distribution<double> t(0, pi / 2 - 0.01), p(0, pi);
   for (int i = 0; i < 200; ++i) {
     const IsoAngles a{t(rng), t(rng), p(rng)};
-    EXPECT_EQ(merl_lookup_cell(a), brdf::merl_index(brdf::merl_cell(brdf::half_diff(brdf::StdAngles{a.theta_i, 1.0, a.theta_o, 1.0 + a.phi_d}))));
+    EXPECT_EQ(
+        merl_lookup_cell(a),
+        brdf::merl_index(brdf::merl_cell(brdf::half_diff(brdf::StdAngles{a.theta_i, 1.0, a.theta_o, 1.0 + a.phi_d}))));
   }
 }
 
@@ -68,7 +70,8 @@ TEST(Study, AConstantBrdfIsReconstructedExactlyAndAGlossyOneIsNot) {
   ASSERT_EQ(flat.rows.size(), 3u * 3u);
   EXPECT_LT(flat.grid_l1, 1e-12);
   for (const auto& r : flat.rows) EXPECT_LT(r.max_error, 1e-6) << mapping_name(r.mapping) << " k " << r.k;
-  const brdf::Ward ward(g, Eigen::VectorXd::Constant(1, 0.1), Eigen::VectorXd::Constant(1, 0.3), Eigen::VectorXd::Constant(1, 0.1));
+  const brdf::Ward ward(g, Eigen::VectorXd::Constant(1, 0.1), Eigen::VectorXd::Constant(1, 0.3),
+                        Eigen::VectorXd::Constant(1, 0.1));
   brdf::evaluate_at(ward, angles, values);
   const StudyOutput glossy = resampling_study(ward, 0, angles, values, o);
   EXPECT_GT(glossy.grid_l1, 0);

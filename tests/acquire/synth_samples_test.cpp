@@ -135,8 +135,7 @@ TEST(SynthSamples, ThinningKeepsExactlyCountSpreadEvenlyOverTheBatches) {
   EXPECT_EQ(seen, total);
   EXPECT_EQ(kept, count);
   // Sample i is kept when floor((i + 1) count / total) steps: the kept indices are ceil(j total / count) - 1.
-  for (std::size_t j = 1; j <= count; ++j)
-    EXPECT_EQ(firsts[j - 1], double((j * total + count - 1) / count - 1)) << j;
+  for (std::size_t j = 1; j <= count; ++j) EXPECT_EQ(firsts[j - 1], double((j * total + count - 1) / count - 1)) << j;
   std::vector<double> a(8);
   std::size_t s = 0;
   EXPECT_THROW(thin_evenly(a, s, 0, 10), UsageError);

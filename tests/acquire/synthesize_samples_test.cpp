@@ -36,19 +36,20 @@ TEST(SynthesizeSamples, ScanThinnedToACount) {
   s.rig.sphere_px = 40;
   s.rig.lights = 12;
   std::size_t all = 0, batches = 0;
-  const acquire::SynthesisCount full = acquire::synthesize_samples(*model, s, [&](std::span<const double> a, std::span<const float> v) {
-    EXPECT_EQ(v.size(), a.size() / 4 * g.size());
-    all += a.size() / 4;
-    ++batches;
-  });
+  const acquire::SynthesisCount full =
+      acquire::synthesize_samples(*model, s, [&](std::span<const double> a, std::span<const float> v) {
+        EXPECT_EQ(v.size(), a.size() / 4 * g.size());
+        all += a.size() / 4;
+        ++batches;
+      });
   EXPECT_EQ(batches, 12u);
   EXPECT_EQ(full.samples, all);
   EXPECT_EQ(full.pixels, acquire::scan_pixels(s.rig).size());
   ASSERT_GT(all, 200u);
   s.count = 200;
   std::size_t kept = 0;
-  const acquire::SynthesisCount thin =
-      acquire::synthesize_samples(*model, s, [&](std::span<const double> a, std::span<const float>) { kept += a.size() / 4; });
+  const acquire::SynthesisCount thin = acquire::synthesize_samples(
+      *model, s, [&](std::span<const double> a, std::span<const float>) { kept += a.size() / 4; });
   EXPECT_EQ(kept, 200u);
   EXPECT_EQ(thin.samples, 200u);
 }

@@ -13,7 +13,9 @@ using test::run_specula;
 
 namespace {
 
-const std::string kSmall = "--size 80x80 --sphere-px 50 --lights 2 --light-step 50 --bands 500,600 --exposures 0.001,0.003,0.01,0.03,0.1,0.3,1 ";
+const std::string kSmall =
+    "--size 80x80 --sphere-px 50 --lights 2 --light-step 50 --bands 500,600 --exposures "
+    "0.001,0.003,0.01,0.03,0.1,0.3,1 ";
 
 TEST(AcquireCli, HdrCountsStatusesAndMasksSaturation) {
   test::ScratchDir dir;

@@ -39,14 +39,15 @@ TEST(BrdfDiffCli, IdenticalGridsGiveZerosAndAScaledOneItsScale) {
   test::ScratchDir dir;
   write_grid_file(dir / "a.spgrid", ward());
   write_grid_file(dir / "b.spgrid", ward(1.01));
-  auto r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "a.spgrid") + " --env default --size 24 --json");
+  auto r =
+      run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "a.spgrid") + " --env default --size 24 --json");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_TRUE(one_line(r)) << r.output;
   for (const char* key : {"rms", "max_abs", "rel_rms_cos", "de00_mean", "de00_p95", "de00_max", "only_a", "only_b"})
     EXPECT_EQ(test::json_number(r.output, key), 0.0) << key << ": " << r.output;
   EXPECT_GT(test::json_number(r.output, "cells"), 1e6);
-  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "b.spgrid") + " --env default --size 24 --json --heatmap " +
-                  q(dir / "h.png") + " --panel " + q(dir / "p.png"));
+  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "b.spgrid") +
+                  " --env default --size 24 --json --heatmap " + q(dir / "h.png") + " --panel " + q(dir / "p.png"));
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NEAR(test::json_number(r.output, "rel_rms_cos"), 0.01, 1e-6) << r.output;
   EXPECT_GT(test::json_number(r.output, "de00_mean"), 0) << r.output;
@@ -78,10 +79,12 @@ TEST(BrdfDiffCli, ReportsTheLightingSuiteByDefault) {
   for (const char* key : {"de00_mean", "de00_p95", "de00_max", "hole_cells", "rel_rms_cos"})
     EXPECT_EQ(test::json_number(r.output, key), 0.0) << key << ": " << r.output;
   std::size_t conditions = 0;
-  for (auto at = r.output.find("\"elevation_deg\""); at != std::string::npos; at = r.output.find("\"elevation_deg\"", at + 1))
+  for (auto at = r.output.find("\"elevation_deg\""); at != std::string::npos;
+       at = r.output.find("\"elevation_deg\"", at + 1))
     ++conditions;
   EXPECT_EQ(conditions, 38u) << r.output;
-  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "b.spgrid") + " --size 24 --json --panel " + q(dir / "p.png"));
+  r = run_specula("brdf-diff " + q(dir / "a.spgrid") + " " + q(dir / "b.spgrid") + " --size 24 --json --panel " +
+                  q(dir / "p.png"));
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NEAR(test::json_number(r.output, "rel_rms_cos"), 0.01, 1e-6) << r.output;
   EXPECT_GT(test::json_number(r.output, "de00_mean"), 0) << r.output;
@@ -102,12 +105,15 @@ TEST(BrdfDiffCli, ReportsTheLightingSuiteByDefault) {
 TEST(BrdfDiffCli, AnRgbBinaryIsUpliftedOntoTheOtherGridsBands) {
   test::ScratchDir dir;
   ASSERT_EQ(run_specula("-q synth-brdf blue-paint --wavelengths 420:720:60 -o " + q(dir / "p.binary")).status, 0);
-  ASSERT_EQ(run_specula("-q uplift " + q(dir / "p.binary") + " --wavelengths 420:720:60 -o " + q(dir / "p.spgrid")).status, 0);
+  ASSERT_EQ(
+      run_specula("-q uplift " + q(dir / "p.binary") + " --wavelengths 420:720:60 -o " + q(dir / "p.spgrid")).status,
+      0);
   std::vector<float> rgb;
   for (std::size_t p = 0; p < 32 * 16; ++p)
     for (const float v : {0.4f, 0.5f, p < 16 * 16 ? 0.9f : 0.2f}) rgb.push_back(v);
   store::write_exr_rgb(dir / "sky.exr", 32, 16, rgb);
-  for (const std::string& args : {q(dir / "p.binary") + " " + q(dir / "p.spgrid"), q(dir / "p.spgrid") + " " + q(dir / "p.binary")}) {
+  for (const std::string& args :
+       {q(dir / "p.binary") + " " + q(dir / "p.spgrid"), q(dir / "p.spgrid") + " " + q(dir / "p.binary")}) {
     const auto r = run_specula("brdf-diff " + args + " --size 16 --json --env " + q(dir / "sky.exr"));
     ASSERT_EQ(r.status, 0) << r.output;
     EXPECT_EQ(test::json_number(r.output, "max_abs"), 0.0) << r.output;
@@ -130,16 +136,15 @@ TEST(BrdfDiffCli, BadInputIsOneLineAndWritesNothing) {
   struct Case {
     std::string args, expect;
   };
-  for (const Case& c : {Case{a + " " + q(dir / "missing.spgrid") + h, "missing.spgrid"},
-                        Case{a + " " + q(dir / "o.spgrid") + h, "o.spgrid has 6 bands 400-700"},
-                        Case{a + " " + a + " --size 2" + h, "--size 2"},
-                        Case{a + " " + a + " --size 5000" + h, "--size 5000"},
-                        Case{a + " " + a + " --size many" + h, "--size"},
-                        Case{a + " " + a + " --env " + q(dir / "junk.exr") + h, "junk.exr"},
-                        Case{a + " " + a + " --env " + q(dir / "none.exr") + h, "none.exr"},
-                        Case{a + " " + a + " --env " + q(dir / "nan.exr") + h, "nan.exr"},
-                        Case{a + " " + a + " --heatmap " + q(dir / "h.jpg"), "--heatmap"},
-                        Case{a + " " + q(dir / "s.h5") + h, ""}}) {
+  for (const Case& c :
+       {Case{a + " " + q(dir / "missing.spgrid") + h, "missing.spgrid"},
+        Case{a + " " + q(dir / "o.spgrid") + h, "o.spgrid has 6 bands 400-700"},
+        Case{a + " " + a + " --size 2" + h, "--size 2"}, Case{a + " " + a + " --size 5000" + h, "--size 5000"},
+        Case{a + " " + a + " --size many" + h, "--size"},
+        Case{a + " " + a + " --env " + q(dir / "junk.exr") + h, "junk.exr"},
+        Case{a + " " + a + " --env " + q(dir / "none.exr") + h, "none.exr"},
+        Case{a + " " + a + " --env " + q(dir / "nan.exr") + h, "nan.exr"},
+        Case{a + " " + a + " --heatmap " + q(dir / "h.jpg"), "--heatmap"}, Case{a + " " + q(dir / "s.h5") + h, ""}}) {
     const auto r = run_specula("brdf-diff " + c.args);
     EXPECT_NE(r.status, 0) << c.args;
     // CLI11's own parse errors add a second line pointing to --help (every command does).

@@ -28,8 +28,11 @@ TEST(BsdfCli, ExportImportRenderAndDiff) {
   const codec::RglBsdf b = codec::read_rgl_bsdf(dir / "paint.bsdf");
   EXPECT_FALSE(b.rgb);
   EXPECT_EQ(b.wavelengths.size(), 7u);
-  EXPECT_NE(test::read_bytes(dir / "paint.pbrt").find("Material \"measured\" \"string filename\" [ \"paint.bsdf\" ]"), std::string::npos);
-  EXPECT_NE(test::read_bytes(dir / "paint.xml").find("<bsdf type=\"measured\"><string name=\"filename\" value=\"paint.bsdf\"/>"), std::string::npos);
+  EXPECT_NE(test::read_bytes(dir / "paint.pbrt").find("Material \"measured\" \"string filename\" [ \"paint.bsdf\" ]"),
+            std::string::npos);
+  EXPECT_NE(test::read_bytes(dir / "paint.xml")
+                .find("<bsdf type=\"measured\"><string name=\"filename\" value=\"paint.bsdf\"/>"),
+            std::string::npos);
   EXPECT_NE(test::read_bytes(dir / "paint.xml").find("scalar_spectral"), std::string::npos);
 
   r = run_specula("import " + q(dir / "paint.bsdf") + " -o " + q(dir / "s.h5") + " --name back");

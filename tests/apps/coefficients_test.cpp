@@ -99,7 +99,8 @@ struct Fixture {
   std::string base() const { return "coefficients '" + db.string() + "' "; }
 };
 
-std::vector<float> whole_map(const store::Store& s, const std::string& name, std::vector<std::uint8_t>* mask = nullptr) {
+std::vector<float> whole_map(const store::Store& s, const std::string& name,
+                             std::vector<std::uint8_t>* mask = nullptr) {
   const auto info = s.coefficients_info(name);
   std::vector<float> c(info.height * info.width * info.k);
   std::vector<std::uint8_t> m(info.height * info.width);
@@ -122,8 +123,10 @@ TEST(CoefficientsCli, NmfMapsRecoverAPlantedFactorisationForEveryMatchingImage) 
   const auto ls = run_specula("ls '" + f.db.string() + "'");
   EXPECT_NE(ls.output.find("coefficients scene-a.nmf"), std::string::npos) << ls.output;
   const auto info = run_specula("info '" + f.db.string() + "' scene-b.nmf --json");
-  EXPECT_NE(info.output.find(R"("kind":"coefficients","name":"scene-b.nmf","image":"scene-b","basis":"nmf","method":"nmf","height":9,"width":17,"k":3)"),
-            std::string::npos)
+  EXPECT_NE(
+      info.output.find(
+          R"("kind":"coefficients","name":"scene-b.nmf","image":"scene-b","basis":"nmf","method":"nmf","height":9,"width":17,"k":3)"),
+      std::string::npos)
       << info.output;
   const store::Store s = store::Store::open(f.db);
   EXPECT_EQ(s.coefficients(), (std::vector<std::string>{"scene-a.nmf", "scene-b.nmf"}));
@@ -212,8 +215,10 @@ TEST(CoefficientsCli, InexactNnlsMapsMatchBruteForceAndDoNotDependOnTheThreadCou
   std::filesystem::create_directories(dir / "copy");  // a store is copied as its root and data directory together
   std::filesystem::copy_file(one, two);
   std::filesystem::copy(dir / "one.h5.d", dir / "copy" / "one.h5.d", std::filesystem::copy_options::recursive);
-  const auto r1 = test::run_shell("OMP_NUM_THREADS=1 '" SPECULA_BINARY "' coefficients '" + one.string() + "' --basis nmf2 --json");
-  const auto r2 = test::run_shell("OMP_NUM_THREADS=2 '" SPECULA_BINARY "' coefficients '" + two.string() + "' --basis nmf2 --json");
+  const auto r1 =
+      test::run_shell("OMP_NUM_THREADS=1 '" SPECULA_BINARY "' coefficients '" + one.string() + "' --basis nmf2 --json");
+  const auto r2 =
+      test::run_shell("OMP_NUM_THREADS=2 '" SPECULA_BINARY "' coefficients '" + two.string() + "' --basis nmf2 --json");
   ASSERT_EQ(r1.status, 0) << r1.output;
   ASSERT_EQ(r2.status, 0) << r2.output;
   const double rel = test::json_number(r1.output, "rel_error");
@@ -275,7 +280,9 @@ TEST(CoefficientsCli, BadRequestsAreOneLineErrorsAndLeaveTheStoreAsItWas) {
       << "something beside the root and its data directory was left";
   EXPECT_TRUE(std::filesystem::is_empty(f.db.string() + ".d/tx")) << "the failed transaction's lock file was left";
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(f.db.string() + ".d/objects/coefficients"),
-                          std::filesystem::directory_iterator()), 1) << "the failed transaction's data file was left";
+                          std::filesystem::directory_iterator()),
+            1)
+      << "the failed transaction's data file was left";
   const auto r = run_specula(f.base() + "--basis nmf --images scene-a --replace");
   EXPECT_EQ(r.status, 0) << r.output;
 }

@@ -34,8 +34,7 @@ test::RunResult run_without_gnuplot(const std::string& args) {
 bool have_gnuplot() { return std::system("command -v gnuplot >/dev/null 2>&1") == 0; }
 
 // A synthetic radiance store with a PCA basis named "synth" learned from it.
-std::filesystem::path synth_store(const test::ScratchDir& dir, const std::string& file,
-                                  const std::string& extra = "") {
+std::filesystem::path synth_store(const test::ScratchDir& dir, const std::string& file, const std::string& extra = "") {
   const auto store = dir / file;
   auto r = run_specula("-q synth-db -o " + quoted(store) + " --images 3 --size 64x64 " + extra);
   EXPECT_EQ(r.status, 0) << r.output;
@@ -92,8 +91,9 @@ TEST(CompareBases, ParkkinenMunsellBasisAgainstSyntheticRadiance) {
   SPECULA_REQUIRE_SHARED();
   test::ScratchDir dir;
   const auto munsell = dir / "munsell.h5";
-  auto r = run_specula("-q import " + quoted(test::shared_dir() / "data/reflectance/munsell_matt_1269_380-780_5nm.csv") +
-                       " --wavelengths 420:720:10 --name munsell -o " + quoted(munsell));
+  auto r =
+      run_specula("-q import " + quoted(test::shared_dir() / "data/reflectance/munsell_matt_1269_380-780_5nm.csv") +
+                  " --wavelengths 420:720:10 --name munsell -o " + quoted(munsell));
   ASSERT_EQ(r.status, 0) << r.output;
   r = run_specula("-q pca " + quoted(munsell) + " --collection munsell --name parkkinen");
   ASSERT_EQ(r.status, 0) << r.output;
@@ -133,8 +133,8 @@ TEST(CompareBases, ParkkinenMunsellBasisAgainstSyntheticRadiance) {
     EXPECT_TRUE(is_png(dir / "side.png"));
   }
 
-  r = run_without_gnuplot("compare-bases " + quoted(munsell) + " parkkinen synth --store-b " + quoted(synth) +
-                          " -o " + quoted(dir / "none.png"));
+  r = run_without_gnuplot("compare-bases " + quoted(munsell) + " parkkinen synth --store-b " + quoted(synth) + " -o " +
+                          quoted(dir / "none.png"));
   EXPECT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("gnuplot not found"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "none.png"));
@@ -183,8 +183,7 @@ TEST(PlotBasis, WithoutGnuplotWritesTheTablesAndSucceeds) {
   const auto out = dir / "plots";
   const auto r = run_without_gnuplot("plot-basis " + quoted(store) + " synth -o " + quoted(out));
   EXPECT_EQ(r.status, 0) << r.output;
-  EXPECT_EQ(r.output,
-            "gnuplot not found: wrote the CSV files only; install gnuplot-nox for the PNG plots\n");
+  EXPECT_EQ(r.output, "gnuplot not found: wrote the CSV files only; install gnuplot-nox for the PNG plots\n");
   EXPECT_EQ(line_count(out / "eigenvalues.csv"), 1u + 31u);
   EXPECT_EQ(field_count(out / "components.csv"), 1u + 8u);
   EXPECT_FALSE(std::filesystem::exists(out / "eigenvalues.png"));

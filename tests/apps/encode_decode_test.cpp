@@ -15,7 +15,6 @@ namespace {
 
 using test::run_specula;
 
-
 std::string q(const std::filesystem::path& p) { return "'" + p.string() + "'"; }
 
 TEST(CodecCli, EncodeDecodeAndDiffAGridWithItsOwnBasisAndWithALearnedOne) {
@@ -32,7 +31,8 @@ TEST(CodecCli, EncodeDecodeAndDiffAGridWithItsOwnBasisAndWithALearnedOne) {
   EXPECT_GT(test::json_number(r.output, "ratio"), 50);
   r = run_specula("decode " + q(spc) + " -o " + q(back));
   ASSERT_EQ(r.status, 0) << r.output;
-  r = run_specula("brdf-diff " + q(grid) + " " + q(back) + " --env default --size 48 --json --panel " + q(dir / "panel.png"));
+  r = run_specula("brdf-diff " + q(grid) + " " + q(back) + " --env default --size 48 --json --panel " +
+                  q(dir / "panel.png"));
   ASSERT_EQ(r.status, 0) << r.output;
   for (const char* key : {"rms", "max_abs", "rel_rms_cos", "de00_mean", "de00_p95"})
     EXPECT_FALSE(std::isnan(test::json_number(r.output, key))) << key << ": " << r.output;
@@ -66,8 +66,8 @@ TEST(CodecCli, ATargetEncodeMeetsItsTargetAsBrdfDiffMeasuresIt) {
   test::ScratchDir dir;
   const auto grid = dir / "rp.spgrid", spc = dir / "rp.spc", back = dir / "back.spgrid";
   ASSERT_EQ(run_specula("synth-brdf red-plastic --wavelengths 420:720:30 -o " + q(grid)).status, 0);
-  auto r = run_specula("encode " + q(grid) + " --basis self -k 3 --target-de00 0.4 --target-p95 1.2 --trials 6 -o " + q(spc) +
-                       " --json");
+  auto r = run_specula("encode " + q(grid) + " --basis self -k 3 --target-de00 0.4 --target-p95 1.2 --trials 6 -o " +
+                       q(spc) + " --json");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(test::json_number(r.output, "format_version"), 2) << r.output;
   EXPECT_NE(r.output.find("\"reached\":true"), std::string::npos) << r.output;
@@ -109,8 +109,9 @@ TEST(CodecCli, BadInputIsOneLineAndLeavesFilesAlone) {
   const auto db = dir / "db.h5";
   ASSERT_EQ(run_specula("-q synth-db -o " + q(db) + " --images 1 --size 20x20").status, 0);
   ASSERT_EQ(run_specula("-q pca " + q(db) + " --name pca").status, 0);
-  for (const std::string& args : {"--basis " + q(db) + ":pca -k 3", std::string("--basis self -k 9"),
-                                  std::string("--basis self -k 1 --max-error 2"), std::string("--basis nowhere -k 1")}) {
+  for (const std::string& args :
+       {"--basis " + q(db) + ":pca -k 3", std::string("--basis self -k 9"),
+        std::string("--basis self -k 1 --max-error 2"), std::string("--basis nowhere -k 1")}) {
     r = run_specula("encode " + q(grid) + " " + args + " -o " + q(spc));
     EXPECT_NE(r.status, 0) << args;
     EXPECT_TRUE(one_line(r)) << args << ": " << r.output;
@@ -124,10 +125,10 @@ TEST(CodecCli, BadInputIsOneLineAndLeavesFilesAlone) {
   r = run_specula("brdf-diff " + q(grid) + " " + q(grid) + " --size 2");
   EXPECT_EQ(r.status, 1) << r.output;
   // Format-2 options: exclusive, in range, and the .spc still untouched.
-  for (const std::string& args : {std::string("--basis self -k 1 --step 0.1 --target-de00 0.5"),
-                                  std::string("--basis self -k 1 --target-p95 1"), std::string("--basis self -k 1 --step 0"),
-                                  std::string("--basis self -k 1 --target-de00 0.5 --trials 1"),
-                                  std::string("--basis self -k 1 --target-de00 0.5 --env nowhere.exr")}) {
+  for (const std::string& args :
+       {std::string("--basis self -k 1 --step 0.1 --target-de00 0.5"), std::string("--basis self -k 1 --target-p95 1"),
+        std::string("--basis self -k 1 --step 0"), std::string("--basis self -k 1 --target-de00 0.5 --trials 1"),
+        std::string("--basis self -k 1 --target-de00 0.5 --env nowhere.exr")}) {
     r = run_specula("encode " + q(grid) + " " + args + " -o " + q(spc));
     EXPECT_NE(r.status, 0) << args;
     EXPECT_TRUE(one_line(r)) << args << ": " << r.output;

@@ -21,7 +21,8 @@ TEST(ExportGridCli, AGreyGridIsGreyUnderAnyIlluminantAndAColouredOneIsNot) {
   const auto db = dir / "g.h5";
   {
     store::StoreWriter w(db, {});
-    for (const auto& [name, rho] : {std::pair{"grey", Eigen::VectorXd(Eigen::VectorXd::Constant(31, 0.5))}, std::pair{"red", red}}) {
+    for (const auto& [name, rho] :
+         {std::pair{"grey", Eigen::VectorXd(Eigen::VectorXd::Constant(31, 0.5))}, std::pair{"red", red}}) {
       store::Grid grid;
       grid.wavelengths = g;
       grid.brdf.resize(31 * brdf::kMerlCells);
@@ -36,7 +37,8 @@ TEST(ExportGridCli, AGreyGridIsGreyUnderAnyIlluminantAndAColouredOneIsNot) {
   for (const char* illum : {"D65", "A"}) {
     for (const char* name : {"grey", "red"}) {
       const auto out = dir / (std::string(name) + "-" + illum + ".binary");
-      auto r = test::run_specula("export '" + db.string() + "' " + name + " -o '" + out.string() + "' --illuminant " + illum);
+      auto r = test::run_specula("export '" + db.string() + "' " + name + " -o '" + out.string() + "' --illuminant " +
+                                 illum);
       ASSERT_EQ(r.status, 0) << r.output;
       const Eigen::Vector3d v = read_merl(out).lookup(at);
       if (std::string(name) == "grey")

@@ -26,7 +26,8 @@ void write_sli(const std::filesystem::path& dir, const std::string& extra = "") 
   write_text(dir / "lib.hdr",
              "ENVI\nsamples = 3\nlines = 2\nbands = 1\nheader offset = 0\nfile type = ENVI Spectral Library\n"
              "data type = 4\ninterleave = bsq\nbyte order = 0\nwavelength units = Nanometers\n"
-             "wavelength = {500, 600, 700}\nspectra names = {Green paint, Red brick}\n" + extra);
+             "wavelength = {500, 600, 700}\nspectra names = {Green paint, Red brick}\n" +
+                 extra);
   std::string bytes;
   for (int s = 0; s < 2; ++s)
     for (int b = 0; b < 3; ++b) {

@@ -57,12 +57,15 @@ TEST(ImportNbrdf, ABadFileAmongGoodOnesIsOneLineAndTheStoreStaysAsItWas) {
   test::ScratchDir dir;
   const auto src = test::shared_dir() / "data" / "brdf" / "nbrdf-merl";
   const auto store = (dir / "db.h5").string();
-  ASSERT_EQ(run_specula("import '" + (src / "pink-fabric.h5").string() + "' --uplift --name felt -o '" + store + "'").status, 0);
+  ASSERT_EQ(
+      run_specula("import '" + (src / "pink-fabric.h5").string() + "' --uplift --name felt -o '" + store + "'").status,
+      0);
   const std::string before = test::read_bytes(store);
   std::filesystem::create_directories(dir / "in");
   std::filesystem::copy_file(src / "brass.h5", dir / "in" / "brass.h5");
   test::write_file(dir / "in" / "zz-broken.h5", "HDF5 it is not\n");
-  const test::RunResult r = run_specula("import '" + (dir / "in").string() + "' --format nbrdf --uplift -o '" + store + "'");
+  const test::RunResult r =
+      run_specula("import '" + (dir / "in").string() + "' --format nbrdf --uplift -o '" + store + "'");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("zz-broken.h5: not an HDF5 file"), std::string::npos) << r.output;
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;

@@ -14,9 +14,9 @@
 #include <tuple>
 #include <vector>
 
+#include "specula/store/h5.h"
 #include "specula/store/io/png_stack.h"
 #include "specula/store/store.h"
-#include "specula/store/h5.h"
 #include "test_support.h"
 
 using namespace specula;
@@ -26,8 +26,8 @@ namespace {
 
 // Writes a small float32 BIP ENVI image whose value at (y, x, b) is y + 10x + 100b.
 void write_envi(const std::filesystem::path& base, std::size_t h, std::size_t w, std::size_t b,
-                const std::string& extra_header = "", float nan_at = -1, std::size_t truncate_to = 0,
-                int data_type = 4, const std::string& wavelengths = "") {
+                const std::string& extra_header = "", float nan_at = -1, std::size_t truncate_to = 0, int data_type = 4,
+                const std::string& wavelengths = "") {
   std::vector<float> v(h * w * b);
   for (std::size_t y = 0; y < h; ++y)
     for (std::size_t x = 0; x < w; ++x)
@@ -40,7 +40,8 @@ void write_envi(const std::filesystem::path& base, std::size_t h, std::size_t w,
   std::ofstream hdr(base.string() + ".hdr");
   hdr << "ENVI\nsamples = " << w << "\nlines = " << h << "\nbands = " << b << "\nheader offset = 0\n"
       << "data type = " << data_type << "\ninterleave = bip\nbyte order = 0\nwavelength units = Nanometers\n"
-      << "wavelength = {" << wl << "}\n" << extra_header;
+      << "wavelength = {" << wl << "}\n"
+      << extra_header;
   std::ofstream raw(base.string() + ".raw", std::ios::binary);
   const std::size_t bytes = truncate_to ? truncate_to : v.size() * 4;
   raw.write(reinterpret_cast<const char*>(v.data()), std::streamsize(bytes));
@@ -130,7 +131,8 @@ TEST(ImportCli, NanIsRejectedWithCountAndPositionOrMasked) {
   test::ScratchDir dir;
   auto store = make_store(dir);
   write_envi(dir / "nan", 6, 5, 31, "", float((2 * 5 + 3) * 31 + 4));
-  expect_rejected(dir, "'" + (dir / "nan.hdr").string() + "'", "nan", "1 NaN/Inf values in 1 pixels (first at row 2, column 3, band 4 = 460 nm)");
+  expect_rejected(dir, "'" + (dir / "nan.hdr").string() + "'", "nan",
+                  "1 NaN/Inf values in 1 pixels (first at row 2, column 3, band 4 = 460 nm)");
   expect_rejected(dir, "'" + (dir / "nan.hdr").string() + "'", "nan", "set --nan to \"mask\"");
   auto r = run_specula("-q import '" + (dir / "nan.hdr").string() + "' --nan mask -o '" + store.string() + "'");
   ASSERT_EQ(r.status, 0) << r.output;
@@ -288,7 +290,8 @@ TEST(ImportCli, EnviWithoutWavelengthsTakesTheFlagAndNamesIt) {
   const test::ScratchDir dir;
   {
     std::ofstream hdr(dir / "bare.hdr");
-    hdr << "ENVI\nsamples = 2\nlines = 1\nbands = 3\nheader offset = 0\ndata type = 4\ninterleave = bip\nbyte order = 0\n";
+    hdr << "ENVI\nsamples = 2\nlines = 1\nbands = 3\nheader offset = 0\ndata type = 4\ninterleave = bip\nbyte order = "
+           "0\n";
     const std::vector<float> v{1, 2, 3, 4, 5, 6};
     std::ofstream(dir / "bare.raw", std::ios::binary).write(reinterpret_cast<const char*>(v.data()), 24);
   }
@@ -296,7 +299,8 @@ TEST(ImportCli, EnviWithoutWavelengthsTakesTheFlagAndNamesIt) {
   const std::string out = " -o '" + (dir / "db.h5").string() + "'";
   auto r = run_specula("-q import " + in + out);
   EXPECT_EQ(r.status, 1) << r.output;
-  EXPECT_NE(r.output.find("bare.hdr: the header has no wavelengths; give --wavelengths FIRST:LAST:STEP"), std::string::npos)
+  EXPECT_NE(r.output.find("bare.hdr: the header has no wavelengths; give --wavelengths FIRST:LAST:STEP"),
+            std::string::npos)
       << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "db.h5"));
   r = run_specula("-q import " + in + " --wavelengths 400:600:100" + out);
@@ -317,13 +321,15 @@ TEST(ImportCli, EnviByteMaskMasksTheImage) {
     std::ofstream(dir / "roi.img", std::ios::binary).write(reinterpret_cast<const char*>(roi), 6);
   }
   const std::string store = "'" + (dir / "db.h5").string() + "'";
-  auto r = run_specula("-q import '" + (dir / "scene.hdr").string() + "' --mask '" + (dir / "roi.img").string() + "' -o " + store);
+  auto r = run_specula("-q import '" + (dir / "scene.hdr").string() + "' --mask '" + (dir / "roi.img").string() +
+                       "' -o " + store);
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(store::Store::open(dir / "db.h5").read_image("scene").mask, (std::vector<std::uint8_t>{1, 0, 1, 1, 1, 0}));
   // A mask of another size: one line, the store as it was.
   const std::string before = test::read_bytes(dir / "db.h5");
   write_envi(dir / "big", 3, 3, 4);
-  r = run_specula("-q import '" + (dir / "big.hdr").string() + "' --mask '" + (dir / "roi.hdr").string() + "' -o " + store);
+  r = run_specula("-q import '" + (dir / "big.hdr").string() + "' --mask '" + (dir / "roi.hdr").string() + "' -o " +
+                  store);
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("roi.hdr: mask is 3x2, image is 3x3"), std::string::npos) << r.output;
   EXPECT_EQ(test::read_bytes(dir / "db.h5"), before);
@@ -336,7 +342,8 @@ void write_mat_vars(const std::filesystem::path& p, mat_ft version,
   mat_t* f = Mat_CreateVer(p.c_str(), nullptr, version);
   ASSERT_NE(f, nullptr);
   for (auto [name, dims, values] : vars) {
-    matvar_t* v = Mat_VarCreate(name.c_str(), MAT_C_DOUBLE, MAT_T_DOUBLE, int(dims.size()), dims.data(), values.data(), 0);
+    matvar_t* v =
+        Mat_VarCreate(name.c_str(), MAT_C_DOUBLE, MAT_T_DOUBLE, int(dims.size()), dims.data(), values.data(), 0);
     ASSERT_NE(v, nullptr);
     EXPECT_EQ(Mat_VarWrite(f, v, MAT_COMPRESSION_NONE), 0);
     Mat_VarFree(v);
@@ -361,12 +368,14 @@ TEST(ImportCli, MatLayoutsDetectedWithoutVar) {
   write_mat_vars(dir / "jasper.mat", MAT_FT_MAT5,
                  {{"Y", {b, h * w}, y}, {"nRow", {1, 1}, {double(h)}}, {"nCol", {1, 1}, {double(w)}}});
   // ISETCam library: wavelength 4 x 1, data 4 x 2 (spectra as columns).
-  write_mat_vars(dir / "lib.mat", MAT_FT_MAT5,
-                 {{"wavelength", {b, 1}, {400, 410, 420, 430}}, {"data", {b, 2}, {0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8}}});
+  write_mat_vars(
+      dir / "lib.mat", MAT_FT_MAT5,
+      {{"wavelength", {b, 1}, {400, 410, 420, 430}}, {"data", {b, 2}, {0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8}}});
   auto r = run_specula("-q import '" + (dir / "arad.mat").string() + "' '" + (dir / "lib.mat").string() + "' -o '" +
                        db.string() + "'");
   ASSERT_EQ(r.status, 0) << r.output;
-  r = run_specula("-q import '" + (dir / "jasper.mat").string() + "' --wavelengths 400:430:10 -o '" + db.string() + "'");
+  r = run_specula("-q import '" + (dir / "jasper.mat").string() + "' --wavelengths 400:430:10 -o '" + db.string() +
+                  "'");
   ASSERT_EQ(r.status, 0) << r.output;
   auto s = store::Store::open(db);
   for (const char* name : {"arad", "jasper"}) {
@@ -399,8 +408,10 @@ TEST(ImportCli, MatWithSeveralCubesAsksForVar) {
   test::ScratchDir dir;
   make_store(dir);
   auto mat = dir / "two.mat";
-  write_mat_vars(mat, MAT_FT_MAT5, {{"a", {2, 2, 3}, std::vector<double>(12, 1.0)}, {"b", {2, 2, 3}, std::vector<double>(12, 2.0)}});
-  expect_rejected(dir, "'" + mat.string() + "' --wavelengths 400:420:10", "two.mat", "(a, b) and none of the known names");
+  write_mat_vars(mat, MAT_FT_MAT5,
+                 {{"a", {2, 2, 3}, std::vector<double>(12, 1.0)}, {"b", {2, 2, 3}, std::vector<double>(12, 2.0)}});
+  expect_rejected(dir, "'" + mat.string() + "' --wavelengths 400:420:10", "two.mat",
+                  "(a, b) and none of the known names");
   expect_rejected(dir, "'" + mat.string() + "' --wavelengths 400:420:10", "two.mat", "give its name as --var");
 }
 
@@ -417,7 +428,9 @@ TEST(ImportCli, DirectoryAndQuotedGlobInOneCommandNameEverySkip) {
   auto r = run_specula("-q import '" + (dir / "db").string() + "' -o '" + store.string() + "' --jobs 2");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find((dir / "db" / "notes.md").string() + ": skipped: cannot tell the format from the extension "
-                          "'.md'; give --format"), std::string::npos) << r.output;
+                                                               "'.md'; give --format"),
+            std::string::npos)
+      << r.output;
   EXPECT_NE(r.output.find("imported image a: 3x4"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("imported image b: 2x2"), std::string::npos) << r.output;
   // The shell does not expand a quoted pattern; specula does.

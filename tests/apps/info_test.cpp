@@ -27,7 +27,8 @@ TEST(SynthDbCli, SameSeedSameDatabaseAndInfoDescribesIt) {
   const std::uint64_t valid = sa.image_info("synth1").valid_pixels;
   EXPECT_NE(info.output.find("\"valid_pixels\":" + std::to_string(valid)), std::string::npos) << info.output;
   if (std::system("/usr/bin/python3 -c 'import json' >/dev/null 2>&1") == 0) {
-    auto js = run_specula("info '" + a.string() + "' --json | /usr/bin/python3 -c 'import json,sys; d=json.load(sys.stdin); "
+    auto js = run_specula("info '" + a.string() +
+                          "' --json | /usr/bin/python3 -c 'import json,sys; d=json.load(sys.stdin); "
                           "sys.exit(0 if len(d[\"objects\"]) == 3 else 1)'");
     EXPECT_EQ(js.status, 0) << js.output;
   }

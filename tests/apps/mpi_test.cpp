@@ -7,8 +7,8 @@
 #include <cmath>
 #include <string>
 
-#include "specula/store/store.h"
 #include "specula/store/h5.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;
@@ -18,12 +18,13 @@ namespace {
 
 // Loopback only, more ranks than cores allowed, one OpenMP thread per rank; root allowed (CI runs as root).
 test::RunResult mpirun(int np, const std::string& args) {
-  return test::run_shell("OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 '" + std::string(SPECULA_MPIEXEC) +
-                         "' -np " + std::to_string(np) +
-                         " --oversubscribe --bind-to none --mca btl self,vader --mca btl_vader_single_copy_mechanism none"
-                         " -x OMP_NUM_THREADS=1 '" + SPECULA_BINARY + "' " + args);
+  return test::run_shell(
+      "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 '" + std::string(SPECULA_MPIEXEC) + "' -np " +
+      std::to_string(np) +
+      " --oversubscribe --bind-to none --mca btl self,vader --mca btl_vader_single_copy_mechanism none"
+      " -x OMP_NUM_THREADS=1 '" +
+      SPECULA_BINARY + "' " + args);
 }
-
 
 // Three 150x220 images: several blocks each, so every rank count splits the waves differently.
 std::filesystem::path make_db(const test::ScratchDir& dir) {
@@ -59,7 +60,8 @@ TEST(Mpi, NmfOnOneTwoAndThreeRanksMatchesOneProcess) {
   const auto db = make_db(dir);
   const auto out = dir / "bases.h5";
   // Waves of 2 blocks: with 3 ranks some ranks hold no block of a wave.
-  const std::string common = " -k 4 --max-epochs 4 --tol 0 --restarts 2 --wave-blocks 2 --json -o '" + out.string() + "'";
+  const std::string common =
+      " -k 4 --max-epochs 4 --tol 0 --restarts 2 --wave-blocks 2 --json -o '" + out.string() + "'";
   auto one = run_specula("-q nmf '" + db.string() + "' --name n0" + common);
   ASSERT_EQ(one.status, 0) << one.output;
   for (int np : {1, 2, 3}) {

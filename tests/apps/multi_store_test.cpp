@@ -28,7 +28,6 @@ void make_split_database(const test::ScratchDir& dir) {
   w.commit();
 }
 
-
 }  // namespace
 
 TEST(MultiStore, PcaOfSeveralStoresEqualsPcaOfOneStoreWithTheirImages) {
@@ -52,7 +51,8 @@ TEST(MultiStore, NmfOfSeveralStoresEqualsNmfOfOneStoreWithTheirImages) {
   test::ScratchDir dir;
   make_split_database(dir);
   const std::string common = " -k 3 --max-epochs 4 --tol 0 --json -o '" + (dir / "bases.h5").string() + "'";
-  auto split = run_specula("-q nmf '" + (dir / "a.h5").string() + "' '" + (dir / "b.h5").string() + "' --name s" + common);
+  auto split =
+      run_specula("-q nmf '" + (dir / "a.h5").string() + "' '" + (dir / "b.h5").string() + "' --name s" + common);
   ASSERT_EQ(split.status, 0) << split.output;
   auto whole = run_specula("-q nmf '" + (dir / "all.h5").string() + "' --name w" + common);
   ASSERT_EQ(whole.status, 0) << whole.output;
@@ -78,7 +78,8 @@ TEST(MultiStore, TheBasisGoesToTheFirstStoreAndAnotherGridIsAOneLineError) {
   EXPECT_EQ(test::read_bytes(dir / "b.h5"), b_before);
   // A store on another wavelength grid.
   const auto odd = dir / "odd.h5";
-  ASSERT_EQ(run_specula("-q synth-db -o '" + odd.string() + "' --images 1 --size 20x20 --wavelengths 400:700:20").status, 0);
+  ASSERT_EQ(
+      run_specula("-q synth-db -o '" + odd.string() + "' --images 1 --size 20x20 --wavelengths 400:700:20").status, 0);
   auto r = run_specula("-q pca " + a + " '" + odd.string() + "' -o '" + (dir / "x.h5").string() + "'");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("odd.h5"), std::string::npos) << r.output;

@@ -27,7 +27,6 @@ struct Fixture {
   std::string quoted() const { return "'" + db.string() + "'"; }
 };
 
-
 std::size_t lines(const std::string& s) { return std::size_t(std::count(s.begin(), s.end(), '\n')); }
 
 }  // namespace
@@ -85,9 +84,10 @@ TEST(NmfCli, BadOptionsAndAnExistingBasisAreOneLineErrorsThatLeaveTheStoreAlone)
   auto r = run_specula("nmf " + f.quoted() + " -k 3 --max-epochs 2 --quiet");
   ASSERT_EQ(r.status, 0) << r.output;
   const std::string before = read_bytes(f.db);
-  for (const std::string& args : {std::string(" -k 3 --max-epochs 2"), std::string(" -k 40"), std::string(" -k 3 --init svd"),
-                                  std::string(" -k 3 --negatives abs"), std::string(" -k 3 --resume --name fresh"),
-                                  std::string(" -k 3 --images 'nomatch*' --name x")}) {
+  for (const std::string& args :
+       {std::string(" -k 3 --max-epochs 2"), std::string(" -k 40"), std::string(" -k 3 --init svd"),
+        std::string(" -k 3 --negatives abs"), std::string(" -k 3 --resume --name fresh"),
+        std::string(" -k 3 --images 'nomatch*' --name x")}) {
     r = run_specula("nmf " + f.quoted() + args + " --quiet");
     EXPECT_NE(r.status, 0) << args;
     EXPECT_EQ(lines(r.output), 1u) << args << ": " << r.output;
@@ -110,7 +110,8 @@ TEST(NmfCli, InterruptedRunKeepsItsCheckpointAndResumes) {
   ASSERT_TRUE(std::filesystem::exists(ckpt));
   EXPECT_TRUE(store::Store::open(f.db).bases().empty());  // nothing half-saved
   // Resumed with a loose tolerance it stops after its next epoch, saves the basis and removes the checkpoint.
-  r = run_specula("nmf " + f.quoted() + " -k 3 --tol 0.5 --max-epochs 100000 --checkpoint '" + ckpt + "' --resume --json --quiet");
+  r = run_specula("nmf " + f.quoted() + " -k 3 --tol 0.5 --max-epochs 100000 --checkpoint '" + ckpt +
+                  "' --resume --json --quiet");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("\"resumed\":true"), std::string::npos) << r.output;
   EXPECT_GE(test::json_number(r.output, "epochs"), 2.0);  // the epochs before the interruption count

@@ -28,7 +28,8 @@ TEST(PcaCli, EigenvaluesMatchATwoPassAnswerAndTheBasisIsSaved) {
       if (c.mask[p])
         for (std::size_t k = 0; k < 31; ++k) rows.push_back(c.data[p * 31 + k]);
   }
-  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 31, Eigen::RowMajor>> x(rows.data(), Eigen::Index(rows.size() / 31), 31);
+  const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 31, Eigen::RowMajor>> x(
+      rows.data(), Eigen::Index(rows.size() / 31), 31);
   const Eigen::RowVectorXd mean = x.colwise().mean();
   const Eigen::MatrixXd centred = x.rowwise() - mean;
   const Eigen::MatrixXd cov = centred.transpose() * centred / double(x.rows() - 1);

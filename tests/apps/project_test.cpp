@@ -26,7 +26,8 @@ store::Cube subspace_cube() {
   Eigen::MatrixXd random(kB, 3);
   for (Eigen::Index b = 0; b < Eigen::Index(kB); ++b)
     for (Eigen::Index j = 0; j < 3; ++j) random(b, j) = std::sin(0.37 * double(b + 1) * double(j + 1) + double(j));
-  const Eigen::MatrixXd q = Eigen::HouseholderQR<Eigen::MatrixXd>(random).householderQ() * Eigen::MatrixXd::Identity(kB, 3);
+  const Eigen::MatrixXd q =
+      Eigen::HouseholderQR<Eigen::MatrixXd>(random).householderQ() * Eigen::MatrixXd::Identity(kB, 3);
   store::Cube c;
   c.resize(kH, kW, kB);
   c.wavelengths = WavelengthGrid::range(400, 700, 10);
@@ -34,7 +35,8 @@ store::Cube subspace_cube() {
   c.mask.assign(kH * kW, 1);
   for (std::size_t y = 0; y < kH; ++y)
     for (std::size_t x = 0; x < kW; ++x) {
-      const double a = 0.3 * std::sin(0.5 * double(x)), b = 0.2 * std::cos(0.7 * double(y)), d = 0.1 * std::sin(double(x * y));
+      const double a = 0.3 * std::sin(0.5 * double(x)), b = 0.2 * std::cos(0.7 * double(y)),
+                   d = 0.1 * std::sin(double(x * y));
       for (std::size_t band = 0; band < kB; ++band) {
         const Eigen::Index i = Eigen::Index(band);
         c.pixel(y, x)[band] = float(0.5 + 0.1 * std::sin(0.1 * double(band)) + a * q(i, 0) + b * q(i, 1) + d * q(i, 2));
@@ -51,7 +53,8 @@ store::Cube subspace_cube() {
 store::Basis learn(const store::Cube& c) {
   std::vector<double> rows;
   for (std::size_t p = 0; p < kH * kW; ++p)
-    if (c.mask[p]) rows.insert(rows.end(), c.data.begin() + std::ptrdiff_t(p * kB), c.data.begin() + std::ptrdiff_t((p + 1) * kB));
+    if (c.mask[p])
+      rows.insert(rows.end(), c.data.begin() + std::ptrdiff_t(p * kB), c.data.begin() + std::ptrdiff_t((p + 1) * kB));
   stats::Moments m(kB);
   m.add(Eigen::Map<const RowMatrixXd>(rows.data(), Eigen::Index(rows.size() / kB), Eigen::Index(kB)));
   return stats::pca_basis(m, c.wavelengths);
@@ -134,7 +137,8 @@ TEST(ProjectCli, ThreeComponentsReconstructASubspaceImageAndErrorFallsWithK) {
   double worst = 0;
   for (std::size_t p = 0; p < kH * kW; ++p)
     if (f.cube.mask[p])
-      for (std::size_t b = 0; b < kB; ++b) worst = std::max(worst, double(std::abs(back.data[p * kB + b] - f.cube.data[p * kB + b])));
+      for (std::size_t b = 0; b < kB; ++b)
+        worst = std::max(worst, double(std::abs(back.data[p * kB + b] - f.cube.data[p * kB + b])));
   EXPECT_LT(worst, 1e-5);
 }
 
@@ -183,7 +187,8 @@ TEST(ProjectCli, BadInputsAreOneLineErrors) {
   r = run_specula("project '" + f.db.string() + "' --basis nmf --image scene -k 1" + out);
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_EQ(lines(r.output), 1u) << r.output;
-  EXPECT_NE(r.output.find("NMF basis nmf has 2 components and projects onto all of them"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("NMF basis nmf has 2 components and projects onto all of them"), std::string::npos)
+      << r.output;
 
   r = run_specula(f.base() + "-k 1,3 -o '" + (f.dir / "one.exr").string() + "'");
   EXPECT_EQ(r.status, 1) << r.output;

@@ -22,7 +22,8 @@ double mean_de(const std::string& output) {
 store::Cube cube_of(std::vector<float> spectrum, const std::string& units) {
   store::Cube c;
   c.resize(3, 4, spectrum.size());
-  for (std::size_t p = 0; p < 12; ++p) std::copy(spectrum.begin(), spectrum.end(), c.data.begin() + std::ptrdiff_t(p * 31));
+  for (std::size_t p = 0; p < 12; ++p)
+    std::copy(spectrum.begin(), spectrum.end(), c.data.begin() + std::ptrdiff_t(p * 31));
   c.wavelengths = WavelengthGrid::range(420, 720, 10);
   c.units = units;
   return c;
@@ -66,8 +67,10 @@ TEST(RelightCli, RadianceResultDoesNotDependOnTheDataScale) {
     w.add_image("hi", cube_of(hi, "radiance"));
     w.commit();
   }
-  auto a = run_specula("relight '" + path.string() + "' lo --from D65 --to A --json -o '" + (dir / "a.png").string() + "'");
-  auto b = run_specula("relight '" + path.string() + "' hi --from D65 --to A --json -o '" + (dir / "b.png").string() + "'");
+  auto a =
+      run_specula("relight '" + path.string() + "' lo --from D65 --to A --json -o '" + (dir / "a.png").string() + "'");
+  auto b =
+      run_specula("relight '" + path.string() + "' hi --from D65 --to A --json -o '" + (dir / "b.png").string() + "'");
   ASSERT_EQ(a.status, 0) << a.output;
   ASSERT_EQ(b.status, 0) << b.output;
   EXPECT_GT(mean_de(a.output), 0.01);
@@ -84,7 +87,8 @@ TEST(RelightCli, BadExposureIsOneLineAndWritesNothing) {
     w.commit();
   }
   for (const char* bad : {"abc", "100", "nan"}) {
-    auto r = run_specula("relight '" + path.string() + "' grey --exposure " + bad + " -o '" + (dir / "x.png").string() + "'");
+    auto r = run_specula("relight '" + path.string() + "' grey --exposure " + bad + " -o '" + (dir / "x.png").string() +
+                         "'");
     EXPECT_EQ(r.status, 1) << bad << ": " << r.output;
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
     EXPECT_NE(r.output.find("--exposure"), std::string::npos) << r.output;

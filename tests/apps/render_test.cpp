@@ -36,8 +36,8 @@ TEST(RenderCli, GridFileStoreGridAndBinaryAgree) {
                                 (dir / "ward.binary").string()};
   const std::string outputs[] = {"a", "b", "c"};
   for (int i = 0; i < 3; ++i) {
-    const test::RunResult r = test::run_specula("-q render '" + inputs[i] + "' -o '" + (dir / (outputs[i] + ".png")).string() +
-                                                "' --size 48 --light 30,120");
+    const test::RunResult r = test::run_specula("-q render '" + inputs[i] + "' -o '" +
+                                                (dir / (outputs[i] + ".png")).string() + "' --size 48 --light 30,120");
     ASSERT_EQ(r.status, 0) << r.output;
     EXPECT_TRUE(std::filesystem::exists(dir / (outputs[i] + ".exr")));
   }
@@ -51,11 +51,13 @@ TEST(RenderCli, GridFileStoreGridAndBinaryAgree) {
   const std::size_t centre = 3 * (24 * 48 + 24);
   EXPECT_GT(a.samples[centre], a.samples[centre + 2]);
 
-  const test::RunResult bad = test::run_specula("-q render '" + inputs[0] + "' -o '" + (dir / "x.png").string() + "' --light 95,0");
+  const test::RunResult bad =
+      test::run_specula("-q render '" + inputs[0] + "' -o '" + (dir / "x.png").string() + "' --light 95,0");
   EXPECT_EQ(bad.status, 1);
   EXPECT_NE(bad.output.find("--light THETA,PHI"), std::string::npos) << bad.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
-  const test::RunResult bare = test::run_specula("-q render '" + (dir / "s.h5").string() + "' -o '" + (dir / "x.png").string() + "'");
+  const test::RunResult bare =
+      test::run_specula("-q render '" + (dir / "s.h5").string() + "' -o '" + (dir / "x.png").string() + "'");
   EXPECT_EQ(bare.status, 1);
   EXPECT_NE(bare.output.find("s.h5:GRID"), std::string::npos) << bare.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "x.png"));
@@ -93,8 +95,8 @@ TEST(RenderCli, UnderAnEnvironmentAGreyShowsItsAlbedo) {
   std::vector<float> bad(3 * 16 * 8, 1.0f);
   bad[40] = -2;
   store::write_exr_rgb(dir / "bad.exr", 16, 8, bad);
-  const auto r = test::run_specula("render '" + (dir / "grey.spgrid").string() + "' --env '" + (dir / "bad.exr").string() +
-                                   "' -o '" + (dir / "x.png").string() + "'");
+  const auto r = test::run_specula("render '" + (dir / "grey.spgrid").string() + "' --env '" +
+                                   (dir / "bad.exr").string() + "' -o '" + (dir / "x.png").string() + "'");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
   EXPECT_NE(r.output.find("bad.exr: pixel (13, 0)"), std::string::npos) << r.output;
@@ -128,8 +130,8 @@ TEST(RenderCli, ASpcRendersAsItsDecodedGrid) {
                                               (dir / "w.spgrid").string() + "' --env default --json");
   ASSERT_EQ(d.status, 0) << d.output;
   EXPECT_EQ(test::json_number(d.output, "rms"), 0) << d.output;
-  const test::RunResult suite = test::run_specula("-q brdf-diff '" + (dir / "w.spc").string() + "' '" +
-                                                  (dir / "w.spgrid").string() + "' --json");
+  const test::RunResult suite =
+      test::run_specula("-q brdf-diff '" + (dir / "w.spc").string() + "' '" + (dir / "w.spgrid").string() + "' --json");
   ASSERT_EQ(suite.status, 0) << suite.output;
   EXPECT_EQ(test::json_number(suite.output, "de00_max"), 0) << suite.output;
   EXPECT_EQ(test::json_number(suite.output, "rel_rms_cos"), 0) << suite.output;

@@ -44,8 +44,10 @@ TEST(ResampleCli, SimulatedScanSamplesResampleIntoAStoreOrAGridFile) {
   test::ScratchDir dir;
   const auto db = dir / "scan.h5";
   auto q = [](const std::filesystem::path& p) { return "'" + p.string() + "'"; };
-  auto r = run_specula("synth-samples study-ward --sphere-px 40 --lights 50 --light-step 3 --wavelengths 500:600:50 "
-                       "--noise 0.01 -o " + q(db) + ":scan --json");
+  auto r = run_specula(
+      "synth-samples study-ward --sphere-px 40 --lights 50 --light-step 3 --wavelengths 500:600:50 "
+      "--noise 0.01 -o " +
+      q(db) + ":scan --json");
   ASSERT_EQ(r.status, 0) << r.output;
   const double n = test::json_number(r.output, "samples");
   EXPECT_GT(n, 20000);
@@ -101,12 +103,10 @@ TEST(ResampleCli, BadInputIsOneLineAndLeavesTheStoreAlone) {
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --power -1",
         "resample '" + db.string() + "' ok -o '" + (dir / "g.txt").string() + "'",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":bad/name'",
-        "eval-resample '" + db.string() + "' ok -k 0",
-        "synth-samples velvet -o '" + db.string() + ":s'",
+        "eval-resample '" + db.string() + "' ok -k 0", "synth-samples velvet -o '" + db.string() + ":s'",
         "synth-samples study-ts --geometry random -o '" + db.string() + ":s'",
         "synth-samples study-ts --sphere-px 0 -o '" + db.string() + ":s'",
-        "synth-samples study-ts -o '" + (dir / "s.txt").string() + "'",
-        std::string("resample-study -k 0"),
+        "synth-samples study-ts -o '" + (dir / "s.txt").string() + "'", std::string("resample-study -k 0"),
         std::string("resample-study --material velvet"),
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --mapping polar",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k 0",

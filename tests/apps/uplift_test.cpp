@@ -23,8 +23,8 @@ TEST(UpliftCli, TruncatedBinaryIsOneLineAndLeavesNoOutput) {
   const auto in = dir / "red.binary";
   codec::write_merl(in, codec::MerlBrdf());
   std::filesystem::resize_file(in, 20000000);
-  for (const std::string& out : {"-o '" + (dir / "out.spgrid").string() + "'",
-                                "--store '" + (dir / "s.h5").string() + "' --name red"}) {
+  for (const std::string& out :
+       {"-o '" + (dir / "out.spgrid").string() + "'", "--store '" + (dir / "s.h5").string() + "' --name red"}) {
     const test::RunResult r = test::run_specula("-q uplift '" + in.string() + "' " + out);
     EXPECT_EQ(r.status, 1) << r.output;
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
@@ -68,7 +68,8 @@ TEST(UpliftCli, FileAndStoreRoundTripToRgb) {
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("uplifted " + std::to_string(cells.size()) + " cells"), std::string::npos) << r.output;
   // The store variant on a coarser grid keeps the test fast.
-  r = test::run_specula("-q uplift '" + in.string() + "' --store '" + st.string() + "' --name pastel --wavelengths 400:700:50");
+  r = test::run_specula("-q uplift '" + in.string() + "' --store '" + st.string() +
+                        "' --name pastel --wavelengths 400:700:50");
   ASSERT_EQ(r.status, 0) << r.output;
 
   const store::Grid g = codec::read_grid_file(out);
@@ -107,9 +108,12 @@ TEST(UpliftCli, AnRgbEnvironmentMapBecomesASpectralExrWithTheSameRgb) {
     EXPECT_GE(s.minCoeff(), 0.0f);
   }
   // The spectral map lights a rendering.
-  ASSERT_EQ(test::run_specula("synth-brdf green-matte --wavelengths 400:700:10 -o '" + (dir / "g.spgrid").string() + "'").status, 0);
-  r = test::run_specula("render '" + (dir / "g.spgrid").string() + "' --size 16 --env '" + (dir / "sky-spectral.exr").string() +
-                        "' -o '" + (dir / "g.png").string() + "'");
+  ASSERT_EQ(
+      test::run_specula("synth-brdf green-matte --wavelengths 400:700:10 -o '" + (dir / "g.spgrid").string() + "'")
+          .status,
+      0);
+  r = test::run_specula("render '" + (dir / "g.spgrid").string() + "' --size 16 --env '" +
+                        (dir / "sky-spectral.exr").string() + "' -o '" + (dir / "g.png").string() + "'");
   EXPECT_EQ(r.status, 0) << r.output;
   // A negative pixel, or a non-EXR output: one line, nothing written.
   rgb[7] = -0.5f;

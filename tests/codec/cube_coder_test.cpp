@@ -4,8 +4,8 @@
 
 #include <random>
 
-#include "specula/core/error.h"
 #include <vector>
+#include "specula/core/error.h"
 
 namespace specula::codec {
 namespace {

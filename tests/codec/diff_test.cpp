@@ -6,12 +6,12 @@
 #include <cmath>
 #include <numbers>
 
+#include "grid_fixture.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/brdf_models.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
-#include "grid_fixture.h"
 #include "test_support.h"
 
 namespace specula::codec {
@@ -22,8 +22,9 @@ const WavelengthGrid& kGrid = test::kCodecBands;
 using test::grid_of;
 
 const store::Grid& ward() {
-  static const store::Grid g = grid_of(brdf::Ward(kGrid, Eigen::VectorXd::LinSpaced(7, 0.05, 0.4),
-                                                  Eigen::VectorXd::Constant(7, 0.1), Eigen::VectorXd::Constant(7, 0.1)));
+  static const store::Grid g =
+      grid_of(brdf::Ward(kGrid, Eigen::VectorXd::LinSpaced(7, 0.05, 0.4), Eigen::VectorXd::Constant(7, 0.1),
+                         Eigen::VectorXd::Constant(7, 0.1)));
   return g;
 }
 
@@ -70,7 +71,7 @@ TEST(Diff, CellsValidInOneGridOnlyAreCountedNotCompared) {
   for (std::size_t c = 0; c < N; c += 997) {
     if (b.brdf[c] < 0) continue;
     ++cut;
-    b.brdf[c] = -1.0f;  // one band without data makes the whole cell invalid
+    b.brdf[c] = -1.0f;         // one band without data makes the whole cell invalid
     b.brdf[3 * N + c] = 1e6f;  // and what the other bands hold no longer matters
   }
   const GridDiff d = diff_grids(ward(), b, uniform_environment(kGrid, Eigen::VectorXd::Ones(7)), {.size = 16});
@@ -121,7 +122,8 @@ TEST(Diff, ResultsDoNotDependOnTheThreadCount) {
 }
 
 TEST(Diff, MismatchedWavelengthsNameBothGrids) {
-  const store::Grid g = grid_of(brdf::Lambertian(WavelengthGrid::range(400, 700, 50), Eigen::VectorXd::Constant(7, 0.5)));
+  const store::Grid g =
+      grid_of(brdf::Lambertian(WavelengthGrid::range(400, 700, 50), Eigen::VectorXd::Constant(7, 0.5)));
   const std::string text = test::input_error_text([&] { diff_grids(g, ward(), default_environment(kGrid)); });
   EXPECT_NE(text.find("400-700"), std::string::npos) << text;
   EXPECT_NE(text.find("420-720"), std::string::npos) << text;
@@ -130,7 +132,8 @@ TEST(Diff, MismatchedWavelengthsNameBothGrids) {
   Environment back = uniform_environment(kGrid, Eigen::VectorXd::Zero(7));
   back.sun_direction = {0, 0, -1};
   back.sun_irradiance = Eigen::VectorXd::Ones(7);
-  EXPECT_NE(test::input_error_text([&] { diff_grids(ward(), ward(), back, {.size = 16}); }).find("no light"), std::string::npos);
+  EXPECT_NE(test::input_error_text([&] { diff_grids(ward(), ward(), back, {.size = 16}); }).find("no light"),
+            std::string::npos);
 }
 
 }  // namespace

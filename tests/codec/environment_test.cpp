@@ -9,14 +9,14 @@
 #include <fstream>
 #include <numbers>
 
+#include "grid_fixture.h"
+#include "quadrature_support.h"
 #include "specula/codec/diff.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/brdf_models.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
 #include "specula/store/io/exr.h"
-#include "grid_fixture.h"
-#include "quadrature_support.h"
 #include "test_support.h"
 
 namespace specula::codec {
@@ -90,8 +90,8 @@ TEST(Environment, ALambertianSphereUnderUniformLightShowsRhoTimesL) {
 // albedo, a Lambertian of albedo 1 is the white wherever it faces.
 TEST(Environment, WhiteFurnace) {
   const Environment env = uniform_environment(kGrid, Eigen::VectorXd::Ones(7));
-  const store::Grid ward = grid_of(brdf::Ward(kGrid, Eigen::VectorXd::Constant(7, 0.5), Eigen::VectorXd::Constant(7, 0.3),
-                                              Eigen::VectorXd::Constant(7, 0.2)));
+  const store::Grid ward = grid_of(brdf::Ward(kGrid, Eigen::VectorXd::Constant(7, 0.5),
+                                              Eigen::VectorXd::Constant(7, 0.3), Eigen::VectorXd::Constant(7, 0.2)));
   const store::Grid white = grid_of(brdf::Lambertian(kGrid, Eigen::VectorXd::Ones(7)));
   const SphereRenders r = render_spheres({&ward, &white}, env, 33);
   const double bound = 2 * std::pow(std::sin(std::acos(std::pow(std::cos(5.625 * pi / 180), 2))), 2);
@@ -173,8 +173,8 @@ TEST(Environment, CellsWithoutDataAreBlack) {
 }
 
 TEST(Environment, RenderingDoesNotDependOnTheThreadCount) {
-  const store::Grid g = grid_of(brdf::Ward(kGrid, Eigen::VectorXd::LinSpaced(7, 0.05, 0.4), Eigen::VectorXd::Constant(7, 0.2),
-                                           Eigen::VectorXd::Constant(7, 0.1)));
+  const store::Grid g = grid_of(brdf::Ward(kGrid, Eigen::VectorXd::LinSpaced(7, 0.05, 0.4),
+                                           Eigen::VectorXd::Constant(7, 0.2), Eigen::VectorXd::Constant(7, 0.1)));
   const Environment env = default_environment(kGrid);
   const int threads = omp_get_max_threads();
   omp_set_num_threads(1);
@@ -267,12 +267,15 @@ TEST(Environment, ASpectralExrIsInterpolatedOntoTheGrid) {
     for (std::size_t k = 0; k < 7; ++k)
       EXPECT_NEAR(e.radiance[p * 7 + k], 0.5 + 0.01 * double(p) + 0.002 * (kGrid[k] - 400), 1e-5);
   // Bands the file does not cover are refused, naming it.
-  EXPECT_NE(test::input_error_text([&] { read_environment(dir / "s.exr", WavelengthGrid::range(380, 700, 10)); }).find("s.exr"),
+  EXPECT_NE(test::input_error_text([&] {
+              read_environment(dir / "s.exr", WavelengthGrid::range(380, 700, 10));
+            }).find("s.exr"),
             std::string::npos);
   // Reflectance is not light.
   cube.units = "reflectance";
   store::write_spectral_exr(dir / "t.exr", cube);
-  EXPECT_NE(test::input_error_text([&] { read_environment(dir / "t.exr", kGrid); }).find("emission"), std::string::npos);
+  EXPECT_NE(test::input_error_text([&] { read_environment(dir / "t.exr", kGrid); }).find("emission"),
+            std::string::npos);
   // A NaN or a negative value, named by file, pixel and wavelength.
   cube.units = "radiance";
   cube.data[(2 * 12 + 5) * cube.bands + 3] = std::nanf("");
@@ -281,7 +284,8 @@ TEST(Environment, ASpectralExrIsInterpolatedOntoTheGrid) {
   EXPECT_NE(nan.find("nan.exr: pixel (5, 2) at 460 nm"), std::string::npos) << nan;
   cube.data[(2 * 12 + 5) * cube.bands + 3] = -0.5f;
   store::write_spectral_exr(dir / "neg.exr", cube);
-  EXPECT_NE(test::input_error_text([&] { read_environment(dir / "neg.exr", kGrid); }).find("neg.exr"), std::string::npos);
+  EXPECT_NE(test::input_error_text([&] { read_environment(dir / "neg.exr", kGrid); }).find("neg.exr"),
+            std::string::npos);
 }
 
 TEST(Environment, BadEnvironmentFilesAreRefusedNamingTheFile) {
@@ -293,7 +297,8 @@ TEST(Environment, BadEnvironmentFilesAreRefusedNamingTheFile) {
   EXPECT_NE(neg.find("neg.exr: pixel (1, 2) has B = -1"), std::string::npos) << neg;
   rgb[3 * (2 * 8 + 1) + 2] = INFINITY;
   store::write_exr_rgb(dir / "inf.exr", 8, 4, rgb);
-  EXPECT_NE(test::input_error_text([&] { read_environment(dir / "inf.exr", kGrid); }).find("inf.exr"), std::string::npos);
+  EXPECT_NE(test::input_error_text([&] { read_environment(dir / "inf.exr", kGrid); }).find("inf.exr"),
+            std::string::npos);
   EXPECT_THROW(read_environment(dir / "missing.exr", kGrid), InputError);
   // Not an EXR at all, and an EXR cut short.
   { std::ofstream(dir / "junk.exr", std::ios::binary) << "this is not an OpenEXR file at all"; }
@@ -314,7 +319,8 @@ TEST(Environment, BadEnvironmentFilesAreRefusedNamingTheFile) {
 }
 
 TEST(Environment, MismatchedGridsAndBadSizesAreRefused) {
-  const store::Grid g = grid_of(brdf::Lambertian(WavelengthGrid::range(400, 700, 50), Eigen::VectorXd::Constant(7, 0.5)));
+  const store::Grid g =
+      grid_of(brdf::Lambertian(WavelengthGrid::range(400, 700, 50), Eigen::VectorXd::Constant(7, 0.5)));
   const std::string text = test::input_error_text([&] { render_spheres({&g}, default_environment(kGrid), 32); });
   EXPECT_NE(text.find("400-700"), std::string::npos) << text;
   EXPECT_NE(text.find("420-720"), std::string::npos) << text;
@@ -322,7 +328,6 @@ TEST(Environment, MismatchedGridsAndBadSizesAreRefused) {
   EXPECT_THROW(render_spheres({&ok}, default_environment(kGrid), 4), UsageError);
   EXPECT_THROW(render_spheres({&ok}, default_environment(kGrid), 5000), UsageError);
 }
-
 
 // render_spheres on an irregular grid (spacings 3 to 20 nm): a Lambertian sphere of albedo rho under a uniform sky
 // of radiance L shows, at the pixel facing the viewer, XYZ / Y_white = integral of cmf rho L / integral of ybar L

@@ -131,7 +131,8 @@ TEST(Merl, WrongDimensionsAndValuesAreRejected) {
   EXPECT_NE(msg.find("green plane"), std::string::npos) << msg;
   EXPECT_NE(msg.find("theta_h 3, theta_d 0, phi_d 2"), std::string::npos) << msg;
 
-  EXPECT_NE(test::input_error_text([&] { read_merl(dir / "missing.binary"); }).find("missing.binary"), std::string::npos);
+  EXPECT_NE(test::input_error_text([&] { read_merl(dir / "missing.binary"); }).find("missing.binary"),
+            std::string::npos);
   EXPECT_THROW(read_merl(dir.path()), InputError);
   MerlBrdf bad;
   bad.raw.resize(10);

@@ -49,14 +49,15 @@ TEST(Nbrdf, CellCentresMatchAnIndependentNumpyEvaluationOfTheRealWeights) {
   if (!have_h5py()) GTEST_SKIP() << "Debian's python3-h5py is not installed (scripts/setup-deps installs it)";
   const auto dir = test::shared_dir() / "data" / "brdf" / "nbrdf-merl";
   // The peak, mid angles, grazing theta_d, a retro-reflection cell and a cell below the horizon.
-  const std::vector<brdf::MerlCell> cells = {{0, 0, 0}, {0, 10, 90}, {3, 40, 17}, {30, 60, 120},
-                                             {50, 85, 179}, {89, 1, 0}, {70, 80, 5}, {89, 89, 90},
-                                             {10, 20, 30}, {20, 5, 150}};
+  const std::vector<brdf::MerlCell> cells = {{0, 0, 0},  {0, 10, 90}, {3, 40, 17},  {30, 60, 120}, {50, 85, 179},
+                                             {89, 1, 0}, {70, 80, 5}, {89, 89, 90}, {10, 20, 30},  {20, 5, 150}};
   for (const char* material : {"red-plastic", "gold-metallic-paint2", "pink-fabric"}) {
     const auto file = dir / (std::string(material) + ".h5");
     const codec::MerlBrdf grid = codec::nbrdf_to_merl(store::read_nbrdf(file));
-    std::string cmd = "/usr/bin/python3 '" SPECULA_SOURCE_DIR "/tests/codec/nbrdf_reference.py' '" + file.string() + "'";
-    for (const auto& c : cells) cmd += " " + std::to_string(c.theta_h) + "," + std::to_string(c.theta_d) + "," + std::to_string(c.phi_d);
+    std::string cmd =
+        "/usr/bin/python3 '" SPECULA_SOURCE_DIR "/tests/codec/nbrdf_reference.py' '" + file.string() + "'";
+    for (const auto& c : cells)
+      cmd += " " + std::to_string(c.theta_h) + "," + std::to_string(c.theta_d) + "," + std::to_string(c.phi_d);
     const test::RunResult r = test::run_shell(cmd);
     ASSERT_EQ(r.status, 0) << r.output;
     std::istringstream lines(r.output);

@@ -48,7 +48,8 @@ TEST(Render, LambertianSphereFollowsTheCosineLaw) {
       ++covered;
       const double cos_i = n.dot(light.normalized());
       if (cos_i < 0.2 || n.z() < 0.2) continue;  // cells near the horizon may hold no data
-      for (int c = 0; c < 3; ++c) ASSERT_NEAR(img.linear[3 * p + std::size_t(c)], 0.5 * cos_i, 1e-5) << row << " " << col;
+      for (int c = 0; c < 3; ++c)
+        ASSERT_NEAR(img.linear[3 * p + std::size_t(c)], 0.5 * cos_i, 1e-5) << row << " " << col;
       ++checked;
     }
   EXPECT_GT(checked, covered / 4);
@@ -62,7 +63,7 @@ TEST(Render, LambertianSphereFollowsTheCosineLaw) {
 TEST(Render, WardHighlightSitsAtTheHalfVector) {
   const WavelengthGrid grid = WavelengthGrid::range(400, 700, 50);
   const MerlBrdf m = merl_of(brdf::Ward(grid, Eigen::VectorXd::Constant(7, 0.1), Eigen::VectorXd::Constant(7, 0.5),
-                                         Eigen::VectorXd::Constant(7, 0.05)));
+                                        Eigen::VectorXd::Constant(7, 0.05)));
   const Eigen::Vector3d light(1, 0.5, 1);
   const std::size_t size = 128;
   const SphereImage img = render_sphere(m, size, light);

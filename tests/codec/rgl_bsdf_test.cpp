@@ -23,7 +23,8 @@ const fs::path kRgl = fs::path(SPECULA_SHARED_DIR) / "data" / "brdf" / "rgl";
 TEST(RglBsdf, TheRealFilesParseWithFiniteValuesAndAlbedoBelowOne) {
   if (!fs::is_directory(kRgl)) GTEST_SKIP() << kRgl << " is absent (../shared)";
   int files = 0;
-  for (const char* name : {"aurora_white_rgb.bsdf", "cc_nothern_aurora_rgb.bsdf", "chm_orange_rgb.bsdf", "vch_silk_blue_rgb.bsdf"}) {
+  for (const char* name :
+       {"aurora_white_rgb.bsdf", "cc_nothern_aurora_rgb.bsdf", "chm_orange_rgb.bsdf", "vch_silk_blue_rgb.bsdf"}) {
     const RglBsdf b = read_rgl_bsdf(kRgl / name);  // from_tensor refuses NaN, Inf and inconsistent shapes
     ++files;
     EXPECT_TRUE(b.rgb) << name;
@@ -57,8 +58,9 @@ TEST(RglBsdf, TheRealFilesParseWithFiniteValuesAndAlbedoBelowOne) {
     std::sort(rel.begin(), rel.end());
     ASSERT_FALSE(rel.empty());
     const double median = rel[rel.size() / 2], p90 = rel[rel.size() * 9 / 10];
-    std::printf("%s: albedo max %.3f; reciprocity |f(wi,wo) - f(wo,wi)| / mean, green: median %.3f, p90 %.3f over %zu pairs\n",
-                name, top, median, p90, rel.size());
+    std::printf(
+        "%s: albedo max %.3f; reciprocity |f(wi,wo) - f(wo,wi)| / mean, green: median %.3f, p90 %.3f over %zu pairs\n",
+        name, top, median, p90, rel.size());
     RecordProperty(std::string(name) + "_reciprocity_median", std::to_string(median));
     EXPECT_LT(median, 0.5) << name;  // a measured material tabulated per incident direction is roughly reciprocal
   }

@@ -22,7 +22,8 @@ double bilinear(const float* t, std::size_t w, std::size_t h, double x, double y
   const std::size_t ix = std::min(std::size_t(fx), w - 2), iy = std::min(std::size_t(fy), h - 2);
   const double ax = fx - double(ix), ay = fy - double(iy);
   auto v = [&](std::size_t i, std::size_t j) { return double(t[j * w + i]); };
-  return (1 - ay) * ((1 - ax) * v(ix, iy) + ax * v(ix + 1, iy)) + ay * ((1 - ax) * v(ix, iy + 1) + ax * v(ix + 1, iy + 1));
+  return (1 - ay) * ((1 - ax) * v(ix, iy) + ax * v(ix + 1, iy)) +
+         ay * ((1 - ax) * v(ix, iy + 1) + ax * v(ix + 1, iy + 1));
 }
 
 // (F_x(x | y), F_y(y)) of the density bilinear(t) by midpoint sums.
@@ -71,11 +72,13 @@ double brute_f(const RglBsdf& b, std::size_t t, std::size_t c, const Eigen::Vect
   const double u = std::sqrt(theta_m / (kPi / 2));
   double v = (phi_m - phi_i + kPi) / (2 * kPi);
   v -= std::floor(v);
-  const Eigen::Vector2d s = brute_cdf(b.vndf.data() + t * b.vndf_width * b.vndf_height, b.vndf_width, b.vndf_height, u, v);
+  const Eigen::Vector2d s =
+      brute_cdf(b.vndf.data() + t * b.vndf_width * b.vndf_height, b.vndf_width, b.vndf_height, u, v);
   const std::size_t r = b.resolution;
   const double stored = bilinear(b.values.data() + (t * 3 + c) * r * r, r, r, s.x(), s.y());
   const double d = bilinear(b.ndf.data(), b.ndf_width, 2, u, v);
-  const double sigma = bilinear(b.sigma.data(), b.sigma_width, 2, std::sqrt(std::acos(wi.z()) / (kPi / 2)), (phi_i + kPi) / (2 * kPi));
+  const double sigma =
+      bilinear(b.sigma.data(), b.sigma_width, 2, std::sqrt(std::acos(wi.z()) / (kPi / 2)), (phi_i + kPi) / (2 * kPi));
   return std::max(0.0, stored) * d / (4 * sigma * wo.z());
 }
 
@@ -88,7 +91,8 @@ TEST(RglEval, MatchesABruteForceEvaluationAtTheTabulatedElevations) {
   for (std::size_t t = 0; t < 3; ++t)
     for (int k = 0; k < 6; ++k) {
       const double phi_i = 2 * kPi * unit(rng);
-      const Eigen::Vector3d wi(std::sin(b.theta_i[t]) * std::cos(phi_i), std::sin(b.theta_i[t]) * std::sin(phi_i), std::cos(b.theta_i[t]));
+      const Eigen::Vector3d wi(std::sin(b.theta_i[t]) * std::cos(phi_i), std::sin(b.theta_i[t]) * std::sin(phi_i),
+                               std::cos(b.theta_i[t]));
       const double to = std::acos(0.05 + 0.95 * unit(rng)), po = 2 * kPi * unit(rng);
       const Eigen::Vector3d wo(std::sin(to) * std::cos(po), std::sin(to) * std::sin(po), std::cos(to));
       std::vector<double> f(3);

@@ -96,7 +96,8 @@ INSTANTIATE_TEST_SUITE_P(Analytic, RoundTrip,
                                            Trip{"gold", 32}),
                          [](const auto& info) {
                            std::string n = info.param.material;
-                           for (auto& c : n) if (c == '-') c = '_';
+                           for (auto& c : n)
+                             if (c == '-') c = '_';
                            return n;
                          });
 

@@ -35,7 +35,8 @@ struct Bytes {
 Bytes hand_made() {
   Bytes f;
   f.str(std::string_view("tensor_file\0", 12)).put<std::uint8_t>(1).put<std::uint8_t>(0).put<std::uint32_t>(2);
-  f.put<std::uint16_t>(1).str("a").put<std::uint16_t>(1).put<std::uint8_t>(1).put<std::uint64_t>(72).put<std::uint64_t>(3);
+  f.put<std::uint16_t>(1).str("a").put<std::uint16_t>(1).put<std::uint8_t>(1).put<std::uint64_t>(72).put<std::uint64_t>(
+      3);
   f.put<std::uint16_t>(2).str("bc").put<std::uint16_t>(2).put<std::uint8_t>(10).put<std::uint64_t>(80);
   f.put<std::uint64_t>(2).put<std::uint64_t>(1);
   EXPECT_EQ(f.b.size(), 71u);
@@ -70,13 +71,19 @@ TEST(RglTensor, WriterLaysFieldsOutAlignedInOrder) {
   ASSERT_EQ(bytes.size(), 88u);
   Bytes expect;
   expect.str(std::string_view("tensor_file\0", 12)).put<std::uint8_t>(1).put<std::uint8_t>(0).put<std::uint32_t>(2);
-  expect.put<std::uint16_t>(1).str("a").put<std::uint16_t>(1).put<std::uint8_t>(1).put<std::uint64_t>(72).put<std::uint64_t>(3);
+  expect.put<std::uint16_t>(1)
+      .str("a")
+      .put<std::uint16_t>(1)
+      .put<std::uint8_t>(1)
+      .put<std::uint64_t>(72)
+      .put<std::uint64_t>(3);
   expect.put<std::uint16_t>(2).str("bc").put<std::uint16_t>(2).put<std::uint8_t>(10).put<std::uint64_t>(80);
   expect.put<std::uint64_t>(2).put<std::uint64_t>(1);
   expect.pad(72).put<std::uint8_t>(7).put<std::uint8_t>(8).put<std::uint8_t>(9).pad(80).put(1.5f).put(-2.25f);
   EXPECT_EQ(bytes, expect.b);
   // And the file read back is the file written.
-  const auto path = std::filesystem::temp_directory_path() / ("rgl_tensor_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + ".bsdf");
+  const auto path = std::filesystem::temp_directory_path() /
+                    ("rgl_tensor_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + ".bsdf");
   write_tensor_file(path, t);
   const TensorFile back = read_tensor_file(path);
   std::filesystem::remove(path);
@@ -123,7 +130,8 @@ TEST(RglTensor, MalformedFilesAreRefusedNamingTheProblem) {
   EXPECT_NE(error_of(bad).find("truncated"), std::string::npos);
   Bytes twice;
   twice.str(std::string_view("tensor_file\0", 12)).put<std::uint8_t>(1).put<std::uint8_t>(0).put<std::uint32_t>(2);
-  for (int i = 0; i < 2; ++i) twice.put<std::uint16_t>(1).str("a").put<std::uint16_t>(0).put<std::uint8_t>(1).put<std::uint64_t>(0);
+  for (int i = 0; i < 2; ++i)
+    twice.put<std::uint16_t>(1).str("a").put<std::uint16_t>(0).put<std::uint8_t>(1).put<std::uint64_t>(0);
   EXPECT_NE(error_of(twice.b).find("appears twice"), std::string::npos);
   Bytes overflow;
   overflow.str(std::string_view("tensor_file\0", 12)).put<std::uint8_t>(1).put<std::uint8_t>(0).put<std::uint32_t>(1);
@@ -131,7 +139,10 @@ TEST(RglTensor, MalformedFilesAreRefusedNamingTheProblem) {
   overflow.put<std::uint64_t>(1ull << 40).put<std::uint64_t>(1ull << 40);
   EXPECT_NE(error_of(overflow.b).find("overflow"), std::string::npos);
   Bytes many;
-  many.str(std::string_view("tensor_file\0", 12)).put<std::uint8_t>(1).put<std::uint8_t>(0).put<std::uint32_t>(4000000000u);
+  many.str(std::string_view("tensor_file\0", 12))
+      .put<std::uint8_t>(1)
+      .put<std::uint8_t>(0)
+      .put<std::uint32_t>(4000000000u);
   EXPECT_NE(error_of(many.b).find("4000000000 fields"), std::string::npos);
 }
 

@@ -8,13 +8,13 @@
 #include <numbers>
 #include <random>
 
+#include "grid_fixture.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/render.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/brdf_models.h"
 #include "specula/core/error.h"
 #include "specula/core/illuminant.h"
-#include "grid_fixture.h"
 
 namespace specula::codec {
 namespace {
@@ -61,8 +61,12 @@ void direction_pairs(std::size_t n, std::uint32_t seed, std::vector<float>& wi, 
   for (std::size_t i = 0; i < n; ++i) {
     Eigen::Vector3d a, b;
     switch (i % 3) {
-      case 0: a = hemisphere(0), b = hemisphere(0); break;
-      case 1: a = hemisphere(88 * std::numbers::pi / 180), b = hemisphere(0); break;
+      case 0:
+        a = hemisphere(0), b = hemisphere(0);
+        break;
+      case 1:
+        a = hemisphere(88 * std::numbers::pi / 180), b = hemisphere(0);
+        break;
       default: {
         a = hemisphere(0);
         const Eigen::Vector3d jitter(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
@@ -70,13 +74,14 @@ void direction_pairs(std::size_t n, std::uint32_t seed, std::vector<float>& wi, 
       }
     }
     const double la = 0.5 + u(rng), lb = 0.5 + u(rng);
-    for (int c = 0; c < 3; ++c) wi[3 * i + std::size_t(c)] = float(la * a[c]), wo[3 * i + std::size_t(c)] = float(lb * b[c]);
+    for (int c = 0; c < 3; ++c)
+      wi[3 * i + std::size_t(c)] = float(la * a[c]), wo[3 * i + std::size_t(c)] = float(lb * b[c]);
   }
 }
 
 std::size_t reference_cell(const float* wi, const float* wo) {
-  return brdf::merl_index(brdf::merl_cell(brdf::half_diff(Eigen::Vector3d(wi[0], wi[1], wi[2]),
-                                                          Eigen::Vector3d(wo[0], wo[1], wo[2]))));
+  return brdf::merl_index(
+      brdf::merl_cell(brdf::half_diff(Eigen::Vector3d(wi[0], wi[1], wi[2]), Eigen::Vector3d(wo[0], wo[1], wo[2]))));
 }
 
 TEST(SpcEval, CellsEqualTheDoubleLookupOnRandomPairs) {
@@ -102,9 +107,13 @@ TEST(SpcEval, CellsAtCellCentresAndDegenerateDirectionsEqualTheDoubleLookup) {
     brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(c)), i, o);
     for (int k = 0; k < 3; ++k) wi.push_back(float(i[k])), wo.push_back(float(o[k]));
   }
-  const std::vector<std::array<float, 6>> odd = {{0, 0, 1, 0, 0, 1}, {1, 0, 0, -1, 0, 0}, {0, 0, 0, 0, 0, 1},
-                                                 {0, 0, 1, 0, 0, -1}, {0.6f, 0, 0.8f, -0.6f, 0, 0.8f},
-                                                 {0, 0, 1, NAN, 0, 1}, {0, 1, 0, 0, -1, 1e-3f}};
+  const std::vector<std::array<float, 6>> odd = {{0, 0, 1, 0, 0, 1},
+                                                 {1, 0, 0, -1, 0, 0},
+                                                 {0, 0, 0, 0, 0, 1},
+                                                 {0, 0, 1, 0, 0, -1},
+                                                 {0.6f, 0, 0.8f, -0.6f, 0, 0.8f},
+                                                 {0, 0, 1, NAN, 0, 1},
+                                                 {0, 1, 0, 0, -1, 1e-3f}};
   for (const auto& p : odd)
     for (int k = 0; k < 3; ++k) wi.push_back(p[std::size_t(k)]), wo.push_back(p[std::size_t(k) + 3]);
   std::vector<std::uint32_t> cells(wi.size() / 3);

@@ -5,13 +5,13 @@
 
 #include <algorithm>
 
+#include "grid_fixture.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/codec/uplift.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/brdf_models.h"
 #include "specula/core/error.h"
 #include "specula/core/illuminant.h"
-#include "grid_fixture.h"
 #include "suite_reference.h"
 
 namespace specula::codec {
@@ -23,7 +23,8 @@ using test::grid_of;
 Eigen::VectorXd ramp(double a, double b) { return Eigen::VectorXd::LinSpaced(Eigen::Index(kGrid.size()), a, b); }
 
 const store::Grid& ward() {
-  static const store::Grid g = grid_of(brdf::Ward(kGrid, ramp(0.05, 0.4), ramp(0.3, 0.05), Eigen::VectorXd::Constant(7, 0.1)));
+  static const store::Grid g =
+      grid_of(brdf::Ward(kGrid, ramp(0.05, 0.4), ramp(0.3, 0.05), Eigen::VectorXd::Constant(7, 0.1)));
   return g;
 }
 

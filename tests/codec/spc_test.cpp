@@ -4,22 +4,22 @@
 #include <omp.h>
 #include <zlib.h>
 
-#include <cmath>
 #include <array>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <iterator>
 #include <random>
 
+#include "grid_fixture.h"
 #include "specula/codec/diff.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/codec/uplift.h"
-#include "specula/core/illuminant.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/brdf_models.h"
 #include "specula/core/error.h"
-#include "grid_fixture.h"
+#include "specula/core/illuminant.h"
 #include "test_support.h"
 
 namespace specula::codec {
@@ -32,7 +32,8 @@ using test::grid_of;
 Eigen::VectorXd ramp(double a, double b) { return Eigen::VectorXd::LinSpaced(Eigen::Index(kGrid.size()), a, b); }
 
 const store::Grid& ward() {
-  static const store::Grid g = grid_of(brdf::Ward(kGrid, ramp(0.05, 0.4), ramp(0.3, 0.05), Eigen::VectorXd::Constant(7, 0.1)));
+  static const store::Grid g =
+      grid_of(brdf::Ward(kGrid, ramp(0.05, 0.4), ramp(0.3, 0.05), Eigen::VectorXd::Constant(7, 0.1)));
   return g;
 }
 const store::Grid& torrance() {
@@ -58,7 +59,8 @@ void expect_within_bound(const store::Grid& in, const SpcBasis& basis, double e,
       continue;
     }
     Eigen::VectorXd x(static_cast<Eigen::Index>(b)), y(static_cast<Eigen::Index>(b));
-    for (std::size_t k = 0; k < b; ++k) x[Eigen::Index(k)] = in.brdf[k * N + c], y[Eigen::Index(k)] = out.brdf[k * N + c];
+    for (std::size_t k = 0; k < b; ++k)
+      x[Eigen::Index(k)] = in.brdf[k * N + c], y[Eigen::Index(k)] = out.brdf[k * N + c];
     const double m = x.mean(), mq = y.mean();
     if (m == 0) {
       EXPECT_EQ(y.norm(), 0) << c;
@@ -191,7 +193,8 @@ TEST(Spc, CorruptOrTruncatedFilesFailCleanly) {
     b[rng() % b.size()] ^= std::uint8_t(1u << (rng() % 8));
     EXPECT_THROW(decode_spc(b, "bad.spc"), InputError) << trial;
   }
-  for (std::size_t n : {std::size_t(0), std::size_t(7), std::size_t(20), std::size_t(100), good.size() / 2, good.size() - 1}) {
+  for (std::size_t n :
+       {std::size_t(0), std::size_t(7), std::size_t(20), std::size_t(100), good.size() / 2, good.size() - 1}) {
     const std::vector<std::uint8_t> b(good.begin(), good.begin() + std::ptrdiff_t(n));
     EXPECT_THROW(decode_spc(b, "short.spc"), InputError) << n;
   }
@@ -201,7 +204,8 @@ TEST(Spc, CorruptOrTruncatedFilesFailCleanly) {
   EXPECT_NE(test::input_error_text([&] { decode_spc(newer, "new.spc"); }).find("version 99"), std::string::npos);
   auto k_too_big = good;
   k_too_big[16] = 200;  // k > bands
-  EXPECT_NE(test::input_error_text([&] { decode_spc(with_crc(k_too_big), "k.spc"); }).find("k = 200"), std::string::npos);
+  EXPECT_NE(test::input_error_text([&] { decode_spc(with_crc(k_too_big), "k.spc"); }).find("k = 200"),
+            std::string::npos);
   auto bad_step = good;
   const double negative = -1;
   std::memcpy(bad_step.data() + 28, &negative, 8);  // magnitude scale
@@ -214,7 +218,6 @@ TEST(Spc, CorruptOrTruncatedFilesFailCleanly) {
   EXPECT_NE(test::input_error_text([&] { decode_spc(std::vector<std::uint8_t>(40, 7), "x.spc"); }).find("magic"),
             std::string::npos);
 }
-
 
 // ---- Format 2: the transform coder ----
 
@@ -313,7 +316,8 @@ TEST(SpcTransform, CellsWithoutDataStayWithout) {
   store::Grid holes = ward();
   std::mt19937 rng(3);
   for (int i = 0; i < 20000; ++i) holes.brdf[rng() % N] = -1;  // band 0 of random cells
-  for (const store::Grid* g : {static_cast<const store::Grid*>(&all), &ward(), static_cast<const store::Grid*>(&holes)}) {
+  for (const store::Grid* g :
+       {static_cast<const store::Grid*>(&all), &ward(), static_cast<const store::Grid*>(&holes)}) {
     const SpcCoefficients c = decode_spc_coefficients(encode_spc(*g, self_basis(*g, 2), transform(0.05)), "v.spc");
     std::size_t mismatches = 0;
     for (std::size_t cell = 0; cell < N; ++cell) {

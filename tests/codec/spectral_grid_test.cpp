@@ -49,12 +49,12 @@ TEST(GridFile, RoundTripAndDocumentedLayout) {
   EXPECT_EQ(bytes.substr(0, 8), "SPECGRID");
   std::uint32_t u32[6];
   std::memcpy(u32, bytes.data() + 8, sizeof u32);
-  EXPECT_EQ(u32[0], 1u);    // version
-  EXPECT_EQ(u32[1], 2u);    // bands
+  EXPECT_EQ(u32[0], 1u);  // version
+  EXPECT_EQ(u32[1], 2u);  // bands
   EXPECT_EQ(u32[2], 90u);
   EXPECT_EQ(u32[3], 90u);
   EXPECT_EQ(u32[4], 180u);
-  EXPECT_EQ(u32[5], 0u);    // flags
+  EXPECT_EQ(u32[5], 0u);  // flags
   double d[3];
   std::memcpy(d, bytes.data() + 32, sizeof d);
   EXPECT_EQ(d[0], 1.0 / 1500);
@@ -172,7 +172,8 @@ TEST(GridExport, LambertianGridToMerl) {
 
   store::Grid blue = g;
   for (std::size_t cell = 0; cell < N; ++cell)
-    for (std::size_t k = 0; k < 7; ++k) blue.brdf[k * N + cell] = (k == 1 && g.brdf[cell] >= 0) ? 1.0f : (g.brdf[cell] >= 0 ? 0.0f : -1.0f);
+    for (std::size_t k = 0; k < 7; ++k)
+      blue.brdf[k * N + cell] = (k == 1 && g.brdf[cell] >= 0) ? 1.0f : (g.brdf[cell] >= 0 ? 0.0f : -1.0f);
   const RgbExport b = grid_to_merl(blue, rgb_weights(grid, illuminant("D65", grid)));
   EXPECT_GT(b.clamped, 0u);
   for (std::size_t cell = 0; cell < N; cell += 101)

@@ -5,8 +5,8 @@
 
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
-#include "specula/store/store.h"
 #include "specula/store/h5.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

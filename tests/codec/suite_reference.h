@@ -70,7 +70,8 @@ inline Eigen::VectorXd brute_force(const store::Grid& g, const codec::LightingSu
     if (!has) continue;
     if (any_data) *any_data = true;
     for (std::size_t k = 0; k < g.bands(); ++k)
-      radiance[Eigen::Index(k)] += double(g.brdf[k * brdf::kMerlCells + cell]) * g.scale * power[j][Eigen::Index(k)] * ci;
+      radiance[Eigen::Index(k)] +=
+          double(g.brdf[k * brdf::kMerlCells + cell]) * g.scale * power[j][Eigen::Index(k)] * ci;
   }
   return radiance;
 }
@@ -98,7 +99,8 @@ inline ReferenceVerdict reference_verdict(const store::Grid& a, const store::Gri
       const Eigen::Vector3d nrm = px * ax + py * ay + std::sqrt(1 - px * px - py * py) * az;
       bool lit = false;
       if (cond.light == "environment") {
-        for (std::size_t j = 0; j < s.environment_lights().count && !lit; ++j) lit = nrm.dot(s.environment_lights().dir[j]) > 0;
+        for (std::size_t j = 0; j < s.environment_lights().count && !lit; ++j)
+          lit = nrm.dot(s.environment_lights().dir[j]) > 0;
       } else {
         lit = nrm.dot(cond.direction) > 0;
       }

@@ -7,11 +7,11 @@
 #include <numbers>
 #include <random>
 
+#include "grid_fixture.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_models.h"
 #include "specula/core/cie.h"
 #include "specula/core/error.h"
-#include "grid_fixture.h"
 #include "suite_reference.h"
 
 namespace specula::codec {
@@ -24,8 +24,9 @@ constexpr std::size_t N = brdf::kMerlCells;
 const WavelengthGrid& kGrid = test::kCodecBands;
 
 const store::Grid& ward() {
-  static const store::Grid g = test::grid_of(brdf::Ward(kGrid, Eigen::VectorXd::LinSpaced(7, 0.05, 0.4),
-                                                        Eigen::VectorXd::Constant(7, 0.15), Eigen::VectorXd::Constant(7, 0.2)));
+  static const store::Grid g =
+      test::grid_of(brdf::Ward(kGrid, Eigen::VectorXd::LinSpaced(7, 0.05, 0.4), Eigen::VectorXd::Constant(7, 0.15),
+                               Eigen::VectorXd::Constant(7, 0.2)));
   return g;
 }
 
@@ -103,8 +104,8 @@ TEST(Suite, AlbedoOfALambertianGridIsRho) {
 }
 
 TEST(Suite, AlbedoMatchesAMonteCarloIntegral) {
-  const store::Grid g = test::grid_of(brdf::Ward(kGrid, Eigen::VectorXd::Constant(7, 0.3), Eigen::VectorXd::Constant(7, 0.2),
-                                                 Eigen::VectorXd::Constant(7, 0.3)));
+  const store::Grid g = test::grid_of(brdf::Ward(kGrid, Eigen::VectorXd::Constant(7, 0.3),
+                                                 Eigen::VectorXd::Constant(7, 0.2), Eigen::VectorXd::Constant(7, 0.3)));
   const std::array<double, 4> q = suite_albedo(g);
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> u01(0, 1);

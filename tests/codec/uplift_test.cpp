@@ -9,10 +9,10 @@
 #include <cmath>
 #include <random>
 
+#include "quadrature_support.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
-#include "quadrature_support.h"
 #include "test_support.h"
 
 namespace specula::codec {
@@ -173,8 +173,8 @@ TEST(Uplift, NonNegativeIsTheBoundedLeastSquaresOptimum) {
   const auto a = weights31();
   const Uplift up(a, 1e-2);
   const Eigen::MatrixXd& m = up.system();
-  for (const Eigen::Vector3d& rgb : {Eigen::Vector3d(0.02, 0.03, 0.9), Eigen::Vector3d(0.9, 0.05, 0.02),
-                                     Eigen::Vector3d(0.05, 0.8, 0.05)}) {
+  for (const Eigen::Vector3d& rgb :
+       {Eigen::Vector3d(0.02, 0.03, 0.9), Eigen::Vector3d(0.9, 0.05, 0.02), Eigen::Vector3d(0.05, 0.8, 0.05)}) {
     Eigen::VectorXd x(31), xc(31);
     EXPECT_TRUE(up.nonnegative(rgb, x));
     up.clamped(rgb, xc);
@@ -184,8 +184,10 @@ TEST(Uplift, NonNegativeIsTheBoundedLeastSquaresOptimum) {
     const Eigen::VectorXd grad = m.transpose() * (m * x - b);
     const double tol = 1e-9 * (m.transpose() * b).cwiseAbs().maxCoeff();
     for (Eigen::Index k = 0; k < 31; ++k) {
-      if (x[k] > 0) EXPECT_NEAR(grad[k], 0.0, tol) << k;
-      else EXPECT_GE(grad[k], -tol) << k;
+      if (x[k] > 0)
+        EXPECT_NEAR(grad[k], 0.0, tol) << k;
+      else
+        EXPECT_GE(grad[k], -tol) << k;
     }
     EXPECT_LE((m * x - b).norm(), (m * xc - b).norm() + 1e-15);
   }
@@ -202,12 +204,24 @@ TEST(Uplift, ActiveSetCacheGivesTheSameOptimum) {
     const double h = 6.0 * i / 600, f = h - std::floor(h);
     Eigen::Vector3d rgb;
     switch (int(h)) {  // hue wheel at full saturation, with a little white
-      case 0: rgb << 1, f, 0; break;
-      case 1: rgb << 1 - f, 1, 0; break;
-      case 2: rgb << 0, 1, f; break;
-      case 3: rgb << 0, 1 - f, 1; break;
-      case 4: rgb << f, 0, 1; break;
-      default: rgb << 1, 0, 1 - f; break;
+      case 0:
+        rgb << 1, f, 0;
+        break;
+      case 1:
+        rgb << 1 - f, 1, 0;
+        break;
+      case 2:
+        rgb << 0, 1, f;
+        break;
+      case 3:
+        rgb << 0, 1 - f, 1;
+        break;
+      case 4:
+        rgb << f, 0, 1;
+        break;
+      default:
+        rgb << 1, 0, 1 - f;
+        break;
     }
     rgb = (rgb.array() * 0.9 + 0.02).matrix() * (0.5 + 0.001 * i);
     Eigen::VectorXd x(31), y(31);

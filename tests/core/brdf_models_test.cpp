@@ -95,7 +95,8 @@ TorranceSparrow ts(double m, Eigen::Vector3d eta, double rho_d = 0) {
 
 TEST(BrdfModels, FresnelMatchesTheCosineForm) {
   for (double eta : {1.2, 1.5, 2.4})
-    for (double t = 0.5; t < 89.6; t += 1.0) EXPECT_NEAR(fresnel_dielectric(t * kDeg, eta), fresnel_cos(t * kDeg, eta), 1e-12);
+    for (double t = 0.5; t < 89.6; t += 1.0)
+      EXPECT_NEAR(fresnel_dielectric(t * kDeg, eta), fresnel_cos(t * kDeg, eta), 1e-12);
   EXPECT_NEAR(fresnel_dielectric(0, 1.5), 0.04, 1e-15);
   EXPECT_NEAR(fresnel_dielectric(1e-9, 1.5), 0.04, 1e-12);
   EXPECT_NEAR(fresnel_dielectric(pi / 2 - 1e-9, 1.5), 1.0, 1e-6);
@@ -105,7 +106,8 @@ TEST(BrdfModels, FresnelMatchesTheCosineForm) {
 TEST(BrdfModels, Reciprocity) {
   const WavelengthGrid g = grid3();
   const Lambertian lam(g, Eigen::Vector3d(0.2, 0.5, 0.8));
-  const TorranceSparrow t(g, Eigen::Vector3d(0.1, 0.2, 0.4), Eigen::Vector3d(1.3, 1.5, 1.7), Eigen::Vector3d(0.1, 0.2, 0.3));
+  const TorranceSparrow t(g, Eigen::Vector3d(0.1, 0.2, 0.4), Eigen::Vector3d(1.3, 1.5, 1.7),
+                          Eigen::Vector3d(0.1, 0.2, 0.3));
   const Ward w(g, Eigen::Vector3d(0.1, 0.2, 0.3), Eigen::Vector3d(0.5, 0.3, 0.1), Eigen::Vector3d(0.05, 0.1, 0.3));
   std::mt19937 rng(21);
   std::uniform_real_distribution<double> u(0, 1);
@@ -203,7 +205,8 @@ double ward_normal_albedo_1d(double alpha) {
   double s = 0;
   for (int i = 0; i <= n; ++i) {
     const double t = i * hgrid, tt = std::tan(t);
-    const double y = std::exp(-tt * tt / (alpha * alpha)) * std::sqrt(std::max(0.0, std::cos(2 * t))) * std::cos(t) * std::sin(t);
+    const double y =
+        std::exp(-tt * tt / (alpha * alpha)) * std::sqrt(std::max(0.0, std::cos(2 * t))) * std::cos(t) * std::sin(t);
     s += y * ((i == 0 || i == n) ? 1 : (i % 2 ? 4 : 2));
   }
   return 2 / (alpha * alpha) * s * hgrid / 3;

@@ -38,8 +38,7 @@ std::vector<std::vector<double>> read_csv_columns(const std::filesystem::path& p
   return cols;
 }
 
-void expect_table_equals(const CieTable& table, const std::vector<std::vector<double>>& cols,
-                         const std::string& what) {
+void expect_table_equals(const CieTable& table, const std::vector<std::vector<double>>& cols, const std::string& what) {
   ASSERT_EQ(table.columns.size() + 1, cols.size()) << what;
   ASSERT_EQ(table.nm.size(), cols[0].size()) << what;
   for (std::size_t i = 0; i < table.nm.size(); ++i) EXPECT_EQ(table.nm[i], cols[0][i]) << what << " row " << i;
@@ -56,15 +55,15 @@ TEST(CieTables, CmfsEqualSharedCsv) {
   SPECULA_REQUIRE_SHARED();
   expect_table_equals(cmf_table(Observer::cie1931_2deg), read_csv_columns(cie_dir() / "cie1931_2deg_xyz_cmf.csv"),
                       "CIE 1931");
-  expect_table_equals(cmf_table(Observer::cie1964_10deg),
-                      read_csv_columns(cie_dir() / "cie1964_10deg_xyz_cmf.csv"), "CIE 1964");
+  expect_table_equals(cmf_table(Observer::cie1964_10deg), read_csv_columns(cie_dir() / "cie1964_10deg_xyz_cmf.csv"),
+                      "CIE 1964");
 }
 
 TEST(CieTables, IlluminantsEqualSharedCsv) {
   SPECULA_REQUIRE_SHARED();
   for (const std::string name : {"A", "D50", "D65"})
-    expect_table_equals(illuminant_table(name),
-                        read_csv_columns(cie_dir() / ("cie_illuminant_" + name + "_spd.csv")), name);
+    expect_table_equals(illuminant_table(name), read_csv_columns(cie_dir() / ("cie_illuminant_" + name + "_spd.csv")),
+                        name);
 }
 
 TEST(CieTables, DaylightBasisEqualsSharedJson) {

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "specula/core/error.h"
 #include "quadrature_support.h"
+#include "specula/core/error.h"
 #include "test_support.h"
 
 namespace specula {
@@ -52,14 +52,18 @@ TEST(Colour, RadianceFlatSpectrumIsEqualEnergyWhite) {
 TEST(Colour, XyzOnAnIrregularGridIsTheDirectIntegral) {
   const WavelengthGrid grid = test::irregular_grid();
   ASSERT_FALSE(grid.uniform());
-  const test::Spectrum s = [](double l) { return 0.5 + 0.4 * std::sin((l - 400) / 45) + 0.1 * std::cos((l - 400) / 13); };
+  const test::Spectrum s = [](double l) {
+    return 0.5 + 0.4 * std::sin((l - 400) / 45) + 0.1 * std::cos((l - 400) / 13);
+  };
   const test::Spectrum light = [](double l) { return 1 + 0.8 * (l - 400) / 300 + 0.2 * std::sin(l / 30); };
   Eigen::VectorXd s_grid(Eigen::Index(grid.size())), light_grid(Eigen::Index(grid.size()));
   for (std::size_t i = 0; i < grid.size(); ++i) {
     s_grid[Eigen::Index(i)] = s(grid[i]);
     light_grid[Eigen::Index(i)] = light(grid[i]);
   }
-  const auto ratios = [](const std::vector<double>& i) { return Eigen::Vector3d(i[0] / i[3], i[1] / i[3], i[2] / i[3]); };
+  const auto ratios = [](const std::vector<double>& i) {
+    return Eigen::Vector3d(i[0] / i[3], i[1] / i[3], i[2] / i[3]);
+  };
   for (const SpectrumKind kind : {SpectrumKind::radiance, SpectrumKind::reflectance}) {
     const test::Spectrum lit = kind == SpectrumKind::radiance ? s : [&](double l) { return s(l) * light(l); };
     const test::Spectrum white = kind == SpectrumKind::radiance ? test::Spectrum([](double) { return 1.0; }) : light;
@@ -105,9 +109,7 @@ TEST(Colour, ApplyEqualsTheWeightMatrix) {
 // and white point, so it must round to the published one.
 TEST(Colour, SrgbMatrixRoundsToThePublishedIecMatrix) {
   Eigen::Matrix3d published;
-  published << 0.4124, 0.3576, 0.1805,
-               0.2126, 0.7152, 0.0722,
-               0.0193, 0.1192, 0.9505;
+  published << 0.4124, 0.3576, 0.1805, 0.2126, 0.7152, 0.0722, 0.0193, 0.1192, 0.9505;
   const Eigen::Matrix3d rgb_to_xyz = xyz_to_linear_srgb().inverse();
   EXPECT_LT((rgb_to_xyz - published).cwiseAbs().maxCoeff(), 5e-5 + 1e-12);
   // The white (1, 1, 1) is x = 0.3127, y = 0.3290 at Y = 1.
@@ -329,8 +331,8 @@ TEST(Colour, DesaturationKeepsLuminanceAndHueAndLandsInGamut) {
 }
 
 TEST(Colour, BradfordOfAWhiteOntoItselfIsIdentity) {
-  for (const Eigen::Vector3d& w : {Eigen::Vector3d(0.95047, 1.0, 1.08883), Eigen::Vector3d(1.0985, 1.0, 0.35585),
-                                  Eigen::Vector3d(2.0, 2.0, 2.0)})
+  for (const Eigen::Vector3d& w :
+       {Eigen::Vector3d(0.95047, 1.0, 1.08883), Eigen::Vector3d(1.0985, 1.0, 0.35585), Eigen::Vector3d(2.0, 2.0, 2.0)})
     EXPECT_LT((bradford_adaptation(w, w) - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), 1e-14);
   const Eigen::Vector3d d50(0.96422, 1.0, 0.82521), d65(0.95047, 1.0, 1.08883);
   EXPECT_LT((bradford_adaptation(d50, d65) * d50 - d65).cwiseAbs().maxCoeff(), 1e-14);
@@ -340,9 +342,7 @@ TEST(Colour, BradfordOfAWhiteOntoItselfIsIdentity) {
 // Lindbloom's published Bradford matrix from D50 to D65 (whites of the 1931 observer, 5 nm tables).
 TEST(Colour, BradfordD50ToD65MatchesThePublishedMatrix) {
   Eigen::Matrix3d published;
-  published << 0.9555766, -0.0230393, 0.0631636,
-               -0.0282895, 1.0099416, 0.0210077,
-               0.0122982, -0.0204830, 1.3299098;
+  published << 0.9555766, -0.0230393, 0.0631636, -0.0282895, 1.0099416, 0.0210077, 0.0122982, -0.0204830, 1.3299098;
   const Eigen::Matrix3d m =
       bradford_adaptation(Eigen::Vector3d(0.96422, 1.0, 0.82521), Eigen::Vector3d(0.95047, 1.0, 1.08883));
   EXPECT_LT((m - published).cwiseAbs().maxCoeff(), 1e-6);
@@ -403,10 +403,9 @@ TEST(Colour, ColorCheckerUnderD65MatchesPublishedSrgb) {
     const int published[3] = {p.r, p.g, p.b};
     int worst = 0;
     for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(int(rgb[std::size_t(c)]) - published[c]));
-    RecordProperty(std::string(p.name) + " sRGB8", std::to_string(rgb[0]) + "," + std::to_string(rgb[1]) + "," +
-                                                       std::to_string(rgb[2]));
-    EXPECT_LE(worst, p.max_counts) << p.name << ": got " << int(rgb[0]) << "," << int(rgb[1]) << ","
-                                   << int(rgb[2]);
+    RecordProperty(std::string(p.name) + " sRGB8",
+                   std::to_string(rgb[0]) + "," + std::to_string(rgb[1]) + "," + std::to_string(rgb[2]));
+    EXPECT_LE(worst, p.max_counts) << p.name << ": got " << int(rgb[0]) << "," << int(rgb[1]) << "," << int(rgb[2]);
 
     // The same comparison in CIELAB (D65 white): published sRGB -> XYZ against the patch's XYZ.
     const Eigen::Matrix3d to_xyz = xyz_to_linear_srgb().inverse();

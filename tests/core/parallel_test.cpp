@@ -19,12 +19,17 @@ TEST(Parallel, EveryIndexOnceWithStatePerThreadAtAnyGrain) {
   for (const std::size_t grain : {1u, 7u, 1000u}) {
     std::vector<int> hits(5003, 0);
     std::atomic<int> states{0};
-    parallel_for(hits.size(), [&] { ++states; return std::vector<int>(3); },
-                 [&](std::size_t i, std::vector<int>& scratch) {
-                   scratch[0] = int(i);
-                   hits[i] += 1 + scratch[0] - int(i);
-                 },
-                 grain);
+    parallel_for(
+        hits.size(),
+        [&] {
+          ++states;
+          return std::vector<int>(3);
+        },
+        [&](std::size_t i, std::vector<int>& scratch) {
+          scratch[0] = int(i);
+          hits[i] += 1 + scratch[0] - int(i);
+        },
+        grain);
     EXPECT_EQ(std::count(hits.begin(), hits.end(), 1), 5003) << grain;
     EXPECT_LE(states.load(), omp_get_max_threads());
   }

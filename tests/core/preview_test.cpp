@@ -52,8 +52,7 @@ TEST(Preview, WhitesAreWhiteAndMaskedPixelsHaveTheMaskColour) {
   const Picture r = render_preview(ones, 3, 2, grid, SpectrumKind::reflectance, mask, s);
   ASSERT_EQ(r.srgb8.size(), 18u);
   for (std::size_t p = 0; p < 6; ++p)
-    for (std::size_t c = 0; c < 3; ++c)
-      EXPECT_EQ(r.srgb8[3 * p + c], p == 2 ? kMaskColour[c] : 255) << p << " " << c;
+    for (std::size_t c = 0; c < 3; ++c) EXPECT_EQ(r.srgb8[3 * p + c], p == 2 ? kMaskColour[c] : 255) << p << " " << c;
   EXPECT_NEAR(r.linear[0], 1.0f, 1e-4f);
 
   s.exposure_stops.reset();

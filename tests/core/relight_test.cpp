@@ -7,9 +7,9 @@
 #include <cmath>
 #include <vector>
 
+#include "quadrature_support.h"
 #include "specula/core/cie.h"
 #include "specula/core/error.h"
-#include "quadrature_support.h"
 
 namespace specula {
 namespace {
@@ -40,7 +40,8 @@ TEST(Relight, SameLightChangesNothing) {
 
 TEST(Relight, VonKriesIsExactForGreysAndNotForSaturatedColours) {
   const RowMatrixXf f = spectra();
-  const Relighting r = relight(f, kGrid, SpectrumKind::reflectance, {}, illuminant("D65", kGrid), illuminant("A", kGrid));
+  const Relighting r =
+      relight(f, kGrid, SpectrumKind::reflectance, {}, illuminant("D65", kGrid), illuminant("A", kGrid));
   // A grey reflectance c has XYZ c * white under any light, and eq 4.10 scales each channel by exactly that.
   for (Eigen::Index i = 0; i < 3; ++i) {
     EXPECT_LT(r.ciede2000[std::size_t(i)], 1e-3) << i;

@@ -18,7 +18,9 @@ TEST(Text, CollapseSpacesTrimsAndJoinsRuns) {
 
 TEST(Text, TrimAndPrintable) {
   EXPECT_EQ(trim("\t x y \n"), "x y");
-  EXPECT_EQ(printable("a\x01" "b"), "a?b");
+  EXPECT_EQ(printable("a\x01"
+                      "b"),
+            "a?b");
 }
 
 }  // namespace

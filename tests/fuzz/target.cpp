@@ -10,7 +10,6 @@
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {
     specula::fuzz::SPECULA_FUZZ_ENTRY(std::span<const std::uint8_t>(data, size));
-  } catch (const specula::Error&) {
-  }
+  } catch (const specula::Error&) {}
   return 0;
 }

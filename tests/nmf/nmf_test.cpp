@@ -9,8 +9,8 @@
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/nmf/checkpoint.h"
-#include "specula/store/store.h"
 #include "specula/store/h5.h"
+#include "specula/store/store.h"
 #include "test_support.h"
 
 using namespace specula;

@@ -49,7 +49,8 @@ TEST(LearnPca, MeanEigenvaluesAndProvenance) {
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(cov);
   ASSERT_EQ(r.basis.eigenvalues.size(), 4);
   for (Eigen::Index b = 0; b < 4; ++b) EXPECT_NEAR(r.basis.mean[b], mean[b], 1e-6);
-  for (Eigen::Index i = 0; i < 4; ++i) EXPECT_NEAR(r.basis.eigenvalues[i], es.eigenvalues()[3 - i], 1e-6 * es.eigenvalues()[3]);
+  for (Eigen::Index i = 0; i < 4; ++i)
+    EXPECT_NEAR(r.basis.eigenvalues[i], es.eigenvalues()[3 - i], 1e-6 * es.eigenvalues()[3]);
   EXPECT_EQ(r.basis.k(), 2u);
   EXPECT_EQ(r.basis.n, 200u);
   EXPECT_EQ(r.basis.source, "collection c");

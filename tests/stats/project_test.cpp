@@ -152,18 +152,24 @@ TEST(Projector, MisuseIsNamedByParameter) {
     EXPECT_EQ(m.find("-k"), std::string::npos) << m;
   }
   EXPECT_THROW(Projector(nmf, 2, "n"), UsageError);
-  EXPECT_NE(test::error_of<std::exception>([&] { Projector(nmf, 2, "n"); }).find("k = 2: NMF basis n has 3 components and projects onto all"),
+  EXPECT_NE(test::error_of<std::exception>([&] {
+              Projector(nmf, 2, "n");
+            }).find("k = 2: NMF basis n has 3 components and projects onto all"),
             std::string::npos);
   EXPECT_NO_THROW(Projector(nmf, 3, "n"));
 
   store::Basis odd = nmf;
   odd.method = "ica";
   EXPECT_THROW(Projector(odd, std::nullopt, "odd"), InputError);
-  EXPECT_NE(test::error_of<std::exception>([&] { basis_method(odd, "odd"); }).find("basis odd has method 'ica'"), std::string::npos);
+  EXPECT_NE(test::error_of<std::exception>([&] { basis_method(odd, "odd"); }).find("basis odd has method 'ica'"),
+            std::string::npos);
   store::Basis meanless = pca;
   meanless.mean.resize(0);
   EXPECT_THROW(basis_method(meanless, "m"), InputError);
-  EXPECT_NE(test::error_of<std::exception>([&] { Projector(meanless, 2, "m"); }).find("basis m is a pca basis without a mean"), std::string::npos);
+  EXPECT_NE(test::error_of<std::exception>([&] {
+              Projector(meanless, 2, "m");
+            }).find("basis m is a pca basis without a mean"),
+            std::string::npos);
 
   const Projector p(pca, 2, "b");
   RowMatrixXd x(4, kB), wrong(4, kB - 1), c(4, 2), c3(4, 3);
@@ -173,7 +179,8 @@ TEST(Projector, MisuseIsNamedByParameter) {
   EXPECT_THROW(p.reconstruct(c3, x), UsageError);
   EXPECT_NO_THROW(p.check_wavelengths(pca.wavelengths, "image a"));
   EXPECT_THROW(p.check_wavelengths(WavelengthGrid::range(400, 700, 10), "image a"), InputError);
-  const std::string m = test::error_of<std::exception>([&] { p.check_wavelengths(WavelengthGrid::range(400, 700, 10), "image a", "resample it"); });
+  const std::string m = test::error_of<std::exception>(
+      [&] { p.check_wavelengths(WavelengthGrid::range(400, 700, 10), "image a", "resample it"); });
   EXPECT_NE(m.find("image a has"), std::string::npos) << m;
   EXPECT_NE(m.find("; resample it"), std::string::npos) << m;
 }

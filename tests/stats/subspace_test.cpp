@@ -95,7 +95,8 @@ TEST(Subspace, AlignmentRecoversOrderAndSigns) {
   EXPECT_EQ(aligned.sign, (std::vector<int>{1, 1, -1, -1}));
   for (Eigen::Index i = 0; i < 4; ++i) {
     EXPECT_GT(aligned.components.row(i).dot(a.row(i)), 0);
-    EXPECT_TRUE(aligned.components.row(i).isApprox(aligned.sign[std::size_t(i)] * b.row(Eigen::Index(aligned.order[std::size_t(i)]))));
+    EXPECT_TRUE(aligned.components.row(i).isApprox(aligned.sign[std::size_t(i)] *
+                                                   b.row(Eigen::Index(aligned.order[std::size_t(i)]))));
   }
 }
 

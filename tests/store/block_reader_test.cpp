@@ -169,9 +169,10 @@ TEST(BlockReader, ErrorsInsideTheStreamAreRethrown) {
   Store s = Store::open(path);
   BlockReader reader(s, {}, 100);
   ASSERT_GT(reader.block_count(), 3u);
-  EXPECT_THROW(for_each_block<float>(reader, [](std::size_t i, const RowMatrixXf&, int) {
-                 if (i == 3) throw InputError("boom");
-               }),
+  EXPECT_THROW(for_each_block<float>(reader,
+                                     [](std::size_t i, const RowMatrixXf&, int) {
+                                       if (i == 3) throw InputError("boom");
+                                     }),
                InputError);
   request_interrupt();
   EXPECT_THROW(for_each_block<float>(reader, [](std::size_t, const RowMatrixXf&, int) {}), Interrupted);

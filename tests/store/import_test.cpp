@@ -58,7 +58,8 @@ TEST(Import, AnUnsortedIrregularBandListIsKeptExactlyWithItsValues) {
   std::ofstream(dir / "u.hdr") << "ENVI\nsamples = 2\nlines = 1\nbands = 4\nheader offset = 0\ndata type = 4\n"
                                << "interleave = bip\nbyte order = 0\nwavelength units = Nanometers\n"
                                << "wavelength = {700, 403, 455.5, 410}\n";
-  std::ofstream(dir / "u.raw", std::ios::binary).write(reinterpret_cast<const char*>(v.data()), std::streamsize(v.size() * 4));
+  std::ofstream(dir / "u.raw", std::ios::binary)
+      .write(reinterpret_cast<const char*>(v.data()), std::streamsize(v.size() * 4));
   StoreWriter w(dir / "db.h5", {});
   import_files(w, {dir / "u.hdr"}, {});
   w.commit();
@@ -72,7 +73,9 @@ TEST(Import, NanIsRejectedOrMaskedWithANote) {
   const test::ScratchDir dir;
   write_envi(dir / "nan", 2, 2, 3, /*nan_at=*/4);  // pixel 1, band 1
   StoreWriter w(dir / "db.h5", {});
-  EXPECT_NE(test::input_error_text([&] { import_files(w, {dir / "nan.hdr"}, {}); }).find("set the `nan` option to \"mask\" to keep the image"),
+  EXPECT_NE(test::input_error_text([&] {
+              import_files(w, {dir / "nan.hdr"}, {});
+            }).find("set the `nan` option to \"mask\" to keep the image"),
             std::string::npos);
   ImportOptions o;
   o.nan = NanPolicy::mask;
@@ -155,8 +158,10 @@ TEST(Import, DirectoryImportsWhatItRecognisesAndReportsEverySkip) {
   EXPECT_EQ(r.imported[2].rfind("imported collection lib:", 0), 0u) << r.imported[2];
   EXPECT_EQ(r.imported[3].rfind("imported image c: 4x2", 0), 0u) << r.imported[3];
   ASSERT_EQ(r.skipped.size(), 3u);
-  EXPECT_EQ(r.skipped[0].rfind((dir / "db" / "README").string() + ": skipped: cannot tell the format", 0), 0u) << r.skipped[0];
-  EXPECT_EQ(r.skipped[1], (dir / "db" / "orphan.raw").string() + ": skipped: an ENVI data file without its .hdr header");
+  EXPECT_EQ(r.skipped[0].rfind((dir / "db" / "README").string() + ": skipped: cannot tell the format", 0), 0u)
+      << r.skipped[0];
+  EXPECT_EQ(r.skipped[1],
+            (dir / "db" / "orphan.raw").string() + ": skipped: an ENVI data file without its .hdr header");
   EXPECT_EQ(r.skipped[2].rfind((dir / "db" / "stack" / "Thumbs.db").string() + ": skipped", 0), 0u) << r.skipped[2];
   // `stack` holds no PNG: only its stray file is reported. A glob picks the same files as the directory.
   const Store s = Store::open(dir / "s.h5");

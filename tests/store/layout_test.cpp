@@ -5,9 +5,9 @@
 
 #include <cmath>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
-#include <optional>
 
 #include "specula/store/block_reader.h"
 #include "specula/store/store.h"
@@ -44,8 +44,8 @@ Collection constant_collection(std::size_t n, float value) {
 std::set<std::string> data_files(const fs::path& data) {
   std::set<std::string> out;
   std::error_code ec;
-  for (auto it = fs::recursive_directory_iterator(data / "objects", ec); !ec && it != fs::recursive_directory_iterator();
-       it.increment(ec))
+  for (auto it = fs::recursive_directory_iterator(data / "objects", ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
     if (it->is_regular_file()) out.insert(fs::relative(it->path(), data).string());
   return out;
 }
@@ -71,7 +71,8 @@ TEST(StoreLayout, ConcurrentWritersLoseNothing) {
   test::ScratchDir dir;
   constexpr int kWriters = 8, kCommits = 20;
   for (int w = 0; w < kWriters; ++w)
-    for (int i = 0; i < kCommits; ++i) write_csv(dir / ("w" + std::to_string(w) + "-" + std::to_string(i) + ".csv"), 3, w + i);
+    for (int i = 0; i < kCommits; ++i)
+      write_csv(dir / ("w" + std::to_string(w) + "-" + std::to_string(i) + ".csv"), 3, w + i);
   // Each writer a shell loop of separate `specula import` processes, all eight loops at once.
   std::string script;
   for (int w = 0; w < kWriters; ++w) {
@@ -99,15 +100,16 @@ TEST(StoreLayout, ConcurrentWritersLoseNothing) {
 }
 
 TEST(StoreLayout, KillNineAtEveryPointOfACommitLeavesBeforeOrAfter) {
-  const char* points[] = {"object-created", "data-written", "locked", "garbage-logged", "root-written", "renamed",
-                          "collected"};
+  const char* points[] = {"object-created", "data-written", "locked",   "garbage-logged",
+                          "root-written",   "renamed",      "collected"};
   for (const char* point : points) {
     SCOPED_TRACE(point);
     test::ScratchDir dir;
     const fs::path db = dir / "db.h5";
     write_csv(dir / "base.csv", 2, 1.0);
     write_csv(dir / "victim.csv", 2, 2.0);
-    ASSERT_EQ(test::run_specula("-q import " + q(dir / "base.csv") + " " + q(dir / "victim.csv") + " -o " + q(db)).status, 0);
+    ASSERT_EQ(
+        test::run_specula("-q import " + q(dir / "base.csv") + " " + q(dir / "victim.csv") + " -o " + q(db)).status, 0);
     const std::string root_before = test::read_bytes(db);
     // The killed transaction replaces `victim` (so it has garbage to log) and adds `fresh`.
     write_csv(dir / "fresh.csv", 2, 3.0);
@@ -144,7 +146,8 @@ TEST(StoreLayout, KillNineAtEveryPointOfACommitLeavesBeforeOrAfter) {
 TEST(StoreLayout, ReaderStreamingAnImageSeesTheOldOneWhileAnotherProcessReplacesAndCollects) {
   test::ScratchDir dir;
   const fs::path db = dir / "db.h5";
-  ASSERT_EQ(test::run_specula("-q synth-db -o " + q(db) + " --images 1 --size 300x200 --seed 1 --prefix scene").status, 0);
+  ASSERT_EQ(test::run_specula("-q synth-db -o " + q(db) + " --images 1 --size 300x200 --seed 1 --prefix scene").status,
+            0);
   const Store reader = Store::open(db);
   const Cube old_image = reader.read_image("scene0");
   BlockReader blocks(reader, {.image_globs = {"scene0"}}, 4096);
@@ -158,7 +161,10 @@ TEST(StoreLayout, ReaderStreamingAnImageSeesTheOldOneWhileAnotherProcessReplaces
   const std::size_t half = blocks.block_count() / 2;
   for (std::size_t i = 0; i < half; ++i) take(i);
   // Another process replaces the image, then collects garbage, while this reader is half-way.
-  ASSERT_EQ(test::run_specula("-q synth-db -o " + q(db) + " --images 1 --size 300x200 --seed 2 --prefix scene --replace").status, 0);
+  ASSERT_EQ(
+      test::run_specula("-q synth-db -o " + q(db) + " --images 1 --size 300x200 --seed 2 --prefix scene --replace")
+          .status,
+      0);
   const auto gc = test::run_specula("gc " + q(db));
   ASSERT_EQ(gc.status, 0) << gc.output;
   EXPECT_NE(gc.output.find("1 still open by readers"), std::string::npos) << gc.output;
@@ -252,7 +258,8 @@ TEST(StoreLayout, WriteCostsWhatItChangesNotTheStoresSize) {
   std::uint64_t written = fs::file_size(db);
   for (const auto& f : data_files(after.data_dir()))
     if (!files_before.count(f)) written += fs::file_size(after.data_dir() / f);
-  EXPECT_LT(written, 64u << 10) << "a 10-spectrum collection cost " << written << " bytes in a " << store_size << "-byte store";
+  EXPECT_LT(written, 64u << 10) << "a 10-spectrum collection cost " << written << " bytes in a " << store_size
+                                << "-byte store";
   for (const auto& f : files_before) EXPECT_TRUE(data_files(after.data_dir()).count(f)) << f << " was rewritten";
 }
 
@@ -274,7 +281,8 @@ TEST(StoreLayout, FormatOneStoresAreReadOnlyAndUpgradeInPlace) {
   const std::string err = test::input_error_text([&] { StoreWriter w(db, {}); });
   EXPECT_NE(err.find("specula upgrade"), std::string::npos) << err;
   // A crash before the commit point leaves the format-1 file as it was.
-  const auto killed = test::run_shell("SPECULA_TEST_CRASH_AT=upgrade-root-written '" SPECULA_BINARY "' upgrade " + q(db));
+  const auto killed =
+      test::run_shell("SPECULA_TEST_CRASH_AT=upgrade-root-written '" SPECULA_BINARY "' upgrade " + q(db));
   EXPECT_EQ(killed.status, 128 + 9);
   EXPECT_EQ(test::read_bytes(db), v1_bytes);
   const auto up = test::run_specula("upgrade " + q(db));
@@ -414,8 +422,8 @@ TEST(StoreLayout, MalformedRootsAreOneLineErrors) {
   };
   for (const Case& c : cases) {
     std::ofstream(db, std::ios::binary | std::ios::trunc) << good;
-    const std::string cmd = "/usr/bin/python3 -c \"import h5py\nwith h5py.File('" + db.string() + "', 'r+') as f:\n    " +
-                            c.python + "\"";
+    const std::string cmd =
+        "/usr/bin/python3 -c \"import h5py\nwith h5py.File('" + db.string() + "', 'r+') as f:\n    " + c.python + "\"";
     ASSERT_EQ(std::system(cmd.c_str()), 0) << c.python;
     const std::string err = test::input_error_text([&] { (void)Store::open(db); });
     EXPECT_NE(err.find("db.h5: "), std::string::npos) << err;

@@ -62,8 +62,7 @@ TEST(Store, ImageRoundTripKeepsValuesMaskAndMetadata) {
   EXPECT_EQ(r.fwhm, c.fwhm);
   EXPECT_TRUE(r.wavelengths.approx_equal(c.wavelengths, 0));
   for (std::size_t p = 0; p < 37 * 23; ++p)
-    for (std::size_t k = 0; k < 5; ++k)
-      EXPECT_EQ(r.data[p * 5 + k], c.mask[p] ? c.data[p * 5 + k] : 0.0f);
+    for (std::size_t k = 0; k < 5; ++k) EXPECT_EQ(r.data[p * 5 + k], c.mask[p] ? c.data[p * 5 + k] : 0.0f);
 }
 
 TEST(Store, ReadPixelEqualsTheWholeImageAtEveryPixel) {
@@ -154,7 +153,8 @@ TEST(Store, GridsRoundTripCompressedOrNot) {
     const Grid r = Store::open(path).read_grid("g");
     EXPECT_TRUE(r.brdf == g.brdf) << spec;
     EXPECT_EQ(Store::open(path).grid_info("g").compression.find("deflate") != std::string::npos,
-              std::string(spec) != "none") << spec;
+              std::string(spec) != "none")
+        << spec;
   }
 }
 
@@ -373,7 +373,9 @@ TEST(Store, CoefficientMapsRoundTripInPiecesWithTheirBasis) {
   EXPECT_EQ(kept.components, basis.components);
   EXPECT_EQ(kept.mean, basis.mean);
   EXPECT_TRUE(kept.wavelengths.approx_equal(basis.wavelengths));
-  EXPECT_NE(test::input_error_text([&] { s.coefficients_info("nope"); }).find("no coefficient map 'nope' (coefficient maps: m)"),
+  EXPECT_NE(test::input_error_text([&] {
+              s.coefficients_info("nope");
+            }).find("no coefficient map 'nope' (coefficient maps: m)"),
             std::string::npos);
 
   const std::string before = test::read_bytes(path);

@@ -92,7 +92,10 @@ TEST(Synth, MaskedRectanglesInSomeImages) {
     std::size_t invalid = 0;
     for (std::size_t y = 0; y < c.height; ++y)
       for (std::size_t x = 0; x < c.width; ++x) invalid += !c.valid(y, x);
-    if (invalid > 0) ++with_mask; else ++without;
+    if (invalid > 0)
+      ++with_mask;
+    else
+      ++without;
     EXPECT_LT(invalid, c.height * c.width / 2) << "image " << i << " is mostly masked";
   }
   EXPECT_GT(with_mask, 0);
@@ -236,7 +239,8 @@ TEST(Synth, RadianceIsSmoothReflectanceTimesDaylight) {
       const float* p = c.data.data() + ((k * 7919) % n) * c.bands;
       raw += rough([&](std::size_t b) { return double(p[b]); });
       double best = INFINITY;
-      for (const auto& d : daylights) best = std::min(best, rough([&](std::size_t b) { return double(p[b]) / d[Eigen::Index(b)]; }));
+      for (const auto& d : daylights)
+        best = std::min(best, rough([&](std::size_t b) { return double(p[b]) / d[Eigen::Index(b)]; }));
       divided += best;
     }
     EXPECT_LT(divided, 0.7 * raw) << "image " << i;

@@ -65,7 +65,8 @@ class ViewService : public ::testing::Test {
     Eigen::MatrixXd random(kB, 3);
     for (Eigen::Index b = 0; b < Eigen::Index(kB); ++b)
       for (Eigen::Index j = 0; j < 3; ++j) random(b, j) = std::cos(0.29 * double(b + 1) * double(j + 2) + double(j));
-    const Eigen::MatrixXd q = Eigen::HouseholderQR<Eigen::MatrixXd>(random).householderQ() * Eigen::MatrixXd::Identity(kB, 3);
+    const Eigen::MatrixXd q =
+        Eigen::HouseholderQR<Eigen::MatrixXd>(random).householderQ() * Eigen::MatrixXd::Identity(kB, 3);
     store::Basis pca;
     pca.method = "pca";
     pca.wavelengths = wl;
@@ -108,8 +109,8 @@ class ViewService : public ::testing::Test {
     w.create_samples("s", wl, "1/sr", {});
     const double d = pi / 180;
     // In the plane at theta_i = 45: mirror side (theta_o 30), light side (theta_o 20); then off theta_i, off the plane.
-    const std::vector<double> angles = {45 * d, 0, 30 * d, pi,  45 * d, 1.0, 20 * d, 1.0,
-                                        10 * d, 0, 30 * d, pi,  45 * d, 0,   30 * d, pi / 2};
+    const std::vector<double> angles = {45 * d, 0, 30 * d, pi, 45 * d, 1.0, 20 * d, 1.0,
+                                        10 * d, 0, 30 * d, pi, 45 * d, 0,   30 * d, pi / 2};
     std::vector<float> values(4 * kB);
     for (std::size_t i = 0; i < 4; ++i)
       for (std::size_t b = 0; b < kB; ++b) values[i * kB + b] = float(10 * (i + 1) + b);
@@ -139,15 +140,17 @@ TEST_F(ViewService, ListsEveryObjectOfTheStore) {
   ASSERT_EQ(r.status, 200) << r.body;
   EXPECT_EQ(r.content_type, "application/json");
   for (const char* s : {"\"file\":\"view.h5\"", "{\"name\":\"img\",\"width\":6,\"height\":4,\"bands\":31",
-                        "{\"name\":\"spd\",\"size\":2,\"bands\":31}", "{\"name\":\"grid\",\"bands\":31", "{\"name\":\"flat\",\"bands\":31",
-                        "{\"name\":\"s\",\"size\":4,\"bands\":31", "{\"name\":\"nmf\",\"method\":\"nmf\",\"k\":2,\"bands\":31}",
+                        "{\"name\":\"spd\",\"size\":2,\"bands\":31}", "{\"name\":\"grid\",\"bands\":31",
+                        "{\"name\":\"flat\",\"bands\":31", "{\"name\":\"s\",\"size\":4,\"bands\":31",
+                        "{\"name\":\"nmf\",\"method\":\"nmf\",\"k\":2,\"bands\":31}",
                         "{\"name\":\"pca\",\"method\":\"pca\",\"k\":3,\"bands\":31}"})
     EXPECT_NE(r.body.find(s), std::string::npos) << s << " not in " << r.body;
 }
 
 TEST_F(ViewService, SpectrumIsThePixelAsWritten) {
   for (const auto& [x, y] : {std::pair<std::size_t, std::size_t>{0, 0}, {4, 2}, {5, 3}}) {
-    const view::Response r = get("/api/image/spectrum", {{"name", "img"}, {"x", std::to_string(x)}, {"y", std::to_string(y)}});
+    const view::Response r =
+        get("/api/image/spectrum", {{"name", "img"}, {"x", std::to_string(x)}, {"y", std::to_string(y)}});
     ASSERT_EQ(r.status, 200) << r.body;
     const std::vector<double> v = json_array_of(r.body, "values"), wl = json_array_of(r.body, "wavelengths");
     ASSERT_EQ(v.size(), kB);
@@ -156,7 +159,8 @@ TEST_F(ViewService, SpectrumIsThePixelAsWritten) {
     EXPECT_EQ(wl.back(), 720);
     // The store keeps masked pixels as zeros (docs/store-format.md).
     const bool masked = x == 5 && y == 3;
-    for (std::size_t b = 0; b < kB; ++b) EXPECT_FLOAT_EQ(float(v[b]), masked ? 0.0f : value(x, y, b)) << x << "," << y << " band " << b;
+    for (std::size_t b = 0; b < kB; ++b)
+      EXPECT_FLOAT_EQ(float(v[b]), masked ? 0.0f : value(x, y, b)) << x << "," << y << " band " << b;
     EXPECT_NE(r.body.find(masked ? "\"valid\":false" : "\"valid\":true"), std::string::npos);
   }
 }
@@ -166,8 +170,8 @@ TEST_F(ViewService, PcaReconstructionIsTheProjectionOntoTheFirstKComponents) {
   Eigen::VectorXd x(static_cast<Eigen::Index>(kB));
   for (std::size_t i = 0; i < kB; ++i) x[Eigen::Index(i)] = value(2, 1, i);
   for (const int k : {0, 1, 3}) {
-    const view::Response r =
-        get("/api/image/spectrum", {{"name", "img"}, {"x", "2"}, {"y", "1"}, {"basis", "pca"}, {"k", std::to_string(k)}});
+    const view::Response r = get("/api/image/spectrum",
+                                 {{"name", "img"}, {"x", "2"}, {"y", "1"}, {"basis", "pca"}, {"k", std::to_string(k)}});
     ASSERT_EQ(r.status, 200) << r.body;
     const std::vector<double> got = json_array_of(r.body, "values", 1);
     ASSERT_EQ(got.size(), kB);
@@ -206,10 +210,12 @@ TEST_F(ViewService, PicturesDecodeToTheImageSizeWithMaskedPixelsMarked) {
 
   // A flat spectrum from the store lights the image exactly as the CIE illuminant E does.
   const view::Response e = get("/api/image/rgb", {{"name", "img"}, {"illuminant", "E"}, {"exposure", "0"}});
-  const view::Response flat = get("/api/image/rgb", {{"name", "img"}, {"illuminant", "collection:spd:0"}, {"exposure", "0"}});
+  const view::Response flat =
+      get("/api/image/rgb", {{"name", "img"}, {"illuminant", "collection:spd:0"}, {"exposure", "0"}});
   ASSERT_EQ(flat.status, 200) << flat.body;
   EXPECT_EQ(decode(e, dir_->path()).samples, decode(flat, dir_->path()).samples);
-  const view::Response ramp = get("/api/image/rgb", {{"name", "img"}, {"illuminant", "collection:spd:1"}, {"exposure", "0"}});
+  const view::Response ramp =
+      get("/api/image/rgb", {{"name", "img"}, {"illuminant", "collection:spd:1"}, {"exposure", "0"}});
   ASSERT_EQ(ramp.status, 200);
 
   // One band: values grow with x and y, so the brightest valid pixel is white and the darkest is the least bright.
@@ -233,7 +239,8 @@ TEST_F(ViewService, GridSlicesAndSphere) {
   const std::size_t at = r.body.find("\"values\":[[") + 11;
   std::stringstream row(r.body.substr(at, r.body.find(']', at) - at));
   std::string item;
-  for (std::size_t b = 0; std::getline(row, item, ','); ++b) EXPECT_NEAR(std::stod(item), 0.02 * double(b + 1), 1e-6) << b;
+  for (std::size_t b = 0; std::getline(row, item, ','); ++b)
+    EXPECT_NEAR(std::stod(item), 0.02 * double(b + 1), 1e-6) << b;
 
   const view::Response s = get("/api/grid/sphere", {{"name", "grid"}});
   ASSERT_EQ(s.status, 200) << s.body;
@@ -252,7 +259,8 @@ TEST_F(ViewService, GridSlicesAndSphere) {
 }
 
 TEST_F(ViewService, SampleScatterKeepsExactlyThePlaneAtThetaI) {
-  const view::Response r = get("/api/samples/incidence", {{"name", "s"}, {"theta_i", "45"}, {"eps", "1"}, {"band", "3"}});
+  const view::Response r =
+      get("/api/samples/incidence", {{"name", "s"}, {"theta_i", "45"}, {"eps", "1"}, {"band", "3"}});
   ASSERT_EQ(r.status, 200) << r.body;
   EXPECT_NE(r.body.find("\"points\":[[30.000,13],[-20.000,23]]"), std::string::npos) << r.body;
   EXPECT_EQ(test::json_number(r.body, "scanned"), 4);

@@ -25,7 +25,8 @@ namespace {
 constexpr std::size_t kW = 40, kH = 30, kB = 31;
 
 float value(std::size_t x, std::size_t y, std::size_t b) {
-  return float(0.05 + 0.01 * double(x % 7) + 0.02 * double(y % 5) + 0.4 * std::sin(0.1 * double(b * (x + 1))) * 0.5 + 0.2);
+  return float(0.05 + 0.01 * double(x % 7) + 0.02 * double(y % 5) + 0.4 * std::sin(0.1 * double(b * (x + 1))) * 0.5 +
+               0.2);
 }
 
 std::filesystem::path make_store(const std::filesystem::path& dir) {
@@ -62,7 +63,8 @@ class Server {
     if (!std::fgets(line, sizeof line, out_)) return;
     first_line_ = line;
     std::smatch m;
-    if (std::regex_search(first_line_, m, std::regex(R"(http://127\.0\.0\.1:([0-9]+)/)"))) port_ = std::stoi(m[1].str());
+    if (std::regex_search(first_line_, m, std::regex(R"(http://127\.0\.0\.1:([0-9]+)/)")))
+      port_ = std::stoi(m[1].str());
   }
   ~Server() {
     if (pid_ > 0) {
@@ -126,8 +128,9 @@ TEST(ViewServer, BrowserPlotsTheSpectrumUnderTheMouse) {
   ASSERT_GT(server.port(), 0) << server.first_line();
   const std::size_t x = 23, y = 17;
   const std::string shot = std::getenv("SPECULA_VIEW_SCREENSHOT") ? std::getenv("SPECULA_VIEW_SCREENSHOT") : "";
-  const auto r = test::run_shell("cd '" + e2e.string() + "' && node hover.mjs http://127.0.0.1:" + std::to_string(server.port()) +
-                                 "/ scene " + std::to_string(x) + " " + std::to_string(y) + (shot.empty() ? "" : " '" + shot + "'"));
+  const auto r = test::run_shell("cd '" + e2e.string() +
+                                 "' && node hover.mjs http://127.0.0.1:" + std::to_string(server.port()) + "/ scene " +
+                                 std::to_string(x) + " " + std::to_string(y) + (shot.empty() ? "" : " '" + shot + "'"));
   ASSERT_EQ(r.status, 0) << r.output;
   const std::size_t at = r.output.find("\"points\":[[");
   ASSERT_NE(at, std::string::npos) << r.output;

@@ -15,8 +15,9 @@ void write(const std::filesystem::path& p, const std::string& text) { std::ofstr
 
 TEST(BrdfIrregular, ReadsTheCornellLayout) {
   test::ScratchDir dir;
-  write(dir / "a.brdf", "# num wls\n3\n\n# wls\n400 500\n600\n# samples\n0.5 0 0.25 3.14159 0.1 0.2 0.3\n"
-                        "\n0.1 0.2 0.3 0.4 1 2 3 # trailing comment\n");
+  write(dir / "a.brdf",
+        "# num wls\n3\n\n# wls\n400 500\n600\n# samples\n0.5 0 0.25 3.14159 0.1 0.2 0.3\n"
+        "\n0.1 0.2 0.3 0.4 1 2 3 # trailing comment\n");
   const IrregularBrdf b = read_brdf_irregular(dir / "a.brdf");
   ASSERT_EQ(b.size(), 2u);
   EXPECT_EQ(b.wavelengths.size(), 3u);
@@ -60,7 +61,8 @@ TEST(BrdfIrregular, EveryCornellFileMatchesALineByLineReading) {
     EXPECT_EQ(b.wavelengths[30], 700);
     for (std::size_t i = 0; i < rows.size(); ++i) {
       for (std::size_t a = 0; a < 4; ++a) ASSERT_EQ(b.angles[4 * i + a], rows[i][a]) << name << " sample " << i;
-      for (std::size_t k = 0; k < 31; ++k) ASSERT_EQ(b.values[31 * i + k], float(rows[i][4 + k])) << name << " sample " << i;
+      for (std::size_t k = 0; k < 31; ++k)
+        ASSERT_EQ(b.values[31 * i + k], float(rows[i][4 + k])) << name << " sample " << i;
     }
   }
 }

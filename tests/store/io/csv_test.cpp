@@ -28,7 +28,8 @@ float at(const Collection& c, std::size_t spectrum, std::size_t band) { return c
 
 TEST(Csv, HeaderRowWithNamesAndQuotes) {
   ScratchDir dir;
-  write_file(dir / "a.csv", "\xEF\xBB\xBFname,400,500,600\r\nA,0.1,0.2,0.3\r\n\r\n\"B, \"\"quoted\"\"\", 1 ,2e-1,+3\r\n");
+  write_file(dir / "a.csv",
+             "\xEF\xBB\xBFname,400,500,600\r\nA,0.1,0.2,0.3\r\n\r\n\"B, \"\"quoted\"\"\", 1 ,2e-1,+3\r\n");
   const Collection c = read_csv_collection(dir / "a.csv");
   ASSERT_EQ(c.size(), 2u);
   ASSERT_EQ(c.bands(), 3u);
@@ -112,8 +113,8 @@ TEST(Csv, RoundTripIsExact) {
   Collection c;
   c.names = {"plain", "with, comma", "with \"quote\"", " padded ", "#hash"};
   c.wavelengths = WavelengthGrid({400.5, 401.25, 700});
-  const float vals[] = {0.1f, 1.0f / 3.0f, 1e-7f, -2.5f, 123456.789f, 0.3f, 7.0f, 8.0f,
-                        9.0f, 3.14159265f, 2.0f / 7.0f, 1e-30f, 0.0f, -0.0f, 65504.0f};
+  const float vals[] = {0.1f, 1.0f / 3.0f, 1e-7f,       -2.5f,  123456.789f, 0.3f,  7.0f,    8.0f,
+                        9.0f, 3.14159265f, 2.0f / 7.0f, 1e-30f, 0.0f,        -0.0f, 65504.0f};
   c.values.assign(std::begin(vals), std::end(vals));
   ScratchDir dir;
   write_csv_collection(dir / "rt.csv", c);
@@ -182,8 +183,7 @@ TEST(Csv, BadCellsNameLineAndColumn) {
 
 TEST(Csv, MunsellMattImports) {
   SPECULA_REQUIRE_SHARED();
-  const Collection c =
-      read_csv_collection(test::shared_dir() / "data/reflectance/munsell_matt_1269_380-780_5nm.csv");
+  const Collection c = read_csv_collection(test::shared_dir() / "data/reflectance/munsell_matt_1269_380-780_5nm.csv");
   ASSERT_EQ(c.size(), 1269u);
   ASSERT_EQ(c.bands(), 81u);
   EXPECT_EQ(c.wavelengths.front(), 380.0);

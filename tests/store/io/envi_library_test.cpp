@@ -35,12 +35,15 @@ float lib_value(std::size_t s, std::size_t b) { return static_cast<float>(0.125 
 // the wavelengths listed out of order (ENVI allows it) so the reader must sort them with the values.
 std::string library_header(const std::string& extra = "", bool big_endian = true, std::size_t offset = 0) {
   return "ENVI\ndescription = {\n  Spectral Library written by a test}\nsamples = 5\nlines   = 3\nbands   = 1\n"
-         "header offset = " + std::to_string(offset) +
+         "header offset = " +
+         std::to_string(offset) +
          "\nfile type = ENVI Spectral Library\ndata type = 4\ninterleave = bsq\nsensor type = Unknown\n"
-         "byte order = " + (big_endian ? "1" : "0") +
+         "byte order = " +
+         (big_endian ? "1" : "0") +
          "\nwavelength units = Micrometers\nreflectance scale factor = 1.000000\n"
          "wavelength = {\n 0.4000, 0.5000, 0.9000,\n 0.7000, 0.6000}\n"
-         "spectra names = {\n Alunite GDS84 Na03, Kaolinite CM9,\n Dry Grass}\n" + extra;
+         "spectra names = {\n Alunite GDS84 Na03, Kaolinite CM9,\n Dry Grass}\n" +
+         extra;
 }
 
 const std::vector<double> kLibWl = {0.4, 0.5, 0.9, 0.7, 0.6};  // file order

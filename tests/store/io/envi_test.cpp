@@ -26,12 +26,30 @@ void append_sample(std::string& out, double v, int data_type, bool big_endian) {
   std::uint64_t bits = 0;
   std::size_t n = 0;
   switch (data_type) {
-    case 1: bits = static_cast<std::uint8_t>(v); n = 1; break;
-    case 2: bits = static_cast<std::uint16_t>(static_cast<std::int16_t>(v)); n = 2; break;
-    case 12: bits = static_cast<std::uint16_t>(v); n = 2; break;
-    case 3: bits = static_cast<std::uint32_t>(static_cast<std::int32_t>(v)); n = 4; break;
-    case 4: bits = std::bit_cast<std::uint32_t>(static_cast<float>(v)); n = 4; break;
-    case 5: bits = std::bit_cast<std::uint64_t>(v); n = 8; break;
+    case 1:
+      bits = static_cast<std::uint8_t>(v);
+      n = 1;
+      break;
+    case 2:
+      bits = static_cast<std::uint16_t>(static_cast<std::int16_t>(v));
+      n = 2;
+      break;
+    case 12:
+      bits = static_cast<std::uint16_t>(v);
+      n = 2;
+      break;
+    case 3:
+      bits = static_cast<std::uint32_t>(static_cast<std::int32_t>(v));
+      n = 4;
+      break;
+    case 4:
+      bits = std::bit_cast<std::uint32_t>(static_cast<float>(v));
+      n = 4;
+      break;
+    case 5:
+      bits = std::bit_cast<std::uint64_t>(v);
+      n = 8;
+      break;
   }
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t shift = 8 * (big_endian ? n - 1 - i : i);
@@ -372,8 +390,7 @@ TEST(Envi, BadHeadersAreInputErrors) {
   expect_has(msg("ENVI\nsamples = 99999999999999999999999\n"), "out of range");
   expect_has(msg("ENVI\nsamples = 4294967296\nlines = 4294967296\nbands = 1\ndata type = 1\ninterleave = bsq\n"),
              "1 TiB");
-  expect_has(msg("ENVI\nsamples = 1000000\nlines = 1000000\nbands = 1000\ndata type = 4\ninterleave = bsq\n"),
-             "1 TiB");
+  expect_has(msg("ENVI\nsamples = 1000000\nlines = 1000000\nbands = 1000\ndata type = 4\ninterleave = bsq\n"), "1 TiB");
   expect_has(msg(ok + "wavelength = {400, 500,\n600, 700\n"), "never closed");
   expect_has(msg(ok + "fwhm = {1, nan, 3, 4}\n"), "fwhm value 2 \"nan\" is not a finite number");
   expect_has(msg(ok + "byte order = 2\n"), "byte order = 2 must be 0");
@@ -385,18 +402,19 @@ TEST(Envi, BadHeadersAreInputErrors) {
 TEST(Envi, UnitsAndPathsProblems) {
   ScratchDir dir;
   write_file(dir / "w.raw", interleaved("bsq", 4, false));
-  write_file(dir / "w.hdr", "ENVI\nsamples = 3\nlines = 2\nbands = 4\ndata type = 4\ninterleave = bsq\n"
-                            "wavelength units = GHz\nwavelength = {1, 2, 3, 4}\n");
+  write_file(dir / "w.hdr",
+             "ENVI\nsamples = 3\nlines = 2\nbands = 4\ndata type = 4\ninterleave = bsq\n"
+             "wavelength units = GHz\nwavelength = {1, 2, 3, 4}\n");
   EXPECT_NE(error_of([&] { read_envi(dir / "w.hdr"); }).find("wavelength units = GHz is not supported"),
             std::string::npos);
   EXPECT_EQ(read_envi(dir / "w.hdr", WavelengthGrid({450, 500, 550, 600})).wavelengths[3], 600.0);
-  write_file(dir / "w.hdr", "ENVI\nsamples = 3\nlines = 2\nbands = 4\ndata type = 4\ninterleave = bsq\n"
-                            "wavelength = {0.4, 0.5, 0.6, 0.7}\n");
+  write_file(dir / "w.hdr",
+             "ENVI\nsamples = 3\nlines = 2\nbands = 4\ndata type = 4\ninterleave = bsq\n"
+             "wavelength = {0.4, 0.5, 0.6, 0.7}\n");
   EXPECT_NE(error_of([&] { read_envi(dir / "w.hdr"); }).find("wavelength units = Micrometers"), std::string::npos);
   EXPECT_NE(error_of([&] { read_envi(dir / "missing.hdr"); }).find("no such file"), std::string::npos);
   write_file(dir / "lonely.hdr", header("bsq", 4, 0));
-  EXPECT_NE(error_of([&] { read_envi(dir / "lonely.hdr"); }).find("no data file beside the header"),
-            std::string::npos);
+  EXPECT_NE(error_of([&] { read_envi(dir / "lonely.hdr"); }).find("no data file beside the header"), std::string::npos);
   write_file(dir / "nohdr.raw", "abc");
   EXPECT_NE(error_of([&] { read_envi(dir / "nohdr.raw"); }).find("no ENVI header beside it"), std::string::npos);
 }

@@ -37,7 +37,9 @@ constexpr int kUint = 0, kHalf = 1, kFloat = 2;
 std::string le32(std::uint32_t v) {
   return {static_cast<char>(v), static_cast<char>(v >> 8), static_cast<char>(v >> 16), static_cast<char>(v >> 24)};
 }
-std::string le64(std::uint64_t v) { return le32(static_cast<std::uint32_t>(v)) + le32(static_cast<std::uint32_t>(v >> 32)); }
+std::string le64(std::uint64_t v) {
+  return le32(static_cast<std::uint32_t>(v)) + le32(static_cast<std::uint32_t>(v >> 32));
+}
 std::string lef(float f) {
   std::uint32_t u;
   std::memcpy(&u, &f, 4);
@@ -63,9 +65,12 @@ std::uint16_t to_half(float f) {
 float from_half(std::uint16_t h) {
   const int sign = h >> 15, exponent = (h >> 10) & 0x1f, mantissa = h & 0x3ff;
   float v;
-  if (exponent == 0) v = std::ldexp(static_cast<float>(mantissa), -24);
-  else if (exponent == 31) v = mantissa ? std::numeric_limits<float>::quiet_NaN() : std::numeric_limits<float>::infinity();
-  else v = std::ldexp(static_cast<float>(mantissa + 1024), exponent - 25);
+  if (exponent == 0)
+    v = std::ldexp(static_cast<float>(mantissa), -24);
+  else if (exponent == 31)
+    v = mantissa ? std::numeric_limits<float>::quiet_NaN() : std::numeric_limits<float>::infinity();
+  else
+    v = std::ldexp(static_cast<float>(mantissa + 1024), exponent - 25);
   return sign ? -v : v;
 }
 
@@ -83,8 +88,7 @@ std::string make_exr(int xmin, int ymin, int width, int height, std::vector<Hand
                      const std::vector<std::pair<std::string, std::string>>& strings = {}) {
   std::sort(channels.begin(), channels.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
   std::string chlist;
-  for (const auto& c : channels)
-    chlist += c.name + '\0' + le32(c.type) + std::string(4, '\0') + le32(1) + le32(1);
+  for (const auto& c : channels) chlist += c.name + '\0' + le32(c.type) + std::string(4, '\0') + le32(1) + le32(1);
   chlist += '\0';
   const std::string box = le32(xmin) + le32(ymin) + le32(xmin + width - 1) + le32(ymin + height - 1);
   std::string header = std::string("\x76\x2f\x31\x01\x02\x00\x00\x00", 8);
@@ -128,7 +132,7 @@ std::string make_exr(int xmin, int ymin, int width, int height, std::vector<Hand
 
 struct ParsedExr {
   std::map<std::string, std::pair<std::string, std::string>> attributes;  // name -> (type, raw value)
-  std::vector<std::pair<std::string, int>> channels;                     // in file order
+  std::vector<std::pair<std::string, int>> channels;                      // in file order
   int xmin = 0, ymin = 0, width = 0, height = 0, compression = -1;
   std::map<std::string, std::vector<float>> pixels;  // row-major over the data window
 };
@@ -183,7 +187,8 @@ ParsedExr parse_exr(const std::string& s) {
       std::string tmp(raw.size(), '\0');
       uLongf n = tmp.size();
       EXPECT_EQ(uncompress(reinterpret_cast<Bytef*>(tmp.data()), &n,
-                           reinterpret_cast<const Bytef*>(s.data() + chunk + 8), size), Z_OK);
+                           reinterpret_cast<const Bytef*>(s.data() + chunk + 8), size),
+                Z_OK);
       for (std::size_t i = 1; i < tmp.size(); ++i) tmp[i] = static_cast<char>(tmp[i - 1] + tmp[i] - 128);
       const std::size_t half = (tmp.size() + 1) / 2;
       for (std::size_t i = 0; i < raw.size(); ++i) raw[i] = i % 2 ? tmp[half + i / 2] : tmp[i / 2];
@@ -207,7 +212,6 @@ ParsedExr parse_exr(const std::string& s) {
   }
   return p;
 }
-
 
 Cube random_cube(std::size_t h, std::size_t w, std::vector<double> nm, const std::string& units, unsigned seed) {
   Cube c;
@@ -318,8 +322,12 @@ TEST(ExrRead, HandMadeReflectiveWithRgbAndOffsetDataWindow) {
     return v;
   };
   std::vector<HandChannel> channels{
-      {"R", kHalf, ramp(10)},         {"G", kHalf, ramp(20)},        {"B", kHalf, ramp(30)},
-      {"T.500nm", kFloat, ramp(0.5f)}, {"T.400,5nm", kHalf, ramp(0.25f)}, {"T.0.6um", kFloat, ramp(0.75f)},
+      {"R", kHalf, ramp(10)},
+      {"G", kHalf, ramp(20)},
+      {"B", kHalf, ramp(30)},
+      {"T.500nm", kFloat, ramp(0.5f)},
+      {"T.400,5nm", kHalf, ramp(0.25f)},
+      {"T.0.6um", kFloat, ramp(0.75f)},
       {"S0.450nm", kFloat, ramp(99)},
   };
   write_file(dir / "hand.exr", make_exr(-2, 3, w, h, channels, {{"spectralLayoutVersion", "1.0"}}));
@@ -344,12 +352,17 @@ TEST(ExrRead, ChannelNameParsing) {
   ScratchDir dir;
   // Emissive channels in several spellings the layout allows, plus names that must be ignored.
   const std::vector<std::pair<std::string, double>> spectral{
-      {"S0.380,5nm", 380.5},   {"S0.0.4um", 400},       {"S0.4.2e2nm", 420},
-      {"S0.450.25nm", 450.25}, {"S0.6e14Hz", 299792458.0 * 1e9 / 6e14}, {"S0.5e-7m", 500},
-      {"S0.0,51\xc2\xb5m", 510}, {"S0.520000pm", 520},
+      {"S0.380,5nm", 380.5},
+      {"S0.0.4um", 400},
+      {"S0.4.2e2nm", 420},
+      {"S0.450.25nm", 450.25},
+      {"S0.6e14Hz", 299792458.0 * 1e9 / 6e14},
+      {"S0.5e-7m", 500},
+      {"S0.0,51\xc2\xb5m", 510},
+      {"S0.520000pm", 520},
   };
-  const std::vector<std::string> ignored{"S1.500nm", "M00.500nm", "T500nm", "S0.abcnm", "S0.500",
-                                         "S0.500nmx", "S0.,nm",   "Y",      "S0.530xm"};
+  const std::vector<std::string> ignored{"S1.500nm",  "M00.500nm", "T500nm", "S0.abcnm", "S0.500",
+                                         "S0.500nmx", "S0.,nm",    "Y",      "S0.530xm"};
   std::vector<HandChannel> channels;
   for (std::size_t k = 0; k < spectral.size(); ++k)
     channels.push_back({spectral[k].first, kFloat, {static_cast<float>(k)}});
@@ -390,9 +403,11 @@ TEST(ExrRead, TruncatedOrCorruptFileNamesTheFile) {
   EXPECT_EQ(what.find('\n'), std::string::npos) << what;
 
   write_file(dir / "header.exr", bytes.substr(0, 200));
-  EXPECT_NE(specula::test::input_error_text([&] { read_spectral_exr(dir / "header.exr"); }).find("header.exr"), std::string::npos);
+  EXPECT_NE(specula::test::input_error_text([&] { read_spectral_exr(dir / "header.exr"); }).find("header.exr"),
+            std::string::npos);
   write_file(dir / "junk.exr", std::string(1000, 'x'));
-  EXPECT_NE(specula::test::input_error_text([&] { read_spectral_exr(dir / "junk.exr"); }).find("junk.exr"), std::string::npos);
+  EXPECT_NE(specula::test::input_error_text([&] { read_spectral_exr(dir / "junk.exr"); }).find("junk.exr"),
+            std::string::npos);
   EXPECT_THROW(read_spectral_exr(dir / "missing.exr"), InputError);
 }
 

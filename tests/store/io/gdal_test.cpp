@@ -25,7 +25,7 @@ bool have_gdal_python() {
   return std::system("OPENBLAS_CORETYPE=SkylakeX /usr/bin/python3 -c 'from osgeo import gdal' >/dev/null 2>&1") == 0;
 }
 
-#define REQUIRE_GDAL_PYTHON()                                                                     \
+#define REQUIRE_GDAL_PYTHON() \
   if (!have_gdal_python()) GTEST_SKIP() << "Debian's python3-gdal is not installed (scripts/setup-deps installs it)"
 
 // Runs a Python snippet that has gdal, numpy and `out` (the path) defined; fails the test if it fails.
@@ -44,22 +44,29 @@ void write_tiff(const std::filesystem::path& out, int h, int w, int nb, const st
   python(out, "d = gdal.GetDriverByName('GTiff').Create(out, " + std::to_string(w) + ", " + std::to_string(h) + ", " +
                   std::to_string(nb) + ", gdal.GDT_Float32, options=" + options +
                   ")\n"
-                  "y, x = np.mgrid[0:" + std::to_string(h) + ", 0:" + std::to_string(w) + "]\n"
-                  "for b in range(" + std::to_string(nb) + "):\n"
+                  "y, x = np.mgrid[0:" +
+                  std::to_string(h) + ", 0:" + std::to_string(w) +
+                  "]\n"
+                  "for b in range(" +
+                  std::to_string(nb) +
+                  "):\n"
                   "    bd = d.GetRasterBand(b + 1)\n"
                   "    a = (y + 10.0 * x + 1000.0 * b).astype(np.float32)\n"
                   "    if b == 1: a[1, 2] = -9999\n"
                   "    bd.WriteArray(a)\n"
                   "    bd.SetNoDataValue(-9999)\n"
-                  "    " + band_setup + "\n"
+                  "    " +
+                  band_setup +
+                  "\n"
                   "d = None\n");
 }
 
 TEST(Gdal, ReadsRowStripsWithEnviWavelengthsAndNodata) {
   REQUIRE_GDAL_PYTHON();
   const ScratchDir dir;
-  write_tiff(dir / "a.tif", 7, 5, 3,
-             "bd.SetMetadataItem('wavelength', str(0.45 + 0.05 * b)); bd.SetMetadataItem('wavelength_units', 'Micrometers')");
+  write_tiff(
+      dir / "a.tif", 7, 5, 3,
+      "bd.SetMetadataItem('wavelength', str(0.45 + 0.05 * b)); bd.SetMetadataItem('wavelength_units', 'Micrometers')");
   GdalRaster r(dir / "a.tif", {});
   ASSERT_EQ(r.height(), 7u);
   ASSERT_EQ(r.width(), 5u);
@@ -150,12 +157,13 @@ TEST(Gdal, ImportStreamsStripsThatMatchTheFileAndLeavesTheStoreOnBadData) {
   const Cube h = Store::open(dir / "db.h5").read_image("half");
   EXPECT_NEAR(h.pixel(30, 7)[0], value_at(30, 7, 0) + 500, 1e-3);
   // NaN in the data: rejected with the first position, nothing written; masked when asked.
-  python(dir / "nan.tif", "d = gdal.GetDriverByName('GTiff').Create(out, 3, 20, 2, gdal.GDT_Float32)\n"
-                          "for b in range(2):\n"
-                          "    a = np.ones((20, 3), np.float32)\n"
-                          "    if b == 1: a[17, 1] = np.nan\n"
-                          "    d.GetRasterBand(b + 1).WriteArray(a)\n"
-                          "d = None\n");
+  python(dir / "nan.tif",
+         "d = gdal.GetDriverByName('GTiff').Create(out, 3, 20, 2, gdal.GDT_Float32)\n"
+         "for b in range(2):\n"
+         "    a = np.ones((20, 3), np.float32)\n"
+         "    if b == 1: a[17, 1] = np.nan\n"
+         "    d.GetRasterBand(b + 1).WriteArray(a)\n"
+         "d = None\n");
   ImportOptions n;
   n.wavelengths = WavelengthGrid::range(500, 510, 10);
   n.strip_bytes = 3 * (2 * 4 + 1) * 5;  // 5 rows per strip
@@ -164,7 +172,8 @@ TEST(Gdal, ImportStreamsStripsThatMatchTheFileAndLeavesTheStoreOnBadData) {
     StoreWriter w(dir / "db.h5", {});
     const std::string e = error_of([&] { import_files(w, {dir / "nan.tif"}, n); });
     EXPECT_NE(e.find("nan.tif: 1 NaN/Inf values in 1 pixels of rows 15 to 19 (first at row 17, column 1, band 1"),
-              std::string::npos) << e;
+              std::string::npos)
+        << e;
   }
   EXPECT_EQ(Store::open(dir / "db.h5").images(), before);
   n.nan = NanPolicy::mask;

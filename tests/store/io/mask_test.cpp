@@ -18,10 +18,12 @@ void write_envi_bytes(const std::filesystem::path& data, std::size_t w, std::siz
                       const std::vector<std::uint8_t>& bytes, const std::string& extra = "") {
   std::filesystem::path hdr = data;
   hdr.replace_extension(".hdr");
-  std::ofstream(hdr) << "ENVI\nsamples = " << w << "\nlines = " << h << "\nbands = " << bands
-                     << "\nheader offset = 0\nfile type = ENVI Standard\ndata type = 1\ninterleave = bsq\nbyte order = 0\n"
-                     << extra;
-  std::ofstream(data, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  std::ofstream(hdr)
+      << "ENVI\nsamples = " << w << "\nlines = " << h << "\nbands = " << bands
+      << "\nheader offset = 0\nfile type = ENVI Standard\ndata type = 1\ninterleave = bsq\nbyte order = 0\n"
+      << extra;
+  std::ofstream(data, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
 }
 
 TEST(Mask, EnviByteImageFromItsHeaderOrDataFile) {
@@ -73,12 +75,15 @@ TEST(Mask, PngBesideASameStemEnviHeaderIsReadAsThePng) {
 TEST(Mask, WhatIsNotAMaskIsOneLineNamingTheFile) {
   const test::ScratchDir dir;
   write_envi_bytes(dir / "rgb.img", 2, 1, 3, std::vector<std::uint8_t>(6, 1));
-  EXPECT_NE(test::input_error_text([&] { read_mask(dir / "rgb.img"); }).find("rgb.hdr: a mask has one band, this ENVI image has 3"),
+  EXPECT_NE(test::input_error_text([&] {
+              read_mask(dir / "rgb.img");
+            }).find("rgb.hdr: a mask has one band, this ENVI image has 3"),
             std::string::npos);
   std::ofstream(dir / "junk.bin") << "not an image";
   const std::string junk = test::input_error_text([&] { read_mask(dir / "junk.bin"); });
   EXPECT_NE(junk.find("junk.bin: a mask is a PNG or a one-band ENVI image"), std::string::npos) << junk;
-  std::ofstream(dir / "cut.png") << "\x89PNG\r\n\x1a\n" << "truncated";
+  std::ofstream(dir / "cut.png") << "\x89PNG\r\n\x1a\n"
+                                 << "truncated";
   EXPECT_NE(test::input_error_text([&] { read_mask(dir / "cut.png"); }).find("cut.png"), std::string::npos);
   EXPECT_NE(test::input_error_text([&] { read_mask(dir / "none.png"); }).find("none.png: mask file not found"),
             std::string::npos);

@@ -45,8 +45,8 @@ bool write_mat(const std::filesystem::path& p, mat_ft version, const std::vector
   for (const auto& v : vars) {
     std::vector<std::size_t> dims = v.dims;
     std::vector<unsigned char> bytes = v.bytes;
-    matvar_t* mv = Mat_VarCreate(v.name.c_str(), v.cls, v.type, static_cast<int>(dims.size()), dims.data(),
-                                 bytes.data(), v.flags);
+    matvar_t* mv =
+        Mat_VarCreate(v.name.c_str(), v.cls, v.type, static_cast<int>(dims.size()), dims.data(), bytes.data(), v.flags);
     EXPECT_NE(mv, nullptr) << v.name;
     if (!mv) break;
     EXPECT_EQ(Mat_VarWrite(mat, mv, compression), 0) << v.name;
@@ -153,12 +153,12 @@ TEST(Mat, MaskVariableLogicalUint8Double) {
   valid_d[5] = -2.0;  // nonzero = valid; (2, 1)
   for (mat_ft version : {MAT_FT_MAT5, MAT_FT_MAT73}) {
     ScratchDir dir;
-    const std::vector<MatVar> vars = {
-        ref_double(), wl_var(),
-        make_var("lmask", MAT_C_UINT8, MAT_T_UINT8, {kRows, kCols}, valid, MAT_F_LOGICAL),
-        make_var("umask", MAT_C_UINT8, MAT_T_UINT8, {kRows, kCols}, valid),
-        make_var("dmask", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols}, valid_d),
-        make_var("badmask", MAT_C_UINT8, MAT_T_UINT8, {kCols, kRows}, valid)};
+    const std::vector<MatVar> vars = {ref_double(),
+                                      wl_var(),
+                                      make_var("lmask", MAT_C_UINT8, MAT_T_UINT8, {kRows, kCols}, valid, MAT_F_LOGICAL),
+                                      make_var("umask", MAT_C_UINT8, MAT_T_UINT8, {kRows, kCols}, valid),
+                                      make_var("dmask", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols}, valid_d),
+                                      make_var("badmask", MAT_C_UINT8, MAT_T_UINT8, {kCols, kRows}, valid)};
     if (!write_mat(dir / "m.mat", version, vars)) GTEST_SKIP() << "no v7.3 support in this matio";
     for (const char* name : {"lmask", "umask", "dmask"}) {
       SCOPED_TRACE(name);
@@ -200,7 +200,10 @@ TEST(Mat, BadInputs) {
   ASSERT_TRUE(write_mat(dir / "b.mat", MAT_FT_MAT5,
                         {ref_double(), make_var("i64", MAT_C_INT64, MAT_T_INT64, {kRows, kCols, kBands}, big)}));
   std::string m = test::error_of([&] { read_mat(dir / "b.mat", "ref", std::nullopt, {}); });
-  EXPECT_NE(m.find("b.mat: no wavelength variable (wavelength, wavelengths, bands, wl or lambda) for the 5 bands of 'ref'; give the `wavelengths` option"), std::string::npos) << m;
+  EXPECT_NE(m.find("b.mat: no wavelength variable (wavelength, wavelengths, bands, wl or lambda) for the 5 bands of "
+                   "'ref'; give the `wavelengths` option"),
+            std::string::npos)
+      << m;
   m = test::error_of([&] { read_mat(dir / "b.mat", "ref", std::nullopt, WavelengthGrid(short_wl)); });
   EXPECT_NE(m.find("has 5 bands but the `wavelengths` option gives 2"), std::string::npos) << m;
   m = test::error_of([&] { read_mat(dir / "b.mat", "i64", std::nullopt, WavelengthGrid(kNm)); });
@@ -249,7 +252,9 @@ TEST(Mat, CorruptFilesFoundByFuzzingAreOneLine) {
   big.replace(name_tag, 8, std::string("\x01\0\0\0\0\0\xf8\xff", 8));  // int8, 4294443008 bytes
   test::write_file(dir / "big.mat", big);
   m = test::error_of([&] { read_mat(dir / "big.mat", "", std::nullopt, {}); });
-  EXPECT_NE(m.find("big.mat: corrupt MATLAB v5 file: the element at byte 168 claims 4294443008 bytes"), std::string::npos) << m;
+  EXPECT_NE(m.find("big.mat: corrupt MATLAB v5 file: the element at byte 168 claims 4294443008 bytes"),
+            std::string::npos)
+      << m;
 
   std::string promise = bytes;  // dims 1 x 6 -> 1 x 600000000 (0x23c34600), the data still 6 doubles
   promise.replace(128 + 8 + 16 + 12, 4, std::string("\x00\x46\xc3\x23", 4));
@@ -348,9 +353,9 @@ TEST(MatLayouts, IcvlRadBandsV73AndAradCubeBandsFirst) {
 
 TEST(MatLayouts, FosterReflectancesNeedTheOption) {
   ScratchDir dir;
-  ASSERT_TRUE(write_mat(dir / "foster.mat", MAT_FT_MAT5,
-                        {make_var("reflectances", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands},
-                                  column_major<double>())}));
+  ASSERT_TRUE(write_mat(
+      dir / "foster.mat", MAT_FT_MAT5,
+      {make_var("reflectances", MAT_C_DOUBLE, MAT_T_DOUBLE, {kRows, kCols, kBands}, column_major<double>())}));
   const std::string m = test::error_of([&] { read_mat(dir / "foster.mat", "", std::nullopt, {}); });
   EXPECT_EQ(m, (dir / "foster.mat").string() +
                    ": no wavelength variable (wavelength, wavelengths, bands, wl or lambda) for the 5 bands of "
@@ -442,7 +447,8 @@ TEST(MatLayouts, IsetcamLibraryIsACollection) {
       EXPECT_EQ(col.provenance.importer, "mat");
       for (std::size_t j = 0; j < kSpectra; ++j)
         for (std::size_t k = 0; k < kBands; ++k)
-          EXPECT_EQ(col.values[j * kBands + k], static_cast<float>(0.1 * double(j) + 0.01 * double(k))) << j << "," << k;
+          EXPECT_EQ(col.values[j * kBands + k], static_cast<float>(0.1 * double(j) + 0.01 * double(k)))
+              << j << "," << k;
     }
   }
 }
@@ -476,17 +482,18 @@ TEST(MatLayouts, UnsortedWavelengthsAreSortedWithTheirBands) {
     for (std::size_t k = 0; k < kBands; ++k)
       EXPECT_EQ(col.values[j * kBands + k], static_cast<float>(library[source[k] + kBands * j])) << j << "," << k;
 
-  ASSERT_TRUE(write_mat(dir / "twice.mat", MAT_FT_MAT5,
-                        {make_var("wavelengths", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands},
-                                  std::vector<double>{500, 400, 600, 400, 550}),
-                         ref_double()}));
+  ASSERT_TRUE(write_mat(
+      dir / "twice.mat", MAT_FT_MAT5,
+      {make_var("wavelengths", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands}, std::vector<double>{500, 400, 600, 400, 550}),
+       ref_double()}));
   try {
     read_mat(dir / "twice.mat", "ref", std::nullopt, {});
     ADD_FAILURE() << "a wavelength listed twice was accepted";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find(
-                  "twice.mat: variable 'wavelengths' lists wavelength 400 nm twice (bands 2 and 4); remove one of them"),
-              std::string::npos)
+    EXPECT_NE(
+        std::string(e.what()).find(
+            "twice.mat: variable 'wavelengths' lists wavelength 400 nm twice (bands 2 and 4); remove one of them"),
+        std::string::npos)
         << e.what();
   }
 }
@@ -498,7 +505,8 @@ TEST(MatLayouts, WavelengthNamesAndUnitsRule) {
                         {ref_double(), make_var("bands", MAT_C_DOUBLE, MAT_T_DOUBLE, {1, kBands}, numbering)}));
   std::string m = test::error_of([&] { read_mat(dir / "n.mat", "", std::nullopt, {}); });
   EXPECT_NE(m.find("variable 'bands' holds band numbers 1..5, not wavelengths; give the `wavelengths` option"),
-            std::string::npos) << m;
+            std::string::npos)
+      << m;
   EXPECT_EQ(read_mat(dir / "n.mat", "", std::nullopt, WavelengthGrid(kNm)).wavelengths[4], 600.0);
   // `WL` matches case-insensitively; integers below 20 are not micrometres, they stay nm.
   ASSERT_TRUE(write_mat(dir / "i.mat", MAT_FT_MAT5,
@@ -522,7 +530,8 @@ TEST(Mat, ACubeOfManyTransposeTilesLandsWhereMatlabPutIt) {
   ASSERT_EQ(cube.width, C);
   for (std::size_t r = 0; r < R; ++r)
     for (std::size_t c = 0; c < C; ++c)
-      for (std::size_t b = 0; b < B; ++b) ASSERT_EQ(cube.pixel(r, c)[b], float(1000.0 * r + 10.0 * c + b)) << r << "," << c;
+      for (std::size_t b = 0; b < B; ++b)
+        ASSERT_EQ(cube.pixel(r, c)[b], float(1000.0 * r + 10.0 * c + b)) << r << "," << c;
 }
 
 }  // namespace

@@ -99,7 +99,6 @@ std::string gray8_scanlines(std::size_t width, const std::vector<std::uint8_t>& 
   return s;
 }
 
-
 TEST(PngRead, HandMade16BitGrayIsBigEndianOnDisk) {
   ScratchDir dir;
   const std::vector<std::uint16_t> values{0, 1, 256, 0x1234, 0xfffe, 0xffff};
@@ -115,10 +114,14 @@ TEST(PngRead, HandMade16BitGrayIsBigEndianOnDisk) {
 TEST(PngRead, HandMadePaletteWithTransparencyExpandsToRgba) {
   ScratchDir dir;
   // 2-bit palette indices, 3 x 2 pixels: row 0 = 0 1 2, row 1 = 2 2 1 (packed high bits first).
-  const std::string plte("\x10\x20\x30" "\xff\x00\x80" "\x05\x06\x07", 9);
+  const std::string plte(
+      "\x10\x20\x30"
+      "\xff\x00\x80"
+      "\x05\x06\x07",
+      9);
   const std::string trns("\x00\x7f", 2);  // entry 2 has no alpha entry, so it is opaque
-  const std::string rows = std::string("\x00", 1) + static_cast<char>(0b00011000) + std::string("\x00", 1) +
-                           static_cast<char>(0b10100100);
+  const std::string rows =
+      std::string("\x00", 1) + static_cast<char>(0b00011000) + std::string("\x00", 1) + static_cast<char>(0b10100100);
   write_file(dir / "pal.png", make_png(3, 2, 2, 3, rows, chunk("PLTE", plte) + chunk("tRNS", trns)));
   const PngImage img = read_png(dir / "pal.png");
   EXPECT_EQ(img.channels, 4u);
@@ -161,7 +164,8 @@ TEST(PngRoundTrip, Rgb8InMemory) {
   std::vector<std::uint8_t> rgb(3 * w * h);
   for (auto& v : rgb) v = static_cast<std::uint8_t>(rng());
   const std::vector<std::uint8_t> bytes = encode_png_rgb8(w, h, rgb);
-  std::ofstream(dir / "m.png", std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  std::ofstream(dir / "m.png", std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
   const PngImage img = read_png(dir / "m.png");
   ASSERT_EQ(img.width, w);
   ASSERT_EQ(img.height, h);
@@ -272,8 +276,8 @@ TEST(PngStack, HandMadeThreeBandDirectory) {
   EXPECT_EQ(c.pixel(0, 1)[1], 1.0f);
 
   // an explicit list keeps the caller's order
-  const Cube r = read_png_stack({dir / "scene_ms/scene_ms_03.png", dir / "scene_ms/scene_ms_01.png"},
-                                WavelengthGrid({500, 600}));
+  const Cube r =
+      read_png_stack({dir / "scene_ms/scene_ms_03.png", dir / "scene_ms/scene_ms_01.png"}, WavelengthGrid({500, 600}));
   EXPECT_FLOAT_EQ(r.pixel(1, 2)[0], static_cast<float>(252 / 255.0));
   EXPECT_FLOAT_EQ(r.pixel(1, 2)[1], static_cast<float>(32768 / 65535.0));
 }
@@ -294,11 +298,15 @@ TEST(PngStack, CountMismatchTellsToPassWavelengths) {
   ScratchDir dir;
   for (int k = 1; k <= 3; ++k)
     write_png_gray16(dir / ("s_0" + std::to_string(k) + ".png"), 2, 2, std::vector<std::uint16_t>(4, 9));
-  const std::string what = specula::test::input_error_text([&] { read_png_stack({dir.path()}, WavelengthGrid({400, 500})); });
+  const std::string what = specula::test::input_error_text([&] {
+    read_png_stack({dir.path()}, WavelengthGrid({400, 500}));
+  });
   EXPECT_NE(what.find("3 PNG files"), std::string::npos) << what;
   EXPECT_NE(what.find("2 wavelengths"), std::string::npos) << what;
   EXPECT_NE(what.find("`wavelengths` option"), std::string::npos) << what;
-  EXPECT_NE(specula::test::input_error_text([&] { read_png_stack({dir.path()}, WavelengthGrid()); }).find("`wavelengths` option"),
+  EXPECT_NE(specula::test::input_error_text([&] {
+              read_png_stack({dir.path()}, WavelengthGrid());
+            }).find("`wavelengths` option"),
             std::string::npos);
 
   fs::create_directory(dir / "empty");
@@ -318,12 +326,16 @@ TEST(PngStack, RejectsColourBandsSizeMismatchAndCorruptBands) {
   EXPECT_NE(what.find("(1, 1)"), std::string::npos) << what;
 
   write_png_gray16(dir / "big.png", 3, 2, std::vector<std::uint16_t>(6, 1));
-  what = specula::test::input_error_text([&] { read_png_stack({dir / "a.png", dir / "big.png"}, WavelengthGrid({400, 500})); });
+  what = specula::test::input_error_text([&] {
+    read_png_stack({dir / "a.png", dir / "big.png"}, WavelengthGrid({400, 500}));
+  });
   EXPECT_NE(what.find("big.png"), std::string::npos) << what;
 
   const std::string bytes = specula::test::read_bytes(dir / "big.png");
   write_file(dir / "cut.png", bytes.substr(0, bytes.size() / 2));
-  what = specula::test::input_error_text([&] { read_png_stack({dir / "a.png", dir / "cut.png"}, WavelengthGrid({400, 500})); });
+  what = specula::test::input_error_text([&] {
+    read_png_stack({dir / "a.png", dir / "cut.png"}, WavelengthGrid({400, 500}));
+  });
   EXPECT_NE(what.find("cut.png"), std::string::npos) << what;
 }
 

@@ -81,7 +81,8 @@ TEST(SpectralLibrary, UsgsBadInputsNameFileAndLine) {
   EXPECT_NE(m.find("text.txt: line 4: \"abc\" is not a number"), std::string::npos) << m;
   EXPECT_EQ(m.find('\n'), std::string::npos);
   // A value no float32 holds (found by fuzzing: it became inf in the collection).
-  write_file(dir / "huge.txt", splib("splib07a Record=9: Huge ASDFRa AREF", {"0.1", "0.2", "2300000e+34", "0.4", "0.5"}));
+  write_file(dir / "huge.txt",
+             splib("splib07a Record=9: Huge ASDFRa AREF", {"0.1", "0.2", "2300000e+34", "0.4", "0.5"}));
   m = error_of([&] { read_usgs_spectra(Paths{dir / "huge.txt"}, wl); });
   EXPECT_NE(m.find("huge.txt: line 4: value 2.3e+40 is beyond the float32 range of a store"), std::string::npos) << m;
   // Title only.
@@ -100,13 +101,15 @@ TEST(SpectralLibrary, UsgsBadInputsNameFileAndLine) {
 std::string ecostress(const std::string& name, const std::vector<std::pair<std::string, std::string>>& rows,
                       const std::string& x_units = "Wavelength (micrometers)",
                       const std::string& y_units = "Reflectance (percent)", std::size_t declared = 0) {
-  std::string s = "Name: " + name + "\nType: Mineral\nClass: Silicate\nSubclass: Inosilicate\n"
+  std::string s = "Name: " + name +
+                  "\nType: Mineral\nClass: Silicate\nSubclass: Inosilicate\n"
                   "Particle Size:  125-500 um\nSample No.: InS-1A\nOwner: JHU\nWavelength Range: TIR\n"
                   "Origin: Synthetic test fixture\nCollection Date: N/A\n"
                   "Description: A test spectrum written in the ECOSTRESS layout.\n"
                   "Measurement: Directional (10 Degree) Hemispherical Reflectance\n"
-                  "First Column: X\nSecond Column: Y\nX Units: " + x_units + "\nY Units: " + y_units +
-                  "\nFirst X Value: " + rows.front().first + "\nLast X Value: " + rows.back().first +
+                  "First Column: X\nSecond Column: Y\nX Units: " +
+                  x_units + "\nY Units: " + y_units + "\nFirst X Value: " + rows.front().first +
+                  "\nLast X Value: " + rows.back().first +
                   "\nNumber of X Values: " + std::to_string(declared ? declared : rows.size()) +
                   "\nAdditional Information: none\n\n";
   for (const auto& [x, y] : rows) s += x + "\t" + y + "\n";
@@ -131,10 +134,10 @@ TEST(SpectralLibrary, EcostressSortedConvertedAndGridsMustAgree) {
   EXPECT_EQ(c.provenance.importer, "ecostress (micrometers->nm, percent->fraction)");
 
   // A third file on another grid: one line naming it.
-  write_file(dir / "c.spectrum.txt",
-             ecostress("Other", {{"0.8", "1"}, {"0.7", "2"}, {"0.5", "3"}, {"0.4", "4"}}));
-  const std::string m = error_of(
-      [&] { read_ecostress_spectra(Paths{dir / "a.spectrum.txt", dir / "b.spectrum.txt", dir / "c.spectrum.txt"}); });
+  write_file(dir / "c.spectrum.txt", ecostress("Other", {{"0.8", "1"}, {"0.7", "2"}, {"0.5", "3"}, {"0.4", "4"}}));
+  const std::string m = error_of([&] {
+    read_ecostress_spectra(Paths{dir / "a.spectrum.txt", dir / "b.spectrum.txt", dir / "c.spectrum.txt"});
+  });
   EXPECT_NE(m.find("c.spectrum.txt: its wavelengths"), std::string::npos) << m;
   EXPECT_NE(m.find("differ from " + (dir / "a.spectrum.txt").string()), std::string::npos) << m;
   EXPECT_NE(m.find("band 3"), std::string::npos) << m;
@@ -170,8 +173,8 @@ TEST(SpectralLibrary, EcostressBadInputsNameFileAndLine) {
   m = error_of([&] { read_ecostress_spectra(Paths{dir / "n.txt"}); });
   EXPECT_NE(m.find("n.txt: line 23: \"0.6?x2\" is not a row of two numbers"), std::string::npos) << m;
   // A row count no size_t holds (found by fuzzing: converting it was undefined).
-  write_file(dir / "count.txt", ecostress("N", {{"0.8", "1"}, {"0.6", "2"}}, "Wavelength (micrometers)",
-                                          "Reflectance (percent)", 0));
+  write_file(dir / "count.txt",
+             ecostress("N", {{"0.8", "1"}, {"0.6", "2"}}, "Wavelength (micrometers)", "Reflectance (percent)", 0));
   {
     std::string text;
     std::ifstream in(dir / "count.txt");
@@ -185,7 +188,8 @@ TEST(SpectralLibrary, EcostressBadInputsNameFileAndLine) {
       << m;
   // Y Units holding carriage returns (found by fuzzing) stay out of the one-line message.
   write_file(dir / "a.txt", ecostress("A", {{"0.8", "1"}, {"0.6", "2"}}));
-  write_file(dir / "cr.txt", ecostress("B", {{"0.8", "1"}, {"0.6", "2"}}, "Wavelength (micrometers)", "Reflecta\r\rnce (percent)"));
+  write_file(dir / "cr.txt",
+             ecostress("B", {{"0.8", "1"}, {"0.6", "2"}}, "Wavelength (micrometers)", "Reflecta\r\rnce (percent)"));
   m = error_of([&] { read_ecostress_spectra(Paths{dir / "a.txt", dir / "cr.txt"}); });
   EXPECT_NE(m.find("cr.txt: Y Units (reflecta??nce, percent) differ from"), std::string::npos) << m;
   EXPECT_EQ(m.find_first_of("\r\n"), std::string::npos) << m;
