@@ -1,111 +1,34 @@
-// The "priors" object kind of the store (docs/store-format.md): a learned BRDF prior (acquire/prior.h).
-#include <hdf5.h>
-
-#include <algorithm>
-#include <cmath>
-
+// A learned BRDF prior (acquire/prior.h) in and out of the store's "priors" kind (store/prior.h).
 #include "specula/acquire/prior.h"
-#include "specula/core/error.h"
-#include "specula/store/h5.h"
+#include "specula/store/prior.h"
 
 namespace specula::acquire {
-namespace {
-
-namespace h5 = store::h5;
-constexpr long long kPriorVersion = 1;
-
-// A rows x cols float32 dataset, chunked by rows of at most 2^18 values and deflated.
-void write_f32(hid_t loc, const std::string& name, std::span<const float> v, hsize_t rows, const std::string& ctx) {
-  const hsize_t cols = rows ? hsize_t(v.size()) / rows : 0;
-  const hsize_t dims[2] = {rows, cols};
-  h5::Id space(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
-  h5::Id dcpl(h5::check(H5Pcreate(H5P_DATASET_CREATE), ctx, "H5Pcreate"));
-  if (rows && cols) {
-    const hsize_t chunk[2] = {1, std::min<hsize_t>(cols, hsize_t(1) << 18)};
-    h5::check(H5Pset_chunk(dcpl, 2, chunk), ctx, "H5Pset_chunk");
-    h5::check(H5Pset_shuffle(dcpl), ctx, "H5Pset_shuffle");
-    h5::check(H5Pset_deflate(dcpl, 4), ctx, "H5Pset_deflate");
-  }
-  h5::Id ds(h5::check(H5Dcreate2(loc, name.c_str(), H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx,
-                      "cannot create " + name));
-  if (!v.empty())
-    h5::check(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot write " + name);
-}
-
-std::vector<float> read_f32(hid_t loc, const std::string& name, hsize_t rows, hsize_t cols, const std::string& ctx) {
-  if (!h5::exists(loc, name)) throw InputError(ctx + ": dataset '" + name + "' is missing");
-  h5::Id ds(h5::check(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), ctx, "cannot open " + name));
-  const auto dims = h5::shape(ds, ctx);
-  if (dims != std::vector<hsize_t>{rows, cols})
-    throw InputError(ctx + ": dataset '" + name + "' is not " + std::to_string(rows) + " x " + std::to_string(cols));
-  std::vector<float> v(rows * cols);
-  if (!v.empty())
-    h5::check(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot read " + name);
-  for (const float x : v)
-    if (!std::isfinite(x)) throw InputError(ctx + ": dataset '" + name + "' holds a non-finite value");
-  return v;
-}
-
-}  // namespace
 
 void write_prior(store::StoreWriter& out, const std::string& name, const BrdfPrior& p) {
   store::validate_name(name, "prior");
-  const std::string ctx = out.label() + ": /priors/" + name;
-  h5::Id g = out.create_group("priors", name);
-  h5::write_attr(g, "prior_version", kPriorVersion, ctx);
-  h5::write_attr(g, "mapping", std::string_view("log-relative-cos"), ctx);
-  h5::write_attr(g, "epsilon", p.epsilon, ctx);
-  h5::write_vector(g, "wavelengths", p.wavelengths.values(), ctx);
-  h5::write_vector(g, "knots", p.knots, ctx);
-  h5::write_vector(g, "variances", p.variances, ctx);
-  write_f32(g, "reference", p.reference, 1, ctx);
-  write_f32(g, "mean", p.mean, 1, ctx);
-  write_f32(g, "components", p.components, p.k(), ctx);
-  std::string list;
-  for (const auto& t : p.training) list += (list.empty() ? "" : "\n") + t;
-  h5::write_attr(g, "training", std::string_view(list), ctx);
-  store::Provenance prov;
-  prov.importer = "prior build";
-  store::write_provenance(g, prov, out.options().command_line, ctx);
+  out.add_prior(name, {.wavelengths = std::vector<double>(p.wavelengths.values().begin(), p.wavelengths.values().end()),
+                       .knots = p.knots,
+                       .variances = p.variances,
+                       .epsilon = p.epsilon,
+                       .reference = p.reference,
+                       .mean = p.mean,
+                       .components = p.components,
+                       .training = p.training});
 }
 
-std::vector<std::string> prior_names(const store::Store& in) { return h5::list(in.file(), "/priors"); }
+std::vector<std::string> prior_names(const store::Store& in) { return in.objects("priors"); }
 
 BrdfPrior read_prior(const store::Store& in, const std::string& name) {
-  const std::string path = "/priors/" + name, ctx = in.label() + ": " + path;
-  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(in.file(), path)) {
-    std::string have;
-    for (const auto& n : prior_names(in)) have += (have.empty() ? "" : ", ") + n;
-    throw InputError(in.label() + ": no prior '" + name + "' (priors: " + (have.empty() ? "none" : have) +
-                     "; build one with specula prior build)");
-  }
-  h5::Id g(h5::check(H5Gopen2(in.file(), path.c_str(), H5P_DEFAULT), ctx, "cannot open"));
-  const long long version = h5::read_int_attr(g, "prior_version", ctx);
-  if (version > kPriorVersion)
-    throw InputError(ctx + ": prior version " + std::to_string(version) + " is newer than this specula reads (" +
-                     std::to_string(kPriorVersion) + "); upgrade specula");
+  store::PriorTables t = in.read_prior(name, valid_cells().size());
   BrdfPrior p;
-  p.wavelengths = WavelengthGrid(h5::read_vector(g, "wavelengths", ctx));
-  p.knots = h5::read_vector(g, "knots", ctx);
-  p.variances = h5::read_vector(g, "variances", ctx);
-  if (!h5::has_attr(g, "epsilon")) throw InputError(ctx + ": attribute 'epsilon' is missing");
-  {
-    h5::Id attr(h5::check(H5Aopen(g, "epsilon", H5P_DEFAULT), ctx, "cannot open attribute epsilon"));
-    h5::check(H5Aread(attr, H5T_NATIVE_DOUBLE, &p.epsilon), ctx, "cannot read attribute epsilon");
-  }
-  const hsize_t d = valid_cells().size();
-  p.reference = read_f32(g, "reference", 1, d, ctx);
-  p.mean = read_f32(g, "mean", 1, d, ctx);
-  p.components = read_f32(g, "components", p.variances.size(), d, ctx);
-  const std::string list = h5::read_string_attr(g, "training", ctx);
-  for (std::size_t at = 0; at < list.size();) {
-    const std::size_t nl = std::min(list.find('\n', at), list.size());
-    p.training.push_back(list.substr(at, nl - at));
-    at = nl + 1;
-  }
-  if (p.knots.size() < 2 || !(p.epsilon > 0) ||
-      std::any_of(p.variances.begin(), p.variances.end(), [](double v) { return !(v > 0); }))
-    throw InputError(ctx + ": malformed prior (knots, epsilon or variances)");
+  p.wavelengths = WavelengthGrid(t.wavelengths);
+  p.knots = std::move(t.knots);
+  p.variances = std::move(t.variances);
+  p.epsilon = t.epsilon;
+  p.reference = std::move(t.reference);
+  p.mean = std::move(t.mean);
+  p.components = std::move(t.components);
+  p.training = std::move(t.training);
   return p;
 }
 

@@ -9,7 +9,9 @@
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/spc.h"
+#include "specula/codec/spc_target.h"
 #include "specula/codec/spectral_grid.h"
+#include "specula/codec/suite.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/cie.h"
 #include "specula/core/colour.h"
@@ -251,12 +253,14 @@ void init_brdf(py::module_& m) {
         } else if (!reference.is_none()) {
           throw UsageError("spc_encode: reference names a learned basis; without one the basis is 'self'");
         }
-        codec::SpcOptions options{.max_error = max_error, .magnitude_scale = magnitude_scale, .zstd_level = zstd_level};
-        if (step || target_de00) options.method = codec::SpcMethod::transform;
+        const codec::SpcBoundedOptions bounded{
+            .max_error = max_error, .magnitude_scale = magnitude_scale, .zstd_level = zstd_level};
+        codec::SpcTransformOptions options{.magnitude_scale = magnitude_scale};
         if (step) options.step = *step;
+        const bool transform = step || target_de00;
         const double p95 = target_p95.value_or(3 * target_de00.value_or(0));
-        std::optional<codec::Environment> env;
-        if (target_de00) env = environment_from(env_arg, grid.wavelengths);
+        std::optional<codec::LightingSuite> suite;
+        if (target_de00) suite.emplace(environment_from(env_arg, grid.wavelengths), codec::SuiteOptions{});
         codec::SpcReport rep;
         codec::SpcTargetReport target;
         std::vector<std::uint8_t> bytes;
@@ -270,13 +274,15 @@ void init_brdf(py::module_& m) {
             b = codec::augment_basis(codec::coding_basis(*basis, k, ref), grid, extra);
           }
           if (target_de00) {
-            const codec::SpcTarget t{.de00_mean = *target_de00, .de00_p95 = p95, .max_trials = trials};
-            bytes = codec::encode_spc_to_target(grid, b, options, t, *env, target, &rep, grid.provenance.source_file);
-          } else {
+            const codec::SpcTarget t{
+                .de00_mean = *target_de00, .de00_p95 = p95, .condition_mean = 2 * *target_de00, .max_trials = trials};
+            bytes = codec::encode_spc_to_target(grid, b, options, t, *suite, target, &rep, grid.provenance.source_file);
+          } else if (transform) {
             bytes = codec::encode_spc(grid, b, options, &rep, grid.provenance.source_file);
+          } else {
+            bytes = codec::encode_spc(grid, b, bounded, &rep, grid.provenance.source_file);
           }
         }
-        const bool transform = options.method == codec::SpcMethod::transform;
         py::dict r;  // the fields of `specula encode --json`
         r["method"] = transform ? "transform" : "bounded";
         r["format_version"] = transform ? 2 : 1;

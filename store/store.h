@@ -102,6 +102,8 @@ struct CoefficientsInfo {
 /// An object of a kind another library defines (kind "acquire": acquire's calibrations): float64 vectors and
 /// matrices and string attributes by name, with provenance. Written by StoreWriter::add_record, read by
 /// Store::read_record.
+struct PriorTables;
+
 struct Record {
   std::string label;  ///< "<store>: /<kind>/<name>", the prefix of messages about it (set by read_record)
   std::vector<std::pair<std::string, Eigen::MatrixXd>> matrices;     ///< 2-D datasets (row-major on disk)
@@ -180,6 +182,8 @@ class Store {
                     std::span<float> values) const;
   /// Record `name` of `kind` (written by StoreWriter::add_record); InputError when absent or malformed.
   Record read_record(const std::string& kind, const std::string& name) const;
+  /// Prior `name` (store/prior.h) of `cells` cells; InputError naming what the store holds when absent or malformed.
+  PriorTables read_prior(const std::string& name, std::size_t cells) const;
 
  private:
   friend struct StoreAccess;
@@ -240,6 +244,8 @@ class StoreWriter {
   /// Adds record `name` of `kind` (one of layout::kKinds other than the kinds above, e.g. "acquire") in its own data
   /// file, for other libraries' object kinds; replaces an existing object only when options().replace.
   void add_record(const std::string& kind, const std::string& name, const Record& record);
+  /// Adds prior `name` (store/prior.h) with importer "prior build" in its provenance.
+  void add_prior(const std::string& name, const PriorTables& prior);
   /// Removes object `name` of `kind` on commit; InputError if the store has no such object.
   void remove(const std::string& kind, const std::string& name);
   /// Makes every change visible at the store's path at once (waiting for other writers' commits, never for their
