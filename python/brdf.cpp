@@ -295,6 +295,10 @@ void init_brdf(py::module_& m) {
           t["step"] = target.step;
           t["reached_de00_mean"] = target.de00_mean;
           t["reached_de00_p95"] = target.de00_p95;
+          t["condition_mean"] = 2 * *target_de00;
+          t["worst_condition"] = target.worst_condition;
+          t["worst_de00_mean"] = target.worst_mean;
+          t["measure"] = "lighting suite";
           r["target"] = t;
         }
         r["step"] = transform ? rep.magnitude_step : 0.0;

@@ -15,7 +15,7 @@ import specula
 def test_imported_from_site_packages_with_stubs_and_py_typed():
     package = os.path.dirname(os.path.abspath(specula.__file__))
     assert package == os.path.join(sysconfig.get_paths()["platlib"], "specula")
-    assert not package.startswith(os.path.abspath(BUILD))
+    assert not package.startswith(os.path.join(os.path.abspath(BUILD), "python"))
     assert sys.prefix != sys.base_prefix  # a venv
     for f in ("__init__.pyi", "py.typed"):
         assert os.path.isfile(os.path.join(package, f)), f
