@@ -117,3 +117,18 @@ def test_encoding_records_where_the_basis_came_from(spgrid, tmp_path):
     assert report["basis"] == "bases.h5:nmf3+1" and specula.SpcBrdf(data).reference == "bases.h5:nmf3+1"
     assert specula.spc_encode(g, basis=four, k=3, reference="mine")[1]["basis"] == "mine"
     assert specula.spc_encode(g, basis=four, k=3)[1]["basis"] == "python"  # made in Python, saved nowhere
+
+
+def test_fidelity_is_brdf_diff_suite(spgrid, tmp_path):
+    g = specula.read_spgrid(spgrid)
+    data, _ = specula.spc_encode(g, k=2)
+    coded = tmp_path / "c.spc"
+    specula.write_spc(coded, data)
+    want = json.loads(cli("brdf-diff", spgrid, coded, "--json").stdout)
+    got = specula.fidelity(g, specula.spc_decode(coded))
+    for key in ("de00_mean", "de00_p95", "de00_max", "pixels", "hole_pixels", "cells", "hole_cells", "rel_rms_cos"):
+        assert got[key] == pytest.approx(want[key], rel=1e-9, abs=1e-12), key
+    assert got["worst_condition"] == want["worst_condition"] and len(got["conditions"]) == len(want["conditions"])
+    # A grid against itself: nothing to see under any condition.
+    same = specula.fidelity(g, g)
+    assert same["de00_max"] == 0 and same["hole_cells"] == 0
