@@ -11,15 +11,13 @@
 #include "specula/core/error.h"
 
 namespace specula::python {
-namespace {
-std::string fspath(const py::object& p) { return py::module_::import("os").attr("fspath")(p).cast<std::string>(); }
-}  // namespace
+namespace {}  // namespace
 
 void init_bsdf(py::module_& m) {
   m.def(
       "read_bsdf",
-      [](const py::object& p) -> py::object {
-        const std::string path = fspath(p);
+      [](const PathArg& p) -> py::object {
+        const std::string path = existing_file(p).string();
         codec::RglBsdf b = codec::read_rgl_bsdf(path);
         if (!b.rgb) {
           store::Grid g;
@@ -43,7 +41,7 @@ void init_bsdf(py::module_& m) {
       "write_bsdf",
       [](const py::object& p, const store::Grid& g, bool rgb, std::size_t theta_i, std::size_t resolution,
          const std::string& description) {
-        const std::string path = fspath(p);
+        const std::string path = path_from(p).string();
         py::gil_scoped_release release;
         const codec::RglExportSettings s{.theta_i = theta_i, .resolution = resolution, .description = description};
         const codec::RglBsdf b =

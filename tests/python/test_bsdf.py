@@ -53,3 +53,8 @@ def test_errors_are_input_errors(tmp_path):
     bad.write_bytes(b"tensor_filX" + bytes(20))
     with pytest.raises(specula.InputError, match="bad.bsdf"):
         specula.read_bsdf(bad)
+
+
+def test_read_bsdf_missing_file_is_file_not_found(tmp_path):
+    with pytest.raises(FileNotFoundError, match=str(tmp_path / "nope.bsdf")):
+        specula.read_bsdf(tmp_path / "nope.bsdf")
