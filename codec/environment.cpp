@@ -1,7 +1,5 @@
 #include "specula/codec/environment.h"
 
-#include <omp.h>
-
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -359,14 +357,11 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
       for (const Pair& p : pairs) sorted[start[p.cell >> kBucketShift]++] = p;
     // Each thread owns a fixed share of the (grid, band) planes and walks the pairs in cache-sized chunks,
     // every chunk through all its planes, so the pairs come from memory once per thread, not once per plane.
-    const std::size_t tasks = grids.size() * b;
-#pragma omp parallel
-    {
-      const auto threads = std::size_t(omp_get_num_threads()), me = std::size_t(omp_get_thread_num());
+    parallel_shares(grids.size() * b, [&](std::size_t task_first, std::size_t task_last) {
       for (std::size_t c0 = 0; c0 < sorted.size(); c0 += kChunk) {
         const Pair* first = sorted.data() + c0;
         const Pair* last = sorted.data() + std::min(sorted.size(), c0 + kChunk);
-        for (std::size_t gk = me; gk < tasks; gk += threads) {
+        for (std::size_t gk = task_first; gk < task_last; ++gk) {
           const float* plane = grids[gk / b]->brdf.data() + (gk % b) * brdf::kMerlCells;
           const double* power = lights.power.data() + (gk % b) * nl;
           double* a = acc.data() + gk * pixels;
@@ -374,7 +369,7 @@ SphereRenders render_spheres(const std::vector<const store::Grid*>& grids, const
             a[p->pixel] += double(std::max(plane[p->cell], 0.0f)) * power[p->light] * double(p->weight);
         }
       }
-    }
+    });
   };
   return render_with(grids.size(), env, size, shade, [&](std::size_t g) { return grids[g]->scale; });
 }

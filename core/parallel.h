@@ -7,6 +7,9 @@
 #include <cstddef>
 #include <exception>
 #include <mutex>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "specula/core/interrupt.h"
 
@@ -49,6 +52,21 @@ template <class Body>
 void parallel_for(std::size_t n, Body&& body, std::size_t grain = 1) {
   parallel_for(
       n, [] { return 0; }, [&](std::size_t i, int&) { body(i); }, grain);
+}
+
+/// Runs body(first, last) over contiguous, disjoint shares of [0, n) that together cover it, one share per OpenMP
+/// thread (at most n), each share wholly on one thread; for work that sweeps shared data once per share and
+/// accumulates per index. Interruption and exceptions as parallel_for. Results do not depend on the thread count
+/// when body treats every index the same whatever share holds it.
+template <class Body>
+void parallel_shares(std::size_t n, Body&& body) {
+#ifdef _OPENMP
+  const std::size_t threads = static_cast<std::size_t>(omp_get_max_threads());
+#else
+  const std::size_t threads = 1;
+#endif
+  const std::size_t shares = n < threads ? n : threads;
+  parallel_for(shares, [&](std::size_t s) { body(s * n / shares, (s + 1) * n / shares); });
 }
 
 }  // namespace specula

@@ -56,146 +56,14 @@
 
 #include "specula/core/cie.h"
 #include "specula/core/error.h"
+#include "specula/core/parallel.h"
+#include "specula/store/detail/synth_random.h"
 
 namespace specula::store {
+using namespace synth_detail;
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-std::uint64_t splitmix64(std::uint64_t& state) {
-  std::uint64_t z = (state += 0x9E3779B97F4A7C15ull);
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
-
-std::uint64_t mix(std::uint64_t a, std::uint64_t b) {
-  std::uint64_t s = a ^ (b * 0xD1B54A32D192ED03ull);
-  splitmix64(s);
-  return splitmix64(s);
-}
-
-/// xoshiro256** (Blackman & Vigna), seeded through splitmix64.
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) {
-    for (auto& w : s_) w = splitmix64(seed);
-  }
-  std::uint64_t next() {
-    const std::uint64_t result = rotl(s_[1] * 5, 7) * 9;
-    const std::uint64_t t = s_[1] << 17;
-    s_[2] ^= s_[0];
-    s_[3] ^= s_[1];
-    s_[1] ^= s_[2];
-    s_[0] ^= s_[3];
-    s_[2] ^= t;
-    s_[3] = rotl(s_[3], 45);
-    return result;
-  }
-  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
-  double uniform(double a, double b) { return a + (b - a) * uniform(); }
-  double log_uniform(double a, double b) { return a * std::exp(std::log(b / a) * uniform()); }
-  /// Integer in [lo, hi] inclusive.
-  int integer(int lo, int hi) {
-    return lo + static_cast<int>((next() >> 32) % static_cast<std::uint64_t>(hi - lo + 1));
-  }
-  bool chance(double p) { return uniform() < p; }
-
- private:
-  static std::uint64_t rotl(std::uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
-  std::array<std::uint64_t, 4> s_{};
-};
-
-constexpr int kNormalBits = 12;
-constexpr std::size_t kNormalSize = std::size_t{1} << kNormalBits;
-
-/// Standard normal quantiles at (i + 0.5) / 4096, rescaled to unit variance.
-const std::array<float, kNormalSize>& normal_table() {
-  static const std::array<float, kNormalSize> table = [] {
-    std::array<double, kNormalSize> q{};
-    for (std::size_t i = 0; i < kNormalSize; ++i) {
-      const double p = (static_cast<double>(i) + 0.5) / static_cast<double>(kNormalSize);
-      double lo = -10, hi = 10;
-      for (int it = 0; it < 80; ++it) {  // bisection on Phi(x) = p
-        const double mid = 0.5 * (lo + hi);
-        (0.5 * std::erfc(-mid / std::numbers::sqrt2) < p ? lo : hi) = mid;
-      }
-      q[i] = 0.5 * (lo + hi);
-    }
-    double var = 0;
-    for (double v : q) var += v * v;
-    var /= static_cast<double>(kNormalSize);
-    const double scale = 1.0 / std::sqrt(var);
-    std::array<float, kNormalSize> t{};
-    for (std::size_t i = 0; i < kNormalSize; ++i) t[i] = static_cast<float>(q[i] * scale);
-    return t;
-  }();
-  return table;
-}
-
-/// Approximately standard normal deviates from eight xoshiro256** streams run side by side (so the
-/// compiler can vectorise them), each 64-bit output giving five deviates by table lookup on 12-bit slices.
-class NormalStream {
-  using Lanes = std::uint64_t __attribute__((vector_size(64)));  // GCC/Clang vector extension, 8 lanes
-
- public:
-  static constexpr std::size_t kLanes = 8, kPerStep = 5 * kLanes, kChunk = 80;  // kChunk: lcm(kPerStep, 16)
-  /// Deviates come in blocks of `block` (a multiple of 16), each 64-byte aligned.
-  NormalStream(std::uint64_t seed, std::size_t block) : block_(block) {
-    for (std::size_t l = 0; l < kLanes; ++l) {
-      s0_[l] = splitmix64(seed);
-      s1_[l] = splitmix64(seed);
-      s2_[l] = splitmix64(seed);
-      s3_[l] = splitmix64(seed);
-    }
-    size_ = std::max<std::size_t>(4 * block, 320);
-    size_ = (size_ + kChunk - 1) / kChunk * kChunk;
-    storage_.resize(size_ + 16);
-    buf_ = storage_.data();
-    while (reinterpret_cast<std::uintptr_t>(buf_) % 64 != 0) ++buf_;
-    pos_ = size_;
-  }
-  /// The next block of deviates.
-  const float* take() {
-    if (pos_ + block_ > size_) refill();
-    const float* p = buf_ + pos_;
-    pos_ += block_;
-    return p;
-  }
-
- private:
-  void refill() {
-    const float* table = normal_table().data();
-    Lanes s0 = s0_, s1 = s1_, s2 = s2_, s3 = s3_;
-    for (std::size_t step = 0; step < size_; step += kPerStep) {
-      // xoshiro256** on all lanes at once: w = rotl(s1 * 5, 7) * 9
-      const Lanes x5 = s1 + (s1 << 2);
-      const Lanes r7 = (x5 << 7) | (x5 >> 57);
-      const Lanes w = r7 + (r7 << 3);
-      const Lanes t = s1 << 17;
-      s2 ^= s0;
-      s3 ^= s1;
-      s1 ^= s2;
-      s0 ^= s3;
-      s2 ^= t;
-      s3 = (s3 << 45) | (s3 >> 19);
-      float* out = buf_ + step;
-      for (std::size_t k = 0; k < 5; ++k) {
-        const Lanes idx = (w >> (kNormalBits * k)) & (kNormalSize - 1);
-        for (std::size_t l = 0; l < kLanes; ++l) out[k * kLanes + l] = table[idx[l]];
-      }
-    }
-    s0_ = s0;
-    s1_ = s1;
-    s2_ = s2;
-    s3_ = s3;
-    pos_ = 0;
-  }
-  Lanes s0_, s1_, s2_, s3_;
-  std::vector<float> storage_;
-  float* buf_ = nullptr;
-  std::size_t block_, size_ = 0, pos_ = 0;
-};
 
 double logistic(double t) { return 1.0 / (1.0 + std::exp(-t)); }
 double gauss(double x, double mu, double sigma) {
@@ -569,18 +437,15 @@ void prefault(std::vector<float>& v, std::size_t n) {
   if (end <= begin) return;
   const std::size_t pages = (end - begin) / page;
   constexpr std::size_t kPiece = 1024;  // pages per madvise call (4 MB of 4 KB pages)
-  const auto pieces = static_cast<std::ptrdiff_t>((pages + kPiece - 1) / kPiece);
-#pragma omp parallel for schedule(dynamic, 1)
-  for (std::ptrdiff_t i = 0; i < pieces; ++i) {
-    const std::size_t first = static_cast<std::size_t>(i) * kPiece, count = std::min(kPiece, pages - first);
+  const std::size_t pieces = (pages + kPiece - 1) / kPiece;
+  parallel_for(pieces, [&](std::size_t i) {
+    const std::size_t first = i * kPiece, count = std::min(kPiece, pages - first);
     ::madvise(reinterpret_cast<void*>(begin + first * page), count * page, MADV_POPULATE_WRITE);
-  }
+  });
 #endif
 }
 
-}  // namespace
-
-Cube synthesize_image(const SynthOptions& options, std::size_t index) {
+void check_options(const SynthOptions& options, std::size_t index) {
   if (options.height == 0 || options.width == 0)
     throw UsageError("synthetic image size must be at least 1x1, got " + std::to_string(options.height) + "x" +
                      std::to_string(options.width));
@@ -602,7 +467,30 @@ Cube synthesize_image(const SynthOptions& options, std::size_t index) {
       H * W > std::numeric_limits<std::size_t>::max() / 4 / B)
     throw UsageError("synthetic image " + std::to_string(H) + "x" + std::to_string(W) + "x" + std::to_string(B) +
                      " is too large");
+}
 
+// Mean noise-free radiance of the scene from up to 64 sampled rows, for the noise scale.
+double mean_radiance(const Scene& sc, std::size_t H, std::size_t W) {
+  const std::size_t rows = std::min<std::size_t>(H, 64);
+  std::vector<std::uint32_t> label(W);
+  std::vector<float> gain(W), shadow(W), scratch((1 + kPatterns) * W);
+  double sum = 0;
+  for (std::size_t i = 0; i < rows; ++i) {
+    const std::size_t y = (2 * i + 1) * H / (2 * rows);
+    sc.row(y, label.data(), gain.data(), shadow.data(), scratch.data());
+    for (std::size_t x = 0; x < W; ++x) {
+      const std::uint32_t m = sc.regions[label[x]].material;
+      sum += gain[x] * ((1.0 - shadow[x]) * sc.mean_sun[m] + sc.mean_sky[m]);
+    }
+  }
+  return sum / double(rows * W);
+}
+
+}  // namespace
+
+Cube synthesize_image(const SynthOptions& options, std::size_t index) {
+  check_options(options, index);
+  const std::size_t H = options.height, W = options.width, B = options.wavelengths.size();
   std::uint64_t s = options.seed;
   const std::uint64_t image_seed = mix(splitmix64(s), index + 1);
   const Scene sc = make_scene(options, image_seed);
@@ -618,23 +506,7 @@ Cube synthesize_image(const SynthOptions& options, std::size_t index) {
     for (std::size_t y = r.y0; y < r.y1; ++y)
       std::fill_n(cube.mask.begin() + std::ptrdiff_t(y * W + r.x0), r.x1 - r.x0, 0);
 
-  // mean noise-free radiance from up to 64 sampled rows, for the noise scale
-  double mean = 0;
-  if (options.noise > 0) {
-    const std::size_t rows = std::min<std::size_t>(H, 64);
-    std::vector<std::uint32_t> label(W);
-    std::vector<float> gain(W), shadow(W), scratch((1 + kPatterns) * W);
-    double sum = 0;
-    for (std::size_t i = 0; i < rows; ++i) {
-      const std::size_t y = (2 * i + 1) * H / (2 * rows);
-      sc.row(y, label.data(), gain.data(), shadow.data(), scratch.data());
-      for (std::size_t x = 0; x < W; ++x) {
-        const std::uint32_t m = sc.regions[label[x]].material;
-        sum += gain[x] * ((1.0 - shadow[x]) * sc.mean_sun[m] + sc.mean_sky[m]);
-      }
-    }
-    mean = sum / double(rows * W);
-  }
+  const double mean = options.noise > 0 ? mean_radiance(sc, H, W) : 0.0;
   const float var_read = static_cast<float>(options.noise * options.noise * mean * mean);
   const float var_shot = static_cast<float>(4 * options.noise * options.noise * mean);
   const bool noisy = options.noise > 0 && mean > 0;
@@ -643,41 +515,46 @@ Cube synthesize_image(const SynthOptions& options, std::size_t index) {
   // pixels of a row whose padded write (stride floats) stays inside the row
   const std::size_t direct = W * B >= stride ? std::min(W, (W * B - stride) / B + 1) : 0;
 
-#pragma omp parallel
-  {
-    // Spectra are processed in fixed packets of 16 floats (stride is a multiple of 16), no peeling.
-    using Packet = Eigen::Array<float, 16, 1>;
-    using PacketMap = Eigen::Map<Packet>;
-    using ConstPacketMap = Eigen::Map<const Packet>;
-    std::vector<std::uint32_t> label(W);
-    std::vector<float> gain(W), shadow(W), scratch((1 + kPatterns) * W), last(stride);
-    // One pixel: radiance into dst[0..stride); dst[B..stride) is scratch that the following pixels
-    // overwrite. Pixels near the row's end go through `last` so no write passes the row's end.
-    auto pixel = [&](float* dst, std::size_t x, const float* n) {
-      const float g = gain[x] * (1.0f + sc.grain * n[B]);
-      const float ga = g * (1.0f - shadow[x]);
-      const std::size_t m = sc.regions[label[x]].material;
-      const float* a = sc.sunlit.data() + m * stride;
-      const float* b = sc.skylit.data() + m * stride;
-      for (std::size_t c = 0; c < stride; c += 16) {
-        Packet v = ga * ConstPacketMap(a + c) + g * ConstPacketMap(b + c);
-        if (noisy) v += (var_read + var_shot * v.max(0.0f)).sqrt() * ConstPacketMap(n + c);
-        PacketMap(dst + c) = v;
-      }
-    };
-#pragma omp for schedule(dynamic, 16)
-    for (std::size_t y = 0; y < H; ++y) {
-      NormalStream normals(mix(image_seed, 0x5EED0000ull + y), block);
-      sc.row(y, label.data(), gain.data(), shadow.data(), scratch.data());
-      float* out = cube.data.data() + y * W * B;
-      std::size_t x = 0;
-      for (; x < direct; ++x, out += B) pixel(out, x, normals.take());
-      for (; x < W; ++x, out += B) {
-        pixel(last.data(), x, normals.take());
-        std::memcpy(out, last.data(), B * sizeof(float));
-      }
-    }
-  }
+  // Spectra are processed in fixed packets of 16 floats (stride is a multiple of 16), no peeling.
+  using Packet = Eigen::Array<float, 16, 1>;
+  using PacketMap = Eigen::Map<Packet>;
+  using ConstPacketMap = Eigen::Map<const Packet>;
+  struct RowScratch {
+    std::vector<std::uint32_t> label;
+    std::vector<float> gain, shadow, scratch, last;
+  };
+  parallel_for(
+      H,
+      [&] {
+        return RowScratch{std::vector<std::uint32_t>(W), std::vector<float>(W), std::vector<float>(W),
+                          std::vector<float>((1 + kPatterns) * W), std::vector<float>(stride)};
+      },
+      [&](std::size_t y, RowScratch& t) {
+        // One pixel: radiance into dst[0..stride); dst[B..stride) is scratch that the following pixels
+        // overwrite. Pixels near the row's end go through `last` so no write passes the row's end.
+        auto pixel = [&](float* dst, std::size_t x, const float* n) {
+          const float g = t.gain[x] * (1.0f + sc.grain * n[B]);
+          const float ga = g * (1.0f - t.shadow[x]);
+          const std::size_t m = sc.regions[t.label[x]].material;
+          const float* a = sc.sunlit.data() + m * stride;
+          const float* b = sc.skylit.data() + m * stride;
+          for (std::size_t c = 0; c < stride; c += 16) {
+            Packet v = ga * ConstPacketMap(a + c) + g * ConstPacketMap(b + c);
+            if (noisy) v += (var_read + var_shot * v.max(0.0f)).sqrt() * ConstPacketMap(n + c);
+            PacketMap(dst + c) = v;
+          }
+        };
+        NormalStream normals(mix(image_seed, 0x5EED0000ull + y), block);
+        sc.row(y, t.label.data(), t.gain.data(), t.shadow.data(), t.scratch.data());
+        float* out = cube.data.data() + y * W * B;
+        std::size_t x = 0;
+        for (; x < direct; ++x, out += B) pixel(out, x, normals.take());
+        for (; x < W; ++x, out += B) {
+          pixel(t.last.data(), x, normals.take());
+          std::memcpy(out, t.last.data(), B * sizeof(float));
+        }
+      },
+      16);
   return cube;
 }
 

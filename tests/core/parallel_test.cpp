@@ -68,3 +68,34 @@ TEST(Parallel, SlotsMergedInOrderDoNotDependOnTheThreadCount) {
   omp_set_num_threads(omp_get_num_procs());
   EXPECT_EQ(one, two);
 }
+
+// parallel_shares as render_spheres uses it: each index accumulates a sequence of chunks within its share. A serial
+// loop in the same order is the reference; every index must lie in exactly one share.
+TEST(Parallel, SharesCoverEveryIndexOnceAndPerIndexSumsDoNotDependOnTheThreadCount) {
+  constexpr std::size_t chunks = 50;
+  auto value = [](std::size_t i, std::size_t c) { return 1.0 / double(1 + i * 7 + c * 3); };
+  for (const std::size_t n : {0u, 1u, 37u}) {
+    std::vector<double> reference(n, 0.0);
+    for (std::size_t c = 0; c < chunks; ++c)
+      for (std::size_t i = 0; i < n; ++i) reference[i] += value(i, c);
+    auto with = [&](int threads) {
+      omp_set_num_threads(threads);
+      std::vector<double> acc(n, 0.0);
+      std::vector<int> owner(n, 0);
+      std::atomic<int> calls{0};
+      parallel_shares(n, [&](std::size_t first, std::size_t last) {
+        ++calls;
+        for (std::size_t c = 0; c < chunks; ++c)
+          for (std::size_t i = first; i < last; ++i) acc[i] += value(i, c);
+        for (std::size_t i = first; i < last; ++i) ++owner[i];
+      });
+      EXPECT_EQ(calls.load(), int(std::min<std::size_t>(n, std::size_t(threads)))) << n;
+      EXPECT_EQ(std::size_t(std::count(owner.begin(), owner.end(), 1)), n);
+      return acc;
+    };
+    const std::vector<double> one = with(1), two = with(2);
+    omp_set_num_threads(omp_get_num_procs());
+    EXPECT_EQ(one, two) << n;
+    EXPECT_EQ(one, reference) << n;
+  }
+}
