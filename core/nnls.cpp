@@ -157,6 +157,88 @@ double GramNnls::tolerance(const double* h) const {
   return 1e-11 * std::max(hmax, std::numeric_limits<double>::min());
 }
 
+void GramNnls::set_flags(char* in, std::uint64_t m) const {
+  for (std::size_t i = 0; i < k_; ++i) in[i] = char((m >> i) & 1u);
+}
+
+// Warm start from the hint: drop its indices whose unconstrained solution is not positive until the rest
+// is; that point (the minimiser on its passive set, positive there) is a valid state of the method. Returns
+// its mask (0 when nothing of the hint remains), with c, t.in and t.w set for it.
+std::uint64_t GramNnls::warm_start(const Work& t, const double* h, double* c, std::uint64_t hint,
+                                   NnlsStatus& st) const {
+  double *s = t.s, *w = t.w;
+  char* in = t.in;
+  int* idx = t.idx;
+  std::uint64_t mask = 0;
+  while (hint) {
+    set_flags(in, hint);
+    if (!solve_passive(in, hint, h, s, idx)) {
+      set_flags(in, 0);
+      break;
+    }
+    std::uint64_t drop = 0;
+    for (std::size_t i = 0; i < k_; ++i)
+      if (in[i] && !(s[i] > 0)) drop |= std::uint64_t(1) << i;
+    if (!drop) {
+      mask = hint;
+      for (std::size_t i = 0; i < k_; ++i) c[i] = in[i] ? s[i] : 0.0;
+      gradient(in, h, c, s, w);
+      break;
+    }
+    hint &= ~drop;
+    if (!hint) set_flags(in, 0);
+    ++st.iterations;
+  }
+  return mask;
+}
+
+// After an index joined the passive set: solves on the set, stepping back from infeasible solutions and dropping
+// the coefficients that reach zero, until the solution is positive (c set to it). False (st.converged false)
+// when G_PP cannot be factored or the iterations pass `cap`.
+bool GramNnls::make_feasible(const Work& t, const double* h, double* c, std::uint64_t& mask, int cap,
+                             NnlsStatus& st) const {
+  double* s = t.s;
+  char* in = t.in;
+  const bool masks = k_ <= 64;
+  while (true) {
+    if (!solve_passive(in, mask, h, s, t.idx)) {
+      st.converged = false;
+      return false;
+    }
+    bool feasible = true;
+    for (std::size_t i = 0; i < k_; ++i)
+      if (in[i] && s[i] <= 0) feasible = false;
+    if (feasible) {
+      for (std::size_t i = 0; i < k_; ++i) c[i] = in[i] ? s[i] : 0.0;
+      return true;
+    }
+    // Step from c towards s until the first passive coefficient reaches zero; drop those at zero.
+    double alpha = 1;
+    int hit = -1;
+    for (std::size_t i = 0; i < k_; ++i)
+      if (in[i] && s[i] <= 0) {
+        const double a = c[i] / (c[i] - s[i]);
+        if (hit < 0 || a < alpha) {
+          alpha = a;
+          hit = int(i);
+        }
+      }
+    for (std::size_t i = 0; i < k_; ++i) {
+      if (!in[i]) continue;
+      c[i] += alpha * (s[i] - c[i]);
+      if (int(i) == hit || c[i] <= 0) {
+        c[i] = 0;
+        in[i] = 0;
+        if (masks) mask &= ~(std::uint64_t(1) << i);
+      }
+    }
+    if (++st.iterations > cap) {
+      st.converged = false;
+      return false;
+    }
+  }
+}
+
 NnlsStatus GramNnls::solve(const double* h, double* c, std::uint64_t& passive) const {
   NnlsStatus st;
   const double tol = tolerance(h);
@@ -174,56 +256,29 @@ NnlsStatus GramNnls::solve(const double* h, double* c, std::uint64_t& passive) c
   std::vector<double> sw_heap;
   std::vector<char> in_heap;
   std::vector<int> idx_heap;
-  double *s = s_stack, *w = w_stack;
-  char* in = in_stack;
-  int* idx = idx_stack;
+  Work t{s_stack, w_stack, in_stack, idx_stack};
   if (!masks) {
     sw_heap.resize(2 * k_);
     in_heap.resize(k_);
     idx_heap.resize(k_);
-    s = sw_heap.data();
-    w = s + k_;
-    in = in_heap.data();
-    idx = idx_heap.data();
+    t = Work{sw_heap.data(), sw_heap.data() + k_, in_heap.data(), idx_heap.data()};
   }
-  auto set_flags = [&](std::uint64_t m) {
-    for (std::size_t i = 0; i < k_; ++i) in[i] = char((m >> i) & 1u);
-  };
+  double *s = t.s, *w = t.w;
+  char* in = t.in;
   if (passive && !cached_) {
-    set_flags(passive);
-    if (solve_passive(in, passive, h, s, idx) && optimal(in, h, s, tol)) {
+    set_flags(in, passive);
+    if (solve_passive(in, passive, h, s, t.idx) && optimal(in, h, s, tol)) {
       for (std::size_t i = 0; i < k_; ++i) c[i] = in[i] ? s[i] : 0.0;
       return st;
     }
   }
-  std::uint64_t mask = 0;
   for (std::size_t i = 0; i < k_; ++i) {
     c[i] = 0;
     w[i] = h[i];
     in[i] = 0;
   }
   const int cap = 3 * int(k_) + 10;
-  // Warm start from the hint: drop its indices whose unconstrained solution is not positive until the rest
-  // is; that point (the minimiser on its passive set, positive there) is a valid state of the method.
-  for (std::uint64_t hint = passive; hint;) {
-    set_flags(hint);
-    if (!solve_passive(in, hint, h, s, idx)) {
-      set_flags(0);
-      break;
-    }
-    std::uint64_t drop = 0;
-    for (std::size_t i = 0; i < k_; ++i)
-      if (in[i] && !(s[i] > 0)) drop |= std::uint64_t(1) << i;
-    if (!drop) {
-      mask = hint;
-      for (std::size_t i = 0; i < k_; ++i) c[i] = in[i] ? s[i] : 0.0;
-      gradient(in, h, c, s, w);
-      break;
-    }
-    hint &= ~drop;
-    if (!hint) set_flags(0);
-    ++st.iterations;
-  }
+  std::uint64_t mask = warm_start(t, h, c, passive, st);
   while (true) {
     int j = -1;
     double best = tol;
@@ -239,45 +294,7 @@ NnlsStatus GramNnls::solve(const double* h, double* c, std::uint64_t& passive) c
     }
     in[j] = 1;
     if (masks) mask |= std::uint64_t(1) << j;
-    while (true) {
-      if (!solve_passive(in, mask, h, s, idx)) {
-        st.converged = false;
-        passive = mask;
-        return st;
-      }
-      bool feasible = true;
-      for (std::size_t i = 0; i < k_; ++i)
-        if (in[i] && s[i] <= 0) feasible = false;
-      if (feasible) {
-        for (std::size_t i = 0; i < k_; ++i) c[i] = in[i] ? s[i] : 0.0;
-        break;
-      }
-      // Step from c towards s until the first passive coefficient reaches zero; drop those at zero.
-      double alpha = 1;
-      int hit = -1;
-      for (std::size_t i = 0; i < k_; ++i)
-        if (in[i] && s[i] <= 0) {
-          const double a = c[i] / (c[i] - s[i]);
-          if (hit < 0 || a < alpha) {
-            alpha = a;
-            hit = int(i);
-          }
-        }
-      for (std::size_t i = 0; i < k_; ++i) {
-        if (!in[i]) continue;
-        c[i] += alpha * (s[i] - c[i]);
-        if (int(i) == hit || c[i] <= 0) {
-          c[i] = 0;
-          in[i] = 0;
-          if (masks) mask &= ~(std::uint64_t(1) << i);
-        }
-      }
-      if (++st.iterations > cap) {
-        st.converged = false;
-        passive = mask;
-        return st;
-      }
-    }
+    if (!make_feasible(t, h, c, mask, cap, st)) break;
     gradient(in, h, c, s, w);
   }
   passive = mask;

@@ -48,6 +48,16 @@ class GramNnls {
   bool solve_passive(const char* in, std::uint64_t mask, const double* h, double* s, int* idx) const;
   bool optimal(const char* in, const double* h, const double* s, double tol) const;
   void gradient(const char* in, const double* h, const double* c, const double* s, double* w) const;
+  // Scratch of one solve, each of k: the unconstrained solution, the gradient, the passive flags, an index list.
+  struct Work {
+    double* s;
+    double* w;
+    char* in;
+    int* idx;
+  };
+  void set_flags(char* in, std::uint64_t m) const;
+  std::uint64_t warm_start(const Work& t, const double* h, double* c, std::uint64_t hint, NnlsStatus& st) const;
+  bool make_feasible(const Work& t, const double* h, double* c, std::uint64_t& mask, int cap, NnlsStatus& st) const;
 
   std::size_t k_;
   Eigen::MatrixXd gram_;
