@@ -108,6 +108,44 @@ std::vector<double> number_list(const std::string& s) {
   return out;
 }
 
+// A band's centre wavelength and FWHM from its metadata (wavelength + wavelength_units, CENTRAL_WAVELENGTH_UM,
+// fwhm, FWHM_UM) or a description ending in a wavelength with its unit; nm says the wavelength's unit was known.
+struct BandWavelength {
+  std::optional<double> w, fwhm;
+  bool nm = false;
+};
+
+BandWavelength band_wavelength(GDALRasterBandH band) {
+  static const std::regex in_description(
+      R"(([0-9]+(\.[0-9]*)?)\s*(nm|nanometers?|um|µm|micrometers?|microns?)\s*\)?\s*$)", std::regex::icase);
+  BandWavelength out;
+  auto& w = out.w;
+  bool& nm_given = out.nm;
+  const std::string units = band_item(band, {"wavelength_units"});
+  if (const std::string v = band_item(band, {"wavelength"}); !v.empty()) {
+    if ((w = number(v))) {
+      if (auto s = unit_scale(units)) *w *= *s, nm_given = true;
+    }
+  } else if (const std::string um = band_item(band, {"CENTRAL_WAVELENGTH_UM"}); !um.empty()) {
+    if ((w = number(um))) *w *= 1000, nm_given = true;
+  } else if (const char* desc = GDALGetDescription(band); desc && *desc) {
+    std::cmatch m;
+    if (std::regex_search(desc, m, in_description)) {
+      w = std::strtod(m[1].str().c_str(), nullptr);
+      if (lower(m[3].str()).find('n') == std::string::npos) *w *= 1000;
+      nm_given = true;
+    }
+  }
+  auto& f = out.fwhm;
+  if (const std::string v = band_item(band, {"fwhm"}); !v.empty()) {
+    if ((f = number(v)))
+      if (auto s = unit_scale(units)) *f *= *s;
+  } else if (const std::string um = band_item(band, {"FWHM_UM"}); !um.empty()) {
+    if ((f = number(um))) *f *= 1000;
+  }
+  return out;
+}
+
 }  // namespace
 
 std::uint64_t gdal_strip_bytes(std::size_t width, std::size_t bands, std::size_t rows) {
@@ -132,8 +170,6 @@ GdalRaster::GdalRaster(const std::filesystem::path& path, const WavelengthGrid& 
       throw InputError(file_ + ": the " + driver_ + " raster holds no bands or no pixels");
     std::vector<double> wl, fwhm;
     bool wl_all = true, fwhm_all = true, nm_given = false;
-    static const std::regex in_description(
-        R"(([0-9]+(\.[0-9]*)?)\s*(nm|nanometers?|um|µm|micrometers?|microns?)\s*\)?\s*$)", std::regex::icase);
     for (int b = 1; b <= nb; ++b) {
       GDALRasterBandH band = GDALGetRasterBand(d, b);
       const GDALDataType t = GDALGetRasterDataType(band);
@@ -154,35 +190,14 @@ GdalRaster::GdalRaster(const std::filesystem::path& path, const WavelengthGrid& 
         dataset_mask_ = (flags & GMF_PER_DATASET) && !(flags & GMF_ALL_VALID) && !(flags & GMF_NODATA);
       }
 
-      std::optional<double> w;
-      const std::string units = band_item(band, {"wavelength_units"});
-      if (const std::string v = band_item(band, {"wavelength"}); !v.empty()) {
-        if ((w = number(v))) {
-          if (auto s = unit_scale(units)) *w *= *s, nm_given = true;
-        }
-      } else if (const std::string um = band_item(band, {"CENTRAL_WAVELENGTH_UM"}); !um.empty()) {
-        if ((w = number(um))) *w *= 1000, nm_given = true;
-      } else if (const char* desc = GDALGetDescription(band); desc && *desc) {
-        std::cmatch m;
-        if (std::regex_search(desc, m, in_description)) {
-          w = std::strtod(m[1].str().c_str(), nullptr);
-          if (lower(m[3].str()).find('n') == std::string::npos) *w *= 1000;
-          nm_given = true;
-        }
-      }
-      if (w)
-        wl.push_back(*w);
+      const BandWavelength bw = band_wavelength(band);
+      nm_given = nm_given || bw.nm;
+      if (bw.w)
+        wl.push_back(*bw.w);
       else
         wl_all = false;
-      std::optional<double> f;
-      if (const std::string v = band_item(band, {"fwhm"}); !v.empty()) {
-        if ((f = number(v)))
-          if (auto s = unit_scale(units)) *f *= *s;
-      } else if (const std::string um = band_item(band, {"FWHM_UM"}); !um.empty()) {
-        if ((f = number(um))) *f *= 1000;
-      }
-      if (f)
-        fwhm.push_back(*f);
+      if (bw.fwhm)
+        fwhm.push_back(*bw.fwhm);
       else
         fwhm_all = false;
     }
