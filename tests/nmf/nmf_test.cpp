@@ -289,3 +289,35 @@ TEST(Nmf, WarmUpOnASampleIsThreadIndependentResumableAndCertified) {
   EXPECT_EQ(resumed.best_result().history, one.best_result().history);
   EXPECT_TRUE(resumed.best_result().basis == one.best_result().basis);
 }
+
+// tests/nmf/data/v1-run.ckpt was written by specula's first checkpoint writer (nmf/checkpoint.cpp on raw HDF5 calls,
+// before the store's state-file API) for this run (checkpoint set), interrupted after epoch 1 of restart 2. It must
+// still load and resume to the uninterrupted run's result; the tolerance allows another CPU's rounding in the epochs
+// the fixture holds.
+TEST(Nmf, CheckpointOfTheFirstWriterStillResumes) {
+  ScratchDir dir;
+  const auto path = make_store(dir, planted_basis(3), 3000, 0.01, 12);
+  const NmfOptions plain{.k = 3, .restarts = 2, .max_epochs = 4, .tol = 0};
+  const NmfResult straight = run(path, plain);
+  NmfOptions o = plain;
+  o.checkpoint = dir / "v1-run.ckpt";
+  std::filesystem::copy_file(SPECULA_SOURCE_DIR "/tests/nmf/data/v1-run.ckpt", o.checkpoint);
+  const Checkpoint cp = load_checkpoint(o.checkpoint);
+  EXPECT_EQ(cp.restart, 1u);
+  EXPECT_EQ(cp.epoch, 1u);
+  ASSERT_EQ(cp.done_bases.size(), 1u);
+  EXPECT_EQ(cp.n, 3000u);
+  EXPECT_EQ(cp.values, 3000u * kBands);
+  o.resume = true;
+  const NmfResult resumed = run(path, o);
+  EXPECT_TRUE(resumed.resumed);
+  ASSERT_EQ(resumed.restarts.size(), 2u);
+  for (std::size_t r = 0; r < 2; ++r) {
+    ASSERT_EQ(resumed.restarts[r].history.size(), straight.restarts[r].history.size());
+    for (std::size_t e = 0; e < straight.restarts[r].history.size(); ++e)
+      EXPECT_NEAR(resumed.restarts[r].history[e], straight.restarts[r].history[e],
+                  1e-9 * straight.restarts[r].history[e])
+          << "restart " << r << " epoch " << e;
+    EXPECT_LT((resumed.restarts[r].basis - straight.restarts[r].basis).cwiseAbs().maxCoeff(), 1e-9) << r;
+  }
+}
