@@ -131,6 +131,48 @@ HdrSummary write_hdr_images(const Capture& cap, const fs::path& dir, const HdrOp
   return sum;
 }
 
+namespace {
+
+// The sphere (circle, eq 5.1; sphere, eq 5.2) and the lights (each mirror highlight, eq 5.3, then the arc
+// through them) into c.
+void calibrate_geometry(const Capture& cap, const fs::path& dir, Calibration& c) {
+  const GreyImage sil = load_grey(cap, dir, only_image(cap, ImageKind::silhouette, -1, dir).file);
+  try {
+    c.circle = detect_circle(sil);
+  } catch (const InputError& e) {
+    throw InputError((dir / only_image(cap, ImageKind::silhouette, -1, dir).file).string() + ": " + e.what());
+  }
+  const Pinhole camera{cap.focal_px, cap.cx, cap.cy};
+  c.sphere = fit_sphere(c.circle, camera, cap.sphere_radius_m > 0 ? cap.sphere_radius_m : 1.0, cap.width, cap.height);
+  c.light_distance = cap.light_distance_m;
+
+  // Lights: each mirror highlight (eq 5.3), then the arc through them.
+  const std::size_t L = cap.light_angles_deg.size();
+  std::vector<Eigen::Vector3d> measured_dirs(L, Eigen::Vector3d::UnitZ());
+  c.light_confidence.assign(L, 0.0);
+  for (std::size_t l = 0; l < L; ++l) {
+    const CaptureImage* im = nullptr;
+    for (const auto& x : cap.images)
+      if (x.kind == ImageKind::mirror && x.light == int(l)) im = &x;
+    if (!im) continue;
+    try {
+      double w = 0;
+      measured_dirs[l] = light_direction(load_grey(cap, dir, im->file), camera, c.sphere, c.light_distance, &w);
+      c.light_confidence[l] = w;
+    } catch (const InputError&) {
+      // No highlight (the light behind the sphere): the arc places it.
+    }
+  }
+  std::vector<double> weights(L);
+  for (std::size_t l = 0; l < L; ++l) weights[l] = c.light_confidence[l] * c.light_confidence[l];
+  if (std::count_if(weights.begin(), weights.end(), [](double w) { return w > 0; }) < 2)
+    throw InputError(dir.string() +
+                     ": fewer than two mirror images show the light's highlight; the lights cannot be placed");
+  c.light_dirs = fit_light_arc(measured_dirs, weights, cap.light_angles_deg);
+}
+
+}  // namespace
+
 Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const PipelineOptions& o) {
   Calibration c;
   const std::size_t B = cap.bands.size(), P = std::size_t(cap.width) * std::size_t(cap.height);
@@ -199,40 +241,7 @@ Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const Pip
     c.targets.push_back(std::move(r));
   }
 
-  // Geometry: circle (eq 5.1), sphere (eq 5.2).
-  const GreyImage sil = load_grey(cap, dir, only_image(cap, ImageKind::silhouette, -1, dir).file);
-  try {
-    c.circle = detect_circle(sil);
-  } catch (const InputError& e) {
-    throw InputError((dir / only_image(cap, ImageKind::silhouette, -1, dir).file).string() + ": " + e.what());
-  }
-  const Pinhole camera{cap.focal_px, cap.cx, cap.cy};
-  c.sphere = fit_sphere(c.circle, camera, cap.sphere_radius_m > 0 ? cap.sphere_radius_m : 1.0, cap.width, cap.height);
-  c.light_distance = cap.light_distance_m;
-
-  // Lights: each mirror highlight (eq 5.3), then the arc through them.
-  const std::size_t L = cap.light_angles_deg.size();
-  std::vector<Eigen::Vector3d> measured_dirs(L, Eigen::Vector3d::UnitZ());
-  c.light_confidence.assign(L, 0.0);
-  for (std::size_t l = 0; l < L; ++l) {
-    const CaptureImage* im = nullptr;
-    for (const auto& x : cap.images)
-      if (x.kind == ImageKind::mirror && x.light == int(l)) im = &x;
-    if (!im) continue;
-    try {
-      double w = 0;
-      measured_dirs[l] = light_direction(load_grey(cap, dir, im->file), camera, c.sphere, c.light_distance, &w);
-      c.light_confidence[l] = w;
-    } catch (const InputError&) {
-      // No highlight (the light behind the sphere): the arc places it.
-    }
-  }
-  std::vector<double> weights(L);
-  for (std::size_t l = 0; l < L; ++l) weights[l] = c.light_confidence[l] * c.light_confidence[l];
-  if (std::count_if(weights.begin(), weights.end(), [](double w) { return w > 0; }) < 2)
-    throw InputError(dir.string() +
-                     ": fewer than two mirror images show the light's highlight; the lights cannot be placed");
-  c.light_dirs = fit_light_arc(measured_dirs, weights, cap.light_angles_deg);
+  calibrate_geometry(cap, dir, c);
   (void)P;
   return c;
 }

@@ -355,6 +355,37 @@ std::vector<float> silhouette_coverage(int W, int H, const ScanRig& rig, const E
   return coverage;
 }
 
+// The rate of every sphere pixel in every band (DN/s at the brightness scale) for light l: bands x H x W.
+template <class Material>
+std::vector<float> light_rates(const SimulatorOptions& o, const ScanRig& rig, const std::vector<ScanPixel>& pixels,
+                               const Material& material, const std::vector<std::vector<double>>& w, std::size_t l) {
+  const std::size_t B = o.bands.size(), L = w.front().size();
+  const int W = o.width, H = o.height;
+  const double cx = W / 2.0, cy = H / 2.0;
+  auto vignette = [&](int u, int v) { return vignetting_factor(o, u, v); };
+  const Eigen::Vector3d lp = light_position(rig, l);
+  std::vector<float> rate(B * std::size_t(W) * std::size_t(H), 0.0f);
+  parallel_for(
+      pixels.size(), [&] { return std::vector<double>(L); },
+      [&](std::size_t i, std::vector<double>& f) {
+        const ScanPixel& p = pixels[i];
+        brdf::StdAngles a;
+        if (!scan_angles(p, lp, a)) return;
+        material.eval(a, f);
+        const double d = (lp - p.point).norm();
+        const double geometry = std::cos(a.theta_i) * std::pow(rig.light_distance / d, 2) * pi;
+        const int u = int(p.x + cx), v = int(p.y + cy);
+        const double s = vignette(u, v);
+        for (std::size_t j = 0; j < B; ++j) {
+          double sum = 0;
+          for (std::size_t k = 0; k < L; ++k) sum += w[j][k] * f[k];
+          rate[j * std::size_t(W * H) + std::size_t(v * W + u)] = float(o.brightness * s * geometry * sum);
+        }
+      },
+      1024);
+  return rate;
+}
+
 }  // namespace
 
 Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
@@ -370,7 +401,7 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   const WavelengthGrid fine(nm);
   const Eigen::VectorXd light = blackbody(o.light_kelvin, fine);
   const auto response = simulated_response(o, nm);
-  const std::size_t B = o.bands.size(), L = nm.size();
+  const std::size_t B = o.bands.size();
   const std::vector<std::vector<double>> w = band_weights(light, response, nm[1] - nm[0]);
   const auto material = o.grid ? grid_material(o.grid, fine) : brdf::make_material(o.material, fine);
 
@@ -389,30 +420,6 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   const std::vector<Job> jobs = image_jobs(o, cap);
   make_image_directories(dir, cap, rig.lights);
 
-  // The rate of every sphere pixel in every band (DN/s at the brightness scale) for light l: bands x H x W.
-  auto light_rates = [&](std::size_t l) {
-    const Eigen::Vector3d lp = light_position(rig, l);
-    std::vector<float> rate(B * std::size_t(W) * std::size_t(H), 0.0f);
-    parallel_for(
-        pixels.size(), [&] { return std::vector<double>(L); },
-        [&](std::size_t i, std::vector<double>& f) {
-          const ScanPixel& p = pixels[i];
-          brdf::StdAngles a;
-          if (!scan_angles(p, lp, a)) return;
-          material->eval(a, f);
-          const double d = (lp - p.point).norm();
-          const double geometry = std::cos(a.theta_i) * std::pow(rig.light_distance / d, 2) * pi;
-          const int u = int(p.x + cx), v = int(p.y + cy);
-          const double s = vignette(u, v);
-          for (std::size_t j = 0; j < B; ++j) {
-            double sum = 0;
-            for (std::size_t k = 0; k < L; ++k) sum += w[j][k] * f[k];
-            rate[j * std::size_t(W * H) + std::size_t(v * W + u)] = float(o.brightness * s * geometry * sum);
-          }
-        },
-        1024);
-    return rate;
-  };
   std::vector<float> scene_rate;
   // What a flat field and each target send through each band (the same at every pixel but for vignetting).
   const auto [flat_sum, target_sum] = flat_and_target_sums(w, o.bands, cap.targets, nm);
@@ -457,7 +464,7 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   const std::size_t per_light = B * o.exposures_s.size(), scene_first = jobs.size() - rig.lights * per_light;
   render(0, scene_first);
   for (std::size_t l = 0; l < rig.lights; ++l) {
-    scene_rate = light_rates(l);
+    scene_rate = light_rates(o, rig, pixels, *material, w, l);
     render(scene_first + l * per_light, scene_first + (l + 1) * per_light);
   }
   for (const Job& j : jobs) cap.images.push_back(j.image);

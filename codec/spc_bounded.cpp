@@ -128,10 +128,13 @@ Parsed parse_header(std::span<const std::uint8_t> bytes, const std::string& labe
   return p;
 }
 
-}  // namespace
+// Per slab of theta_h: each channel's prediction residuals and the slab's error statistics.
+struct CodedSlabs {
+  std::vector<std::vector<std::vector<std::int32_t>>> residuals;  // [slab][channel]
+  std::vector<double> sq, max, resid, quant;
+};
 
-std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis& basis, const SpcBoundedOptions& o,
-                                         SpcReport* report, const std::string& source) {
+void check_bounded(const store::Grid& grid, const SpcBasis& basis, const SpcBoundedOptions& o) {
   const std::size_t bands = grid.bands(), k = basis.k();
   if (grid.brdf.size() != bands * kMerlCells)
     throw UsageError("encode: grid values do not match bands x 90 x 90 x 180");
@@ -145,26 +148,17 @@ std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis
     throw InputError("the grid has " + grid.wavelengths.describe() + ", basis " + basis.reference + " has " +
                      basis.wavelengths.describe() + "; code a grid with a basis on its own wavelengths");
   if (k < 1 || k > bands) throw UsageError("encode: the basis must hold 1 to bands spectra");
+}
 
-  std::vector<float> mag;
-  std::vector<std::uint8_t> valid;
-  const std::uint64_t n_valid = magnitudes(grid, mag, valid);
-  Coding cd;
-  cd.bands = bands;
-  cd.k = k;
-  cd.scale = grid.scale;
-  cd.basis = basis.rows;
-  cd.s = magnitude_scale(mag, valid, o.magnitude_scale);
-  cd.step_m = 2 * std::log1p(o.max_error);
-  const double spread = basis.rows.cwiseAbs().colwise().sum().maxCoeff();
-  cd.step_c = 2 * o.max_error / spread;
-
-  // Codes (channel 0: magnitude, 1..k: shape) and their residuals, slab by slab.
-  const std::size_t channels = k + 1;
-  std::vector<std::vector<std::vector<std::int32_t>>> residuals(kMerlThetaH,
-                                                                std::vector<std::vector<std::int32_t>>(channels));
-  std::vector<double> slab_sq(kMerlThetaH, 0), slab_max(kMerlThetaH, 0), slab_resid(kMerlThetaH, 0),
-      slab_quant(kMerlThetaH, 0);
+// Codes (channel 0: magnitude, 1..k: shape) and their residuals, slab by slab.
+CodedSlabs code_slabs(const store::Grid& grid, const SpcBasis& basis, const Coding& cd, const std::vector<float>& mag,
+                      const std::vector<std::uint8_t>& valid) {
+  const std::size_t bands = grid.bands(), k = basis.k(), channels = k + 1;
+  CodedSlabs slabs;
+  auto& residuals = slabs.residuals;
+  residuals.assign(kMerlThetaH, std::vector<std::vector<std::int32_t>>(channels));
+  auto &slab_sq = slabs.sq, &slab_max = slabs.max, &slab_resid = slabs.resid, &slab_quant = slabs.quant;
+  for (auto* v : {&slab_sq, &slab_max, &slab_resid, &slab_quant}) v->assign(kMerlThetaH, 0);
   struct SlabScratch {
     std::vector<std::int32_t> q;
     Eigen::VectorXd r, c;
@@ -227,7 +221,15 @@ std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis
     slab_sq[std::size_t(h)] = sq, slab_max[std::size_t(h)] = mx, slab_resid[std::size_t(h)] = resid,
     slab_quant[std::size_t(h)] = quant;
   });
+  return slabs;
+}
 
+// The format-1 container: header, validity bitmap and each channel's residuals, zstd-compressed, and the CRC.
+std::vector<std::uint8_t> write_bounded(const store::Grid& grid, const SpcBasis& basis, const Coding& cd,
+                                        const CodedSlabs& slabs, const std::vector<std::uint8_t>& valid,
+                                        std::uint64_t n_valid, const SpcBoundedOptions& o, const std::string& source) {
+  const std::size_t bands = grid.bands(), k = basis.k(), channels = k + 1;
+  const auto& residuals = slabs.residuals;
   std::vector<std::uint8_t> out;
   put_bytes(out, kSpcMagic, sizeof kSpcMagic);
   put(out, std::uint32_t(1));
@@ -268,7 +270,12 @@ std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis
     section(raw, width);
   }
   put(out, crc32_of(out));
+  return out;
+}
 
+void report_bounded(const CodedSlabs& slabs, const Coding& cd, std::size_t bands, std::uint64_t n_valid,
+                    std::size_t out_bytes, SpcReport* report) {
+  const auto &slab_sq = slabs.sq, &slab_max = slabs.max, &slab_resid = slabs.resid, &slab_quant = slabs.quant;
   if (report) {
     double sq = 0;
     *report = {};
@@ -279,13 +286,37 @@ std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis
       report->max_quantisation_error = std::max(report->max_quantisation_error, slab_quant[std::size_t(h)]);
     }
     report->input_bytes = std::uint64_t(bands) * kMerlCells * 8;
-    report->output_bytes = out.size();
+    report->output_bytes = out_bytes;
     report->valid_cells = n_valid;
     report->magnitude_scale = cd.s * cd.scale;
     report->magnitude_step = cd.step_m;
     report->shape_step = cd.step_c;
     report->rms_error = n_valid ? std::sqrt(sq / double(n_valid * bands)) : 0.0;
   }
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis& basis, const SpcBoundedOptions& o,
+                                         SpcReport* report, const std::string& source) {
+  check_bounded(grid, basis, o);
+  const std::size_t bands = grid.bands(), k = basis.k();
+  std::vector<float> mag;
+  std::vector<std::uint8_t> valid;
+  const std::uint64_t n_valid = magnitudes(grid, mag, valid);
+  Coding cd;
+  cd.bands = bands;
+  cd.k = k;
+  cd.scale = grid.scale;
+  cd.basis = basis.rows;
+  cd.s = magnitude_scale(mag, valid, o.magnitude_scale);
+  cd.step_m = 2 * std::log1p(o.max_error);
+  const double spread = basis.rows.cwiseAbs().colwise().sum().maxCoeff();
+  cd.step_c = 2 * o.max_error / spread;
+
+  const CodedSlabs slabs = code_slabs(grid, basis, cd, mag, valid);
+  std::vector<std::uint8_t> out = write_bounded(grid, basis, cd, slabs, valid, n_valid, o, source);
+  report_bounded(slabs, cd, bands, n_valid, out.size(), report);
   return out;
 }
 

@@ -11,6 +11,7 @@
 
 using namespace specula;
 using namespace specula::store;
+using specula::test::ScratchDir;
 
 namespace {
 
