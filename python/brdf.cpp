@@ -88,9 +88,103 @@ py::tuple display(const Eigen::Ref<const RowMatrixX3f>& xyz, const std::vector<p
   return py::make_tuple(adopt(std::move(srgb), shape), adopt(std::move(linear), shape));
 }
 
-}  // namespace
+// The fields of `specula encode --json` for an encoding with these settings and reports.
+py::dict encode_report(bool transform, double max_error, std::optional<double> target_de00, double p95,
+                       const codec::SpcTargetReport& target, const codec::SpcBasis& b, const codec::SpcReport& rep) {
+  py::dict r;
+  r["method"] = transform ? "transform" : "bounded";
+  r["format_version"] = transform ? 2 : 1;
+  if (target_de00) {
+    py::dict t;
+    t["de00_mean"] = *target_de00;
+    t["de00_p95"] = p95;
+    t["reached"] = target.reached;
+    t["trials"] = target.trials;
+    t["step"] = target.step;
+    t["reached_de00_mean"] = target.de00_mean;
+    t["reached_de00_p95"] = target.de00_p95;
+    t["condition_mean"] = 2 * *target_de00;
+    t["worst_condition"] = target.worst_condition;
+    t["worst_de00_mean"] = target.worst_mean;
+    t["measure"] = "lighting suite";
+    r["target"] = t;
+  }
+  r["step"] = transform ? rep.magnitude_step : 0.0;
+  r["basis"] = b.reference;
+  r["k"] = b.k();
+  r["max_error"] = transform ? 0.0 : max_error;
+  r["input_bytes"] = rep.input_bytes;
+  r["output_bytes"] = rep.output_bytes;
+  r["ratio"] = double(rep.input_bytes) / double(rep.output_bytes);
+  r["bits_per_cell"] = 8.0 * double(rep.output_bytes) / double(rep.valid_cells ? rep.valid_cells : 1);
+  r["valid_cells"] = rep.valid_cells;
+  r["rms_error"] = rep.rms_error;
+  r["max_abs_error"] = rep.max_abs_error;
+  r["max_shape_residual"] = rep.max_shape_residual;
+  r["max_quantisation_error"] = rep.max_quantisation_error;
+  r["magnitude_scale"] = rep.magnitude_scale;
+  r["magnitude_step"] = rep.magnitude_step;
+  r["shape_step"] = rep.shape_step;
+  return r;
+}
 
-void init_brdf(py::module_& m) {
+// specula.spc_encode: `specula encode` on a grid in memory (see its docstring below).
+py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::size_t k, std::size_t extra,
+                     double max_error, double magnitude_scale, int zstd_level, const OptStr& reference,
+                     std::optional<double> step, std::optional<double> target_de00, std::optional<double> target_p95,
+                     int trials, const EnvArg& env_arg) {
+  const store::Grid& grid = as<store::Grid>(grid_arg, "spc_encode", "grid", "Grid");
+  if (step && target_de00) throw UsageError("spc_encode: give step or target_de00, not both");
+  if (target_p95 && !target_de00) throw UsageError("spc_encode: target_p95 goes with target_de00");
+  std::optional<store::Basis> basis;
+  std::string ref;
+  if (!basis_arg.is_none()) {
+    basis = as<store::Basis>(basis_arg, "spc_encode", "basis", "Basis");
+    if (!reference.is_none())
+      ref = reference.cast<std::string>();
+    else if (py::hasattr(basis_arg, "_origin"))
+      ref = basis_arg.attr("_origin").cast<std::string>();
+    else
+      ref = basis->source.empty() ? "python" : basis->source;
+  } else if (!reference.is_none()) {
+    throw UsageError("spc_encode: reference names a learned basis; without one the basis is 'self'");
+  }
+  const codec::SpcBoundedOptions bounded{
+      .max_error = max_error, .magnitude_scale = magnitude_scale, .zstd_level = zstd_level};
+  codec::SpcTransformOptions options{.magnitude_scale = magnitude_scale};
+  if (step) options.step = *step;
+  const bool transform = step || target_de00;
+  const double p95 = target_p95.value_or(3 * target_de00.value_or(0));
+  std::optional<codec::LightingSuite> suite;
+  if (target_de00) suite.emplace(environment_from(env_arg, grid.wavelengths), codec::SuiteOptions{});
+  codec::SpcReport rep;
+  codec::SpcTargetReport target;
+  std::vector<std::uint8_t> bytes;
+  codec::SpcBasis b;
+  {
+    py::gil_scoped_release release;
+    if (!basis) {
+      if (extra) throw UsageError("spc_encode: extra extends a learned basis; with no basis raise k instead");
+      b = codec::self_basis(grid, k);
+    } else {
+      b = codec::augment_basis(codec::coding_basis(*basis, k, ref), grid, extra);
+    }
+    if (target_de00) {
+      const codec::SpcTarget t{
+          .de00_mean = *target_de00, .de00_p95 = p95, .condition_mean = 2 * *target_de00, .max_trials = trials};
+      bytes = codec::encode_spc_to_target(grid, b, options, t, *suite, target, &rep, grid.provenance.source_file);
+    } else if (transform) {
+      bytes = codec::encode_spc(grid, b, options, &rep, grid.provenance.source_file);
+    } else {
+      bytes = codec::encode_spc(grid, b, bounded, &rep, grid.provenance.source_file);
+    }
+  }
+  const py::dict r = encode_report(transform, max_error, target_de00, p95, target, b, rep);
+  return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()), r);
+}
+
+// The Grid class and its exchange files.
+void def_grid(py::module_& m) {
   py::class_<store::Grid>(
       m, "Grid",
       "A spectral BRDF on the MERL grid: values (bands, 90 theta_h, 90 theta_d, 180 phi_d) float32; "
@@ -137,7 +231,10 @@ void init_brdf(py::module_& m) {
         codec::write_grid_file(path, g);
       },
       py::arg("path"), py::arg("grid"), "Writes a grid exchange file (complete or not at all).");
+}
 
+// MERL .binary files.
+void def_merl(py::module_& m) {
   m.attr("MERL_SCALE") = py::make_tuple(codec::kMerlScale[0], codec::kMerlScale[1], codec::kMerlScale[2]);
   m.def(
       "read_merl",
@@ -174,7 +271,10 @@ void init_brdf(py::module_& m) {
       },
       py::arg("path"), py::arg("values"), py::arg("scaled") = false,
       "Writes (3, 90, 90, 180) values as a MERL .binary (stored values, or 1/sr with scaled=True).");
+}
 
+// Standard angles to MERL cells and grid values.
+void def_lookup(py::module_& m) {
   m.def(
       "merl_index",
       [](const ArrayLike& ti, const ArrayLike& pi, const ArrayLike& to, const ArrayLike& po) {
@@ -231,105 +331,21 @@ void init_brdf(py::module_& m) {
       py::arg("grid"), py::arg("theta_i"), py::arg("phi_i"), py::arg("theta_o"), py::arg("phi_o"),
       "The grid's BRDF (1/sr) at arrays of standard angles (radians), in the cell BRDFRead.cpp reads: shape of the "
       "angles + (bands,), NaN where the cell holds no data; float32 angles give float32 values.");
+}
 
-  m.def(
-      "spc_encode",
-      [](const GridArg& grid_arg, const OptBasis& basis_arg, std::size_t k, std::size_t extra, double max_error,
-         double magnitude_scale, int zstd_level, const OptStr& reference, std::optional<double> step,
-         std::optional<double> target_de00, std::optional<double> target_p95, int trials, const EnvArg& env_arg) {
-        const store::Grid& grid = as<store::Grid>(grid_arg, "spc_encode", "grid", "Grid");
-        if (step && target_de00) throw UsageError("spc_encode: give step or target_de00, not both");
-        if (target_p95 && !target_de00) throw UsageError("spc_encode: target_p95 goes with target_de00");
-        std::optional<store::Basis> basis;
-        std::string ref;
-        if (!basis_arg.is_none()) {
-          basis = as<store::Basis>(basis_arg, "spc_encode", "basis", "Basis");
-          if (!reference.is_none())
-            ref = reference.cast<std::string>();
-          else if (py::hasattr(basis_arg, "_origin"))
-            ref = basis_arg.attr("_origin").cast<std::string>();
-          else
-            ref = basis->source.empty() ? "python" : basis->source;
-        } else if (!reference.is_none()) {
-          throw UsageError("spc_encode: reference names a learned basis; without one the basis is 'self'");
-        }
-        const codec::SpcBoundedOptions bounded{
-            .max_error = max_error, .magnitude_scale = magnitude_scale, .zstd_level = zstd_level};
-        codec::SpcTransformOptions options{.magnitude_scale = magnitude_scale};
-        if (step) options.step = *step;
-        const bool transform = step || target_de00;
-        const double p95 = target_p95.value_or(3 * target_de00.value_or(0));
-        std::optional<codec::LightingSuite> suite;
-        if (target_de00) suite.emplace(environment_from(env_arg, grid.wavelengths), codec::SuiteOptions{});
-        codec::SpcReport rep;
-        codec::SpcTargetReport target;
-        std::vector<std::uint8_t> bytes;
-        codec::SpcBasis b;
-        {
-          py::gil_scoped_release release;
-          if (!basis) {
-            if (extra) throw UsageError("spc_encode: extra extends a learned basis; with no basis raise k instead");
-            b = codec::self_basis(grid, k);
-          } else {
-            b = codec::augment_basis(codec::coding_basis(*basis, k, ref), grid, extra);
-          }
-          if (target_de00) {
-            const codec::SpcTarget t{
-                .de00_mean = *target_de00, .de00_p95 = p95, .condition_mean = 2 * *target_de00, .max_trials = trials};
-            bytes = codec::encode_spc_to_target(grid, b, options, t, *suite, target, &rep, grid.provenance.source_file);
-          } else if (transform) {
-            bytes = codec::encode_spc(grid, b, options, &rep, grid.provenance.source_file);
-          } else {
-            bytes = codec::encode_spc(grid, b, bounded, &rep, grid.provenance.source_file);
-          }
-        }
-        py::dict r;  // the fields of `specula encode --json`
-        r["method"] = transform ? "transform" : "bounded";
-        r["format_version"] = transform ? 2 : 1;
-        if (target_de00) {
-          py::dict t;
-          t["de00_mean"] = *target_de00;
-          t["de00_p95"] = p95;
-          t["reached"] = target.reached;
-          t["trials"] = target.trials;
-          t["step"] = target.step;
-          t["reached_de00_mean"] = target.de00_mean;
-          t["reached_de00_p95"] = target.de00_p95;
-          t["condition_mean"] = 2 * *target_de00;
-          t["worst_condition"] = target.worst_condition;
-          t["worst_de00_mean"] = target.worst_mean;
-          t["measure"] = "lighting suite";
-          r["target"] = t;
-        }
-        r["step"] = transform ? rep.magnitude_step : 0.0;
-        r["basis"] = b.reference;
-        r["k"] = b.k();
-        r["max_error"] = transform ? 0.0 : max_error;
-        r["input_bytes"] = rep.input_bytes;
-        r["output_bytes"] = rep.output_bytes;
-        r["ratio"] = double(rep.input_bytes) / double(rep.output_bytes);
-        r["bits_per_cell"] = 8.0 * double(rep.output_bytes) / double(rep.valid_cells ? rep.valid_cells : 1);
-        r["valid_cells"] = rep.valid_cells;
-        r["rms_error"] = rep.rms_error;
-        r["max_abs_error"] = rep.max_abs_error;
-        r["max_shape_residual"] = rep.max_shape_residual;
-        r["max_quantisation_error"] = rep.max_quantisation_error;
-        r["magnitude_scale"] = rep.magnitude_scale;
-        r["magnitude_step"] = rep.magnitude_step;
-        r["shape_step"] = rep.shape_step;
-        return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()), r);
-      },
-      py::arg("grid"), py::arg("basis") = py::none(), py::arg("k") = 6, py::arg("extra") = 0,
-      py::arg("max_error") = 0.01, py::arg("magnitude_scale") = 0.0, py::arg("zstd_level") = 9,
-      py::arg("reference") = py::none(), py::arg("step") = py::none(), py::arg("target_de00") = py::none(),
-      py::arg("target_p95") = py::none(), py::arg("trials") = 8, py::arg("env") = "default",
-      "Encodes a grid as .spc bytes (docs/codec-format.md) as `specula encode` does: on a learned basis (its first k "
-      "as coding_basis takes them, plus `extra` fitted spectra) or, without one, on the grid's own top-k basis; "
-      "bounded (format 1, max_error), or transform (format 2) with a quantisation `step` or the coarsest step whose "
-      "rendering under `env` ('default' or a lat-long EXR) has CIEDE2000 mean at most target_de00 (and 95th "
-      "percentile at most target_p95, default 3x). `reference` (recorded in the file) defaults to where the basis "
-      "came from ('STORE.h5:NAME' for a basis read from or saved in a store). Returns (bytes, report), the report "
-      "with the fields of `specula encode --json`.");
+// .spc files: encoding, decoding, writing.
+void def_spc(py::module_& m) {
+  m.def("spc_encode", &spc_encode, py::arg("grid"), py::arg("basis") = py::none(), py::arg("k") = 6,
+        py::arg("extra") = 0, py::arg("max_error") = 0.01, py::arg("magnitude_scale") = 0.0, py::arg("zstd_level") = 9,
+        py::arg("reference") = py::none(), py::arg("step") = py::none(), py::arg("target_de00") = py::none(),
+        py::arg("target_p95") = py::none(), py::arg("trials") = 8, py::arg("env") = "default",
+        "Encodes a grid as .spc bytes (docs/codec-format.md) as `specula encode` does: on a learned basis (its first k "
+        "as coding_basis takes them, plus `extra` fitted spectra) or, without one, on the grid's own top-k basis; "
+        "bounded (format 1, max_error), or transform (format 2) with a quantisation `step` or the coarsest step whose "
+        "rendering under `env` ('default' or a lat-long EXR) has CIEDE2000 mean at most target_de00 (and 95th "
+        "percentile at most target_p95, default 3x). `reference` (recorded in the file) defaults to where the basis "
+        "came from ('STORE.h5:NAME' for a basis read from or saved in a store). Returns (bytes, report), the report "
+        "with the fields of `specula encode --json`.");
   m.def(
       "spc_decode",
       [](const SpcData& data) {
@@ -356,7 +372,10 @@ void init_brdf(py::module_& m) {
         codec::write_spc_file(path_from(p), std::span(reinterpret_cast<const std::uint8_t*>(s.data()), s.size()));
       },
       py::arg("path"), py::arg("data"), "Writes .spc bytes to a file (complete or not at all).");
+}
 
+// Colour matching functions, illuminants and XYZ weights.
+void def_colour(py::module_& m) {
   m.def(
       "cmf",
       [](const WavelengthsArg& w, const std::string& observer) {
@@ -381,6 +400,10 @@ void init_brdf(py::module_& m) {
       },
       py::arg("wavelengths"), py::arg("kind") = "reflectance", py::arg("illuminant") = "D65",
       py::arg("observer") = "cie1931_2deg", "(W, white): XYZ = W @ spectrum (W is 3 x bands) and the scene white.");
+}
+
+// Spectra to XYZ and XYZ to display sRGB.
+void def_display(py::module_& m) {
   m.def(
       "spectra_to_xyz",
       [](const ArrayLike& spectra, const WavelengthsArg& w, const std::string& kind, const IlluminantArg& ill,
@@ -453,6 +476,17 @@ void init_brdf(py::module_& m) {
       py::arg("exposure") = 0.0, py::arg("tone") = "clip", py::arg("adapt") = true, py::arg("desaturate") = true,
       "Display sRGB of spectra (..., bands): spectra_to_xyz then xyz_to_srgb with the scene white. Returns (srgb8, "
       "linear).");
+}
+
+}  // namespace
+
+void init_brdf(py::module_& m) {
+  def_grid(m);
+  def_merl(m);
+  def_lookup(m);
+  def_spc(m);
+  def_colour(m);
+  def_display(m);
 }
 
 }  // namespace specula::python

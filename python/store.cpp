@@ -19,55 +19,58 @@ py::dict provenance_dict(const store::Provenance& p) {
   return d;
 }
 
-py::dict info_dict(const store::ImageInfo& i) {
+py::dict named(const char* kind, const std::string& name) {
   py::dict d;
-  d["kind"] = "image";
-  d["name"] = i.name;
-  d["height"] = i.height;
-  d["width"] = i.width;
+  d["kind"] = kind;
+  d["name"] = name;
+  return d;
+}
+
+template <class Info>
+void add_spectral(py::dict& d, const Info& i) {
   d["bands"] = i.bands;
   d["wavelengths"] = wavelengths_array(i.wavelengths);
-  d["has_fwhm"] = i.has_fwhm;
-  d["units"] = i.units;
+}
+
+// The closing fields of the info dicts of images and coefficient maps.
+template <class Info>
+void add_chunked(py::dict& d, const Info& i) {
   d["valid_pixels"] = i.valid_pixels;
   d["chunk_rows"] = i.chunk_rows;
   d["compression"] = i.compression;
   d["provenance"] = provenance_dict(i.provenance);
+}
+
+py::dict info_dict(const store::ImageInfo& i) {
+  py::dict d = named("image", i.name);
+  d["height"] = i.height;
+  d["width"] = i.width;
+  add_spectral(d, i);
+  d["has_fwhm"] = i.has_fwhm;
+  d["units"] = i.units;
+  add_chunked(d, i);
   return d;
 }
 
-py::dict info_dict(const store::CollectionInfo& i) {
-  py::dict d;
-  d["kind"] = "collection";
-  d["name"] = i.name;
+// Collections and samples: lists of spectra.
+template <class Info>
+py::dict list_dict(const char* kind, const Info& i) {
+  py::dict d = named(kind, i.name);
   d["size"] = i.size;
-  d["bands"] = i.bands;
-  d["wavelengths"] = wavelengths_array(i.wavelengths);
+  add_spectral(d, i);
   d["units"] = i.units;
   d["chunk_rows"] = i.chunk_rows;
   d["provenance"] = provenance_dict(i.provenance);
   return d;
 }
 
-py::dict info_dict(const store::SamplesInfo& i) {
-  py::dict d;
-  d["kind"] = "samples";
-  d["name"] = i.name;
-  d["size"] = i.size;
-  d["bands"] = i.bands;
-  d["wavelengths"] = wavelengths_array(i.wavelengths);
-  d["units"] = i.units;
-  d["chunk_rows"] = i.chunk_rows;
-  d["provenance"] = provenance_dict(i.provenance);
-  return d;
-}
+py::dict info_dict(const store::CollectionInfo& i) { return list_dict("collection", i); }
+
+py::dict info_dict(const store::SamplesInfo& i) { return list_dict("samples", i); }
 
 py::dict info_dict(const store::GridInfo& i) {
-  py::dict d;
-  d["kind"] = "grid";
-  d["name"] = i.name;
-  d["bands"] = i.bands;
-  d["wavelengths"] = wavelengths_array(i.wavelengths);
+  py::dict d = named("grid", i.name);
+  add_spectral(d, i);
   d["scale"] = i.scale;
   d["units"] = i.units;
   d["compression"] = i.compression;
@@ -76,26 +79,19 @@ py::dict info_dict(const store::GridInfo& i) {
 }
 
 py::dict info_dict(const store::CoefficientsInfo& i) {
-  py::dict d;
-  d["kind"] = "coefficients";
-  d["name"] = i.name;
+  py::dict d = named("coefficients", i.name);
   d["image"] = i.image;
   d["basis"] = i.basis;
   d["method"] = i.method;
   d["height"] = i.height;
   d["width"] = i.width;
   d["k"] = i.k;
-  d["valid_pixels"] = i.valid_pixels;
-  d["chunk_rows"] = i.chunk_rows;
-  d["compression"] = i.compression;
-  d["provenance"] = provenance_dict(i.provenance);
+  add_chunked(d, i);
   return d;
 }
 
 py::dict basis_info(const store::Basis& b, const std::string& name) {
-  py::dict d;
-  d["kind"] = "basis";
-  d["name"] = name;
+  py::dict d = named("basis", name);
   d["method"] = b.method;
   d["k"] = b.k();
   d["bands"] = b.bands();
@@ -146,23 +142,52 @@ const store::Store& holding(const PyStore& ps, const std::string& kind, const st
       fmt::format("{}: no {} '{}' (its {}: {})", ps.path().string(), one, name, kind, have.empty() ? "none" : have));
 }
 
-void init_store(py::module_& m) {
-  auto list = [](const char* kind) {
-    return [kind](const PyStore& ps) { return ps.exists() ? names_of(ps.get(), kind) : std::vector<std::string>{}; };
-  };
-  py::class_<PyStore>(m, "Store",
-                      "A specula store. mode 'r' reads; mode 'a' also writes (the store is created by the first "
-                      "commit). Reads see one committed state, refreshed by refresh() and after every commit made "
-                      "through this module. `with Store(path, mode='a') as s:` is one transaction: committed on a "
-                      "clean exit, abandoned (the store as it was) on an exception; writes outside `with` commit at "
-                      "once.")
-      .def(py::init([](const PathArg& path, const std::string& mode) { return PyStore(path_from(path), mode); }),
-           py::arg("path"), py::arg("mode") = "r")
+namespace {
+
+// Image `name` of the store, read without holding the GIL.
+store::Cube read_image(const PyStore& ps, const std::string& name) {
+  const store::Store& s = holding(ps, "images", name);
+  py::gil_scoped_release release;
+  return s.read_image(name);
+}
+
+// Opening, refreshing and closing; transactions through `with`.
+void def_state(py::class_<PyStore>& cls) {
+  cls.def(py::init([](const PathArg& path, const std::string& mode) { return PyStore(path_from(path), mode); }),
+          py::arg("path"), py::arg("mode") = "r")
       .def_property_readonly(
           "path", [](const PyStore& s) { return s.path().string(); }, "The store's absolute path.")
       .def_property_readonly("mode", &PyStore::mode)
       .def_property_readonly("format_version", [](const PyStore& s) { return s.get().format_version(); })
-      .def_property_readonly("images", list("images"))
+      .def("refresh", &PyStore::refresh, "Reads the latest committed state (what other processes committed since).")
+      .def(
+          "stale", [](const PyStore& s) { return s.get().stale(); },
+          "True when a commit replaced the state this object reads (refresh() to see it).")
+      .def("__repr__",
+           [](const PyStore& s) { return fmt::format("<specula.Store '{}' mode='{}'>", s.path().string(), s.mode()); })
+      .def("__enter__",
+           [](py::object self) {
+             self.cast<PyStore&>().enter();
+             return self;
+           })
+      .def(
+          "__exit__",
+          [](PyStore& s, const py::object& type, const py::object&, const py::object&) {
+            s.exit(type.is_none());
+            return false;
+          },
+          py::arg("exc_type"), py::arg("exc_value"), py::arg("traceback"))
+      .def("close", &PyStore::close,
+           "Closes the store's files and abandons an open transaction (nothing of it is committed); a later call "
+           "reopens the store. Blocks already made keep their own state.");
+}
+
+// What the store holds: object lists, (kind, name) pairs and info dicts.
+void def_listing(py::class_<PyStore>& cls) {
+  auto list = [](const char* kind) {
+    return [kind](const PyStore& ps) { return ps.exists() ? names_of(ps.get(), kind) : std::vector<std::string>{}; };
+  };
+  cls.def_property_readonly("images", list("images"))
       .def_property_readonly("collections", list("collections"))
       .def_property_readonly("samples", list("samples"))
       .def_property_readonly("grids", list("grids"))
@@ -184,27 +209,6 @@ void init_store(py::module_& m) {
             return out;
           },
           "Every object as (kind, name) pairs.")
-      .def("refresh", &PyStore::refresh, "Reads the latest committed state (what other processes committed since).")
-      .def(
-          "stale", [](const PyStore& s) { return s.get().stale(); },
-          "True when a commit replaced the state this object reads (refresh() to see it).")
-      .def("__repr__",
-           [](const PyStore& s) { return fmt::format("<specula.Store '{}' mode='{}'>", s.path().string(), s.mode()); })
-      .def("__enter__",
-           [](py::object self) {
-             self.cast<PyStore&>().enter();
-             return self;
-           })
-      .def(
-          "__exit__",
-          [](PyStore& s, const py::object& type, const py::object&, const py::object&) {
-            s.exit(type.is_none());
-            return false;
-          },
-          py::arg("exc_type"), py::arg("exc_value"), py::arg("traceback"))
-      .def("close", &PyStore::close,
-           "Closes the store's files and abandons an open transaction (nothing of it is committed); a later call "
-           "reopens the store. Blocks already made keep their own state.")
       .def(
           "info",
           [](const PyStore& ps, const std::string& spec) -> py::dict {
@@ -219,42 +223,31 @@ void init_store(py::module_& m) {
             throw UsageError(
                 fmt::format("{}: info: object {} is a {}, which has no info dict", ps.path().string(), spec, kind));
           },
-          py::arg("name"), "Metadata of one object: a name, or kind/name when several kinds use it.")
-      .def(
-          "image",
-          [](const PyStore& ps, const std::string& name, const OptFloat& masked) {
-            const store::Store& s = holding(ps, "images", name);
-            store::Cube c;
-            {
-              py::gil_scoped_release release;
-              c = s.read_image(name);
-            }
-            return image_array(std::move(c), masked);
-          },
-          py::arg("name"), py::arg("masked") = py::none(),
-          "Image `name` as a (height, width, bands) float32 array (a new copy); with masked=v (e.g. numpy.nan) the "
-          "spectra of masked pixels are v.")
+          py::arg("name"), "Metadata of one object: a name, or kind/name when several kinds use it.");
+}
+
+// Images, their masks and single pixels.
+void def_images(py::class_<PyStore>& cls) {
+  cls.def(
+         "image",
+         [](const PyStore& ps, const std::string& name, const OptFloat& masked) {
+           store::Cube c = read_image(ps, name);
+           return image_array(std::move(c), masked);
+         },
+         py::arg("name"), py::arg("masked") = py::none(),
+         "Image `name` as a (height, width, bands) float32 array (a new copy); with masked=v (e.g. numpy.nan) the "
+         "spectra of masked pixels are v.")
       .def(
           "mask",
           [](const PyStore& ps, const std::string& name) {
-            const store::Store& s = holding(ps, "images", name);
-            store::Cube c;
-            {
-              py::gil_scoped_release release;
-              c = s.read_image(name);
-            }
+            store::Cube c = read_image(ps, name);
             return mask_array(c);
           },
           py::arg("name"), "The mask of image `name` as (height, width) uint8, 1 = valid.")
       .def(
           "image_and_mask",
           [](const PyStore& ps, const std::string& name, const OptFloat& masked) {
-            const store::Store& s = holding(ps, "images", name);
-            store::Cube c;
-            {
-              py::gil_scoped_release release;
-              c = s.read_image(name);
-            }
+            store::Cube c = read_image(ps, name);
             if (c.mask.empty()) c.mask.assign(c.height * c.width, 1);
             std::vector<std::uint8_t> mask = c.mask;
             const py::ssize_t h = py::ssize_t(c.height), w = py::ssize_t(c.width);
@@ -270,15 +263,19 @@ void init_store(py::module_& m) {
             if (!s.read_pixel(name, x, y, v)) return OptArrayResult(py::none());
             return OptArrayResult(adopt(std::move(v), {py::ssize_t(info.bands)}));
           },
-          py::arg("name"), py::arg("x"), py::arg("y"), "The spectrum of pixel (x, y), or None when it is masked.")
-      .def(
-          "collection",
-          [](const PyStore& ps, const std::string& name) {
-            store::Collection c = holding(ps, "collections", name).read_collection(name);
-            const std::size_t n = c.size(), b = c.bands();
-            return adopt(std::move(c.values), {py::ssize_t(n), py::ssize_t(b)});
-          },
-          py::arg("name"), "Collection `name` as a (size, bands) float32 array.")
+          py::arg("name"), py::arg("x"), py::arg("y"), "The spectrum of pixel (x, y), or None when it is masked.");
+}
+
+// Collections, samples, grids, bases and coefficient maps.
+void def_objects(py::class_<PyStore>& cls) {
+  cls.def(
+         "collection",
+         [](const PyStore& ps, const std::string& name) {
+           store::Collection c = holding(ps, "collections", name).read_collection(name);
+           const std::size_t n = c.size(), b = c.bands();
+           return adopt(std::move(c.values), {py::ssize_t(n), py::ssize_t(b)});
+         },
+         py::arg("name"), "Collection `name` as a (size, bands) float32 array.")
       .def(
           "collection_names",
           [](const PyStore& ps, const std::string& name) {
@@ -344,6 +341,22 @@ void init_store(py::module_& m) {
             return holding(ps, "coefficients", name).coefficients_basis(name);
           },
           py::arg("name"), "The basis stored with coefficient map `name`.");
+}
+
+}  // namespace
+
+void init_store(py::module_& m) {
+  py::class_<PyStore> cls(
+      m, "Store",
+      "A specula store. mode 'r' reads; mode 'a' also writes (the store is created by the first "
+      "commit). Reads see one committed state, refreshed by refresh() and after every commit made "
+      "through this module. `with Store(path, mode='a') as s:` is one transaction: committed on a "
+      "clean exit, abandoned (the store as it was) on an exception; writes outside `with` commit at "
+      "once.");
+  def_state(cls);
+  def_listing(cls);
+  def_images(cls);
+  def_objects(cls);
 }
 
 }  // namespace specula::python
