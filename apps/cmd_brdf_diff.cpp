@@ -10,6 +10,7 @@
 #include "apps/common.h"
 #include "specula/codec/diff.h"
 #include "specula/codec/environment.h"
+#include "specula/codec/report_json.h"
 #include "specula/codec/suite.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
@@ -167,11 +168,9 @@ void run_brdf_diff(const BrdfDiffOptions& o) {
     store::write_png_rgb8(o.heatmap, n, n, rgb);
   }
   if (o.json) {
-    fmt::print(R"({{"a":{},"b":{},"environment":{},"cells":{},"only_a":{},"only_b":{},"rms":{},"max_abs":{},)"
-               R"("rel_rms_cos":{},"de00_mean":{},"de00_p95":{},"de00_max":{},"size":{}}})"
-               "\n",
-               json_string(o.a), json_string(o.b), json_string(env.description), d.cells, d.only_a, d.only_b, d.rms,
-               d.max_abs, d.rel_rms_cos, d.de00_mean, d.de00_p95, d.de00_max, size);
+    Json j = {{"a", o.a}, {"b", o.b}};
+    j.update(codec::grid_diff_json(d, env.description, size));
+    print_json(j);
     return;
   }
   fmt::print("{} vs {} over {} cells valid in both ({} only in the first, {} only in the second):\n", o.a, o.b, d.cells,
