@@ -93,11 +93,19 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   save_grid(conf, conf_out, o.replace, "resample");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
-    fmt::print(R"({{"samples":{},"bands":{},"cells":{},"valid_cells":{},"observed_cells":{},"seconds":{:.6f},)"
-               R"("fit_seconds":{:.6f},"prior":{},"output":{},"confidence":{},"threads":{}}})"
-               "\n",
-               info.size, info.bands, brdf::kMerlCells, st.filled_cells, st.observed_cells, seconds, st.fit_seconds,
-               json_string(o.prior), json_string(o.output), json_string(conf_out), omp_get_max_threads());
+    Json j;
+    j["samples"] = info.size;
+    j["bands"] = info.bands;
+    j["cells"] = brdf::kMerlCells;
+    j["valid_cells"] = st.filled_cells;
+    j["observed_cells"] = st.observed_cells;
+    j["seconds"] = seconds;
+    j["fit_seconds"] = st.fit_seconds;
+    j["prior"] = o.prior;
+    j["output"] = o.output;
+    j["confidence"] = conf_out;
+    j["threads"] = omp_get_max_threads();
+    print_json(j);
     return;
   }
   fmt::print(
