@@ -66,12 +66,12 @@ std::string confidence_output(const std::string& output) {
 // --prior: the prior fitted to the samples' cell means, blended with the kd-tree estimate by per-cell confidence.
 void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOptions& ro) {
   const auto t0 = std::chrono::steady_clock::now();
-  const auto colon = o.prior.rfind(':');
-  if (colon == std::string::npos) throw UsageError("resample --prior: give STORE.h5:PRIOR");
+  const auto prior_spec = store::parse_object_spec(o.prior);
+  if (!prior_spec) throw UsageError("resample --prior: give STORE.h5:PRIOR");
   const std::string conf_out = confidence_output(o.output);
   check_output(conf_out, o.replace);
   const acquire::BrdfPrior prior =
-      acquire::read_prior(store::Store::open(o.prior.substr(0, colon)), o.prior.substr(colon + 1));
+      acquire::read_prior(store::Store::open(prior_spec->file), prior_spec->name);
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);
