@@ -63,6 +63,11 @@ std::string confidence_output(const std::string& output) {
   return output + ".confidence";
 }
 
+// What both kinds of resampling report first: the samples read and the grid's cells.
+Json report_head(const store::SamplesInfo& info, std::uint64_t valid_cells) {
+  return {{"samples", info.size}, {"bands", info.bands}, {"cells", brdf::kMerlCells}, {"valid_cells", valid_cells}};
+}
+
 // --prior: the prior fitted to the samples' cell means, blended with the kd-tree estimate by per-cell confidence.
 void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOptions& ro) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -93,11 +98,7 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   save_grid(conf, conf_out, o.replace, "resample");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
-    Json j;
-    j["samples"] = info.size;
-    j["bands"] = info.bands;
-    j["cells"] = brdf::kMerlCells;
-    j["valid_cells"] = st.filled_cells;
+    Json j = report_head(info, st.filled_cells);
     j["observed_cells"] = st.observed_cells;
     j["seconds"] = seconds;
     j["fit_seconds"] = st.fit_seconds;
@@ -139,11 +140,7 @@ void run_resample(const ResampleCliOptions& o) {
   const std::string what = save_grid(grid, o.output, o.replace, "resample");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
-    Json j;
-    j["samples"] = info.size;
-    j["bands"] = info.bands;
-    j["cells"] = brdf::kMerlCells;
-    j["valid_cells"] = stats.valid_cells;
+    Json j = report_head(info, stats.valid_cells);
     j["seconds"] = seconds;
     j["tree_seconds"] = stats.tree_seconds;
     j["query_seconds"] = stats.query_seconds;
