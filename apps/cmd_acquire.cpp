@@ -14,6 +14,7 @@
 #include "apps/common.h"
 #include "apps/gnuplot.h"
 #include "specula/acquire/capture.h"
+#include "specula/acquire/incidence.h"
 #include "specula/acquire/hdr.h"
 #include "specula/acquire/mapping.h"
 #include "specula/acquire/pipeline.h"
@@ -144,15 +145,14 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
   }
   const auto model = truth_model(cap, info.wavelengths);
   const double eps = 2 * pi / 180;
-  std::vector<std::string> points(o.plot_theta.size());
-  acquire::for_each_sample(s, name, [&](const double* angles, const float* values) {
-    const acquire::IsoAngles a = acquire::iso_angles({angles[0], angles[1], angles[2], angles[3]});
-    for (std::size_t k = 0; k < o.plot_theta.size(); ++k)
-      if (const auto x = acquire::incidence_plane_angle(a, o.plot_theta[k] * pi / 180, eps))
-        points[k] += fmt::format("{:.3f} {:.5g}\n", *x * 180 / pi, std::cbrt(std::max(0.0f, values[band])));
-  });
+  std::vector<double> theta_i;
+  for (const double t : o.plot_theta) theta_i.push_back(t * pi / 180);
+  const std::vector<acquire::PlanePoints> planes = acquire::incidence_plane_points(s, name, theta_i, eps, band);
   for (std::size_t k = 0; k < o.plot_theta.size(); ++k) {
-    std::string script = "$S << EOD\n" + points[k] + "EOD\n";
+    std::string script = "$S << EOD\n";
+    for (const acquire::PlanePoint& p : planes[k].points)
+      script += fmt::format("{:.3f} {:.5g}\n", p.theta_o * 180 / pi, std::cbrt(std::max(0.0f, p.value)));
+    script += "EOD\n";
     if (model) {
       script += "$M << EOD\n";
       std::vector<double> f(info.bands);

@@ -9,7 +9,9 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/codec/diff.h"
+#include "specula/codec/diff_figure.h"
 #include "specula/codec/environment.h"
+#include "specula/codec/report_json.h"
 #include "specula/codec/suite.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
@@ -26,45 +28,8 @@ struct BrdfDiffOptions {
   bool json = false;
 };
 
-// sRGB of an XYZ rendering, the white mapped to 1 after adaptation to D65; off-sphere pixels dark grey.
-void paint(const codec::SphereRenders& r, const std::vector<float>& xyz, std::vector<std::uint8_t>& rgb,
-           std::size_t stride, std::size_t x0) {
-  const Eigen::Matrix3d m = rendering_to_linear_srgb(r.white);
-  for (std::size_t y = 0; y < r.size; ++y)
-    for (std::size_t x = 0; x < r.size; ++x) {
-      const std::size_t p = y * r.size + x;
-      const Eigen::Vector3d c = m * Eigen::Vector3d(xyz[3 * p], xyz[3 * p + 1], xyz[3 * p + 2]);
-      for (std::size_t k = 0; k < 3; ++k)
-        rgb[3 * (y * stride + x0 + x) + k] =
-            r.covered[p] ? std::uint8_t(std::lround(255 * srgb_encode(c[Eigen::Index(k)]))) : 24;
-    }
-}
-
-// The worst condition's two renderings and its ΔE00 map (0 to 2 across the ramp) side by side; off-disc pixels dark.
-void write_suite_panel(const codec::LightingSuite& suite, const codec::SuiteRenders& ra, const codec::SuiteRenders& rb,
-                       const codec::SuiteDiff& d, const std::string& path, bool map_only) {
-  const std::size_t n = suite.size(), w = (map_only ? 1 : 3) * n, c = d.worst;
-  std::vector<std::uint8_t> rgb(3 * w * n, 24);
-  codec::SphereRenders r;
-  r.size = n;
-  r.covered.assign(n * n, 0);
-  r.white = d.conditions[c].white;
-  std::vector<float> xa(3 * n * n, 0.0f), xb(3 * n * n, 0.0f);
-  const auto& px = suite.pixels();
-  for (std::size_t i = 0; i < px.size(); ++i) {
-    r.covered[px[i]] = 1;
-    for (std::size_t k = 0; k < 3; ++k)
-      xa[3 * px[i] + k] = ra.xyz[c][3 * i + k], xb[3 * px[i] + k] = rb.xyz[c][3 * i + k];
-  }
-  if (!map_only) {
-    paint(r, xa, rgb, w, 0);
-    paint(r, xb, rgb, w, n);
-  }
-  for (std::size_t i = 0; i < px.size(); ++i) {
-    const auto h = heat(std::min(1.0, d.de00[c][i] / 2.0));
-    for (std::size_t k = 0; k < 3; ++k) rgb[3 * ((px[i] / n) * w + (map_only ? 0 : 2 * n) + px[i] % n) + k] = h[k];
-  }
-  store::write_png_rgb8(path, w, n, rgb);
+void write_picture(const std::string& path, const Picture& p) {
+  store::write_png_rgb8(path, p.width, p.height, p.srgb8);
 }
 
 void print_suite(const BrdfDiffOptions& o, const codec::LightingSuite& suite, const codec::SuiteDiff& d) {
@@ -107,8 +72,8 @@ void run_suite_diff(const BrdfDiffOptions& o) {
   const codec::SuiteRenders ra = suite.render(a), rb = suite.render(b);
   codec::SuiteDiff d = suite.compare(ra, rb, !o.panel.empty() || !o.heatmap.empty());
   codec::suite_value_metrics(a, b, d);
-  if (!o.panel.empty()) write_suite_panel(suite, ra, rb, d, o.panel, false);
-  if (!o.heatmap.empty()) write_suite_panel(suite, ra, rb, d, o.heatmap, true);
+  if (!o.panel.empty()) write_picture(o.panel, codec::suite_panel(suite, ra, rb, d, false));
+  if (!o.heatmap.empty()) write_picture(o.heatmap, codec::suite_panel(suite, ra, rb, d, true));
   if (o.json) {
     fmt::print("{}\n", codec::suite_json(d, suite));
     return;
@@ -143,35 +108,12 @@ void run_brdf_diff(const BrdfDiffOptions& o) {
     throw InputError(fmt::format("brdf-diff: {} has {}, {} has {}; compare grids on one wavelength grid", o.a,
                                  a.wavelengths.describe(), o.b, b.wavelengths.describe()));
   const codec::GridDiff d = codec::diff_grids(a, b, env, {.size = size});
-  if (!o.panel.empty()) {
-    // A | B | CIEDE2000 heat map (0 to 2 across the ramp).
-    const std::size_t n = size, w = 3 * n;
-    std::vector<std::uint8_t> rgb(3 * w * n, 24);
-    paint(d.renders, d.renders.xyz[0], rgb, w, 0);
-    paint(d.renders, d.renders.xyz[1], rgb, w, n);
-    for (std::size_t p = 0; p < n * n; ++p) {
-      if (!d.renders.covered[p]) continue;
-      const auto c = heat(std::min(1.0, d.de00[p] / 2.0));
-      for (std::size_t k = 0; k < 3; ++k) rgb[3 * ((p / n) * w + 2 * n + p % n) + k] = c[k];
-    }
-    store::write_png_rgb8(o.panel, w, n, rgb);
-  }
-  if (!o.heatmap.empty()) {
-    const std::size_t n = size;
-    std::vector<std::uint8_t> rgb(3 * n * n, 24);
-    for (std::size_t p = 0; p < n * n; ++p)
-      if (d.renders.covered[p]) {
-        const auto c = heat(std::min(1.0, d.de00[p] / 2.0));
-        for (std::size_t k = 0; k < 3; ++k) rgb[3 * p + k] = c[k];
-      }
-    store::write_png_rgb8(o.heatmap, n, n, rgb);
-  }
+  if (!o.panel.empty()) write_picture(o.panel, codec::diff_panel(d.renders, d.de00, false));
+  if (!o.heatmap.empty()) write_picture(o.heatmap, codec::diff_panel(d.renders, d.de00, true));
   if (o.json) {
-    fmt::print(R"({{"a":{},"b":{},"environment":{},"cells":{},"only_a":{},"only_b":{},"rms":{},"max_abs":{},)"
-               R"("rel_rms_cos":{},"de00_mean":{},"de00_p95":{},"de00_max":{},"size":{}}})"
-               "\n",
-               json_string(o.a), json_string(o.b), json_string(env.description), d.cells, d.only_a, d.only_b, d.rms,
-               d.max_abs, d.rel_rms_cos, d.de00_mean, d.de00_p95, d.de00_max, size);
+    Json j = {{"a", o.a}, {"b", o.b}};
+    j.update(codec::grid_diff_json(d, env.description, size));
+    print_json(j);
     return;
   }
   fmt::print("{} vs {} over {} cells valid in both ({} only in the first, {} only in the second):\n", o.a, o.b, d.cells,

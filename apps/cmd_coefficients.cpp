@@ -7,14 +7,15 @@
 #include <cmath>
 #include <memory>
 
-#include "apps/canvas.h"
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/ranks.h"
 #include "specula/core/error.h"
 #include "specula/stats/coefficients.h"
+#include "specula/stats/figures.h"
 #include "specula/stats/project.h"
 #include "specula/store/block_reader.h"
+#include "specula/store/io/png_stack.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -33,46 +34,14 @@ struct CoefficientsOptions {
   bool json = false;
 };
 
-// One figure per map: its k coefficient images side by side (at most four to a row), each above its own colour
-// bar: NMF coefficients from 0 (black) to their 99th percentile, PCA ones blue-white-red around 0 to +-99th
-// percentile of |c|. Masked pixels are grey.
+// One figure per map: its k coefficient images side by side with their colour bars (stats::coefficient_figure).
 void write_plot(const fs::path& path, const store::Store& s, const std::string& name) {
   const store::CoefficientsInfo info = s.coefficients_info(name);
-  const std::size_t h = info.height, w = info.width, k = info.k;
-  std::vector<float> c(h * w * k);
-  std::vector<std::uint8_t> mask(h * w);
-  s.read_coefficient_rows(name, 0, h, c, mask);
-  const bool nmf = info.method == "nmf";
-  const std::size_t sc = font_scale(w), pad = 4 * sc, gap = 12 * sc, line = 10 * sc;
-  const std::size_t columns = std::min<std::size_t>(k, 4), rows = (k + columns - 1) / columns;
-  std::vector<double> range(k, 0.0);
-  std::size_t panel_w = w;
-  for (std::size_t j = 0; j < k; ++j) {
-    std::vector<float> v;
-    for (std::size_t p = 0; p < h * w; ++p)
-      if (mask[p]) v.push_back(nmf ? c[p * k + j] : std::abs(c[p * k + j]));
-    range[j] = quantile(v, 0.99);
-    const std::string hi = number_label(range[j]), lo = nmf ? "0" : number_label(-range[j]);
-    panel_w = std::max(panel_w, bar_min_width("", lo, hi, sc));
-  }
-  const std::size_t cell_h = line + h + pad + bar_height(sc);
-  Canvas canvas(2 * pad + columns * panel_w + (columns - 1) * gap, pad + rows * (cell_h + pad));
-  for (std::size_t j = 0; j < k; ++j) {
-    const std::size_t x0 = pad + (j % columns) * (panel_w + gap), y0 = pad + (j / columns) * (cell_h + pad);
-    const std::string label = fmt::format("c{}", j + 1);
-    canvas.text(x0 + (panel_w - text_width(label, sc)) / 2, y0, label, sc);
-    std::vector<std::uint8_t> picture(3 * h * w);
-    for (std::size_t p = 0; p < h * w; ++p) {
-      const double r = range[j] > 0 ? range[j] : 1.0;
-      const Rgb col = !mask[p] ? kMaskColour : nmf ? heat(c[p * k + j] / r) : diverging(0.5 + 0.5 * c[p * k + j] / r);
-      std::copy(col.begin(), col.end(), picture.begin() + std::ptrdiff_t(3 * p));
-    }
-    canvas.blit(x0 + (panel_w - w) / 2, y0 + line, w, h, picture);
-    const std::string hi = number_label(range[j]), lo = nmf ? "0" : number_label(-range[j]);
-    colour_bar(canvas, x0, y0 + line + h + pad, panel_w, nmf ? std::function<Rgb(double)>(heat) : diverging, "", lo, hi,
-               sc);
-  }
-  canvas.save_png(path);
+  std::vector<float> c(info.height * info.width * info.k);
+  std::vector<std::uint8_t> mask(info.height * info.width);
+  s.read_coefficient_rows(name, 0, info.height, c, mask);
+  const Canvas canvas = stats::coefficient_figure(info.height, info.width, info.k, c, mask, info.method == "nmf");
+  store::write_png_rgb8(path, canvas.width, canvas.height, canvas.rgb);
 }
 
 void run_coefficients(const CoefficientsOptions& o) {

@@ -1,6 +1,5 @@
 // specula encode: a spectral BRDF grid coded onto a spectral basis (.spc, docs/codec-format.md).
 #include <fmt/format.h>
-#include <omp.h>
 
 #include <chrono>
 #include <optional>
@@ -8,6 +7,7 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/codec/environment.h"
+#include "specula/codec/report_json.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spc_target.h"
 #include "specula/codec/suite.h"
@@ -66,12 +66,14 @@ void run_encode(const EncodeOptions& o) {
   codec::SpcReport rep;
   codec::SpcTargetReport target_report;
   std::vector<std::uint8_t> bytes;
+  const codec::SpcTarget target{.de00_mean = o.target_de00.value_or(0),
+                                .de00_p95 = p95,
+                                .condition_mean = 2 * o.target_de00.value_or(0),
+                                .max_trials = o.trials};
   if (o.target_de00) {
     const codec::LightingSuite suite = o.env == "default"
                                            ? codec::LightingSuite(grid.wavelengths)
                                            : codec::LightingSuite(codec::read_environment(o.env, grid.wavelengths), {});
-    const codec::SpcTarget target{
-        .de00_mean = *o.target_de00, .de00_p95 = p95, .condition_mean = 2 * *o.target_de00, .max_trials = o.trials};
     bytes = codec::encode_spc_to_target(grid, basis, options, target, suite, target_report, &rep, o.input);
   } else if (transform) {
     bytes = codec::encode_spc(grid, basis, options, &rep, o.input);
@@ -80,32 +82,14 @@ void run_encode(const EncodeOptions& o) {
   }
   codec::write_spc_file(o.output, bytes);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const double ratio = double(rep.input_bytes) / double(rep.output_bytes);
-  const std::string target_json =
-      o.target_de00
-          ? fmt::format(
-                R"("target":{{"de00_mean":{},"de00_p95":{},"reached":{},"trials":{},"step":{},)"
-                R"("reached_de00_mean":{:.4f},"reached_de00_p95":{:.4f},"condition_mean":{},"worst_condition":{},)"
-                R"("worst_de00_mean":{:.4f},"measure":"lighting suite"}},)",
-                *o.target_de00, p95, target_report.reached, target_report.trials, target_report.step,
-                target_report.de00_mean, target_report.de00_p95, 2 * *o.target_de00,
-                json_string(target_report.worst_condition), target_report.worst_mean)
-          : std::string();
   if (o.json) {
-    fmt::print(
-        R"({{"input":{},"output":{},"method":"{}","format_version":{},{}"step":{},"basis":{},"k":{},"max_error":{},"input_bytes":{},"output_bytes":{},)"
-        R"("ratio":{:.3f},"bits_per_cell":{:.4f},"valid_cells":{},"seconds":{:.6f},"encode_mb_per_s":{:.1f},)"
-        R"("rms_error":{},"max_abs_error":{},"max_shape_residual":{},"max_quantisation_error":{},)"
-        R"("magnitude_scale":{},"threads":{}}})"
-        "\n",
-        json_string(o.input), json_string(o.output), transform ? "transform" : "bounded", transform ? 2 : 1,
-        target_json, transform ? rep.magnitude_step : 0.0, json_string(basis.reference), basis.k(),
-        transform ? 0.0 : o.max_error, rep.input_bytes, rep.output_bytes, ratio,
-        8.0 * double(rep.output_bytes) / double(rep.valid_cells ? rep.valid_cells : 1), rep.valid_cells, seconds,
-        double(rep.input_bytes) / 1e6 / seconds, rep.rms_error, rep.max_abs_error, rep.max_shape_residual,
-        rep.max_quantisation_error, rep.magnitude_scale, omp_get_max_threads());
+    Json j = {{"input", o.input}, {"output", o.output}};
+    j.update(codec::spc_encode_json(rep, basis, transform ? nullptr : &bounded, o.target_de00 ? &target : nullptr,
+                                    &target_report, seconds));
+    print_json(j);
     return;
   }
+  const double ratio = double(rep.input_bytes) / double(rep.output_bytes);
   fmt::print("encoded {} ({} valid cells) on {} with k = {}: {} bytes, {:.1f}x smaller than float64, in {:.2f} s\n",
              o.input, rep.valid_cells, basis.reference, basis.k(), rep.output_bytes, ratio, seconds);
   if (o.target_de00)

@@ -1,5 +1,6 @@
 // specula info and specula ls: what a store holds, for people (text) and programs (--json).
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "apps/commands.h"
 #include "apps/common.h"
@@ -16,33 +17,32 @@ struct InfoOptions {
   bool json = false;
 };
 
-std::string provenance_json(const store::Provenance& p) {
-  return fmt::format(R"({{"source_file":{},"importer":{},"command_line":{},"created_utc":{}}})",
-                     json_string(p.source_file), json_string(p.importer), json_string(p.command_line),
-                     json_string(p.created_utc));
+Json provenance_json(const store::Provenance& p) {
+  return {{"source_file", p.source_file},
+          {"importer", p.importer},
+          {"command_line", p.command_line},
+          {"created_utc", p.created_utc}};
 }
 
-std::string image_json(const store::ImageInfo& i) {
-  return fmt::format(
-      R"({{"kind":"image","name":{},"height":{},"width":{},"bands":{},"wavelengths":{},"units":{},"valid_pixels":{},)"
-      R"("chunk_rows":{},"compression":{},"has_fwhm":{},"provenance":{}}})",
-      json_string(i.name), i.height, i.width, i.bands, json_array(i.wavelengths.values()), json_string(i.units),
-      i.valid_pixels, i.chunk_rows, json_string(i.compression), i.has_fwhm ? "true" : "false",
-      provenance_json(i.provenance));
+Json image_json(const store::ImageInfo& i) {
+  return {{"kind", "image"},         {"name", i.name},
+          {"height", i.height},      {"width", i.width},
+          {"bands", i.bands},        {"wavelengths", json_numbers(i.wavelengths.values())},
+          {"units", i.units},        {"valid_pixels", i.valid_pixels},
+          {"chunk_rows", i.chunk_rows}, {"compression", i.compression},
+          {"has_fwhm", i.has_fwhm},  {"provenance", provenance_json(i.provenance)}};
 }
 
-std::string collection_json(const store::CollectionInfo& c) {
-  return fmt::format(
-      R"({{"kind":"collection","name":{},"size":{},"bands":{},"wavelengths":{},"units":{},"provenance":{}}})",
-      json_string(c.name), c.size, c.bands, json_array(c.wavelengths.values()), json_string(c.units),
-      provenance_json(c.provenance));
+Json collection_json(const store::CollectionInfo& c) {
+  return {{"kind", "collection"}, {"name", c.name},   {"size", c.size},
+          {"bands", c.bands},     {"wavelengths", json_numbers(c.wavelengths.values())},
+          {"units", c.units},     {"provenance", provenance_json(c.provenance)}};
 }
 
-std::string samples_json(const store::SamplesInfo& s) {
-  return fmt::format(
-      R"({{"kind":"samples","name":{},"size":{},"bands":{},"wavelengths":{},"units":{},"provenance":{}}})",
-      json_string(s.name), s.size, s.bands, json_array(s.wavelengths.values()), json_string(s.units),
-      provenance_json(s.provenance));
+Json samples_json(const store::SamplesInfo& s) {
+  return {{"kind", "samples"}, {"name", s.name},   {"size", s.size},
+          {"bands", s.bands},  {"wavelengths", json_numbers(s.wavelengths.values())},
+          {"units", s.units},  {"provenance", provenance_json(s.provenance)}};
 }
 
 std::string image_line(const store::ImageInfo& i) {
@@ -56,45 +56,63 @@ std::string samples_line(const store::SamplesInfo& s) {
   return fmt::format("samples     {:<24} {} samples  {}  {}", s.name, s.size, s.wavelengths.describe(), s.units);
 }
 
-std::string coefficients_json(const store::CoefficientsInfo& c) {
-  return fmt::format(
-      R"({{"kind":"coefficients","name":{},"image":{},"basis":{},"method":{},"height":{},"width":{},"k":{},)"
-      R"("valid_pixels":{},"provenance":{}}})",
-      json_string(c.name), json_string(c.image), json_string(c.basis), json_string(c.method), c.height, c.width, c.k,
-      c.valid_pixels, provenance_json(c.provenance));
+Json coefficients_json(const store::CoefficientsInfo& c) {
+  return {{"kind", "coefficients"}, {"name", c.name},     {"image", c.image},
+          {"basis", c.basis},       {"method", c.method}, {"height", c.height},
+          {"width", c.width},       {"k", c.k},           {"valid_pixels", c.valid_pixels},
+          {"provenance", provenance_json(c.provenance)}};
 }
+
+Json basis_json(const std::string& name, const store::Basis& b) {
+  return {{"kind", "basis"},
+          {"name", name},
+          {"method", b.method},
+          {"k", b.k()},
+          {"n", b.n},
+          {"bands", b.bands()},
+          {"wavelengths", json_numbers(b.wavelengths.values())},
+          {"source", b.source},
+          {"fit", b.provenance.importer},
+          {"created", b.provenance.created_utc},
+          {"command_line", b.provenance.command_line}};
+}
+
 std::string coefficients_line(const store::CoefficientsInfo& c) {
   return fmt::format("coefficients {:<23} {}x{}  {} {} coefficients of image {} on basis {}  [{}]", c.name, c.height,
                      c.width, c.k, c.method, c.image, c.basis, c.compression);
 }
 
-void list_objects(const store::Store& s, bool json) {
-  std::vector<std::string> rows;
-  for (const auto& n : s.images()) rows.push_back(json ? image_json(s.image_info(n)) : image_line(s.image_info(n)));
-  for (const auto& n : s.collections())
-    rows.push_back(json ? collection_json(s.collection_info(n)) : collection_line(s.collection_info(n)));
-  for (const auto& n : s.samples())
-    rows.push_back(json ? samples_json(s.samples_info(n)) : samples_line(s.samples_info(n)));
-  for (const auto& n : s.grids())
-    rows.push_back(json ? fmt::format(R"({{"kind":"grid","name":{}}})", json_string(n)) : "grid        " + n);
-  for (const auto& n : s.bases())
-    rows.push_back(json ? fmt::format(R"({{"kind":"basis","name":{}}})", json_string(n)) : "basis       " + n);
-  for (const auto& n : s.coefficients())
-    rows.push_back(json ? coefficients_json(s.coefficients_info(n)) : coefficients_line(s.coefficients_info(n)));
+// Every object of the store, as JSON objects, or as lines for people.
+Json object_list(const store::Store& s) {
+  Json rows = Json::array();
+  for (const auto& n : s.images()) rows.push_back(image_json(s.image_info(n)));
+  for (const auto& n : s.collections()) rows.push_back(collection_json(s.collection_info(n)));
+  for (const auto& n : s.samples()) rows.push_back(samples_json(s.samples_info(n)));
+  for (const auto& n : s.grids()) rows.push_back({{"kind", "grid"}, {"name", n}});
+  for (const auto& n : s.bases()) rows.push_back({{"kind", "basis"}, {"name", n}});
+  for (const auto& n : s.coefficients()) rows.push_back(coefficients_json(s.coefficients_info(n)));
   for (const auto& n : s.objects("acquire")) {
     const acquire::Calibration c = acquire::read_calibration(s, n);
-    const char* model = c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored";
-    rows.push_back(json ? fmt::format(R"({{"kind":"calibration","name":{},"spectral_model":"{}","lights":{}}})",
-                                      json_string(n), model, c.light_dirs.size())
-                        : fmt::format("calibration {:<24} {} spectral model, {} lights, sphere {:.4f} m at {:.4f} m", n,
-                                      model, c.light_dirs.size(), c.sphere.radius, c.sphere.centre.norm()));
+    rows.push_back({{"kind", "calibration"},
+                    {"name", n},
+                    {"spectral_model", c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored"},
+                    {"lights", c.light_dirs.size()}});
   }
-  if (json) {
-    fmt::print("[");
-    for (std::size_t i = 0; i < rows.size(); ++i) fmt::print("{}{}", i ? "," : "", rows[i]);
-    fmt::print("]");
-  } else {
-    for (const auto& r : rows) fmt::print("{}\n", r);
+  return rows;
+}
+
+void list_objects(const store::Store& s) {
+  for (const auto& n : s.images()) fmt::print("{}\n", image_line(s.image_info(n)));
+  for (const auto& n : s.collections()) fmt::print("{}\n", collection_line(s.collection_info(n)));
+  for (const auto& n : s.samples()) fmt::print("{}\n", samples_line(s.samples_info(n)));
+  for (const auto& n : s.grids()) fmt::print("grid        {}\n", n);
+  for (const auto& n : s.bases()) fmt::print("basis       {}\n", n);
+  for (const auto& n : s.coefficients()) fmt::print("{}\n", coefficients_line(s.coefficients_info(n)));
+  for (const auto& n : s.objects("acquire")) {
+    const acquire::Calibration c = acquire::read_calibration(s, n);
+    fmt::print("calibration {:<24} {} spectral model, {} lights, sphere {:.4f} m at {:.4f} m\n", n,
+               c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored", c.light_dirs.size(),
+               c.sphere.radius, c.sphere.centre.norm());
   }
 }
 
@@ -106,12 +124,13 @@ void run_info(const InfoOptions& o) {
     const auto bytes = store::store_bytes(s);
     const std::string created = s.created_utc();
     if (o.json) {
-      fmt::print(
-          R"({{"store":{},"format_version":{},"generation":{},"bytes":{},"created_utc":{},"valid_spectra":{},"objects":)",
-          json_string(s.path().string()), s.format_version(), s.index().generation, bytes, json_string(created),
-          spectra);
-      list_objects(s, true);
-      fmt::print("}}\n");
+      print_json({{"store", s.path().string()},
+                  {"format_version", s.format_version()},
+                  {"generation", s.index().generation},
+                  {"bytes", bytes},
+                  {"created_utc", created},
+                  {"valid_spectra", spectra},
+                  {"objects", object_list(s)}});
       return;
     }
     fmt::print("{}: specula store, format version {}{}, {:.1f} MB, created {}\n", s.path().string(), s.format_version(),
@@ -121,7 +140,7 @@ void run_info(const InfoOptions& o) {
                double(bytes) / 1e6, created);
     fmt::print("{} images ({} valid spectra), {} collections, {} sample sets, {} grids, {} bases\n", s.images().size(),
                spectra, s.collections().size(), s.samples().size(), s.grids().size(), s.bases().size());
-    list_objects(s, false);
+    list_objects(s);
     return;
   }
   std::string name = o.object;
@@ -133,36 +152,29 @@ void run_info(const InfoOptions& o) {
   };
   if (has(s.images(), name)) {
     const auto i = s.image_info(name);
-    if (o.json) return fmt::print("{}\n", image_json(i));
+    if (o.json) return print_json(image_json(i));
     fmt::print("{}\n  wavelengths {}\n  source {} (importer {})\n  created {} by: {}\n", image_line(i),
-               json_array(i.wavelengths.values()), i.provenance.source_file, i.provenance.importer,
+               fmt::format("[{}]", fmt::join(i.wavelengths.values(), ",")), i.provenance.source_file, i.provenance.importer,
                i.provenance.created_utc, i.provenance.command_line);
   } else if (has(s.collections(), name)) {
     const auto c = s.collection_info(name);
-    if (o.json) return fmt::print("{}\n", collection_json(c));
+    if (o.json) return print_json(collection_json(c));
     fmt::print("{}\n  source {}\n  created {} by: {}\n", collection_line(c), c.provenance.source_file,
                c.provenance.created_utc, c.provenance.command_line);
   } else if (has(s.samples(), name)) {
     const auto c = s.samples_info(name);
-    if (o.json) return fmt::print("{}\n", samples_json(c));
+    if (o.json) return print_json(samples_json(c));
     fmt::print("{}\n  source {}\n", samples_line(c), c.provenance.source_file);
   } else if (has(s.bases(), name)) {
     const store::Basis b = s.read_basis(name);
-    if (o.json)
-      return fmt::print(
-          R"({{"kind":"basis","name":{},"method":{},"k":{},"n":{},"bands":{},"wavelengths":{},"source":{},)"
-          R"("fit":{},"created":{},"command_line":{}}})"
-          "\n",
-          json_string(name), json_string(b.method), b.k(), b.n, b.bands(), json_array(b.wavelengths.values()),
-          json_string(b.source), json_string(b.provenance.importer), json_string(b.provenance.created_utc),
-          json_string(b.provenance.command_line));
+    if (o.json) return print_json(basis_json(name, b));
     fmt::print(
         "basis {}: {}, {} components on {}, learned from {} spectra\n  source {}\n  fit {}\n  created {} by: {}\n",
         name, b.method, b.k(), b.wavelengths.describe(), b.n, b.source, b.provenance.importer, b.provenance.created_utc,
         b.provenance.command_line);
   } else if (has(s.coefficients(), name)) {
     const auto c = s.coefficients_info(name);
-    if (o.json) return fmt::print("{}\n", coefficients_json(c));
+    if (o.json) return print_json(coefficients_json(c));
     fmt::print("{}\n  created {} by: {}\n", coefficients_line(c), c.provenance.created_utc, c.provenance.command_line);
   } else {
     throw InputError(s.label() + ": no object '" + o.object + "'; `specula ls " + s.path().string() + "` lists them");
@@ -184,7 +196,7 @@ void setup_ls(CLI::App& app) {
   auto store = std::make_shared<std::string>();
   auto* cmd = app.add_subcommand("ls", "List the objects in a store, one per line");
   cmd->add_option("store", *store, "Store file")->required();
-  cmd->callback([store] { list_objects(store::Store::open(*store), false); });
+  cmd->callback([store] { list_objects(store::Store::open(*store)); });
 }
 
 }  // namespace specula::app

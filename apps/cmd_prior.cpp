@@ -9,6 +9,7 @@
 #include "apps/common.h"
 #include "specula/acquire/prior.h"
 #include "specula/core/error.h"
+#include "specula/store/object_spec.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -30,14 +31,15 @@ std::vector<std::string> expand(const PriorBuildOptions& o) {
   std::vector<std::string> specs;
   for (const auto& g : o.grids) {
     const std::filesystem::path p(g);
-    if (p.extension() == ".h5" && g.find(':') == std::string::npos) {
+    if (p.extension() == ".h5" && !store::parse_object_spec(g)) {
       for (const auto& name : store::Store::open(p).grids()) specs.push_back(g + ":" + name);
     } else {
       specs.push_back(g);
     }
   }
   std::erase_if(specs, [&](const std::string& s) {
-    const std::string name = s.substr(s.rfind(':') == std::string::npos ? 0 : s.rfind(':') + 1);
+    const auto spec = store::parse_object_spec(s);
+    const std::string name = spec ? spec->name : s;
     return std::find(o.exclude.begin(), o.exclude.end(), name) != o.exclude.end() ||
            std::find(o.exclude.begin(), o.exclude.end(), s) != o.exclude.end();
   });

@@ -7,10 +7,11 @@
 #include <cmath>
 #include <memory>
 
-#include "apps/canvas.h"
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/core/canvas.h"
 #include "specula/core/error.h"
+#include "specula/stats/figures.h"
 #include "specula/stats/project.h"
 #include "specula/store/io/exr.h"
 #include "specula/store/io/png_stack.h"
@@ -34,34 +35,6 @@ struct ProjectOptions {
   bool json = false;
 };
 
-// A horizontal colour bar of the error ramp from 0 to max_value at (x, y), labelled under its ends.
-void error_bar(Canvas& c, std::size_t x, std::size_t y, std::size_t w, double max_value, std::size_t s) {
-  colour_bar(c, x, y, w, heat, "L2 error", "0", number_label(max_value), s);
-}
-
-std::size_t error_bar_min_width(double max_value, std::size_t s) {
-  return bar_min_width("L2 error", "0", number_label(max_value), s);
-}
-
-std::vector<std::uint8_t> error_rgb(const std::vector<float>& err, const Cube& cube, double max_value) {
-  std::vector<std::uint8_t> out(3 * err.size());
-  for (std::size_t i = 0; i < err.size(); ++i) {
-    const Rgb c = !cube.mask.empty() && !cube.mask[i] ? kMaskColour : heat(max_value > 0 ? err[i] / max_value : 0.0);
-    std::copy(c.begin(), c.end(), out.begin() + std::ptrdiff_t(3 * i));
-  }
-  return out;
-}
-
-// The error map of one reconstruction above its colour bar (0 to the largest valid error).
-void write_error_png(const fs::path& path, const std::vector<float>& err, const Cube& cube, double max_value) {
-  const std::size_t s = font_scale(cube.width), pad = 4 * s;
-  const std::size_t inner = std::max(cube.width, error_bar_min_width(max_value, s));
-  Canvas c(inner + 2 * pad, pad + cube.height + pad + bar_height(s) + pad);
-  c.blit(pad + (inner - cube.width) / 2, pad, cube.width, cube.height, error_rgb(err, cube, max_value));
-  error_bar(c, pad, pad + cube.height + pad, inner, max_value, s);
-  store::write_png_rgb8(path, c.width, c.height, c.rgb);
-}
-
 struct KResult {
   std::size_t k = 0;
   double rms = 0, max_error = 0;
@@ -69,38 +42,7 @@ struct KResult {
   std::vector<std::uint8_t> preview;  // sRGB8 of the reconstruction
 };
 
-// Figure 7.4: the original and each reconstruction on top, their error maps (one shared scale) below.
-void write_panel(const fs::path& path, const Cube& cube, const std::vector<std::uint8_t>& original,
-                 const std::vector<KResult>& results) {
-  const std::size_t w = cube.width, h = cube.height, n = results.size();
-  const std::size_t s = font_scale(w), pad = 4 * s, line = 7 * s + 3 * s;
-  double shared = 0;
-  for (const KResult& r : results) shared = std::max(shared, r.max_error);
-  std::vector<std::string> rms_labels;
-  std::size_t col = std::max(w, text_width("original", s));
-  for (const KResult& r : results) {
-    rms_labels.push_back("rms " + number_label(r.rms));
-    col = std::max({col, text_width(rms_labels.back(), s), text_width(fmt::format("k={}", r.k), s)});
-  }
-  const std::size_t bar_w_min = error_bar_min_width(shared, s);
-  if (n * col + (n - 1) * pad < bar_w_min) col = (bar_w_min - (n - 1) * pad + n - 1) / n;
-  const std::size_t top = pad + line, bottom = top + h + pad;
-  const std::size_t bar_y = bottom + h + s + line + pad;
-  Canvas c(pad + (n + 1) * col + n * pad + pad, bar_y + bar_height(s) + pad);
-  auto column_x = [&](std::size_t i) { return pad + i * (col + pad); };
-  auto centred = [&](std::size_t i, std::size_t width) { return column_x(i) + (col - width) / 2; };
-  c.text(centred(0, text_width("original", s)), pad, "original", s);
-  c.blit(centred(0, w), top, w, h, original);
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::string label = fmt::format("k={}", results[i].k);
-    c.text(centred(i + 1, text_width(label, s)), pad, label, s);
-    c.blit(centred(i + 1, w), top, w, h, results[i].preview);
-    c.blit(centred(i + 1, w), bottom, w, h, error_rgb(results[i].error, cube, shared));
-    c.text(centred(i + 1, text_width(rms_labels[i], s)), bottom + h + 2 * s, rms_labels[i], s);
-  }
-  error_bar(c, column_x(1), bar_y, n * col + (n - 1) * pad, shared, s);
-  store::write_png_rgb8(path, c.width, c.height, c.rgb);
-}
+void write_canvas(const fs::path& path, const Canvas& c) { store::write_png_rgb8(path, c.width, c.height, c.rgb); }
 
 // The original's settings with its automatic exposure fixed, so every reconstruction is shown alike.
 PreviewSettings shared_settings(const Cube& cube, const PreviewOptions& o) {
@@ -200,7 +142,7 @@ void run_project(const ProjectOptions& o) {
     store::write_spectral_exr(p.reconstruction, recon);
     r.preview = render(recon, preview).srgb8;
     store::write_png_rgb8(p.preview, recon.width, recon.height, r.preview);
-    write_error_png(p.error, r.error, cube, r.max_error);
+    write_canvas(p.error, stats::error_figure(cube.width, cube.height, r.error, cube.mask, r.max_error));
     for (const fs::path& f : {p.reconstruction, p.preview, p.error}) outputs.push_back(f.string());
     if (writer) {
       store_images.push_back(fmt::format("{}-k{}", o.into_store, k));
@@ -211,7 +153,9 @@ void run_project(const ProjectOptions& o) {
   }
   if (ks.size() > 1) {
     const fs::path panel = fs::path(o.output) / "panel.png";
-    write_panel(panel, cube, render(cube, preview).srgb8, results);
+    std::vector<stats::PanelColumn> columns;
+    for (const KResult& r : results) columns.push_back({r.k, r.rms, r.max_error, r.error, r.preview});
+    write_canvas(panel, stats::projection_panel(cube.width, cube.height, render(cube, preview).srgb8, cube.mask, columns));
     outputs.push_back(panel.string());
   }
   if (writer) writer->commit();

@@ -79,16 +79,7 @@ void run_render(const RenderOptions& o) {
       r = codec::render_spheres({&grid}, env, o.size);
       if (grid.provenance.importer == "uplift-clamp") note = " (uplifted to " + grid.wavelengths.describe() + ")";
     }
-    if (!(r.white.y() > 0))
-      throw InputError("render: " + env.description +
-                       " sends no light to a surface facing the viewer; nothing maps to white");
-    // Linear sRGB with the environment's white (a white Lambertian facing the viewer) adapted to D65 and at 1.
-    const Eigen::Matrix3d m = rendering_to_linear_srgb(r.white);
-    std::vector<float> linear(3 * o.size * o.size, 0.0f);
-    for (std::size_t i = 0; i < r.covered.size(); ++i) {
-      const Eigen::Vector3d c = m * Eigen::Vector3d(r.xyz[0][3 * i], r.xyz[0][3 * i + 1], r.xyz[0][3 * i + 2]);
-      for (std::size_t k = 0; k < 3; ++k) linear[3 * i + k] = float(c[Eigen::Index(k)]);
-    }
+    const std::vector<float> linear = codec::linear_srgb(r, env.description).linear;
     std::vector<std::uint8_t> srgb(3 * o.size * o.size);
     encode_srgb8(linear, r.covered, o.exposure, srgb);
     store::write_png_rgb8(png, o.size, o.size, srgb);

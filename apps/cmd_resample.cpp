@@ -63,15 +63,20 @@ std::string confidence_output(const std::string& output) {
   return output + ".confidence";
 }
 
+// What both kinds of resampling report first: the samples read and the grid's cells.
+Json report_head(const store::SamplesInfo& info, std::uint64_t valid_cells) {
+  return {{"samples", info.size}, {"bands", info.bands}, {"cells", brdf::kMerlCells}, {"valid_cells", valid_cells}};
+}
+
 // --prior: the prior fitted to the samples' cell means, blended with the kd-tree estimate by per-cell confidence.
 void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOptions& ro) {
   const auto t0 = std::chrono::steady_clock::now();
-  const auto colon = o.prior.rfind(':');
-  if (colon == std::string::npos) throw UsageError("resample --prior: give STORE.h5:PRIOR");
+  const auto prior_spec = store::parse_object_spec(o.prior);
+  if (!prior_spec) throw UsageError("resample --prior: give STORE.h5:PRIOR");
   const std::string conf_out = confidence_output(o.output);
   check_output(conf_out, o.replace);
   const acquire::BrdfPrior prior =
-      acquire::read_prior(store::Store::open(o.prior.substr(0, colon)), o.prior.substr(colon + 1));
+      acquire::read_prior(store::Store::open(prior_spec->file), prior_spec->name);
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);
@@ -93,11 +98,15 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   save_grid(conf, conf_out, o.replace, "resample");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
-    fmt::print(R"({{"samples":{},"bands":{},"cells":{},"valid_cells":{},"observed_cells":{},"seconds":{:.6f},)"
-               R"("fit_seconds":{:.6f},"prior":{},"output":{},"confidence":{},"threads":{}}})"
-               "\n",
-               info.size, info.bands, brdf::kMerlCells, st.filled_cells, st.observed_cells, seconds, st.fit_seconds,
-               json_string(o.prior), json_string(o.output), json_string(conf_out), omp_get_max_threads());
+    Json j = report_head(info, st.filled_cells);
+    j["observed_cells"] = st.observed_cells;
+    j["seconds"] = seconds;
+    j["fit_seconds"] = st.fit_seconds;
+    j["prior"] = o.prior;
+    j["output"] = o.output;
+    j["confidence"] = conf_out;
+    j["threads"] = omp_get_max_threads();
+    print_json(j);
     return;
   }
   fmt::print(
@@ -131,11 +140,7 @@ void run_resample(const ResampleCliOptions& o) {
   const std::string what = save_grid(grid, o.output, o.replace, "resample");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
-    Json j;
-    j["samples"] = info.size;
-    j["bands"] = info.bands;
-    j["cells"] = brdf::kMerlCells;
-    j["valid_cells"] = stats.valid_cells;
+    Json j = report_head(info, stats.valid_cells);
     j["seconds"] = seconds;
     j["tree_seconds"] = stats.tree_seconds;
     j["query_seconds"] = stats.query_seconds;

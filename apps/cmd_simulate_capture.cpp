@@ -13,6 +13,7 @@
 #include "specula/core/brdf_materials.h"
 #include "specula/core/error.h"
 #include "specula/core/wavelengths.h"
+#include "specula/store/object_spec.h"
 
 namespace specula::app {
 namespace {
@@ -45,7 +46,7 @@ void run_simulate_capture(SimulateCaptureOptions o) {
   o.sim.rig.off_axis_y = 0.02 * o.sim.rig.sphere_px / o.sim.rig.focal_px * o.sim.rig.distance;
   // A store grid (STORE.h5:GRID), a .spgrid or an RGB MERL .binary (uplifted) instead of a named material.
   if (!brdf::material_catalogue().count(o.sim.material) &&
-      (o.sim.material.find(':') != std::string::npos || o.sim.material.ends_with(".spgrid") ||
+      (store::parse_object_spec(o.sim.material) || o.sim.material.ends_with(".spgrid") ||
        o.sim.material.ends_with(".binary")))
     o.sim.grid = std::make_shared<const store::Grid>(load_grid(o.sim.material, "simulate-capture"));
   acquire::check_simulator(o.sim);

@@ -78,42 +78,6 @@ Picture render(const Cube& cube, const PreviewSettings& settings) {
                         settings);
 }
 
-std::string json_string(std::string_view s) {
-  std::string out = "\"";
-  for (char c : s) {
-    switch (c) {
-      case '"':
-        out += "\\\"";
-        break;
-      case '\\':
-        out += "\\\\";
-        break;
-      case '\n':
-        out += "\\n";
-        break;
-      case '\t':
-        out += "\\t";
-        break;
-      case '\r':
-        out += "\\r";
-        break;
-      default:
-        if (static_cast<unsigned char>(c) < 0x20)
-          out += fmt::format("\\u{:04x}", int(c));
-        else
-          out += c;
-    }
-  }
-  return out + "\"";
-}
-
-std::string json_array(std::span<const double> v) {
-  std::string out = "[";
-  for (std::size_t i = 0; i < v.size(); ++i)
-    out += (i ? "," : "") + (std::isfinite(v[i]) ? fmt::format("{}", v[i]) : "null");
-  return out + "]";
-}
-
 Json json_numbers(std::span<const double> v) { return Json(std::vector<double>(v.begin(), v.end())); }
 
 Json json_numbers(const Eigen::VectorXd& v) {

@@ -46,10 +46,6 @@ Picture render(const Cube& cube, const PreviewOptions& o);
 /// The same with settings already made.
 Picture render(const Cube& cube, const PreviewSettings& settings);
 
-/// JSON string literal with escapes.
-std::string json_string(std::string_view s);
-/// JSON array of numbers (shortest round-trip formatting).
-std::string json_array(std::span<const double> v);
 /// The numbers as a JSON array (non-finite ones null), in the order of the output objects' keys.
 using Json = nlohmann::ordered_json;
 Json json_numbers(std::span<const double> v);

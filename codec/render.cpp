@@ -1,11 +1,14 @@
 #include "specula/codec/render.h"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <string>
 
+#include "specula/codec/environment.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/error.h"
+#include "specula/core/preview.h"
 
 namespace specula::codec {
 
@@ -67,6 +70,28 @@ SphereImage render_sphere(const SpcBrdf& coded, const Eigen::Matrix<double, 3, E
 SphereImage render_sphere(const store::Grid& grid, const Eigen::VectorXd& illuminant, std::size_t size,
                           const Eigen::Vector3d& light) {
   return render_sphere(grid_to_merl(grid, rgb_weights(grid.wavelengths, illuminant)).brdf, size, light);
+}
+
+void linear_srgb(const SphereRenders& renders, std::string_view lighting, std::size_t index, std::span<double> out) {
+  if (!(renders.white.y() > 0))
+    throw InputError(std::string(lighting) + " sends no light to a surface facing the viewer; nothing maps to white");
+  if (out.size() != 3 * renders.covered.size())
+    throw UsageError("linear_srgb: " + std::to_string(out.size()) + " values for " +
+                     std::to_string(renders.covered.size()) + " pixels; give 3 per pixel");
+  const Eigen::Matrix3d m = rendering_to_linear_srgb(renders.white);
+  const std::vector<float>& xyz = renders.xyz.at(index);
+  for (std::size_t i = 0; i < renders.covered.size(); ++i) {
+    const Eigen::Vector3d c = m * Eigen::Vector3d(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+    for (std::size_t k = 0; k < 3; ++k) out[3 * i + k] = c[Eigen::Index(k)];
+  }
+}
+
+SphereImage linear_srgb(const SphereRenders& renders, std::string_view lighting, std::size_t index) {
+  std::vector<double> linear(3 * renders.covered.size());
+  linear_srgb(renders, lighting, index, linear);
+  SphereImage img{renders.size, std::vector<float>(linear.size()), renders.covered};
+  std::transform(linear.begin(), linear.end(), img.linear.begin(), [](double v) { return float(v); });
+  return img;
 }
 
 }  // namespace specula::codec

@@ -3,6 +3,8 @@
 // directional light, in linear sRGB.
 #include <Eigen/Core>
 #include <cstdint>
+#include <span>
+#include <string_view>
 #include <vector>
 
 #include "specula/codec/merl.h"
@@ -13,6 +15,8 @@ struct Grid;
 }  // namespace specula::store
 
 namespace specula::codec {
+
+struct SphereRenders;
 
 /// A square rendering: linear RGB (3 per pixel, row-major) and which pixels show the sphere.
 struct SphereImage {
@@ -36,5 +40,12 @@ SphereImage render_sphere(const SpcBrdf& brdf, const Eigen::Matrix<double, 3, Ei
 /// through the CIE 1931 CMFs under that light (grid_to_merl with rgb_weights) and rendered as a MERL BRDF.
 SphereImage render_sphere(const store::Grid& grid, const Eigen::VectorXd& illuminant, std::size_t size,
                           const Eigen::Vector3d& light);
+
+/// Rendering `index` of `renders` (render_spheres) as linear sRGB, its white (a white Lambertian facing the viewer)
+/// adapted to D65 and mapped to 1 (rendering_to_linear_srgb); 0 off the sphere. InputError naming `lighting` when
+/// that white is not positive (nothing maps to white).
+SphereImage linear_srgb(const SphereRenders& renders, std::string_view lighting, std::size_t index = 0);
+/// As above in double precision into `out` (3 values a pixel, size x size pixels; else UsageError).
+void linear_srgb(const SphereRenders& renders, std::string_view lighting, std::size_t index, std::span<double> out);
 
 }  // namespace specula::codec

@@ -285,8 +285,11 @@ Eigen::Vector3d desaturate_into_gamut(const Eigen::Vector3d& linear_rgb) {
   return {r, g, b};
 }
 
-void encode_srgb8(std::span<const float> linear, std::span<const std::uint8_t> covered, double exposure_stops,
-                  std::span<std::uint8_t> out, std::uint8_t background) {
+namespace {
+
+template <typename T>
+void encode_srgb8_of(std::span<const T> linear, std::span<const std::uint8_t> covered, double exposure_stops,
+                     std::span<std::uint8_t> out, std::uint8_t background) {
   if (linear.size() != 3 * covered.size() || out.size() != linear.size())
     throw UsageError("encode_srgb8: " + std::to_string(linear.size()) + " linear values and " +
                      std::to_string(out.size()) + " bytes for " + std::to_string(covered.size()) +
@@ -294,7 +297,20 @@ void encode_srgb8(std::span<const float> linear, std::span<const std::uint8_t> c
   const double gain = std::exp2(exposure_stops);
   for (std::size_t i = 0; i < covered.size(); ++i)
     for (std::size_t c = 0; c < 3; ++c)
-      out[3 * i + c] = covered[i] ? std::uint8_t(std::lround(255 * srgb_encode(gain * linear[3 * i + c]))) : background;
+      out[3 * i + c] =
+          covered[i] ? std::uint8_t(std::lround(255 * srgb_encode(gain * double(linear[3 * i + c])))) : background;
+}
+
+}  // namespace
+
+void encode_srgb8(std::span<const float> linear, std::span<const std::uint8_t> covered, double exposure_stops,
+                  std::span<std::uint8_t> out, std::uint8_t background) {
+  encode_srgb8_of(linear, covered, exposure_stops, out, background);
+}
+
+void encode_srgb8(std::span<const double> linear, std::span<const std::uint8_t> covered, double exposure_stops,
+                  std::span<std::uint8_t> out, std::uint8_t background) {
+  encode_srgb8_of(linear, covered, exposure_stops, out, background);
 }
 
 }  // namespace specula

@@ -78,5 +78,8 @@ Eigen::Vector3d desaturate_into_gamut(const Eigen::Vector3d& linear_rgb);
 /// 3 values per entry of `covered`.
 void encode_srgb8(std::span<const float> linear, std::span<const std::uint8_t> covered, double exposure_stops,
                   std::span<std::uint8_t> out, std::uint8_t background = 24);
+/// As above for linear values in double precision.
+void encode_srgb8(std::span<const double> linear, std::span<const std::uint8_t> covered, double exposure_stops,
+                  std::span<std::uint8_t> out, std::uint8_t background = 24);
 
 }  // namespace specula

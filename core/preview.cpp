@@ -59,6 +59,25 @@ RowMatrixX3f spectra_to_xyz(const Eigen::Ref<const RowMatrixXf>& spectra, const 
   return xyz;
 }
 
+std::vector<std::uint8_t> band_preview(std::span<const float> data, std::size_t bands, std::size_t band,
+                                       std::span<const std::uint8_t> mask) {
+  if (band >= bands)
+    throw UsageError("band_preview: band " + std::to_string(band) + " of " + std::to_string(bands) + " bands");
+  const std::size_t n = data.size() / bands;
+  std::vector<float> v;
+  v.reserve(n);
+  for (std::size_t p = 0; p < n; ++p)
+    if (mask.empty() || mask[p]) v.push_back(data[p * bands + band]);
+  const double top = std::max(quantile(v, 0.99), 1e-30);
+  std::vector<double> grey(3 * n);
+  for (std::size_t p = 0; p < n; ++p)
+    grey[3 * p] = grey[3 * p + 1] = grey[3 * p + 2] = std::clamp(double(data[p * bands + band]) / top, 0.0, 1.0);
+  std::vector<std::uint8_t> rgb(3 * n);
+  encode_srgb8(std::span<const double>(grey), std::vector<std::uint8_t>(n, 1), 0.0, rgb);
+  paint_masked(rgb, mask);
+  return rgb;
+}
+
 void paint_masked(std::span<std::uint8_t> srgb8, std::span<const std::uint8_t> mask) {
   if (mask.empty()) return;
   if (srgb8.size() != 3 * mask.size())

@@ -61,6 +61,11 @@ Picture render_xyz(const Eigen::Ref<const RowMatrixX3f>& xyz, const Eigen::Vecto
 Picture render_preview(const Eigen::Ref<const RowMatrixXf>& spectra, std::size_t width, std::size_t height,
                        const WavelengthGrid& grid, SpectrumKind kind, std::span<const std::uint8_t> mask,
                        const PreviewSettings& settings);
+/// One band of an image (`data` pixel-major, `bands` values a pixel) as grey sRGB8: each value over the 99th
+/// percentile of the valid pixels' values (at least 1e-30), clipped to [0, 1] and encoded (encode_srgb8); pixels the
+/// mask rejects (one byte a pixel; empty: none) in kMaskColour. UsageError for a band past the last.
+std::vector<std::uint8_t> band_preview(std::span<const float> data, std::size_t bands, std::size_t band,
+                                       std::span<const std::uint8_t> mask);
 /// Paints the pixels the mask rejects (one byte per pixel, 0 = masked) of an 8-bit RGB picture in kMaskColour.
 void paint_masked(std::span<std::uint8_t> srgb8, std::span<const std::uint8_t> mask);
 

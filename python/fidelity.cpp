@@ -2,9 +2,12 @@
 // comparison `specula brdf-diff` prints). The one place the Python module binds the fidelity comparison.
 #include <fmt/format.h>
 
+#include <nlohmann/json.hpp>
+
 #include "python/common.h"
 #include "specula/codec/diff.h"
 #include "specula/codec/environment.h"
+#include "specula/codec/report_json.h"
 #include "specula/codec/suite.h"
 
 namespace specula::python {
@@ -23,18 +26,8 @@ void init_fidelity(py::module_& m) {
           py::gil_scoped_release release;
           d = codec::diff_grids(a, b, env, {.size = size});
         }
-        py::dict r;  // the fields of `specula brdf-diff --json`, and the per-pixel CIEDE2000 map
-        r["environment"] = env.description;
-        r["cells"] = d.cells;
-        r["only_a"] = d.only_a;
-        r["only_b"] = d.only_b;
-        r["rms"] = d.rms;
-        r["max_abs"] = d.max_abs;
-        r["rel_rms_cos"] = d.rel_rms_cos;
-        r["de00_mean"] = d.de00_mean;
-        r["de00_p95"] = d.de00_p95;
-        r["de00_max"] = d.de00_max;
-        r["size"] = size;
+        // the fields of `specula brdf-diff --json`, and the per-pixel CIEDE2000 map
+        py::dict r = py::module_::import("json").attr("loads")(codec::grid_diff_json(d, env.description, size).dump());
         r["de00"] = adopt(std::move(d.de00), {py::ssize_t(size), py::ssize_t(size)});
         return r;
       },

@@ -37,28 +37,10 @@ std::vector<std::uint8_t> spc_bytes(const SpcData& data, std::string& label) {
 // rendered, sRGB-encoded after `exposure` stops of gain, pixels off the sphere the background grey (linear 0).
 py::tuple picture(std::vector<float>&& linear, const std::vector<std::uint8_t>& covered, std::size_t size,
                   double exposure) {
-  const double gain = std::exp2(exposure);
   std::vector<std::uint8_t> srgb(3 * size * size);
-  for (std::size_t i = 0; i < covered.size(); ++i)
-    for (std::size_t c = 0; c < 3; ++c)
-      srgb[3 * i + c] =
-          covered[i] ? std::uint8_t(std::lround(255 * srgb_encode(gain * linear[3 * i + c]))) : kBackground;
+  encode_srgb8(linear, covered, exposure, srgb, kBackground);
   const std::vector<py::ssize_t> shape{py::ssize_t(size), py::ssize_t(size), 3};
   return py::make_tuple(adopt(std::move(srgb), shape), adopt(std::move(linear), shape));
-}
-
-// Linear sRGB of a spectral rendering, its white (a white Lambertian facing the viewer) adapted to D65 and at 1.
-std::vector<float> linear_of(const codec::SphereRenders& r, const codec::Environment& env) {
-  if (!(r.white.y() > 0))
-    throw InputError("render_sphere: " + env.description +
-                     " sends no light to a surface facing the viewer; nothing maps to white");
-  const Eigen::Matrix3d m = rendering_to_linear_srgb(r.white);
-  std::vector<float> linear(3 * r.size * r.size, 0.0f);
-  for (std::size_t i = 0; i < r.covered.size(); ++i) {
-    const Eigen::Vector3d c = m * Eigen::Vector3d(r.xyz[0][3 * i], r.xyz[0][3 * i + 1], r.xyz[0][3 * i + 2]);
-    for (std::size_t k = 0; k < 3; ++k) linear[3 * i + k] = float(c[Eigen::Index(k)]);
-  }
-  return linear;
 }
 
 Eigen::Vector3d light_direction(const std::pair<double, double>& light) {
@@ -90,7 +72,7 @@ py::tuple render(const BrdfArg& brdf, const std::pair<double, double>& light, co
         r = codec::render_spheres({grid}, env, size);
       }
     }
-    return picture(linear_of(r, env), r.covered, size, exposure);
+    return picture(codec::linear_srgb(r, env.description).linear, r.covered, size, exposure);
   }
   const Eigen::Vector3d dir = light_direction(light);
   auto weights = [&](const WavelengthGrid& wavelengths) {

@@ -172,4 +172,30 @@ ImageProjection project_image(const store::Cube& cube, const Projector& projecto
   return r;
 }
 
+SpectrumReconstruction reconstruct_spectrum(const store::Basis& basis, const std::string& name,
+                                            std::optional<std::size_t> k, std::span<const float> spectrum,
+                                            const WavelengthGrid& grid, const std::string& what) {
+  const bool pca = basis_method(basis, name) == BasisMethod::pca;
+  if (!pca) k.reset();
+  const Projector projector(
+      basis, k ? std::optional<long long>(std::max<std::size_t>(*k, 1)) : std::nullopt, name);
+  projector.check_wavelengths(grid, what);
+  if (spectrum.size() != projector.bands())
+    throw UsageError("reconstruct_spectrum: " + std::to_string(spectrum.size()) + " values for a basis of " +
+                     std::to_string(projector.bands()) + " bands");
+  RowMatrixXd x(1, Eigen::Index(spectrum.size())), r(1, Eigen::Index(spectrum.size()));
+  for (std::size_t i = 0; i < spectrum.size(); ++i) x(0, Eigen::Index(i)) = spectrum[i];
+  RowMatrixXd coef(1, Eigen::Index(projector.k()));
+  projector.project(x, coef);
+  if (k && *k == 0) coef.setZero();
+  projector.reconstruct(coef, r);
+  SpectrumReconstruction out;
+  out.k = k ? *k : projector.k();
+  out.values.assign(r.data(), r.data() + r.size());
+  const double norm = x.norm();
+  out.l2_error = (x - r).norm();
+  out.relative_error = norm > 0 ? out.l2_error / norm : 0.0;
+  return out;
+}
+
 }  // namespace specula::stats

@@ -103,4 +103,18 @@ struct ImageProjection {
 /// the block. UsageError on other sizes.
 ImageProjection project_image(const store::Cube& cube, const Projector& projector, std::span<float> reconstruction);
 
+/// One spectrum reconstructed on a basis, its L2 error ||x - x'|| and that error over ||x|| (0 for a zero spectrum).
+struct SpectrumReconstruction {
+  std::size_t k = 0;  ///< components used (PCA: 0 is the mean alone)
+  std::vector<double> values;
+  double l2_error = 0, relative_error = 0;
+};
+
+/// Reconstructs `spectrum` (on `grid`, called `what` in messages) from `basis` (called `name`): PCA from its first k
+/// components (k = 0: the mean alone; none: all), NMF from all of them (k ignored). InputError as Projector and
+/// Projector::check_wavelengths; UsageError for a k the basis does not have.
+SpectrumReconstruction reconstruct_spectrum(const store::Basis& basis, const std::string& name,
+                                            std::optional<std::size_t> k, std::span<const float> spectrum,
+                                            const WavelengthGrid& grid, const std::string& what);
+
 }  // namespace specula::stats

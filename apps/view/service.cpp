@@ -9,10 +9,10 @@
 #include <regex>
 
 #include "apps/common.h"
-#include "specula/acquire/mapping.h"
+#include "specula/acquire/incidence.h"
+#include "specula/codec/grid_slice.h"
 #include "specula/codec/render.h"
 #include "specula/codec/spectral_grid.h"
-#include "specula/core/brdf_geometry.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
 #include "specula/core/illuminant.h"
@@ -77,21 +77,13 @@ std::string object(const Query& q, const std::vector<std::string>& listed, const
   return name;
 }
 
-std::string json_numbers(std::span<const float> v) {
-  std::string s = "[";
-  for (std::size_t i = 0; i < v.size(); ++i) s += fmt::format("{}{}", i ? "," : "", v[i]);
-  return s + "]";
-}
+using Json = app::Json;
 
-std::string json_numbers(const Eigen::VectorXd& v) {
-  return app::json_array(std::span<const double>(v.data(), std::size_t(v.size())));
-}
+Json json_values(std::span<const float> v) { return Json(std::vector<double>(v.begin(), v.end())); }
 
-std::string json_wavelengths(const WavelengthGrid& g) {
-  std::vector<double> nm(g.size());
-  for (std::size_t i = 0; i < g.size(); ++i) nm[i] = g[i];
-  return app::json_array(nm);
-}
+Json json_wavelengths(const WavelengthGrid& g) { return app::json_numbers(g.values()); }
+
+Response json(const Json& j) { return {200, "application/json", j.dump(-1, ' ', false, Json::error_handler_t::replace)}; }
 
 Response png(std::string bytes) { return {200, "image/png", std::move(bytes)}; }
 
@@ -163,48 +155,40 @@ Response Service::dispatch(const std::string& path, const Query& q) {
 }
 
 Response Service::store_listing() {
-  std::string s = "{\"file\":" + app::json_string(store_.label()) + ",\"images\":[";
-  bool first = true;
+  Json images = Json::array(), collections = Json::array(), grids = Json::array(), samples = Json::array(),
+       bases = Json::array();
   for (const auto& n : store_.images()) {
     const store::ImageInfo i = store_.image_info(n);
-    s += fmt::format("{}{{\"name\":{},\"width\":{},\"height\":{},\"bands\":{},\"units\":{},\"wavelengths\":{}}}",
-                     first ? "" : ",", app::json_string(n), i.width, i.height, i.bands, app::json_string(i.units),
-                     json_wavelengths(i.wavelengths));
-    first = false;
+    images.push_back({{"name", n},
+                      {"width", i.width},
+                      {"height", i.height},
+                      {"bands", i.bands},
+                      {"units", i.units},
+                      {"wavelengths", json_wavelengths(i.wavelengths)}});
   }
-  s += "],\"collections\":[";
-  first = true;
   for (const auto& n : store_.collections()) {
     const store::CollectionInfo c = store_.collection_info(n);
-    s += fmt::format("{}{{\"name\":{},\"size\":{},\"bands\":{}}}", first ? "" : ",", app::json_string(n), c.size,
-                     c.bands);
-    first = false;
+    collections.push_back({{"name", n}, {"size", c.size}, {"bands", c.bands}});
   }
-  s += "],\"grids\":[";
-  first = true;
   for (const auto& n : store_.grids()) {
     const store::GridInfo g = store_.grid_info(n);
-    s += fmt::format("{}{{\"name\":{},\"bands\":{},\"wavelengths\":{}}}", first ? "" : ",", app::json_string(n),
-                     g.bands, json_wavelengths(g.wavelengths));
-    first = false;
+    grids.push_back({{"name", n}, {"bands", g.bands}, {"wavelengths", json_wavelengths(g.wavelengths)}});
   }
-  s += "],\"samples\":[";
-  first = true;
   for (const auto& n : store_.samples()) {
     const store::SamplesInfo i = store_.samples_info(n);
-    s += fmt::format("{}{{\"name\":{},\"size\":{},\"bands\":{},\"wavelengths\":{}}}", first ? "" : ",",
-                     app::json_string(n), i.size, i.bands, json_wavelengths(i.wavelengths));
-    first = false;
+    samples.push_back(
+        {{"name", n}, {"size", i.size}, {"bands", i.bands}, {"wavelengths", json_wavelengths(i.wavelengths)}});
   }
-  s += "],\"bases\":[";
-  first = true;
   for (const auto& n : store_.bases()) {
     const store::Basis b = store_.read_basis(n);
-    s += fmt::format("{}{{\"name\":{},\"method\":{},\"k\":{},\"bands\":{}}}", first ? "" : ",", app::json_string(n),
-                     app::json_string(b.method), b.k(), b.bands());
-    first = false;
+    bases.push_back({{"name", n}, {"method", b.method}, {"k", b.k()}, {"bands", b.bands()}});
   }
-  return {200, "application/json", s + "]}"};
+  return json({{"file", store_.label()},
+               {"images", images},
+               {"collections", collections},
+               {"grids", grids},
+               {"samples", samples},
+               {"bases", bases}});
 }
 
 const store::Cube& Service::image(const std::string& name) {
@@ -250,18 +234,7 @@ Response Service::image_band(const Query& q) {
   const std::string key = fmt::format("band\n{}\n{}", name, band);
   if (const auto it = png_cache_.find(key); it != png_cache_.end()) return png(it->second);
   const store::Cube& cube = image(name);
-  std::vector<float> v;
-  v.reserve(cube.height * cube.width);
-  for (std::size_t p = 0; p < cube.height * cube.width; ++p)
-    if (cube.mask.empty() || cube.mask[p]) v.push_back(cube.data[p * cube.bands + band]);
-  const double top = std::max(quantile(v, 0.99), 1e-30);
-  std::vector<std::uint8_t> rgb(3 * cube.height * cube.width);
-  for (std::size_t p = 0; p < cube.height * cube.width; ++p) {
-    const double t = std::clamp(double(cube.data[p * cube.bands + band]) / top, 0.0, 1.0);
-    const auto g = std::uint8_t(std::lround(255 * srgb_encode(t)));
-    rgb[3 * p] = rgb[3 * p + 1] = rgb[3 * p + 2] = g;
-  }
-  paint_masked(rgb, cube.mask);
+  const std::vector<std::uint8_t> rgb = band_preview(cube.data, cube.bands, band, cube.mask);
   if (png_cache_.size() >= 16) png_cache_.clear();
   return png(png_cache_[key] = png_bytes(cube.width, cube.height, rgb));
 }
@@ -273,39 +246,35 @@ Response Service::image_spectrum(const Query& q) {
   const std::size_t y = index(q, "y", info.height, "image's y");
   std::vector<float> v(info.bands);
   const bool valid = store_.read_pixel(name, x, y, v);
-  std::string s =
-      fmt::format("{{\"image\":{},\"x\":{},\"y\":{},\"valid\":{},\"units\":{},\"wavelengths\":{},\"values\":{}",
-                  app::json_string(name), x, y, valid ? "true" : "false", app::json_string(info.units),
-                  json_wavelengths(info.wavelengths), json_numbers(v));
+  Json j = {{"image", name},
+            {"x", x},
+            {"y", y},
+            {"valid", valid},
+            {"units", info.units},
+            {"wavelengths", json_wavelengths(info.wavelengths)},
+            {"values", json_values(v)}};
   if (const auto it = q.find("basis"); it != q.end() && !it->second.empty() && valid) {
     const std::string bname = object({{"name", it->second}}, store_.bases(), "basis", store_.label());
     const store::Basis b = store_.read_basis(bname);
-    RowMatrixXd xv(1, Eigen::Index(v.size())), r(1, Eigen::Index(v.size()));
-    for (std::size_t i = 0; i < v.size(); ++i) xv(0, Eigen::Index(i)) = v[i];
-    std::size_t k = b.k();
     try {
-      // PCA: the first k components, k = 0 showing the mean alone (the reconstruction from a zero coefficient);
-      // NMF: all of them.
+      // PCA: the first k components, k = 0 showing the mean alone; NMF: all of them.
       const bool pca = stats::basis_method(b, "'" + bname + "'") == stats::BasisMethod::pca;
-      if (pca) k = std::size_t(number(q, "k", double(b.k()), 0, double(b.k())));
-      const stats::Projector projector(b, pca ? std::optional<long long>(std::max<std::size_t>(k, 1)) : std::nullopt,
-                                       "'" + bname + "'");
-      projector.check_wavelengths(info.wavelengths, store_.label() + ": image '" + name + "'");
-      RowMatrixXd coef(1, Eigen::Index(projector.k()));
-      projector.project(xv, coef);
-      if (k == 0) coef.setZero();
-      projector.reconstruct(coef, r);
+      const std::optional<std::size_t> k =
+          pca ? std::optional<std::size_t>(std::size_t(number(q, "k", double(b.k()), 0, double(b.k()))))
+              : std::nullopt;
+      const stats::SpectrumReconstruction r = stats::reconstruct_spectrum(
+          b, "'" + bname + "'", k, v, info.wavelengths, store_.label() + ": image '" + name + "'");
+      j["reconstruction"] = {{"basis", bname},
+                             {"method", b.method},
+                             {"k", r.k},
+                             {"values", app::json_numbers(r.values)},
+                             {"l2_error", r.l2_error},
+                             {"relative_error", r.relative_error}};
     } catch (const InputError& e) {
       throw HttpError(400, e.what());
     }
-    const double err = (xv - r).norm(), norm = xv.norm();
-    s += fmt::format(
-        ",\"reconstruction\":{{\"basis\":{},\"method\":{},\"k\":{},\"values\":{},\"l2_error\":{},\"relative_error\":{}}"
-        "}",
-        app::json_string(bname), app::json_string(b.method), k, json_numbers(Eigen::VectorXd(r.row(0).transpose())),
-        err, norm > 0 ? err / norm : 0.0);
   }
-  return {200, "application/json", s + "}"};
+  return json(j);
 }
 
 Response Service::grid_sphere(const Query& q) {
@@ -331,23 +300,15 @@ Response Service::grid_incidence(const Query& q) {
   const std::string name = object(q, store_.grids(), "grid", store_.label());
   const double theta_i = number(q, "theta_i", 45, 0, 89) * pi / 180;
   const store::Grid& g = grid(name);
-  const std::size_t bands = g.bands();
-  std::string angles = "[", values = "[";
-  for (int deg = -89; deg <= 89; ++deg) {
-    const double to = std::abs(deg) * pi / 180;
-    // Negative: the viewer on the light's side (phi_d = 0); positive: towards the mirror direction.
-    const std::size_t cell = brdf::merl_index(brdf::merl_cell(brdf::StdAngles{theta_i, 0.0, to, deg > 0 ? pi : 0.0}));
-    std::string row = "[";
-    for (std::size_t b = 0; b < bands; ++b) {
-      const float v = g.brdf[b * brdf::kMerlCells + cell];
-      row += (b ? "," : "") + (v < 0 ? std::string("null") : fmt::format("{}", double(v) * g.scale));
-    }
-    angles += fmt::format("{}{}", deg == -89 ? "" : ",", deg);
-    values += (deg == -89 ? "" : ",") + row + "]";
-  }
-  return {200, "application/json",
-          fmt::format("{{\"grid\":{},\"theta_i\":{},\"wavelengths\":{},\"theta_o\":{}],\"values\":{}]}}",
-                      app::json_string(name), theta_i * 180 / pi, json_wavelengths(g.wavelengths), angles, values)};
+  const codec::GridSlice slice = codec::incidence_slice(g, theta_i);
+  Json values = Json::array();
+  for (std::size_t a = 0; a < slice.theta_o_deg.size(); ++a)
+    values.push_back(app::json_numbers(std::span(slice.values).subspan(a * slice.bands, slice.bands)));
+  return json({{"grid", name},
+               {"theta_i", theta_i * 180 / pi},
+               {"wavelengths", json_wavelengths(g.wavelengths)},
+               {"theta_o", slice.theta_o_deg},
+               {"values", values}});
 }
 
 Response Service::samples_incidence(const Query& q) {
@@ -357,37 +318,18 @@ Response Service::samples_incidence(const Query& q) {
   const double eps = number(q, "eps", 2, 0.01, 20) * pi / 180;
   const std::size_t band = q.count("band") ? index(q, "band", info.bands, "band index") : info.bands / 2;
   const auto limit = std::size_t(number(q, "limit", 20000, 1, 1e6));
-  std::string points = "[";
-  std::size_t found = 0, scanned = 0;
-  const std::size_t block = std::max<std::size_t>(info.chunk_rows, 65536);
-  std::vector<double> angles;
-  std::vector<float> values;
-  // Streams the samples in blocks; stops once `limit` points are found.
-  for (std::size_t first = 0; first < info.size && found < limit; first += block) {
-    const std::size_t n = std::min(block, info.size - first);
-    angles.resize(4 * n);
-    store_.read_samples(name, first, n, angles, {});
-    scanned += n;
-    // Angles first; a block's values are read only when some of its samples lie in the plane.
-    bool have_values = false;
-    for (std::size_t i = 0; i < n && found < limit; ++i) {
-      const auto x = acquire::incidence_plane_angle(
-          acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]}), theta_i, eps);
-      if (!x) continue;
-      if (!have_values) {
-        values.resize(n * info.bands);
-        store_.read_samples(name, first, n, {}, values);
-        have_values = true;
-      }
-      points += fmt::format("{}[{:.3f},{}]", found ? "," : "", *x * 180 / pi, values[i * info.bands + band]);
-      ++found;
-    }
-  }
-  return {
-      200, "application/json",
-      fmt::format(
-          "{{\"samples\":{},\"theta_i\":{},\"eps\":{},\"band\":{},\"wavelength\":{},\"scanned\":{},\"points\":{}]}}",
-          app::json_string(name), theta_i * 180 / pi, eps * 180 / pi, band, info.wavelengths[band], scanned, points)};
+  const acquire::PlanePoints found =
+      acquire::incidence_plane_points(store_, name, std::span(&theta_i, 1), eps, band, limit).front();
+  Json points = Json::array();
+  for (const acquire::PlanePoint& p : found.points)
+    points.push_back({std::round(p.theta_o * 180 / pi * 1000) / 1000, p.value});
+  return json({{"samples", name},
+               {"theta_i", theta_i * 180 / pi},
+               {"eps", eps * 180 / pi},
+               {"band", band},
+               {"wavelength", info.wavelengths[band]},
+               {"scanned", found.scanned},
+               {"points", points}});
 }
 
 }  // namespace specula::view

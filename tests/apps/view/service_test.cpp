@@ -262,7 +262,7 @@ TEST_F(ViewService, SampleScatterKeepsExactlyThePlaneAtThetaI) {
   const view::Response r =
       get("/api/samples/incidence", {{"name", "s"}, {"theta_i", "45"}, {"eps", "1"}, {"band", "3"}});
   ASSERT_EQ(r.status, 200) << r.body;
-  EXPECT_NE(r.body.find("\"points\":[[30.000,13],[-20.000,23]]"), std::string::npos) << r.body;
+  EXPECT_NE(r.body.find("\"points\":[[30.0,13.0],[-20.0,23.0]]"), std::string::npos) << r.body;
   EXPECT_EQ(test::json_number(r.body, "scanned"), 4);
   EXPECT_EQ(test::json_number(r.body, "wavelength"), 450);
 }
@@ -331,7 +331,7 @@ TEST(ViewServiceLive, KeepsServingWhileAnotherWriterCommitsAndShowsTheNewState) 
   view::Service service(store::Store::open(path));
   const view::Query pixel = {{"name", "a"}, {"x", "1"}, {"y", "1"}};
   ASSERT_EQ(service.get("/api/image/spectrum", pixel).status, 200);
-  EXPECT_NE(service.get("/api/image/spectrum", pixel).body.find("\"values\":[1,1,1,1]"), std::string::npos);
+  EXPECT_NE(service.get("/api/image/spectrum", pixel).body.find("\"values\":[1.0,1.0,1.0,1.0]"), std::string::npos);
   {
     store::StoreWriter w(path, {.replace = true});
     w.add_image("a", image(2.0f));
@@ -343,5 +343,5 @@ TEST(ViewServiceLive, KeepsServingWhileAnotherWriterCommitsAndShowsTheNewState) 
   EXPECT_NE(listing.body.find("{\"name\":\"b\""), std::string::npos) << listing.body;
   const view::Response r = service.get("/api/image/spectrum", pixel);
   ASSERT_EQ(r.status, 200) << r.body;
-  EXPECT_NE(r.body.find("\"values\":[2,2,2,2]"), std::string::npos) << r.body;
+  EXPECT_NE(r.body.find("\"values\":[2.0,2.0,2.0,2.0]"), std::string::npos) << r.body;
 }

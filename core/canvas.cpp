@@ -1,13 +1,11 @@
-#include "apps/canvas.h"
+#include "specula/core/canvas.h"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 
-#include "specula/store/io/png_stack.h"
-
-namespace specula::app {
+namespace specula {
 namespace {
 
 // Each row is 5 bits, the leftmost pixel in bit 4.
@@ -36,16 +34,16 @@ constexpr Glyph kFont[] = {
 
 }  // namespace
 
-void Canvas::put(std::size_t x, std::size_t y, Rgb c) {
+void Canvas::put(std::size_t x, std::size_t y, Rgb8 c) {
   if (x < width && y < height) std::copy(c.begin(), c.end(), rgb.begin() + std::ptrdiff_t(3 * (y * width + x)));
 }
 
-void Canvas::fill(std::size_t x0, std::size_t y0, std::size_t w, std::size_t h, Rgb c) {
+void Canvas::fill(std::size_t x0, std::size_t y0, std::size_t w, std::size_t h, Rgb8 c) {
   for (std::size_t y = y0; y < y0 + h; ++y)
     for (std::size_t x = x0; x < x0 + w; ++x) put(x, y, c);
 }
 
-void Canvas::blit(std::size_t x0, std::size_t y0, std::size_t w, std::size_t h, const std::vector<std::uint8_t>& src) {
+void Canvas::blit(std::size_t x0, std::size_t y0, std::size_t w, std::size_t h, std::span<const std::uint8_t> src) {
   for (std::size_t y = 0; y < h; ++y)
     for (std::size_t x = 0; x < w; ++x) {
       const std::uint8_t* p = src.data() + 3 * (y * w + x);
@@ -64,8 +62,6 @@ void Canvas::text(std::size_t x0, std::size_t y0, std::string_view s, std::size_
   }
 }
 
-void Canvas::save_png(const std::filesystem::path& path) const { store::write_png_rgb8(path, width, height, rgb); }
-
 std::size_t text_width(std::string_view s, std::size_t scale) { return s.empty() ? 0 : (6 * s.size() - 1) * scale; }
 
 std::string number_label(double v) { return v == 0 ? std::string("0") : fmt::format("{:.3g}", v); }
@@ -78,7 +74,7 @@ std::size_t bar_min_width(std::string_view title, std::string_view lo, std::stri
 
 std::size_t bar_height(std::size_t s) { return 6 * s + 2 + 2 * s + 7 * s; }
 
-void colour_bar(Canvas& c, std::size_t x, std::size_t y, std::size_t w, const std::function<Rgb(double)>& ramp,
+void colour_bar(Canvas& c, std::size_t x, std::size_t y, std::size_t w, const std::function<Rgb8(double)>& ramp,
                 std::string_view title, std::string_view lo, std::string_view hi, std::size_t s) {
   c.fill(x, y, w, 6 * s + 2, kInk);
   for (std::size_t i = 0; i + 2 < w; ++i)
@@ -89,7 +85,7 @@ void colour_bar(Canvas& c, std::size_t x, std::size_t y, std::size_t w, const st
   c.text(x + w - std::min(w, text_width(hi, s)), ty, hi, s);
 }
 
-Rgb diverging(double t) {
+Rgb8 diverging(double t) {
   t = std::clamp(t, 0.0, 1.0);
   const auto mix = [](double a, double b, double u) { return std::uint8_t(std::lround(a + (b - a) * u)); };
   if (t < 0.5) {
@@ -100,4 +96,4 @@ Rgb diverging(double t) {
   return {mix(255, 178, u), mix(255, 24, u), mix(255, 43, u)};
 }
 
-}  // namespace specula::app
+}  // namespace specula
