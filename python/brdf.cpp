@@ -285,7 +285,7 @@ void init_brdf(py::module_& m) {
         }
         py::dict r;  // the fields of `specula encode --json`
         r["method"] = transform ? "transform" : "bounded";
-        r["format_version"] = transform ? 2 : 1;
+        r["format_version"] = codec::spc_format_version(bytes, "spc_encode");
         if (target_de00) {
           py::dict t;
           t["de00_mean"] = *target_de00;
