@@ -9,6 +9,7 @@
 #include <chrono>
 #include <filesystem>
 #include <numbers>
+#include <optional>
 
 #include "apps/commands.h"
 #include "apps/common.h"
@@ -18,9 +19,12 @@
 #include "specula/acquire/hdr.h"
 #include "specula/acquire/mapping.h"
 #include "specula/acquire/pipeline.h"
+#include "specula/acquire/resample.h"
 #include "specula/acquire/scan.h"
 #include "specula/acquire/simulate.h"
 #include "specula/acquire/truth.h"
+#include "specula/codec/suite.h"
+#include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
@@ -75,6 +79,9 @@ struct AcquireOptions {
   std::string plots;
   std::vector<double> plot_theta = {30, 45, 60};
   double plot_band_nm = 0;
+  std::size_t grid_k = 32;       // the suite check's resampling, as `specula resample`'s -k and --max-gap
+  double grid_max_gap_deg = 8.6;
+  bool suite = true;
   bool replace = false;
   bool json = false;
 };
@@ -129,6 +136,34 @@ std::unique_ptr<brdf::SpectralModel> truth_model(const acquire::Capture& cap, co
   } catch (const std::exception&) {
     return nullptr;  // the simulated grid is no longer where the manifest says
   }
+}
+
+// The samples resampled onto the MERL grid as `specula resample` does, against the simulated material at every cell,
+// under the lighting suite (docs/brdf.md): what a renderer would see of the acquisition, holes black.
+struct SuiteCheck {
+  codec::SuiteDiff diff;
+  std::string worst;
+  Json json;
+};
+SuiteCheck suite_against_truth(const store::Store& s, const std::string& name, const brdf::SpectralModel& model,
+                               const AcquireOptions& o) {
+  const store::SamplesInfo info = s.samples_info(name);
+  store::Grid truth, grid;
+  truth.wavelengths = grid.wavelengths = info.wavelengths;
+  truth.units = grid.units = info.units;
+  truth.brdf.resize(info.bands * brdf::kMerlCells);
+  brdf::evaluate_grid(model, truth.brdf);
+  grid.brdf.resize(info.bands * brdf::kMerlCells);
+  const acquire::ResampleOptions ro{.k = o.grid_k, .max_gap = o.grid_max_gap_deg * std::numbers::pi / 180};
+  acquire::check_options(ro);
+  acquire::resample_grid(acquire::StoreSamples(s, name), ro, grid.brdf);
+  const codec::LightingSuite suite(info.wavelengths);
+  SuiteCheck c{codec::suite_diff(truth, grid, suite), "", Json()};
+  c.worst = suite.conditions()[c.diff.worst].name;
+  c.json = Json::parse(codec::suite_json(c.diff, suite));
+  c.json["grid_k"] = o.grid_k;
+  c.json["grid_max_gap_deg"] = o.grid_max_gap_deg;
+  return c;
 }
 
 // Figures 5.5-5.7: cube root of the samples within 2 degrees of the incidence plane at theta_i, at one band; with
@@ -264,6 +299,11 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
     if (const auto model = truth_model(cap, store::Store::open(store_path).samples_info(name).wavelengths))
       truth = acquire::sample_error(store::Store::open(store_path), name, *model);
   const auto [truth_err, truth_ratio] = truth;
+  std::optional<SuiteCheck> suite;
+  if (extract && o.suite)
+    if (const store::Store s = store::Store::open(store_path);
+        const auto model = truth_model(cap, s.samples_info(name).wavelengths))
+      suite = suite_against_truth(s, name, *model, o);
   if (o.json) {
     Json rejected;
     for (std::size_t k = 0; k < r.rejected.size(); ++k) rejected[acquire::kRejectNames[k]] = r.rejected[k];
@@ -276,6 +316,7 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
       j["truth_median_rel_error"] = truth_err;
       j["truth_median_ratio"] = truth_ratio;
     }
+    if (suite) j["suite"] = suite->json;
     j["calibrate_seconds"] = calibrate_seconds;
     j["extract_seconds"] = extract_seconds;
     j["seconds"] = seconds;
@@ -293,6 +334,15 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
     if (truth_err >= 0)
       fmt::print("against the simulated material: median relative error {:.4f}, median sample / model {:.4f}\n",
                  truth_err, truth_ratio);
+    if (suite) {
+      const codec::SuiteDiff& d = suite->diff;
+      fmt::print(
+          "resampled (k = {}, max gap {} deg) against the simulated material under the lighting suite (docs/brdf.md): "
+          "CIEDE2000 mean {:.3f}, 95th percentile {:.3f}, max {:.3f}; worst condition {} mean {:.3f}; {} of the "
+          "material's {} cells without data (rendered black); cos-weighted relative RMS {:.4f}\n",
+          o.grid_k, o.grid_max_gap_deg, d.de00_mean, d.de00_p95, d.de00_max, suite->worst,
+          d.conditions[d.worst].de00_mean, d.hole_cells, d.cells, d.rel_rms_cos);
+    }
   }
   fmt::print("{:.1f} s{}\n", seconds, o.plots.empty() ? "" : "; plots in " + o.plots);
 }
@@ -311,6 +361,13 @@ void add_pipeline_options(CLI::App* cmd, AcquireOptions& o, bool calibrates, boo
         ->capture_default_str();
     cmd->add_option("--plot-band", o.plot_band_nm,
                     "Wavelength of the incidence-plane plots (nm; default the middle band)");
+    cmd->add_option("--grid-k", o.grid_k,
+                    "With a simulated capture's material: resample the samples with this k (as resample -k) and "
+                    "compare with the material under the lighting suite")
+        ->capture_default_str();
+    cmd->add_option("--grid-max-gap", o.grid_max_gap_deg, "The suite check's resampling: as resample --max-gap")
+        ->capture_default_str();
+    cmd->add_flag("--no-suite{false}", o.suite, "Skip the lighting-suite check against a simulated capture's material");
   }
   cmd->add_flag("--replace", o.replace, "Replace samples or a calibration of the same name");
   cmd->add_flag("--json", o.json, "Print one JSON object");

@@ -30,6 +30,7 @@ struct EncodeOptions {
   int trials = 8;
   std::string env = "default";
   double magnitude_scale = 0;
+  double grazing_factor = codec::SpcTransformOptions{}.grazing_factor;
   int level = 9;
   std::string output;
   bool json = false;
@@ -59,7 +60,7 @@ void run_encode(const EncodeOptions& o) {
   if (o.target_p95 && !o.target_de00) throw UsageError("encode: --target-p95 goes with --target-de00");
   const codec::SpcBoundedOptions bounded{
       .max_error = o.max_error, .magnitude_scale = o.magnitude_scale, .zstd_level = o.level};
-  codec::SpcTransformOptions options{.magnitude_scale = o.magnitude_scale};
+  codec::SpcTransformOptions options{.grazing_factor = o.grazing_factor, .magnitude_scale = o.magnitude_scale};
   if (o.step) options.step = *o.step;
   const bool transform = o.step || o.target_de00;
   const double p95 = o.target_p95.value_or(3 * o.target_de00.value_or(0));
@@ -85,7 +86,7 @@ void run_encode(const EncodeOptions& o) {
   if (o.json) {
     Json j = {{"input", o.input}, {"output", o.output}};
     j.update(codec::spc_encode_json(rep, basis, transform ? nullptr : &bounded, o.target_de00 ? &target : nullptr,
-                                    &target_report, seconds));
+                                    &target_report, codec::spc_format_version(bytes, o.output), seconds));
     print_json(j);
     return;
   }
@@ -136,6 +137,10 @@ void setup_encode(CLI::App& app) {
   cmd->add_option("--trials", o->trials, "With --target-de00: trial codings at most (2 to 32)")->capture_default_str();
   cmd->add_option("--env", o->env,
                   "With --target-de00: the suite's environment: 'default' (built in) or a lat-long EXR")
+      ->capture_default_str();
+  cmd->add_option("--grazing-factor", o->grazing_factor,
+                  "Transform coding: steps times this at theta_d = 90 deg, rising linearly from 1 at theta_d = 0 "
+                  "(1/16 to 16; 1 writes format 2)")
       ->capture_default_str();
   cmd->add_option("--magnitude-scale", o->magnitude_scale,
                   "s of the mapping log(1 + m / s), in the grid's stored units (0: a tenth of the median magnitude)")

@@ -1,8 +1,9 @@
 // specula resample-study: the reference's evaluation of resampling (§5.4, figures 5.9-5.17). The study's
 // Torrance-Sparrow and Ward materials are sampled at the configurations of a simulated scan (acquire/scan.h),
 // reconstructed on the MERL grid for each mapping, k and weighting, rendered on a sphere under one directional
-// light and compared with the analytic model per pixel. Prints the tables; --out adds the renders (one PNG
-// sheet per material) and the incidence-plane plot of figure 5.17.
+// light and compared with the analytic model per pixel; and, per mapping, the whole grid resampled and compared with
+// the material under the lighting suite (docs/brdf.md), the project's one fidelity measure. Prints the tables; --out
+// adds the renders (one PNG sheet per material) and the incidence-plane plot of figure 5.17.
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -14,8 +15,11 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/gnuplot.h"
+#include "specula/acquire/resample.h"
 #include "specula/acquire/scan.h"
 #include "specula/acquire/study.h"
+#include "specula/codec/suite.h"
+#include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
@@ -34,6 +38,8 @@ struct ResampleStudyOptions {
   std::vector<double> light = {45, 135};
   double max_gap_deg = 8.6;
   std::size_t plot_k = 32;
+  std::size_t suite_k = 32;
+  bool suite = true;
   std::string out;
   bool json = false;
 };
@@ -115,6 +121,70 @@ void incidence_plot(const std::filesystem::path& path, const std::string& materi
   plot_png(gnuplot, path, gnuplot_png_terminal(1000, 600), script);
 }
 
+// One mapping's whole grid, resampled from the scan at suite_k (Shepard), against the material under the suite.
+struct SuiteRow {
+  acquire::Mapping mapping;
+  codec::SuiteDiff diff;
+  std::string worst;
+};
+
+// The study materials are grey, so 16 bands (400-700 nm) show the suite all there is; the scan's samples of `name`
+// there, resampled per mapping onto every cell, and the material evaluated at every cell as the reference.
+std::vector<SuiteRow> suite_rows(const std::string& name, const std::vector<double>& angles,
+                                 const ResampleStudyOptions& o) {
+  const WavelengthGrid bands = WavelengthGrid::range(400, 700, 20);
+  const auto model = brdf::make_material(name, bands);
+  const std::size_t n = angles.size() / 4, b = bands.size();
+  std::vector<float> values(n * b);
+  brdf::evaluate_at(*model, angles, values);
+  store::Grid truth;
+  truth.wavelengths = bands;
+  truth.brdf.resize(b * brdf::kMerlCells);
+  brdf::evaluate_grid(*model, truth.brdf);
+  const codec::LightingSuite suite(bands);
+  const acquire::MemorySamples samples(angles, values, b);
+  std::vector<SuiteRow> rows;
+  for (const auto mapping : {acquire::Mapping::standard, acquire::Mapping::marschner, acquire::Mapping::halfdiff}) {
+    check_interrupt();
+    store::Grid grid;
+    grid.wavelengths = bands;
+    grid.brdf.resize(b * brdf::kMerlCells);
+    const acquire::ResampleOptions ro{.mapping = mapping, .k = o.suite_k, .max_gap = o.max_gap_deg * pi / 180};
+    acquire::resample_grid(samples, ro, grid.brdf);
+    SuiteRow r{mapping, codec::suite_diff(truth, grid, suite), ""};
+    r.worst = suite.conditions()[r.diff.worst].name;
+    rows.push_back(std::move(r));
+  }
+  return rows;
+}
+
+Json suite_rows_json(const std::vector<SuiteRow>& rows, std::size_t k) {
+  Json j = Json::array();
+  for (const auto& r : rows)
+    j.push_back({{"mapping", std::string(acquire::mapping_name(r.mapping))},
+                 {"k", k},
+                 {"weights", "shepard"},
+                 {"de00_mean", r.diff.de00_mean},
+                 {"de00_p95", r.diff.de00_p95},
+                 {"de00_max", r.diff.de00_max},
+                 {"worst_condition", r.worst},
+                 {"worst_de00_mean", r.diff.conditions[r.diff.worst].de00_mean},
+                 {"cells", r.diff.cells},
+                 {"hole_cells", r.diff.hole_cells}});
+  return j;
+}
+
+void print_suite_rows(const std::string& name, const std::vector<SuiteRow>& rows, std::size_t k) {
+  fmt::print("| {} under the lighting suite (whole grid, k = {}, Shepard) | CIEDE2000 mean | p95 | max | worst condition "
+             "(mean) | cells without data |\n|---|---|---|---|---|---|\n",
+             name, k);
+  for (const auto& r : rows)
+    fmt::print("| {} | {:.3f} | {:.3f} | {:.3f} | {} ({:.3f}) | {} of {} |\n", acquire::mapping_name(r.mapping),
+               r.diff.de00_mean, r.diff.de00_p95, r.diff.de00_max, r.worst, r.diff.conditions[r.diff.worst].de00_mean,
+               r.diff.hole_cells, r.diff.cells);
+  fmt::print("\n");
+}
+
 void run_resample_study(const ResampleStudyOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   if (o.light.size() != 2 || !(o.light[0] >= 0 && o.light[0] < 90) || !std::isfinite(o.light[1]))
@@ -123,6 +193,7 @@ void run_resample_study(const ResampleStudyOptions& o) {
   if (o.render_size < 8 || o.render_size > 2048) throw UsageError("--render-size: give 8 to 2048 pixels");
   for (const auto k : o.ks)
     if (k < 1 || k > 100000) throw UsageError("-k: every value must be 1 to 100000");
+  if (o.suite_k < 1 || o.suite_k > 100000) throw UsageError("--suite-k: give 1 to 100000");
   const WavelengthGrid band({550.0});
   for (const auto& m : o.materials) brdf::make_material(m, band);
   acquire::StudyOptions so;
@@ -144,6 +215,7 @@ void run_resample_study(const ResampleStudyOptions& o) {
     std::vector<float> values(n);
     brdf::evaluate_at(*model, angles, values);
     const acquire::StudyOutput s = acquire::resampling_study(*model, 0, angles, values, so);
+    const std::vector<SuiteRow> suite = o.suite ? suite_rows(name, angles, o) : std::vector<SuiteRow>();
     if (!o.out.empty()) {
       write_sheet(std::filesystem::path(o.out) / (name + "-renders.png"), s, 2 * o.ks.size() - 1);
       incidence_plot(std::filesystem::path(o.out) / (name + "-incidence.png"), name, *model, angles, values, o.plot_k,
@@ -162,7 +234,8 @@ void run_resample_study(const ResampleStudyOptions& o) {
                       {"description", brdf::material_catalogue().at(name)},
                       {"samples", n},
                       {"grid_l1", s.grid_l1},
-                      {"rows", std::move(rows)}});
+                      {"rows", std::move(rows)},
+                      {"suite", suite_rows_json(suite, o.suite_k)}});
       continue;
     }
     fmt::print("{} ({}): {} scan samples ({} sphere pixels x {} lights), {}x{} render, light at theta {} phi {} deg\n",
@@ -176,6 +249,7 @@ void run_resample_study(const ResampleStudyOptions& o) {
           fmt::print("| {} | {:.6f} | {:.4f} | {} |\n", row_label(r), r.l1, r.max_error, r.pixels_without_data);
       fmt::print("\n");
     }
+    if (o.suite) print_suite_rows(name, suite, o.suite_k);
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
@@ -210,6 +284,10 @@ void setup_resample_study(CLI::App& app) {
   cmd->add_option("--max-gap", o->max_gap_deg, "Cells farther than this from every sample have no data (degrees)")
       ->capture_default_str();
   cmd->add_option("--plot-k", o->plot_k, "k of the incidence-plane plot (M_s, Shepard)")->capture_default_str();
+  cmd->add_option("--suite-k", o->suite_k,
+                  "k of the whole-grid resamplings (Shepard, one per mapping) compared under the lighting suite")
+      ->capture_default_str();
+  cmd->add_flag("--no-suite{false}", o->suite, "Skip the lighting-suite comparison");
   cmd->add_option("--out", o->out, "Directory for the render sheets and incidence-plane plots (PNG)");
   cmd->add_flag("--json", o->json, "Print one JSON object with every result");
   cmd->callback([o] { run_resample_study(*o); });

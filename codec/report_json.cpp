@@ -31,11 +31,12 @@ Json grid_diff_json(const GridDiff& d, std::string_view environment, std::size_t
 }
 
 Json spc_encode_json(const SpcReport& report, const SpcBasis& basis, const SpcBoundedOptions* bounded,
-                     const SpcTarget* target, const SpcTargetReport* target_report, double seconds) {
+                     const SpcTarget* target, const SpcTargetReport* target_report, std::uint32_t format_version,
+                     double seconds) {
   const bool transform = bounded == nullptr;
   Json j;
   j["method"] = transform ? "transform" : "bounded";
-  j["format_version"] = transform ? 2 : 1;
+  j["format_version"] = format_version;
   if (target && target_report)
     j["target"] = {{"de00_mean", target->de00_mean},
                    {"de00_p95", target->de00_p95},

@@ -4,6 +4,7 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include <cstddef>
+#include <cstdint>
 #include <string_view>
 
 namespace specula::codec {
@@ -19,12 +20,13 @@ struct SpcTargetReport;
 /// only_a, only_b, rms, max_abs, rel_rms_cos, de00_mean, de00_p95, de00_max, size (no per-pixel maps).
 nlohmann::ordered_json grid_diff_json(const GridDiff& d, std::string_view environment, std::size_t size);
 
-/// An encoding's report: method and format_version (format 1 with `bounded`, else format 2), the target search when
+/// An encoding's report: method and the written file's format_version, the target search when
 /// `target` and `target_report` are given, step, basis, k, max_error, byte counts, ratio, bits_per_cell, valid_cells,
 /// seconds and encode_mb_per_s of a run that took `seconds`, the errors, magnitude_scale and OpenMP threads.
 /// Rounded as printed before: ratio to 3 decimals, bits per cell and reached ΔE00 to 4, seconds to 6, MB/s to 1.
 nlohmann::ordered_json spc_encode_json(const SpcReport& report, const SpcBasis& basis,
                                        const SpcBoundedOptions* bounded, const SpcTarget* target,
-                                       const SpcTargetReport* target_report, double seconds);
+                                       const SpcTargetReport* target_report, std::uint32_t format_version,
+                                       double seconds);
 
 }  // namespace specula::codec

@@ -19,8 +19,9 @@ namespace specula::codec {
 
 /// Magic bytes that open a .spc file.
 inline constexpr char kSpcMagic[8] = {'S', 'P', 'E', 'C', 'U', 'S', 'P', 'C'};
-/// Newest .spc format version this specula reads: 1 (bounded error, predictive) and 2 (transform) are written.
-inline constexpr std::uint32_t kSpcVersion = 2;
+/// Newest .spc format version this specula reads: 1 (bounded error, predictive), 2 and 3 (transform; 3 adds a step
+/// profile over theta_d) are written.
+inline constexpr std::uint32_t kSpcVersion = 3;
 
 /// k orthonormal spectra (rows) on a wavelength grid, and where they came from.
 struct SpcBasis {
@@ -50,7 +51,7 @@ struct SpcBoundedOptions {
   int zstd_level = 9;  ///< 1..19
 };
 
-/// Settings of the transform method (format 2): the magnitude and shape channels coded by a 3-D wavelet transform
+/// Settings of the transform method (format 2, or 3 with a grazing factor other than 1): the magnitude and shape channels coded by a 3-D wavelet transform
 /// over the grid, with quantisation steps chosen for the rendered appearance rather than a per-value bound
 /// (docs/codec-format.md).
 struct SpcTransformOptions {
@@ -64,6 +65,10 @@ struct SpcTransformOptions {
   /// full step at theta_h index specular_extent (1..90): the small half-angles where a highlight lives.
   double specular_factor = 0.5;
   double specular_extent = 45;
+  /// Steps times 1 at theta_d index 0, changing linearly to grazing_factor (in [1/16, 16]) at theta_d index 90. The
+  /// lighting suite sees theta_d up to about 53 degrees under its lights, beyond only in the environment, and is as
+  /// content with twice the step at grazing theta_d (docs/codec-format.md); 1 writes format 2 as before.
+  double grazing_factor = 2;
   /// s of the magnitude mapping in the grid's stored units; 0: a tenth of the median valid magnitude.
   double magnitude_scale = 0;
 };
@@ -107,6 +112,8 @@ SpcCoefficients decode_spc_coefficients(std::span<const std::uint8_t> bytes, con
 store::Grid expand_spc(const SpcCoefficients& coefficients);
 /// Decodes .spc bytes to a grid: expand_spc(decode_spc_coefficients(bytes, label)).
 store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& label);
+/// The format version of .spc bytes (1, 2 or 3; magic, version and CRC checked as decode_spc does).
+std::uint32_t spc_format_version(std::span<const std::uint8_t> bytes, const std::string& label);
 /// The basis a .spc file was coded with (checked as decode_spc does).
 SpcBasis spc_basis(std::span<const std::uint8_t> bytes, const std::string& label);
 

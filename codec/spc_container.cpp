@@ -101,14 +101,18 @@ std::uint32_t check_container(std::span<const std::uint8_t> bytes, const std::st
 using detail::kMerlCells;
 using detail::kSlab;
 
+std::uint32_t spc_format_version(std::span<const std::uint8_t> bytes, const std::string& label) {
+  return detail::check_container(bytes, label);
+}
+
 SpcBasis spc_basis(std::span<const std::uint8_t> bytes, const std::string& label) {
-  const SpcCoefficients c = detail::check_container(bytes, label) == 2 ? detail::decode_transform(bytes, label, true)
+  const SpcCoefficients c = detail::check_container(bytes, label) >= 2 ? detail::decode_transform(bytes, label, true)
                                                                        : detail::decode_bounded(bytes, label, true);
   return {c.wavelengths, c.basis, c.reference};
 }
 
 SpcCoefficients decode_spc_coefficients(std::span<const std::uint8_t> bytes, const std::string& label) {
-  if (detail::check_container(bytes, label) == 2) return detail::decode_transform(bytes, label, false);
+  if (detail::check_container(bytes, label) >= 2) return detail::decode_transform(bytes, label, false);
   return detail::decode_bounded(bytes, label, false);
 }
 

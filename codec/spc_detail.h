@@ -115,7 +115,7 @@ std::vector<std::uint8_t> encode_bounded(const store::Grid& grid, const SpcBasis
                                          SpcReport* report, const std::string& source);
 SpcCoefficients decode_bounded(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only);
 
-/// Format 2: encodes; decodes a checked container (header only: basis and strings, values empty).
+/// Formats 2 and 3: encodes; decodes a checked container (header only: basis and strings, values empty).
 std::vector<std::uint8_t> encode_transform(const store::Grid& grid, const SpcBasis& basis, const SpcTransformOptions& o,
                                            SpcReport* report, const std::string& source);
 SpcCoefficients decode_transform(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only);

@@ -1,6 +1,7 @@
-// .spc format 2, the transform method: the magnitude and shape channels filled where the grid has no data, folded
-// about phi_d = pi/2, transformed by a 3-D CDF 9/7 wavelet, quantised with steps chosen for the rendered appearance
-// and coded by the context-modelled cube coder.
+// .spc formats 2 and 3, the transform method: the magnitude and shape channels filled where the grid has no data,
+// folded about phi_d = pi/2, transformed by a 3-D CDF 9/7 wavelet, quantised with steps chosen for the rendered
+// appearance and coded by the context-modelled cube coder. Format 3 adds a step profile over theta_d (the grazing
+// factor); a file with none (factor 1) is written as format 2, byte for byte as before it.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -40,6 +41,8 @@ struct Transform {
   int levels = 4;
   double step_y = 0, step_c = 0, frequency = 1, reconstruction = kReconstruction;
   double specular = 1, extent = 1;  // steps times specular at theta_h index 0, rising linearly to 1 at `extent`
+  double grazing = 1;                // steps times 1 at theta_d index 0, changing linearly to `grazing` at index 90
+  std::uint32_t version() const { return grazing == 1 ? 2 : 3; }
   double step(std::size_t channel) const { return channel == 0 ? step_y : step_c; }
 };
 
@@ -47,7 +50,8 @@ struct Transform {
 // channel's step, times frequency^(levels - 1 - l) for the detail bands of level l (0 finest), divided by the
 // subband's synthesis norm so that a step is what an error costs in the channel's own values; and times the
 // specular factor near the specular peak: specular + (1 - specular) min(1, h / extent), h the theta_h index its
-// support is centred on ((offset in the subband + 1/2) 2^(l + 1), or 2^levels for the final low cube).
+// support is centred on ((offset in the subband + 1/2) 2^(l + 1), or 2^levels for the final low cube); and times
+// the grazing profile 1 + (grazing - 1) min(1, d / 90), d the theta_d index its support is centred on (alike).
 template <class F>
 void for_each_coefficient(const CubeLayout& c, const Transform& t, std::size_t channel, F&& f) {
   const std::size_t s1 = c.dims[2], s0 = c.dims[1] * c.dims[2];
@@ -56,8 +60,11 @@ void for_each_coefficient(const CubeLayout& c, const Transform& t, std::size_t c
     for (std::size_t i = r0[0]; i < r0[1]; ++i) {
       const double h = (double(i - r0[0]) + 0.5) * spread;
       const double at = step * (t.specular + (1 - t.specular) * std::min(1.0, h / t.extent));
-      for (std::size_t j = r1[0]; j < r1[1]; ++j)
-        for (std::size_t k = r2[0]; k < r2[1]; ++k) f(i * s0 + j * s1 + k, at);
+      for (std::size_t j = r1[0]; j < r1[1]; ++j) {
+        const double d = (double(j - r1[0]) + 0.5) * spread;
+        const double at_d = t.grazing == 1 ? at : at * (1 + (t.grazing - 1) * std::min(1.0, d / 90.0));
+        for (std::size_t k = r2[0]; k < r2[1]; ++k) f(i * s0 + j * s1 + k, at_d);
+      }
     }
   };
   const double base = t.step(channel);
@@ -243,7 +250,7 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
   std::vector<std::uint8_t> out;
   out.reserve(total);
   put_bytes(out, kSpcMagic, sizeof kSpcMagic);
-  put(out, std::uint32_t(2));
+  put(out, t.version());
   put(out, std::uint32_t(md.bands));
   put(out, std::uint32_t(md.k));
   put(out, md.scale);
@@ -276,6 +283,7 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
   put(out, t.reconstruction);
   put(out, t.specular);
   put(out, t.extent);
+  if (t.version() == 3) put(out, t.grazing);
   for (const auto& s : streams) {
     put(out, std::uint32_t(s.size()));
     put_bytes(out, s.data(), s.size());
@@ -285,8 +293,8 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
 }
 
 Transform transform_of(const SpcTransformOptions& o, double step) {
-  return {o.levels,         step, step * o.shape_step_ratio, o.frequency_factor, kReconstruction, o.specular_factor,
-          o.specular_extent};
+  return {o.levels,          step, step * o.shape_step_ratio, o.frequency_factor, kReconstruction,
+          o.specular_factor, o.specular_extent, o.grazing_factor};
 }
 
 // The finest step (of options o's ratios) whose codes all stay below kMaxCode / 2.
@@ -319,6 +327,8 @@ void check_transform_options(const store::Grid& grid, const SpcBasis& basis, con
     throw UsageError("specular_factor = " + std::to_string(o.specular_factor) + ": give a number in (0, 1]");
   if (!(std::isfinite(o.specular_extent) && o.specular_extent >= 1 && o.specular_extent <= 90))
     throw UsageError("specular_extent = " + std::to_string(o.specular_extent) + ": give 1 to 90 theta_h indices");
+  if (!(std::isfinite(o.grazing_factor) && o.grazing_factor >= 0.0625 && o.grazing_factor <= 16))
+    throw UsageError("grazing_factor = " + std::to_string(o.grazing_factor) + ": give a number in [1/16, 16]");
   if (!(std::isfinite(o.magnitude_scale) && o.magnitude_scale >= 0))
     throw UsageError("magnitude scale must be finite and >= 0 (0: automatic)");
   if (!(std::isfinite(grid.scale) && grid.scale > 0)) throw UsageError("encode: the grid's scale must be positive");
@@ -403,7 +413,8 @@ std::vector<std::uint8_t> code_model(const Model& md, const store::Grid& grid, c
 
 SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only) {
   Reader r(bytes.first(bytes.size() - 4), label);
-  r.take(sizeof kSpcMagic + 4, "magic and version");
+  r.take(sizeof kSpcMagic, "magic");
+  const auto version = r.get<std::uint32_t>("version");
   const auto [bands, k] = read_shape(r, label);
   SpcCoefficients c;
   c.scale = r.get<double>("scale");
@@ -456,6 +467,12 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
   t.reconstruction = r.get<double>("reconstruction offset");
   t.specular = r.get<double>("specular factor");
   t.extent = r.get<double>("specular extent");
+  if (version >= 3) {
+    t.grazing = r.get<double>("grazing factor");
+    if (!(std::isfinite(t.grazing) && t.grazing >= 0.0625 && t.grazing <= 16 && t.grazing != 1))
+      throw InputError(label + ": .spc grazing factor " + std::to_string(t.grazing) +
+                       " is outside [1/16, 16] or 1 (which format 2 writes)");
+  }
   if (t.levels < 1 || t.levels > 5)
     throw InputError(label + ": .spc has " + std::to_string(t.levels) + " levels; 1 to 5 are valid");
   for (const auto& [v, what] : {std::pair{t.step_y, "magnitude step"}, std::pair{t.step_c, "shape step"},

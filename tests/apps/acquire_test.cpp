@@ -1,5 +1,6 @@
-// `specula simulate-capture` and `specula acquire hdr` end to end: statuses counted, saturation flagged and
-// masked, broken captures and bad options refused with one line, and the store left as it was.
+// `specula simulate-capture`, `specula acquire hdr` and `acquire run` end to end: statuses counted, saturation flagged
+// and masked, broken captures and bad options refused with one line, the store left as it was, and the run's report
+// under the lighting suite.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -73,3 +74,31 @@ TEST(AcquireCli, BrokenCapturesAndBadOptionsGetOneLineAndLeaveTheStoreAlone) {
 }
 
 }  // namespace
+
+// `acquire run` on a simulated capture reports the acquisition under the lighting suite: its figures are those of the
+// separate commands a user would run (resample with the same k and gap, synth-brdf of the material, brdf-diff).
+TEST(AcquireCli, RunReportsTheResampledCaptureUnderTheLightingSuite) {
+  test::ScratchDir dir;
+  const auto cap = (dir / "cap").string(), store = (dir / "s.h5").string();
+  ASSERT_EQ(run_specula("simulate-capture --size 64x64 --sphere-px 48 --lights 8 --light-step 20 --bands 420:720:50 "
+                        "--exposures 0.001,0.01,0.1,1,8 -o '" +
+                        cap + "'")
+                .status,
+            0);
+  ASSERT_EQ(run_specula("acquire hdr '" + cap + "' -o '" + store + "'").status, 0);
+  const auto r = run_specula("acquire run '" + cap + "' -o '" + store + ":rp' --grid-k 16 --grid-max-gap 15 --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  ASSERT_NE(r.output.find("\"suite\":{\"suite\":{\"conditions\":38"), std::string::npos) << r.output;
+  const auto grid = (dir / "grid.spgrid").string(), truth = (dir / "truth.spgrid").string();
+  ASSERT_EQ(run_specula("resample '" + store + "' rp -k 16 --max-gap 15 -o '" + grid + "'").status, 0);
+  ASSERT_EQ(run_specula("synth-brdf red-plastic --wavelengths 420:720:50 -o '" + truth + "'").status, 0);
+  const auto d = run_specula("brdf-diff '" + truth + "' '" + grid + "' --json");
+  ASSERT_EQ(d.status, 0) << d.output;
+  for (const char* key : {"de00_mean", "de00_p95", "hole_cells", "rel_rms_cos"})
+    EXPECT_NEAR(json_number(r.output, key), json_number(d.output, key), 1e-9 * (1 + json_number(d.output, key)))
+        << key;
+  EXPECT_GT(json_number(r.output, "de00_mean"), 0);
+  const auto quiet = run_specula("acquire run '" + cap + "' -o '" + store + ":rp2' --no-suite --json");
+  ASSERT_EQ(quiet.status, 0) << quiet.output;
+  EXPECT_EQ(quiet.output.find("\"suite\""), std::string::npos);
+}

@@ -4,6 +4,7 @@
 #include <omp.h>
 #include <zlib.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -243,7 +244,7 @@ TEST(SpcTransform, CoarserStepsCostFewerBytesAndMoreError) {
   for (const double step : {0.001, 0.01, 0.1}) {
     SpcReport rep;
     const auto bytes = encode_spc(torrance(), basis, transform(step), &rep);
-    EXPECT_EQ(bytes[8], 2) << "format version";
+    EXPECT_EQ(bytes[8], 3) << "format version (the default grazing factor)";
     EXPECT_EQ(rep.output_bytes, bytes.size());
     const store::Grid back = decode_spc(bytes, "t.spc");
     const double rms = rms_between(torrance(), back);
@@ -294,19 +295,90 @@ TEST(SpcTransform, TheSpecularRegionIsCodedFiner) {
   EXPECT_THROW(encode_spc(torrance(), basis, bad), UsageError);
 }
 
+// Formats 2 (grazing factor 1) and 3 (the default grazing factor) alike.
 TEST(SpcTransform, BytesAndDecodingDoNotDependOnTheThreadCount) {
   const SpcBasis basis = self_basis(ward(), 3);
   const int threads = omp_get_max_threads();
-  omp_set_num_threads(1);
-  const auto one = encode_spc(ward(), basis, transform(0.02));
-  const SpcCoefficients c1 = decode_spc_coefficients(one, "one");
-  omp_set_num_threads(2);
-  const auto two = encode_spc(ward(), basis, transform(0.02));
-  const SpcCoefficients c2 = decode_spc_coefficients(two, "two");
-  omp_set_num_threads(threads);
-  EXPECT_EQ(one, two);
-  EXPECT_EQ(c1.values, c2.values);
-  EXPECT_EQ(c1.valid, c2.valid);
+  for (const double grazing : {1.0, 2.0}) {
+    SpcTransformOptions o = transform(0.02);
+    o.grazing_factor = grazing;
+    omp_set_num_threads(1);
+    const auto one = encode_spc(ward(), basis, o);
+    const SpcCoefficients c1 = decode_spc_coefficients(one, "one");
+    omp_set_num_threads(2);
+    const auto two = encode_spc(ward(), basis, o);
+    const SpcCoefficients c2 = decode_spc_coefficients(two, "two");
+    omp_set_num_threads(threads);
+    EXPECT_EQ(one[8], grazing == 1 ? 2 : 3);
+    EXPECT_EQ(one, two);
+    EXPECT_EQ(c1.values, c2.values);
+    EXPECT_EQ(c1.valid, c2.valid);
+  }
+}
+
+// The grazing factor (format 3) changes the step with theta_d only: measured cell by cell on the decoded grids, a
+// factor of 4 leaves the error at small theta_d about as it was and raises it at grazing theta_d; 1 writes format 2.
+TEST(SpcTransform, TheGrazingFactorCodesGrazingThetaDCoarser) {
+  const SpcBasis basis = self_basis(torrance(), 3);
+  auto rms_by_theta_d = [&](double factor, std::uint8_t version) {
+    SpcTransformOptions o = transform(0.2);
+    o.grazing_factor = factor;
+    const auto bytes = encode_spc(torrance(), basis, o);
+    EXPECT_EQ(bytes[8], version);
+    EXPECT_EQ(spc_format_version(bytes, "g.spc"), version);
+    const store::Grid back = decode_spc(bytes, "g.spc");
+    std::array<double, 2> sq{}, ref{};
+    for (std::size_t c = 0; c < N; ++c) {
+      const int d = brdf::merl_cell(c).theta_d;
+      if ((d >= 12 && d < 70) || torrance().brdf[c] < 0) continue;
+      for (std::size_t b = 0; b < 7; ++b) {
+        const double x = torrance().brdf[b * N + c], e = back.brdf[b * N + c] - x;
+        sq[d < 12 ? 0 : 1] += e * e;
+        ref[d < 12 ? 0 : 1] += x * x;
+      }
+    }
+    return std::array<double, 2>{std::sqrt(sq[0] / ref[0]), std::sqrt(sq[1] / ref[1])};
+  };
+  const auto plain = rms_by_theta_d(1, 2), grazing = rms_by_theta_d(4, 3);
+  EXPECT_NEAR(grazing[0], plain[0], 0.25 * plain[0]);
+  EXPECT_GT(grazing[1], 1.5 * plain[1]);
+  for (const double bad : {0.0, 0.05, 17.0, std::nan("")}) {
+    SpcTransformOptions o = transform(0.1);
+    o.grazing_factor = bad;
+    EXPECT_THROW(encode_spc(torrance(), basis, o), UsageError) << bad;
+  }
+  // A format-3 file is strict about its field: a factor of 1 (format 2's) or out of range is refused.
+  SpcTransformOptions o = transform(0.1);
+  o.grazing_factor = 4;
+  const auto good = encode_spc(ward(), self_basis(ward(), 2), o);
+  const std::array<double, 2> extent_and_factor{45, 4};  // the specular extent, then the grazing factor
+  const auto* pattern = reinterpret_cast<const std::uint8_t*>(extent_and_factor.data());
+  const auto at = std::search(good.begin(), good.end(), pattern, pattern + 16) - good.begin() + 8;
+  ASSERT_LT(std::size_t(at), good.size());
+  for (const double bad : {1.0, 20.0}) {
+    auto b = good;
+    std::memcpy(b.data() + at, &bad, 8);
+    EXPECT_NE(test::input_error_text([&] { decode_spc(with_crc(b), "g.spc"); }).find("grazing factor"),
+              std::string::npos);
+  }
+}
+
+// A format-2 file written before format 3 existed (tests/codec/data/rp-k3-v2.spc: `specula synth-brdf red-plastic
+// --wavelengths 400:700:50`, then `encode --basis self -k 3 --step 0.05`) still decodes, to what the coder now
+// writes at grazing factor 1, which is format 2 again.
+TEST(SpcTransform, FormatTwoFilesStillDecode) {
+  std::ifstream f(SPECULA_SOURCE_DIR "/tests/codec/data/rp-k3-v2.spc", std::ios::binary);
+  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(bytes[8], 2);
+  const SpcCoefficients old = decode_spc_coefficients(bytes, "rp-k3-v2.spc");
+  const store::Grid grid = grid_of(*brdf::make_material("red-plastic", WavelengthGrid::range(400, 700, 50)));
+  SpcTransformOptions o = transform(0.05);
+  o.grazing_factor = 1;
+  const auto now = encode_spc(grid, self_basis(grid, 3), o);
+  EXPECT_EQ(now[8], 2);
+  const SpcCoefficients fresh = decode_spc_coefficients(now, "now.spc");
+  EXPECT_EQ(old.valid, fresh.valid);
+  EXPECT_EQ(old.values, fresh.values);
 }
 
 // Every kind of validity comes back exactly: all cells, the horizon rule, and arbitrary holes.

@@ -167,9 +167,10 @@ tif("float32-wavelengths.tif", gdal.GDT_Float32, [], float32_wavelengths)
 tif("float32-wavelengths-deflate-tiled.tif", gdal.GDT_Float32, ["COMPRESS=DEFLATE", "TILED=YES", "BLOCKXSIZE=16", "BLOCKYSIZE=16"],
     float32_wavelengths)
 
-# spc: a format-1 file (tests/codec/data) and a format-2 one made by the CLI:
+# spc: a format-1 file (tests/codec/data), a format-2 one (also tests/codec/data) and a format-3 one made by the CLI:
 #   specula synth-brdf red-plastic --wavelengths 400:700:50 -o rp.spgrid
-#   specula encode rp.spgrid --basis self -k 3 --step 0.05 -o rp-k3-v2.spc
+#   specula encode rp.spgrid --basis self -k 3 --step 0.05 -o rp-k3-v2.spc    # before format 3 existed
+#   specula encode rp.spgrid --basis self -k 3 --step 0.05 -o rp-k3-v3.spc    # grazing factor 2 (the default)
 # (kept as checked in: the encoder's bytes are not this script's to reproduce).
 with open(os.path.join(os.path.dirname(HERE), "..", "codec", "data", "green-matte-7band-v1.spc"), "rb") as f:
     put("spc", "green-matte-7band-v1.spc", f.read())
