@@ -25,9 +25,13 @@ struct RglExportSettings {
   std::size_t ndf_nodes = 128;       ///< nodes of the ndf and sigma tables in u, >= 2
   std::size_t vndf_resolution = 32;  ///< vndf nodes per side, >= 2
   std::size_t power_iterations = 30;
-  /// The vndf table (which only places the sample nodes; stored values use the ndf) is (D(m) + floor / pi) <wi . m>+:
-  /// a floor > 0 keeps nodes off the peak of a glossy material, where its diffuse part lives.
-  double vndf_floor = 0.1;
+  /// The vndf table only places the sample nodes (stored values use the ndf) and guides the renderers' sampling. Per
+  /// incident direction it is the mixture (1 - vndf_uniform) p + vndf_uniform q, both normalised over the table's
+  /// nodes: p = (D(m) + vndf_floor / pi) <wi . m>+ (times the square's Jacobian), q uniform over the nodes with
+  /// wi . m > 0. The floor and the uniform part keep nodes on the diffuse part and the tail of a glossy material,
+  /// which the peak would otherwise take (bench/brdf-formats: the lighting suite chose 0.3 and 0.4).
+  double vndf_floor = 0.3;
+  double vndf_uniform = 0.4;
   std::string description;  ///< empty: "specula export"
 };
 
