@@ -3,8 +3,8 @@
 // Dupuy and Jakob (2018) build theirs from a measurement: the microfacet distribution D recovered from the
 // retro-reflection by power iteration (Dupuy et al. 2015, D_{n+1}(theta) = f(k, k) cos(theta) sigma_n(theta)),
 // sigma(theta) = integral of D(m) <k . m>+ dm by quadrature, D scaled so sigma(0) = 1, the incident elevations chosen
-// uniformly in sigma, per elevation the visible-normal density D(m) <wi . m>+ on the square (u, v) times its Jacobian
-// 2 pi^2 u sin(theta_m), and at the nodes of the sample square warped by it the values f cos(theta_o) 4 sigma / D.
+// uniformly in sigma, per elevation a vndf table on the square (u, v) led by the visible-normal density D(m) <wi . m>+
+// (RglExportSettings), and at the nodes of the sample square warped by it the values f cos(theta_o) 4 sigma / D.
 // f between MERL cells is interpolated trilinearly in the grid's index space over the cells that hold data.
 #include <Eigen/Core>
 #include <cstddef>
