@@ -29,9 +29,9 @@ struct RglExportSettings {
   /// incident direction it is the mixture (1 - vndf_uniform) p + vndf_uniform q, both normalised over the table's
   /// nodes: p = (D(m) + vndf_floor / pi) <wi . m>+ (times the square's Jacobian), q uniform over the nodes with
   /// wi . m > 0. The floor and the uniform part keep nodes on the diffuse part and the tail of a glossy material,
-  /// which the peak would otherwise take (bench/brdf-formats: the lighting suite chose 0.3 and 0.4).
+  /// which the peak would otherwise take (bench/brdf-formats, docs/brdf.md: 0.3 and 0.2).
   double vndf_floor = 0.3;
-  double vndf_uniform = 0.4;
+  double vndf_uniform = 0.2;
   std::string description;  ///< empty: "specula export"
 };
 
