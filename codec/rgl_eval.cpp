@@ -100,7 +100,7 @@ std::vector<float> rgl_merl_values(const RglBsdf& bsdf) {
   const std::size_t channels = e.channels(), per_h = std::size_t(brdf::kMerlThetaD) * brdf::kMerlPhiD;
   std::vector<float> out(channels * brdf::kMerlCells, -1.0f);
   parallel_for(std::size_t(brdf::kMerlThetaH), [&](std::size_t h) {
-    std::vector<double> f(channels);
+    std::vector<double> f(channels), g(channels);
     for (std::size_t k = 0; k < per_h; ++k) {
       const std::size_t cell = h * per_h + k;
       const brdf::MerlCell c = brdf::merl_cell(cell);
@@ -108,6 +108,9 @@ std::vector<float> rgl_merl_values(const RglBsdf& bsdf) {
       Eigen::Vector3d wi, wo;
       brdf::directions(brdf::merl_cell_centre(c), wi, wo);
       e.eval(wi, wo, f);
+      e.eval(wo, wi, g);
+      const double a = wo.z(), b = wi.z();
+      for (std::size_t ch = 0; ch < channels; ++ch) f[ch] = (f[ch] * a + g[ch] * b) / (a + b);
       for (std::size_t ch = 0; ch < channels; ++ch) out[ch * brdf::kMerlCells + cell] = float(f[ch]);
     }
   });

@@ -48,9 +48,12 @@ class RglEvaluator {
   Warp2D ndf_, sigma_, vndf_, values_;
 };
 
-/// The material evaluated by RglEvaluator::eval at every MERL cell centre (brdf::directions of merl_cell_centre; wi
-/// the tabulated direction): channels x 90 x 90 x 180 values, channel slowest; -1 (no data) for cells whose centre is
-/// below the horizon. Parallel over theta_h; the result does not depend on the thread count.
+/// The material evaluated by RglEvaluator::eval at every MERL cell centre (brdf::directions of merl_cell_centre) with
+/// each of the cell's directions tabulated in turn, as a renderer meets the cell with the camera on either side:
+/// (f(wi, wo) cos wo + f(wo, wi) cos wi) / (cos wi + cos wo), the renderers' products f cos summed over their cosines
+/// (for a reciprocal file, f itself; the file's error is never divided by one grazing cosine alone). channels x 90 x
+/// 90 x 180 values, channel slowest; -1 (no data) for cells whose centre is below the horizon. Parallel over
+/// theta_h; the result does not depend on the thread count.
 std::vector<float> rgl_merl_values(const RglBsdf& bsdf);
 /// A spectral file as a grid on its own wavelengths; UsageError for an RGB file.
 store::Grid rgl_to_grid(const RglBsdf& bsdf, const std::string& source);

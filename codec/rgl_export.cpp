@@ -101,6 +101,7 @@ void check(const RglExportSettings& s) {
   if (s.theta_i < 2 || s.resolution < 2 || s.ndf_nodes < 2 || s.vndf_resolution < 2)
     throw UsageError("RGL export: theta_i, resolution, ndf_nodes and vndf_resolution must be at least 2");
   if (!(s.vndf_floor >= 0 && s.vndf_floor <= 100)) throw UsageError("RGL export: vndf_floor must be in [0, 100]");
+  if (!(s.vndf_uniform >= 0 && s.vndf_uniform <= 1)) throw UsageError("RGL export: vndf_uniform must be in [0, 1]");
   if (s.theta_i > 90 || s.resolution > 512 || s.ndf_nodes > 4096 || s.vndf_resolution > 1024)
     throw UsageError("RGL export: at most 90 theta_i, a 512 sample grid, 4096 ndf nodes and a 1024 vndf grid");
 }
@@ -150,6 +151,26 @@ void clamp_outliers(RglBsdf& b, std::size_t channels, std::span<const double> lu
   }
 }
 
+// The vndf table of one incident direction (RglExportSettings::vndf_floor, vndf_uniform) into out (V x V).
+void vndf_slice(const Warp2D& ndf_table, const Eigen::Vector3d& wi, const RglExportSettings& s, std::span<float> out,
+                std::size_t V) {
+  std::vector<double> dens(V * V), vis(V * V);
+  double dsum = 0, vsum = 0;
+  for (std::size_t y = 0; y < V; ++y)
+    for (std::size_t x = 0; x < V; ++x) {
+      const double u = double(x) / double(V - 1), theta_m = rgl_u_to_theta(u);
+      const Eigen::Vector3d m = brdf::direction(theta_m, rgl_v_to_phi(double(y) / double(V - 1)));
+      dens[y * V + x] = (ndf_table.eval(u, 0, {}) + s.vndf_floor / kPi) * std::max(0.0, wi.dot(m)) * 2 * kPi * kPi * u *
+                        std::sin(theta_m);
+      vis[y * V + x] = wi.dot(m) > 0 ? 1.0 : 0.0;
+      dsum += dens[y * V + x];
+      vsum += vis[y * V + x];
+    }
+  for (std::size_t k = 0; k < V * V; ++k)
+    out[k] = float((1 - s.vndf_uniform) * dens[k] / std::max(dsum, 1e-300) +
+                   s.vndf_uniform * vis[k] / std::max(vsum, 1.0));
+}
+
 RglBsdf build(const MerlField& field, std::span<const double> lum_weights, const RglExportSettings& s) {
   check(s);
   const std::size_t C = field.channels(), N = s.ndf_nodes, R = s.resolution, V = s.vndf_resolution, T = s.theta_i;
@@ -190,13 +211,7 @@ RglBsdf build(const MerlField& field, std::span<const double> lum_weights, const
     const double theta_i = b.theta_i[t];
     const Eigen::Vector3d wi = brdf::direction(theta_i, 0);
     float* vndf = b.vndf.data() + t * V * V;
-    for (std::size_t y = 0; y < V; ++y)
-      for (std::size_t x = 0; x < V; ++x) {
-        const double u = double(x) / double(V - 1), theta_m = rgl_u_to_theta(u);
-        const Eigen::Vector3d m = brdf::direction(theta_m, rgl_v_to_phi(double(y) / double(V - 1)));
-        vndf[y * V + x] = float((ndf_table.eval(u, 0, {}) + s.vndf_floor / kPi) * std::max(0.0, wi.dot(m)) * 2 * kPi *
-                                kPi * u * std::sin(theta_m));
-      }
+    vndf_slice(ndf_table, wi, s, {vndf, V * V}, V);
     const Warp2D warp({vndf, V * V}, V, V, {}, true);
     const double sigma_i = sigma_table.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(0), {});
     std::vector<double> fv(C);

@@ -3,8 +3,8 @@
 // Dupuy and Jakob (2018) build theirs from a measurement: the microfacet distribution D recovered from the
 // retro-reflection by power iteration (Dupuy et al. 2015, D_{n+1}(theta) = f(k, k) cos(theta) sigma_n(theta)),
 // sigma(theta) = integral of D(m) <k . m>+ dm by quadrature, D scaled so sigma(0) = 1, the incident elevations chosen
-// uniformly in sigma, per elevation the visible-normal density D(m) <wi . m>+ on the square (u, v) times its Jacobian
-// 2 pi^2 u sin(theta_m), and at the nodes of the sample square warped by it the values f cos(theta_o) 4 sigma / D.
+// uniformly in sigma, per elevation a vndf table on the square (u, v) led by the visible-normal density D(m) <wi . m>+
+// (RglExportSettings), and at the nodes of the sample square warped by it the values f cos(theta_o) 4 sigma / D.
 // f between MERL cells is interpolated trilinearly in the grid's index space over the cells that hold data.
 #include <Eigen/Core>
 #include <cstddef>
@@ -25,9 +25,13 @@ struct RglExportSettings {
   std::size_t ndf_nodes = 128;       ///< nodes of the ndf and sigma tables in u, >= 2
   std::size_t vndf_resolution = 32;  ///< vndf nodes per side, >= 2
   std::size_t power_iterations = 30;
-  /// The vndf table (which only places the sample nodes; stored values use the ndf) is (D(m) + floor / pi) <wi . m>+:
-  /// a floor > 0 keeps nodes off the peak of a glossy material, where its diffuse part lives.
-  double vndf_floor = 0.1;
+  /// The vndf table only places the sample nodes (stored values use the ndf) and guides the renderers' sampling. Per
+  /// incident direction it is the mixture (1 - vndf_uniform) p + vndf_uniform q, both normalised over the table's
+  /// nodes: p = (D(m) + vndf_floor / pi) <wi . m>+ (times the square's Jacobian), q uniform over the nodes with
+  /// wi . m > 0. The floor and the uniform part keep nodes on the diffuse part and the tail of a glossy material,
+  /// which the peak would otherwise take (bench/brdf-formats, docs/brdf.md: 0.3 and 0.2).
+  double vndf_floor = 0.3;
+  double vndf_uniform = 0.2;
   std::string description;  ///< empty: "specula export"
 };
 

@@ -1,5 +1,6 @@
 // Export of MERL-layout BRDFs to RGL files: the microfacet pieces against closed forms, and export -> import round
-// trips of analytic grids judged by brdf-diff's rendered CIEDE2000 (the fidelity goal of issue 26).
+// trips of analytic grids judged by the lighting suite (codec/suite.h, what brdf-diff reports; the fidelity goal of
+// issue 26).
 #include "specula/codec/rgl_export.h"
 
 #include <gtest/gtest.h>
@@ -12,6 +13,7 @@
 #include "specula/codec/environment.h"
 #include "specula/codec/rgl_eval.h"
 #include "specula/codec/spectral_grid.h"
+#include "specula/codec/suite.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/cie.h"
 #include "specula/core/error.h"
@@ -76,24 +78,26 @@ TEST(RglExport, TheFileIsWhatTheRenderersCheck) {
 struct Trip {
   const char* material;
   std::size_t resolution;  // the sample grid: the default 32, or what the material needs to meet the goal
+  double mean = 0.35, p95 = 1.2;  // tighter than the goal (0.5, 1.5): what the default export keeps
 };
 class RoundTrip : public ::testing::TestWithParam<Trip> {};
 
 TEST_P(RoundTrip, ExportThenImportIsWithinTheFidelityGoal) {
   const store::Grid a = material(GetParam().material);
   const store::Grid b = rgl_to_grid(export_rgl(a, {.resolution = GetParam().resolution}), "trip.bsdf");
-  const GridDiff d = diff_grids(a, b, default_environment(a.wavelengths), {.size = 96});
+  static const LightingSuite suite(a.wavelengths);
+  const SuiteDiff d = suite_diff(a, b, suite);
   RecordProperty("de00_mean", std::to_string(d.de00_mean));
   RecordProperty("de00_p95", std::to_string(d.de00_p95));
-  std::printf("%s: dE00 mean %.3f p95 %.3f max %.3f, rel_rms_cos %.4f\n", GetParam().material, d.de00_mean, d.de00_p95,
-              d.de00_max, d.rel_rms_cos);
-  EXPECT_LE(d.de00_mean, 0.5);
-  EXPECT_LE(d.de00_p95, 1.5);
+  std::printf("%s: suite dE00 mean %.3f p95 %.3f max %.3f, rel_rms_cos %.4f\n", GetParam().material, d.de00_mean,
+              d.de00_p95, d.de00_max, d.rel_rms_cos);
+  EXPECT_LE(d.de00_mean, GetParam().mean);
+  EXPECT_LE(d.de00_p95, GetParam().p95);
 }
 
 INSTANTIATE_TEST_SUITE_P(Analytic, RoundTrip,
                          ::testing::Values(Trip{"green-matte", 32}, Trip{"blue-paint", 32}, Trip{"red-plastic", 32},
-                                           Trip{"gold", 32}),
+                                           Trip{"gold", 32}, Trip{"cyan-gloss", 32}),
                          [](const auto& info) {
                            std::string n = info.param.material;
                            for (auto& c : n)
