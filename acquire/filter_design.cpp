@@ -49,18 +49,30 @@ Eigen::MatrixXd reconstruction_basis(const store::Basis& basis, int k) {
   return u;
 }
 
+Eigen::MatrixXd capture_basis(const store::Basis& basis, const Capture& capture, const std::string& label) {
+  if (!capture.filters) throw InputError(label + ": a basis is for filter captures; this capture has LCTF bands");
+  if (!std::ranges::equal(basis.wavelengths.values(), capture.bands))
+    throw InputError(fmt::format("{}: the basis has {} bands ({}-{} nm), the capture recovers {} ({}-{} nm); learn the "
+                                 "basis on the capture's bands",
+                                 label, basis.bands(), basis.wavelengths.front(), basis.wavelengths.back(),
+                                 capture.bands.size(), capture.bands.front(), capture.bands.back()));
+  return reconstruction_basis(basis, int(capture.filters->size()));
+}
+
 namespace {
 
-// The K x B system with each row divided by its white reading (the exposure per filter makes every filter's white
-// reach the same level, so the noise is relative to it).
-Eigen::MatrixXd normalised_system(const FilterSet& f, std::span<const double> bands, const Tabulated& s) {
+// The K x B system divided by the white reading of an open filter (transmission `peak` everywhere on the bands): every
+// filter is exposed as long as that reference, so a filter passing little light reads little and is noisier.
+Eigen::MatrixXd normalised_system(const FilterSet& f, std::span<const double> bands, const Tabulated& s, double peak) {
   Eigen::MatrixXd a = filter_system(f, bands, s, 1)[0];
-  for (Eigen::Index k = 0; k < a.rows(); ++k) {
-    const double white = a.row(k).sum();
-    if (!(white > 0)) throw InputError("filter design: filter '" + f.names[std::size_t(k)] + "' passes no light");
-    a.row(k) /= white;
-  }
-  return a;
+  FilterSet open;
+  open.names = {"open"};
+  open.nm.assign(bands.begin(), bands.end());
+  open.transmission = {std::vector<double>(bands.size(), peak)};
+  const double white = filter_system(open, bands, s, 1)[0].sum();
+  for (Eigen::Index k = 0; k < a.rows(); ++k)
+    if (!(a.row(k).sum() > 0)) throw InputError("filter design: filter '" + f.names[std::size_t(k)] + "' passes no light");
+  return a / white;
 }
 
 // Mean expected squared error per band over spectra of second moment m (B x B).
@@ -139,7 +151,7 @@ FilterSet optimal_filters(const store::Basis& basis, const Eigen::MatrixXd& trai
   };
   auto cost = [&](const Eigen::VectorXd& p) {
     try {
-      return mean_squared_error(normalised_system(build(p), bands, s), u, m, o.noise, o.ridge);
+      return mean_squared_error(normalised_system(build(p), bands, s, 1.0), u, m, o.noise, o.ridge);
     } catch (const Error&) {
       return 1e30;
     }
@@ -172,7 +184,7 @@ FilterError expected_filter_error(const FilterSet& f, std::span<const double> ba
                                   double ridge) {
   if (spectra.cols() != Eigen::Index(bands.size()) || spectra.rows() == 0)
     throw UsageError("expected_filter_error: spectra (rows) on the bands");
-  const Eigen::MatrixXd a = normalised_system(f, bands, s);
+  const Eigen::MatrixXd a = normalised_system(f, bands, s, 1.0);
   const Eigen::MatrixXd r = filter_recovery(a, basis, ridge);
   const Eigen::MatrixXd e = spectra.transpose() - r * (a * spectra.transpose());
   const double b = double(bands.size()), noise2 = noise * noise * r.squaredNorm();

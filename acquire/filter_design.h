@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "specula/acquire/capture.h"
 #include "specula/acquire/filters.h"
 #include "specula/store/basis.h"
 #include "specula/store/store.h"
@@ -21,7 +22,7 @@ FilterMethod parse_filter_method(const std::string& name);
 struct FilterDesignOptions {
   FilterMethod method = FilterMethod::optimal;
   int k = 6;                  ///< filters
-  double noise = 0.01;        ///< camera noise: standard deviation relative to each filter's white reading
+  double noise = 0.002;       ///< camera noise: standard deviation relative to an open filter's white reading
   double ridge = 1e-3;        ///< the solve's regularisation (filter_recovery)
   double peak = 0.9;          ///< the curves' largest transmission
   double light_kelvin = 3200; ///< the light (a blackbody) the design assumes, with the simulated camera's response
@@ -36,9 +37,14 @@ void check_filter_design(const FilterDesignOptions& o);
 /// the first k - 1 components (r never above the basis's own components, plus its mean).
 Eigen::MatrixXd reconstruction_basis(const store::Basis& basis, int k);
 
+/// reconstruction_basis for a filter capture (k: its filters); InputError naming `label` unless the basis is on the
+/// capture's bands, and for a capture without filters.
+Eigen::MatrixXd capture_basis(const store::Basis& basis, const Capture& capture, const std::string& label);
+
 /// Expected reconstruction error of spectra (rows, on `bands`) read through filters `f` (sensitivity s: light times
-/// camera response), solved in `basis` with `ridge`, readings normalised by each filter's white reading and noise
-/// of standard deviation `noise` added: per spectrum sqrt((|x - R A x|^2 + noise^2 |R|_F^2) / B).
+/// camera response), solved in `basis` with `ridge`, every filter exposed alike and noise of standard deviation
+/// `noise` (relative to the white reading of an open filter, transmission 1) added to each reading: per spectrum
+/// sqrt((|x - R A x|^2 + noise^2 |R|_F^2) / B).
 struct FilterError {
   std::size_t spectra = 0;
   double rms_mean = 0, rms_median = 0, rms_max = 0;
