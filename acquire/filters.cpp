@@ -223,7 +223,14 @@ Eigen::MatrixXd fit_filter_response(const std::vector<Eigen::MatrixXd>& system, 
       throw InputError("filter calibration: filter " + std::to_string(k) + " has no signal on the targets");
     Eigen::MatrixXd g(measured.rows(), D);
     for (Eigen::Index d = 0; d < D; ++d) g.col(d) = reflectance * system[std::size_t(d)].row(k).transpose();
-    a.row(k) = g.completeOrthogonalDecomposition().solve(Eigen::VectorXd(measured.col(k))).transpose();
+    // Columns scaled to unit norm; directions the targets cannot tell apart (below 1e-4 of the largest) are left
+    // at zero rather than fitted with huge cancelling terms.
+    Eigen::VectorXd norm = g.colwise().norm().transpose();
+    for (Eigen::Index d = 0; d < D; ++d) norm[d] = norm[d] > 0 ? norm[d] : 1;
+    Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod;
+    cod.setThreshold(1e-4);
+    cod.compute(g * norm.cwiseInverse().asDiagonal());
+    a.row(k) = norm.cwiseInverse().cwiseProduct(cod.solve(Eigen::VectorXd(measured.col(k)))).transpose();
   }
   return a;
 }
