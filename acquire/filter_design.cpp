@@ -52,10 +52,11 @@ Eigen::MatrixXd reconstruction_basis(const store::Basis& basis, int k) {
 Eigen::MatrixXd capture_basis(const store::Basis& basis, const Capture& capture, const std::string& label) {
   if (!capture.filters) throw InputError(label + ": a basis is for filter captures; this capture has LCTF bands");
   if (!std::ranges::equal(basis.wavelengths.values(), capture.bands))
-    throw InputError(fmt::format("{}: the basis has {} bands ({}-{} nm), the capture recovers {} ({}-{} nm); learn the "
-                                 "basis on the capture's bands",
-                                 label, basis.bands(), basis.wavelengths.front(), basis.wavelengths.back(),
-                                 capture.bands.size(), capture.bands.front(), capture.bands.back()));
+    throw InputError(
+        fmt::format("{}: the basis has {} bands ({}-{} nm), the capture recovers {} ({}-{} nm); learn the "
+                    "basis on the capture's bands",
+                    label, basis.bands(), basis.wavelengths.front(), basis.wavelengths.back(), capture.bands.size(),
+                    capture.bands.front(), capture.bands.back()));
   return reconstruction_basis(basis, int(capture.filters->size()));
 }
 
@@ -71,7 +72,8 @@ Eigen::MatrixXd normalised_system(const FilterSet& f, std::span<const double> ba
   open.transmission = {std::vector<double>(bands.size(), peak)};
   const double white = filter_system(open, bands, s, 1)[0].sum();
   for (Eigen::Index k = 0; k < a.rows(); ++k)
-    if (!(a.row(k).sum() > 0)) throw InputError("filter design: filter '" + f.names[std::size_t(k)] + "' passes no light");
+    if (!(a.row(k).sum() > 0))
+      throw InputError("filter design: filter '" + f.names[std::size_t(k)] + "' passes no light");
   return a / white;
 }
 
@@ -98,7 +100,8 @@ void super_gaussian(const double* p, std::span<const double> bands, double peak,
   const double width = std::clamp(std::exp(p[1]), 8.0, 4 * half);
   const double power = 2 + 4 / (1 + std::exp(-p[2]));
   t.resize(nm.size());
-  for (std::size_t i = 0; i < nm.size(); ++i) t[i] = peak * std::exp(-0.5 * std::pow(std::abs(nm[i] - centre) / width, power));
+  for (std::size_t i = 0; i < nm.size(); ++i)
+    t[i] = peak * std::exp(-0.5 * std::pow(std::abs(nm[i] - centre) / width, power));
 }
 
 FilterSet named(std::vector<double> nm, std::vector<std::vector<double>> t, const char* prefix) {
@@ -112,8 +115,8 @@ FilterSet named(std::vector<double> nm, std::vector<std::vector<double>> t, cons
 FilterSet nmf_filters(const store::Basis& basis, const FilterDesignOptions& o) {
   if (basis.method != "nmf") throw UsageError("filter design: --method nmf needs an NMF basis (specula nmf)");
   if (int(basis.k()) < o.k)
-    throw UsageError(fmt::format("filter design: the NMF basis has {} components; {} filters need as many",
-                                 basis.k(), o.k));
+    throw UsageError(
+        fmt::format("filter design: the NMF basis has {} components; {} filters need as many", basis.k(), o.k));
   const std::vector<double> bands(basis.wavelengths.values().begin(), basis.wavelengths.values().end());
   const std::vector<double> nm = design_grid(bands, o.step_nm);
   std::vector<std::vector<double>> curves;
@@ -189,7 +192,8 @@ FilterError expected_filter_error(const FilterSet& f, std::span<const double> ba
   const Eigen::MatrixXd e = spectra.transpose() - r * (a * spectra.transpose());
   const double b = double(bands.size()), noise2 = noise * noise * r.squaredNorm();
   std::vector<double> rms(std::size_t(spectra.rows()));
-  for (Eigen::Index i = 0; i < spectra.rows(); ++i) rms[std::size_t(i)] = std::sqrt((e.col(i).squaredNorm() + noise2) / b);
+  for (Eigen::Index i = 0; i < spectra.rows(); ++i)
+    rms[std::size_t(i)] = std::sqrt((e.col(i).squaredNorm() + noise2) / b);
   FilterError out;
   out.spectra = rms.size();
   for (const double v : rms) out.rms_mean += v / double(rms.size());
@@ -212,9 +216,10 @@ namespace {
 Eigen::MatrixXd collection_matrix(const store::Store& s, const std::string& name, const store::Basis& basis) {
   const store::Collection c = s.read_collection(name);
   if (!std::ranges::equal(c.wavelengths.values(), basis.wavelengths.values()))
-    throw InputError(fmt::format("{}: collection '{}' has {} bands, the basis {} on other wavelengths; import it with "
-                                 "--wavelengths matching the basis",
-                                 s.label(), name, c.bands(), basis.bands()));
+    throw InputError(
+        fmt::format("{}: collection '{}' has {} bands, the basis {} on other wavelengths; import it with "
+                    "--wavelengths matching the basis",
+                    s.label(), name, c.bands(), basis.bands()));
   Eigen::MatrixXd m(Eigen::Index(c.size()), Eigen::Index(c.bands()));
   for (std::size_t i = 0; i < c.size(); ++i)
     for (std::size_t b = 0; b < c.bands(); ++b) m(Eigen::Index(i), Eigen::Index(b)) = c.values[i * c.bands() + b];
@@ -239,8 +244,10 @@ FilterDesign design_filters(const store::Store& s, const std::string& basis_name
   if (test.empty()) {
     std::vector<Eigen::Index> fit, out;
     for (Eigen::Index i = 0; i < training.rows(); ++i) (i % 5 == 4 ? out : fit).push_back(i);
-    if (out.empty()) throw InputError(s.label() + ": collection '" + d.training_name + "' has too few spectra to hold "
-                                      "out every fifth; name a test collection");
+    if (out.empty())
+      throw InputError(s.label() + ": collection '" + d.training_name +
+                       "' has too few spectra to hold "
+                       "out every fifth; name a test collection");
     held_out = training(out, Eigen::all);
     training = Eigen::MatrixXd(training(fit, Eigen::all));
     d.held_out_name = d.training_name + " (every fifth spectrum)";

@@ -21,13 +21,13 @@ FilterMethod parse_filter_method(const std::string& name);
 
 struct FilterDesignOptions {
   FilterMethod method = FilterMethod::optimal;
-  int k = 6;                  ///< filters
-  double noise = 0.002;       ///< camera noise: standard deviation relative to an open filter's white reading
-  double ridge = 1e-3;        ///< the solve's regularisation (filter_recovery)
-  double peak = 0.9;          ///< the curves' largest transmission
-  double light_kelvin = 3200; ///< the light (a blackbody) the design assumes, with the simulated camera's response
-  double step_nm = 5;         ///< the curves' tabulation step
-  double smooth_nm = 10;      ///< nmf: Gaussian smoothing (standard deviation) of the components
+  int k = 6;                   ///< filters
+  double noise = 0.002;        ///< camera noise: standard deviation relative to an open filter's white reading
+  double ridge = 1e-3;         ///< the solve's regularisation (filter_recovery)
+  double peak = 0.9;           ///< the curves' largest transmission
+  double light_kelvin = 3200;  ///< the light (a blackbody) the design assumes, with the simulated camera's response
+  double step_nm = 5;          ///< the curves' tabulation step
+  double smooth_nm = 10;       ///< nmf: Gaussian smoothing (standard deviation) of the components
 };
 
 /// UsageError stating the rule for a bad option.

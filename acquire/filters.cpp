@@ -126,9 +126,9 @@ void check_filters(const FilterSet& f, std::span<const double> bands, const std:
         throw InputError(source + ": filter '" + f.names[k] + "' transmits " + num(t) + "; a transmission is 0 to 1");
   }
   if (!bands.empty() && (f.nm.empty() || f.nm.front() > bands.front() || f.nm.back() < bands.back()))
-    throw InputError(source + ": the filters are tabulated over " + (f.nm.empty() ? "nothing" : num(f.nm.front()) +
-                     "-" + num(f.nm.back()) + " nm") + "; the bands need " + num(bands.front()) + "-" +
-                     num(bands.back()) + " nm");
+    throw InputError(source + ": the filters are tabulated over " +
+                     (f.nm.empty() ? "nothing" : num(f.nm.front()) + "-" + num(f.nm.back()) + " nm") +
+                     "; the bands need " + num(bands.front()) + "-" + num(bands.back()) + " nm");
   for (std::size_t k = 0; k < f.size(); ++k) {
     double peak = 0;
     for (std::size_t i = 0; i < f.nm.size(); ++i)

@@ -41,9 +41,9 @@ struct FilterCalibration {
   Eigen::MatrixXd recovery;  ///< B x K: spectrum = recovery * readings
 };
 
-/// Fits a (per filter, least squares of minimum norm over the targets, terms the targets cannot separate dropped) so that measured(i, k) = sum_d a_kd
-/// A_d[k] . reflectance(i), with A_d from filter_system(terms). measured: targets x K; reflectance: targets x B.
-/// UsageError for sizes; InputError for a filter with no signal on the targets.
+/// Fits a (per filter, least squares of minimum norm over the targets, terms the targets cannot separate dropped) so
+/// that measured(i, k) = sum_d a_kd A_d[k] . reflectance(i), with A_d from filter_system(terms). measured: targets x K;
+/// reflectance: targets x B. UsageError for sizes; InputError for a filter with no signal on the targets.
 Eigen::MatrixXd fit_filter_response(const std::vector<Eigen::MatrixXd>& system, const Eigen::MatrixXd& measured,
                                     const Eigen::MatrixXd& reflectance);
 

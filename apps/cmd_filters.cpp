@@ -38,8 +38,8 @@ void plot_filters(const std::filesystem::path& gnuplot, const std::filesystem::p
 }
 
 Json error_json(const acquire::FilterError& e, const std::string& name) {
-  return {{"spectra", name},       {"count", e.spectra},       {"rms_mean", e.rms_mean},
-          {"rms_median", e.rms_median}, {"rms_max", e.rms_max}, {"noise_rms", e.noise_rms}};
+  return {{"spectra", name},      {"count", e.spectra},      {"rms_mean", e.rms_mean}, {"rms_median", e.rms_median},
+          {"rms_max", e.rms_max}, {"noise_rms", e.noise_rms}};
 }
 
 void run_filters_design(FiltersDesignOptions o) {
@@ -48,13 +48,14 @@ void run_filters_design(FiltersDesignOptions o) {
   std::filesystem::path gnuplot;
   if (!o.plot.empty()) {
     gnuplot = find_gnuplot();
-    if (gnuplot.empty()) throw UsageError("filters design: --plot draws with gnuplot; install it (Debian: gnuplot-nox)");
+    if (gnuplot.empty())
+      throw UsageError("filters design: --plot draws with gnuplot; install it (Debian: gnuplot-nox)");
   }
   const acquire::FilterDesign d =
       acquire::design_filters(store::Store::open(o.store), o.basis, o.train, o.test, o.design);
   acquire::write_filters_csv(o.output, d.filters);
-  const std::string title = fmt::format("{} filters ({}) for basis {}: held-out RMS {:.4f}", d.filters.size(),
-                                        o.method, o.basis, d.held_out.rms_mean);
+  const std::string title = fmt::format("{} filters ({}) for basis {}: held-out RMS {:.4f}", d.filters.size(), o.method,
+                                        o.basis, d.held_out.rms_mean);
   if (!o.plot.empty()) plot_filters(gnuplot, o.plot, d, title);
   if (o.json) {
     Json j;

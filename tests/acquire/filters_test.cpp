@@ -190,8 +190,8 @@ TEST(FilterDesign, CurvesAreSmoothBoundedTransmissionsAndTheOptimumBeatsNmf) {
     const double c1 = 420 + 300 * u(rng), c2 = 420 + 300 * u(rng), w1 = 30 + 80 * u(rng), base = 0.05 + 0.2 * u(rng);
     for (Eigen::Index b = 0; b < B; ++b) {
       const double l = bands[std::size_t(b)];
-      spectra(i, b) = base + 0.6 * std::exp(-0.5 * std::pow((l - c1) / w1, 2)) +
-                      0.2 * std::exp(-0.5 * std::pow((l - c2) / 60, 2));
+      spectra(i, b) =
+          base + 0.6 * std::exp(-0.5 * std::pow((l - c1) / w1, 2)) + 0.2 * std::exp(-0.5 * std::pow((l - c2) / 60, 2));
     }
   }
   store::Basis pca;

@@ -40,8 +40,7 @@ TEST(FiltersCli, DesignSimulateAndReconstruct) {
   const auto db = (dir / "db.h5").string(), filters = (dir / "f.csv").string(), cap = (dir / "cap").string(),
              out = (dir / "s.h5").string();
   test::write_file(dir / "spectra.csv", smooth_spectra_csv());
-  ASSERT_EQ(run_specula("-q import '" + (dir / "spectra.csv").string() + "' --name spectra -o '" + db + "'").status,
-            0);
+  ASSERT_EQ(run_specula("-q import '" + (dir / "spectra.csv").string() + "' --name spectra -o '" + db + "'").status, 0);
   ASSERT_EQ(run_specula("-q pca '" + db + "' --collection spectra --name pca").status, 0);
   auto r = run_specula("filters design '" + db + "' --basis pca -k 4 -o '" + filters + "' --json");
   ASSERT_EQ(r.status, 0) << r.output;
@@ -65,8 +64,7 @@ TEST(FiltersCli, DesignSimulateAndReconstruct) {
   const std::string s = r.output;
   const std::regex rms("\"rms_filters\":([0-9.e-]+)");
   int targets = 0;
-  for (auto it = std::sregex_iterator(s.begin(), s.end(), rms);
-       it != std::sregex_iterator(); ++it, ++targets)
+  for (auto it = std::sregex_iterator(s.begin(), s.end(), rms); it != std::sregex_iterator(); ++it, ++targets)
     EXPECT_LT(std::stod((*it)[1]), 0.15) << r.output;
   EXPECT_EQ(targets, 5);
   EXPECT_LT(json_number(r.output, "truth_median_rel_error"), 0.25) << r.output;
@@ -104,7 +102,8 @@ TEST(FiltersCli, VersionOneCapturesStillRead) {
   test::ScratchDir dir;
   const auto cap = (dir / "cap").string();
   ASSERT_EQ(run_specula("simulate-capture --size 80x80 --sphere-px 50 --lights 2 --light-step 50 --bands 500,600 "
-                        "--exposures 0.01,0.1,1 --no-noise -o '" + cap + "'")
+                        "--exposures 0.01,0.1,1 --no-noise -o '" +
+                        cap + "'")
                 .status,
             0);
   const auto manifest = std::filesystem::path(cap) / "manifest.json";
