@@ -350,11 +350,10 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
         if (hdr[b].status[p] == HdrStatus::saturated) saturated[p] = 1, ++on_sphere;
       }
       if (!pixels.empty() && on_sphere == pixels.size())
-        throw InputError(
-            dir.string() + ": light " + std::to_string(l) +
-            (cap.filters ? " through filter '" + cap.filters->names[b] + "'"
-                         : " at " + std::to_string(int(cap.bands[b])) + " nm") +
-            " is saturated on the whole sphere even at the shortest exposure; capture shorter exposures");
+        throw InputError(dir.string() + ": light " + std::to_string(l) +
+                         (cap.filters ? " through filter '" + cap.filters->names[b] + "'"
+                                      : " at " + std::to_string(int(cap.bands[b])) + " nm") +
+                         " is saturated on the whole sphere even at the shortest exposure; capture shorter exposures");
     }
     for (std::size_t p = 0; p < W * H; ++p)
       for (std::size_t b = 0; b < B && !saturated[p]; ++b)

@@ -84,8 +84,9 @@ struct HdrSummary {
   std::array<std::uint64_t, 5> status{};
 };
 
-/// Merges every light's exposure series (of an LCTF capture; InputError for a filter capture) into image "hdr-L<index>" of the transaction (rates in DN/s in every band; a
-/// pixel is valid when every band is ok or single); one light in memory at a time, interruptible between lights.
+/// Merges every light's exposure series (of an LCTF capture; InputError for a filter capture) into image "hdr-L<index>"
+/// of the transaction (rates in DN/s in every band; a pixel is valid when every band is ok or single); one light in
+/// memory at a time, interruptible between lights.
 HdrSummary write_hdr_images(const Capture& capture, const std::filesystem::path& dir, const HdrOptions& o,
                             store::StoreWriter& out);
 

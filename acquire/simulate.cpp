@@ -7,12 +7,12 @@
 #include <numbers>
 #include <random>
 
+#include "specula/acquire/filters.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/cie.h"
 #include "specula/core/error.h"
 #include "specula/core/parallel.h"
-#include "specula/acquire/filters.h"
 #include "specula/store/io/png_stack.h"
 
 namespace specula::acquire {
@@ -150,7 +150,8 @@ void check_simulator(const SimulatorOptions& o) {
     throw UsageError(
         "simulate-capture: brightness and gain must be positive, noise and bias >= 0, vignetting in [0, 1)");
   if (o.filters) check_filters(*o.filters, o.bands.empty() ? default_bands() : o.bands, "simulate-capture filters");
-  if (!(o.lctf_peak > 0 && o.lctf_peak <= 1)) throw UsageError("simulate-capture: the LCTF's peak transmission is in (0, 1]");
+  if (!(o.lctf_peak > 0 && o.lctf_peak <= 1))
+    throw UsageError("simulate-capture: the LCTF's peak transmission is in (0, 1]");
   if (!o.grid && !brdf::material_catalogue().count(o.material))
     throw UsageError("simulate-capture: unknown material '" + o.material +
                      "' (specula synth-brdf lists the analytic materials)");

@@ -13,8 +13,8 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/gnuplot.h"
-#include "specula/acquire/filter_design.h"
 #include "specula/acquire/capture.h"
+#include "specula/acquire/filter_design.h"
 #include "specula/acquire/hdr.h"
 #include "specula/acquire/mapping.h"
 #include "specula/acquire/pipeline.h"
@@ -200,7 +200,8 @@ void print_calibration(const acquire::Capture& cap, const acquire::Calibration& 
   const bool filters = c.spectral.model == acquire::SpectralModel::filters;
   fmt::print("spectral model: {} (fitted on targets",
              filters ? fmt::format("{} broadband filters", c.spectral.recovery.cols())
-                     : c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored");
+             : c.spectral.model == acquire::SpectralModel::delta ? "delta"
+                                                                 : "factored");
   for (const auto& t : c.targets)
     if (!t.held_out) fmt::print(" {}", t.name);
   if (filters) {
@@ -221,12 +222,12 @@ void print_calibration(const acquire::Capture& cap, const acquire::Calibration& 
 void add_calibration_json(Json& j, const acquire::Capture& cap, const acquire::Calibration& c) {
   Json targets = Json::array();
   for (const auto& t : c.targets)
-    targets.push_back(
-        t.filters.size() ? Json{{"name", t.name}, {"held_out", t.held_out}, {"rms_filters", t.rms_filters}}
-                         : Json{{"name", t.name},
-                                {"held_out", t.held_out},
-                                {"rms_delta", t.rms_delta},
-                                {"rms_factored", t.rms_factored}});
+    targets.push_back(t.filters.size()
+                          ? Json{{"name", t.name}, {"held_out", t.held_out}, {"rms_filters", t.rms_filters}}
+                          : Json{{"name", t.name},
+                                 {"held_out", t.held_out},
+                                 {"rms_delta", t.rms_delta},
+                                 {"rms_factored", t.rms_factored}});
   const auto [mean, worst] = acquire::light_direction_error(cap, c);
   j["circle"] = {{"cx", c.circle.cx}, {"cy", c.circle.cy}, {"r", c.circle.r}};
   j["sphere"] = {{"centre", {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z()}},

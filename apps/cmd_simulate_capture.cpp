@@ -110,8 +110,10 @@ void setup_simulate_capture(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--filters", o->filters,
                   "Filter CSV (specula filters design): a filter wheel instead of the LCTF, exposures per filter");
-  cmd->add_option("--lctf-peak", o->sim.lctf_peak, "The LCTF's peak transmission (filter captures are exposed "
-                  "relative to it)")->capture_default_str();
+  cmd->add_option("--lctf-peak", o->sim.lctf_peak,
+                  "The LCTF's peak transmission (filter captures are exposed "
+                  "relative to it)")
+      ->capture_default_str();
   cmd->add_option("--brightness", o->sim.brightness, "DN/s of a white Lambertian facing light and camera")
       ->capture_default_str();
   cmd->add_option("--light-kelvin", o->sim.light_kelvin, "The light's colour temperature (a blackbody)")

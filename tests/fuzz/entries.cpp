@@ -13,12 +13,12 @@
 
 #include <zlib.h>
 
+#include "specula/acquire/filters.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/rgl_eval.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/error.h"
-#include "specula/acquire/filters.h"
 #include "specula/store/io/csv.h"
 #include "specula/store/io/envi.h"
 #include "specula/store/io/gdal.h"
