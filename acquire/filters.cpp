@@ -65,6 +65,8 @@ FilterSet parse_filters_csv(std::string_view text, const std::string& source) {
         throw InputError(where + ": the header must be wavelength_nm followed by one column per filter");
       for (std::size_t c = 1; c < cells.size(); ++c) {
         if (cells[c].empty()) throw InputError(where + ": filter " + std::to_string(c) + " has no name");
+        if (std::any_of(cells[c].begin(), cells[c].end(), [](char ch) { return (ch >= 0 && ch < 0x20) || ch == 0x7f; }))
+          throw InputError(where + ": filter name '" + printable(cells[c]) + "' holds control characters");
         f.names.emplace_back(cells[c]);
       }
       f.transmission.resize(f.names.size());
