@@ -6,6 +6,7 @@
 #include <set>
 #include <tuple>
 
+#include "specula/acquire/filters.h"
 #include "specula/core/atomic_file.h"
 #include "specula/core/error.h"
 
@@ -51,13 +52,15 @@ void write_manifest(const fs::path& dir, const Capture& c) {
   j["lctf_transmission"] = json::array();
   for (std::size_t b = 0; b < c.lctf_nm.size(); ++b)
     j["lctf_transmission"].push_back({{"nm", c.lctf_nm[b]}, {"value", c.lctf_value[b]}});
+  if (c.filters)
+    j["filters"] = {{"names", c.filters->names}, {"nm", c.filters->nm}, {"transmission", c.filters->transmission}};
   j["targets"] = json::array();
   for (const auto& t : c.targets) j["targets"].push_back({{"name", t.name}, {"reflectance", t.reflectance}});
   j["images"] = json::array();
   for (const auto& im : c.images) {
     json e = {{"file", im.file}, {"kind", kind_name(im.kind)}, {"exposure_s", im.exposure_s}};
     if (im.light >= 0) e["light"] = im.light;
-    if (im.band >= 0) e["band"] = im.band;
+    if (im.band >= 0) e[c.filters ? "filter" : "band"] = im.band;
     if (im.target >= 0) e["target"] = im.target;
     j["images"].push_back(e);
   }
@@ -96,7 +99,7 @@ CaptureImage read_image_entry(const json& e, const Capture& c, const fs::path& d
   im.kind = parse_kind(field<std::string>(e, "kind", ictx), ictx);
   im.exposure_s = field<double>(e, "exposure_s", ictx);
   im.light = e.value("light", -1);
-  im.band = e.value("band", -1);
+  im.band = e.value(c.filters ? "filter" : "band", -1);
   im.target = e.value("target", -1);
   if (im.file.empty() || fs::path(im.file).is_absolute() || im.file.find("..") != std::string::npos)
     throw InputError(ictx + ": the file must be a path inside the capture directory");
@@ -107,9 +110,10 @@ CaptureImage read_image_entry(const json& e, const Capture& c, const fs::path& d
     throw InputError(ictx + ": light " + std::to_string(im.light) + " is not one of the " +
                      std::to_string(c.light_angles_deg.size()) + " light positions a " + kind_name(im.kind) +
                      " image needs");
-  if (needs_band != (im.band >= 0) || im.band >= int(c.bands.size()))
-    throw InputError(ictx + ": band " + std::to_string(im.band) + " is not one of the " +
-                     std::to_string(c.bands.size()) + " bands a " + kind_name(im.kind) + " image needs");
+  const char* channel = c.filters ? "filter" : "band";
+  if (needs_band != (im.band >= 0) || im.band >= int(c.channels()))
+    throw InputError(ictx + ": " + channel + " " + std::to_string(im.band) + " is not one of the " +
+                     std::to_string(c.channels()) + " " + channel + "s a " + kind_name(im.kind) + " image needs");
   if ((im.kind == ImageKind::target) != (im.target >= 0) || im.target >= int(c.targets.size()))
     throw InputError(ictx + ": target " + std::to_string(im.target) + " is not one of the " +
                      std::to_string(c.targets.size()) + " targets");
@@ -176,6 +180,21 @@ Capture read_manifest(const fs::path& dir) {
       throw InputError(ctx + ": \"lctf_transmission\" has " + std::to_string(c.lctf_nm.size()) + " curves for " +
                        std::to_string(c.bands.size()) + " bands");
   }
+  if (j.contains("filters")) {
+    if (version < 2) throw InputError(ctx + ": \"filters\" needs capture format version 2");
+    const json& fj = j["filters"];
+    FilterSet f;
+    f.names = field<std::vector<std::string>>(fj, "names", ctx + " filters");
+    f.nm = field<std::vector<double>>(fj, "nm", ctx + " filters");
+    f.transmission = field<std::vector<std::vector<double>>>(fj, "transmission", ctx + " filters");
+    for (std::size_t i = 1; i < f.nm.size(); ++i)
+      if (!(f.nm[i] > f.nm[i - 1])) throw InputError(ctx + ": \"filters\" wavelengths must increase");
+    if (f.names.size() != f.transmission.size())
+      throw InputError(ctx + ": \"filters\" has " + std::to_string(f.names.size()) + " names for " +
+                       std::to_string(f.transmission.size()) + " curves");
+    check_filters(f, c.bands, ctx + " filters");
+    c.filters = std::move(f);
+  }
   for (const json& t : field<json>(j, "targets", ctx)) {
     CaptureTarget target{field<std::string>(t, "name", ctx + " target"),
                          field<std::vector<double>>(t, "reflectance", ctx + " target")};
@@ -192,11 +211,12 @@ Capture read_manifest(const fs::path& dir) {
     c.images.push_back(std::move(im));
   }
   for (int l = 0; l < int(c.light_angles_deg.size()); ++l)
-    for (int b = 0; b < int(c.bands.size()); ++b) {
+    for (int b = 0; b < int(c.channels()); ++b) {
       const auto it = scene_exposures.lower_bound({l, b, 0.0});
       if (it == scene_exposures.end() || std::get<0>(*it) != l || std::get<1>(*it) != b)
-        throw InputError(ctx + ": no scene exposure for light " + std::to_string(l) + " at " +
-                         std::to_string(int(c.bands[std::size_t(b)])) + " nm");
+        throw InputError(ctx + ": no scene exposure for light " + std::to_string(l) +
+                         (c.filters ? " through filter '" + c.filters->names[std::size_t(b)] + "'"
+                                    : " at " + std::to_string(int(c.bands[std::size_t(b)])) + " nm"));
     }
   if (j.contains("truth")) {
     const json& t = j["truth"];

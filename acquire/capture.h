@@ -7,10 +7,12 @@
 #include <string>
 #include <vector>
 
+#include "specula/acquire/filter_set.h"
+
 namespace specula::acquire {
 
 inline constexpr const char* kCaptureFormat = "specula-capture";
-inline constexpr int kCaptureVersion = 1;
+inline constexpr int kCaptureVersion = 2;  ///< 2: captures through a filter wheel ("filters")
 
 /// What an image shows.
 enum class ImageKind { scene, silhouette, mirror, flat, target };
@@ -20,7 +22,8 @@ struct CaptureImage {
   std::string file;  ///< relative to the capture directory
   ImageKind kind = ImageKind::scene;
   int light = -1;         ///< light position index (scene, mirror); -1 otherwise
-  int band = -1;          ///< index into Capture::bands (scene, flat, target); -1 for none (silhouette, mirror)
+  int band = -1;  ///< the channel (scene, flat, target): index into Capture::bands, or into Capture::filters for a
+                  ///< filter capture; -1 for none (silhouette, mirror)
   int target = -1;        ///< index into Capture::targets (target images)
   double exposure_s = 0;  ///< exposure time
 };
@@ -52,10 +55,13 @@ struct Capture {
   std::vector<double> light_spectrum_nm, light_spectrum;  ///< the light's relative spectrum, tabulated
   /// The LCTF's tabulated transmission per band (manufacturer's data; optional, the factored model needs it).
   std::vector<std::vector<double>> lctf_nm, lctf_value;
+  std::optional<FilterSet> filters;  ///< a filter-wheel capture: one channel per filter; bands are what it recovers
   std::vector<CaptureTarget> targets;
   std::vector<CaptureImage> images;
   std::optional<CaptureTruth> truth;
   std::string description;
+  /// The channels each scene, flat and target series is taken in: the filters' count, or the bands'.
+  std::size_t channels() const { return filters ? filters->size() : bands.size(); }
 };
 
 /// "scene", "silhouette", ... and back; InputError for an unknown name.
@@ -64,9 +70,9 @@ ImageKind parse_kind(const std::string& name, const std::string& context);
 
 /// Writes dir/manifest.json (through a temporary renamed into place).
 void write_manifest(const std::filesystem::path& dir, const Capture& c);
-/// Reads and checks dir/manifest.json: InputError naming the file and the field for malformed JSON, a wrong
-/// format or newer version, inconsistent indices, image files that do not exist, or a scene (light, band)
-/// without exposures.
+/// Reads and checks dir/manifest.json (versions 1 and 2): InputError naming the file and the field for malformed
+/// JSON, a wrong format or newer version, filters that are not transmissions or do not cover the bands,
+/// inconsistent indices, image files that do not exist, or a scene (light, channel) without exposures.
 Capture read_manifest(const std::filesystem::path& dir);
 
 }  // namespace specula::acquire

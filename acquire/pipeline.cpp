@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <numbers>
 
+#include "specula/acquire/filters.h"
 #include "specula/acquire/scan.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
@@ -79,7 +80,7 @@ std::vector<HdrImage> merge_light(const Capture& cap, const fs::path& dir, int l
     if (in_series(im, ImageKind::scene, light, -1, -1)) files.push_back(&im);
   auto pixels = decode_all(cap, dir, files);
   std::vector<HdrImage> out;
-  for (int b = 0; b < int(cap.bands.size()); ++b) {
+  for (int b = 0; b < int(cap.channels()); ++b) {
     std::vector<const CaptureImage*> f;
     std::vector<std::vector<std::uint16_t>> p;
     for (std::size_t i = 0; i < files.size(); ++i)
@@ -100,6 +101,9 @@ HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, i
 }
 
 HdrSummary write_hdr_images(const Capture& cap, const fs::path& dir, const HdrOptions& o, store::StoreWriter& out) {
+  if (cap.filters)
+    throw InputError((dir / "manifest.json").string() +
+                     ": a filter capture's channels are not bands; acquire run reconstructs its spectra");
   HdrSummary sum;
   const std::size_t W = std::size_t(cap.width), H = std::size_t(cap.height), B = cap.bands.size();
   sum.lights = cap.light_angles_deg.size();
@@ -133,9 +137,137 @@ HdrSummary write_hdr_images(const Capture& cap, const fs::path& dir, const HdrOp
 
 namespace {
 
-// The sphere (circle, eq 5.1; sphere, eq 5.2) and the lights (each mirror highlight, eq 5.3, then the arc
-// through them) into c.
-void calibrate_geometry(const Capture& cap, const fs::path& dir, Calibration& c) {
+SpectralCalibration calibrate_filters(const Capture& cap, const Tabulated& light, const PipelineOptions& o,
+                                      const Eigen::MatrixXd& fit_h, const Eigen::MatrixXd& fit_r);
+void add_target_reports(Calibration& c, const Capture& cap, const Eigen::MatrixXd& measured,
+                        const Eigen::MatrixXd& reflectance, const std::vector<Eigen::Index>& fit_rows);
+void calibrate_lctf(Calibration& c, const Capture& cap, const fs::path& dir, const Tabulated& light,
+                    const PipelineOptions& o, const Eigen::MatrixXd& measured, const Eigen::MatrixXd& reflectance,
+                    const std::vector<Eigen::Index>& fit_rows);
+void calibrate_geometry(Calibration& c, const Capture& cap, const fs::path& dir);
+
+}  // namespace
+
+Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const PipelineOptions& o) {
+  Calibration c;
+  const std::size_t B = cap.channels();
+  // Spatial response from the flat fields' HDR rates.
+  std::vector<GreyImage> flats;
+  for (std::size_t b = 0; b < B; ++b) {
+    const HdrImage h = merge_series(cap, dir, ImageKind::flat, -1, -1, int(b), o.hdr);
+    flats.push_back({cap.width, cap.height, h.rate});
+  }
+  c.spatial = spatial_response(flats);
+
+  // Targets: the mean flat-corrected rate over the central tenth of the image.
+  const std::size_t T = cap.targets.size();
+  if (T == 0) throw InputError((dir / "manifest.json").string() + ": no diffuse targets for spectral calibration");
+  Eigen::MatrixXd measured(static_cast<Eigen::Index>(T), static_cast<Eigen::Index>(B));
+  Eigen::MatrixXd reflectance(static_cast<Eigen::Index>(T), static_cast<Eigen::Index>(cap.bands.size()));
+  const int u0 = int(cap.width * 0.45), u1 = int(cap.width * 0.55) + 1, v0 = int(cap.height * 0.45),
+            v1 = int(cap.height * 0.55) + 1;
+  for (std::size_t t = 0; t < T; ++t)
+    for (std::size_t b = 0; b < B; ++b) {
+      const HdrImage h = merge_series(cap, dir, ImageKind::target, -1, int(t), int(b), o.hdr);
+      double sum = 0;
+      int n = 0;
+      for (int v = v0; v < v1; ++v)
+        for (int u = u0; u < u1; ++u) {
+          const std::size_t p = std::size_t(v) * std::size_t(cap.width) + std::size_t(u);
+          if (h.status[p] == HdrStatus::saturated) continue;
+          sum += h.rate[p] / c.spatial.value[p];
+          ++n;
+        }
+      if (n == 0)
+        throw InputError(dir.string() + ": target '" + cap.targets[t].name + "' is saturated " +
+                         (cap.filters ? "through filter '" + cap.filters->names[b] + "'"
+                                      : "at " + std::to_string(int(cap.bands[b])) + " nm"));
+      measured(Eigen::Index(t), Eigen::Index(b)) = sum / n;
+    }
+  for (std::size_t t = 0; t < T; ++t)
+    for (std::size_t b = 0; b < cap.bands.size(); ++b)
+      reflectance(Eigen::Index(t), Eigen::Index(b)) = cap.targets[t].reflectance[b];
+  std::vector<Eigen::Index> fit_rows;
+  for (std::size_t t = 0; t < T; ++t)
+    if (std::find(o.fit_targets.begin(), o.fit_targets.end(), cap.targets[t].name) != o.fit_targets.end())
+      fit_rows.push_back(Eigen::Index(t));
+  if (fit_rows.empty()) throw UsageError("spectral calibration: none of the fitting targets is in the capture");
+  const Eigen::MatrixXd fit_h = measured(fit_rows, Eigen::all), fit_r = reflectance(fit_rows, Eigen::all);
+  const Tabulated light{cap.light_spectrum_nm, cap.light_spectrum};
+  if (cap.filters) {
+    c.spectral = calibrate_filters(cap, light, o, fit_h, fit_r);
+    add_target_reports(c, cap, measured, reflectance, fit_rows);
+  } else {
+    calibrate_lctf(c, cap, dir, light, o, measured, reflectance, fit_rows);
+  }
+  calibrate_geometry(c, cap, dir);
+  return c;
+}
+
+namespace {
+
+SpectralCalibration calibrate_filters(const Capture& cap, const Tabulated& light, const PipelineOptions& o,
+                                      const Eigen::MatrixXd& fit_h, const Eigen::MatrixXd& fit_r) {
+  const std::vector<Eigen::MatrixXd> system = filter_system(*cap.filters, cap.bands, light, o.filter_terms);
+  const Eigen::MatrixXd a = fit_filter_response(system, fit_h, fit_r);
+  SpectralCalibration s;
+  s.model = SpectralModel::filters;
+  s.bands = cap.bands;
+  Eigen::MatrixXd sys = Eigen::MatrixXd::Zero(system[0].rows(), system[0].cols());
+  for (Eigen::Index k = 0; k < sys.rows(); ++k)
+    for (std::size_t d = 0; d < system.size(); ++d) sys.row(k) += a(k, Eigen::Index(d)) * system[d].row(k);
+  s.scale = Eigen::Map<const Eigen::VectorXd>(Eigen::MatrixXd(a.transpose()).data(), a.size());
+  s.recovery = filter_recovery(sys, o.filter_basis, o.filter_ridge);
+  return s;
+}
+
+void add_target_reports(Calibration& c, const Capture& cap, const Eigen::MatrixXd& measured,
+                        const Eigen::MatrixXd& reflectance, const std::vector<Eigen::Index>& fit_rows) {
+  for (std::size_t t = 0; t < cap.targets.size(); ++t) {
+    TargetReport r;
+    r.name = cap.targets[t].name;
+    r.held_out = std::find(fit_rows.begin(), fit_rows.end(), Eigen::Index(t)) == fit_rows.end();
+    r.truth = reflectance.row(Eigen::Index(t)).transpose();
+    r.filters = c.spectral.recovery * measured.row(Eigen::Index(t)).transpose();
+    r.rms_filters = spectral_rms(r.filters, r.truth);
+    c.targets.push_back(std::move(r));
+  }
+}
+
+// The LCTF's delta and factored models fitted on the targets, the chosen one kept, every target reported under both.
+void calibrate_lctf(Calibration& c, const Capture& cap, const fs::path& dir, const Tabulated& light,
+                    const PipelineOptions& o, const Eigen::MatrixXd& measured, const Eigen::MatrixXd& reflectance,
+                    const std::vector<Eigen::Index>& fit_rows) {
+  const std::size_t B = cap.bands.size(), T = cap.targets.size();
+  const Eigen::MatrixXd fit_h = measured(fit_rows, Eigen::all), fit_r = reflectance(fit_rows, Eigen::all);
+  const SpectralCalibration delta = fit_delta(cap.bands, light, fit_h, fit_r);
+  std::optional<SpectralCalibration> factored;
+  if (!cap.lctf_nm.empty()) {
+    std::vector<Tabulated> trans;
+    for (std::size_t b = 0; b < B; ++b) trans.push_back({cap.lctf_nm[b], cap.lctf_value[b]});
+    factored = fit_factored(cap.bands, light, trans, fit_h, fit_r);
+  }
+  if (o.spectral == SpectralModel::factored && !factored)
+    throw InputError((dir / "manifest.json").string() + ": the factored model needs \"lctf_transmission\" data");
+  c.spectral = o.spectral == SpectralModel::factored ? *factored : delta;
+  for (std::size_t t = 0; t < T; ++t) {
+    TargetReport r;
+    r.name = cap.targets[t].name;
+    r.held_out = std::find(fit_rows.begin(), fit_rows.end(), Eigen::Index(t)) == fit_rows.end();
+    r.truth = reflectance.row(Eigen::Index(t)).transpose();
+    const Eigen::VectorXd h = measured.row(Eigen::Index(t)).transpose();
+    r.delta = delta.recovery * h;
+    r.rms_delta = spectral_rms(r.delta, r.truth);
+    if (factored) {
+      r.factored = factored->recovery * h;
+      r.rms_factored = spectral_rms(r.factored, r.truth);
+    }
+    c.targets.push_back(std::move(r));
+  }
+}
+
+void calibrate_geometry(Calibration& c, const Capture& cap, const fs::path& dir) {
+  // Geometry: circle (eq 5.1), sphere (eq 5.2).
   const GreyImage sil = load_grey(cap, dir, only_image(cap, ImageKind::silhouette, -1, dir).file);
   try {
     c.circle = detect_circle(sil);
@@ -173,82 +305,13 @@ void calibrate_geometry(const Capture& cap, const fs::path& dir, Calibration& c)
 
 }  // namespace
 
-Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const PipelineOptions& o) {
-  Calibration c;
-  const std::size_t B = cap.bands.size(), P = std::size_t(cap.width) * std::size_t(cap.height);
-  // Spatial response from the flat fields' HDR rates.
-  std::vector<GreyImage> flats;
-  for (std::size_t b = 0; b < B; ++b) {
-    const HdrImage h = merge_series(cap, dir, ImageKind::flat, -1, -1, int(b), o.hdr);
-    flats.push_back({cap.width, cap.height, h.rate});
-  }
-  c.spatial = spatial_response(flats);
-
-  // Targets: the mean flat-corrected rate over the central tenth of the image.
-  const std::size_t T = cap.targets.size();
-  if (T == 0) throw InputError((dir / "manifest.json").string() + ": no diffuse targets for spectral calibration");
-  Eigen::MatrixXd measured(static_cast<Eigen::Index>(T), static_cast<Eigen::Index>(B));
-  Eigen::MatrixXd reflectance(static_cast<Eigen::Index>(T), static_cast<Eigen::Index>(B));
-  const int u0 = int(cap.width * 0.45), u1 = int(cap.width * 0.55) + 1, v0 = int(cap.height * 0.45),
-            v1 = int(cap.height * 0.55) + 1;
-  for (std::size_t t = 0; t < T; ++t)
-    for (std::size_t b = 0; b < B; ++b) {
-      const HdrImage h = merge_series(cap, dir, ImageKind::target, -1, int(t), int(b), o.hdr);
-      double sum = 0;
-      int n = 0;
-      for (int v = v0; v < v1; ++v)
-        for (int u = u0; u < u1; ++u) {
-          const std::size_t p = std::size_t(v) * std::size_t(cap.width) + std::size_t(u);
-          if (h.status[p] == HdrStatus::saturated) continue;
-          sum += h.rate[p] / c.spatial.value[p];
-          ++n;
-        }
-      if (n == 0)
-        throw InputError(dir.string() + ": target '" + cap.targets[t].name + "' is saturated at " +
-                         std::to_string(int(cap.bands[b])) + " nm");
-      measured(Eigen::Index(t), Eigen::Index(b)) = sum / n;
-      reflectance(Eigen::Index(t), Eigen::Index(b)) = cap.targets[t].reflectance[b];
-    }
-  std::vector<Eigen::Index> fit_rows;
-  for (std::size_t t = 0; t < T; ++t)
-    if (std::find(o.fit_targets.begin(), o.fit_targets.end(), cap.targets[t].name) != o.fit_targets.end())
-      fit_rows.push_back(Eigen::Index(t));
-  if (fit_rows.empty()) throw UsageError("spectral calibration: none of the fitting targets is in the capture");
-  const Eigen::MatrixXd fit_h = measured(fit_rows, Eigen::all), fit_r = reflectance(fit_rows, Eigen::all);
-  const Tabulated light{cap.light_spectrum_nm, cap.light_spectrum};
-  const SpectralCalibration delta = fit_delta(cap.bands, light, fit_h, fit_r);
-  std::optional<SpectralCalibration> factored;
-  if (!cap.lctf_nm.empty()) {
-    std::vector<Tabulated> trans;
-    for (std::size_t b = 0; b < B; ++b) trans.push_back({cap.lctf_nm[b], cap.lctf_value[b]});
-    factored = fit_factored(cap.bands, light, trans, fit_h, fit_r);
-  }
-  if (o.spectral == SpectralModel::factored && !factored)
-    throw InputError((dir / "manifest.json").string() + ": the factored model needs \"lctf_transmission\" data");
-  c.spectral = o.spectral == SpectralModel::factored ? *factored : delta;
-  for (std::size_t t = 0; t < T; ++t) {
-    TargetReport r;
-    r.name = cap.targets[t].name;
-    r.held_out = std::find(fit_rows.begin(), fit_rows.end(), Eigen::Index(t)) == fit_rows.end();
-    r.truth = reflectance.row(Eigen::Index(t)).transpose();
-    const Eigen::VectorXd h = measured.row(Eigen::Index(t)).transpose();
-    r.delta = delta.recovery * h;
-    r.rms_delta = spectral_rms(r.delta, r.truth);
-    if (factored) {
-      r.factored = factored->recovery * h;
-      r.rms_factored = spectral_rms(r.factored, r.truth);
-    }
-    c.targets.push_back(std::move(r));
-  }
-
-  calibrate_geometry(cap, dir, c);
-  (void)P;
-  return c;
-}
-
 ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Calibration& c, const PipelineOptions& o,
                               store::StoreWriter& out, const std::string& name) {
-  const std::size_t B = cap.bands.size(), W = std::size_t(cap.width), H = std::size_t(cap.height);
+  const std::size_t B = cap.channels(), W = std::size_t(cap.width), H = std::size_t(cap.height);
+  if (c.spectral.recovery.cols() != Eigen::Index(B) || c.spectral.recovery.rows() != Eigen::Index(cap.bands.size()))
+    throw InputError(dir.string() + ": the calibration recovers " + std::to_string(c.spectral.recovery.rows()) +
+                     " bands from " + std::to_string(c.spectral.recovery.cols()) + " channels; the capture has " +
+                     std::to_string(cap.bands.size()) + " bands and " + std::to_string(B) + " channels");
   const Pinhole camera{cap.focal_px, cap.cx, cap.cy};
   // Pixels wholly on the sphere (4 x 4 samples inside), with their point, normal and view.
   std::vector<ScanPixel> pixels;
@@ -286,9 +349,10 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
         if (hdr[b].status[p] == HdrStatus::saturated) saturated[p] = 1, ++on_sphere;
       }
       if (!pixels.empty() && on_sphere == pixels.size())
-        throw InputError(
-            dir.string() + ": light " + std::to_string(l) + " at " + std::to_string(int(cap.bands[b])) +
-            " nm is saturated on the whole sphere even at the shortest exposure; capture shorter exposures");
+        throw InputError(dir.string() + ": light " + std::to_string(l) +
+                         (cap.filters ? " through filter '" + cap.filters->names[b] + "'"
+                                      : " at " + std::to_string(int(cap.bands[b])) + " nm") +
+                         " is saturated on the whole sphere even at the shortest exposure; capture shorter exposures");
     }
     for (std::size_t p = 0; p < W * H; ++p)
       for (std::size_t b = 0; b < B && !saturated[p]; ++b)
@@ -364,7 +428,9 @@ void write_calibration(store::StoreWriter& out, const std::string& name, const C
                {"sphere_m", {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z(), c.sphere.radius}},
                {"light_confidence", c.light_confidence},
                {"light_distance_m", {c.light_distance}}};
-  r.texts = {{"spectral_model", c.spectral.model == SpectralModel::delta ? "delta" : "factored"}};
+  r.texts = {{"spectral_model", c.spectral.model == SpectralModel::delta      ? "delta"
+                                : c.spectral.model == SpectralModel::factored ? "factored"
+                                                                              : "filters"}};
   r.provenance.importer = "acquire calibrate";
   out.add_record("acquire", name, r);
 }
@@ -383,7 +449,10 @@ Calibration read_calibration(const store::Store& in, const std::string& name) {
   const std::vector<double>& scale = r.vector("spectral_scale");
   c.spectral.scale = Eigen::Map<const Eigen::VectorXd>(scale.data(), Eigen::Index(scale.size()));
   c.spectral.bands = r.vector("bands_nm");
-  c.spectral.model = r.text("spectral_model") == "factored" ? SpectralModel::factored : SpectralModel::delta;
+  const std::string model = r.text("spectral_model");
+  c.spectral.model = model == "factored"  ? SpectralModel::factored
+                     : model == "filters" ? SpectralModel::filters
+                                          : SpectralModel::delta;
   const std::vector<double>& circle = r.vector("circle_px");
   const std::vector<double>& sphere = r.vector("sphere_m");
   if (circle.size() != 3 || sphere.size() != 4 || c.spectral.recovery.rows() != Eigen::Index(c.spectral.bands.size()))

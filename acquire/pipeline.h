@@ -22,6 +22,11 @@ struct PipelineOptions {
   SpectralModel spectral = SpectralModel::delta;
   std::vector<std::string> fit_targets = {"blue", "white"};  ///< as the reference; the rest are held out
   int bloom_px = 2;  ///< pixels within this distance of a saturated one are rejected
+  /// Filter captures: the basis the spectra are solved in (B x r on the capture's bands; empty: none), the solve's
+  /// ridge (filter_recovery) and the response terms fitted per filter on the targets (fit_filter_response).
+  Eigen::MatrixXd filter_basis;
+  double filter_ridge = 1e-3;
+  int filter_terms = 2;
 };
 
 /// One target's recovered reflectance under both models against its known reflectance (eq 4.8).
@@ -30,6 +35,8 @@ struct TargetReport {
   bool held_out = false;
   Eigen::VectorXd truth, delta, factored;  ///< factored empty when the capture has no LCTF transmission data
   double rms_delta = 0, rms_factored = -1;
+  Eigen::VectorXd filters;  ///< a filter capture's recovery (delta and factored are then empty)
+  double rms_filters = -1;
 };
 
 /// Everything calibration finds.
@@ -77,8 +84,9 @@ struct HdrSummary {
   std::array<std::uint64_t, 5> status{};
 };
 
-/// Merges every light's exposure series into image "hdr-L<index>" of the transaction (rates in DN/s in every band; a
-/// pixel is valid when every band is ok or single); one light in memory at a time, interruptible between lights.
+/// Merges every light's exposure series (of an LCTF capture; InputError for a filter capture) into image "hdr-L<index>"
+/// of the transaction (rates in DN/s in every band; a pixel is valid when every band is ok or single); one light in
+/// memory at a time, interruptible between lights.
 HdrSummary write_hdr_images(const Capture& capture, const std::filesystem::path& dir, const HdrOptions& o,
                             store::StoreWriter& out);
 

@@ -7,6 +7,7 @@
 #include <numbers>
 #include <random>
 
+#include "specula/acquire/filters.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/cie.h"
@@ -18,6 +19,9 @@ namespace specula::acquire {
 
 namespace fs = std::filesystem;
 using std::numbers::pi;
+
+// A smooth CCD quantum efficiency times optics transmission (relative), peaking near 550 nm.
+double camera_quantum_efficiency(double nm) { return 0.25 + 0.6 * std::exp(-std::pow((nm - 550) / 140, 2)); }
 
 namespace {
 
@@ -34,8 +38,7 @@ std::vector<double> fine_grid() {
   return nm;
 }
 
-// A smooth CCD quantum efficiency times optics transmission (relative), peaking near 550 nm.
-double quantum_efficiency(double nm) { return 0.25 + 0.6 * std::exp(-std::pow((nm - 550) / 140, 2)); }
+double quantum_efficiency(double nm) { return camera_quantum_efficiency(nm); }
 
 // Five diffuse targets of smooth known reflectance, as the reference's Labsphere set (red, green, blue, yellow,
 // white).
@@ -146,6 +149,9 @@ void check_simulator(const SimulatorOptions& o) {
       !(o.vignetting >= 0 && o.vignetting < 1))
     throw UsageError(
         "simulate-capture: brightness and gain must be positive, noise and bias >= 0, vignetting in [0, 1)");
+  if (o.filters) check_filters(*o.filters, o.bands.empty() ? default_bands() : o.bands, "simulate-capture filters");
+  if (!(o.lctf_peak > 0 && o.lctf_peak <= 1))
+    throw UsageError("simulate-capture: the LCTF's peak transmission is in (0, 1]");
   if (!o.grid && !brdf::material_catalogue().count(o.material))
     throw UsageError("simulate-capture: unknown material '" + o.material +
                      "' (specula synth-brdf lists the analytic materials)");
@@ -155,6 +161,12 @@ std::vector<std::vector<double>> simulated_response(const SimulatorOptions& o, c
   const std::vector<double> bands = o.bands.empty() ? default_bands() : o.bands;
   std::vector<std::vector<double>> r(bands.size(), std::vector<double>(nm.size(), 0.0));
   const double step = nm.size() > 1 ? nm[1] - nm[0] : 1;
+  if (o.filters) {
+    r.assign(o.filters->size(), std::vector<double>(nm.size(), 0.0));
+    for (std::size_t j = 0; j < o.filters->size(); ++j)
+      for (std::size_t k = 0; k < nm.size(); ++k) r[j][k] = quantum_efficiency(nm[k]) * o.filters->at(j, nm[k]);
+    return r;
+  }
   for (std::size_t j = 0; j < bands.size(); ++j) {
     if (o.passband == Passband::delta) {
       const auto k = std::size_t(std::lround((bands[j] - nm.front()) / step));
@@ -238,36 +250,44 @@ struct Job {
   std::uint64_t seed;
 };
 
-// The images of a capture in the order they are rendered: silhouette, mirror, flats, targets, then the scene.
-std::vector<Job> image_jobs(const SimulatorOptions& o, const Capture& cap) {
+// The images of a capture in the order they are rendered: silhouette, mirror, flats, targets, then the scene. A
+// filter capture's exposures are divided by each filter's gain (its white signal over the LCTF's strongest band).
+std::vector<Job> image_jobs(const SimulatorOptions& o, const Capture& cap, const std::vector<double>& gain) {
   const ScanRig& rig = o.rig;
-  const std::size_t B = o.bands.size();
+  const std::size_t B = cap.channels();
   std::vector<Job> jobs;
   auto add = [&](ImageKind kind, int light_index, int band, int target, double t, const std::string& file) {
     CaptureImage im{file, kind, light_index, band, target, t};
     jobs.push_back({im, std::uint64_t(o.seed) * 1000003ull + jobs.size()});
   };
+  auto time = [&](std::size_t j, double t) { return o.filters ? std::clamp(t / gain[j], 1e-6, 60.0) : t; };
+  auto channel = [&](std::size_t j) {
+    return o.filters ? fmt::format("F{:02}", j) : fmt::format("B{:03}", int(o.bands[j]));
+  };
+  auto ms = [](double t) { return fmt::format("{:.6g}ms", t * 1000); };
   add(ImageKind::silhouette, -1, -1, -1, 0.05, "silhouette.png");
   for (std::size_t l = 0; l < rig.lights; ++l)
     add(ImageKind::mirror, int(l), -1, -1, 0.01, fmt::format("mirror/L{:03}.png", l));
   for (std::size_t j = 0; j < B; ++j)
     for (const double e : {0.02, 0.05})
-      add(ImageKind::flat, -1, int(j), -1, e, fmt::format("flat/B{:03}-{:g}ms.png", int(o.bands[j]), e * 1000));
+      add(ImageKind::flat, -1, int(j), -1, time(j, e), fmt::format("flat/{}-{}.png", channel(j), ms(time(j, e))));
   for (std::size_t t = 0; t < cap.targets.size(); ++t)
     for (std::size_t j = 0; j < B; ++j)
       for (const double e : {0.02, 0.1, 0.5, 2.0})
-        add(ImageKind::target, -1, int(j), int(t), e,
-            fmt::format("target/{}/B{:03}-{:g}ms.png", cap.targets[t].name, int(o.bands[j]), e * 1000));
+        add(ImageKind::target, -1, int(j), int(t), time(j, e),
+            fmt::format("target/{}/{}-{}.png", cap.targets[t].name, channel(j), ms(time(j, e))));
   for (std::size_t l = 0; l < rig.lights; ++l)
     for (std::size_t j = 0; j < B; ++j)
       for (const double e : o.exposures_s)
-        add(ImageKind::scene, int(l), int(j), -1, e,
-            fmt::format("scene/L{:03}/B{:03}-{:g}ms.png", l, int(o.bands[j]), e * 1000));
+        add(ImageKind::scene, int(l), int(j), -1, time(j, e),
+            fmt::format("scene/L{:03}/{}-{}.png", l, channel(j), ms(time(j, e))));
   return jobs;
 }
 
-// band_weight[j][k] = L(k) R_j(k) dl / Z, with Z making the strongest band of a white Lambertian (pi f = 1) 1.
-std::vector<std::vector<double>> band_weights(const Eigen::VectorXd& light,
+// band_weight[j][k] = L(k) R_j(k) dl / Z, with Z making the strongest band of a white Lambertian (pi f = 1) 1, or
+// for a filter capture the strongest band of the LCTF at its peak transmission (options' Gaussian passbands).
+std::vector<std::vector<double>> band_weights(const SimulatorOptions& o, const std::vector<double>& nm,
+                                              const Eigen::VectorXd& light,
                                               const std::vector<std::vector<double>>& response, double dl) {
   const std::size_t B = response.size(), L = std::size_t(light.size());
   std::vector<std::vector<double>> w(B, std::vector<double>(L));
@@ -276,6 +296,21 @@ std::vector<std::vector<double>> band_weights(const Eigen::VectorXd& light,
     double s = 0;
     for (std::size_t k = 0; k < L; ++k) s += (w[j][k] = light[Eigen::Index(k)] * response[j][k] * dl);
     z = std::max(z, s);
+  }
+  if (o.filters) {
+    SimulatorOptions lctf = o;
+    lctf.filters.reset();
+    lctf.passband = Passband::gaussian;
+    const auto peaks = simulated_response(lctf, nm);
+    z = 0;
+    for (const auto& r : peaks) {
+      double s = 0, peak = 0;
+      for (std::size_t k = 0; k < L; ++k) {
+        s += light[Eigen::Index(k)] * r[k] * dl;
+        peak = std::max(peak, r[k] / quantum_efficiency(nm[k]));
+      }
+      z = std::max(z, s * o.lctf_peak / peak);
+    }
   }
   for (auto& row : w)
     for (double& v : row) v /= z;
@@ -306,8 +341,9 @@ Capture capture_description(const SimulatorOptions& o, const std::vector<double>
   cap.light_spectrum_nm = nm;
   cap.light_spectrum.assign(light.data(), light.data() + light.size());
   cap.targets = default_targets(o.bands);
+  cap.filters = o.filters;
   // The manufacturer's transmission data: the passbands without the camera's quantum efficiency.
-  for (std::size_t j = 0; j < B; ++j) {
+  for (std::size_t j = 0; j < B && !o.filters; ++j) {
     std::vector<double> tn, tv;
     for (std::size_t k = 0; k < L; ++k) {
       const double t = response[j][k] / quantum_efficiency(nm[k]);
@@ -321,8 +357,10 @@ Capture capture_description(const SimulatorOptions& o, const std::vector<double>
     cap.lctf_value.push_back(tv);
   }
   cap.description = fmt::format(
-      "simulated: {} sphere, {} lights, {} bands, {} exposures, {} passbands{}", o.material, rig.lights, B,
-      o.exposures_s.size(), o.passband == Passband::delta ? "delta" : "Gaussian", o.noise ? ", noisy" : ", noise-free");
+      "simulated: {} sphere, {} lights, {} bands, {} exposures, {}{}", o.material, rig.lights, B, o.exposures_s.size(),
+      o.filters ? fmt::format("{} broadband filters", o.filters->size())
+                : std::string(o.passband == Passband::delta ? "delta passbands" : "Gaussian passbands"),
+      o.noise ? ", noisy" : ", noise-free");
   CaptureTruth truth;
   truth.sphere_centre = {centre.x(), centre.y(), centre.z()};
   truth.sphere_radius = radius;
@@ -359,7 +397,7 @@ std::vector<float> silhouette_coverage(int W, int H, const ScanRig& rig, const E
 template <class Material>
 std::vector<float> light_rates(const SimulatorOptions& o, const ScanRig& rig, const std::vector<ScanPixel>& pixels,
                                const Material& material, const std::vector<std::vector<double>>& w, std::size_t l) {
-  const std::size_t B = o.bands.size(), L = w.front().size();
+  const std::size_t B = w.size(), L = w.front().size();
   const int W = o.width, H = o.height;
   const double cx = W / 2.0, cy = H / 2.0;
   auto vignette = [&](int u, int v) { return vignetting_factor(o, u, v); };
@@ -401,8 +439,8 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   const WavelengthGrid fine(nm);
   const Eigen::VectorXd light = blackbody(o.light_kelvin, fine);
   const auto response = simulated_response(o, nm);
-  const std::size_t B = o.bands.size();
-  const std::vector<std::vector<double>> w = band_weights(light, response, nm[1] - nm[0]);
+  const std::size_t B = response.size();
+  const std::vector<std::vector<double>> w = band_weights(o, nm, light, response, nm[1] - nm[0]);
   const auto material = o.grid ? grid_material(o.grid, fine) : brdf::make_material(o.material, fine);
 
   const int W = o.width, H = o.height;
@@ -417,12 +455,12 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
 
   Capture cap = capture_description(o, nm, light, response, centre, radius);
 
-  const std::vector<Job> jobs = image_jobs(o, cap);
+  // What a flat field and each target send through each channel (the same at every pixel but for vignetting).
+  const auto [flat_sum, target_sum] = flat_and_target_sums(w, o.bands, cap.targets, nm);
+  const std::vector<Job> jobs = image_jobs(o, cap, flat_sum);
   make_image_directories(dir, cap, rig.lights);
 
   std::vector<float> scene_rate;
-  // What a flat field and each target send through each band (the same at every pixel but for vignetting).
-  const auto [flat_sum, target_sum] = flat_and_target_sums(w, o.bands, cap.targets, nm);
 
   const std::vector<float> coverage = silhouette_coverage(W, H, rig, centre, radius);
 

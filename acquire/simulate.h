@@ -9,8 +9,10 @@
 #include <vector>
 
 #include <memory>
+#include <optional>
 
 #include "specula/acquire/capture.h"
+#include "specula/acquire/filter_set.h"
 #include "specula/acquire/scan.h"
 #include "specula/core/brdf_models.h"
 #include "specula/store/grid.h"
@@ -36,6 +38,10 @@ struct SimulatorOptions {
   double dark_dn = 8;           ///< offset every pixel carries (bias)
   double vignetting = 0.25;     ///< fraction of light lost at the image corner (S = 1 - v (r / r_corner)^2)
   bool noise = true;
+  /// A filter wheel instead of the LCTF: one channel per filter, its exposures (and the flats' and targets') the
+  /// bracket above divided by the filter's white signal relative to the LCTF's strongest band.
+  std::optional<FilterSet> filters;
+  double lctf_peak = 0.35;  ///< the LCTF's peak transmission, the scale filter captures are exposed against
   unsigned seed = 1;
   int threads_hint = 0;  ///< unused by results: the images do not depend on the thread count
 };
@@ -53,8 +59,11 @@ Capture simulate_capture(const SimulatorOptions& o, const std::filesystem::path&
 std::unique_ptr<brdf::SpectralModel> grid_material(std::shared_ptr<const store::Grid> grid,
                                                    const WavelengthGrid& target);
 
-/// The relative spectral response R_j on `nm` (rows: bands) for the options' passband model and camera
-/// (LCTF transmission times a smooth quantum efficiency), as the simulator uses it.
+/// The simulated camera's relative quantum efficiency (with the optics' transmission) at `nm`.
+double camera_quantum_efficiency(double nm);
+
+/// The relative spectral response R_j on `nm` (rows: bands, or filters) for the options' passband model or
+/// filters and camera (transmission times the camera's quantum efficiency), as the simulator uses it.
 std::vector<std::vector<double>> simulated_response(const SimulatorOptions& o, const std::vector<double>& nm);
 
 }  // namespace specula::acquire

@@ -10,7 +10,8 @@
 
 namespace specula::acquire {
 
-enum class SpectralModel { delta, factored };
+/// delta (eq 4.4), factored (eq 4.6), or broadband filters (acquire/filters.h).
+enum class SpectralModel { delta, factored, filters };
 
 /// "delta" or "factored"; UsageError otherwise.
 SpectralModel parse_spectral_model(const std::string& name);
@@ -25,8 +26,8 @@ struct Tabulated {
 struct SpectralCalibration {
   SpectralModel model = SpectralModel::delta;
   std::vector<double> bands;  ///< tuning wavelengths (nm)
-  Eigen::VectorXd scale;      ///< w_j (delta) or c_j (factored)
-  Eigen::MatrixXd recovery;   ///< (R L)^-1, N x N
+  Eigen::VectorXd scale;      ///< w_j (delta), c_j (factored) or the filters' response terms a_kd (row-major)
+  Eigen::MatrixXd recovery;   ///< (R L)^-1, N x N; for filters B x K (filter_recovery)
 };
 
 /// Fits the delta model: H_ij = w_j L(lambda_j) rho_i(lambda_j) by least squares over the targets used.

@@ -16,6 +16,7 @@
 #include "apps/gnuplot.h"
 #include "specula/acquire/capture.h"
 #include "specula/acquire/incidence.h"
+#include "specula/acquire/filter_design.h"
 #include "specula/acquire/hdr.h"
 #include "specula/acquire/mapping.h"
 #include "specula/acquire/pipeline.h"
@@ -82,6 +83,10 @@ struct AcquireOptions {
   std::size_t grid_k = 32;       // the suite check's resampling, as `specula resample`'s -k and --max-gap
   double grid_max_gap_deg = 8.6;
   bool suite = true;
+  std::string basis;  // filter captures: STORE.h5:BASIS
+  double ridge = 1e-3;
+  int filter_terms = 2;
+  std::vector<std::string> fit_targets;
   bool replace = false;
   bool json = false;
 };
@@ -99,8 +104,9 @@ void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::p
   for (std::size_t t = 0; t < c.targets.size(); ++t) {
     script += fmt::format("$T{} << EOD\n", t);
     const auto& r = c.targets[t];
+    const Eigen::VectorXd& first = r.filters.size() ? r.filters : r.delta;
     for (Eigen::Index b = 0; b < r.truth.size(); ++b)
-      script += fmt::format("{} {} {} {}\n", c.spectral.bands[std::size_t(b)], r.truth[b], r.delta[b],
+      script += fmt::format("{} {} {} {}\n", c.spectral.bands[std::size_t(b)], r.truth[b], first[b],
                             r.factored.size() ? fmt::format("{}", r.factored[b]) : std::string("NaN"));
     script += "EOD\n";
   }
@@ -112,14 +118,15 @@ void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::p
     const auto& r = c.targets[t];
     script += "set title " +
               gnuplot_quote(
-                  fmt::format("{} ({}): RMS delta {:.4f}{}", r.name, r.held_out ? "held out" : "fitted", r.rms_delta,
+                  fmt::format("{} ({}): RMS {} {:.4f}{}", r.name, r.held_out ? "held out" : "fitted",
+                              r.filters.size() ? "filters" : "delta", r.filters.size() ? r.rms_filters : r.rms_delta,
                               r.rms_factored >= 0 ? fmt::format(", factored {:.4f}", r.rms_factored) : std::string())) +
               " noenhanced\n";
     script += fmt::format(
         "plot $T{0} using 1:2 with lines lw 2 lc rgb '#222222' title 'known', "
-        "$T{0} using 1:3 with linespoints pt 7 ps 0.5 lc rgb '#d04020' title 'delta', "
+        "$T{0} using 1:3 with linespoints pt 7 ps 0.5 lc rgb '#d04020' title '{1}', "
         "$T{0} using 1:4 with linespoints pt 5 ps 0.5 lc rgb '#2060c0' title 'factored'\n",
-        t);
+        t, r.filters.size() ? "filters" : "delta");
   }
   script += "unset multiplot\n";
   plot_png(gnuplot, dir / "spectral-calibration.png", gnuplot_png_terminal(int(cols) * 420, int(rows) * 320), script);
@@ -225,10 +232,19 @@ void print_calibration(const acquire::Capture& cap, const acquire::Calibration& 
   std::size_t seen = 0;
   for (const double w : c.light_confidence) seen += w > 0;
   fmt::print("lights: {} on the arc, {} placed from mirror highlights\n", c.light_dirs.size(), seen);
+  const bool filters = c.spectral.model == acquire::SpectralModel::filters;
   fmt::print("spectral model: {} (fitted on targets",
-             c.spectral.model == acquire::SpectralModel::delta ? "delta" : "factored");
+             filters ? fmt::format("{} broadband filters", c.spectral.recovery.cols())
+             : c.spectral.model == acquire::SpectralModel::delta ? "delta"
+                                                                 : "factored");
   for (const auto& t : c.targets)
     if (!t.held_out) fmt::print(" {}", t.name);
+  if (filters) {
+    fmt::print(")\n  target      RMS filters (eq 4.8)\n");
+    for (const auto& t : c.targets)
+      fmt::print("  {:<10}  {:.5f}{}\n", t.name, t.rms_filters, t.held_out ? "" : "   (fitted)");
+    return;
+  }
   fmt::print(")\n  target      RMS delta   RMS factored (eq 4.8)\n");
   for (const auto& t : c.targets)
     fmt::print("  {:<10}  {:.5f}     {}{}\n", t.name, t.rms_delta,
@@ -241,8 +257,12 @@ void print_calibration(const acquire::Capture& cap, const acquire::Calibration& 
 void add_calibration_json(Json& j, const acquire::Capture& cap, const acquire::Calibration& c) {
   Json targets = Json::array();
   for (const auto& t : c.targets)
-    targets.push_back(
-        {{"name", t.name}, {"held_out", t.held_out}, {"rms_delta", t.rms_delta}, {"rms_factored", t.rms_factored}});
+    targets.push_back(t.filters.size()
+                          ? Json{{"name", t.name}, {"held_out", t.held_out}, {"rms_filters", t.rms_filters}}
+                          : Json{{"name", t.name},
+                                 {"held_out", t.held_out},
+                                 {"rms_delta", t.rms_delta},
+                                 {"rms_factored", t.rms_factored}});
   const auto [mean, worst] = acquire::light_direction_error(cap, c);
   j["circle"] = {{"cx", c.circle.cx}, {"cy", c.circle.cy}, {"r", c.circle.r}};
   j["sphere"] = {{"centre", {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z()}},
@@ -259,6 +279,14 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
   const acquire::Capture cap = acquire::read_manifest(o.capture);
   acquire::PipelineOptions po;
   po.spectral = acquire::parse_spectral_model(o.spectral);
+  if (!o.fit_targets.empty()) po.fit_targets = o.fit_targets;
+  po.filter_ridge = o.ridge;
+  po.filter_terms = o.filter_terms;
+  if (!o.basis.empty()) {
+    const auto spec = store::parse_object_spec(o.basis);
+    if (!spec) throw UsageError("acquire: --basis is STORE.h5:NAME");
+    po.filter_basis = acquire::capture_basis(store::Store::open(spec->file).read_basis(spec->name), cap, o.basis);
+  }
   const auto [store_path, name] = split_output(o.output, "scan");
   store::validate_name(name, "samples");
   std::filesystem::path gnuplot;
@@ -353,6 +381,14 @@ void add_pipeline_options(CLI::App* cmd, AcquireOptions& o, bool calibrates, boo
       ->required();
   if (calibrates)
     cmd->add_option("--spectral-model", o.spectral, "delta (eq 4.4) or factored (eq 4.6)")->capture_default_str();
+  if (calibrates) {
+    cmd->add_option("--basis", o.basis, "Filter captures: STORE.h5:BASIS the spectra are solved in");
+    cmd->add_option("--ridge", o.ridge, "Filter captures: the solve's regularisation")->capture_default_str();
+    cmd->add_option("--filter-terms", o.filter_terms, "Filter captures: response terms fitted per filter (1-4)")
+        ->capture_default_str();
+    cmd->add_option("--fit-targets", o.fit_targets, "Targets the spectral model is fitted on (default blue,white)")
+        ->delimiter(',');
+  }
   if (!calibrates) cmd->add_option("--calibration", o.calibration, "Stored calibration to use (default: NAME)");
   cmd->add_option("--plots", o.plots, "Directory for PNG figures");
   if (extracts) {

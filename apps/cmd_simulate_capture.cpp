@@ -8,6 +8,7 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/acquire/filters.h"
 #include "specula/acquire/simulate.h"
 #include "specula/core/atomic_file.h"
 #include "specula/core/brdf_materials.h"
@@ -24,6 +25,7 @@ struct SimulateCaptureOptions {
   std::string size = "256x256";
   std::string bands = "420:720:10";
   std::string passband = "gaussian";
+  std::string filters;
   bool no_noise = false;
   bool json = false;
 };
@@ -40,6 +42,10 @@ void run_simulate_capture(SimulateCaptureOptions o) {
   if (o.passband != "gaussian" && o.passband != "delta")
     throw UsageError("simulate-capture: --passband is gaussian or delta");
   o.sim.passband = o.passband == "delta" ? acquire::Passband::delta : acquire::Passband::gaussian;
+  if (!o.filters.empty()) {
+    o.sim.filters = acquire::read_filters_csv(o.filters);
+    acquire::check_filters(*o.sim.filters, o.sim.bands, o.filters);
+  }
   o.sim.noise = !o.no_noise;
   // The sphere sits a little off the optical axis (5 % and 2 % of its image diameter), as on the real rig.
   o.sim.rig.off_axis = 0.05 * o.sim.rig.sphere_px / o.sim.rig.focal_px * o.sim.rig.distance;
@@ -66,6 +72,13 @@ void run_simulate_capture(SimulateCaptureOptions o) {
     j["height"] = c.height;
     j["lights"] = c.light_angles_deg.size();
     j["bands"] = c.bands.size();
+    j["channels"] = c.channels();
+    std::size_t scene = 0;
+    double exposure = 0;
+    for (const auto& im : c.images)
+      if (im.kind == acquire::ImageKind::scene) ++scene, exposure += im.exposure_s;
+    j["scene_images"] = scene;
+    j["scene_exposure_s"] = exposure;
     j["seconds"] = seconds;
     print_json(j);
     return;
@@ -95,6 +108,12 @@ void setup_simulate_capture(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--exposures", o->sim.exposures_s, "Exposure times (seconds)")->delimiter(',')->capture_default_str();
   cmd->add_option("--passband", o->passband, "LCTF passband model: gaussian (widening to the red) or delta")
+      ->capture_default_str();
+  cmd->add_option("--filters", o->filters,
+                  "Filter CSV (specula filters design): a filter wheel instead of the LCTF, exposures per filter");
+  cmd->add_option("--lctf-peak", o->sim.lctf_peak,
+                  "The LCTF's peak transmission (filter captures are exposed "
+                  "relative to it)")
       ->capture_default_str();
   cmd->add_option("--brightness", o->sim.brightness, "DN/s of a white Lambertian facing light and camera")
       ->capture_default_str();

@@ -35,5 +35,6 @@ void setup_rm(CLI::App& app);
 void setup_gc(CLI::App& app);
 void setup_check(CLI::App& app);
 void setup_upgrade(CLI::App& app);
+void setup_filters(CLI::App& app);
 
 }  // namespace specula::app

@@ -79,6 +79,7 @@ int main(int argc, char** argv) {
   specula::app::setup_view(app);
   specula::app::setup_simulate_capture(app);
   specula::app::setup_acquire(app);
+  specula::app::setup_filters(app);
   specula::app::setup_brdf_diff(app);
   specula::app::setup_synth_brdf(app);
   specula::app::setup_decode(app);

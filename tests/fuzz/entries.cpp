@@ -13,6 +13,7 @@
 
 #include <zlib.h>
 
+#include "specula/acquire/filters.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/rgl_eval.h"
 #include "specula/codec/spc.h"
@@ -331,6 +332,23 @@ void nbrdf(std::span<const std::uint8_t> input) {
       p.string());
 }
 
+void filters_csv(std::span<const std::uint8_t> input) {
+  expect_clean(
+      [&] {
+        const acquire::FilterSet f = acquire::parse_filters_csv(text_of(input), "input.csv");
+        check(f.nm.size() >= 2 && f.size() == f.names.size(), "a tabulation and named filters");
+        for (std::size_t i = 1; i < f.nm.size(); ++i) check(f.nm[i] > f.nm[i - 1], "increasing wavelengths");
+        for (const auto& t : f.transmission) {
+          check(t.size() == f.nm.size(), "one value per wavelength");
+          for (const double v : t) check(v >= 0 && v <= 1, "transmissions in [0, 1]");
+        }
+        const std::vector<double> bands = {420, 570, 720};
+        acquire::check_filters(f, bands, "input.csv");
+        for (std::size_t k = 0; k < f.size(); ++k) check(f.at(k, 570) >= 0 && f.at(k, 570) <= 1, "at() in [0, 1]");
+      },
+      "input.csv");
+}
+
 const std::vector<Target>& targets() {
   static const std::vector<Target> all = {{"envi_header", envi_header},
                                           {"envi", envi},
@@ -343,7 +361,8 @@ const std::vector<Target>& targets() {
                                           {"spgrid", spgrid},
                                           {"merl", merl},
                                           {"rgl_bsdf", rgl_bsdf},
-                                          {"nbrdf", nbrdf}};
+                                          {"nbrdf", nbrdf},
+                                          {"filters_csv", filters_csv}};
   return all;
 }
 

@@ -55,6 +55,10 @@ void rgl_bsdf(std::span<const std::uint8_t> input);
 /// Keras weights of a neural BRDF (.h5) through read_nbrdf: every layer of its shape, every weight finite.
 void nbrdf(std::span<const std::uint8_t> input);
 
+/// A filter CSV (parse_filters_csv), then check_filters against 420-720 nm bands: curves in [0, 1] on increasing
+/// wavelengths.
+void filters_csv(std::span<const std::uint8_t> input);
+
 /// Every target, in the order above.
 const std::vector<Target>& targets();
 

@@ -247,3 +247,13 @@ nbrdf("valid.h5", NBRDF)
 nbrdf("wrong-shape.h5", [((6, 21), 21), ((21, 20), 21), ((21, 3), 3)])
 nbrdf("nan-bias.h5", NBRDF, nan=True)
 nbrdf("truncated.h5", NBRDF, truncate=3000)
+
+# filters_csv: filter transmission tables (acquire/filters.h) as `specula filters design` writes them, and refusals.
+put("filters_csv", "two-filters.csv", "wavelength_nm,a,b\n400,0.1,0.9\n570,0.8,0.2\n740,0.1,0.0\n")
+put("filters_csv", "comment-crlf.csv", "# designed\r\nwavelength_nm,f1\r\n420,0\r\n720,1\r\n")
+put("filters_csv", "negative.csv", "wavelength_nm,a\n400,0.5\n560,-0.2\n740,0.5\n")
+put("filters_csv", "above-one.csv", "wavelength_nm,a\n400,0.5\n740,1.5\n")
+put("filters_csv", "short-range.csv", "wavelength_nm,a\n450,0.5\n700,0.5\n")
+put("filters_csv", "decreasing.csv", "wavelength_nm,a\n500,0.5\n400,0.5\n")
+put("filters_csv", "ragged.csv", "wavelength_nm,a,b\n400,0.5\n740,0.5,0.1,0.3\n")
+put("filters_csv", "not-numbers.csv", "wavelength_nm,a\n400,nan\n740,1e999\n")

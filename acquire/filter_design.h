@@ -1,0 +1,79 @@
+#pragma once
+// Designing K broadband filters for a spectral basis (the reference's chapter 8): from an NMF basis (its
+// components, smoothed, as transmission curves) or optimised for the expected reconstruction error of a set of
+// spectra under camera noise (docs/filters.md states the criterion and the optimiser).
+#include <Eigen/Core>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "specula/acquire/capture.h"
+#include "specula/acquire/filters.h"
+#include "specula/store/basis.h"
+#include "specula/store/store.h"
+
+namespace specula::acquire {
+
+enum class FilterMethod { nmf, optimal };
+
+/// "nmf" or "optimal"; UsageError otherwise.
+FilterMethod parse_filter_method(const std::string& name);
+
+struct FilterDesignOptions {
+  FilterMethod method = FilterMethod::optimal;
+  int k = 6;                   ///< filters
+  double noise = 0.002;        ///< camera noise: standard deviation relative to an open filter's white reading
+  double ridge = 1e-3;         ///< the solve's regularisation (filter_recovery)
+  double peak = 0.9;           ///< the curves' largest transmission
+  double light_kelvin = 3200;  ///< the light (a blackbody) the design assumes, with the simulated camera's response
+  double step_nm = 5;          ///< the curves' tabulation step
+  double smooth_nm = 10;       ///< nmf: Gaussian smoothing (standard deviation) of the components
+};
+
+/// UsageError stating the rule for a bad option.
+void check_filter_design(const FilterDesignOptions& o);
+
+/// The basis columns a reconstruction with k filters uses (B x r): the first k NMF components, or the PCA mean and
+/// the first k - 1 components (r never above the basis's own components, plus its mean).
+Eigen::MatrixXd reconstruction_basis(const store::Basis& basis, int k);
+
+/// reconstruction_basis for a filter capture (k: its filters); InputError naming `label` unless the basis is on the
+/// capture's bands, and for a capture without filters.
+Eigen::MatrixXd capture_basis(const store::Basis& basis, const Capture& capture, const std::string& label);
+
+/// Expected reconstruction error of spectra (rows, on `bands`) read through filters `f` (sensitivity s: light times
+/// camera response), solved in `basis` with `ridge`, every filter exposed alike and noise of standard deviation
+/// `noise` (relative to the white reading of an open filter, transmission 1) added to each reading: per spectrum
+/// sqrt((|x - R A x|^2 + noise^2 |R|_F^2) / B).
+struct FilterError {
+  std::size_t spectra = 0;
+  double rms_mean = 0, rms_median = 0, rms_max = 0;
+  double noise_rms = 0;  ///< the noise term alone: noise |R|_F / sqrt(B)
+};
+FilterError expected_filter_error(const FilterSet& f, std::span<const double> bands, const Tabulated& s,
+                                  const Eigen::MatrixXd& basis, const Eigen::MatrixXd& spectra, double noise,
+                                  double ridge);
+
+/// Designs o.k filters on the basis's wavelengths: nmf smooths and scales the NMF basis's first k components;
+/// optimal minimises the mean expected squared error of `training` (spectra as rows) over each filter's centre,
+/// width and flatness (a super-Gaussian of peak o.peak) by Nelder-Mead from evenly spaced filters.
+FilterSet design_filters(const store::Basis& basis, const Eigen::MatrixXd& training, const FilterDesignOptions& o);
+
+/// The design of design_filters on a store's basis and collections, with its expected error on the training
+/// spectra and on held-out ones (collection `test`, or when empty every fifth training spectrum, left out of the
+/// optimisation).
+struct FilterDesign {
+  FilterSet filters;
+  std::vector<double> bands;
+  FilterError training, held_out;
+  std::string training_name, held_out_name;
+};
+/// `train` empty: the collection the basis was learned from ("collection NAME"). InputError naming the store for
+/// a missing basis or collection, or a collection on other wavelengths than the basis.
+FilterDesign design_filters(const store::Store& s, const std::string& basis, const std::string& train,
+                            const std::string& test, const FilterDesignOptions& o);
+
+/// The light times the simulated camera's response (simulate.h) the design assumes, on its tabulation.
+Tabulated design_sensitivity(double light_kelvin);
+
+}  // namespace specula::acquire

@@ -1,0 +1,233 @@
+// Broadband filters: the CSV reader's refusals, the forward model against closed forms, the calibration on targets
+// recovering known responses, exact recovery of a spectrum in the basis's span, narrow filters reproducing the
+// LCTF's factored model (eq 4.6), and designed curves that are transmissions (non-negative, at most 1, smooth).
+#include <gtest/gtest.h>
+
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <cmath>
+#include <random>
+
+#include "specula/acquire/filter_design.h"
+#include "specula/acquire/filters.h"
+#include "specula/acquire/spectral.h"
+#include "specula/core/error.h"
+
+using namespace specula;
+using namespace specula::acquire;
+
+namespace {
+
+std::vector<double> bands_420_720() {
+  std::vector<double> b;
+  for (int l = 420; l <= 720; l += 10) b.push_back(l);
+  return b;
+}
+
+// K Gaussian filters of width `sigma` spread over 420-720 nm, tabulated every `step` nm over 400-740.
+FilterSet gaussians(int k, double sigma, double step = 2) {
+  FilterSet f;
+  for (double l = 400; l <= 740.001; l += step) f.nm.push_back(l);
+  for (int j = 0; j < k; ++j) {
+    const double c = 420 + 300.0 * (j + 0.5) / k;
+    f.names.push_back("g" + std::to_string(j));
+    std::vector<double> t;
+    for (const double l : f.nm) t.push_back(0.9 * std::exp(-0.5 * std::pow((l - c) / sigma, 2)));
+    f.transmission.push_back(t);
+  }
+  return f;
+}
+
+Tabulated smooth_light() {
+  Tabulated s;
+  for (double l = 380; l <= 780; l += 5) {
+    s.nm.push_back(l);
+    s.value.push_back(0.4 + l / 800);
+  }
+  return s;
+}
+
+std::string error_of(const std::string& text) {
+  try {
+    parse_filters_csv(text, "f.csv");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(FilterCsv, RoundTripAndOneLineRefusals) {
+  const FilterSet f = parse_filters_csv("wavelength_nm,a,b\n# comment\n400,0,0.5\n410,1,0.25\n420,0.5,0\n", "f.csv");
+  ASSERT_EQ(f.size(), 2u);
+  EXPECT_EQ(f.names[1], "b");
+  EXPECT_DOUBLE_EQ(f.at(0, 405), 0.5);
+  EXPECT_DOUBLE_EQ(f.at(1, 415), 0.125);
+  EXPECT_EQ(f.at(0, 399), 0.0);
+  EXPECT_EQ(f.at(0, 421), 0.0);
+  EXPECT_NE(error_of("wavelength_nm,a\n400,-0.1\n410,0.2\n").find("f.csv:2: filter 'a' transmits -0.1"),
+            std::string::npos);
+  EXPECT_NE(error_of("wavelength_nm,a\n400,1.5\n410,0.2\n").find("f.csv:2"), std::string::npos);
+  EXPECT_NE(error_of("wavelength_nm,a\n410,0.1\n400,0.2\n").find("f.csv:3: wavelength 400 nm"), std::string::npos);
+  EXPECT_NE(error_of("wavelength_nm,a\n400,0.1,0.3\n").find("f.csv:2: 3 values"), std::string::npos);
+  EXPECT_NE(error_of("wavelength_nm,a\n400,x\n").find("'x' is not a number"), std::string::npos);
+  EXPECT_NE(error_of("wavelength_nm,a\n400,nan\n410,0\n").find("is not a number"), std::string::npos);
+  EXPECT_NE(error_of("").find("no header"), std::string::npos);
+  EXPECT_NE(error_of("wavelength_nm,a\n400,0.3\n").find("fewer than two"), std::string::npos);
+  // Wavelengths that do not cover the bands, and a filter dark on them.
+  const std::vector<double> bands = bands_420_720();
+  try {
+    check_filters(f, bands, "f.csv");
+    FAIL() << "a 400-420 nm tabulation covers 420-720 nm bands";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("f.csv: the filters are tabulated over 400-420 nm"), std::string::npos);
+  }
+  FilterSet dark = gaussians(2, 30);
+  std::fill(dark.transmission[1].begin(), dark.transmission[1].end(), 0.0);
+  EXPECT_THROW(check_filters(dark, bands, "f.csv"), InputError);
+}
+
+TEST(FilterSystem, ClosedFormsForAnOpenFilter) {
+  // T = 1 over 400-740, s = 1: row b is the integral of hat_b over 400-740 (the end hats stay 1 beyond the bands).
+  FilterSet open;
+  open.names = {"open"};
+  open.nm = {400, 740};
+  open.transmission = {{1, 1}};
+  const std::vector<double> bands = bands_420_720();
+  const Tabulated one{{300, 800}, {1, 1}};
+  const auto a = filter_system(open, bands, one, 2);
+  for (std::size_t b = 1; b + 1 < bands.size(); ++b) EXPECT_NEAR(a[0](0, Eigen::Index(b)), 10.0, 1e-9);
+  EXPECT_NEAR(a[0](0, 0), 20 + 5, 1e-9);
+  EXPECT_NEAR(a[0](0, 30), 20 + 5, 1e-9);
+  // P1 = (l - 570) / 150 is odd about 570 nm: a constant spectrum reads 0 through it.
+  EXPECT_NEAR(a[1].sum(), 0.0, 1e-9);
+}
+
+TEST(FilterCalibration, RecoversKnownResponsesFromTargets) {
+  const std::vector<double> bands = bands_420_720();
+  const FilterSet f = gaussians(5, 40);
+  const auto system = filter_system(f, bands, smooth_light(), 2);
+  Eigen::MatrixXd truth(5, 2);
+  truth << 2, 0.3, 1.5, -0.2, 3, 0.1, 0.7, 0, 1.1, 0.4;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(0.05, 0.95);
+  Eigen::MatrixXd reflectance(4, Eigen::Index(bands.size()));
+  for (Eigen::Index i = 0; i < reflectance.rows(); ++i)
+    for (Eigen::Index b = 0; b < reflectance.cols(); ++b) reflectance(i, b) = u(rng);
+  Eigen::MatrixXd measured(4, 5);
+  for (Eigen::Index i = 0; i < 4; ++i)
+    for (Eigen::Index k = 0; k < 5; ++k)
+      measured(i, k) = truth(k, 0) * system[0].row(k).dot(reflectance.row(i)) +
+                       truth(k, 1) * system[1].row(k).dot(reflectance.row(i));
+  const Eigen::MatrixXd a = fit_filter_response(system, measured, reflectance);
+  EXPECT_LT((a - truth).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+TEST(FilterRecovery, ASpectrumInTheBasisSpanIsRecoveredExactly) {
+  const std::vector<double> bands = bands_420_720();
+  const Eigen::MatrixXd a = filter_system(gaussians(6, 35), bands, smooth_light(), 1)[0];
+  Eigen::MatrixXd basis(Eigen::Index(bands.size()), 4);
+  for (Eigen::Index b = 0; b < basis.rows(); ++b) {
+    const double x = (bands[std::size_t(b)] - 570) / 150;
+    basis.row(b) << 1, x, x * x, std::sin(3 * x);
+  }
+  const Eigen::VectorXd spectrum = basis * Eigen::Vector4d(0.4, -0.1, 0.2, 0.05);
+  const Eigen::MatrixXd r = filter_recovery(a, basis, 0);
+  EXPECT_LT((r * a * spectrum - spectrum).cwiseAbs().maxCoeff(), 1e-10);
+  // The ridge trades a little bias for stability: small, but no longer exact.
+  const Eigen::MatrixXd ridge = filter_recovery(a, basis, 1e-3);
+  const double err = (ridge * a * spectrum - spectrum).cwiseAbs().maxCoeff();
+  EXPECT_GT(err, 1e-8);
+  EXPECT_LT(err, 0.02);
+}
+
+TEST(FilterRecovery, NarrowFiltersOneperBandReproduceTheFactoredModel) {
+  // K = B narrow filters (the LCTF's passbands as a filter wheel), no basis, no ridge, one response term: the filter
+  // calibration and recovery are the factored model's (eq 4.6, Nystrom eq 4.7) up to quadrature.
+  const std::vector<double> bands = bands_420_720();
+  FilterSet f;
+  for (double l = 400; l <= 740.001; l += 1) f.nm.push_back(l);
+  std::vector<Tabulated> lctf;
+  for (const double c : bands) {
+    std::vector<double> t;
+    for (const double l : f.nm) t.push_back(0.5 * std::exp(-0.5 * std::pow((l - c) / 5, 2)));
+    f.names.push_back(std::to_string(int(c)));
+    f.transmission.push_back(t);
+    lctf.push_back({f.nm, t});
+  }
+  const Tabulated light = smooth_light();
+  Eigen::MatrixXd reflectance(2, Eigen::Index(bands.size())), probe(1, Eigen::Index(bands.size()));
+  for (Eigen::Index b = 0; b < reflectance.cols(); ++b) {
+    const double l = bands[std::size_t(b)];
+    reflectance(0, b) = 0.98;
+    reflectance(1, b) = 0.05 + 0.5 * std::exp(-std::pow((l - 450) / 45, 2));
+    probe(0, b) = 0.2 + 0.6 / (1 + std::exp(-(l - 600) / 12));
+  }
+  // Readings of the targets and the probe through the model with a camera gain per band.
+  const auto system = filter_system(f, bands, light, 1);
+  Eigen::VectorXd gain(Eigen::Index(bands.size()));
+  for (Eigen::Index b = 0; b < gain.size(); ++b) gain[b] = 1000 * (1 + 0.3 * std::sin(0.2 * double(b)));
+  const Eigen::MatrixXd measured = (reflectance * system[0].transpose()) * gain.asDiagonal();
+  const Eigen::VectorXd h = gain.asDiagonal() * (system[0] * probe.row(0).transpose());
+  const Eigen::MatrixXd a = fit_filter_response(system, measured, reflectance);
+  const Eigen::MatrixXd recovery = filter_recovery(a.col(0).asDiagonal() * system[0], Eigen::MatrixXd(), 0);
+  const SpectralCalibration factored = fit_factored(bands, light, lctf, measured, reflectance);
+  const Eigen::VectorXd ours = recovery * h, theirs = factored.recovery * h;
+  EXPECT_LT((ours - probe.row(0).transpose()).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_LT((ours - theirs).cwiseAbs().maxCoeff(), 2e-3);
+}
+
+TEST(FilterDesign, CurvesAreSmoothBoundedTransmissionsAndTheOptimumBeatsNmf) {
+  // Training spectra: smooth random reflectances; a PCA-like basis from their SVD and an NMF-like basis of
+  // non-negative bumps.
+  const std::vector<double> bands = bands_420_720();
+  const Eigen::Index B = Eigen::Index(bands.size());
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0, 1);
+  Eigen::MatrixXd spectra(300, B);
+  for (Eigen::Index i = 0; i < spectra.rows(); ++i) {
+    const double c1 = 420 + 300 * u(rng), c2 = 420 + 300 * u(rng), w1 = 30 + 80 * u(rng), base = 0.05 + 0.2 * u(rng);
+    for (Eigen::Index b = 0; b < B; ++b) {
+      const double l = bands[std::size_t(b)];
+      spectra(i, b) =
+          base + 0.6 * std::exp(-0.5 * std::pow((l - c1) / w1, 2)) + 0.2 * std::exp(-0.5 * std::pow((l - c2) / 60, 2));
+    }
+  }
+  store::Basis pca;
+  pca.method = "pca";
+  pca.wavelengths = WavelengthGrid(bands);
+  pca.mean = spectra.colwise().mean().transpose();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(spectra.rowwise() - pca.mean.transpose(), Eigen::ComputeThinV);
+  pca.components = svd.matrixV().leftCols(6).transpose();
+  store::Basis nmf;
+  nmf.method = "nmf";
+  nmf.wavelengths = pca.wavelengths;
+  nmf.components.resize(5, B);
+  for (Eigen::Index k = 0; k < 5; ++k)
+    for (Eigen::Index b = 0; b < B; ++b)
+      nmf.components(k, b) = std::exp(-0.5 * std::pow((bands[std::size_t(b)] - 440 - 65.0 * double(k)) / 35, 2)) +
+                             0.02 * std::sin(double(b) * 3.1);  // wiggles the smoothing removes
+  FilterDesignOptions o;
+  o.k = 5;
+  o.method = FilterMethod::nmf;
+  const FilterSet from_nmf = design_filters(nmf, spectra, o);
+  o.method = FilterMethod::optimal;
+  const FilterSet optimal = design_filters(pca, spectra, o);
+  for (const FilterSet* f : {&from_nmf, &optimal}) {
+    ASSERT_EQ(f->size(), 5u);
+    EXPECT_NO_THROW(check_filters(*f, bands, "design"));
+    for (const auto& t : f->transmission) {
+      EXPECT_GE(*std::min_element(t.begin(), t.end()), 0.0);
+      EXPECT_LE(*std::max_element(t.begin(), t.end()), o.peak + 1e-12);
+    }
+    // No curve bends faster than a Gaussian of sigma 8 nm at its peak (1 / 64 per nm^2).
+    EXPECT_LT(filter_roughness(*f), 1.0 / 64);
+  }
+  const Tabulated s = design_sensitivity(o.light_kelvin);
+  const Eigen::MatrixXd u5 = reconstruction_basis(pca, 5);
+  const double e_opt = expected_filter_error(optimal, bands, s, u5, spectra, o.noise, o.ridge).rms_mean;
+  const double e_nmf = expected_filter_error(from_nmf, bands, s, u5, spectra, o.noise, o.ridge).rms_mean;
+  EXPECT_LT(e_opt, e_nmf);
+  EXPECT_LT(e_opt, 0.03);
+}
