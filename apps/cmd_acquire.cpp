@@ -174,12 +174,7 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
                     const std::string& name, const acquire::Capture& cap, const AcquireOptions& o) {
   using std::numbers::pi;
   const store::SamplesInfo info = s.samples_info(name);
-  std::size_t band = info.bands / 2;
-  if (o.plot_band_nm > 0) {
-    band = 0;
-    for (std::size_t b = 1; b < info.bands; ++b)
-      if (std::abs(info.wavelengths[b] - o.plot_band_nm) < std::abs(info.wavelengths[band] - o.plot_band_nm)) band = b;
-  }
+  const std::size_t band = o.plot_band_nm > 0 ? info.wavelengths.nearest(o.plot_band_nm) : info.bands / 2;
   const auto model = truth_model(cap, info.wavelengths);
   const double eps = 2 * pi / 180;
   std::vector<double> theta_i;

@@ -55,8 +55,7 @@ void run_info(const InfoOptions& o) {
   const store::Store s = store::Store::open(o.store);
   if (o.object.empty()) {
     if (o.json) return print_json(acquire::store_info_json(s));
-    std::uint64_t spectra = 0;
-    for (const auto& n : s.images()) spectra += s.image_info(n).valid_pixels;
+    const std::uint64_t spectra = store::valid_spectra(s);
     const auto bytes = store::store_bytes(s);
     const std::string created = s.created_utc();
     fmt::print("{}: specula store, format version {}{}, {:.1f} MB, created {}\n", s.path().string(), s.format_version(),

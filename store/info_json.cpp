@@ -73,9 +73,14 @@ Json objects_json(const Store& s) {
   return rows;
 }
 
-Json store_json(const Store& s) {
+std::uint64_t valid_spectra(const Store& s) {
   std::uint64_t spectra = 0;
   for (const auto& n : s.images()) spectra += s.image_info(n).valid_pixels;
+  return spectra;
+}
+
+Json store_json(const Store& s) {
+  const std::uint64_t spectra = valid_spectra(s);
   return {{"store", s.path().string()},
           {"format_version", s.format_version()},
           {"generation", s.index().generation},

@@ -1,6 +1,7 @@
 #pragma once
 // What a store holds as JSON, the objects `specula info --json` prints (docs/cli.md).
 #include <nlohmann/json_fwd.hpp>
+#include <cstdint>
 #include <string>
 
 #include "specula/store/basis.h"
@@ -20,6 +21,8 @@ nlohmann::ordered_json coefficients_json(const CoefficientsInfo& info);
 nlohmann::ordered_json basis_json(const std::string& name, const Basis& basis);
 /// Every image, collection, sample set, grid, basis and coefficient map of `store`, one object each, in that order.
 nlohmann::ordered_json objects_json(const Store& store);
+/// Valid pixels over every image of the store.
+std::uint64_t valid_spectra(const Store& store);
 /// The store's path, format version, generation, size, creation time, valid spectra and objects_json().
 nlohmann::ordered_json store_json(const Store& store);
 
