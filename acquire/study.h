@@ -64,4 +64,14 @@ struct StudyOutput {
 StudyOutput resampling_study(const brdf::SpectralModel& model, std::size_t band, std::span<const double> angles,
                              std::span<const float> values, const StudyOptions& o);
 
+/// An 8-bit RGB picture, rows top to bottom.
+struct Rgb8Sheet {
+  std::size_t width = 0, height = 0;
+  std::vector<std::uint8_t> rgb;  ///< 3 x width x height
+};
+/// The study's renders side by side, `per_row` panels a row: the truth, the model at cell centres, then every row's
+/// render, grey as the material is, tone-mapped alike (the truth's brightest pixel as white, gamma 2.2), background
+/// 32. UsageError for per_row 0.
+Rgb8Sheet study_sheet(const StudyOutput& s, std::size_t per_row);
+
 }  // namespace specula::acquire

@@ -16,6 +16,7 @@
 #include "apps/gnuplot.h"
 #include "specula/acquire/capture.h"
 #include "specula/acquire/incidence.h"
+#include "specula/acquire/plane_plot.h"
 #include "specula/acquire/filter_design.h"
 #include "specula/acquire/hdr.h"
 #include "specula/acquire/mapping.h"
@@ -102,13 +103,7 @@ void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::p
                   const acquire::Calibration& c) {
   std::string script;
   for (std::size_t t = 0; t < c.targets.size(); ++t) {
-    script += fmt::format("$T{} << EOD\n", t);
-    const auto& r = c.targets[t];
-    const Eigen::VectorXd& first = r.filters.size() ? r.filters : r.delta;
-    for (Eigen::Index b = 0; b < r.truth.size(); ++b)
-      script += fmt::format("{} {} {} {}\n", c.spectral.bands[std::size_t(b)], r.truth[b], first[b],
-                            r.factored.size() ? fmt::format("{}", r.factored[b]) : std::string("NaN"));
-    script += "EOD\n";
+    script += fmt::format("$T{} << EOD\n{}EOD\n", t, acquire::target_table(c.targets[t], c.spectral.bands));
   }
   const std::size_t n = c.targets.size(), cols = std::min<std::size_t>(n, 3), rows = (n + cols - 1) / cols;
   script += fmt::format(
@@ -179,32 +174,15 @@ void plot_incidence(const std::filesystem::path& gnuplot, const std::filesystem:
                     const std::string& name, const acquire::Capture& cap, const AcquireOptions& o) {
   using std::numbers::pi;
   const store::SamplesInfo info = s.samples_info(name);
-  std::size_t band = info.bands / 2;
-  if (o.plot_band_nm > 0) {
-    band = 0;
-    for (std::size_t b = 1; b < info.bands; ++b)
-      if (std::abs(info.wavelengths[b] - o.plot_band_nm) < std::abs(info.wavelengths[band] - o.plot_band_nm)) band = b;
-  }
+  const std::size_t band = o.plot_band_nm > 0 ? info.wavelengths.nearest(o.plot_band_nm) : info.bands / 2;
   const auto model = truth_model(cap, info.wavelengths);
   const double eps = 2 * pi / 180;
   std::vector<double> theta_i;
   for (const double t : o.plot_theta) theta_i.push_back(t * pi / 180);
   const std::vector<acquire::PlanePoints> planes = acquire::incidence_plane_points(s, name, theta_i, eps, band);
   for (std::size_t k = 0; k < o.plot_theta.size(); ++k) {
-    std::string script = "$S << EOD\n";
-    for (const acquire::PlanePoint& p : planes[k].points)
-      script += fmt::format("{:.3f} {:.5g}\n", p.theta_o * 180 / pi, std::cbrt(std::max(0.0f, p.value)));
-    script += "EOD\n";
-    if (model) {
-      script += "$M << EOD\n";
-      std::vector<double> f(info.bands);
-      for (int d10 = -895; d10 <= 895; d10 += 5) {
-        model->eval(
-            brdf::StdAngles{o.plot_theta[k] * pi / 180, 0.0, std::abs(d10) / 10.0 * pi / 180, d10 > 0 ? pi : 0.0}, f);
-        script += fmt::format("{:.1f} {:.5g}\n", d10 / 10.0, std::cbrt(std::max(0.0, f[band])));
-      }
-      script += "EOD\n";
-    }
+    std::string script = "$S << EOD\n" + acquire::plane_points_table(planes[k].points) + "EOD\n";
+    if (model) script += "$M << EOD\n" + acquire::model_plane_table(*model, theta_i[k], band) + "EOD\n";
     script +=
         "set grid\nset key top left\nset xrange [-90:90]\nset xlabel 'theta_o (degrees; negative: the light''s "
         "side)'\n";

@@ -4,7 +4,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <numbers>
 
 #include "apps/commands.h"
 #include "apps/common.h"
@@ -78,14 +77,7 @@ void run_compare_bases(const CompareBasesOptions& o) {
                                  a.k(), label_b, b.k(), most));
   const std::size_t k_max = o.k ? o.k : std::min<std::size_t>(8, most);
 
-  std::vector<std::vector<double>> degrees;
-  for (std::size_t k = 1; k <= k_max; ++k) {
-    const Eigen::VectorXd angles =
-        stats::principal_angles(a.components.topRows(Eigen::Index(k)), b.components.topRows(Eigen::Index(k)));
-    std::vector<double> row(std::size_t(angles.size()));
-    for (Eigen::Index i = 0; i < angles.size(); ++i) row[std::size_t(i)] = angles[i] * 180.0 / std::numbers::pi;
-    degrees.push_back(std::move(row));
-  }
+  const std::vector<std::vector<double>> degrees = stats::principal_angles_deg(a.components, b.components, k_max);
 
   if (o.json) {
     Json ks = Json::array(), rows = Json::array();

@@ -11,6 +11,7 @@
 #include "apps/ranks.h"
 #include "specula/core/error.h"
 #include "specula/nmf/learn.h"
+#include "specula/nmf/report.h"
 #include "specula/store/learned_basis.h"
 #include "specula/store/store.h"
 
@@ -36,57 +37,6 @@ struct NmfCliOptions {
   bool replace = false;
   bool json = false;
 };
-
-// The run as one JSON object: the basis's store, name and output, the best restart's errors and history, every
-// restart, the reading and the components.
-void print_nmf_json(const NmfCliOptions& o, const std::string& store, const std::string& name, const std::string& out,
-                    const nmf::LearnedBasis& learned, const std::vector<nmf::EpochReport>& epochs, double seconds) {
-  const nmf::NmfResult& r = learned.result;
-  const nmf::RestartResult& best = r.best_result();
-  Json restarts = Json::array();
-  for (const auto& rr : r.restarts)
-    restarts.push_back({{"rel_error", rr.rel_error},
-                        {"epochs", rr.epochs},
-                        {"converged", rr.converged},
-                        {"mean_angle_deg", rr.mean_angle_deg},
-                        {"max_angle_deg", rr.max_angle_deg},
-                        {"history", json_numbers(rr.history)}});
-  std::vector<double> t;
-  for (const auto& e : epochs)
-    if (e.restart == r.best) t.push_back(e.seconds);
-  Json components = Json::array();
-  for (Eigen::Index i = 0; i < best.basis.rows(); ++i)
-    components.push_back(json_numbers(Eigen::VectorXd(best.basis.row(i).transpose())));
-  Json j;
-  j["store"] = store;
-  j["basis"] = name;
-  j["output"] = out;
-  j["k"] = o.k;
-  j["n"] = r.n;
-  j["bands"] = learned.bands;
-  j["rel_error"] = r.rel_error;
-  j["svd_bound"] = r.svd_bound;
-  j["epochs"] = best.epochs;
-  j["converged"] = best.converged;
-  j["seconds"] = seconds;
-  j["restarts"] = std::move(restarts);
-  j["best_restart"] = r.best;
-  j["history"] = json_numbers(best.history);
-  j["history_seconds"] = json_numbers(t);
-  j["passes"] = r.passes;
-  j["resumed"] = r.resumed;
-  j["negatives"] = r.negatives;
-  j["values"] = r.values;
-  j["nnls_unconverged"] = r.nnls_unconverged;
-  j["warmup_epochs"] = r.warmup_epochs;
-  j["warmup_blocks"] = r.warmup_blocks;
-  j["warmup_pass_equivalent"] = r.warmup_pass_equivalent;
-  j["weights"] = json_numbers(r.weights);
-  j["components"] = std::move(components);
-  j["threads"] = omp_get_max_threads();
-  j["ranks"] = ranks().size();
-  print_json(j);
-}
 
 void run_nmf(const NmfCliOptions& o) {
   const std::string name = o.name.empty() ? nmf::default_basis_name(o.k) : o.name;
@@ -135,7 +85,12 @@ void run_nmf(const NmfCliOptions& o) {
   std::filesystem::remove(opt.checkpoint, ec);
 
   if (o.json) {
-    print_nmf_json(o, s.path().string(), name, out, learned, epochs, seconds);
+    print_json(nmf::report_json(learned, {.store = s.path().string(),
+                                          .basis = name,
+                                          .output = out,
+                                          .seconds = seconds,
+                                          .epochs = epochs,
+                                          .ranks = std::size_t(ranks().size())}));
     return;
   }
   fmt::print(

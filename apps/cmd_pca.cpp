@@ -41,23 +41,7 @@ void run_pca(const PcaOptions& o) {
   store::save_basis(out, o.name, basis, o.replace, command_line());
 
   if (o.json) {
-    Json j;
-    j["store"] = s.path().string();
-    j["basis"] = o.name;
-    j["output"] = out;
-    j["n"] = basis.n;
-    j["bands"] = basis.bands();
-    j["wavelengths"] = json_numbers(basis.wavelengths.values());
-    j["mean"] = json_numbers(basis.mean);
-    j["eigenvalues"] = json_numbers(basis.eigenvalues);
-    j["explained_variance_ratio"] = json_numbers(basis.explained_variance_ratio);
-    j["components"] = basis.k();
-    j["seconds"] = seconds;
-    j["stream_seconds"] = stream_seconds;
-    j["spectra_per_s"] = std::round(double(basis.n) / stream_seconds);
-    j["threads"] = omp_get_max_threads();
-    j["ranks"] = ranks().size();
-    print_json(j);
+    print_json(stats::pca_report_json(learned, s.path().string(), o.name, out, std::size_t(ranks().size())));
     return;
   }
   fmt::print("PCA of {} spectra ({}) from {} in {:.3f} s ({:.1f} M spectra/s, {} threads)\n", basis.n,

@@ -21,6 +21,7 @@
 #include "apps/gnuplot.h"
 #include "specula/core/atomic_file.h"
 #include "specula/core/error.h"
+#include "specula/stats/basis_tables.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -59,18 +60,8 @@ void plot_panel(const store::Store& s, const PlotBasisOptions& o, const std::fil
       throw InputError(fmt::format("{}: basis {} has {}, basis {} has {}; a panel needs bases on one grid", s.label(),
                                    o.bases[i], b.wavelengths.describe(), o.bases.front(),
                                    bases.front().wavelengths.describe()));
-    std::string csv = "wavelength_nm", rows_text;
-    for (std::size_t c = 0; c < b.k(); ++c) csv += fmt::format(",c{}", c + 1);
-    csv += "\n";
-    for (std::size_t w = 0; w < b.bands(); ++w) {
-      std::string row = fmt::format("{}", b.wavelengths[w]);
-      for (std::size_t c = 0; c < b.k(); ++c) row += fmt::format(",{}", b.components(Eigen::Index(c), Eigen::Index(w)));
-      csv += row + "\n";
-      std::replace(row.begin(), row.end(), ',', ' ');
-      rows_text += row + "\n";
-    }
-    write_text(dir / (o.bases[i] + "-components.csv"), csv);
-    script += fmt::format("$B{} << EOD\n{}EOD\n", i, rows_text);
+    write_text(dir / (o.bases[i] + "-components.csv"), stats::components_csv(b, b.k()));
+    script += fmt::format("$B{} << EOD\n{}EOD\n", i, stats::components_rows(b, b.k(), ' '));
   }
   const std::filesystem::path gnuplot = find_gnuplot();
   if (gnuplot.empty()) {
@@ -111,33 +102,8 @@ void run_plot_basis(const PlotBasisOptions& o) {
   const std::size_t n = std::min(o.components, b.k());
   const bool has_eigenvalues = b.eigenvalues.size() > 0;
 
-  std::string eig_rows;
-  if (has_eigenvalues) {
-    const Eigen::VectorXd& ev = b.eigenvalues;
-    Eigen::VectorXd ratio = b.explained_variance_ratio;
-    if (ratio.size() != ev.size()) ratio = ev / (ev.sum() > 0 ? ev.sum() : 1.0);
-    std::string csv = "index,eigenvalue,explained_ratio,cumulative_ratio\n";
-    double cumulative = 0;
-    for (Eigen::Index i = 0; i < ev.size(); ++i) {
-      cumulative += ratio[i];
-      csv += fmt::format("{},{},{},{}\n", i + 1, ev[i], ratio[i], cumulative);
-      eig_rows += fmt::format("{} {}\n", i + 1, ev[i]);
-    }
-    write_text(dir / "eigenvalues.csv", csv);
-  }
-
-  std::string csv = "wavelength_nm";
-  for (std::size_t c = 0; c < n; ++c) csv += fmt::format(",c{}", c + 1);
-  csv += "\n";
-  std::string comp_rows;
-  for (std::size_t w = 0; w < b.bands(); ++w) {
-    std::string row = fmt::format("{}", b.wavelengths[w]);
-    for (std::size_t c = 0; c < n; ++c) row += fmt::format(",{}", b.components(Eigen::Index(c), Eigen::Index(w)));
-    csv += row + "\n";
-    std::replace(row.begin(), row.end(), ',', ' ');
-    comp_rows += row + "\n";
-  }
-  write_text(dir / "components.csv", csv);
+  if (has_eigenvalues) write_text(dir / "eigenvalues.csv", stats::eigenvalues_csv(b));
+  write_text(dir / "components.csv", stats::components_csv(b, n));
 
   const std::filesystem::path gnuplot = find_gnuplot();
   if (gnuplot.empty()) {
@@ -147,7 +113,7 @@ void run_plot_basis(const PlotBasisOptions& o) {
   const std::string method = b.method == "nmf" ? "NMF" : "principal";
   const std::string label = fmt::format("basis {} in {} ({} spectra)", name, s.label(), b.n);
   if (has_eigenvalues) {
-    std::string script = "$EV << EOD\n" + eig_rows + "EOD\n";
+    std::string script = "$EV << EOD\n" + stats::eigenvalues_rows(b) + "EOD\n";
     script += "set title " + gnuplot_quote("Eigenvalue magnitudes of " + label) + " noenhanced\n";
     script += "set logscale y\nset format y '10^{%L}'\nset grid\nunset key\n";
     script += "set xlabel 'component index'\nset ylabel '|eigenvalue| (variance along the component)'\n";
@@ -155,7 +121,7 @@ void run_plot_basis(const PlotBasisOptions& o) {
     script += "plot $EV using 1:(abs($2) > 0 ? abs($2) : 1/0) with linespoints pt 7 ps 0.8 lc rgb '#1f4e99'\n";
     plot_png(gnuplot, dir / "eigenvalues.png", gnuplot_png_terminal(900, 600), script);
   }
-  std::string script = "$C << EOD\n" + comp_rows + "EOD\n";
+  std::string script = "$C << EOD\n" + stats::components_rows(b, n, ' ') + "EOD\n";
   script +=
       "set title " + gnuplot_quote(fmt::format("First {} {} components of {}", n, method, label)) + " noenhanced\n";
   script += "set grid\nset xzeroaxis lt -1 lw 0.5\nset key outside right top\n";

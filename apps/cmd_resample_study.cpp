@@ -15,6 +15,7 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "apps/gnuplot.h"
+#include "specula/acquire/plane_plot.h"
 #include "specula/acquire/resample.h"
 #include "specula/acquire/scan.h"
 #include "specula/acquire/study.h"
@@ -52,30 +53,6 @@ std::string row_label(const acquire::StudyResult& r) {
                   : fmt::format("{}, {}", m, r.weights == acquire::Weights::mean ? "Avg." : "Weighted Avg.");
 }
 
-// One sheet: the truth, the model sampled at cell centres, then every reconstruction, in rows of `per_row`,
-// tone-mapped alike (the truth's brightest pixel as white, gamma 2.2), grey as the material is.
-void write_sheet(const std::filesystem::path& path, const acquire::StudyOutput& s, std::size_t per_row) {
-  std::vector<const acquire::SphereRender*> panels = {&s.truth, &s.grid_truth};
-  for (const auto& r : s.renders) panels.push_back(&r);
-  const std::size_t size = s.truth.size, cols = per_row, rows = (panels.size() + cols - 1) / cols;
-  double white = 1e-9;
-  for (std::size_t p = 0; p < s.truth.value.size(); ++p)
-    if (s.truth.covered[p]) white = std::max(white, s.truth.value[p]);
-  const std::size_t w = cols * size, h = rows * size;
-  std::vector<std::uint8_t> rgb(3 * w * h, 32);
-  for (std::size_t i = 0; i < panels.size(); ++i) {
-    const std::size_t x0 = (i % cols) * size, y0 = (i / cols) * size;
-    for (std::size_t p = 0; p < size * size; ++p) {
-      if (!panels[i]->covered[p]) continue;
-      const double v = std::pow(std::clamp(panels[i]->value[p] / white, 0.0, 1.0), 1 / 2.2);
-      const auto g = std::uint8_t(std::lround(255 * v));
-      const std::size_t at = 3 * ((y0 + p / size) * w + x0 + p % size);
-      rgb[at] = rgb[at + 1] = rgb[at + 2] = g;
-    }
-  }
-  store::write_png_rgb8(path, w, h, rgb);
-}
-
 // Figure 5.17: samples within 2 degrees of theta_i = 45 degrees and of the incidence plane (cube root of the BRDF
 // against the signed outgoing angle: positive towards the mirror direction), the reconstruction (M_s, k, Shepard)
 // looked up in the grid along the plane, and the model.
@@ -85,28 +62,10 @@ void incidence_plot(const std::filesystem::path& path, const std::string& materi
   if (gnuplot.empty())
     throw UsageError("resample-study: --out draws the incidence-plane plot with gnuplot; install it");
   const double ti = pi / 4, eps = 2 * pi / 180;
-  std::string script = "$S << EOD\n";
-  for (std::size_t i = 0; i < angles.size() / 4; ++i) {
-    const acquire::IsoAngles a =
-        acquire::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
-    if (const auto x = acquire::incidence_plane_angle(a, ti, eps))
-      script += fmt::format("{:.3f} {:.5g}\n", *x * 180 / pi, std::cbrt(std::max(0.0f, values[i])));
-  }
-  script += "EOD\n$R << EOD\n";
   const acquire::Resampler r(angles, values, 1, {.k = k, .weights = acquire::Weights::shepard, .max_gap = max_gap});
-  std::vector<double> f(1);
-  for (int deg10 = -895; deg10 <= 895; deg10 += 5) {
-    const double to = std::abs(deg10) / 10.0 * pi / 180;
-    const acquire::IsoAngles a{ti, to, deg10 > 0 ? pi : 0.0};
-    // The grid's value: the reconstruction at the centre of the cell the lookup reads.
-    const brdf::MerlCell cell = brdf::merl_cell(std::size_t(acquire::merl_lookup_cell(a)));
-    float v = 0;
-    const bool has = r.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), std::span<float>(&v, 1));
-    model.eval(brdf::StdAngles{ti, 0.0, to, a.phi_d}, f);
-    script += fmt::format("{:.1f} {} {:.5g}\n", deg10 / 10.0,
-                          has ? fmt::format("{:.5g}", std::cbrt(std::max(0.0f, v))) : "NaN", std::cbrt(f[0]));
-  }
-  script += "EOD\n";
+  std::string script = "$S << EOD\n" +
+                       acquire::plane_points_table(acquire::incidence_plane_points(angles, values, 1, ti, eps, 0)) +
+                       "EOD\n$R << EOD\n" + acquire::grid_plane_table(r, model, ti) + "EOD\n";
   script += "set grid\nset key top left\nset xlabel 'theta_o (degrees; negative: same side as the light)'\n";
   script += "set ylabel 'cube root of the BRDF (1/sr)'\nset xrange [-90:90]\n";
   script += "set title " +
@@ -217,7 +176,9 @@ void run_resample_study(const ResampleStudyOptions& o) {
     const acquire::StudyOutput s = acquire::resampling_study(*model, 0, angles, values, so);
     const std::vector<SuiteRow> suite = o.suite ? suite_rows(name, angles, o) : std::vector<SuiteRow>();
     if (!o.out.empty()) {
-      write_sheet(std::filesystem::path(o.out) / (name + "-renders.png"), s, 2 * o.ks.size() - 1);
+      const acquire::Rgb8Sheet sheet = acquire::study_sheet(s, 2 * o.ks.size() - 1);
+      store::write_png_rgb8(std::filesystem::path(o.out) / (name + "-renders.png"), sheet.width, sheet.height,
+                            sheet.rgb);
       incidence_plot(std::filesystem::path(o.out) / (name + "-incidence.png"), name, *model, angles, values, o.plot_k,
                      so.max_gap);
     }

@@ -30,6 +30,18 @@ void MerlBrdf::set(std::size_t cell, const Eigen::Vector3d& rgb) {
   for (int c = 0; c < 3; ++c) raw[std::size_t(c) * brdf::kMerlCells + cell] = rgb[c] / kMerlScale[std::size_t(c)];
 }
 
+void MerlBrdf::scale() {
+  for (std::size_t c = 0; c < 3; ++c)
+    for (std::size_t i = 0; i < brdf::kMerlCells; ++i)
+      if (double& v = raw[c * brdf::kMerlCells + i]; v >= 0) v *= kMerlScale[c];
+}
+
+void MerlBrdf::unscale() {
+  for (std::size_t c = 0; c < 3; ++c)
+    for (std::size_t i = 0; i < brdf::kMerlCells; ++i)
+      if (double& v = raw[c * brdf::kMerlCells + i]; v >= 0) v /= kMerlScale[c];
+}
+
 bool MerlBrdf::has_data(std::size_t cell) const {
   return stored(0, cell) >= 0 && stored(1, cell) >= 0 && stored(2, cell) >= 0;
 }

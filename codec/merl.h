@@ -28,6 +28,10 @@ struct MerlBrdf {
   double value(int channel, std::size_t cell) const { return stored(channel, cell) * kMerlScale[std::size_t(channel)]; }
   /// Sets `cell` to the BRDF values rgb (1/sr), dividing by the scales.
   void set(std::size_t cell, const Eigen::Vector3d& rgb);
+  /// Every value with data times its channel's scale (stored values to 1/sr); no-data values stay as they are.
+  void scale();
+  /// Every value with data divided by its channel's scale (1/sr to stored values), the inverse of scale().
+  void unscale();
   /// True when all three channels of `cell` hold data (are not negative).
   bool has_data(std::size_t cell) const;
   /// BRDFRead.cpp's lookup_brdf_val: the scaled RGB of the cell holding the standard angles a (negative: no data);

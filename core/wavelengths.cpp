@@ -114,6 +114,13 @@ bool WavelengthGrid::uniform() const {
 
 double WavelengthGrid::step() const { return size() < 2 ? 0.0 : nm_[1] - nm_[0]; }
 
+std::size_t WavelengthGrid::nearest(double nm) const {
+  std::size_t best = 0;
+  for (std::size_t b = 1; b < nm_.size(); ++b)
+    if (std::abs(nm_[b] - nm) < std::abs(nm_[best] - nm)) best = b;
+  return best;
+}
+
 std::string WavelengthGrid::describe() const {
   std::ostringstream s;
   s << size() << (size() == 1 ? " band" : " bands");

@@ -34,6 +34,8 @@ class WavelengthGrid {
   bool uniform() const;
   /// Spacing of a uniform grid (0 for fewer than two bands).
   double step() const;
+  /// Index of the band nearest `nm` (the lower one of two as near); 0 for an empty grid.
+  std::size_t nearest(double nm) const;
   /// Short description, e.g. "31 bands 420-720 nm step 10" or "3 bands 450-650 nm (irregular)".
   std::string describe() const;
 

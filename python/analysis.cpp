@@ -2,13 +2,17 @@
 // with the GIL released while they stream, returning numpy results and optionally saving the basis as the CLI does.
 #include <fmt/format.h>
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 
 #include "python/common.h"
 #include "specula/core/error.h"
 #include "specula/nmf/learn.h"
+#include "specula/nmf/report.h"
 #include "specula/stats/learn_pca.h"
 #include "specula/stats/pca.h"
 #include "specula/stats/project.h"
@@ -92,37 +96,6 @@ py::dict project_one(const store::Basis& basis, const ArrayLike& spectra_arg, co
   out["rms"] = summary.rms(std::size_t(b));
   out["max_error"] = summary.max_error;
   return out;
-}
-
-// What specula.nmf() reports besides the basis.
-py::dict nmf_report(const nmf::NmfResult& r) {
-  py::dict report;
-  report["rel_error"] = r.rel_error;
-  report["svd_bound"] = r.svd_bound;
-  report["n"] = r.n;
-  report["best_restart"] = r.best;
-  report["epochs"] = r.best_result().epochs;
-  report["converged"] = r.best_result().converged;
-  report["history"] = r.best_result().history;
-  py::list rs;
-  for (const auto& rr : r.restarts) {
-    py::dict d;
-    d["rel_error"] = rr.rel_error;
-    d["epochs"] = rr.epochs;
-    d["converged"] = rr.converged;
-    d["history"] = rr.history;
-    d["mean_angle_deg"] = rr.mean_angle_deg;
-    d["max_angle_deg"] = rr.max_angle_deg;
-    rs.append(d);
-  }
-  report["restarts"] = rs;
-  report["passes"] = r.passes;
-  report["negatives"] = r.negatives;
-  report["values"] = r.values;
-  report["nnls_unconverged"] = r.nnls_unconverged;
-  report["resumed"] = r.resumed;
-  report["warmup_epochs"] = r.warmup_epochs;
-  return report;
 }
 
 // specula.Basis: a learned basis made in Python or read from a store, its arrays as numpy.
@@ -256,26 +229,37 @@ void init_analysis(py::module_& m) {
         if (save && !replace && !resume && store::holds_basis(out, *save))
           throw UsageError(fmt::format("{}: basis {} already exists; choose another name or give replace=True",
                                        out.string(), *save));
-        if (!on_epoch.is_none())
-          opt.on_epoch = [on_epoch](const nmf::EpochReport& e) {
-            py::gil_scoped_acquire gil;
-            py::dict d;
-            d["restart"] = e.restart;
-            d["epoch"] = e.epoch;
-            d["rel_error"] = e.rel_error;
-            d["seconds"] = e.seconds;
-            on_epoch(d);
-          };
+        std::vector<nmf::EpochReport> epochs;
+        opt.on_epoch = [&epochs, &on_epoch](const nmf::EpochReport& e) {
+          epochs.push_back(e);
+          if (on_epoch.is_none()) return;
+          py::gil_scoped_acquire gil;
+          py::dict d;
+          d["restart"] = e.restart;
+          d["epoch"] = e.epoch;
+          d["rel_error"] = e.rel_error;
+          d["seconds"] = e.seconds;
+          on_epoch(d);
+        };
         const store::Selection sel{.image_globs = globs_from(images), .collection = collection};
+        const auto t0 = std::chrono::steady_clock::now();
         const nmf::LearnedBasis learned = interruptible([&] { return nmf::learn_basis(stores, sel, opt); });
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         const store::Basis& basis = learned.basis;
-        const nmf::NmfResult& r = learned.result;
         if (save) {
           save_basis_released(out, *save, basis, replace, "nmf");
           std::error_code ec;
           std::filesystem::remove(opt.checkpoint, ec);
         }
-        return py::make_tuple(save ? with_origin(store::Basis(basis), out, *save) : py::cast(basis), nmf_report(r));
+        // the fields of `specula nmf --json`; basis and output are None when the basis is not saved
+        const auto report = nmf::report_json(learned, {.store = stores.front().path().string(),
+                                                       .basis = save,
+                                                       .output = save ? std::optional(out.string()) : std::nullopt,
+                                                       .seconds = seconds,
+                                                       .epochs = epochs});
+        return py::make_tuple(save ? with_origin(store::Basis(basis), out, *save) : py::cast(basis),
+                              py::module_::import("json").attr("loads")(
+                                  report.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace)));
       },
       py::arg("stores"), py::arg("k"), py::arg("images") = py::none(), py::arg("collection") = "",
       py::arg("init") = "nndsvd", py::arg("seed") = 0, py::arg("restarts") = 1, py::arg("max_epochs") = 100,

@@ -240,12 +240,7 @@ void def_merl(py::module_& m) {
       "read_merl",
       [](const PathArg& p, bool scaled) {
         codec::MerlBrdf b = codec::read_merl(existing_file(p));
-        if (scaled)
-          for (int c = 0; c < 3; ++c)
-            for (std::size_t i = 0; i < brdf::kMerlCells; ++i) {
-              double& v = b.raw[std::size_t(c) * brdf::kMerlCells + i];
-              if (v >= 0) v *= codec::kMerlScale[std::size_t(c)];
-            }
+        if (scaled) b.scale();
         return adopt(std::move(b.raw), {3, kDims[0], kDims[1], kDims[2]});
       },
       py::arg("path"), py::arg("scaled") = false,
@@ -259,12 +254,7 @@ void def_merl(py::module_& m) {
           throw UsageError("write_merl: values must be (3, 90, 90, 180)");
         codec::MerlBrdf b;
         b.raw.assign(v.data(), v.data() + v.size());
-        if (scaled)
-          for (int c = 0; c < 3; ++c)
-            for (std::size_t i = 0; i < brdf::kMerlCells; ++i) {
-              double& x = b.raw[std::size_t(c) * brdf::kMerlCells + i];
-              if (x >= 0) x /= codec::kMerlScale[std::size_t(c)];
-            }
+        if (scaled) b.unscale();
         const std::filesystem::path path = path_from(p);
         py::gil_scoped_release release;
         codec::write_merl(path, b);

@@ -1,6 +1,8 @@
 #pragma once
 // PCA of a selection of one or more stores (reference §7.3) as `specula pca` and specula.pca() run it: the checks,
 // one exact streaming pass, the eigen-decomposition and the basis with what it was learned from.
+#include <nlohmann/json_fwd.hpp>
+#include <string>
 #include <vector>
 
 #include "specula/core/collective.h"
@@ -21,5 +23,11 @@ struct LearnedPca {
 /// every rank streams its share. Throws UsageError when k exceeds the bands, InputError with fewer than two spectra.
 LearnedPca learn_pca(const std::vector<store::Store>& stores, const store::Selection& selection, std::size_t k,
                      const Collective& ranks = single_process());
+
+/// The run as one JSON object (what `specula pca --json` prints): store, basis, output, n, bands, wavelengths, mean,
+/// eigenvalues, explained_variance_ratio, components (k), seconds, stream_seconds, spectra_per_s, threads, ranks.
+/// `store` is the first input store, `name` and `output` where the basis was saved.
+nlohmann::ordered_json pca_report_json(const LearnedPca& learned, const std::string& store, const std::string& name,
+                                       const std::string& output, std::size_t ranks);
 
 }  // namespace specula::stats

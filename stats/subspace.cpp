@@ -4,6 +4,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <string>
 
 #include "specula/core/error.h"
@@ -50,6 +51,18 @@ Eigen::VectorXd principal_angles(const Eigen::MatrixXd& a, const Eigen::MatrixXd
   }
   std::sort(angles.data(), angles.data() + p);
   return angles;
+}
+
+std::vector<std::vector<double>> principal_angles_deg(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b,
+                                                      std::size_t k_max) {
+  std::vector<std::vector<double>> degrees;
+  for (std::size_t k = 1; k <= k_max; ++k) {
+    const Eigen::VectorXd angles = principal_angles(a.topRows(Eigen::Index(k)), b.topRows(Eigen::Index(k)));
+    std::vector<double> row(std::size_t(angles.size()));
+    for (Eigen::Index i = 0; i < angles.size(); ++i) row[std::size_t(i)] = angles[i] * 180.0 / std::numbers::pi;
+    degrees.push_back(std::move(row));
+  }
+  return degrees;
 }
 
 AlignedComponents align_components(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {

@@ -11,6 +11,7 @@
 
 #include "specula/core/error.h"
 #include "specula/store/detail/objects.h"
+#include "specula/store/object_spec.h"
 
 namespace specula::store {
 namespace {
@@ -293,8 +294,7 @@ std::string BlockReader::describe_block(std::size_t i) const {
   const Block& blk = blocks_.at(i);
   const SourceData& src = sources_[blk.source];
   std::string name = names_[blk.source];
-  if (const auto colon = name.find(':'); stores_.size() > 1 && colon != std::string::npos)
-    name = name.substr(colon + 1);
+  if (const auto spec = parse_object_spec(name); stores_.size() > 1 && spec) name = spec->name;
   return stores_[src.store].label() + ": " + src.kind + " '" + name + "' " +
          ((src.mask != nullptr) ? "rows " : "spectra ") + std::to_string(blk.row0) + "-" +
          std::to_string(blk.row0 + blk.rows - 1);

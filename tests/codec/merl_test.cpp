@@ -141,3 +141,23 @@ TEST(Merl, WrongDimensionsAndValuesAreRejected) {
 
 }  // namespace
 }  // namespace specula::codec
+
+namespace specula {
+
+TEST(Merl, ScaleGivesTheValuesInOneOverSrAndUnscaleUndoesIt) {
+  codec::MerlBrdf b;
+  for (std::size_t i = 0; i < b.raw.size(); i += 7) b.raw[i] = double(i % 1000) / 3;
+  b.raw[5] = -2;  // no data stays as it is
+  codec::MerlBrdf s = b;
+  s.scale();
+  for (std::size_t c = 0; c < 3; ++c)
+    for (std::size_t cell : {std::size_t(0), std::size_t(7), std::size_t(12345), brdf::kMerlCells - 1}) {
+      const double stored = b.stored(int(c), cell);
+      EXPECT_EQ(s.stored(int(c), cell), stored >= 0 ? b.value(int(c), cell) : stored);
+    }
+  EXPECT_EQ(s.raw[5], -2);
+  s.unscale();
+  for (std::size_t i = 0; i < b.raw.size(); i += 997) EXPECT_NEAR(s.raw[i], b.raw[i], 1e-12 * (1 + b.raw[i]));
+}
+
+}  // namespace specula

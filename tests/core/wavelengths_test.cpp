@@ -108,3 +108,14 @@ TEST(SampleTabulated, ZeroOutsideAndInterpolatesInside) {
   EXPECT_EQ(v[3], 2);
   EXPECT_EQ(v[4], 0);
 }
+
+TEST(WavelengthGrid, NearestBandTakesTheLowerOfTwoAsNear) {
+  const auto g = specula::WavelengthGrid::parse("450,500,600");
+  EXPECT_EQ(g.nearest(300), 0u);
+  EXPECT_EQ(g.nearest(474), 0u);
+  EXPECT_EQ(g.nearest(475), 0u);  // 25 nm from 450 and from 500
+  EXPECT_EQ(g.nearest(476), 1u);
+  EXPECT_EQ(g.nearest(560), 2u);
+  EXPECT_EQ(g.nearest(1e6), 2u);
+  EXPECT_EQ(specula::WavelengthGrid().nearest(500), 0u);
+}

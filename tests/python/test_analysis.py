@@ -1,5 +1,7 @@
 """pca, nmf and project against numpy: the covariance's eigendecomposition, explicit projection formulas and
 scipy's NNLS; saved bases against what the CLI saves."""
+import json
+
 import numpy as np
 import pytest
 import scipy.optimize
@@ -112,6 +114,21 @@ def test_nmf_error_is_that_of_exact_nnls_coefficients(db, nmf3):
     np.testing.assert_allclose(report["svd_bound"], np.sqrt((sv[3:] ** 2).sum()) / np.linalg.norm(x), rtol=1e-6)
     assert report["rel_error"] >= report["svd_bound"]
     assert all(a >= b - 1e-12 for a, b in zip(report["history"], report["history"][1:]))
+
+
+def test_nmf_report_is_that_of_the_cli(db, nmf3, tmp_path):
+    """specula.nmf()'s report and `specula nmf --json` are one object: same keys, same numbers for the same run."""
+    _, report = nmf3
+    out = tmp_path / "out.h5"
+    cli("synth-db", "-o", out, "--images", "1", "--size", "4x4")
+    printed = json.loads(cli("nmf", db, "-k", "3", "--max-epochs", "40", "--tol", "1e-5", "-o", out, "--json").stdout)
+    assert set(report) == set(printed)
+    assert report["basis"] is None and report["output"] is None and printed["basis"] == "nmf3"
+    for key in ("n", "k", "bands", "epochs", "passes", "best_restart", "negatives", "values"):
+        assert report[key] == printed[key], key
+    np.testing.assert_allclose(report["history"], printed["history"], rtol=1e-12)
+    np.testing.assert_allclose(report["components"], printed["components"], rtol=1e-12)
+    assert len(report["history_seconds"]) == report["epochs"]
 
 
 def test_project_nmf_is_scipy_nnls(db, nmf3):

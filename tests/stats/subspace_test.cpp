@@ -52,6 +52,22 @@ TEST(Subspace, PlaneRotatedOutOfItself) {
   }
 }
 
+TEST(Subspace, AnglesInDegreesPerLeadingK) {
+  // First rows equal, second rows 30 degrees apart, third rows orthogonal to everything else: k = 1 gives {0},
+  // k = 2 {0, 30}, k = 3 {0, 30, 90}.
+  const Eigen::MatrixXd r = random_rotation(8, 3);
+  Eigen::MatrixXd a(3, 8), b(3, 8);
+  const double t = kPi / 6;
+  a << r.row(0), r.row(1), r.row(3);
+  b << r.row(0), std::cos(t) * r.row(1) + std::sin(t) * r.row(2), r.row(4);
+  const auto deg = stats::principal_angles_deg(a, b, 3);
+  ASSERT_EQ(deg.size(), 3u);
+  for (std::size_t k = 0; k < 3; ++k) ASSERT_EQ(deg[k].size(), k + 1);
+  EXPECT_NEAR(deg[0][0], 0, 1e-9);
+  EXPECT_NEAR(deg[1][1], 30, 1e-9);
+  EXPECT_NEAR(deg[2][2], 90, 1e-9);
+}
+
 TEST(Subspace, OrthogonalSpacesAreAtNinetyDegrees) {
   const Eigen::MatrixXd r = random_rotation(12, 3);
   const Eigen::VectorXd angles = stats::principal_angles(r.topRows(3), r.middleRows(3, 5));

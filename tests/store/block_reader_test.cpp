@@ -158,6 +158,22 @@ TEST(BlockReader, StreamsTheValuesOfScatteredSamples) {
   EXPECT_THROW(BlockReader(s, Selection{.samples = "other"}), InputError);
 }
 
+TEST(BlockReader, BlocksOfSeveralStoresNameTheirImageEvenInAStoreNamedWithAColon) {
+  test::ScratchDir dir;
+  const auto pa = dir / "run:2.h5", pb = dir / "b.h5";
+  for (const auto& [path, name] : {std::pair{pa, "left"}, std::pair{pb, "right"}}) {
+    StoreWriter w(path, {});
+    w.add_image(name, random_cube(20, 10, 4, 2));
+    w.commit();
+  }
+  const std::vector<Store> stores = {Store::open(pa), Store::open(pb)};
+  BlockReader reader(stores, {}, 100);
+  ASSERT_GE(reader.block_count(), 2u);
+  const std::string first = reader.describe_block(0), last = reader.describe_block(reader.block_count() - 1);
+  EXPECT_NE(first.find("image 'left' rows 0-"), std::string::npos) << first;
+  EXPECT_NE(last.find("image 'right' rows "), std::string::npos) << last;
+}
+
 TEST(BlockReader, ErrorsInsideTheStreamAreRethrown) {
   test::ScratchDir dir;
   auto path = dir / "s.h5";

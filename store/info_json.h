@@ -1,0 +1,29 @@
+#pragma once
+// What a store holds as JSON, the objects `specula info --json` prints (docs/cli.md).
+#include <nlohmann/json_fwd.hpp>
+#include <cstdint>
+#include <string>
+
+#include "specula/store/basis.h"
+#include "specula/store/store.h"
+
+namespace specula::store {
+
+/// An image's description: kind, name, shape, wavelengths, units, valid pixels, chunking, provenance.
+nlohmann::ordered_json image_json(const ImageInfo& info);
+/// A collection's description: kind, name, size, bands, wavelengths, units, provenance.
+nlohmann::ordered_json collection_json(const CollectionInfo& info);
+/// A sample set's description: kind, name, size, bands, wavelengths, units, provenance.
+nlohmann::ordered_json samples_json(const SamplesInfo& info);
+/// A coefficient map's description: kind, name, image, basis, method, shape, k, valid pixels, provenance.
+nlohmann::ordered_json coefficients_json(const CoefficientsInfo& info);
+/// The basis `name`'s description: method, k, n, bands, wavelengths, source and how it was fit.
+nlohmann::ordered_json basis_json(const std::string& name, const Basis& basis);
+/// Every image, collection, sample set, grid, basis and coefficient map of `store`, one object each, in that order.
+nlohmann::ordered_json objects_json(const Store& store);
+/// Valid pixels over every image of the store.
+std::uint64_t valid_spectra(const Store& store);
+/// The store's path, format version, generation, size, creation time, valid spectra and objects_json().
+nlohmann::ordered_json store_json(const Store& store);
+
+}  // namespace specula::store
