@@ -7,9 +7,11 @@
 #include <cmath>
 #include <filesystem>
 #include <regex>
+#include <set>
 
 #include <fmt/format.h>
 
+#include "specula/acquire/capture.h"
 #include "specula/acquire/filters.h"
 #include "test_support.h"
 
@@ -116,6 +118,25 @@ TEST(FiltersCli, BadFilterFilesAreRefusedWithOneLineAndNothingWritten) {
       << r.output;
   EXPECT_FALSE(std::filesystem::exists(cap));
   EXPECT_FALSE(std::filesystem::exists(cap + ".partial"));
+}
+
+TEST(FiltersCli, ADimFilterTakesTheLongestExposureOnce) {
+  test::ScratchDir dir;
+  const auto cap = (dir / "cap").string();
+  // Filter 'dim' passes 1/900 of 'open': its 11-exposure bracket, scaled by its gain, runs past the 60 s cap.
+  test::write_file(dir / "dim.csv", "wavelength_nm,open,dim\n400,0.9,0.001\n500,0.9,0.001\n600,0.9,0.001\n740,0.9,0.001\n");
+  const auto r = run_specula("simulate-capture " + kRig + "--filters '" + (dir / "dim.csv").string() + "' -o '" +
+                             cap + "' --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const acquire::Capture c = acquire::read_manifest(cap);  // refuses two images of one light, channel and time
+  std::vector<double> open, dim;
+  for (const auto& im : c.images)
+    if (im.kind == acquire::ImageKind::scene && im.light == 0) (im.band == 0 ? open : dim).push_back(im.exposure_s);
+  EXPECT_EQ(open.size(), 11u);
+  ASSERT_FALSE(dim.empty());
+  EXPECT_LT(dim.size(), 11u);
+  EXPECT_EQ(*std::max_element(dim.begin(), dim.end()), 60.0);
+  EXPECT_EQ(std::set<double>(dim.begin(), dim.end()).size(), dim.size());
 }
 
 TEST(FiltersCli, VersionOneCapturesStillRead) {
