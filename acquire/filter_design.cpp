@@ -70,8 +70,8 @@ Eigen::MatrixXd capture_prior(const store::Basis& basis, const Capture& capture,
   capture_basis(basis, capture, label);
   const Eigen::Index B = Eigen::Index(basis.bands());
   if (basis.second_moment.rows() != B || basis.second_moment.cols() != B)
-    throw InputError(label + ": the basis stores no second moment for the Wiener solve; use a PCA basis or " +
-                     "--filter-solve ridge");
+    throw InputError(label + ": the basis stores no second moment for the Wiener solve; learn it again (specula pca " +
+                     "or nmf) or use --filter-solve ridge");
   return basis.second_moment;
 }
 

@@ -51,7 +51,7 @@ Eigen::MatrixXd reconstruction_basis(const store::Basis& basis, int k);
 Eigen::MatrixXd capture_basis(const store::Basis& basis, const Capture& capture, const std::string& label);
 
 /// The basis's second moment (B x B), the Wiener solve's prior, for a filter capture: the checks of capture_basis,
-/// and InputError naming `label` for a basis that stores none (NMF bases do not).
+/// and InputError naming `label` for a basis that stores none.
 Eigen::MatrixXd capture_prior(const store::Basis& basis, const Capture& capture, const std::string& label);
 
 /// Expected reconstruction error of spectra (rows, on `bands`) read through filters `f` (sensitivity s: light times
