@@ -18,6 +18,12 @@ FilterMethod parse_filter_method(const std::string& name) {
   throw UsageError("filter design method '" + name + "': use nmf (smoothed NMF components) or optimal");
 }
 
+FilterSolve parse_filter_solve(const std::string& name) {
+  if (name == "ridge") return FilterSolve::ridge;
+  if (name == "wiener") return FilterSolve::wiener;
+  throw UsageError("filter solve '" + name + "': use wiener (the spectra's second moment as prior) or ridge");
+}
+
 void check_filter_design(const FilterDesignOptions& o) {
   if (o.k < 1 || o.k > 31) throw UsageError("filter design: k must be 1 to 31 filters");
   if (!(o.noise >= 0 && o.noise < 1)) throw UsageError("filter design: noise must be in [0, 1)");
@@ -60,6 +66,15 @@ Eigen::MatrixXd capture_basis(const store::Basis& basis, const Capture& capture,
   return reconstruction_basis(basis, int(capture.filters->size()));
 }
 
+Eigen::MatrixXd capture_prior(const store::Basis& basis, const Capture& capture, const std::string& label) {
+  capture_basis(basis, capture, label);
+  const Eigen::Index B = Eigen::Index(basis.bands());
+  if (basis.second_moment.rows() != B || basis.second_moment.cols() != B)
+    throw InputError(label + ": the basis stores no second moment for the Wiener solve; learn it again (specula pca " +
+                     "or nmf) or use --filter-solve ridge");
+  return basis.second_moment;
+}
+
 namespace {
 
 // The K x B system divided by the white reading of an open filter (transmission `peak` everywhere on the bands): every
@@ -77,12 +92,26 @@ Eigen::MatrixXd normalised_system(const FilterSet& f, std::span<const double> ba
   return a / white;
 }
 
+// Each reading's noise: `noise` times the open filter's white reading (every filter exposed alike), or times the
+// filter's own white reading (each exposed to fill the sensor, as simulate-capture does).
+Eigen::VectorXd reading_noise(const Eigen::MatrixXd& a, double noise, bool per_filter) {
+  return per_filter ? Eigen::VectorXd(noise * a.rowwise().sum()) : Eigen::VectorXd::Constant(a.rows(), noise);
+}
+
+// The recovery of the design's error model: Wiener with `prior` when it is not empty, else the ridge in `u`.
+Eigen::MatrixXd design_recovery(const Eigen::MatrixXd& a, const Eigen::MatrixXd& u, const Eigen::MatrixXd& prior,
+                                const Eigen::VectorXd& sigma, double ridge) {
+  if (prior.size() == 0) return filter_recovery(a, u, ridge);
+  return filter_wiener_recovery(a, prior, sigma);
+}
+
 // Mean expected squared error per band over spectra of second moment m (B x B).
-double mean_squared_error(const Eigen::MatrixXd& a, const Eigen::MatrixXd& u, const Eigen::MatrixXd& m, double noise,
-                          double ridge) {
-  const Eigen::MatrixXd r = filter_recovery(a, u, ridge);
+double mean_squared_error(const Eigen::MatrixXd& a, const Eigen::MatrixXd& u, const Eigen::MatrixXd& m,
+                          const FilterDesignOptions& o) {
+  const Eigen::VectorXd sigma = reading_noise(a, o.noise, o.per_filter_exposure);
+  const Eigen::MatrixXd r = design_recovery(a, u, o.solve == FilterSolve::wiener ? m : Eigen::MatrixXd(), sigma, o.ridge);
   const Eigen::MatrixXd e = Eigen::MatrixXd::Identity(a.cols(), a.cols()) - r * a;
-  return ((e * m * e.transpose()).trace() + noise * noise * r.squaredNorm()) / double(a.cols());
+  return ((e * m * e.transpose()).trace() + (r * sigma.asDiagonal()).squaredNorm()) / double(a.cols());
 }
 
 std::vector<double> design_grid(std::span<const double> bands, double step) {
@@ -154,7 +183,7 @@ FilterSet optimal_filters(const store::Basis& basis, const Eigen::MatrixXd& trai
   };
   auto cost = [&](const Eigen::VectorXd& p) {
     try {
-      return mean_squared_error(normalised_system(build(p), bands, s, 1.0), u, m, o.noise, o.ridge);
+      return mean_squared_error(normalised_system(build(p), bands, s, 1.0), u, m, o);
     } catch (const Error&) {
       return 1e30;
     }
@@ -184,13 +213,14 @@ FilterSet optimal_filters(const store::Basis& basis, const Eigen::MatrixXd& trai
 
 FilterError expected_filter_error(const FilterSet& f, std::span<const double> bands, const Tabulated& s,
                                   const Eigen::MatrixXd& basis, const Eigen::MatrixXd& spectra, double noise,
-                                  double ridge) {
+                                  double ridge, const Eigen::MatrixXd& prior, bool per_filter_exposure) {
   if (spectra.cols() != Eigen::Index(bands.size()) || spectra.rows() == 0)
     throw UsageError("expected_filter_error: spectra (rows) on the bands");
   const Eigen::MatrixXd a = normalised_system(f, bands, s, 1.0);
-  const Eigen::MatrixXd r = filter_recovery(a, basis, ridge);
+  const Eigen::VectorXd sigma = reading_noise(a, noise, per_filter_exposure);
+  const Eigen::MatrixXd r = design_recovery(a, basis, prior, sigma, ridge);
   const Eigen::MatrixXd e = spectra.transpose() - r * (a * spectra.transpose());
-  const double b = double(bands.size()), noise2 = noise * noise * r.squaredNorm();
+  const double b = double(bands.size()), noise2 = (r * sigma.asDiagonal()).squaredNorm();
   std::vector<double> rms(std::size_t(spectra.rows()));
   for (Eigen::Index i = 0; i < spectra.rows(); ++i)
     rms[std::size_t(i)] = std::sqrt((e.col(i).squaredNorm() + noise2) / b);
@@ -259,8 +289,13 @@ FilterDesign design_filters(const store::Store& s, const std::string& basis_name
   d.filters = design_filters(basis, training, o);
   const Tabulated sens = design_sensitivity(o.light_kelvin);
   const Eigen::MatrixXd u = reconstruction_basis(basis, o.k);
-  d.training = expected_filter_error(d.filters, d.bands, sens, u, training, o.noise, o.ridge);
-  d.held_out = expected_filter_error(d.filters, d.bands, sens, u, held_out, o.noise, o.ridge);
+  const Eigen::MatrixXd prior =
+      o.solve == FilterSolve::wiener ? Eigen::MatrixXd(training.transpose() * training / double(training.rows()))
+                                     : Eigen::MatrixXd();
+  d.training = expected_filter_error(d.filters, d.bands, sens, u, training, o.noise, o.ridge, prior,
+                                     o.per_filter_exposure);
+  d.held_out = expected_filter_error(d.filters, d.bands, sens, u, held_out, o.noise, o.ridge, prior,
+                                     o.per_filter_exposure);
   return d;
 }
 

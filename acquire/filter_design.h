@@ -19,10 +19,19 @@ enum class FilterMethod { nmf, optimal };
 /// "nmf" or "optimal"; UsageError otherwise.
 FilterMethod parse_filter_method(const std::string& name);
 
+/// How K readings become a spectrum: a ridge solve in the basis's first columns (filter_recovery) or the Wiener
+/// solve with the spectra's second moment as prior (filter_wiener_recovery).
+enum class FilterSolve { ridge, wiener };
+
+/// "ridge" or "wiener"; UsageError otherwise.
+FilterSolve parse_filter_solve(const std::string& name);
+
 struct FilterDesignOptions {
   FilterMethod method = FilterMethod::optimal;
+  FilterSolve solve = FilterSolve::wiener;
   int k = 6;                   ///< filters
-  double noise = 0.002;        ///< camera noise: standard deviation relative to an open filter's white reading
+  double noise = 0.002;        ///< camera noise: standard deviation relative to a white reading (below)
+  bool per_filter_exposure = true;  ///< noise relative to each filter's white reading, else an open filter's
   double ridge = 1e-3;         ///< the solve's regularisation (filter_recovery)
   double peak = 0.9;           ///< the curves' largest transmission
   double light_kelvin = 3200;  ///< the light (a blackbody) the design assumes, with the simulated camera's response
@@ -41,22 +50,29 @@ Eigen::MatrixXd reconstruction_basis(const store::Basis& basis, int k);
 /// capture's bands, and for a capture without filters.
 Eigen::MatrixXd capture_basis(const store::Basis& basis, const Capture& capture, const std::string& label);
 
+/// The basis's second moment (B x B), the Wiener solve's prior, for a filter capture: the checks of capture_basis,
+/// and InputError naming `label` for a basis that stores none.
+Eigen::MatrixXd capture_prior(const store::Basis& basis, const Capture& capture, const std::string& label);
+
 /// Expected reconstruction error of spectra (rows, on `bands`) read through filters `f` (sensitivity s: light times
-/// camera response), solved in `basis` with `ridge`, every filter exposed alike and noise of standard deviation
-/// `noise` (relative to the white reading of an open filter, transmission 1) added to each reading: per spectrum
-/// sqrt((|x - R A x|^2 + noise^2 |R|_F^2) / B).
+/// camera response), with noise of standard deviation `noise` added to each reading, relative to the filter's own
+/// white reading (per_filter_exposure: each filter exposed to fill the sensor) or else to an open filter's (every
+/// filter exposed alike), solved in `basis` with `ridge` or, when `prior`
+/// (a B x B second moment) is not empty, by the Wiener solve: per spectrum
+/// sqrt((|x - R A x|^2 + |R diag(sigma)|_F^2) / B), sigma the readings' noise.
 struct FilterError {
   std::size_t spectra = 0;
   double rms_mean = 0, rms_median = 0, rms_max = 0;
-  double noise_rms = 0;  ///< the noise term alone: noise |R|_F / sqrt(B)
+  double noise_rms = 0;  ///< the noise term alone: |R diag(sigma)|_F / sqrt(B)
 };
 FilterError expected_filter_error(const FilterSet& f, std::span<const double> bands, const Tabulated& s,
                                   const Eigen::MatrixXd& basis, const Eigen::MatrixXd& spectra, double noise,
-                                  double ridge);
+                                  double ridge, const Eigen::MatrixXd& prior = {}, bool per_filter_exposure = false);
 
 /// Designs o.k filters on the basis's wavelengths: nmf smooths and scales the NMF basis's first k components;
-/// optimal minimises the mean expected squared error of `training` (spectra as rows) over each filter's centre,
-/// width and flatness (a super-Gaussian of peak o.peak) by Nelder-Mead from evenly spaced filters.
+/// optimal minimises the mean expected squared error of `training` (spectra as rows; solved as o.solve says, the
+/// Wiener solve with the training spectra's second moment) over each filter's centre, width and flatness (a
+/// super-Gaussian of peak o.peak) by Nelder-Mead from evenly spaced filters.
 FilterSet design_filters(const store::Basis& basis, const Eigen::MatrixXd& training, const FilterDesignOptions& o);
 
 /// The design of design_filters on a store's basis and collections, with its expected error on the training

@@ -260,4 +260,20 @@ Eigen::MatrixXd filter_recovery(const Eigen::MatrixXd& system, const Eigen::Matr
   return u * g.completeOrthogonalDecomposition().solve(m.transpose());
 }
 
+Eigen::MatrixXd filter_wiener_recovery(const Eigen::MatrixXd& system, const Eigen::MatrixXd& second_moment,
+                                       const Eigen::VectorXd& noise) {
+  const Eigen::Index B = system.cols(), K = system.rows();
+  if (B == 0 || second_moment.rows() != B || second_moment.cols() != B || noise.size() != K ||
+      !(noise.array() >= 0).all())
+    throw UsageError("filter_wiener_recovery: a K x B system, a B x B second moment and K noise levels >= 0");
+  const Eigen::MatrixXd ma = second_moment * system.transpose();
+  Eigen::MatrixXd g = system * ma;
+  g.diagonal() += noise.array().square().matrix();
+  // Directions of the readings the prior and the noise leave empty are dropped, not inverted.
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod;
+  cod.setThreshold(1e-12);
+  cod.compute(g);
+  return cod.solve(Eigen::MatrixXd(ma.transpose())).transpose();
+}
+
 }  // namespace specula::acquire

@@ -53,6 +53,13 @@ Eigen::MatrixXd fit_filter_response(const std::vector<Eigen::MatrixXd>& system, 
 /// or a basis of rank 0.
 Eigen::MatrixXd filter_recovery(const Eigen::MatrixXd& system, const Eigen::MatrixXd& basis, double ridge);
 
+/// The linear minimum-mean-square-error (Wiener) solve with the spectra's second moment M (B x B) as prior and
+/// independent reading noise of standard deviation noise[k] (readings' units): the B x K recovery
+/// M A^T (A M A^T + diag(noise^2))^-1. Exact for spectra in M's range without noise. UsageError for sizes or
+/// negative noise.
+Eigen::MatrixXd filter_wiener_recovery(const Eigen::MatrixXd& system, const Eigen::MatrixXd& second_moment,
+                                       const Eigen::VectorXd& noise);
+
 /// Orthonormal columns spanning `columns` (B x n), dropping directions below 1e-10 of the largest.
 Eigen::MatrixXd orthonormal_basis(const Eigen::MatrixXd& columns);
 

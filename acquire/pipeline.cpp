@@ -102,8 +102,10 @@ HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, i
 
 HdrSummary write_hdr_images(const Capture& cap, const fs::path& dir, const HdrOptions& o, store::StoreWriter& out) {
   if (cap.filters)
-    throw InputError((dir / "manifest.json").string() +
-                     ": a filter capture's channels are not bands; acquire run reconstructs its spectra");
+    throw InputError((dir / "manifest.json").string() + ": a filter capture's " +
+                     std::to_string(cap.filters->size()) +
+                     " channels are filters, not wavelength bands, and the store's HDR images are cubes on "
+                     "wavelengths; acquire run merges them and reconstructs the spectra");
   HdrSummary sum;
   const std::size_t W = std::size_t(cap.width), H = std::size_t(cap.height), B = cap.bands.size();
   sum.lights = cap.light_angles_deg.size();
@@ -217,7 +219,12 @@ SpectralCalibration calibrate_filters(const Capture& cap, const Tabulated& light
   for (Eigen::Index k = 0; k < sys.rows(); ++k)
     for (std::size_t d = 0; d < system.size(); ++d) sys.row(k) += a(k, Eigen::Index(d)) * system[d].row(k);
   s.scale = Eigen::Map<const Eigen::VectorXd>(Eigen::MatrixXd(a.transpose()).data(), a.size());
-  s.recovery = filter_recovery(sys, o.filter_basis, o.filter_ridge);
+  if (o.filter_prior.size()) {
+    const Eigen::VectorXd white = sys.rowwise().sum();
+    s.recovery = filter_wiener_recovery(sys, o.filter_prior, o.filter_noise * white.cwiseAbs());
+  } else {
+    s.recovery = filter_recovery(sys, o.filter_basis, o.filter_ridge);
+  }
   return s;
 }
 

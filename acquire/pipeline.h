@@ -27,6 +27,10 @@ struct PipelineOptions {
   Eigen::MatrixXd filter_basis;
   double filter_ridge = 1e-3;
   int filter_terms = 2;
+  /// Filter captures: when not empty, the spectra's second moment (B x B) and the Wiener solve
+  /// (filter_wiener_recovery) with noise filter_noise times each filter's white reading replace the ridge.
+  Eigen::MatrixXd filter_prior;
+  double filter_noise = 0.002;
 };
 
 /// One target's recovered reflectance under both models against its known reflectance (eq 4.8).

@@ -269,18 +269,26 @@ std::vector<Job> image_jobs(const SimulatorOptions& o, const Capture& cap, const
   for (std::size_t l = 0; l < rig.lights; ++l)
     add(ImageKind::mirror, int(l), -1, -1, 0.01, fmt::format("mirror/L{:03}.png", l));
   for (std::size_t j = 0; j < B; ++j)
-    for (const double e : {0.02, 0.05})
-      add(ImageKind::flat, -1, int(j), -1, time(j, e), fmt::format("flat/{}-{}.png", channel(j), ms(time(j, e))));
+    for (double last = -1; const double e : {0.02, 0.05})
+      if (time(j, e) != last)
+        last = time(j, e), add(ImageKind::flat, -1, int(j), -1, last, fmt::format("flat/{}-{}.png", channel(j), ms(last)));
   for (std::size_t t = 0; t < cap.targets.size(); ++t)
     for (std::size_t j = 0; j < B; ++j)
-      for (const double e : {0.02, 0.1, 0.5, 2.0})
-        add(ImageKind::target, -1, int(j), int(t), time(j, e),
-            fmt::format("target/{}/{}-{}.png", cap.targets[t].name, channel(j), ms(time(j, e))));
+      for (double last = -1; const double e : {0.02, 0.1, 0.5, 2.0})
+        if (time(j, e) != last)
+          last = time(j, e), add(ImageKind::target, -1, int(j), int(t), last,
+                                 fmt::format("target/{}/{}-{}.png", cap.targets[t].name, channel(j), ms(last)));
+  // A filter whose scaled bracket passes the longest exposure (60 s) takes it once: clamped exposures are not
+  // repeated.
   for (std::size_t l = 0; l < rig.lights; ++l)
-    for (std::size_t j = 0; j < B; ++j)
-      for (const double e : o.exposures_s)
-        add(ImageKind::scene, int(l), int(j), -1, time(j, e),
-            fmt::format("scene/L{:03}/{}-{}.png", l, channel(j), ms(time(j, e))));
+    for (std::size_t j = 0; j < B; ++j) {
+      double last = -1;
+      for (const double e : o.exposures_s) {
+        if (time(j, e) == last) continue;
+        last = time(j, e);
+        add(ImageKind::scene, int(l), int(j), -1, last, fmt::format("scene/L{:03}/{}-{}.png", l, channel(j), ms(last)));
+      }
+    }
   return jobs;
 }
 

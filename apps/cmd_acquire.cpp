@@ -87,6 +87,8 @@ struct AcquireOptions {
   std::string basis;  // filter captures: STORE.h5:BASIS
   double ridge = 1e-3;
   int filter_terms = 2;
+  std::string filter_solve = "wiener";
+  double filter_noise = 0.002;
   std::vector<std::string> fit_targets;
   bool replace = false;
   bool json = false;
@@ -263,7 +265,12 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
   if (!o.basis.empty()) {
     const auto spec = store::parse_object_spec(o.basis);
     if (!spec) throw UsageError("acquire: --basis is STORE.h5:NAME");
-    po.filter_basis = acquire::capture_basis(store::Store::open(spec->file).read_basis(spec->name), cap, o.basis);
+    const store::Basis basis = store::Store::open(spec->file).read_basis(spec->name);
+    po.filter_basis = acquire::capture_basis(basis, cap, o.basis);
+    if (acquire::parse_filter_solve(o.filter_solve) == acquire::FilterSolve::wiener)
+      po.filter_prior = acquire::capture_prior(basis, cap, o.basis);
+    if (!(o.filter_noise >= 0 && o.filter_noise < 1)) throw UsageError("acquire: --filter-noise must be in [0, 1)");
+    po.filter_noise = o.filter_noise;
   }
   const auto [store_path, name] = split_output(o.output, "scan");
   store::validate_name(name, "samples");
@@ -361,6 +368,12 @@ void add_pipeline_options(CLI::App* cmd, AcquireOptions& o, bool calibrates, boo
     cmd->add_option("--spectral-model", o.spectral, "delta (eq 4.4) or factored (eq 4.6)")->capture_default_str();
   if (calibrates) {
     cmd->add_option("--basis", o.basis, "Filter captures: STORE.h5:BASIS the spectra are solved in");
+    cmd->add_option("--filter-solve", o.filter_solve,
+                    "Filter captures: wiener (the basis's second moment as prior) or ridge (in the basis)")
+        ->capture_default_str();
+    cmd->add_option("--filter-noise", o.filter_noise,
+                    "Filter captures, wiener: reading noise relative to each filter's white reading")
+        ->capture_default_str();
     cmd->add_option("--ridge", o.ridge, "Filter captures: the solve's regularisation")->capture_default_str();
     cmd->add_option("--filter-terms", o.filter_terms, "Filter captures: response terms fitted per filter (1-4)")
         ->capture_default_str();

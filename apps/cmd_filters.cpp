@@ -15,7 +15,7 @@ namespace specula::app {
 namespace {
 
 struct FiltersDesignOptions {
-  std::string store, basis, train, test, output, plot, method = "optimal";
+  std::string store, basis, train, test, output, plot, method = "optimal", solve = "wiener";
   acquire::FilterDesignOptions design;
   bool json = false;
 };
@@ -44,6 +44,7 @@ Json error_json(const acquire::FilterError& e, const std::string& name) {
 
 void run_filters_design(FiltersDesignOptions o) {
   o.design.method = acquire::parse_filter_method(o.method);
+  o.design.solve = acquire::parse_filter_solve(o.solve);
   acquire::check_filter_design(o.design);
   std::filesystem::path gnuplot;
   if (!o.plot.empty()) {
@@ -64,6 +65,8 @@ void run_filters_design(FiltersDesignOptions o) {
     j["method"] = o.method;
     j["noise"] = o.design.noise;
     j["ridge"] = o.design.ridge;
+    j["solve"] = o.solve;
+    j["exposure"] = o.design.per_filter_exposure ? "per filter" : "equal";
     j["roughness"] = acquire::filter_roughness(d.filters);
     j["training"] = error_json(d.training, d.training_name);
     j["held_out"] = error_json(d.held_out, d.held_out_name);
@@ -95,6 +98,10 @@ void setup_filters(CLI::App& app) {
   d->add_option("--method", o->method, "nmf (smoothed NMF components) or optimal (expected error)")
       ->capture_default_str();
   d->add_option("--noise", o->design.noise, "Camera noise relative to each filter's white reading")
+      ->capture_default_str();
+  d->add_flag("--equal-exposure", [o](std::int64_t) { o->design.per_filter_exposure = false; },
+              "Noise relative to an open filter's white reading (every filter exposed alike)");
+  d->add_option("--solve", o->solve, "wiener (the training spectra's second moment as prior) or ridge (in the basis)")
       ->capture_default_str();
   d->add_option("--ridge", o->design.ridge, "Regularisation of the solve (relative to the system's trace)")
       ->capture_default_str();

@@ -226,8 +226,50 @@ TEST(FilterDesign, CurvesAreSmoothBoundedTransmissionsAndTheOptimumBeatsNmf) {
   }
   const Tabulated s = design_sensitivity(o.light_kelvin);
   const Eigen::MatrixXd u5 = reconstruction_basis(pca, 5);
-  const double e_opt = expected_filter_error(optimal, bands, s, u5, spectra, o.noise, o.ridge).rms_mean;
-  const double e_nmf = expected_filter_error(from_nmf, bands, s, u5, spectra, o.noise, o.ridge).rms_mean;
+  // The design's own criterion: the Wiener solve with the spectra's second moment, each filter exposed to fill.
+  const Eigen::MatrixXd m = spectra.transpose() * spectra / double(spectra.rows());
+  const double e_opt = expected_filter_error(optimal, bands, s, u5, spectra, o.noise, o.ridge, m, true).rms_mean;
+  const double e_nmf = expected_filter_error(from_nmf, bands, s, u5, spectra, o.noise, o.ridge, m, true).rms_mean;
   EXPECT_LT(e_opt, e_nmf);
   EXPECT_LT(e_opt, 0.03);
+  // The Wiener solve is the least expected error of any linear recovery: not above the ridge's on its prior.
+  const double e_ridge = expected_filter_error(optimal, bands, s, u5, spectra, o.noise, o.ridge, {}, true).rms_mean;
+  EXPECT_LE(e_opt, e_ridge * (1 + 1e-9));
+}
+
+// Expected squared error of recovery r for spectra of second moment m and reading noise sigma.
+static double wiener_risk(const Eigen::MatrixXd& r, const Eigen::MatrixXd& a, const Eigen::MatrixXd& m,
+                   const Eigen::VectorXd& sigma) {
+  const Eigen::MatrixXd e = Eigen::MatrixXd::Identity(a.cols(), a.cols()) - r * a;
+  return (e * m * e.transpose()).trace() + (r * sigma.asDiagonal()).squaredNorm();
+}
+
+TEST(FilterRecovery, WienerIsExactInThePriorsRangeAndMinimisesTheExpectedError) {
+  const std::vector<double> bands = bands_420_720();
+  const Eigen::Index B = Eigen::Index(bands.size());
+  Tabulated s;
+  for (double l = 380; l <= 780; l += 2) s.nm.push_back(l), s.value.push_back(1 + 0.002 * (l - 380));
+  const Eigen::MatrixXd a = filter_system(gaussians(6, 40), bands, s, 1)[0];
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n01;
+  Eigen::MatrixXd u(B, 4);
+  for (Eigen::Index i = 0; i < u.size(); ++i) u.data()[i] = n01(rng);
+  const Eigen::MatrixXd m = u * u.transpose();
+  // Without noise, a spectrum in the prior's range (rank 4 < K = 6) comes back exactly.
+  const Eigen::MatrixXd r0 = filter_wiener_recovery(a, m, Eigen::VectorXd::Zero(6));
+  const Eigen::VectorXd x = u * Eigen::Vector4d(0.3, -0.2, 0.5, 0.1);
+  EXPECT_LT((r0 * (a * x) - x).norm(), 1e-9 * x.norm());
+  // With noise, any perturbation of the recovery raises the expected error (the risk is convex, its minimum unique).
+  const Eigen::MatrixXd full = m + 0.01 * Eigen::MatrixXd::Identity(B, B);
+  const Eigen::VectorXd sigma = 0.05 * a.rowwise().sum();
+  const Eigen::MatrixXd r = filter_wiener_recovery(a, full, sigma);
+  const double best = wiener_risk(r, a, full, sigma);
+  for (int t = 0; t < 20; ++t) {
+    Eigen::MatrixXd d(B, 6);
+    for (Eigen::Index i = 0; i < d.size(); ++i) d.data()[i] = n01(rng);
+    d *= 1e-3 * r.norm() / d.norm();
+    EXPECT_GT(wiener_risk(r + d, a, full, sigma), best);
+  }
+  EXPECT_THROW(filter_wiener_recovery(a, full, -sigma), UsageError);
+  EXPECT_THROW(filter_wiener_recovery(a, Eigen::MatrixXd::Identity(3, 3), sigma), UsageError);
 }

@@ -3,12 +3,15 @@
 // nothing written, a filter capture reconstructed through its basis, and version-1 captures still read.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <regex>
+#include <set>
 
 #include <fmt/format.h>
 
+#include "specula/acquire/capture.h"
 #include "specula/acquire/filters.h"
 #include "test_support.h"
 
@@ -68,6 +71,25 @@ TEST(FiltersCli, DesignSimulateAndReconstruct) {
     EXPECT_LT(std::stod((*it)[1]), 0.15) << r.output;
   EXPECT_EQ(targets, 5);
   EXPECT_LT(json_number(r.output, "truth_median_rel_error"), 0.25) << r.output;
+  const double samples = json_number(r.output, "samples"), truth = json_number(r.output, "truth_median_rel_error");
+
+  // The stored filter calibration is reused by acquire samples: the same samples without the basis or targets.
+  r = run_specula("acquire samples '" + cap + "' -o '" + out + ":again' --calibration scan --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(json_number(r.output, "samples"), samples) << r.output;
+  EXPECT_EQ(json_number(r.output, "truth_median_rel_error"), truth) << r.output;
+  // The ridge solve is the other choice; the Wiener solve needs a basis that stores a second moment.
+  r = run_specula("acquire run '" + cap + "' -o '" + out + ":ridge' --basis '" + db +
+                  ":pca' --filter-solve ridge --fit-targets red,green,blue,yellow,white --filter-terms 3 --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_LT(json_number(r.output, "truth_median_rel_error"), 0.25) << r.output;
+  // acquire hdr refuses a filter capture with one line saying why, and writes nothing.
+  const auto hdr_store = (dir / "hdr.h5").string();
+  r = run_specula("acquire hdr '" + cap + "' -o '" + hdr_store + "'");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("4 channels are filters, not wavelength bands"), std::string::npos) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(hdr_store));
 
   // A basis on other bands than the capture's is refused with one line.
   ASSERT_EQ(run_specula("-q import '" + (dir / "spectra.csv").string() +
@@ -96,6 +118,25 @@ TEST(FiltersCli, BadFilterFilesAreRefusedWithOneLineAndNothingWritten) {
       << r.output;
   EXPECT_FALSE(std::filesystem::exists(cap));
   EXPECT_FALSE(std::filesystem::exists(cap + ".partial"));
+}
+
+TEST(FiltersCli, ADimFilterTakesTheLongestExposureOnce) {
+  test::ScratchDir dir;
+  const auto cap = (dir / "cap").string();
+  // Filter 'dim' passes 1/900 of 'open': its 11-exposure bracket, scaled by its gain, runs past the 60 s cap.
+  test::write_file(dir / "dim.csv", "wavelength_nm,open,dim\n400,0.9,0.001\n500,0.9,0.001\n600,0.9,0.001\n740,0.9,0.001\n");
+  const auto r = run_specula("simulate-capture " + kRig + "--filters '" + (dir / "dim.csv").string() + "' -o '" +
+                             cap + "' --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const acquire::Capture c = acquire::read_manifest(cap);  // refuses two images of one light, channel and time
+  std::vector<double> open, dim;
+  for (const auto& im : c.images)
+    if (im.kind == acquire::ImageKind::scene && im.light == 0) (im.band == 0 ? open : dim).push_back(im.exposure_s);
+  EXPECT_EQ(open.size(), 11u);
+  ASSERT_FALSE(dim.empty());
+  EXPECT_LT(dim.size(), 11u);
+  EXPECT_EQ(*std::max_element(dim.begin(), dim.end()), 60.0);
+  EXPECT_EQ(std::set<double>(dim.begin(), dim.end()).size(), dim.size());
 }
 
 TEST(FiltersCli, VersionOneCapturesStillRead) {
