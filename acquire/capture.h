@@ -21,10 +21,10 @@ enum class ImageKind { scene, silhouette, mirror, flat, target };
 struct CaptureImage {
   std::string file;  ///< relative to the capture directory
   ImageKind kind = ImageKind::scene;
-  int light = -1;         ///< light position index (scene, mirror); -1 otherwise
-  int band = -1;  ///< the channel (scene, flat, target): index into Capture::bands, or into Capture::filters for a
-                  ///< filter capture; -1 for none (silhouette, mirror)
-  int target = -1;        ///< index into Capture::targets (target images)
+  int light = -1;   ///< light position index (scene, mirror); -1 otherwise
+  int band = -1;    ///< the channel (scene, flat, target): index into Capture::bands, or into Capture::filters for a
+                    ///< filter capture; -1 for none (silhouette, mirror)
+  int target = -1;  ///< index into Capture::targets (target images)
   double exposure_s = 0;  ///< exposure time
 };
 

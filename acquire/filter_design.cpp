@@ -109,7 +109,8 @@ Eigen::MatrixXd design_recovery(const Eigen::MatrixXd& a, const Eigen::MatrixXd&
 double mean_squared_error(const Eigen::MatrixXd& a, const Eigen::MatrixXd& u, const Eigen::MatrixXd& m,
                           const FilterDesignOptions& o) {
   const Eigen::VectorXd sigma = reading_noise(a, o.noise, o.per_filter_exposure);
-  const Eigen::MatrixXd r = design_recovery(a, u, o.solve == FilterSolve::wiener ? m : Eigen::MatrixXd(), sigma, o.ridge);
+  const Eigen::MatrixXd r =
+      design_recovery(a, u, o.solve == FilterSolve::wiener ? m : Eigen::MatrixXd(), sigma, o.ridge);
   const Eigen::MatrixXd e = Eigen::MatrixXd::Identity(a.cols(), a.cols()) - r * a;
   return ((e * m * e.transpose()).trace() + (r * sigma.asDiagonal()).squaredNorm()) / double(a.cols());
 }
@@ -289,13 +290,13 @@ FilterDesign design_filters(const store::Store& s, const std::string& basis_name
   d.filters = design_filters(basis, training, o);
   const Tabulated sens = design_sensitivity(o.light_kelvin);
   const Eigen::MatrixXd u = reconstruction_basis(basis, o.k);
-  const Eigen::MatrixXd prior =
-      o.solve == FilterSolve::wiener ? Eigen::MatrixXd(training.transpose() * training / double(training.rows()))
-                                     : Eigen::MatrixXd();
-  d.training = expected_filter_error(d.filters, d.bands, sens, u, training, o.noise, o.ridge, prior,
-                                     o.per_filter_exposure);
-  d.held_out = expected_filter_error(d.filters, d.bands, sens, u, held_out, o.noise, o.ridge, prior,
-                                     o.per_filter_exposure);
+  const Eigen::MatrixXd prior = o.solve == FilterSolve::wiener
+                                    ? Eigen::MatrixXd(training.transpose() * training / double(training.rows()))
+                                    : Eigen::MatrixXd();
+  d.training =
+      expected_filter_error(d.filters, d.bands, sens, u, training, o.noise, o.ridge, prior, o.per_filter_exposure);
+  d.held_out =
+      expected_filter_error(d.filters, d.bands, sens, u, held_out, o.noise, o.ridge, prior, o.per_filter_exposure);
   return d;
 }
 

@@ -29,11 +29,11 @@ FilterSolve parse_filter_solve(const std::string& name);
 struct FilterDesignOptions {
   FilterMethod method = FilterMethod::optimal;
   FilterSolve solve = FilterSolve::wiener;
-  int k = 6;                   ///< filters
-  double noise = 0.002;        ///< camera noise: standard deviation relative to a white reading (below)
+  int k = 6;                        ///< filters
+  double noise = 0.002;             ///< camera noise: standard deviation relative to a white reading (below)
   bool per_filter_exposure = true;  ///< noise relative to each filter's white reading, else an open filter's
-  double ridge = 1e-3;         ///< the solve's regularisation (filter_recovery)
-  double peak = 0.9;           ///< the curves' largest transmission
+  double ridge = 1e-3;              ///< the solve's regularisation (filter_recovery)
+  double peak = 0.9;                ///< the curves' largest transmission
   double light_kelvin = 3200;  ///< the light (a blackbody) the design assumes, with the simulated camera's response
   double step_nm = 5;          ///< the curves' tabulation step
   double smooth_nm = 10;       ///< nmf: Gaussian smoothing (standard deviation) of the components

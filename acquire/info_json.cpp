@@ -6,9 +6,7 @@
 
 namespace specula::acquire {
 
-const char* spectral_model_name(SpectralModel model) {
-  return model == SpectralModel::delta ? "delta" : "factored";
-}
+const char* spectral_model_name(SpectralModel model) { return model == SpectralModel::delta ? "delta" : "factored"; }
 
 nlohmann::ordered_json calibration_json(const std::string& name, const Calibration& c) {
   return {{"kind", "calibration"},

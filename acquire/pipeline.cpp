@@ -102,8 +102,7 @@ HdrImage merge_series(const Capture& cap, const fs::path& dir, ImageKind kind, i
 
 HdrSummary write_hdr_images(const Capture& cap, const fs::path& dir, const HdrOptions& o, store::StoreWriter& out) {
   if (cap.filters)
-    throw InputError((dir / "manifest.json").string() + ": a filter capture's " +
-                     std::to_string(cap.filters->size()) +
+    throw InputError((dir / "manifest.json").string() + ": a filter capture's " + std::to_string(cap.filters->size()) +
                      " channels are filters, not wavelength bands, and the store's HDR images are cubes on "
                      "wavelengths; acquire run merges them and reconstructs the spectra");
   HdrSummary sum;

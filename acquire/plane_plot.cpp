@@ -68,8 +68,8 @@ std::string grid_plane_table(const Resampler& r, const brdf::SpectralModel& mode
     float v = 0;
     const bool has = r.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), std::span<float>(&v, 1));
     model.eval(at, f);
-    t += fmt::format("{:.1f} {} {:.5g}\n", d10 / 10.0, has ? fmt::format("{:.5g}", std::cbrt(std::max(0.0f, v))) : "NaN",
-                     std::cbrt(f[0]));
+    t += fmt::format("{:.1f} {} {:.5g}\n", d10 / 10.0,
+                     has ? fmt::format("{:.5g}", std::cbrt(std::max(0.0f, v))) : "NaN", std::cbrt(f[0]));
   }
   return t;
 }

@@ -271,7 +271,8 @@ std::vector<Job> image_jobs(const SimulatorOptions& o, const Capture& cap, const
   for (std::size_t j = 0; j < B; ++j)
     for (double last = -1; const double e : {0.02, 0.05})
       if (time(j, e) != last)
-        last = time(j, e), add(ImageKind::flat, -1, int(j), -1, last, fmt::format("flat/{}-{}.png", channel(j), ms(last)));
+        last = time(j, e),
+        add(ImageKind::flat, -1, int(j), -1, last, fmt::format("flat/{}-{}.png", channel(j), ms(last)));
   for (std::size_t t = 0; t < cap.targets.size(); ++t)
     for (std::size_t j = 0; j < B; ++j)
       for (double last = -1; const double e : {0.02, 0.1, 0.5, 2.0})

@@ -15,12 +15,12 @@
 #include "apps/common.h"
 #include "apps/gnuplot.h"
 #include "specula/acquire/capture.h"
-#include "specula/acquire/incidence.h"
-#include "specula/acquire/plane_plot.h"
 #include "specula/acquire/filter_design.h"
 #include "specula/acquire/hdr.h"
+#include "specula/acquire/incidence.h"
 #include "specula/acquire/mapping.h"
 #include "specula/acquire/pipeline.h"
+#include "specula/acquire/plane_plot.h"
 #include "specula/acquire/resample.h"
 #include "specula/acquire/scan.h"
 #include "specula/acquire/simulate.h"
@@ -81,7 +81,7 @@ struct AcquireOptions {
   std::string plots;
   std::vector<double> plot_theta = {30, 45, 60};
   double plot_band_nm = 0;
-  std::size_t grid_k = 32;       // the suite check's resampling, as `specula resample`'s -k and --max-gap
+  std::size_t grid_k = 32;  // the suite check's resampling, as `specula resample`'s -k and --max-gap
   double grid_max_gap_deg = 8.6;
   bool suite = true;
   std::string basis;  // filter captures: STORE.h5:BASIS

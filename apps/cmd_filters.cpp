@@ -99,8 +99,9 @@ void setup_filters(CLI::App& app) {
       ->capture_default_str();
   d->add_option("--noise", o->design.noise, "Camera noise relative to each filter's white reading")
       ->capture_default_str();
-  d->add_flag("--equal-exposure", [o](std::int64_t) { o->design.per_filter_exposure = false; },
-              "Noise relative to an open filter's white reading (every filter exposed alike)");
+  d->add_flag(
+      "--equal-exposure", [o](std::int64_t) { o->design.per_filter_exposure = false; },
+      "Noise relative to an open filter's white reading (every filter exposed alike)");
   d->add_option("--solve", o->solve, "wiener (the training spectra's second moment as prior) or ridge (in the basis)")
       ->capture_default_str();
   d->add_option("--ridge", o->design.ridge, "Regularisation of the solve (relative to the system's trace)")

@@ -46,8 +46,8 @@ void list_objects(const store::Store& s) {
   for (const auto& n : s.objects("acquire")) {
     const acquire::Calibration c = acquire::read_calibration(s, n);
     fmt::print("calibration {:<24} {} spectral model, {} lights, sphere {:.4f} m at {:.4f} m\n", n,
-               acquire::spectral_model_name(c.spectral.model), c.light_dirs.size(),
-               c.sphere.radius, c.sphere.centre.norm());
+               acquire::spectral_model_name(c.spectral.model), c.light_dirs.size(), c.sphere.radius,
+               c.sphere.centre.norm());
   }
 }
 
@@ -79,8 +79,8 @@ void run_info(const InfoOptions& o) {
     const auto i = s.image_info(name);
     if (o.json) return print_json(store::image_json(i));
     fmt::print("{}\n  wavelengths {}\n  source {} (importer {})\n  created {} by: {}\n", image_line(i),
-               fmt::format("[{}]", fmt::join(i.wavelengths.values(), ",")), i.provenance.source_file, i.provenance.importer,
-               i.provenance.created_utc, i.provenance.command_line);
+               fmt::format("[{}]", fmt::join(i.wavelengths.values(), ",")), i.provenance.source_file,
+               i.provenance.importer, i.provenance.created_utc, i.provenance.command_line);
   } else if (has(s.collections(), name)) {
     const auto c = s.collection_info(name);
     if (o.json) return print_json(store::collection_json(c));

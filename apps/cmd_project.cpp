@@ -155,7 +155,8 @@ void run_project(const ProjectOptions& o) {
     const fs::path panel = fs::path(o.output) / "panel.png";
     std::vector<stats::PanelColumn> columns;
     for (const KResult& r : results) columns.push_back({r.k, r.rms, r.max_error, r.error, r.preview});
-    write_canvas(panel, stats::projection_panel(cube.width, cube.height, render(cube, preview).srgb8, cube.mask, columns));
+    write_canvas(panel,
+                 stats::projection_panel(cube.width, cube.height, render(cube, preview).srgb8, cube.mask, columns));
     outputs.push_back(panel.string());
   }
   if (writer) writer->commit();

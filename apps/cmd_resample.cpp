@@ -75,8 +75,7 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   if (!prior_spec) throw UsageError("resample --prior: give STORE.h5:PRIOR");
   const std::string conf_out = confidence_output(o.output);
   check_output(conf_out, o.replace);
-  const acquire::BrdfPrior prior =
-      acquire::read_prior(store::Store::open(prior_spec->file), prior_spec->name);
+  const acquire::BrdfPrior prior = acquire::read_prior(store::Store::open(prior_spec->file), prior_spec->name);
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);

@@ -134,9 +134,10 @@ Json suite_rows_json(const std::vector<SuiteRow>& rows, std::size_t k) {
 }
 
 void print_suite_rows(const std::string& name, const std::vector<SuiteRow>& rows, std::size_t k) {
-  fmt::print("| {} under the lighting suite (whole grid, k = {}, Shepard) | CIEDE2000 mean | p95 | max | worst condition "
-             "(mean) | cells without data |\n|---|---|---|---|---|---|\n",
-             name, k);
+  fmt::print(
+      "| {} under the lighting suite (whole grid, k = {}, Shepard) | CIEDE2000 mean | p95 | max | worst condition "
+      "(mean) | cells without data |\n|---|---|---|---|---|---|\n",
+      name, k);
   for (const auto& r : rows)
     fmt::print("| {} | {:.3f} | {:.3f} | {:.3f} | {} ({:.3f}) | {} of {} |\n", acquire::mapping_name(r.mapping),
                r.diff.de00_mean, r.diff.de00_p95, r.diff.de00_max, r.worst, r.diff.conditions[r.diff.worst].de00_mean,

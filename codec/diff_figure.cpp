@@ -18,7 +18,8 @@ constexpr std::uint8_t kBackground = 24;
 void place(std::span<const std::uint8_t> src, std::size_t size, std::span<std::uint8_t> dst, std::size_t stride,
            std::size_t x0) {
   for (std::size_t y = 0; y < size; ++y)
-    std::copy_n(src.begin() + std::ptrdiff_t(3 * y * size), 3 * size, dst.begin() + std::ptrdiff_t(3 * (y * stride + x0)));
+    std::copy_n(src.begin() + std::ptrdiff_t(3 * y * size), 3 * size,
+                dst.begin() + std::ptrdiff_t(3 * (y * stride + x0)));
 }
 
 }  // namespace

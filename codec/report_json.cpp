@@ -24,10 +24,17 @@ double rounded(double v, int decimals) {
 }  // namespace
 
 Json grid_diff_json(const GridDiff& d, std::string_view environment, std::size_t size) {
-  return {{"environment", environment}, {"cells", d.cells},         {"only_a", d.only_a},
-          {"only_b", d.only_b},         {"rms", d.rms},             {"max_abs", d.max_abs},
-          {"rel_rms_cos", d.rel_rms_cos}, {"de00_mean", d.de00_mean}, {"de00_p95", d.de00_p95},
-          {"de00_max", d.de00_max},     {"size", size}};
+  return {{"environment", environment},
+          {"cells", d.cells},
+          {"only_a", d.only_a},
+          {"only_b", d.only_b},
+          {"rms", d.rms},
+          {"max_abs", d.max_abs},
+          {"rel_rms_cos", d.rel_rms_cos},
+          {"de00_mean", d.de00_mean},
+          {"de00_p95", d.de00_p95},
+          {"de00_max", d.de00_max},
+          {"size", size}};
 }
 
 Json spc_encode_json(const SpcReport& report, const SpcBasis& basis, const SpcBoundedOptions* bounded,

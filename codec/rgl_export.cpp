@@ -167,8 +167,8 @@ void vndf_slice(const Warp2D& ndf_table, const Eigen::Vector3d& wi, const RglExp
       vsum += vis[y * V + x];
     }
   for (std::size_t k = 0; k < V * V; ++k)
-    out[k] = float((1 - s.vndf_uniform) * dens[k] / std::max(dsum, 1e-300) +
-                   s.vndf_uniform * vis[k] / std::max(vsum, 1.0));
+    out[k] =
+        float((1 - s.vndf_uniform) * dens[k] / std::max(dsum, 1e-300) + s.vndf_uniform * vis[k] / std::max(vsum, 1.0));
 }
 
 RglBsdf build(const MerlField& field, std::span<const double> lum_weights, const RglExportSettings& s) {

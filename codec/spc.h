@@ -51,9 +51,9 @@ struct SpcBoundedOptions {
   int zstd_level = 9;  ///< 1..19
 };
 
-/// Settings of the transform method (format 2, or 3 with a grazing factor other than 1): the magnitude and shape channels coded by a 3-D wavelet transform
-/// over the grid, with quantisation steps chosen for the rendered appearance rather than a per-value bound
-/// (docs/codec-format.md).
+/// Settings of the transform method (format 2, or 3 with a grazing factor other than 1): the magnitude and shape
+/// channels coded by a 3-D wavelet transform over the grid, with quantisation steps chosen for the rendered appearance
+/// rather than a per-value bound (docs/codec-format.md).
 struct SpcTransformOptions {
   /// Quantisation step of log(1 + m / s) in the coarsest bands (in (0, 10]); the shape steps are
   /// `shape_step_ratio` times it and finer bands' steps grow by `frequency_factor` per level.

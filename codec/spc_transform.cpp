@@ -41,7 +41,7 @@ struct Transform {
   int levels = 4;
   double step_y = 0, step_c = 0, frequency = 1, reconstruction = kReconstruction;
   double specular = 1, extent = 1;  // steps times specular at theta_h index 0, rising linearly to 1 at `extent`
-  double grazing = 1;                // steps times 1 at theta_d index 0, changing linearly to `grazing` at index 90
+  double grazing = 1;               // steps times 1 at theta_d index 0, changing linearly to `grazing` at index 90
   std::uint32_t version() const { return grazing == 1 ? 2 : 3; }
   double step(std::size_t channel) const { return channel == 0 ? step_y : step_c; }
 };
@@ -293,8 +293,14 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
 }
 
 Transform transform_of(const SpcTransformOptions& o, double step) {
-  return {o.levels,          step, step * o.shape_step_ratio, o.frequency_factor, kReconstruction,
-          o.specular_factor, o.specular_extent, o.grazing_factor};
+  return {o.levels,
+          step,
+          step * o.shape_step_ratio,
+          o.frequency_factor,
+          kReconstruction,
+          o.specular_factor,
+          o.specular_extent,
+          o.grazing_factor};
 }
 
 // The finest step (of options o's ratios) whose codes all stay below kMaxCode / 2.

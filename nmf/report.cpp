@@ -35,7 +35,8 @@ Json report_json(const LearnedBasis& learned, const RunContext& c) {
   for (const auto& e : c.epochs)
     if (e.restart == r.best) t.push_back(e.seconds);
   Json components = Json::array();
-  for (Eigen::Index i = 0; i < best.basis.rows(); ++i) components.push_back(numbers(Eigen::VectorXd(best.basis.row(i).transpose())));
+  for (Eigen::Index i = 0; i < best.basis.rows(); ++i)
+    components.push_back(numbers(Eigen::VectorXd(best.basis.row(i).transpose())));
   Json j;
   j["store"] = c.store;
   j["basis"] = text(c.basis);

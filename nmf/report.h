@@ -11,10 +11,10 @@ namespace specula::nmf {
 
 /// What the caller of learn_basis() knows about the run besides its result.
 struct RunContext {
-  std::string store;                  ///< the first input store
-  std::optional<std::string> basis;   ///< the name the basis was saved under (null when not saved)
-  std::optional<std::string> output;  ///< the store it was saved in (null when not saved)
-  double seconds = 0;                 ///< wall time of the run
+  std::string store;                    ///< the first input store
+  std::optional<std::string> basis;     ///< the name the basis was saved under (null when not saved)
+  std::optional<std::string> output;    ///< the store it was saved in (null when not saved)
+  double seconds = 0;                   ///< wall time of the run
   std::span<const EpochReport> epochs;  ///< every epoch's report, in order
   std::size_t ranks = 1;
 };

@@ -89,8 +89,9 @@ py::tuple display(const Eigen::Ref<const RowMatrixX3f>& xyz, const std::vector<p
 }
 
 // The fields of `specula encode --json` for an encoding with these settings and reports.
-py::dict encode_report(bool transform, std::uint32_t format_version, double max_error, std::optional<double> target_de00, double p95,
-                       const codec::SpcTargetReport& target, const codec::SpcBasis& b, const codec::SpcReport& rep) {
+py::dict encode_report(bool transform, std::uint32_t format_version, double max_error,
+                       std::optional<double> target_de00, double p95, const codec::SpcTargetReport& target,
+                       const codec::SpcBasis& b, const codec::SpcReport& rep) {
   py::dict r;
   r["method"] = transform ? "transform" : "bounded";
   r["format_version"] = format_version;
@@ -179,7 +180,8 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::si
       bytes = codec::encode_spc(grid, b, bounded, &rep, grid.provenance.source_file);
     }
   }
-  const py::dict r = encode_report(transform, codec::spc_format_version(bytes, "spc_encode"), max_error, target_de00, p95, target, b, rep);
+  const py::dict r = encode_report(transform, codec::spc_format_version(bytes, "spc_encode"), max_error, target_de00,
+                                   p95, target, b, rep);
   return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()), r);
 }
 

@@ -177,8 +177,7 @@ SpectrumReconstruction reconstruct_spectrum(const store::Basis& basis, const std
                                             const WavelengthGrid& grid, const std::string& what) {
   const bool pca = basis_method(basis, name) == BasisMethod::pca;
   if (!pca) k.reset();
-  const Projector projector(
-      basis, k ? std::optional<long long>(std::max<std::size_t>(*k, 1)) : std::nullopt, name);
+  const Projector projector(basis, k ? std::optional<long long>(std::max<std::size_t>(*k, 1)) : std::nullopt, name);
   projector.check_wavelengths(grid, what);
   if (spectrum.size() != projector.bands())
     throw UsageError("reconstruct_spectrum: " + std::to_string(spectrum.size()) + " values for a basis of " +

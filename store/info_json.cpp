@@ -21,30 +21,50 @@ Json provenance_json(const Provenance& p) {
 }  // namespace
 
 Json image_json(const ImageInfo& i) {
-  return {{"kind", "image"},         {"name", i.name},
-          {"height", i.height},      {"width", i.width},
-          {"bands", i.bands},        {"wavelengths", numbers(i.wavelengths.values())},
-          {"units", i.units},        {"valid_pixels", i.valid_pixels},
-          {"chunk_rows", i.chunk_rows}, {"compression", i.compression},
-          {"has_fwhm", i.has_fwhm},  {"provenance", provenance_json(i.provenance)}};
+  return {{"kind", "image"},
+          {"name", i.name},
+          {"height", i.height},
+          {"width", i.width},
+          {"bands", i.bands},
+          {"wavelengths", numbers(i.wavelengths.values())},
+          {"units", i.units},
+          {"valid_pixels", i.valid_pixels},
+          {"chunk_rows", i.chunk_rows},
+          {"compression", i.compression},
+          {"has_fwhm", i.has_fwhm},
+          {"provenance", provenance_json(i.provenance)}};
 }
 
 Json collection_json(const CollectionInfo& c) {
-  return {{"kind", "collection"}, {"name", c.name},   {"size", c.size},
-          {"bands", c.bands},     {"wavelengths", numbers(c.wavelengths.values())},
-          {"units", c.units},     {"provenance", provenance_json(c.provenance)}};
+  return {{"kind", "collection"},
+          {"name", c.name},
+          {"size", c.size},
+          {"bands", c.bands},
+          {"wavelengths", numbers(c.wavelengths.values())},
+          {"units", c.units},
+          {"provenance", provenance_json(c.provenance)}};
 }
 
 Json samples_json(const SamplesInfo& s) {
-  return {{"kind", "samples"}, {"name", s.name},   {"size", s.size},
-          {"bands", s.bands},  {"wavelengths", numbers(s.wavelengths.values())},
-          {"units", s.units},  {"provenance", provenance_json(s.provenance)}};
+  return {{"kind", "samples"},
+          {"name", s.name},
+          {"size", s.size},
+          {"bands", s.bands},
+          {"wavelengths", numbers(s.wavelengths.values())},
+          {"units", s.units},
+          {"provenance", provenance_json(s.provenance)}};
 }
 
 Json coefficients_json(const CoefficientsInfo& c) {
-  return {{"kind", "coefficients"}, {"name", c.name},     {"image", c.image},
-          {"basis", c.basis},       {"method", c.method}, {"height", c.height},
-          {"width", c.width},       {"k", c.k},           {"valid_pixels", c.valid_pixels},
+  return {{"kind", "coefficients"},
+          {"name", c.name},
+          {"image", c.image},
+          {"basis", c.basis},
+          {"method", c.method},
+          {"height", c.height},
+          {"width", c.width},
+          {"k", c.k},
+          {"valid_pixels", c.valid_pixels},
           {"provenance", provenance_json(c.provenance)}};
 }
 
@@ -81,12 +101,8 @@ std::uint64_t valid_spectra(const Store& s) {
 
 Json store_json(const Store& s) {
   const std::uint64_t spectra = valid_spectra(s);
-  return {{"store", s.path().string()},
-          {"format_version", s.format_version()},
-          {"generation", s.index().generation},
-          {"bytes", store_bytes(s)},
-          {"created_utc", s.created_utc()},
-          {"valid_spectra", spectra},
+  return {{"store", s.path().string()}, {"format_version", s.format_version()}, {"generation", s.index().generation},
+          {"bytes", store_bytes(s)},    {"created_utc", s.created_utc()},       {"valid_spectra", spectra},
           {"objects", objects_json(s)}};
 }
 

@@ -1,7 +1,7 @@
 #pragma once
 // What a store holds as JSON, the objects `specula info --json` prints (docs/cli.md).
-#include <nlohmann/json_fwd.hpp>
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 
 #include "specula/store/basis.h"

@@ -83,7 +83,9 @@ Json json_values(std::span<const float> v) { return Json(std::vector<double>(v.b
 
 Json json_wavelengths(const WavelengthGrid& g) { return app::json_numbers(g.values()); }
 
-Response json(const Json& j) { return {200, "application/json", j.dump(-1, ' ', false, Json::error_handler_t::replace)}; }
+Response json(const Json& j) {
+  return {200, "application/json", j.dump(-1, ' ', false, Json::error_handler_t::replace)};
+}
 
 Response png(std::string bytes) { return {200, "image/png", std::move(bytes)}; }
 
@@ -260,10 +262,9 @@ Response Service::image_spectrum(const Query& q) {
       // PCA: the first k components, k = 0 showing the mean alone; NMF: all of them.
       const bool pca = stats::basis_method(b, "'" + bname + "'") == stats::BasisMethod::pca;
       const std::optional<std::size_t> k =
-          pca ? std::optional<std::size_t>(std::size_t(number(q, "k", double(b.k()), 0, double(b.k()))))
-              : std::nullopt;
-      const stats::SpectrumReconstruction r = stats::reconstruct_spectrum(
-          b, "'" + bname + "'", k, v, info.wavelengths, store_.label() + ": image '" + name + "'");
+          pca ? std::optional<std::size_t>(std::size_t(number(q, "k", double(b.k()), 0, double(b.k())))) : std::nullopt;
+      const stats::SpectrumReconstruction r = stats::reconstruct_spectrum(b, "'" + bname + "'", k, v, info.wavelengths,
+                                                                          store_.label() + ": image '" + name + "'");
       j["reconstruction"] = {{"basis", bname},
                              {"method", b.method},
                              {"k", r.k},

@@ -239,7 +239,7 @@ TEST(FilterDesign, CurvesAreSmoothBoundedTransmissionsAndTheOptimumBeatsNmf) {
 
 // Expected squared error of recovery r for spectra of second moment m and reading noise sigma.
 static double wiener_risk(const Eigen::MatrixXd& r, const Eigen::MatrixXd& a, const Eigen::MatrixXd& m,
-                   const Eigen::VectorXd& sigma) {
+                          const Eigen::VectorXd& sigma) {
   const Eigen::MatrixXd e = Eigen::MatrixXd::Identity(a.cols(), a.cols()) - r * a;
   return (e * m * e.transpose()).trace() + (r * sigma.asDiagonal()).squaredNorm();
 }

@@ -34,8 +34,8 @@ std::vector<std::vector<double>> rows_of(const std::string& table) {
 
 TEST(PlanePlot, SamplesInMemoryNearThePlaneAtOneBand) {
   // On the plane towards the mirror direction, on the light's side, across the plane; two bands each.
-  const std::vector<double> angles = {45 * deg, 0.3, 30 * deg, 0.3 + pi, 45 * deg, -1.0, 60 * deg, -1.0,
-                                      45 * deg, 0.0, 30 * deg, pi / 2};
+  const std::vector<double> angles = {45 * deg, 0.3,  30 * deg, 0.3 + pi, 45 * deg, -1.0,
+                                      60 * deg, -1.0, 45 * deg, 0.0,      30 * deg, pi / 2};
   const std::vector<float> values = {1, 8, 2, -1, 3, 5};
   const auto points = acquire::incidence_plane_points(angles, values, 2, 45 * deg, 2 * deg, 1);
   ASSERT_EQ(points.size(), 2u);

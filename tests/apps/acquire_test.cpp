@@ -95,8 +95,7 @@ TEST(AcquireCli, RunReportsTheResampledCaptureUnderTheLightingSuite) {
   const auto d = run_specula("brdf-diff '" + truth + "' '" + grid + "' --json");
   ASSERT_EQ(d.status, 0) << d.output;
   for (const char* key : {"de00_mean", "de00_p95", "hole_cells", "rel_rms_cos"})
-    EXPECT_NEAR(json_number(r.output, key), json_number(d.output, key), 1e-9 * (1 + json_number(d.output, key)))
-        << key;
+    EXPECT_NEAR(json_number(r.output, key), json_number(d.output, key), 1e-9 * (1 + json_number(d.output, key))) << key;
   EXPECT_GT(json_number(r.output, "de00_mean"), 0);
   const auto quiet = run_specula("acquire run '" + cap + "' -o '" + store + ":rp2' --no-suite --json");
   ASSERT_EQ(quiet.status, 0) << quiet.output;

@@ -60,8 +60,9 @@ TEST(CodecCli, EncodeDecodeAndDiffAGridWithItsOwnBasisAndWithALearnedOne) {
   EXPECT_TRUE(std::filesystem::exists(dir / "env.exr"));
 }
 
-// Format 3 (the transform coder with its default grazing factor) end to end: coded to a rendered target, its JSON report checked against an independent brdf-diff of the
-// decoded file, which is far smaller than format 1 at a similar rendered error.
+// Format 3 (the transform coder with its default grazing factor) end to end: coded to a rendered target, its JSON
+// report checked against an independent brdf-diff of the decoded file, which is far smaller than format 1 at a similar
+// rendered error.
 TEST(CodecCli, ATargetEncodeMeetsItsTargetAsBrdfDiffMeasuresIt) {
   test::ScratchDir dir;
   const auto grid = dir / "rp.spgrid", spc = dir / "rp.spc", back = dir / "back.spgrid";

@@ -124,9 +124,10 @@ TEST(FiltersCli, ADimFilterTakesTheLongestExposureOnce) {
   test::ScratchDir dir;
   const auto cap = (dir / "cap").string();
   // Filter 'dim' passes 1/900 of 'open': its 11-exposure bracket, scaled by its gain, runs past the 60 s cap.
-  test::write_file(dir / "dim.csv", "wavelength_nm,open,dim\n400,0.9,0.001\n500,0.9,0.001\n600,0.9,0.001\n740,0.9,0.001\n");
-  const auto r = run_specula("simulate-capture " + kRig + "--filters '" + (dir / "dim.csv").string() + "' -o '" +
-                             cap + "' --json");
+  test::write_file(dir / "dim.csv",
+                   "wavelength_nm,open,dim\n400,0.9,0.001\n500,0.9,0.001\n600,0.9,0.001\n740,0.9,0.001\n");
+  const auto r = run_specula("simulate-capture " + kRig + "--filters '" + (dir / "dim.csv").string() + "' -o '" + cap +
+                             "' --json");
   ASSERT_EQ(r.status, 0) << r.output;
   const acquire::Capture c = acquire::read_manifest(cap);  // refuses two images of one light, channel and time
   std::vector<double> open, dim;

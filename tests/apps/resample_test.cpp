@@ -76,17 +76,19 @@ TEST(ResampleCli, SimulatedScanSamplesResampleIntoAStoreOrAGridFile) {
 
 TEST(ResampleCli, TheStudyPrintsEveryMappingKAndWeighting) {
   test::ScratchDir dir;
-  const auto r = run_specula("resample-study --sphere-px 40 --lights 60 -k 1,4 --render-size 32 --no-suite --json "
-                             "--out '" +
-                             (dir / "study").string() + "'");
+  const auto r = run_specula(
+      "resample-study --sphere-px 40 --lights 60 -k 1,4 --render-size 32 --no-suite --json "
+      "--out '" +
+      (dir / "study").string() + "'");
   ASSERT_EQ(r.status, 0) << r.output;
   // Two materials x 3 mappings x (k = 1; k = 4 mean and Shepard).
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '{'), 1 + 2 + 2 * 9) << r.output;
   EXPECT_GT(test::json_number(r.output, "grid_l1"), 0) << r.output;
   // Under the lighting suite, one row per mapping: a sparse scan (60 lights, a 40-pixel sphere) resampled onto the
   // whole grid is visibly off and leaves cells without data.
-  const auto su = run_specula("resample-study --material study-ward --sphere-px 40 --lights 60 -k 1 --suite-k 4 "
-                              "--render-size 32 --json");
+  const auto su = run_specula(
+      "resample-study --material study-ward --sphere-px 40 --lights 60 -k 1 --suite-k 4 "
+      "--render-size 32 --json");
   ASSERT_EQ(su.status, 0) << su.output;
   EXPECT_EQ(std::count(su.output.begin(), su.output.end(), '{'), 1 + 1 + 3 + 3) << su.output;
   EXPECT_GT(test::json_number(su.output, "de00_mean"), 0.1) << su.output;

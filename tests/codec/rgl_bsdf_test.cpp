@@ -9,9 +9,9 @@
 #include <filesystem>
 #include <limits>
 
+#include "grid_fixture.h"
 #include "specula/codec/rgl_eval.h"
 #include "specula/codec/rgl_export.h"
-#include "grid_fixture.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/error.h"
@@ -114,7 +114,7 @@ TEST(RglBsdf, ACellIsImportedWithBothDirectionsTabulated) {
     brdf::directions(brdf::merl_cell_centre(c), wi, wo);
     if (!(std::min(wi.z(), wo.z()) < 0.1 && std::max(wi.z(), wo.z()) > 0.5)) continue;
     const double truth = a.brdf[3 * brdf::kMerlCells + cell] * a.scale;  // the middle band
-    e.eval(wi.z() < wo.z() ? wo : wi, wi.z() < wo.z() ? wi : wo, f);  // divided by the grazing cosine
+    e.eval(wi.z() < wo.z() ? wo : wi, wi.z() < wo.z() ? wi : wo, f);     // divided by the grazing cosine
     one.push_back(std::abs(f[3] / truth - 1));
     both.push_back(std::abs(v[3 * brdf::kMerlCells + cell] / truth - 1));
   }

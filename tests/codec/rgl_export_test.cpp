@@ -77,7 +77,7 @@ TEST(RglExport, TheFileIsWhatTheRenderersCheck) {
 
 struct Trip {
   const char* material;
-  std::size_t resolution;  // the sample grid: the default 32, or what the material needs to meet the goal
+  std::size_t resolution;         // the sample grid: the default 32, or what the material needs to meet the goal
   double mean = 0.35, p95 = 1.2;  // tighter than the goal (0.5, 1.5): what the default export keeps
 };
 class RoundTrip : public ::testing::TestWithParam<Trip> {};
