@@ -121,6 +121,21 @@ CaptureImage read_image_entry(const json& e, const Capture& c, const fs::path& d
   return im;
 }
 
+// The manifest's "filters" entry (format 2): names, wavelengths and curves, checked against the bands.
+FilterSet read_manifest_filters(const json& fj, const std::vector<double>& bands, const std::string& ctx) {
+  FilterSet f;
+  f.names = field<std::vector<std::string>>(fj, "names", ctx + " filters");
+  f.nm = field<std::vector<double>>(fj, "nm", ctx + " filters");
+  f.transmission = field<std::vector<std::vector<double>>>(fj, "transmission", ctx + " filters");
+  for (std::size_t i = 1; i < f.nm.size(); ++i)
+    if (!(f.nm[i] > f.nm[i - 1])) throw InputError(ctx + ": \"filters\" wavelengths must increase");
+  if (f.names.size() != f.transmission.size())
+    throw InputError(ctx + ": \"filters\" has " + std::to_string(f.names.size()) + " names for " +
+                     std::to_string(f.transmission.size()) + " curves");
+  check_filters(f, bands, ctx + " filters");
+  return f;
+}
+
 }  // namespace
 
 Capture read_manifest(const fs::path& dir) {
@@ -182,18 +197,7 @@ Capture read_manifest(const fs::path& dir) {
   }
   if (j.contains("filters")) {
     if (version < 2) throw InputError(ctx + ": \"filters\" needs capture format version 2");
-    const json& fj = j["filters"];
-    FilterSet f;
-    f.names = field<std::vector<std::string>>(fj, "names", ctx + " filters");
-    f.nm = field<std::vector<double>>(fj, "nm", ctx + " filters");
-    f.transmission = field<std::vector<std::vector<double>>>(fj, "transmission", ctx + " filters");
-    for (std::size_t i = 1; i < f.nm.size(); ++i)
-      if (!(f.nm[i] > f.nm[i - 1])) throw InputError(ctx + ": \"filters\" wavelengths must increase");
-    if (f.names.size() != f.transmission.size())
-      throw InputError(ctx + ": \"filters\" has " + std::to_string(f.names.size()) + " names for " +
-                       std::to_string(f.transmission.size()) + " curves");
-    check_filters(f, c.bands, ctx + " filters");
-    c.filters = std::move(f);
+    c.filters = read_manifest_filters(j["filters"], c.bands, ctx);
   }
   for (const json& t : field<json>(j, "targets", ctx)) {
     CaptureTarget target{field<std::string>(t, "name", ctx + " target"),

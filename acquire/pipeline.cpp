@@ -309,6 +309,24 @@ void calibrate_geometry(Calibration& c, const Capture& cap, const fs::path& dir)
   c.light_dirs = fit_light_arc(measured_dirs, weights, cap.light_angles_deg);
 }
 
+// Pixels wholly on the sphere (4 x 4 samples inside), with their point, normal and view.
+std::vector<ScanPixel> sphere_pixels(const Capture& cap, const Sphere& sphere) {
+  const Pinhole camera{cap.focal_px, cap.cx, cap.cy};
+  std::vector<ScanPixel> pixels;
+  for (int v = 0; v < cap.height; ++v)
+    for (int u = 0; u < cap.width; ++u) {
+      bool all = true;
+      double t;
+      for (int k = 0; k < 16 && all; ++k) all = sphere.hit(camera.ray(u + (k % 4 + 0.5) / 4, v + (k / 4 + 0.5) / 4), t);
+      if (!all) continue;
+      const Eigen::Vector3d d = camera.ray(u + 0.5, v + 0.5);
+      sphere.hit(d, t);
+      const Eigen::Vector3d x = t * d;
+      pixels.push_back({u, v, x, (x - sphere.centre).normalized(), -d});
+    }
+  return pixels;
+}
+
 }  // namespace
 
 ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Calibration& c, const PipelineOptions& o,
@@ -318,21 +336,7 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
     throw InputError(dir.string() + ": the calibration recovers " + std::to_string(c.spectral.recovery.rows()) +
                      " bands from " + std::to_string(c.spectral.recovery.cols()) + " channels; the capture has " +
                      std::to_string(cap.bands.size()) + " bands and " + std::to_string(B) + " channels");
-  const Pinhole camera{cap.focal_px, cap.cx, cap.cy};
-  // Pixels wholly on the sphere (4 x 4 samples inside), with their point, normal and view.
-  std::vector<ScanPixel> pixels;
-  for (int v = 0; v < int(H); ++v)
-    for (int u = 0; u < int(W); ++u) {
-      bool all = true;
-      double t;
-      for (int k = 0; k < 16 && all; ++k)
-        all = c.sphere.hit(camera.ray(u + (k % 4 + 0.5) / 4, v + (k / 4 + 0.5) / 4), t);
-      if (!all) continue;
-      const Eigen::Vector3d d = camera.ray(u + 0.5, v + 0.5);
-      c.sphere.hit(d, t);
-      const Eigen::Vector3d x = t * d;
-      pixels.push_back({u, v, x, (x - c.sphere.centre).normalized(), -d});
-    }
+  const std::vector<ScanPixel> pixels = sphere_pixels(cap, c.sphere);
   ExtractResult r;
   r.sphere_pixels = pixels.size();
   store::Provenance prov;

@@ -254,9 +254,8 @@ void add_calibration_json(Json& j, const acquire::Capture& cap, const acquire::C
   }
 }
 
-void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const acquire::Capture cap = acquire::read_manifest(o.capture);
+// The pipeline's settings from the options; a filter capture's basis (and its prior for the Wiener solve) read.
+acquire::PipelineOptions pipeline_options(const AcquireOptions& o, const acquire::Capture& cap) {
   acquire::PipelineOptions po;
   po.spectral = acquire::parse_spectral_model(o.spectral);
   if (!o.fit_targets.empty()) po.fit_targets = o.fit_targets;
@@ -272,6 +271,13 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
     if (!(o.filter_noise >= 0 && o.filter_noise < 1)) throw UsageError("acquire: --filter-noise must be in [0, 1)");
     po.filter_noise = o.filter_noise;
   }
+  return po;
+}
+
+void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const acquire::Capture cap = acquire::read_manifest(o.capture);
+  const acquire::PipelineOptions po = pipeline_options(o, cap);
   const auto [store_path, name] = split_output(o.output, "scan");
   store::validate_name(name, "samples");
   std::filesystem::path gnuplot;

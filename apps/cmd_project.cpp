@@ -76,6 +76,17 @@ OutputPaths paths_for(const ProjectOptions& o, std::size_t k) {
           dir / fmt::format("error-k{}.png", k)};
 }
 
+// The folder -o names (or the folder of the .exr it names), created.
+void make_output_folder(const std::string& output) {
+  if (!names_exr(output)) {
+    if (fs::exists(output) && !fs::is_directory(output))
+      throw UsageError("-o " + output + ": exists and is not a directory; give a directory or a .exr file");
+    fs::create_directories(output);
+  } else if (const fs::path parent = fs::path(output).parent_path(); !parent.empty()) {
+    fs::create_directories(parent);
+  }
+}
+
 void run_project(const ProjectOptions& o) {
   std::vector<std::size_t> ks;
   store::Basis basis;
@@ -109,13 +120,7 @@ void run_project(const ProjectOptions& o) {
     }
     cube = s.read_image(o.image);
   }
-  if (!names_exr(o.output)) {
-    if (fs::exists(o.output) && !fs::is_directory(o.output))
-      throw UsageError("-o " + o.output + ": exists and is not a directory; give a directory or a .exr file");
-    fs::create_directories(o.output);
-  } else if (const fs::path parent = fs::path(o.output).parent_path(); !parent.empty()) {
-    fs::create_directories(parent);
-  }
+  make_output_folder(o.output);
 
   const PreviewSettings preview = shared_settings(cube, o.preview);
   std::unique_ptr<store::StoreWriter> writer;

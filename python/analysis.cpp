@@ -179,11 +179,7 @@ void init_basis(py::module_& m) {
       });
 }
 
-}  // namespace
-
-void init_analysis(py::module_& m) {
-  init_basis(m);
-
+void def_pca(py::module_& m) {
   m.def(
       "pca",
       [](const StoresArg& stores_arg, const ImagesArg& images, const std::string& collection, std::size_t k,
@@ -202,7 +198,9 @@ void init_analysis(py::module_& m) {
       "PCA (reference §7.3) of every valid spectrum of the selected images (or a collection) of one or more stores, "
       "in one exact streaming pass, as `specula pca` does; k = 0 keeps every component. With `name`, the basis is "
       "also saved in `output` (default: the first store).");
+}
 
+void def_nmf(py::module_& m) {
   m.def(
       "nmf",
       [](const StoresArg& stores_arg, std::size_t k, const ImagesArg& images, const std::string& collection,
@@ -269,7 +267,9 @@ void init_analysis(py::module_& m) {
       "Out-of-core NMF (reference §7.4) of every valid spectrum, as `specula nmf` does: returns (basis, report). With "
       "`name`, the basis is saved in `output` (default: the first store) and a checkpoint is kept beside it until "
       "then; on_epoch(dict) is called after every epoch.");
+}
 
+void def_project(py::module_& m) {
   m.def(
       "project",
       [](const BasisArg& basis_arg, const ArrayLike& spectra, const KArg& k, const OptArray& mask) -> ProjectResult {
@@ -289,6 +289,15 @@ void init_analysis(py::module_& m) {
       "reconstruction, error (per-spectrum L2), rms (per band, over spectra the mask keeps) and max_error; with a list "
       "of "
       "k (PCA), a dict of those dicts by k.");
+}
+
+}  // namespace
+
+void init_analysis(py::module_& m) {
+  init_basis(m);
+  def_pca(m);
+  def_nmf(m);
+  def_project(m);
 }
 
 }  // namespace specula::python
