@@ -378,7 +378,13 @@ TEST(SpcTransform, FormatTwoFilesStillDecode) {
   EXPECT_EQ(now[8], 2);
   const SpcCoefficients fresh = decode_spc_coefficients(now, "now.spc");
   EXPECT_EQ(old.valid, fresh.valid);
-  EXPECT_EQ(old.values, fresh.values);
+  // The file was written by a Release build; another optimisation level (the sanitizer build's -O1) may round the
+  // basis fit differently in the last float bits, so the coefficients agree to float precision, not bit for bit.
+  ASSERT_EQ(old.values.size(), fresh.values.size());
+  std::size_t far = 0;
+  for (std::size_t i = 0; i < old.values.size(); ++i)
+    far += std::abs(old.values[i] - fresh.values[i]) > 1e-5f * (1.0f + std::abs(old.values[i]));
+  EXPECT_EQ(far, 0u);
 }
 
 // Every kind of validity comes back exactly: all cells, the horizon rule, and arbitrary holes.
