@@ -378,13 +378,22 @@ TEST(SpcTransform, FormatTwoFilesStillDecode) {
   EXPECT_EQ(now[8], 2);
   const SpcCoefficients fresh = decode_spc_coefficients(now, "now.spc");
   EXPECT_EQ(old.valid, fresh.valid);
-  // The file was written by a Release build; another optimisation level (the sanitizer build's -O1) may round the
-  // basis fit differently in the last float bits, so the coefficients agree to float precision, not bit for bit.
-  ASSERT_EQ(old.values.size(), fresh.values.size());
-  std::size_t far = 0;
-  for (std::size_t i = 0; i < old.values.size(); ++i)
-    far += std::abs(old.values[i] - fresh.values[i]) > 1e-5f * (1.0f + std::abs(old.values[i]));
-  EXPECT_EQ(far, 0u);
+  // The file was written by a Release build; another optimisation level (the sanitizer build's -O1) fits a basis that
+  // differs in the last bits, and its coefficients with it, so the old file is judged by what it decodes to: as close
+  // to the material as a fresh encoding at the same settings.
+  const store::Grid a = decode_spc(bytes, "rp-k3-v2.spc"), b = decode_spc(now, "now.spc");
+  ASSERT_EQ(a.brdf.size(), grid.brdf.size());
+  ASSERT_EQ(b.brdf.size(), grid.brdf.size());
+  double ea = 0, eb = 0, norm = 0;
+  for (std::size_t i = 0; i < grid.brdf.size(); ++i) {
+    if (grid.brdf[i] < 0) continue;
+    ea += std::pow(double(a.brdf[i]) - grid.brdf[i], 2);
+    eb += std::pow(double(b.brdf[i]) - grid.brdf[i], 2);
+    norm += std::pow(double(grid.brdf[i]), 2);
+  }
+  EXPECT_GT(norm, 0);
+  EXPECT_LT(std::sqrt(ea / norm), 1.05 * std::sqrt(eb / norm) + 1e-6);
+  EXPECT_LT(std::sqrt(ea / norm), 0.1);
 }
 
 // Every kind of validity comes back exactly: all cells, the horizon rule, and arbitrary holes.
