@@ -1,7 +1,9 @@
 // specula encode: a spectral BRDF grid coded onto a spectral basis (.spc, docs/codec-format.md).
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
+#include <memory>
 #include <optional>
 
 #include "apps/commands.h"
@@ -36,18 +38,30 @@ struct EncodeOptions {
   bool json = false;
 };
 
-codec::SpcBasis load_basis(const EncodeOptions& o, const store::Grid& grid) {
+// The bases -k picks from (k + --extra spectra each) and the largest k they give.
+struct BasisFamily {
+  codec::SpcBasisOfK of_k;
+  std::size_t max_k = 0;
+};
+
+BasisFamily basis_family(const EncodeOptions& o, const store::Grid& grid) {
   if (o.basis == "self") {
     if (o.extra) throw UsageError("encode: --extra extends a learned basis; with --basis self raise -k instead");
-    return codec::self_basis(grid, o.k);
+    return {[&grid](std::size_t k) { return codec::self_basis(grid, k); }, grid.bands()};
   }
   const auto spec = store::parse_object_spec(o.basis);
   if (!spec || spec->name.empty())
     throw UsageError("encode: --basis takes STORE.h5:BASIS (a PCA or NMF basis learned by specula) or 'self', not '" +
                      o.basis + "'");
   const store::Store s = store::Store::open(spec->file);
-  const codec::SpcBasis learned = codec::coding_basis(s.read_basis(spec->name), o.k, s.label() + ":" + spec->name);
-  return codec::augment_basis(learned, grid, o.extra);
+  auto learned = std::make_shared<const store::Basis>(s.read_basis(spec->name));
+  const std::string reference = s.label() + ":" + spec->name;
+  const std::size_t max_k =
+      std::max<std::size_t>(1, std::min(codec::coding_basis_max_k(*learned), grid.bands() - std::min(grid.bands(), o.extra)));
+  return {[learned, reference, &grid, extra = o.extra](std::size_t k) {
+            return codec::augment_basis(codec::coding_basis(*learned, k, reference), grid, extra);
+          },
+          max_k};
 }
 
 void run_encode(const EncodeOptions& o) {
@@ -55,8 +69,11 @@ void run_encode(const EncodeOptions& o) {
     throw UsageError("encode: -o must name a .spc file, not '" + o.output + "'");
   const auto t0 = std::chrono::steady_clock::now();
   const store::Grid grid = load_grid(o.input, "encode");
-  const codec::SpcBasis basis = load_basis(o, grid);
   if (o.step && o.target_de00) throw UsageError("encode: give --step or --target-de00, not both");
+  if (!o.k && !o.target_de00)
+    throw UsageError("encode: give -k with --step or --max-error (only --target-de00 chooses k itself)");
+  const BasisFamily family = basis_family(o, grid);
+  codec::SpcBasis basis = o.k ? family.of_k(o.k) : codec::SpcBasis{};
   if (o.target_p95 && !o.target_de00) throw UsageError("encode: --target-p95 goes with --target-de00");
   const codec::SpcBoundedOptions bounded{
       .max_error = o.max_error, .magnitude_scale = o.magnitude_scale, .zstd_level = o.level};
@@ -66,6 +83,7 @@ void run_encode(const EncodeOptions& o) {
   const double p95 = o.target_p95.value_or(3 * o.target_de00.value_or(0));
   codec::SpcReport rep;
   codec::SpcTargetReport target_report;
+  codec::SpcKReport k_report;
   std::vector<std::uint8_t> bytes;
   const codec::SpcTarget target{.de00_mean = o.target_de00.value_or(0),
                                 .de00_p95 = p95,
@@ -75,7 +93,9 @@ void run_encode(const EncodeOptions& o) {
     const codec::LightingSuite suite = o.env == "default"
                                            ? codec::LightingSuite(grid.wavelengths)
                                            : codec::LightingSuite(codec::read_environment(o.env, grid.wavelengths), {});
-    bytes = codec::encode_spc_to_target(grid, basis, options, target, suite, target_report, &rep, o.input);
+    bytes = o.k ? codec::encode_spc_to_target(grid, basis, options, target, suite, target_report, &rep, o.input)
+                : codec::encode_spc_choosing_k(grid, family.of_k, family.max_k, options, target, suite, target_report,
+                                               k_report, &basis, &rep, o.input);
   } else if (transform) {
     bytes = codec::encode_spc(grid, basis, options, &rep, o.input);
   } else {
@@ -87,12 +107,22 @@ void run_encode(const EncodeOptions& o) {
     Json j = {{"input", o.input}, {"output", o.output}};
     j.update(codec::spc_encode_json(rep, basis, transform ? nullptr : &bounded, o.target_de00 ? &target : nullptr,
                                     &target_report, codec::spc_format_version(bytes, o.output), seconds));
+    if (!o.k) j["k_search"] = codec::spc_k_search_json(k_report);
     print_json(j);
     return;
   }
   const double ratio = double(rep.input_bytes) / double(rep.output_bytes);
   fmt::print("encoded {} ({} valid cells) on {} with k = {}: {} bytes, {:.1f}x smaller than float64, in {:.2f} s\n",
              o.input, rep.valid_cells, basis.reference, basis.k(), rep.output_bytes, ratio, seconds);
+  if (!o.k) {
+    fmt::print("k = {} chosen of 1 to {}, the smallest file meeting the target; tried:", k_report.k, family.max_k);
+    for (const codec::SpcKCandidate& c : k_report.candidates)
+      fmt::print(" k = {} {};", c.k,
+                 !c.searched ? (c.floor_met ? "meets it at the finest step" : "cannot meet it")
+                 : c.reached ? fmt::format("{} bytes", c.bytes)
+                             : std::string("not met"));
+    fmt::print("\n");
+  }
   if (o.target_de00)
     fmt::print(
         "{}: step {:.4g} after {} trial codings; under the lighting suite CIEDE2000 mean {:.3f}, 95th "
@@ -118,7 +148,9 @@ void setup_encode(CLI::App& app) {
   auto* cmd = app.add_subcommand("encode", "Code a spectral BRDF grid onto a spectral basis (.spc)");
   cmd->add_option("brdf", o->input, "Spectral grid: STORE.h5:GRID or a .spgrid file")->required();
   cmd->add_option("--basis", o->basis, "STORE.h5:BASIS (PCA or NMF) or 'self' (fitted to the grid)")->required();
-  cmd->add_option("-k", o->k, "Basis spectra per cell")->required()->check(CLI::Range(1, 1024));
+  cmd->add_option("-k", o->k,
+                  "Basis spectra per cell; without it --target-de00 chooses the k of the smallest file meeting the target")
+      ->check(CLI::Range(1, 1024));
   cmd->add_option("--extra", o->extra,
                   "Spectra fitted to what a learned basis leaves of the grid, added to its k (they travel in the file)")
       ->capture_default_str();

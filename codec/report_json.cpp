@@ -77,4 +77,17 @@ Json spc_encode_json(const SpcReport& report, const SpcBasis& basis, const SpcBo
   return j;
 }
 
+Json spc_k_search_json(const SpcKReport& report) {
+  Json candidates = Json::array();
+  for (const SpcKCandidate& c : report.candidates) {
+    Json j = {{"k", c.k}, {"searched", c.searched}};
+    if (!c.searched) j["floor_met"] = c.floor_met;
+    if (c.searched)
+      j.update(
+          Json{{"reached", c.reached}, {"first_step", c.first_step}, {"step", c.step}, {"bytes", c.bytes}});
+    candidates.push_back(std::move(j));
+  }
+  return {{"chosen_k", report.k}, {"candidates", std::move(candidates)}};
+}
+
 }  // namespace specula::codec

@@ -12,6 +12,7 @@ namespace specula::codec {
 struct GridDiff;
 struct SpcBasis;
 struct SpcBoundedOptions;
+struct SpcKReport;
 struct SpcReport;
 struct SpcTarget;
 struct SpcTargetReport;
@@ -27,5 +28,9 @@ nlohmann::ordered_json grid_diff_json(const GridDiff& d, std::string_view enviro
 nlohmann::ordered_json spc_encode_json(const SpcReport& report, const SpcBasis& basis, const SpcBoundedOptions* bounded,
                                        const SpcTarget* target, const SpcTargetReport* target_report,
                                        std::uint32_t format_version, double seconds);
+
+/// A search over k (encode_spc_choosing_k): the k chosen and every candidate in the order tried, each with k, searched
+/// (false: a floor probe, with floor_met), and for a search reached, first_step, step and bytes.
+nlohmann::ordered_json spc_k_search_json(const SpcKReport& report);
 
 }  // namespace specula::codec

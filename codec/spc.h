@@ -34,6 +34,8 @@ struct SpcBasis {
 /// The coding basis of a learned store basis: PCA -> the span of its mean and first k - 1 components, NMF ->
 /// the span of its first k components, orthonormalised. Throws UsageError unless 1 <= k <= what it holds.
 SpcBasis coding_basis(const store::Basis& basis, std::size_t k, const std::string& reference);
+/// The largest k coding_basis accepts for `basis`: its components (plus its mean for PCA), at most its bands.
+std::size_t coding_basis_max_k(const store::Basis& basis);
 /// `basis` extended by the top `extra` eigenvectors of the second moment of what it leaves of the grid's shapes
 /// (r minus its projection), so a learned basis can fit a material outside its database; reference gets "+extra".
 SpcBasis augment_basis(const SpcBasis& basis, const store::Grid& grid, std::size_t extra);

@@ -17,12 +17,15 @@ namespace {
 constexpr std::size_t kSlab = std::size_t(brdf::kMerlThetaD) * brdf::kMerlPhiD;  // cells per theta_h index
 }  // namespace
 
+std::size_t coding_basis_max_k(const store::Basis& basis) {
+  return std::min(basis.k() + (basis.method == "pca" ? 1 : 0), basis.bands());
+}
+
 SpcBasis coding_basis(const store::Basis& basis, std::size_t k, const std::string& reference) {
   const bool pca = basis.method == "pca";
-  const std::size_t have = basis.k() + (pca ? 1 : 0);
-  if (k < 1 || k > std::min(have, basis.bands()))
+  if (k < 1 || k > coding_basis_max_k(basis))
     throw UsageError("k = " + std::to_string(k) + ": basis " + reference + " gives 1 to " +
-                     std::to_string(std::min(have, basis.bands())) + " spectra" +
+                     std::to_string(coding_basis_max_k(basis)) + " spectra" +
                      (pca ? " (its mean and components)" : ""));
   Eigen::MatrixXd m(Eigen::Index(basis.bands()), Eigen::Index(k));
   std::size_t col = 0;

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <optional>
 
 #include "specula/codec/spc_detail.h"
@@ -50,6 +51,62 @@ std::optional<double> next_step(const std::optional<Trial>& good, const std::opt
   return std::max(finest, bad->step / std::clamp(bad->excess / kAim, 2.0, 16.0));
 }
 
+// One trial coding at `step`, judged by the suite against the reference's renders.
+Trial run_trial(const detail::TransformModel& model, const SuiteRenders& reference, const LightingSuite& suite,
+                const SpcTarget& target, double step) {
+  Trial t{step, 0, suite.compare(reference, suite.render(model.decoded(step)))};
+  t.excess = std::max({t.diff.de00_mean / target.de00_mean, t.diff.de00_p95 / target.de00_p95,
+                       t.diff.conditions[t.diff.worst].de00_mean / target.condition_mean});
+  return t;
+}
+
+// The step search of encode_spc_to_target from `first_step`: the trial coded, whether it met the target, and
+// how many trials it took.
+struct Search {
+  Trial chosen;
+  bool reached = false;
+  int trials = 0;
+};
+
+Search search_step(const detail::TransformModel& model, const SuiteRenders& reference, const LightingSuite& suite,
+                   const SpcTarget& target, double first_step) {
+  std::optional<Trial> good, bad;
+  const double finest = std::max(1e-6, model.finest_step());
+  std::optional<double> step = std::max(first_step, finest);
+  int trials = 0;
+  while (step && trials < target.max_trials) {
+    Trial t = run_trial(model, reference, suite, target, *step);
+    ++trials;
+    (t.excess <= 1 ? good : bad) = std::move(t);
+    step = next_step(good, bad, finest);
+  }
+  return {good ? std::move(*good) : std::move(*bad), good.has_value(), trials};
+}
+
+void fill_report(const Search& s, const LightingSuite& suite, SpcTargetReport& tr) {
+  tr = {};
+  tr.reached = s.reached;
+  tr.trials = s.trials;
+  tr.step = s.chosen.step;
+  tr.de00_mean = s.chosen.diff.de00_mean;
+  tr.de00_p95 = s.chosen.diff.de00_p95;
+  tr.worst_mean = s.chosen.diff.conditions[s.chosen.diff.worst].de00_mean;
+  tr.worst_condition = suite.conditions()[s.chosen.diff.worst].name;
+}
+
+// A basis of the family and its transformed grid (the model refers to the basis, so both live here).
+struct Coder {
+  std::unique_ptr<SpcBasis> basis;
+  std::unique_ptr<detail::TransformModel> model;
+};
+
+Coder make_coder(const store::Grid& grid, const SpcBasisOfK& basis_of_k, std::size_t k, const SpcTransformOptions& o) {
+  Coder c;
+  c.basis = std::make_unique<SpcBasis>(basis_of_k(k));
+  c.model = std::make_unique<detail::TransformModel>(grid, *c.basis, o);
+  return c;
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const SpcBasis& basis,
@@ -58,31 +115,65 @@ std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const Sp
                                                const std::string& source) {
   check_target(target);
   const detail::TransformModel model(grid, basis, o);
+  const Search s = search_step(model, suite.render(grid), suite, target, target.first_step);
+  fill_report(s, suite, tr);
+  return model.code(s.chosen.step, report, source);
+}
+
+std::vector<std::uint8_t> encode_spc_choosing_k(const store::Grid& grid, const SpcBasisOfK& basis_of_k,
+                                                std::size_t k_max, const SpcTransformOptions& o,
+                                                const SpcTarget& target, const LightingSuite& suite,
+                                                SpcTargetReport& tr, SpcKReport& kr, SpcBasis* chosen_basis,
+                                                SpcReport* report, const std::string& source) {
+  check_target(target);
+  if (k_max < 1) throw UsageError("k search: the largest k must be at least 1");
   const SuiteRenders reference = suite.render(grid);
-  tr = {};
-  auto trial = [&](double step) {
-    Trial t{step, 0, suite.compare(reference, suite.render(model.decoded(step)))};
-    t.excess = std::max({t.diff.de00_mean / target.de00_mean, t.diff.de00_p95 / target.de00_p95,
-                         t.diff.conditions[t.diff.worst].de00_mean / target.condition_mean});
-    ++tr.trials;
-    return t;
+  kr = {};
+  // Floors, by bisection: hi ends as the smallest k meeting the target at the finest step, or k_max (its coder kept).
+  Coder kept;
+  auto floor_met = [&](std::size_t k) {
+    Coder c = make_coder(grid, basis_of_k, k, o);
+    const bool met = run_trial(*c.model, reference, suite, target, std::max(1e-6, c.model->finest_step())).excess <= 1;
+    kr.candidates.push_back({.k = k, .floor_met = met});
+    if (met) kept = std::move(c);
+    return met;
   };
-  std::optional<Trial> good, bad;
-  const double finest = std::max(1e-6, model.finest_step());
-  std::optional<double> step = std::max(target.first_step, finest);
-  while (step && tr.trials < target.max_trials) {
-    Trial t = trial(*step);
-    (t.excess <= 1 ? good : bad) = std::move(t);
-    step = next_step(good, bad, finest);
+  std::size_t lo = 1, hi = k_max;  // k_max is not probed: if no smaller k meets it, it is searched regardless
+  while (lo < hi) {
+    const std::size_t mid = lo + (hi - lo) / 2;
+    if (floor_met(mid))
+      hi = mid;
+    else
+      lo = mid + 1;
   }
-  const Trial& chosen = good ? *good : *bad;
-  tr.reached = good.has_value();
-  tr.step = chosen.step;
-  tr.de00_mean = chosen.diff.de00_mean;
-  tr.de00_p95 = chosen.diff.de00_p95;
-  tr.worst_mean = chosen.diff.conditions[chosen.diff.worst].de00_mean;
-  tr.worst_condition = suite.conditions()[chosen.diff.worst].name;
-  return model.code(chosen.step, report, source);
+  // Sizes, upwards from the floor, until two successive k give no smaller file.
+  std::vector<std::uint8_t> best;
+  bool best_reached = false;
+  SpcReport best_report;
+  std::unique_ptr<SpcBasis> best_basis;
+  double first = target.first_step;
+  for (std::size_t k = hi, misses = 0; k <= k_max && misses < 2; ++k) {
+    Coder c = kept.model ? std::move(kept) : make_coder(grid, basis_of_k, k, o);
+    const Search s = search_step(*c.model, reference, suite, target, first);
+    SpcReport rep;
+    auto bytes = c.model->code(s.chosen.step, &rep, source);
+    kr.candidates.push_back({.k = k, .searched = true,
+                             .reached = s.reached, .first_step = first, .step = s.chosen.step, .bytes = bytes.size()});
+    const bool better = s.reached ? !best_reached || bytes.size() < best.size() : best.empty();
+    if (better) {
+      best = std::move(bytes);
+      best_reached = s.reached;
+      best_report = rep;
+      best_basis = std::move(c.basis);
+      kr.k = k;
+      fill_report(s, suite, tr);
+    }
+    misses = better ? 0 : misses + 1;
+    if (s.reached) first = std::min(s.chosen.step, 10.0);
+  }
+  if (report) *report = best_report;
+  if (chosen_basis) *chosen_basis = *best_basis;
+  return best;
 }
 
 }  // namespace specula::codec

@@ -2,6 +2,7 @@
 // Coding a grid to a perceptual target: the coarsest format-2 step whose decoding the lighting suite
 // (codec/suite.h) cannot tell from the grid beyond the target.
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -41,5 +42,38 @@ std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const Sp
                                                const SpcTransformOptions& options, const SpcTarget& target,
                                                const LightingSuite& suite, SpcTargetReport& target_report,
                                                SpcReport* report = nullptr, const std::string& source = "");
+
+/// One candidate k of a search over k (encode_spc_choosing_k).
+struct SpcKCandidate {
+  std::size_t k = 0;
+  bool searched = false;   ///< false: a floor probe; true: a target search (the fields below are its result)
+  bool floor_met = false;  ///< a floor probe's coding at the finest step met the target
+  bool reached = false;
+  double first_step = 0, step = 0;
+  std::uint64_t bytes = 0;
+};
+
+/// Where a search over k ended: the k coded and every candidate probed, in the order probed.
+struct SpcKReport {
+  std::size_t k = 0;
+  std::vector<SpcKCandidate> candidates;
+};
+
+/// The basis of k spectra, for each k a search over k may try.
+using SpcBasisOfK = std::function<SpcBasis(std::size_t k)>;
+
+/// Encodes `grid` at the k in 1..k_max whose target coding (encode_spc_to_target) is the smallest file meeting
+/// `target`. Floors: k0 is the smallest k whose coding at the finest step meets the target, found by bisection over
+/// 1..k_max (bases of a family are nested, so the floor falls with k; k_max itself is not probed). Sizes: from k0
+/// upwards each k is coded to the target, the first from target.first_step and each next from the step the last met
+/// one chose, until two successive k give no smaller file than the best so far (or k_max). If none meets the
+/// target, the first k searched is coded and reported as not reached. Deterministic; the same bytes for any thread
+/// count. `basis_of_k` must return bases on the grid's wavelengths; k in the report is its argument.
+std::vector<std::uint8_t> encode_spc_choosing_k(const store::Grid& grid, const SpcBasisOfK& basis_of_k,
+                                                std::size_t k_max, const SpcTransformOptions& options,
+                                                const SpcTarget& target, const LightingSuite& suite,
+                                                SpcTargetReport& target_report, SpcKReport& k_report,
+                                                SpcBasis* chosen_basis = nullptr, SpcReport* report = nullptr,
+                                                const std::string& source = "");
 
 }  // namespace specula::codec

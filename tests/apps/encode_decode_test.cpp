@@ -129,7 +129,8 @@ TEST(CodecCli, BadInputIsOneLineAndLeavesFilesAlone) {
   for (const std::string& args :
        {std::string("--basis self -k 1 --step 0.1 --target-de00 0.5"), std::string("--basis self -k 1 --target-p95 1"),
         std::string("--basis self -k 1 --step 0"), std::string("--basis self -k 1 --target-de00 0.5 --trials 1"),
-        std::string("--basis self -k 1 --target-de00 0.5 --env nowhere.exr")}) {
+        std::string("--basis self -k 1 --target-de00 0.5 --env nowhere.exr"), std::string("--basis self --step 0.1"),
+        std::string("--basis self --max-error 0.01")}) {
     r = run_specula("encode " + q(grid) + " " + args + " -o " + q(spc));
     EXPECT_NE(r.status, 0) << args;
     EXPECT_TRUE(one_line(r)) << args << ": " << r.output;

@@ -108,5 +108,42 @@ TEST(SpcTarget, AnUnreachableTargetIsReportedNotThrown) {
   EXPECT_THROW(encode_spc_to_target(ward(), self_basis(ward(), 1), {}, {.de00_mean = -1}, suite(), tr), UsageError);
 }
 
+// Without a k, the encoder codes the k of the smallest file meeting the target. Checked against every candidate k
+// (1 to 4 here, to keep the test quick) coded to the target on its own (from the first step the search used for it,
+// or the default where it did not search that k): none that meets the target is smaller (gold: k = 1 cannot meet it,
+// k = 2 is smallest), and the chosen file meets it as the separately written suite evaluation measures the decoded
+// file.
+TEST(SpcTarget, WithoutAKTheSmallestFileMeetingTheTargetIsCoded) {
+  const SpcTarget target{.de00_mean = 0.5, .de00_p95 = 1.5, .condition_mean = 1.0, .max_trials = 4};
+  const store::Grid g = grid_of(*brdf::make_material("gold", kGrid));
+  const SpcBasisOfK self = [&g](std::size_t k) { return self_basis(g, k); };
+  SpcTargetReport tr;
+  SpcKReport kr;
+  SpcBasis chosen;
+  constexpr std::size_t kMax = 4;
+  const auto bytes = encode_spc_choosing_k(g, self, kMax, {}, target, suite(), tr, kr, &chosen);
+  ASSERT_TRUE(tr.reached);
+  EXPECT_EQ(chosen.k(), kr.k);
+  EXPECT_EQ(spc_basis(bytes, "chosen.spc").k(), kr.k);
+  const test::ReferenceVerdict v = test::reference_verdict(g, decode_spc(bytes, "chosen.spc"), suite());
+  EXPECT_LE(v.mean, 0.5);
+  EXPECT_LE(v.p95, 1.5);
+  EXPECT_LE(v.worst, 1.0);
+  EXPECT_GT(kr.k, 1u);  // k = 1 cannot meet it: the search did choose
+  for (std::size_t k = 1; k <= kMax; ++k) {
+    SpcTarget t = target;
+    for (const SpcKCandidate& c : kr.candidates)
+      if (c.searched && c.k == k) t.first_step = c.first_step;
+    SpcTargetReport own;
+    const auto file = encode_spc_to_target(g, self_basis(g, k), {}, t, suite(), own);
+    if (k == kr.k) {
+      EXPECT_EQ(file, bytes);
+    }
+    if (own.reached) {
+      EXPECT_GE(file.size(), bytes.size()) << "k = " << k;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace specula::codec
