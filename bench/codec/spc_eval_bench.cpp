@@ -1,8 +1,9 @@
 // Evaluations per second of SpcBrdf's array API against the decoded float32 grid looked up by nearest cell (the
 // straightforward grid path: the double-precision MERL lookup, then 31 band values gathered from the band planes;
 // and the same with the evaluator's cell index), on the same random direction pairs, same threads, one run. Writes the
-// pairs and the decoded grid for the numpy peer (bench/codec/eval_peer.py). Usage: spc_eval_bench OUT_DIR [PAIRS]
-// [REPEATS] -> JSON lines.
+// pairs and the decoded grid for the numpy peer (bench/codec/eval_peer.py). Then format 3 against format 2 (the same
+// transform coding with grazing factor 1): decoding to coefficients and SpcBrdf evaluation, the two timed alternately,
+// best of the repeats. Usage: spc_eval_bench OUT_DIR [PAIRS] [REPEATS] -> JSON lines.
 #include <fmt/format.h>
 
 #include <chrono>
@@ -40,6 +41,41 @@ double best_time(int repeats, F&& f) {
     best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
   return best;
+}
+
+// Wall seconds of one call of f.
+template <class F>
+double seconds(F&& f) {
+  const auto t0 = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Format 3 against format 2 of the same grid, basis and step (format 2: grazing factor 1), decode to coefficients and
+// evaluation alternating (3, 2, 2, 3, ...) so that load from other processes falls on both alike; best of `repeats`.
+void format_ab(const store::Grid& grid, std::span<const float> wi, std::span<const float> wo, std::span<float> out,
+               int repeats) {
+  const std::size_t n = wi.size() / 3;
+  for (const std::size_t k : {3, 6}) {
+    const codec::SpcBasis basis = codec::self_basis(grid, k);
+    const std::vector<std::uint8_t> files[2] = {codec::encode_spc(grid, basis, codec::SpcTransformOptions{.step = 0.05}),
+                                                codec::encode_spc(grid, basis, {.step = 0.05, .grazing_factor = 1})};
+    const codec::SpcBrdf f[2] = {codec::SpcBrdf(codec::decode_spc_coefficients(files[0], "v3.spc")),
+                                 codec::SpcBrdf(codec::decode_spc_coefficients(files[1], "v2.spc"))};
+    double decode[2] = {1e300, 1e300}, eval[2] = {1e300, 1e300};
+    for (int r = 0; r < repeats; ++r)
+      for (const int v : {r % 2, 1 - r % 2}) {
+        decode[v] = std::min(decode[v], seconds([&] { (void)codec::decode_spc_coefficients(files[v], "x.spc"); }));
+        eval[v] = std::min(eval[v], seconds([&] { f[v].evaluate(wi, wo, out); }));
+      }
+    const double mb = double(grid.brdf.size()) * 4 / 1e6;  // the float32 grid, as decode --json counts
+    fmt::print(
+        "{{\"ab_k\": {}, \"versions\": [{}, {}], \"bytes\": [{}, {}], \"decode_mb_per_s\": [{:.4g}, {:.4g}], "
+        "\"eval_per_s\": [{:.4g}, {:.4g}]}}\n",
+        k, codec::spc_format_version(files[0], "v3"), codec::spc_format_version(files[1], "v2"), files[0].size(),
+        files[1].size(), mb / decode[0], mb / decode[1], double(n) / eval[0], double(n) / eval[1]);
+    std::fflush(stdout);
+  }
 }
 
 }  // namespace
@@ -122,5 +158,6 @@ int main(int argc, char** argv) {
         decoded.brdf.size() * sizeof(float), max_diff, max_value);
     std::fflush(stdout);
   }
+  format_ab(grid, wi, wo, out, repeats);
   return 0;
 }
