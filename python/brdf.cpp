@@ -4,10 +4,12 @@
 
 #include <cmath>
 #include <limits>
+#include <nlohmann/json.hpp>
 
 #include "python/common.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
+#include "specula/codec/report_json.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spc_target.h"
 #include "specula/codec/spectral_grid.h"
@@ -130,10 +132,10 @@ py::dict encode_report(bool transform, std::uint32_t format_version, double max_
 }
 
 // specula.spc_encode: `specula encode` on a grid in memory (see its docstring below).
-py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::size_t k, std::size_t extra,
-                     double max_error, double magnitude_scale, int zstd_level, const OptStr& reference,
-                     std::optional<double> step, std::optional<double> target_de00, std::optional<double> target_p95,
-                     int trials, const EnvArg& env_arg) {
+py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::optional<std::size_t> k,
+                     std::size_t extra, double max_error, double magnitude_scale, int zstd_level,
+                     const OptStr& reference, std::optional<double> step, std::optional<double> target_de00,
+                     std::optional<double> target_p95, int trials, const EnvArg& env_arg) {
   const store::Grid& grid = as<store::Grid>(grid_arg, "spc_encode", "grid", "Grid");
   if (step && target_de00) throw UsageError("spc_encode: give step or target_de00, not both");
   if (target_p95 && !target_de00) throw UsageError("spc_encode: target_p95 goes with target_de00");
@@ -162,26 +164,38 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::si
   codec::SpcTargetReport target;
   std::vector<std::uint8_t> bytes;
   codec::SpcBasis b;
+  codec::SpcKReport k_report;
+  const bool choose_k = !k && target_de00;
   {
     py::gil_scoped_release release;
-    if (!basis) {
-      if (extra) throw UsageError("spc_encode: extra extends a learned basis; with no basis raise k instead");
-      b = codec::self_basis(grid, k);
-    } else {
-      b = codec::augment_basis(codec::coding_basis(*basis, k, ref), grid, extra);
-    }
+    if (!basis && extra) throw UsageError("spc_encode: extra extends a learned basis; with no basis raise k instead");
+    const codec::SpcBasisOfK basis_of_k = [&](std::size_t kk) {
+      return basis ? codec::augment_basis(codec::coding_basis(*basis, kk, ref), grid, extra)
+                   : codec::self_basis(grid, kk);
+    };
+    if (!choose_k) b = basis_of_k(k.value_or(6));
     if (target_de00) {
       const codec::SpcTarget t{
           .de00_mean = *target_de00, .de00_p95 = p95, .condition_mean = 2 * *target_de00, .max_trials = trials};
-      bytes = codec::encode_spc_to_target(grid, b, options, t, *suite, target, &rep, grid.provenance.source_file);
+      if (choose_k) {
+        const std::size_t k_max =
+            basis ? std::max<std::size_t>(
+                        1, std::min(codec::coding_basis_max_k(*basis), grid.bands() - std::min(grid.bands(), extra)))
+                  : grid.bands();
+        bytes = codec::encode_spc_choosing_k(grid, basis_of_k, k_max, options, t, *suite, target, k_report, &b, &rep,
+                                             grid.provenance.source_file);
+      } else {
+        bytes = codec::encode_spc_to_target(grid, b, options, t, *suite, target, &rep, grid.provenance.source_file);
+      }
     } else if (transform) {
       bytes = codec::encode_spc(grid, b, options, &rep, grid.provenance.source_file);
     } else {
       bytes = codec::encode_spc(grid, b, bounded, &rep, grid.provenance.source_file);
     }
   }
-  const py::dict r = encode_report(transform, codec::spc_format_version(bytes, "spc_encode"), max_error, target_de00,
-                                   p95, target, b, rep);
+  py::dict r = encode_report(transform, codec::spc_format_version(bytes, "spc_encode"), max_error, target_de00, p95,
+                             target, b, rep);
+  if (choose_k) r["k_search"] = py::module_::import("json").attr("loads")(codec::spc_k_search_json(k_report).dump());
   return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()), r);
 }
 
@@ -327,12 +341,13 @@ void def_lookup(py::module_& m) {
 
 // .spc files: encoding, decoding, writing.
 void def_spc(py::module_& m) {
-  m.def("spc_encode", &spc_encode, py::arg("grid"), py::arg("basis") = py::none(), py::arg("k") = 6,
+  m.def("spc_encode", &spc_encode, py::arg("grid"), py::arg("basis") = py::none(), py::arg("k") = py::none(),
         py::arg("extra") = 0, py::arg("max_error") = 0.01, py::arg("magnitude_scale") = 0.0, py::arg("zstd_level") = 9,
         py::arg("reference") = py::none(), py::arg("step") = py::none(), py::arg("target_de00") = py::none(),
         py::arg("target_p95") = py::none(), py::arg("trials") = 8, py::arg("env") = "default",
         "Encodes a grid as .spc bytes (docs/codec-format.md) as `specula encode` does: on a learned basis (its first k "
-        "as coding_basis takes them, plus `extra` fitted spectra) or, without one, on the grid's own top-k basis; "
+        "as coding_basis takes them, plus `extra` fitted spectra) or, without one, on the grid's own top-k basis (k "
+        "None: with target_de00 the k of the smallest file meeting the target, reported in 'k_search'; else 6); "
         "bounded (format 1, max_error), or transform (format 2) with a quantisation `step` or the coarsest step whose "
         "rendering under `env` ('default' or a lat-long EXR) has CIEDE2000 mean at most target_de00 (and 95th "
         "percentile at most target_p95, default 3x). `reference` (recorded in the file) defaults to where the basis "

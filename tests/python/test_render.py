@@ -92,6 +92,18 @@ def test_target_encoding_matches_the_cli_and_compare_grids(spgrid, tmp_path):
     assert suite["de00_mean"] == pytest.approx(report["target"]["reached_de00_mean"], abs=1e-3)
 
 
+def test_without_k_the_target_encoding_chooses_k_as_the_cli_does(spgrid, tmp_path):
+    g = specula.read_spgrid(spgrid)
+    data, report = specula.spc_encode(g, target_de00=1.0, trials=3)
+    out = tmp_path / "cli.spc"
+    r = cli("encode", spgrid, "--basis", "self", "--target-de00", 1.0, "--trials", 3, "-o", out, "--json")
+    want = json.loads(r.stdout)
+    assert report["k_search"] == want["k_search"]
+    assert report["k"] == want["k"] == want["k_search"]["chosen_k"]
+    searched = [c for c in want["k_search"]["candidates"] if c["searched"] and c["reached"]]
+    assert report["output_bytes"] == min(c["bytes"] for c in searched)
+
+
 def test_compare_grids_is_brdf_diff(spgrid, tmp_path):
     g = specula.read_spgrid(spgrid)
     data, _ = specula.spc_encode(g, k=2)
