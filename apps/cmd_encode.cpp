@@ -56,8 +56,8 @@ BasisFamily basis_family(const EncodeOptions& o, const store::Grid& grid) {
   const store::Store s = store::Store::open(spec->file);
   auto learned = std::make_shared<const store::Basis>(s.read_basis(spec->name));
   const std::string reference = s.label() + ":" + spec->name;
-  const std::size_t max_k =
-      std::max<std::size_t>(1, std::min(codec::coding_basis_max_k(*learned), grid.bands() - std::min(grid.bands(), o.extra)));
+  const std::size_t max_k = std::max<std::size_t>(
+      1, std::min(codec::coding_basis_max_k(*learned), grid.bands() - std::min(grid.bands(), o.extra)));
   return {[learned, reference, &grid, extra = o.extra](std::size_t k) {
             return codec::augment_basis(codec::coding_basis(*learned, k, reference), grid, extra);
           },
@@ -148,8 +148,9 @@ void setup_encode(CLI::App& app) {
   auto* cmd = app.add_subcommand("encode", "Code a spectral BRDF grid onto a spectral basis (.spc)");
   cmd->add_option("brdf", o->input, "Spectral grid: STORE.h5:GRID or a .spgrid file")->required();
   cmd->add_option("--basis", o->basis, "STORE.h5:BASIS (PCA or NMF) or 'self' (fitted to the grid)")->required();
-  cmd->add_option("-k", o->k,
-                  "Basis spectra per cell; without it --target-de00 chooses the k of the smallest file meeting the target")
+  cmd->add_option(
+         "-k", o->k,
+         "Basis spectra per cell; without it --target-de00 chooses the k of the smallest file meeting the target")
       ->check(CLI::Range(1, 1024));
   cmd->add_option("--extra", o->extra,
                   "Spectra fitted to what a learned basis leaves of the grid, added to its k (they travel in the file)")

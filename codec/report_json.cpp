@@ -83,8 +83,7 @@ Json spc_k_search_json(const SpcKReport& report) {
     Json j = {{"k", c.k}, {"searched", c.searched}};
     if (!c.searched) j["floor_met"] = c.floor_met;
     if (c.searched)
-      j.update(
-          Json{{"reached", c.reached}, {"first_step", c.first_step}, {"step", c.step}, {"bytes", c.bytes}});
+      j.update(Json{{"reached", c.reached}, {"first_step", c.first_step}, {"step", c.step}, {"bytes", c.bytes}});
     candidates.push_back(std::move(j));
   }
   return {{"chosen_k", report.k}, {"candidates", std::move(candidates)}};

@@ -157,8 +157,12 @@ std::vector<std::uint8_t> encode_spc_choosing_k(const store::Grid& grid, const S
     const Search s = search_step(*c.model, reference, suite, target, first);
     SpcReport rep;
     auto bytes = c.model->code(s.chosen.step, &rep, source);
-    kr.candidates.push_back({.k = k, .searched = true,
-                             .reached = s.reached, .first_step = first, .step = s.chosen.step, .bytes = bytes.size()});
+    kr.candidates.push_back({.k = k,
+                             .searched = true,
+                             .reached = s.reached,
+                             .first_step = first,
+                             .step = s.chosen.step,
+                             .bytes = bytes.size()});
     const bool better = s.reached ? !best_reached || bytes.size() < best.size() : best.empty();
     if (better) {
       best = std::move(bytes);

@@ -58,8 +58,9 @@ void format_ab(const store::Grid& grid, std::span<const float> wi, std::span<con
   const std::size_t n = wi.size() / 3;
   for (const std::size_t k : {3, 6}) {
     const codec::SpcBasis basis = codec::self_basis(grid, k);
-    const std::vector<std::uint8_t> files[2] = {codec::encode_spc(grid, basis, codec::SpcTransformOptions{.step = 0.05}),
-                                                codec::encode_spc(grid, basis, {.step = 0.05, .grazing_factor = 1})};
+    const std::vector<std::uint8_t> files[2] = {
+        codec::encode_spc(grid, basis, codec::SpcTransformOptions{.step = 0.05}),
+        codec::encode_spc(grid, basis, {.step = 0.05, .grazing_factor = 1})};
     const codec::SpcBrdf f[2] = {codec::SpcBrdf(codec::decode_spc_coefficients(files[0], "v3.spc")),
                                  codec::SpcBrdf(codec::decode_spc_coefficients(files[1], "v2.spc"))};
     double decode[2] = {1e300, 1e300}, eval[2] = {1e300, 1e300};
