@@ -1,13 +1,16 @@
 // BRDF grids (specula.Grid), their .spgrid and .spc files, MERL .binary files, vectorised lookup at standard angles,
 // and spectra -> XYZ -> sRGB.
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
+#include <chrono>
 #include <cmath>
 #include <limits>
 
 #include "python/common.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
+#include "specula/codec/report_json.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spc_target.h"
 #include "specula/codec/spectral_grid.h"
@@ -88,47 +91,6 @@ py::tuple display(const Eigen::Ref<const RowMatrixX3f>& xyz, const std::vector<p
   return py::make_tuple(adopt(std::move(srgb), shape), adopt(std::move(linear), shape));
 }
 
-// The fields of `specula encode --json` for an encoding with these settings and reports.
-py::dict encode_report(bool transform, std::uint32_t format_version, double max_error,
-                       std::optional<double> target_de00, double p95, const codec::SpcTargetReport& target,
-                       const codec::SpcBasis& b, const codec::SpcReport& rep) {
-  py::dict r;
-  r["method"] = transform ? "transform" : "bounded";
-  r["format_version"] = format_version;
-  if (target_de00) {
-    py::dict t;
-    t["de00_mean"] = *target_de00;
-    t["de00_p95"] = p95;
-    t["reached"] = target.reached;
-    t["trials"] = target.trials;
-    t["step"] = target.step;
-    t["reached_de00_mean"] = target.de00_mean;
-    t["reached_de00_p95"] = target.de00_p95;
-    t["condition_mean"] = 2 * *target_de00;
-    t["worst_condition"] = target.worst_condition;
-    t["worst_de00_mean"] = target.worst_mean;
-    t["measure"] = "lighting suite";
-    r["target"] = t;
-  }
-  r["step"] = transform ? rep.magnitude_step : 0.0;
-  r["basis"] = b.reference;
-  r["k"] = b.k();
-  r["max_error"] = transform ? 0.0 : max_error;
-  r["input_bytes"] = rep.input_bytes;
-  r["output_bytes"] = rep.output_bytes;
-  r["ratio"] = double(rep.input_bytes) / double(rep.output_bytes);
-  r["bits_per_cell"] = 8.0 * double(rep.output_bytes) / double(rep.valid_cells ? rep.valid_cells : 1);
-  r["valid_cells"] = rep.valid_cells;
-  r["rms_error"] = rep.rms_error;
-  r["max_abs_error"] = rep.max_abs_error;
-  r["max_shape_residual"] = rep.max_shape_residual;
-  r["max_quantisation_error"] = rep.max_quantisation_error;
-  r["magnitude_scale"] = rep.magnitude_scale;
-  r["magnitude_step"] = rep.magnitude_step;
-  r["shape_step"] = rep.shape_step;
-  return r;
-}
-
 // specula.spc_encode: `specula encode` on a grid in memory (see its docstring below).
 py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::size_t k, std::size_t extra,
                      double max_error, double magnitude_scale, int zstd_level, const OptStr& reference,
@@ -158,10 +120,15 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::si
   const double p95 = target_p95.value_or(3 * target_de00.value_or(0));
   std::optional<codec::LightingSuite> suite;
   if (target_de00) suite.emplace(environment_from(env_arg, grid.wavelengths), codec::SuiteOptions{});
+  const codec::SpcTarget t{.de00_mean = target_de00.value_or(0),
+                           .de00_p95 = p95,
+                           .condition_mean = 2 * target_de00.value_or(0),
+                           .max_trials = trials};
   codec::SpcReport rep;
   codec::SpcTargetReport target;
   std::vector<std::uint8_t> bytes;
   codec::SpcBasis b;
+  const auto t0 = std::chrono::steady_clock::now();
   {
     py::gil_scoped_release release;
     if (!basis) {
@@ -171,8 +138,6 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::si
       b = codec::augment_basis(codec::coding_basis(*basis, k, ref), grid, extra);
     }
     if (target_de00) {
-      const codec::SpcTarget t{
-          .de00_mean = *target_de00, .de00_p95 = p95, .condition_mean = 2 * *target_de00, .max_trials = trials};
       bytes = codec::encode_spc_to_target(grid, b, options, t, *suite, target, &rep, grid.provenance.source_file);
     } else if (transform) {
       bytes = codec::encode_spc(grid, b, options, &rep, grid.provenance.source_file);
@@ -180,9 +145,12 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::si
       bytes = codec::encode_spc(grid, b, bounded, &rep, grid.provenance.source_file);
     }
   }
-  const py::dict r = encode_report(transform, codec::spc_format_version(bytes, "spc_encode"), max_error, target_de00,
-                                   p95, target, b, rep);
-  return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()), r);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const auto report =
+      codec::spc_encode_json(rep, b, transform ? nullptr : &bounded, target_de00 ? &t : nullptr, &target,
+                             codec::spc_format_version(bytes, "spc_encode"), seconds);
+  return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
+                        py::module_::import("json").attr("loads")(report.dump()));
 }
 
 // The Grid class and its exchange files.
