@@ -102,8 +102,7 @@ void check(const RglExportSettings& s) {
     throw UsageError("RGL export: theta_i, resolution, ndf_nodes and vndf_resolution must be at least 2");
   if (!(s.vndf_floor >= 0 && s.vndf_floor <= 100)) throw UsageError("RGL export: vndf_floor must be in [0, 100]");
   if (!(s.vndf_uniform >= 0 && s.vndf_uniform <= 1)) throw UsageError("RGL export: vndf_uniform must be in [0, 1]");
-  if (!(s.vndf_exponent > 0 && s.vndf_exponent <= 1))
-    throw UsageError("RGL export: vndf_exponent must be in (0, 1]");
+  if (!(s.vndf_exponent > 0 && s.vndf_exponent <= 1)) throw UsageError("RGL export: vndf_exponent must be in (0, 1]");
   if (s.theta_i > 90 || s.resolution > 512 || s.ndf_nodes > 4096 || s.vndf_resolution > 1024)
     throw UsageError("RGL export: at most 90 theta_i, a 512 sample grid, 4096 ndf nodes and a 1024 vndf grid");
 }

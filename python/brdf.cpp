@@ -146,9 +146,8 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::si
     }
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const auto report =
-      codec::spc_encode_json(rep, b, transform ? nullptr : &bounded, target_de00 ? &t : nullptr, &target,
-                             codec::spc_format_version(bytes, "spc_encode"), seconds);
+  const auto report = codec::spc_encode_json(rep, b, transform ? nullptr : &bounded, target_de00 ? &t : nullptr,
+                                             &target, codec::spc_format_version(bytes, "spc_encode"), seconds);
   return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
                         py::module_::import("json").attr("loads")(report.dump()));
 }
