@@ -73,6 +73,8 @@ Json spc_encode_json(const SpcReport& report, const SpcBasis& basis, const SpcBo
   j["max_shape_residual"] = report.max_shape_residual;
   j["max_quantisation_error"] = report.max_quantisation_error;
   j["magnitude_scale"] = report.magnitude_scale;
+  j["magnitude_step"] = report.magnitude_step;
+  j["shape_step"] = report.shape_step;
   j["threads"] = omp_get_max_threads();
   return j;
 }

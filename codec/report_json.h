@@ -23,7 +23,8 @@ nlohmann::ordered_json grid_diff_json(const GridDiff& d, std::string_view enviro
 
 /// An encoding's report: method and the written file's format_version, the target search when
 /// `target` and `target_report` are given, step, basis, k, max_error, byte counts, ratio, bits_per_cell, valid_cells,
-/// seconds and encode_mb_per_s of a run that took `seconds`, the errors, magnitude_scale and OpenMP threads.
+/// seconds and encode_mb_per_s of a run that took `seconds`, the errors, magnitude_scale, magnitude_step,
+/// shape_step and OpenMP threads.
 /// Rounded as printed before: ratio to 3 decimals, bits per cell and reached ΔE00 to 4, seconds to 6, MB/s to 1.
 nlohmann::ordered_json spc_encode_json(const SpcReport& report, const SpcBasis& basis, const SpcBoundedOptions* bounded,
                                        const SpcTarget* target, const SpcTargetReport* target_report,

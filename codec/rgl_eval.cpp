@@ -68,10 +68,8 @@ void RglEvaluator::eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, st
   double factor = 1 / wo.z();
   if (jacobian_)
     factor *= ndf_.eval(u_m, v_m, {}) / (4 * sigma_.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(phi_i), {}));
-  for (std::size_t c = 0; c < channels_; ++c) {
-    const double p[3] = {phi_i, theta_i, double(c)};
-    out[c] = std::max(0.0, values_.eval(s.x, s.y, p)) * factor;
-  }
+  values_.eval_last(s.x, s.y, params, out);
+  for (auto& v : out) v = std::max(0.0, v) * factor;
 }
 
 std::vector<double> RglEvaluator::albedo(double theta_i, std::size_t n) const {

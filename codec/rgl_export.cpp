@@ -102,6 +102,7 @@ void check(const RglExportSettings& s) {
     throw UsageError("RGL export: theta_i, resolution, ndf_nodes and vndf_resolution must be at least 2");
   if (!(s.vndf_floor >= 0 && s.vndf_floor <= 100)) throw UsageError("RGL export: vndf_floor must be in [0, 100]");
   if (!(s.vndf_uniform >= 0 && s.vndf_uniform <= 1)) throw UsageError("RGL export: vndf_uniform must be in [0, 1]");
+  if (!(s.vndf_exponent > 0 && s.vndf_exponent <= 1)) throw UsageError("RGL export: vndf_exponent must be in (0, 1]");
   if (s.theta_i > 90 || s.resolution > 512 || s.ndf_nodes > 4096 || s.vndf_resolution > 1024)
     throw UsageError("RGL export: at most 90 theta_i, a 512 sample grid, 4096 ndf nodes and a 1024 vndf grid");
 }
@@ -156,12 +157,13 @@ void vndf_slice(const Warp2D& ndf_table, const Eigen::Vector3d& wi, const RglExp
                 std::size_t V) {
   std::vector<double> dens(V * V), vis(V * V);
   double dsum = 0, vsum = 0;
+  const double d0 = std::max(ndf_table.eval(0, 0, {}), 1e-300);
   for (std::size_t y = 0; y < V; ++y)
     for (std::size_t x = 0; x < V; ++x) {
       const double u = double(x) / double(V - 1), theta_m = rgl_u_to_theta(u);
       const Eigen::Vector3d m = brdf::direction(theta_m, rgl_v_to_phi(double(y) / double(V - 1)));
-      dens[y * V + x] = (ndf_table.eval(u, 0, {}) + s.vndf_floor / kPi) * std::max(0.0, wi.dot(m)) * 2 * kPi * kPi * u *
-                        std::sin(theta_m);
+      const double d = d0 * std::pow(std::max(ndf_table.eval(u, 0, {}), 0.0) / d0, s.vndf_exponent);
+      dens[y * V + x] = (d + s.vndf_floor / kPi) * std::max(0.0, wi.dot(m)) * 2 * kPi * kPi * u * std::sin(theta_m);
       vis[y * V + x] = wi.dot(m) > 0 ? 1.0 : 0.0;
       dsum += dens[y * V + x];
       vsum += vis[y * V + x];

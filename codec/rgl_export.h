@@ -17,21 +17,24 @@
 
 namespace specula::codec {
 
-/// The resolution of an exported file; the defaults follow the published RGL files except the vndf table (see
-/// docs/brdf.md: 32 x 32 keeps a 31-band file near 1 MB; the published files use 128 x 128).
+/// The resolution of an exported file; the defaults follow the published RGL files except the ndf nodes and the vndf
+/// table (see docs/brdf.md: 181 ndf nodes put one at every MERL theta_h cell centre; a 32 x 32 vndf keeps a 31-band
+/// file near 1 MB, where the published files use 128 x 128).
 struct RglExportSettings {
   std::size_t theta_i = 8;           ///< incident elevations, >= 2
   std::size_t resolution = 32;       ///< sample-square nodes per side, >= 2
-  std::size_t ndf_nodes = 128;       ///< nodes of the ndf and sigma tables in u, >= 2
+  std::size_t ndf_nodes = 181;       ///< nodes of the ndf and sigma tables in u, >= 2
   std::size_t vndf_resolution = 32;  ///< vndf nodes per side, >= 2
   std::size_t power_iterations = 30;
   /// The vndf table only places the sample nodes (stored values use the ndf) and guides the renderers' sampling. Per
   /// incident direction it is the mixture (1 - vndf_uniform) p + vndf_uniform q, both normalised over the table's
-  /// nodes: p = (D(m) + vndf_floor / pi) <wi . m>+ (times the square's Jacobian), q uniform over the nodes with
-  /// wi . m > 0. The floor and the uniform part keep nodes on the diffuse part and the tail of a glossy material,
-  /// which the peak would otherwise take (bench/brdf-formats, docs/brdf.md: 0.3 and 0.2).
+  /// nodes: p = (D(0) (D(m) / D(0))^vndf_exponent + vndf_floor / pi) <wi . m>+ (times the square's Jacobian), q
+  /// uniform over the nodes with wi . m > 0. The exponent, the floor and the uniform part keep nodes on the shoulder,
+  /// the diffuse part and the tail of a glossy material, which the peak would otherwise take (bench/brdf-formats,
+  /// docs/brdf.md: 0.7, 0.3 and 0.3).
+  double vndf_exponent = 0.7;
   double vndf_floor = 0.3;
-  double vndf_uniform = 0.2;
+  double vndf_uniform = 0.3;
   std::string description;  ///< empty: "specula export"
 };
 

@@ -78,12 +78,12 @@ Warp2D::Warp2D(std::span<const float> data, std::size_t width, std::size_t heigh
   }
 }
 
-Warp2D::Corners Warp2D::corners(std::span<const double> param) const {
+Warp2D::Corners Warp2D::corners(std::span<const double> param, std::size_t dims) const {
   Corners c;
   c.n = 1;
   c.slice[0] = 0;
   c.weight[0] = 1;
-  for (std::size_t d = 0; d < params_.size(); ++d) {
+  for (std::size_t d = 0; d < dims; ++d) {
     const auto& v = params_[d];
     if (v.size() == 1) continue;
     const double p = d < param.size() ? param[d] : 0.0;
@@ -108,7 +108,7 @@ double Warp2D::lookup(const std::vector<float>& a, std::size_t stride, std::size
 }
 
 double Warp2D::eval(double x, double y, std::span<const double> param) const {
-  const Corners c = corners(param);
+  const Corners c = corners(param, params_.size());
   x = std::clamp(x, 0.0, 1.0) * double(w_ - 1);
   y = std::clamp(y, 0.0, 1.0) * double(h_ - 1);
   const std::size_t ix = std::min(std::size_t(x), w_ - 2), iy = std::min(std::size_t(y), h_ - 2);
@@ -120,9 +120,29 @@ double Warp2D::eval(double x, double y, std::span<const double> param) const {
   return density_ ? v * double(w_ - 1) * double(h_ - 1) : v;
 }
 
+void Warp2D::eval_last(double x, double y, std::span<const double> param, std::span<double> out) const {
+  if (density_ || params_.empty()) throw UsageError("Warp2D::eval_last: needs a value table with parameters");
+  const std::size_t last = params_.size() - 1;
+  if (out.size() != params_[last].size())
+    throw UsageError("Warp2D::eval_last: out holds " + std::to_string(out.size()) + " values, the last parameter " +
+                     std::to_string(params_[last].size()));
+  const Corners c = corners(param, last);
+  x = std::clamp(x, 0.0, 1.0) * double(w_ - 1);
+  y = std::clamp(y, 0.0, 1.0) * double(h_ - 1);
+  const std::size_t ix = std::min(std::size_t(x), w_ - 2), iy = std::min(std::size_t(y), h_ - 2);
+  const double fx = x - double(ix), fy = y - double(iy);
+  const std::size_t n = w_ * h_, step = param_stride_[last] * n;
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    const std::size_t i = ix + iy * w_ + k * step;
+    const double v00 = lookup(data_, n, i, c), v10 = lookup(data_, n, i + 1, c), v01 = lookup(data_, n, i + w_, c),
+                 v11 = lookup(data_, n, i + w_ + 1, c);
+    out[k] = (1 - fy) * ((1 - fx) * v00 + fx * v10) + fy * ((1 - fx) * v01 + fx * v11);
+  }
+}
+
 WarpPoint Warp2D::sample(double x, double y, std::span<const double> param) const {
   if (!density_) throw UsageError("Warp2D::sample: the table was built without a CDF");
-  const Corners c = corners(param);
+  const Corners c = corners(param, params_.size());
   constexpr double eps = std::numeric_limits<float>::epsilon() / 2, one_minus = 1.0 - eps;
   x = std::clamp(x, eps, one_minus);
   y = std::clamp(y, eps, one_minus);
@@ -154,7 +174,7 @@ WarpPoint Warp2D::sample(double x, double y, std::span<const double> param) cons
 
 WarpPoint Warp2D::invert(double x, double y, std::span<const double> param) const {
   if (!density_) throw UsageError("Warp2D::invert: the table was built without a CDF");
-  const Corners c = corners(param);
+  const Corners c = corners(param, params_.size());
   x = std::clamp(x, 0.0, 1.0) * double(w_ - 1);
   y = std::clamp(y, 0.0, 1.0) * double(h_ - 1);
   const std::size_t ix = std::min(std::size_t(x), w_ - 2), iy = std::min(std::size_t(y), h_ - 2);

@@ -30,6 +30,10 @@ class Warp2D {
 
   /// The interpolated value (density, with `density`) at (x, y) clamped to [0, 1]^2, the parameters `param`.
   double eval(double x, double y, std::span<const double> param) const;
+  /// eval at (x, y) for each value of the last parameter in turn into out (one value each), the other parameters from
+  /// `param`: one table lookup for all channels of a spectrum. Throws UsageError for a density or parameterless table
+  /// or a wrong out size.
+  void eval_last(double x, double y, std::span<const double> param, std::span<double> out) const;
   /// Warps the uniform point (x, y) (clamped to [eps, 1 - eps]) to the density; needs `density`.
   WarpPoint sample(double x, double y, std::span<const double> param) const;
   /// The uniform point that `sample` maps to (x, y) (clamped to [0, 1]^2), and the density at (x, y); needs `density`.
@@ -44,7 +48,7 @@ class Warp2D {
     std::array<double, 8> weight{};
     int n = 0;
   };
-  Corners corners(std::span<const double> param) const;
+  Corners corners(std::span<const double> param, std::size_t dims) const;  // blends the first dims parameters
   double lookup(const std::vector<float>& a, std::size_t stride, std::size_t index, const Corners& c) const;
 
   std::size_t w_ = 0, h_ = 0;

@@ -1,10 +1,11 @@
 // BRDF grids (specula.Grid), their .spgrid and .spc files, MERL .binary files, vectorised lookup at standard angles,
 // and spectra -> XYZ -> sRGB.
 #include <fmt/format.h>
+#include <nlohmann/json.hpp>
 
+#include <chrono>
 #include <cmath>
 #include <limits>
-#include <nlohmann/json.hpp>
 
 #include "python/common.h"
 #include "specula/codec/environment.h"
@@ -90,47 +91,6 @@ py::tuple display(const Eigen::Ref<const RowMatrixX3f>& xyz, const std::vector<p
   return py::make_tuple(adopt(std::move(srgb), shape), adopt(std::move(linear), shape));
 }
 
-// The fields of `specula encode --json` for an encoding with these settings and reports.
-py::dict encode_report(bool transform, std::uint32_t format_version, double max_error,
-                       std::optional<double> target_de00, double p95, const codec::SpcTargetReport& target,
-                       const codec::SpcBasis& b, const codec::SpcReport& rep) {
-  py::dict r;
-  r["method"] = transform ? "transform" : "bounded";
-  r["format_version"] = format_version;
-  if (target_de00) {
-    py::dict t;
-    t["de00_mean"] = *target_de00;
-    t["de00_p95"] = p95;
-    t["reached"] = target.reached;
-    t["trials"] = target.trials;
-    t["step"] = target.step;
-    t["reached_de00_mean"] = target.de00_mean;
-    t["reached_de00_p95"] = target.de00_p95;
-    t["condition_mean"] = 2 * *target_de00;
-    t["worst_condition"] = target.worst_condition;
-    t["worst_de00_mean"] = target.worst_mean;
-    t["measure"] = "lighting suite";
-    r["target"] = t;
-  }
-  r["step"] = transform ? rep.magnitude_step : 0.0;
-  r["basis"] = b.reference;
-  r["k"] = b.k();
-  r["max_error"] = transform ? 0.0 : max_error;
-  r["input_bytes"] = rep.input_bytes;
-  r["output_bytes"] = rep.output_bytes;
-  r["ratio"] = double(rep.input_bytes) / double(rep.output_bytes);
-  r["bits_per_cell"] = 8.0 * double(rep.output_bytes) / double(rep.valid_cells ? rep.valid_cells : 1);
-  r["valid_cells"] = rep.valid_cells;
-  r["rms_error"] = rep.rms_error;
-  r["max_abs_error"] = rep.max_abs_error;
-  r["max_shape_residual"] = rep.max_shape_residual;
-  r["max_quantisation_error"] = rep.max_quantisation_error;
-  r["magnitude_scale"] = rep.magnitude_scale;
-  r["magnitude_step"] = rep.magnitude_step;
-  r["shape_step"] = rep.shape_step;
-  return r;
-}
-
 // specula.spc_encode: `specula encode` on a grid in memory (see its docstring below).
 py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::optional<std::size_t> k,
                      std::size_t extra, double max_error, double magnitude_scale, int zstd_level,
@@ -160,12 +120,17 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::op
   const double p95 = target_p95.value_or(3 * target_de00.value_or(0));
   std::optional<codec::LightingSuite> suite;
   if (target_de00) suite.emplace(environment_from(env_arg, grid.wavelengths), codec::SuiteOptions{});
+  const codec::SpcTarget t{.de00_mean = target_de00.value_or(0),
+                           .de00_p95 = p95,
+                           .condition_mean = 2 * target_de00.value_or(0),
+                           .max_trials = trials};
   codec::SpcReport rep;
   codec::SpcTargetReport target;
   std::vector<std::uint8_t> bytes;
   codec::SpcBasis b;
   codec::SpcKReport k_report;
   const bool choose_k = !k && target_de00;
+  const auto t0 = std::chrono::steady_clock::now();
   {
     py::gil_scoped_release release;
     if (!basis && extra) throw UsageError("spc_encode: extra extends a learned basis; with no basis raise k instead");
@@ -175,8 +140,6 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::op
     };
     if (!choose_k) b = basis_of_k(k.value_or(6));
     if (target_de00) {
-      const codec::SpcTarget t{
-          .de00_mean = *target_de00, .de00_p95 = p95, .condition_mean = 2 * *target_de00, .max_trials = trials};
       if (choose_k) {
         const std::size_t k_max =
             basis ? std::max<std::size_t>(
@@ -193,10 +156,12 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::op
       bytes = codec::encode_spc(grid, b, bounded, &rep, grid.provenance.source_file);
     }
   }
-  py::dict r = encode_report(transform, codec::spc_format_version(bytes, "spc_encode"), max_error, target_de00, p95,
-                             target, b, rep);
-  if (choose_k) r["k_search"] = py::module_::import("json").attr("loads")(codec::spc_k_search_json(k_report).dump());
-  return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()), r);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  auto report = codec::spc_encode_json(rep, b, transform ? nullptr : &bounded, target_de00 ? &t : nullptr,
+                                             &target, codec::spc_format_version(bytes, "spc_encode"), seconds);
+  if (choose_k) report["k_search"] = codec::spc_k_search_json(k_report);
+  return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
+                        py::module_::import("json").attr("loads")(report.dump()));
 }
 
 // The Grid class and its exchange files.

@@ -92,10 +92,11 @@ TEST(RglBsdf, AMeasuredMaterialRoundTripsThroughExport) {
   std::sort(rel.begin(), rel.end());
   const double median = rel[rel.size() / 2], rms = std::sqrt(num / den);
   std::printf("chm_orange re-exported: median relative error %.4f, cos-weighted relative RMS %.4f\n", median, rms);
-  // Known gap (docs/brdf.md): off the peak of this very glossy film (D(0) near 5000) the re-export is 12 % off
-  // in the median; the bound guards against regressions, it is not the goal.
-  EXPECT_LT(median, 0.15);
-  EXPECT_LT(rms, 0.12);
+  // Known gap (docs/brdf.md): off the peak of this very glossy film (D(0) near 5000) the re-export is 7 % off in
+  // the median (12 % with the 128-node ndf and the earlier vndf mixture), 0.116 relative RMS; the bounds guard
+  // against regressions, they are not the goal.
+  EXPECT_LT(median, 0.10);
+  EXPECT_LT(rms, 0.13);
 }
 
 TEST(RglBsdf, ACellIsImportedWithBothDirectionsTabulated) {

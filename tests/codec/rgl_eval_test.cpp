@@ -10,6 +10,7 @@
 #include <random>
 
 #include "specula/codec/rgl_warp.h"
+#include "specula/core/error.h"
 
 namespace specula::codec {
 namespace {
@@ -144,6 +145,24 @@ TEST(RglWarp, NonDensityTablesInterpolateAsStored) {
   EXPECT_DOUBLE_EQ(w.eval(0, 0, {}), 1);
   EXPECT_DOUBLE_EQ(w.eval(1, 1, {}), 6);
   EXPECT_DOUBLE_EQ(w.eval(0.25, 0.5, {}), 0.5 * (1.5 + 4.5));
+}
+
+TEST(RglWarp, AllChannelsAtOnceAreEachChannelInTurn) {
+  // 3 elevations x 4 channels of 3 x 2 tables: eval_last at a point between elevations against eval per channel.
+  std::vector<float> t(3 * 4 * 6);
+  for (std::size_t i = 0; i < t.size(); ++i) t[i] = float((i * 37) % 11) - 2.5f;
+  const Warp2D w(t, 3, 2, {{0.0f}, {0.0f, 0.5f, 1.5f}, {0.0f, 1.0f, 2.0f, 3.0f}}, false);
+  for (const double theta : {0.0, 0.3, 1.0, 1.5}) {
+    std::vector<double> all(4);
+    const double p[2] = {0, theta};
+    w.eval_last(0.3, 0.8, p, all);
+    for (std::size_t c = 0; c < 4; ++c) {
+      const double q[3] = {0, theta, double(c)};
+      EXPECT_NEAR(all[c], w.eval(0.3, 0.8, q), 1e-12) << theta << " " << c;
+    }
+  }
+  std::vector<double> wrong(3);
+  EXPECT_THROW(w.eval_last(0, 0, {}, wrong), UsageError);
 }
 
 }  // namespace

@@ -130,6 +130,7 @@ TEST(RglExport, RgbExportOfAMerlBrdfRoundTrips) {
 TEST(RglExport, SettingsOutOfRangeAreRefused) {
   EXPECT_THROW(export_rgl(material("green-matte"), {.theta_i = 1}), UsageError);
   EXPECT_THROW(export_rgl(material("green-matte"), {.resolution = 1}), UsageError);
+  EXPECT_THROW(export_rgl(material("green-matte"), {.vndf_exponent = 0}), UsageError);
 }
 
 }  // namespace
