@@ -331,3 +331,39 @@ TEST(FilterRecovery, WienerPosteriorOfOneReadingMatchesTheClosedForm) {
     for (int j = 0; j < B; ++j)
       EXPECT_NEAR(c(i, j), (i == j ? m[i] : 0.0) - m[i] * a(0, i) * m[j] * a(0, j) / s, 1e-12);
 }
+
+// The design's noise floor: throughput against its closed form (filters over 400-740 nm pass light beyond the
+// 420-720 nm bands too, where spectra are held constant: under a light linear in l and centred alike, 340 / 300 of an
+// open filter on the bands, half of it at half transmission), and a filter below min_throughput is charged the floor's noise, not its own (smaller) white reading's.
+TEST(FilterDesign, ThroughputAndTheExposureCapsNoiseFloor) {
+  const std::vector<double> bands = bands_420_720();
+  const Eigen::Index B = Eigen::Index(bands.size());
+  FilterSet f;
+  f.nm = {400, 740};
+  f.names = {"open", "half"};
+  f.transmission = {{1, 1}, {0.5, 0.5}};
+  const std::vector<double> t = filter_throughput(f, bands, smooth_light());
+  EXPECT_NEAR(t[0], 340.0 / 300, 1e-9);
+  EXPECT_NEAR(t[1], 170.0 / 300, 1e-9);
+
+  FilterSet g = gaussians(4, 30);
+  for (double& v : g.transmission[0]) v *= 1e-3;
+  const double dim = filter_throughput(g, bands, smooth_light())[0];
+  ASSERT_LT(dim, 0.001);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u01(0.05, 0.9);
+  Eigen::MatrixXd spectra(40, B);
+  for (Eigen::Index i = 0; i < spectra.size(); ++i) spectra.data()[i] = u01(rng);
+  const Eigen::MatrixXd m = spectra.transpose() * spectra / 40.0;
+  // The Wiener solve trusts the dim filter less under the floor: its expected error rises.
+  auto rms = [&](const FilterSet& fs, double floor) {
+    return expected_filter_error(fs, bands, smooth_light(), {}, spectra, 0.01, 0, m, true, floor).rms_mean;
+  };
+  EXPECT_GT(rms(g, 0.01), 1.01 * rms(g, 0));
+  // Filters all above the floor are unaffected by it.
+  const FilterSet bright = gaussians(4, 30);
+  EXPECT_EQ(rms(bright, 0.01), rms(bright, 0));
+  FilterDesignOptions o;
+  o.min_throughput = 1;
+  EXPECT_THROW(check_filter_design(o), UsageError);
+}
