@@ -304,12 +304,10 @@ FilterDesign design_filters(const store::Store& s, const std::string& basis_name
   const Eigen::MatrixXd prior = o.solve == FilterSolve::wiener
                                     ? Eigen::MatrixXd(training.transpose() * training / double(training.rows()))
                                     : Eigen::MatrixXd();
-  d.training =
-      expected_filter_error(d.filters, d.bands, sens, u, training, o.noise, o.ridge, prior, o.per_filter_exposure,
-                            o.min_throughput);
-  d.held_out =
-      expected_filter_error(d.filters, d.bands, sens, u, held_out, o.noise, o.ridge, prior, o.per_filter_exposure,
-                            o.min_throughput);
+  d.training = expected_filter_error(d.filters, d.bands, sens, u, training, o.noise, o.ridge, prior,
+                                     o.per_filter_exposure, o.min_throughput);
+  d.held_out = expected_filter_error(d.filters, d.bands, sens, u, held_out, o.noise, o.ridge, prior,
+                                     o.per_filter_exposure, o.min_throughput);
   return d;
 }
 

@@ -35,8 +35,8 @@ struct FilterDesignOptions {
   /// per filter exposure: the light (a fraction of an open filter's white reading) below which a filter's exposure
   /// reaches the camera's longest and its noise stops falling with its signal (docs/filters.md)
   double min_throughput = 0.01;
-  double ridge = 1e-3;              ///< the solve's regularisation (filter_recovery)
-  double peak = 0.9;                ///< the curves' largest transmission
+  double ridge = 1e-3;         ///< the solve's regularisation (filter_recovery)
+  double peak = 0.9;           ///< the curves' largest transmission
   double light_kelvin = 3200;  ///< the light (a blackbody) the design assumes, with the simulated camera's response
   double step_nm = 5;          ///< the curves' tabulation step
   double smooth_nm = 10;       ///< nmf: Gaussian smoothing (standard deviation) of the components

@@ -332,7 +332,8 @@ void nonnegative_spectrum(const Eigen::MatrixXd& posterior, Eigen::Ref<Eigen::Ve
     Eigen::Index release = -1;
     const double nu_tol = held.empty() ? 0.0 : 1e-12 * nu.cwiseAbs().maxCoeff();
     for (std::size_t i = 0; i < held.size(); ++i)
-      if (nu[Eigen::Index(i)] < -nu_tol && (release < 0 || nu[Eigen::Index(i)] < nu[release])) release = Eigen::Index(i);
+      if (nu[Eigen::Index(i)] < -nu_tol && (release < 0 || nu[Eigen::Index(i)] < nu[release]))
+        release = Eigen::Index(i);
     if (release < 0) break;
     is_held[std::size_t(held[std::size_t(release)])] = 0;
     held.erase(held.begin() + release);

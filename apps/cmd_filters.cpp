@@ -68,7 +68,8 @@ void run_filters_design(FiltersDesignOptions o) {
     j["solve"] = o.solve;
     j["exposure"] = o.design.per_filter_exposure ? "per filter" : "equal";
     j["min_throughput"] = o.design.min_throughput;
-    j["throughput"] = acquire::filter_throughput(d.filters, d.bands, acquire::design_sensitivity(o.design.light_kelvin));
+    j["throughput"] =
+        acquire::filter_throughput(d.filters, d.bands, acquire::design_sensitivity(o.design.light_kelvin));
     j["roughness"] = acquire::filter_roughness(d.filters);
     j["training"] = error_json(d.training, d.training_name);
     j["held_out"] = error_json(d.held_out, d.held_out_name);

@@ -334,7 +334,8 @@ TEST(FilterRecovery, WienerPosteriorOfOneReadingMatchesTheClosedForm) {
 
 // The design's noise floor: throughput against its closed form (filters over 400-740 nm pass light beyond the
 // 420-720 nm bands too, where spectra are held constant: under a light linear in l and centred alike, 340 / 300 of an
-// open filter on the bands, half of it at half transmission), and a filter below min_throughput is charged the floor's noise, not its own (smaller) white reading's.
+// open filter on the bands, half of it at half transmission), and a filter below min_throughput is charged the floor's
+// noise, not its own (smaller) white reading's.
 TEST(FilterDesign, ThroughputAndTheExposureCapsNoiseFloor) {
   const std::vector<double> bands = bands_420_720();
   const Eigen::Index B = Eigen::Index(bands.size());
