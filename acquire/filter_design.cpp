@@ -27,6 +27,8 @@ FilterSolve parse_filter_solve(const std::string& name) {
 void check_filter_design(const FilterDesignOptions& o) {
   if (o.k < 1 || o.k > 31) throw UsageError("filter design: k must be 1 to 31 filters");
   if (!(o.noise >= 0 && o.noise < 1)) throw UsageError("filter design: noise must be in [0, 1)");
+  if (!(o.min_throughput >= 0 && o.min_throughput < 1))
+    throw UsageError("filter design: the minimum throughput is a fraction of an open filter's light, in [0, 1)");
   if (!(o.ridge >= 0 && o.ridge < 1)) throw UsageError("filter design: ridge must be in [0, 1)");
   if (!(o.peak > 0 && o.peak <= 1)) throw UsageError("filter design: peak transmission must be in (0, 1]");
   if (!(o.light_kelvin >= 1000 && o.light_kelvin <= 20000)) throw UsageError("filter design: light 1000-20000 K");
@@ -92,10 +94,13 @@ Eigen::MatrixXd normalised_system(const FilterSet& f, std::span<const double> ba
   return a / white;
 }
 
-// Each reading's noise: `noise` times the open filter's white reading (every filter exposed alike), or times the
-// filter's own white reading (each exposed to fill the sensor, as simulate-capture does).
-Eigen::VectorXd reading_noise(const Eigen::MatrixXd& a, double noise, bool per_filter) {
-  return per_filter ? Eigen::VectorXd(noise * a.rowwise().sum()) : Eigen::VectorXd::Constant(a.rows(), noise);
+// Each reading's noise (a: the system over an open filter's white reading): `noise` times the open filter's white
+// reading (every filter exposed alike), or times the filter's own white reading (each exposed to fill the sensor, as
+// simulate-capture does) but never below `floor` of the open filter's: a filter passing less light than that needs
+// an exposure past the camera's longest, so its reading stays below full scale and its noise stops falling.
+Eigen::VectorXd reading_noise(const Eigen::MatrixXd& a, double noise, bool per_filter, double floor) {
+  if (!per_filter) return Eigen::VectorXd::Constant(a.rows(), noise);
+  return noise * a.rowwise().sum().cwiseMax(floor);
 }
 
 // The recovery of the design's error model: Wiener with `prior` when it is not empty, else the ridge in `u`.
@@ -108,7 +113,7 @@ Eigen::MatrixXd design_recovery(const Eigen::MatrixXd& a, const Eigen::MatrixXd&
 // Mean expected squared error per band over spectra of second moment m (B x B).
 double mean_squared_error(const Eigen::MatrixXd& a, const Eigen::MatrixXd& u, const Eigen::MatrixXd& m,
                           const FilterDesignOptions& o) {
-  const Eigen::VectorXd sigma = reading_noise(a, o.noise, o.per_filter_exposure);
+  const Eigen::VectorXd sigma = reading_noise(a, o.noise, o.per_filter_exposure, o.min_throughput);
   const Eigen::MatrixXd r =
       design_recovery(a, u, o.solve == FilterSolve::wiener ? m : Eigen::MatrixXd(), sigma, o.ridge);
   const Eigen::MatrixXd e = Eigen::MatrixXd::Identity(a.cols(), a.cols()) - r * a;
@@ -214,11 +219,12 @@ FilterSet optimal_filters(const store::Basis& basis, const Eigen::MatrixXd& trai
 
 FilterError expected_filter_error(const FilterSet& f, std::span<const double> bands, const Tabulated& s,
                                   const Eigen::MatrixXd& basis, const Eigen::MatrixXd& spectra, double noise,
-                                  double ridge, const Eigen::MatrixXd& prior, bool per_filter_exposure) {
+                                  double ridge, const Eigen::MatrixXd& prior, bool per_filter_exposure,
+                                  double min_throughput) {
   if (spectra.cols() != Eigen::Index(bands.size()) || spectra.rows() == 0)
     throw UsageError("expected_filter_error: spectra (rows) on the bands");
   const Eigen::MatrixXd a = normalised_system(f, bands, s, 1.0);
-  const Eigen::VectorXd sigma = reading_noise(a, noise, per_filter_exposure);
+  const Eigen::VectorXd sigma = reading_noise(a, noise, per_filter_exposure, min_throughput);
   const Eigen::MatrixXd r = design_recovery(a, basis, prior, sigma, ridge);
   const Eigen::MatrixXd e = spectra.transpose() - r * (a * spectra.transpose());
   const double b = double(bands.size()), noise2 = (r * sigma.asDiagonal()).squaredNorm();
@@ -233,6 +239,11 @@ FilterError expected_filter_error(const FilterSet& f, std::span<const double> ba
   out.rms_median = rms[rms.size() / 2];
   out.noise_rms = std::sqrt(noise2 / b);
   return out;
+}
+
+std::vector<double> filter_throughput(const FilterSet& f, std::span<const double> bands, const Tabulated& s) {
+  const Eigen::VectorXd w = normalised_system(f, bands, s, 1.0).rowwise().sum();
+  return {w.data(), w.data() + w.size()};
 }
 
 FilterSet design_filters(const store::Basis& basis, const Eigen::MatrixXd& training, const FilterDesignOptions& o) {
@@ -293,10 +304,10 @@ FilterDesign design_filters(const store::Store& s, const std::string& basis_name
   const Eigen::MatrixXd prior = o.solve == FilterSolve::wiener
                                     ? Eigen::MatrixXd(training.transpose() * training / double(training.rows()))
                                     : Eigen::MatrixXd();
-  d.training =
-      expected_filter_error(d.filters, d.bands, sens, u, training, o.noise, o.ridge, prior, o.per_filter_exposure);
-  d.held_out =
-      expected_filter_error(d.filters, d.bands, sens, u, held_out, o.noise, o.ridge, prior, o.per_filter_exposure);
+  d.training = expected_filter_error(d.filters, d.bands, sens, u, training, o.noise, o.ridge, prior,
+                                     o.per_filter_exposure, o.min_throughput);
+  d.held_out = expected_filter_error(d.filters, d.bands, sens, u, held_out, o.noise, o.ridge, prior,
+                                     o.per_filter_exposure, o.min_throughput);
   return d;
 }
 

@@ -32,8 +32,11 @@ struct FilterDesignOptions {
   int k = 6;                        ///< filters
   double noise = 0.002;             ///< camera noise: standard deviation relative to a white reading (below)
   bool per_filter_exposure = true;  ///< noise relative to each filter's white reading, else an open filter's
-  double ridge = 1e-3;              ///< the solve's regularisation (filter_recovery)
-  double peak = 0.9;                ///< the curves' largest transmission
+  /// per filter exposure: the light (a fraction of an open filter's white reading) below which a filter's exposure
+  /// reaches the camera's longest and its noise stops falling with its signal (docs/filters.md)
+  double min_throughput = 0.01;
+  double ridge = 1e-3;         ///< the solve's regularisation (filter_recovery)
+  double peak = 0.9;           ///< the curves' largest transmission
   double light_kelvin = 3200;  ///< the light (a blackbody) the design assumes, with the simulated camera's response
   double step_nm = 5;          ///< the curves' tabulation step
   double smooth_nm = 10;       ///< nmf: Gaussian smoothing (standard deviation) of the components
@@ -56,7 +59,8 @@ Eigen::MatrixXd capture_prior(const store::Basis& basis, const Capture& capture,
 
 /// Expected reconstruction error of spectra (rows, on `bands`) read through filters `f` (sensitivity s: light times
 /// camera response), with noise of standard deviation `noise` added to each reading, relative to the filter's own
-/// white reading (per_filter_exposure: each filter exposed to fill the sensor) or else to an open filter's (every
+/// white reading (per_filter_exposure: each filter exposed to fill the sensor, but no filter's reading taken as
+/// below min_throughput of an open filter's: its exposure is capped) or else to an open filter's (every
 /// filter exposed alike), solved in `basis` with `ridge` or, when `prior`
 /// (a B x B second moment) is not empty, by the Wiener solve: per spectrum
 /// sqrt((|x - R A x|^2 + |R diag(sigma)|_F^2) / B), sigma the readings' noise.
@@ -67,7 +71,11 @@ struct FilterError {
 };
 FilterError expected_filter_error(const FilterSet& f, std::span<const double> bands, const Tabulated& s,
                                   const Eigen::MatrixXd& basis, const Eigen::MatrixXd& spectra, double noise,
-                                  double ridge, const Eigen::MatrixXd& prior = {}, bool per_filter_exposure = false);
+                                  double ridge, const Eigen::MatrixXd& prior = {}, bool per_filter_exposure = false,
+                                  double min_throughput = 0);
+
+/// Each filter's white reading (light times `s` over the bands) as a fraction of an open filter's (transmission 1).
+std::vector<double> filter_throughput(const FilterSet& f, std::span<const double> bands, const Tabulated& s);
 
 /// Designs o.k filters on the basis's wavelengths: nmf smooths and scales the NMF basis's first k components;
 /// optimal minimises the mean expected squared error of `training` (spectra as rows; solved as o.solve says, the

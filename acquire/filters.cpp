@@ -276,4 +276,69 @@ Eigen::MatrixXd filter_wiener_recovery(const Eigen::MatrixXd& system, const Eige
   return cod.solve(Eigen::MatrixXd(ma.transpose())).transpose();
 }
 
+Eigen::MatrixXd filter_wiener_posterior(const Eigen::MatrixXd& system, const Eigen::MatrixXd& second_moment,
+                                        const Eigen::VectorXd& noise) {
+  const Eigen::MatrixXd r = filter_wiener_recovery(system, second_moment, noise);
+  const Eigen::MatrixXd c = second_moment - r * (system * second_moment);
+  return 0.5 * (c + c.transpose());
+}
+
+Eigen::MatrixXd filter_ridge_posterior(const Eigen::MatrixXd& system, const Eigen::MatrixXd& basis, double ridge) {
+  filter_recovery(system, basis, ridge);
+  const Eigen::Index B = system.cols();
+  const Eigen::MatrixXd u = basis.size() ? orthonormal_basis(basis) : Eigen::MatrixXd::Identity(B, B);
+  const Eigen::MatrixXd m = system * u;
+  Eigen::MatrixXd g = m.transpose() * m;
+  g.diagonal().array() += ridge * g.trace() / double(g.rows());
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> cod;
+  cod.setThreshold(1e-12);
+  cod.compute(g);
+  const Eigen::MatrixXd c = u * cod.solve(Eigen::MatrixXd(u.transpose()));
+  return 0.5 * (c + c.transpose());
+}
+
+void nonnegative_spectrum(const Eigen::MatrixXd& posterior, Eigen::Ref<Eigen::VectorXd> x) {
+  const Eigen::Index B = x.size();
+  if (posterior.rows() != B || posterior.cols() != B)
+    throw UsageError("nonnegative_spectrum: a B x B posterior for a spectrum of B bands");
+  if (B == 0 || x.minCoeff() >= 0) return;
+  const Eigen::VectorXd mean = x;
+  // A tiny ridge keeps the held bands' block invertible where the posterior is (nearly) singular.
+  const double jitter = 1e-12 * std::max(posterior.trace() / double(B), 1e-300);
+  const double tol = 1e-12 * std::max(mean.cwiseAbs().maxCoeff(), 1e-300);
+  std::vector<Eigen::Index> held;
+  std::vector<char> is_held(std::size_t(B), 0);
+  Eigen::VectorXd nu;
+  // Lawson-Hanson's order: hold the most negative free band at zero; release the held band whose multiplier says
+  // the minimum lies inside; stop when neither exists. y = mean + C[:, S] nu with nu = -C_SS^-1 mean_S puts y_S = 0
+  // and is the minimum on that face; nu is the gradient on S.
+  for (Eigen::Index step = 0; step < 4 * B; ++step) {
+    if (held.empty()) {
+      x = mean;
+    } else {
+      Eigen::MatrixXd css = posterior(held, held);
+      css.diagonal().array() += jitter;
+      nu = -css.ldlt().solve(Eigen::VectorXd(mean(held)));
+      x = mean + posterior(Eigen::all, held) * nu;
+      for (const Eigen::Index b : held) x[b] = 0;
+    }
+    Eigen::Index worst = -1;
+    for (Eigen::Index b = 0; b < B; ++b)
+      if (!is_held[std::size_t(b)] && x[b] < -tol && (worst < 0 || x[b] < x[worst])) worst = b;
+    if (worst >= 0) {
+      held.push_back(worst), is_held[std::size_t(worst)] = 1;
+      continue;
+    }
+    Eigen::Index release = -1;
+    const double nu_tol = held.empty() ? 0.0 : 1e-12 * nu.cwiseAbs().maxCoeff();
+    for (std::size_t i = 0; i < held.size(); ++i)
+      if (nu[Eigen::Index(i)] < -nu_tol && (release < 0 || nu[Eigen::Index(i)] < nu[release]))
+        release = Eigen::Index(i);
+    if (release < 0) break;
+    is_held[std::size_t(held[std::size_t(release)])] = 0;
+    held.erase(held.begin() + release);
+  }
+  x = x.cwiseMax(0.0);
+}
+
 }  // namespace specula::acquire

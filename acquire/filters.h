@@ -60,6 +60,21 @@ Eigen::MatrixXd filter_recovery(const Eigen::MatrixXd& system, const Eigen::Matr
 Eigen::MatrixXd filter_wiener_recovery(const Eigen::MatrixXd& system, const Eigen::MatrixXd& second_moment,
                                        const Eigen::VectorXd& noise);
 
+/// The Wiener solve's posterior covariance (B x B) in the prior's units: M - R A M with R its recovery
+/// (filter_wiener_recovery's arguments and checks). nonnegative_spectrum's metric.
+Eigen::MatrixXd filter_wiener_posterior(const Eigen::MatrixXd& system, const Eigen::MatrixXd& second_moment,
+                                        const Eigen::VectorXd& noise);
+
+/// The ridge solve's posterior covariance up to a positive factor (B x B): U (U^T A^T A U + alpha I)^-1 U^T, the
+/// covariance of c for a Gaussian prior on c that the ridge is the mean of (filter_recovery's arguments).
+Eigen::MatrixXd filter_ridge_posterior(const Eigen::MatrixXd& system, const Eigen::MatrixXd& basis, double ridge);
+
+/// A reflectance cannot be negative: replaces the linear estimate x (the posterior mean) by the most probable
+/// spectrum of the Gaussian posterior of covariance `posterior` (B x B) with every band >= 0, i.e. the minimum of
+/// (y - x)^T posterior^-1 (y - x) over y >= 0, by an active set on the bands held at zero (each step conditions the
+/// posterior on them). x without negative bands is left as it is. UsageError for sizes.
+void nonnegative_spectrum(const Eigen::MatrixXd& posterior, Eigen::Ref<Eigen::VectorXd> x);
+
 /// Orthonormal columns spanning `columns` (B x n), dropping directions below 1e-10 of the largest.
 Eigen::MatrixXd orthonormal_basis(const Eigen::MatrixXd& columns);
 

@@ -221,8 +221,10 @@ SpectralCalibration calibrate_filters(const Capture& cap, const Tabulated& light
   if (o.filter_prior.size()) {
     const Eigen::VectorXd white = sys.rowwise().sum();
     s.recovery = filter_wiener_recovery(sys, o.filter_prior, o.filter_noise * white.cwiseAbs());
+    s.posterior = filter_wiener_posterior(sys, o.filter_prior, o.filter_noise * white.cwiseAbs());
   } else {
     s.recovery = filter_recovery(sys, o.filter_basis, o.filter_ridge);
+    s.posterior = filter_ridge_posterior(sys, o.filter_basis, o.filter_ridge);
   }
   return s;
 }
@@ -235,6 +237,7 @@ void add_target_reports(Calibration& c, const Capture& cap, const Eigen::MatrixX
     r.held_out = std::find(fit_rows.begin(), fit_rows.end(), Eigen::Index(t)) == fit_rows.end();
     r.truth = reflectance.row(Eigen::Index(t)).transpose();
     r.filters = c.spectral.recovery * measured.row(Eigen::Index(t)).transpose();
+    if (c.spectral.posterior.size()) nonnegative_spectrum(c.spectral.posterior, r.filters);
     r.rms_filters = spectral_rms(r.filters, r.truth);
     c.targets.push_back(std::move(r));
   }
@@ -411,7 +414,8 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
       // targets' geometry (a distant light: pi cos(theta_i)).
       const double d = (light - px.point).norm();
       const double g = pi * std::cos(a.theta_i) * (c.light_distance > 0 ? std::pow(c.light_distance / d, 2) : 1.0);
-      const Eigen::VectorXd f = c.spectral.recovery * h / g;
+      Eigen::VectorXd f = c.spectral.recovery * h / g;
+      if (c.spectral.posterior.size()) nonnegative_spectrum(c.spectral.posterior, f);
       angles.insert(angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
       for (Eigen::Index b = 0; b < f.size(); ++b) values.push_back(float(f[b]));
       ++r.samples;
@@ -431,6 +435,7 @@ void write_calibration(store::StoreWriter& out, const std::string& name, const C
   Eigen::MatrixXd lights(Eigen::Index(c.light_dirs.size()), 3);
   for (std::size_t l = 0; l < c.light_dirs.size(); ++l) lights.row(Eigen::Index(l)) = c.light_dirs[l].transpose();
   r.matrices = {{"spatial_response", s}, {"spectral_recovery", c.spectral.recovery}, {"light_dirs", lights}};
+  if (c.spectral.posterior.size()) r.matrices.emplace_back("spectral_posterior", c.spectral.posterior);
   r.vectors = {{"spectral_scale",
                 std::vector<double>(c.spectral.scale.data(), c.spectral.scale.data() + c.spectral.scale.size())},
                {"bands_nm", c.spectral.bands},
@@ -456,6 +461,9 @@ Calibration read_calibration(const store::Store& in, const std::string& name) {
   for (Eigen::Index v = 0; v < s.rows(); ++v)
     for (Eigen::Index u = 0; u < s.cols(); ++u) c.spatial.value[std::size_t(v * s.cols() + u)] = float(s(v, u));
   c.spectral.recovery = r.matrix("spectral_recovery");
+  // Calibrations written before the non-negative reconstruction have no posterior: their recovery stays linear.
+  for (const auto& [key, m] : r.matrices)
+    if (key == "spectral_posterior") c.spectral.posterior = m;
   const std::vector<double>& scale = r.vector("spectral_scale");
   c.spectral.scale = Eigen::Map<const Eigen::VectorXd>(scale.data(), Eigen::Index(scale.size()));
   c.spectral.bands = r.vector("bands_nm");
@@ -465,7 +473,9 @@ Calibration read_calibration(const store::Store& in, const std::string& name) {
                                           : SpectralModel::delta;
   const std::vector<double>& circle = r.vector("circle_px");
   const std::vector<double>& sphere = r.vector("sphere_m");
-  if (circle.size() != 3 || sphere.size() != 4 || c.spectral.recovery.rows() != Eigen::Index(c.spectral.bands.size()))
+  if (circle.size() != 3 || sphere.size() != 4 || c.spectral.recovery.rows() != Eigen::Index(c.spectral.bands.size()) ||
+      (c.spectral.posterior.size() && (c.spectral.posterior.rows() != c.spectral.recovery.rows() ||
+                                       c.spectral.posterior.cols() != c.spectral.recovery.rows())))
     throw InputError(r.label + ": malformed calibration");
   c.circle = {circle[0], circle[1], circle[2]};
   c.sphere = {Eigen::Vector3d(sphere[0], sphere[1], sphere[2]), sphere[3]};

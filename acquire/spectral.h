@@ -28,6 +28,8 @@ struct SpectralCalibration {
   std::vector<double> bands;  ///< tuning wavelengths (nm)
   Eigen::VectorXd scale;      ///< w_j (delta), c_j (factored) or the filters' response terms a_kd (row-major)
   Eigen::MatrixXd recovery;   ///< (R L)^-1, N x N; for filters B x K (filter_recovery)
+  /// filters: the solve's posterior covariance (B x B; nonnegative_spectrum's metric); empty: the linear recovery
+  Eigen::MatrixXd posterior;
 };
 
 /// Fits the delta model: H_ij = w_j L(lambda_j) rho_i(lambda_j) by least squares over the targets used.

@@ -67,6 +67,9 @@ void run_filters_design(FiltersDesignOptions o) {
     j["ridge"] = o.design.ridge;
     j["solve"] = o.solve;
     j["exposure"] = o.design.per_filter_exposure ? "per filter" : "equal";
+    j["min_throughput"] = o.design.min_throughput;
+    j["throughput"] =
+        acquire::filter_throughput(d.filters, d.bands, acquire::design_sensitivity(o.design.light_kelvin));
     j["roughness"] = acquire::filter_roughness(d.filters);
     j["training"] = error_json(d.training, d.training_name);
     j["held_out"] = error_json(d.held_out, d.held_out_name);
@@ -102,6 +105,9 @@ void setup_filters(CLI::App& app) {
   d->add_flag(
       "--equal-exposure", [o](std::int64_t) { o->design.per_filter_exposure = false; },
       "Noise relative to an open filter's white reading (every filter exposed alike)");
+  d->add_option("--min-throughput", o->design.min_throughput,
+                "Light (fraction of an open filter's) below which a filter's exposure is capped: its noise floor")
+      ->capture_default_str();
   d->add_option("--solve", o->solve, "wiener (the training spectra's second moment as prior) or ridge (in the basis)")
       ->capture_default_str();
   d->add_option("--ridge", o->design.ridge, "Regularisation of the solve (relative to the system's trace)")

@@ -3,6 +3,7 @@
 // LCTF's factored model (eq 4.6), and designed curves that are transmissions (non-negative, at most 1, smooth).
 #include <gtest/gtest.h>
 
+#include <Eigen/LU>
 #include <Eigen/QR>
 #include <Eigen/SVD>
 #include <cmath>
@@ -272,4 +273,98 @@ TEST(FilterRecovery, WienerIsExactInThePriorsRangeAndMinimisesTheExpectedError) 
   }
   EXPECT_THROW(filter_wiener_recovery(a, full, -sigma), UsageError);
   EXPECT_THROW(filter_wiener_recovery(a, Eigen::MatrixXd::Identity(3, 3), sigma), UsageError);
+}
+
+// The non-negative reconstruction against every face of the orthant enumerated: on each set S of bands held at zero
+// the posterior's minimum is found by a least-squares solve of its own, kept when feasible; the best of them is the
+// constrained minimum.
+TEST(FilterRecovery, NonnegativeSpectrumIsTheConstrainedPosteriorMode) {
+  std::mt19937 rng(7);
+  std::normal_distribution<double> normal;
+  const int B = 6;
+  for (int trial = 0; trial < 20; ++trial) {
+    Eigen::MatrixXd g(B, B + 2);
+    for (Eigen::Index i = 0; i < g.size(); ++i) g.data()[i] = normal(rng);
+    const Eigen::MatrixXd c = g * g.transpose() / B + 0.05 * Eigen::MatrixXd::Identity(B, B);
+    const Eigen::MatrixXd p = c.inverse();
+    Eigen::VectorXd mean(B);
+    for (int b = 0; b < B; ++b) mean[b] = normal(rng);
+    double best = 1e300;
+    Eigen::VectorXd expect;
+    for (int mask = 0; mask < (1 << B); ++mask) {
+      std::vector<Eigen::Index> free;
+      for (int b = 0; b < B; ++b)
+        if (!(mask >> b & 1)) free.push_back(b);
+      // Minimise (y - mean)^T P (y - mean) over y_free with the others zero: P_FF y_F = (P mean)_F.
+      Eigen::VectorXd y = Eigen::VectorXd::Zero(B);
+      if (!free.empty()) {
+        const Eigen::VectorXd rhs = (p * mean)(free);
+        y(free) = Eigen::MatrixXd(p(free, free)).colPivHouseholderQr().solve(rhs);
+      }
+      if (y.minCoeff() < -1e-12) continue;
+      const double v = (y - mean).dot(p * (y - mean));
+      if (v < best) best = v, expect = y;
+    }
+    Eigen::VectorXd x = mean;
+    nonnegative_spectrum(c, x);
+    EXPECT_GE(x.minCoeff(), 0.0);
+    EXPECT_LT((x - expect).cwiseAbs().maxCoeff(), 1e-8) << "trial " << trial;
+  }
+  // A spectrum without negative bands is the linear estimate as it is.
+  Eigen::VectorXd x = Eigen::VectorXd::LinSpaced(B, 0.1, 0.6);
+  const Eigen::VectorXd before = x;
+  nonnegative_spectrum(Eigen::MatrixXd::Identity(B, B), x);
+  EXPECT_EQ(x, before);
+  EXPECT_THROW(nonnegative_spectrum(Eigen::MatrixXd::Identity(B + 1, B + 1), x), UsageError);
+}
+
+// The Wiener posterior against its closed form for a diagonal prior and one open filter: the variance of band b
+// given one reading y = sum_b a_b x_b + noise is m_b - m_b^2 a_b^2 / (sum a^2 m + sigma^2).
+TEST(FilterRecovery, WienerPosteriorOfOneReadingMatchesTheClosedForm) {
+  const int B = 4;
+  Eigen::MatrixXd a(1, B);
+  a << 1, 2, 0.5, 1.5;
+  const Eigen::VectorXd m = Eigen::Vector4d(0.3, 0.1, 0.2, 0.4), sigma = Eigen::VectorXd::Constant(1, 0.3);
+  const Eigen::MatrixXd c = filter_wiener_posterior(a, m.asDiagonal(), sigma);
+  const double s = (a.row(0).transpose().array().square() * m.array()).sum() + 0.09;
+  for (int i = 0; i < B; ++i)
+    for (int j = 0; j < B; ++j)
+      EXPECT_NEAR(c(i, j), (i == j ? m[i] : 0.0) - m[i] * a(0, i) * m[j] * a(0, j) / s, 1e-12);
+}
+
+// The design's noise floor: throughput against its closed form (filters over 400-740 nm pass light beyond the
+// 420-720 nm bands too, where spectra are held constant: under a light linear in l and centred alike, 340 / 300 of an
+// open filter on the bands, half of it at half transmission), and a filter below min_throughput is charged the floor's
+// noise, not its own (smaller) white reading's.
+TEST(FilterDesign, ThroughputAndTheExposureCapsNoiseFloor) {
+  const std::vector<double> bands = bands_420_720();
+  const Eigen::Index B = Eigen::Index(bands.size());
+  FilterSet f;
+  f.nm = {400, 740};
+  f.names = {"open", "half"};
+  f.transmission = {{1, 1}, {0.5, 0.5}};
+  const std::vector<double> t = filter_throughput(f, bands, smooth_light());
+  EXPECT_NEAR(t[0], 340.0 / 300, 1e-9);
+  EXPECT_NEAR(t[1], 170.0 / 300, 1e-9);
+
+  FilterSet g = gaussians(4, 30);
+  for (double& v : g.transmission[0]) v *= 1e-3;
+  const double dim = filter_throughput(g, bands, smooth_light())[0];
+  ASSERT_LT(dim, 0.001);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u01(0.05, 0.9);
+  Eigen::MatrixXd spectra(40, B);
+  for (Eigen::Index i = 0; i < spectra.size(); ++i) spectra.data()[i] = u01(rng);
+  const Eigen::MatrixXd m = spectra.transpose() * spectra / 40.0;
+  // The Wiener solve trusts the dim filter less under the floor: its expected error rises.
+  auto rms = [&](const FilterSet& fs, double floor) {
+    return expected_filter_error(fs, bands, smooth_light(), {}, spectra, 0.01, 0, m, true, floor).rms_mean;
+  };
+  EXPECT_GT(rms(g, 0.01), 1.01 * rms(g, 0));
+  // Filters all above the floor are unaffected by it.
+  const FilterSet bright = gaussians(4, 30);
+  EXPECT_EQ(rms(bright, 0.01), rms(bright, 0));
+  FilterDesignOptions o;
+  o.min_throughput = 1;
+  EXPECT_THROW(check_filter_design(o), UsageError);
 }
