@@ -53,16 +53,15 @@ GridStats resample_on_base(const SampleSource& src, const ResampleOptions& o, do
     throw UsageError("resampling on a base: the confidence's reach (a fraction of max_gap) must be in (0, 1]");
   const ResidualSamples residuals(src, base);
   const SampleTree tree(src, o.mapping);
-  std::vector<float> local(b * brdf::kMerlCells);
-  const GridStats st = resample_grid(tree, residuals, o, local);
+  std::vector<float> local(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
+  const GridStats st = resample_grid(tree, residuals, o, local, gaps);
   const auto& cells = valid_cells();
   std::fill(confidence.begin(), confidence.end(), -1.0f);
   parallel_for(
-      cells.size(), [] { return Neighbours{}; },
-      [&](std::size_t i, Neighbours& nb) {
+      cells.size(),
+      [&](std::size_t i) {
         const std::size_t cell = cells[i];
-        tree.nearest(iso_angles(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cell)))), 1, nb);
-        const double c = support_confidence(nb.gap, o.max_gap, reach);  // > 0 only where the kd-tree had support
+        const double c = support_confidence(gaps[cell], o.max_gap, reach);  // > 0 only where the kd-tree had support
         confidence[cell] = float(c);
         for (std::size_t k = 0; k < b && c > 0; ++k) {
           const std::size_t at = k * brdf::kMerlCells + cell;

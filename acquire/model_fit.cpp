@@ -209,7 +209,9 @@ void irls_shapes(ShapeData& d, const ModelFitOptions& o, Eigen::VectorXd& x, std
     Eigen::LevenbergMarquardt<Eigen::NumericalDiff<ShapeFunctor>, double> lm(diff);
     lm.parameters.maxfev = 60 * int(x.size() + 1);
     lm.parameters.xtol = 1e-7;
+    const Eigen::VectorXd before = x;
     lm.minimize(x);
+    if (round > 0 && (x - before).cwiseAbs().maxCoeff() < 1e-5) break;  // the weights no longer move the shapes
     Eigen::MatrixXd m;
     fun.solve(x, &m);
     for (Eigen::Index c = 0; c < d.y.cols(); ++c)
