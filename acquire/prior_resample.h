@@ -1,9 +1,9 @@
 #pragma once
 // Resampling scattered samples with a learned prior (acquire/prior.h): the samples averaged per MERL cell are
-// the observations the prior is fitted to (weighted by how many samples each cell averages), the kd-tree
-// estimate of acquire/resample.h is kept where samples are near, and the two are blended by a per-cell
+// the observations the prior is fitted to (weighted by how many samples each cell averages), and the kd-tree
+// estimate of the samples' residuals against the fit is added where samples are near, scaled by a per-cell
 // confidence c = max(0, 1 - (g / (r max_gap))^2) of the distance g from the cell centre to its nearest sample
-// (config_distance, as the kd-tree's support test); every valid cell gets data.
+// (config_distance, as the kd-tree's support test; acquire/base_resample.h); every valid cell gets data.
 #include <span>
 
 #include "specula/acquire/prior.h"
@@ -26,7 +26,7 @@ struct PriorResampleStats {
 };
 
 /// Every valid cell of grid (bands x kMerlCells) from src: confidence c per cell (written into
-/// confidence, kMerlCells values, -1 below the horizon), the result c * local + (1 - c) * prior. UsageError on
+/// confidence, kMerlCells values, -1 below the horizon), the result max(0, prior + c * local residual). UsageError on
 /// sizes or bands that differ from the prior's; InputError when no sample falls in a valid cell.
 PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
                                        std::span<float> grid, std::span<float> confidence);
