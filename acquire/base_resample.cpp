@@ -95,10 +95,25 @@ ModelResampleStats resample_with_model(const SampleSource& src, const Wavelength
   const auto t0 = std::chrono::steady_clock::now();
   const PriorObservations obs = cell_means(src);
   auto fitted = std::make_unique<MicrofacetBrdf>(fit_model(obs, bands, o.fit, &st.fit));
-  brdf::evaluate_grid(*fitted, grid);
+  const std::size_t b = bands.size();
+  std::fill(grid.begin(), grid.end(), -1.0f);
+  const auto& cells = valid_cells();
+  parallel_for(
+      cells.size(), [b] { return std::vector<double>(b); },
+      [&](std::size_t i, std::vector<double>& f) {
+        fitted->eval(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[i]))), f);
+        for (std::size_t k = 0; k < b; ++k) grid[k * brdf::kMerlCells + cells[i]] = float(f[k]);
+      },
+      4096);
   st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const BaseAtSamples base = [&](std::span<const double> angles, std::span<float> values) {
-    brdf::evaluate_at(*fitted, angles, values);
+    parallel_for(
+        angles.size() / 4, [b] { return std::vector<double>(b); },
+        [&](std::size_t s, std::vector<double>& f) {
+          fitted->eval(brdf::StdAngles{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]}, f);
+          for (std::size_t k = 0; k < b; ++k) values[s * b + k] = float(f[k]);
+        },
+        4096);
   };
   st.local = resample_on_base(src, o.local, o.confidence_reach, base, grid, confidence);
   st.filled_cells = valid_cells().size();
