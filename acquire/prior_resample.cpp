@@ -96,9 +96,29 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
   fit_prior(prior, obs, o.fit, fitted);
   st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::copy(fitted.begin(), fitted.end(), grid.begin());
-  st.local = resample_on_base(src, o.local, o.confidence_reach, base_from_grid(fitted, b), grid, confidence);
   const auto& cells = valid_cells();
+  if (o.residuals) {
+    std::copy(fitted.begin(), fitted.end(), grid.begin());
+    st.local = resample_on_base(src, o.local, o.confidence_reach, base_from_grid(fitted, b), grid, confidence);
+    st.filled_cells = cells.size();
+    return st;
+  }
+  std::vector<float> gaps(brdf::kMerlCells, -1.0f);
+  st.local = resample_grid(SampleTree(src, o.local.mapping), src, o.local, grid, gaps);
+  std::fill(confidence.begin(), confidence.end(), -1.0f);
+  parallel_for(
+      cells.size(),
+      [&](std::size_t i) {
+        const std::size_t cell = cells[i];
+        const bool local = grid[cell] >= 0;
+        const double c = local ? support_confidence(gaps[cell], o.local.max_gap, o.confidence_reach) : 0.0;
+        confidence[cell] = float(c);
+        for (std::size_t k = 0; k < b; ++k) {
+          const std::size_t at = k * brdf::kMerlCells + cell;
+          grid[at] = float(c * (local ? grid[at] : 0.0f) + (1 - c) * fitted[at]);
+        }
+      },
+      4096);
   st.filled_cells = cells.size();
   return st;
 }

@@ -38,6 +38,7 @@ struct ResampleCliOptions {
   std::size_t lobes = 1;
   std::string fresnel = "schlick";
   std::string shadowing = "smith";
+  bool prior_residuals = false;
 };
 
 // What save_grid would refuse after the work, refused before it: an output that is neither STORE.h5:NAME, a
@@ -91,8 +92,10 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   conf.wavelengths = WavelengthGrid({info.wavelengths[info.bands / 2]});
   conf.units = "confidence";
   conf.brdf.resize(brdf::kMerlCells);
-  const acquire::PriorResampleOptions po{
-      .local = ro, .fit = {.lambda = o.lambda}, .confidence_reach = o.confidence_reach};
+  const acquire::PriorResampleOptions po{.local = ro,
+                                         .fit = {.lambda = o.lambda},
+                                         .confidence_reach = o.confidence_reach,
+                                         .residuals = o.prior_residuals};
   const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, conf.brdf);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
   grid.provenance.importer = fmt::format("resample prior={} lambda={} confidence_reach={} mapping={} k={} weights={}",
@@ -272,6 +275,9 @@ void setup_resample(CLI::App& app) {
   cmd->add_option("--confidence-reach", o->confidence_reach,
                   "--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction of --max-gap")
       ->capture_default_str();
+  cmd->add_flag("--prior-residuals", o->prior_residuals,
+                "--prior: add the kd-tree estimate of the residuals against the prior fit (as --model) instead of "
+                "blending the two");
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
   cmd->callback([o] { run_resample(*o); });
