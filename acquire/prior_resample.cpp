@@ -5,6 +5,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "specula/acquire/base_resample.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/parallel.h"
@@ -88,27 +89,29 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
   if (!(o.confidence_reach > 0 && o.confidence_reach <= 1))
     throw UsageError("prior: confidence_reach (the reach of the confidence, a fraction of max_gap) must be in (0, 1]");
   PriorResampleStats st;
-  const SampleTree tree(src, o.local.mapping);
-  st.local = resample_grid(tree, src, o.local, grid);
   const auto t0 = std::chrono::steady_clock::now();
   const PriorObservations obs = cell_means(src);
   if (obs.cell.empty()) throw InputError("prior: no sample falls in a cell above the horizon");
   st.observed_cells = obs.cell.size();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
   fit_prior(prior, obs, o.fit, fitted);
+  st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto& cells = valid_cells();
+  if (o.residuals) {
+    std::copy(fitted.begin(), fitted.end(), grid.begin());
+    st.local = resample_on_base(src, o.local, o.confidence_reach, base_from_grid(fitted, b), grid, confidence);
+    st.filled_cells = cells.size();
+    return st;
+  }
+  std::vector<float> gaps(brdf::kMerlCells, -1.0f);
+  st.local = resample_grid(SampleTree(src, o.local.mapping), src, o.local, grid, gaps);
   std::fill(confidence.begin(), confidence.end(), -1.0f);
   parallel_for(
-      cells.size(), [] { return Neighbours{}; },
-      [&](std::size_t i, Neighbours& nb) {
+      cells.size(),
+      [&](std::size_t i) {
         const std::size_t cell = cells[i];
         const bool local = grid[cell] >= 0;
-        double c = 0;
-        if (local) {  // falls from 1 at a sample to 0 at the distance where the kd-tree estimate stops (max_gap)
-          tree.nearest(iso_angles(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cell)))), 1, nb);
-          const double r = nb.gap / (o.confidence_reach * o.local.max_gap);
-          c = std::clamp(1 - r * r, 0.0, 1.0);
-        }
+        const double c = local ? support_confidence(gaps[cell], o.local.max_gap, o.confidence_reach) : 0.0;
         confidence[cell] = float(c);
         for (std::size_t k = 0; k < b; ++k) {
           const std::size_t at = k * brdf::kMerlCells + cell;
@@ -117,7 +120,6 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
       },
       4096);
   st.filled_cells = cells.size();
-  st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return st;
 }
 

@@ -3,7 +3,8 @@
 // the observations the prior is fitted to (weighted by how many samples each cell averages), the kd-tree
 // estimate of acquire/resample.h is kept where samples are near, and the two are blended by a per-cell
 // confidence c = max(0, 1 - (g / (r max_gap))^2) of the distance g from the cell centre to its nearest sample
-// (config_distance, as the kd-tree's support test); every valid cell gets data.
+// (config_distance, as the kd-tree's support test); every valid cell gets data. Or (residuals) the kd-tree
+// estimate of the samples' residuals against the fit is added to it, scaled by c (acquire/base_resample.h).
 #include <span>
 
 #include "specula/acquire/prior.h"
@@ -15,6 +16,9 @@ struct PriorResampleOptions {
   ResampleOptions local;  ///< the kd-tree estimate
   PriorFitOptions fit;
   double confidence_reach = 1;  ///< r: confidence falls to 0 at r * local.max_gap from the nearest sample (0 < r <= 1)
+  /// false: c * local + (1 - c) * prior; true: max(0, prior + c * local estimate of the residuals against the
+  /// prior fit) (acquire/base_resample.h, as --model)
+  bool residuals = false;
 };
 
 /// What one reconstruction with a prior did.
@@ -26,7 +30,7 @@ struct PriorResampleStats {
 };
 
 /// Every valid cell of grid (bands x kMerlCells) from src: confidence c per cell (written into
-/// confidence, kMerlCells values, -1 below the horizon), the result c * local + (1 - c) * prior. UsageError on
+/// confidence, kMerlCells values, -1 below the horizon), the result as o.residuals says. UsageError on
 /// sizes or bands that differ from the prior's; InputError when no sample falls in a valid cell.
 PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
                                        std::span<float> grid, std::span<float> confidence);

@@ -80,8 +80,9 @@ using ValueReader = std::function<void(std::size_t first, std::size_t count, std
 // The second half of resample_grid: neighbours of every cell in passes of at most max_entries entries, values
 // streamed once per pass.
 GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const ValueReader& read,
-               std::size_t block_rows, const ResampleOptions& o, std::span<float> grid) {
+               std::size_t block_rows, const ResampleOptions& o, std::span<float> grid, std::span<float> gaps = {}) {
   check_options(o);
+  if (!gaps.empty() && gaps.size() != brdf::kMerlCells) throw UsageError("resample: gaps must hold one value per cell");
   if (o.mapping != tree.mapping()) throw UsageError("resample: the options' mapping differs from the tree's");
   if (bands == 0 || grid.size() != bands * brdf::kMerlCells)
     throw UsageError("resample: the grid must hold bands x 90 x 90 x 180 values");
@@ -114,7 +115,9 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
               const std::size_t c = b0 + i;
               const brdf::StdAngles centre =
                   brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[first + c])));
-              if (!wn.find(tree, iso_angles(centre), o)) return;
+              const bool supported = wn.find(tree, iso_angles(centre), o);
+              if (!gaps.empty()) gaps[cells[first + c]] = float(wn.nb.gap);
+              if (!supported) return;
               count[c] = std::uint32_t(wn.by_sample.size());
               for (std::size_t j = 0; j < wn.by_sample.size(); ++j) {
                 sample[c * k + j] = wn.by_sample[j].first;
@@ -408,12 +411,12 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
 }
 
 GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
-                        std::span<float> grid) {
+                        std::span<float> grid, std::span<float> gaps) {
   if (tree.size() != src.size()) throw UsageError("resample: the tree was built over other samples");
   return fill(
       tree, src.size(), src.bands(),
       [&src](std::size_t first, std::size_t count, std::span<float> out) { src.read_values(first, count, out); },
-      src.block_rows(), o, grid);
+      src.block_rows(), o, grid, gaps);
 }
 
 GridStats resample_grid(const SampleSource& src, const ResampleOptions& o, std::span<float> grid) {

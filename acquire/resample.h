@@ -143,9 +143,10 @@ struct GridStats {
 /// pass of at most o.max_entries neighbour entries); OpenMP over cells, the same grid for any thread count;
 /// progress shown, Interrupted between blocks. UsageError for a grid of the wrong size or bad options.
 GridStats resample_grid(const SampleSource& src, const ResampleOptions& o, std::span<float> grid);
-/// resample_grid with a tree already built over src (o.mapping must be the tree's).
+/// resample_grid with a tree already built over src (o.mapping must be the tree's); when gaps is given
+/// (kMerlCells values), each valid cell's config_distance to its nearest sample goes there (others untouched).
 GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
-                        std::span<float> grid);
+                        std::span<float> grid, std::span<float> gaps = {});
 
 /// Reconstruction at any configuration from samples in memory (the caller keeps the values alive).
 class Resampler {

@@ -10,6 +10,7 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/acquire/base_resample.h"
 #include "specula/acquire/prior_resample.h"
 #include "specula/acquire/resample.h"
 #include "specula/core/error.h"
@@ -33,6 +34,11 @@ struct ResampleCliOptions {
   std::string prior;  // STORE.h5:PRIOR
   double lambda = 1e-3;
   double confidence_reach = 1;
+  std::string model;  // ggx | beckmann
+  std::size_t lobes = 1;
+  std::string fresnel = "schlick";
+  std::string shadowing = "smith";
+  bool prior_residuals = false;
 };
 
 // What save_grid would refuse after the work, refused before it: an output that is neither STORE.h5:NAME, a
@@ -59,7 +65,7 @@ std::string confidence_output(const std::string& output) {
   const std::filesystem::path p(output);
   if (p.extension() == ".spgrid") return (p.parent_path() / (p.stem().string() + ".confidence.spgrid")).string();
   if (p.extension() == ".binary")
-    throw UsageError("resample --prior: write STORE.h5:NAME or a .spgrid (the confidence goes beside it)");
+    throw UsageError("resample --prior/--model: write STORE.h5:NAME or a .spgrid (the confidence goes beside it)");
   return output + ".confidence";
 }
 
@@ -86,8 +92,10 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   conf.wavelengths = WavelengthGrid({info.wavelengths[info.bands / 2]});
   conf.units = "confidence";
   conf.brdf.resize(brdf::kMerlCells);
-  const acquire::PriorResampleOptions po{
-      .local = ro, .fit = {.lambda = o.lambda}, .confidence_reach = o.confidence_reach};
+  const acquire::PriorResampleOptions po{.local = ro,
+                                         .fit = {.lambda = o.lambda},
+                                         .confidence_reach = o.confidence_reach,
+                                         .residuals = o.prior_residuals};
   const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, conf.brdf);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
   grid.provenance.importer = fmt::format("resample prior={} lambda={} confidence_reach={} mapping={} k={} weights={}",
@@ -114,6 +122,80 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
       info.size, o.samples, o.prior, st.filled_cells, st.observed_cells, seconds, what, conf_out);
 }
 
+// The fitted model as JSON: its kind, each lobe's shape, and the albedos per band.
+Json model_json(const acquire::MicrofacetBrdf& m) {
+  Json lobes = Json::array();
+  for (std::size_t j = 0; j < m.shapes().size(); ++j) {
+    const Eigen::VectorXd& s = m.specular()[j];
+    lobes.push_back({{"alpha", m.shapes()[j].alpha},
+                     {m.kind().fresnel == acquire::FresnelKind::schlick ? "f0" : "eta", m.shapes()[j].fresnel},
+                     {"albedo", std::vector<double>(s.begin(), s.end())}});
+  }
+  return {{"distribution", acquire::distribution_name(m.kind().distribution)},
+          {"shadowing", acquire::shadowing_name(m.kind().shadowing)},
+          {"fresnel", acquire::fresnel_name(m.kind().fresnel)},
+          {"diffuse", std::vector<double>(m.diffuse().begin(), m.diffuse().end())},
+          {"lobes", lobes}};
+}
+
+// --model: a Lambertian plus microfacet lobes fitted to the samples as the base, the kd-tree estimate of the
+// residuals added where samples are near (by per-cell confidence, written beside the grid).
+void run_model_resample(const ResampleCliOptions& o, const acquire::ResampleOptions& ro) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const acquire::ModelFitOptions fo{.kind = {.distribution = acquire::parse_distribution(o.model),
+                                             .shadowing = acquire::parse_shadowing(o.shadowing),
+                                             .fresnel = acquire::parse_fresnel(o.fresnel)},
+                                    .lobes = o.lobes};
+  if (o.lobes < 1 || o.lobes > 2) throw UsageError("--lobes: give 1 or 2");
+  const std::string conf_out = confidence_output(o.output);
+  check_output(conf_out, o.replace);
+  const store::Store s = store::Store::open(o.store);
+  const store::SamplesInfo info = s.samples_info(o.samples);
+  const acquire::StoreSamples src(s, o.samples);
+  store::Grid grid, conf;
+  grid.wavelengths = info.wavelengths;
+  grid.units = info.units;
+  grid.brdf.resize(info.bands * brdf::kMerlCells);
+  conf.wavelengths = WavelengthGrid({info.wavelengths[info.bands / 2]});
+  conf.units = "confidence";
+  conf.brdf.resize(brdf::kMerlCells);
+  std::unique_ptr<acquire::MicrofacetBrdf> model;
+  const acquire::ModelResampleStats st = acquire::resample_with_model(
+      src, info.wavelengths, {.local = ro, .fit = fo, .confidence_reach = o.confidence_reach}, grid.brdf, conf.brdf,
+      &model);
+  grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
+  grid.provenance.importer = "resample model=" + model_json(*model).dump() +
+                             fmt::format(" confidence_reach={} mapping={} k={} weights={}", o.confidence_reach,
+                                         o.mapping, o.k, o.weights);
+  conf.provenance.importer = "resample confidence of " + o.output;
+  const std::string what = save_grid(grid, o.output, o.replace, "resample");
+  save_grid(conf, conf_out, o.replace, "resample");
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (o.json) {
+    Json j = report_head(info, st.filled_cells);
+    j["observed_cells"] = st.fit.observed_cells;
+    j["shape_cells"] = st.fit.shape_cells;
+    j["evaluations"] = st.fit.evaluations;
+    j["downweighted"] = st.fit.downweighted;
+    j["fit_relative_rms"] = st.fit.relative_rms;
+    j["seconds"] = seconds;
+    j["fit_seconds"] = st.fit_seconds;
+    j["model"] = model_json(*model);
+    j["output"] = o.output;
+    j["confidence"] = conf_out;
+    j["threads"] = omp_get_max_threads();
+    print_json(j);
+    return;
+  }
+  std::string shapes;
+  for (const auto& sh : model->shapes()) shapes += fmt::format(" alpha {:.4g}, {} {:.4g};", sh.alpha,
+                                                               o.fresnel == "schlick" ? "F0" : "eta", sh.fresnel);
+  fmt::print(
+      "resampled {} samples of {} on a fitted {} model ({} lobe(s):{} relative RMS of the fit {:.3f}) onto all {} "
+      "valid cells in {:.2f} s: {}; confidence in {}\n",
+      info.size, o.samples, o.model, o.lobes, shapes, st.fit.relative_rms, st.filled_cells, seconds, what, conf_out);
+}
+
 void run_resample(const ResampleCliOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!(o.max_gap_deg > 0 && o.max_gap_deg <= 180)) throw UsageError("--max-gap: give degrees in (0, 180]");
@@ -124,7 +206,9 @@ void run_resample(const ResampleCliOptions& o) {
                                     .max_gap = o.max_gap_deg * std::numbers::pi / 180};
   acquire::check_options(ro);
   check_output(o.output, o.replace);
+  if (!o.prior.empty() && !o.model.empty()) throw UsageError("resample: give --prior or --model, not both");
   if (!o.prior.empty()) return run_prior_resample(o, ro);
+  if (!o.model.empty()) return run_model_resample(o, ro);
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);
@@ -179,10 +263,21 @@ void setup_resample(CLI::App& app) {
       "--prior", o->prior,
       "STORE.h5:PRIOR: fit a learned prior (specula prior build) and fill every valid cell, blending with "
       "the kd-tree estimate by per-cell confidence, written beside the grid as NAME.confidence (docs/prior.md)");
+  cmd->add_option("--model", o->model,
+                  "ggx or beckmann: fit a Lambertian plus microfacet lobes with spectral albedos as the base, add the "
+                  "kd-tree estimate of the residuals near samples, fill every valid cell (confidence beside the grid)");
+  cmd->add_option("--lobes", o->lobes, "--model: 1 or 2 microfacet lobes")->capture_default_str();
+  cmd->add_option("--fresnel", o->fresnel, "--model: schlick (fitted F0) or dielectric (fitted eta)")
+      ->capture_default_str();
+  cmd->add_option("--shadowing", o->shadowing, "--model: smith (height-correlated) or vgroove (Torrance-Sparrow)")
+      ->capture_default_str();
   cmd->add_option("--lambda", o->lambda, "--prior: Tikhonov weight of the fit")->capture_default_str();
   cmd->add_option("--confidence-reach", o->confidence_reach,
-                  "--prior: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction of --max-gap")
+                  "--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction of --max-gap")
       ->capture_default_str();
+  cmd->add_flag("--prior-residuals", o->prior_residuals,
+                "--prior: add the kd-tree estimate of the residuals against the prior fit (as --model) instead of "
+                "blending the two");
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
   cmd->callback([o] { run_resample(*o); });
