@@ -184,17 +184,12 @@ TEST(GridExport, LambertianGridToMerl) {
   EXPECT_THROW(grid_to_merl(g, Eigen::Matrix<double, 3, Eigen::Dynamic>::Zero(3, 6)), UsageError);
 }
 
-}  // namespace
-}  // namespace specula::codec
-
-namespace {
 store::Grid flat_grid(std::size_t bands, float value) {
   store::Grid g;
   g.wavelengths = WavelengthGrid::range(400, 400 + 10 * double(bands - 1), 10);
   g.brdf.assign(bands * brdf::kMerlCells, value);
   return g;
 }
-}  // namespace
 
 TEST(GridFile, SeveralFilesAppearAllOrNone) {
   test::ScratchDir dir;
@@ -209,17 +204,20 @@ TEST(GridFile, SeveralFilesAppearAllOrNone) {
   };
   {  // the second grid is malformed: nothing is written
     const std::pair<std::filesystem::path, const store::Grid*> files[] = {{a, &brdf}, {b, &bad}};
-    EXPECT_THROW(codec::write_grid_files(files), UsageError);
+    EXPECT_THROW(write_grid_files(files), UsageError);
   }
   EXPECT_EQ(files_in(), 0u);
   {  // the second cannot be created (its directory is missing): the first, already written, is not left behind
     const std::pair<std::filesystem::path, const store::Grid*> files[] = {{a, &brdf}, {dir / "no" / "c.spgrid", &conf}};
-    EXPECT_ANY_THROW(codec::write_grid_files(files));
+    EXPECT_ANY_THROW(write_grid_files(files));
   }
   EXPECT_EQ(files_in(), 0u);
   const std::pair<std::filesystem::path, const store::Grid*> files[] = {{a, &brdf}, {b, &conf}};
-  codec::write_grid_files(files);
+  write_grid_files(files);
   EXPECT_EQ(files_in(), 2u);
-  EXPECT_EQ(codec::read_grid_file(a).brdf, brdf.brdf);
-  EXPECT_EQ(codec::read_grid_file(b).brdf, conf.brdf);
+  EXPECT_EQ(read_grid_file(a).brdf, brdf.brdf);
+  EXPECT_EQ(read_grid_file(b).brdf, conf.brdf);
 }
+
+}  // namespace
+}  // namespace specula::codec
