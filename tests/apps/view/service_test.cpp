@@ -105,12 +105,12 @@ class ViewService : public ::testing::Test {
     std::fill(g.brdf.begin(), g.brdf.end(), 0.1f);
     g.scale = 1.0;
     w.add_grid("flat", g);
-    store::Grid c;  // grid's confidence: theta_h index / 89
-    c.wavelengths = WavelengthGrid({550.0});
-    c.units = "confidence";
-    c.brdf.resize(brdf::kMerlCells);
-    for (std::size_t i = 0; i < brdf::kMerlCells; ++i) c.brdf[i] = float(brdf::merl_cell(i).theta_h) / 89.0f;
-    w.add_grid("grid.confidence", c);
+    store::Grid conf;  // grid's confidence: theta_h index / 89
+    conf.wavelengths = WavelengthGrid({550.0});
+    conf.units = "confidence";
+    conf.brdf.resize(brdf::kMerlCells);
+    for (std::size_t i = 0; i < brdf::kMerlCells; ++i) conf.brdf[i] = float(brdf::merl_cell(i).theta_h) / 89.0f;
+    w.add_grid("grid.confidence", conf);
 
     w.create_samples("s", wl, "1/sr", {});
     const double d = pi / 180;
