@@ -7,7 +7,10 @@
 
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
+#include "specula/core/interrupt.h"
 #include "specula/core/parallel.h"
+#include "specula/store/grid_rows.h"
+#include "specula/store/prior.h"
 
 namespace specula::acquire {
 namespace {
@@ -75,104 +78,292 @@ Eigen::MatrixXd hat_basis(const WavelengthGrid& wavelengths, std::span<const dou
   return h;
 }
 
-BrdfPrior build_prior(std::size_t count, const std::function<store::Grid(std::size_t)>& load,
-                      std::span<const std::string> names, const PriorOptions& o) {
-  if (count < 2 || names.size() != count) throw UsageError("prior: give at least 2 training grids, each named");
-  if (o.channels < 2 || o.channels > 64) throw UsageError("prior: channels must be 2 to 64");
-  if (!(o.epsilon > 0) || !std::isfinite(o.epsilon)) throw UsageError("prior: epsilon must be positive and finite");
+namespace {
+
+constexpr std::size_t kRow = std::size_t(brdf::kMerlThetaD) * brdf::kMerlPhiD;  // cells per theta_h row
+
+// What both passes share: the grids, the projection onto the channels and the block partition.
+struct Training {
+  std::span<const TrainingGrid> grids;
+  std::size_t c = 0, m = 0, block = 0;
+  Eigen::MatrixXd proj;
+};
+
+// Cos-weighted channel values of cells [i0, i0 + n) of every grid into x (n x m, column g * c + j); counts each
+// grid's cells without data into holes.
+void read_block(const Training& t, std::size_t i0, std::size_t n, Eigen::MatrixXf& x, std::vector<std::size_t>& holes) {
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
-  const std::size_t d = cells.size(), c = o.channels, m = count * c;
-  BrdfPrior p;
-  p.epsilon = o.epsilon;
-  p.training.assign(names.begin(), names.end());
-  Eigen::MatrixXf x(static_cast<Eigen::Index>(d),
-                    static_cast<Eigen::Index>(m));  // cos-weighted channel values, then mapped
-  Eigen::MatrixXd proj;
-  for (std::size_t g = 0; g < count; ++g) {
-    const store::Grid grid = load(g);
-    const std::size_t b = grid.bands();
-    if (g == 0) {
-      if (b < c)
-        throw InputError("prior: grid '" + names[0] + "' has " + std::to_string(b) + " bands, fewer than the " +
-                         std::to_string(c) + " channels asked for");
-      p.wavelengths = grid.wavelengths;
-      p.knots = even_knots(grid.wavelengths, c);
-      proj = projection(hat_basis(p.wavelengths, p.knots));
-    } else if (!std::ranges::equal(grid.wavelengths.values(), p.wavelengths.values())) {
-      throw InputError("prior: grid '" + names[g] + "' has bands " + grid.wavelengths.describe() + ", not the " +
-                       p.wavelengths.describe() + " of '" + names[0] + "'; uplift or resample it to those bands");
-    }
-    if (grid.brdf.size() != b * brdf::kMerlCells) throw UsageError("prior: grid '" + names[g] + "' has the wrong size");
-    std::vector<std::size_t> holes((d + kBlock - 1) / kBlock, 0);
-    parallel_for(holes.size(), [&](std::size_t blk) {
+  const std::size_t h0 = cells[i0] / kRow, rows = cells[i0 + n - 1] / kRow - h0 + 1;
+  x.resize(Eigen::Index(n), Eigen::Index(t.m));
+  std::vector<float> buf;
+  for (std::size_t g = 0; g < t.grids.size(); ++g) {
+    const TrainingGrid& grid = t.grids[g];
+    const std::size_t b = grid.wavelengths.size();
+    buf.resize(b * rows * kRow);
+    grid.read_rows(h0, rows, buf);
+    std::vector<std::size_t> missing((n + kBlock - 1) / kBlock, 0);
+    parallel_for(missing.size(), [&](std::size_t blk) {
       Eigen::VectorXd s(static_cast<Eigen::Index>(b));
-      for (std::size_t i = blk * kBlock; i < std::min(d, (blk + 1) * kBlock); ++i) {
+      for (std::size_t i = blk * kBlock; i < std::min(n, (blk + 1) * kBlock); ++i) {
+        const std::size_t at = cells[i0 + i] - h0 * kRow;
         bool hole = false;
         for (std::size_t k = 0; k < b; ++k) {
-          const float v = grid.brdf[k * brdf::kMerlCells + cells[i]];
+          const float v = buf[k * rows * kRow + at];
           hole |= !(v >= 0) || !std::isfinite(v);
           s[Eigen::Index(k)] = double(v) * grid.scale;
         }
-        holes[blk] += hole;
-        const Eigen::VectorXd ch = (proj * s).cwiseMax(0.0) * double(cosines[i]);
-        for (std::size_t j = 0; j < c; ++j) x(Eigen::Index(i), Eigen::Index(g * c + j)) = float(ch[Eigen::Index(j)]);
+        missing[blk] += hole;
+        const Eigen::VectorXd ch = (t.proj * s).cwiseMax(0.0) * double(cosines[i0 + i]);
+        for (std::size_t j = 0; j < t.c; ++j) x(Eigen::Index(i), Eigen::Index(g * t.c + j)) = float(ch[Eigen::Index(j)]);
       }
     });
-    std::size_t missing = 0;
-    for (const std::size_t h : holes) missing += h;
-    if (missing)
-      throw InputError("prior: grid '" + names[g] + "' has no data (or a non-finite value) at " +
-                       std::to_string(missing) + " of the " + std::to_string(d) +
-                       " valid cells; a prior learns from complete grids");
+    for (const std::size_t h : missing) holes[g] += h;
   }
-  // The reference: per cell the median over observations; then every value mapped and centred.
-  p.reference.resize(d);
-  p.mean.resize(d);
-  parallel_for((d + kBlock - 1) / kBlock, [&](std::size_t blk) {
+}
+
+// Maps x (cells [i0, i0 + n)) log-relatively to reference and centres it on mean.
+void map_block(Eigen::MatrixXf& x, std::size_t i0, std::span<const float> reference, std::span<const float> mean,
+               double eps) {
+  const std::size_t n = std::size_t(x.rows()), m = std::size_t(x.cols());
+  parallel_for((n + kBlock - 1) / kBlock, [&](std::size_t blk) {
+    for (std::size_t i = blk * kBlock; i < std::min(n, (blk + 1) * kBlock); ++i)
+      for (std::size_t j = 0; j < m; ++j) {
+        float& v = x(Eigen::Index(i), Eigen::Index(j));
+        v = mapped(v, reference[i0 + i], eps) - mean[i0 + i];
+      }
+  });
+}
+
+// Per cell of x (cells [i0, i0 + n)): the median over observations as reference, the mean mapped value.
+void reference_and_mean(const Eigen::MatrixXf& x, std::size_t i0, double eps, BrdfPrior& p) {
+  const std::size_t n = std::size_t(x.rows()), m = std::size_t(x.cols());
+  parallel_for((n + kBlock - 1) / kBlock, [&](std::size_t blk) {
     std::vector<float> row(m);
-    for (std::size_t i = blk * kBlock; i < std::min(d, (blk + 1) * kBlock); ++i) {
+    for (std::size_t i = blk * kBlock; i < std::min(n, (blk + 1) * kBlock); ++i) {
       for (std::size_t j = 0; j < m; ++j) row[j] = x(Eigen::Index(i), Eigen::Index(j));
       std::nth_element(row.begin(), row.begin() + std::ptrdiff_t(m / 2), row.end());
       const float ref = row[m / 2];
-      p.reference[i] = ref;
       double sum = 0;
-      for (std::size_t j = 0; j < m; ++j) {
-        const float y = mapped(x(Eigen::Index(i), Eigen::Index(j)), ref, o.epsilon);
-        x(Eigen::Index(i), Eigen::Index(j)) = y;
-        sum += y;
-      }
-      p.mean[i] = float(sum / double(m));
-      for (std::size_t j = 0; j < m; ++j) x(Eigen::Index(i), Eigen::Index(j)) -= p.mean[i];
+      for (std::size_t j = 0; j < m; ++j) sum += mapped(x(Eigen::Index(i), Eigen::Index(j)), ref, eps);
+      p.reference[i0 + i] = ref;
+      p.mean[i0 + i] = float(sum / double(m));
     }
   });
-  // PCA through the m x m Gram matrix of the centred observations (m << cells), summed by blocks in order.
-  const std::size_t blocks = (d + kBlock - 1) / kBlock;
-  std::vector<Eigen::MatrixXd> partial(blocks);
-  parallel_for(blocks, [&](std::size_t blk) {
-    const Eigen::Index i0 = Eigen::Index(blk * kBlock), n = Eigen::Index(std::min(d, (blk + 1) * kBlock)) - i0;
-    const Eigen::MatrixXd xb = x.middleRows(i0, n).cast<double>();
-    partial[blk] = xb.transpose() * xb;
-  });
-  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(Eigen::Index(m), Eigen::Index(m));
-  for (const auto& g : partial) gram += g;
+}
+
+Training check_training(std::span<const TrainingGrid> grids, const PriorOptions& o, BrdfPrior& p) {
+  if (grids.size() < 2) throw UsageError("prior: give at least 2 training grids");
+  if (o.channels < 2 || o.channels > 64) throw UsageError("prior: channels must be 2 to 64");
+  if (!(o.epsilon > 0) || !std::isfinite(o.epsilon)) throw UsageError("prior: epsilon must be positive and finite");
+  Training t{.grids = grids, .c = o.channels, .m = grids.size() * o.channels};
+  p.epsilon = o.epsilon;
+  p.wavelengths = grids[0].wavelengths;
+  for (const auto& g : grids) {
+    p.training.push_back(g.name);
+    if (!std::ranges::equal(g.wavelengths.values(), p.wavelengths.values()))
+      throw InputError("prior: grid '" + g.name + "' has bands " + g.wavelengths.describe() + ", not the " +
+                       p.wavelengths.describe() + " of '" + grids[0].name + "'; uplift or resample it to those bands");
+    if (!(g.scale > 0) || !std::isfinite(g.scale) || !g.read_rows)
+      throw UsageError("prior: grid '" + g.name + "' has no rows to read or a bad scale");
+  }
+  if (p.wavelengths.size() < t.c)
+    throw InputError("prior: grid '" + grids[0].name + "' has " + std::to_string(p.wavelengths.size()) +
+                     " bands, fewer than the " + std::to_string(t.c) + " channels asked for");
+  p.knots = even_knots(p.wavelengths, t.c);
+  t.proj = projection(hat_basis(p.wavelengths, p.knots));
+  // Whole blocks of the prior's component storage, as many as block_bytes holds (at least one).
+  t.block = store::kPriorBlockCells * std::max<std::size_t>(1, o.block_bytes / (4 * t.m * store::kPriorBlockCells));
+  return t;
+}
+
+// Pass 1: reference, mean and the Gram matrix of the centred observations, summed over kBlock cells in cell order
+// (the same sums for any thread count and block size).
+Eigen::MatrixXd first_pass(const Training& t, BrdfPrior& p) {
+  const std::size_t d = valid_cells().size();
+  p.reference.resize(d);
+  p.mean.resize(d);
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(Eigen::Index(t.m), Eigen::Index(t.m));
+  std::vector<std::size_t> holes(t.grids.size(), 0);
+  Eigen::MatrixXf x;
+  for (std::size_t i0 = 0; i0 < d; i0 += t.block) {
+    check_interrupt();
+    const std::size_t n = std::min(t.block, d - i0);
+    read_block(t, i0, n, x, holes);
+    reference_and_mean(x, i0, p.epsilon, p);
+    map_block(x, i0, p.reference, p.mean, p.epsilon);
+    std::vector<Eigen::MatrixXd> partial((n + kBlock - 1) / kBlock);
+    parallel_for(partial.size(), [&](std::size_t blk) {
+      const Eigen::Index a = Eigen::Index(blk * kBlock), rows = Eigen::Index(std::min(n, (blk + 1) * kBlock)) - a;
+      const Eigen::MatrixXd xb = x.middleRows(a, rows).cast<double>();
+      partial[blk] = xb.transpose() * xb;
+    });
+    for (const auto& g : partial) gram += g;
+  }
+  for (std::size_t g = 0; g < t.grids.size(); ++g)
+    if (holes[g])
+      throw InputError("prior: grid '" + t.grids[g].name + "' has no data (or a non-finite value) at " +
+                       std::to_string(holes[g]) + " of the " + std::to_string(d) +
+                       " valid cells; a prior learns from complete grids");
+  return gram;
+}
+
+// The leading eigenvectors of gram scaled by 1 / sqrt(eigenvalue) (m x k); the variances into p.
+Eigen::MatrixXd solve_components(const Eigen::MatrixXd& gram, std::size_t wanted, BrdfPrior& p) {
+  const std::size_t m = std::size_t(gram.rows());
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(gram);
-  std::size_t k = o.components ? std::min(o.components, m - 1) : m - 1;
+  std::size_t k = wanted ? std::min(wanted, m - 1) : m - 1;
   const double top = eig.eigenvalues()[Eigen::Index(m) - 1];
   while (k > 0 && !(eig.eigenvalues()[Eigen::Index(m - k)] > 1e-12 * top)) --k;  // drop null directions
   p.variances.resize(k);
-  p.components.assign(k * d, 0.0f);
+  Eigen::MatrixXd v(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(k));
   for (std::size_t q = 0; q < k; ++q) {
     const Eigen::Index col = Eigen::Index(m - 1 - q);
     const double lambda = eig.eigenvalues()[col];
     p.variances[q] = lambda / double(m - 1);
-    const Eigen::VectorXd v = eig.eigenvectors().col(col) / std::sqrt(lambda);
-    parallel_for(blocks, [&](std::size_t blk) {
-      for (std::size_t i = blk * kBlock; i < std::min(d, (blk + 1) * kBlock); ++i)
-        p.components[q * d + i] = float(x.row(Eigen::Index(i)).cast<double>().dot(v));
+    v.col(Eigen::Index(q)) = eig.eigenvectors().col(col) / std::sqrt(lambda);
+  }
+  return v;
+}
+
+// Pass 2: the components of cells [first, first + count) (k x count), from the block holding them, read once.
+class ComponentBlocks {
+ public:
+  ComponentBlocks(const Training& t, const BrdfPrior& p, Eigen::MatrixXd v) : t_(t), p_(p), v_(std::move(v)) {}
+  void operator()(std::size_t first, std::size_t count, std::span<float> out) {
+    const std::size_t d = valid_cells().size(), k = std::size_t(v_.cols()), i0 = first / t_.block * t_.block;
+    if (i0 != block_) {
+      check_interrupt();
+      std::vector<std::size_t> holes(t_.grids.size(), 0);
+      read_block(t_, i0, std::min(t_.block, d - i0), x_, holes);
+      map_block(x_, i0, p_.reference, p_.mean, p_.epsilon);
+      block_ = i0;
+    }
+    if (out.size() != k * count || first + count > std::min(d, i0 + t_.block))
+      throw UsageError("prior: component blocks out of range");
+    parallel_for((count + kBlock - 1) / kBlock, [&](std::size_t blk) {
+      const Eigen::Index a = Eigen::Index(blk * kBlock), rows = Eigen::Index(std::min(count, (blk + 1) * kBlock)) - a;
+      const Eigen::MatrixXd cb = x_.middleRows(Eigen::Index(first - i0) + a, rows).cast<double>() * v_;  // rows x k
+      for (std::size_t q = 0; q < k; ++q)
+        for (Eigen::Index i = 0; i < rows; ++i) out[q * count + std::size_t(a + i)] = float(cb(i, Eigen::Index(q)));
     });
   }
+
+ private:
+  const Training& t_;
+  const BrdfPrior& p_;
+  Eigen::MatrixXd v_;
+  std::size_t block_ = std::size_t(-1);
+  Eigen::MatrixXf x_;
+};
+
+}  // namespace
+
+TrainingGrid store_training_grid(const store::Store& s, const std::string& name, const std::string& label) {
+  const store::GridInfo info = s.grid_info(name);
+  return {.name = label,
+          .wavelengths = info.wavelengths,
+          .scale = info.scale,
+          .read_rows = [s, name](std::size_t h0, std::size_t rows, std::span<float> out) {
+            store::read_grid_rows(s, name, h0, rows, out);
+          }};
+}
+
+TrainingGrid memory_training_grid(std::shared_ptr<const store::Grid> grid, const std::string& name) {
+  if (grid->brdf.size() != grid->bands() * brdf::kMerlCells)
+    throw UsageError("prior: grid '" + name + "' has the wrong size");
+  const WavelengthGrid w = grid->wavelengths;
+  const double scale = grid->scale;
+  return {.name = name,
+          .wavelengths = w,
+          .scale = scale,
+          .read_rows = [grid = std::move(grid)](std::size_t h0, std::size_t rows, std::span<float> out) {
+            const std::size_t b = grid->bands();
+            if (h0 + rows > std::size_t(brdf::kMerlThetaH) || out.size() != b * rows * kRow)
+              throw UsageError("prior: rows out of range");
+            for (std::size_t k = 0; k < b; ++k)
+              std::copy_n(grid->brdf.begin() + std::ptrdiff_t(k * brdf::kMerlCells + h0 * kRow), rows * kRow,
+                          out.begin() + std::ptrdiff_t(k * rows * kRow));
+          }};
+}
+
+BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& o,
+                      const std::function<void(const BrdfPrior&, ComponentSource)>& sink) {
+  BrdfPrior p;
+  const Training t = check_training(grids, o, p);
+  const Eigen::MatrixXd gram = first_pass(t, p);
+  ComponentBlocks blocks(t, p, solve_components(gram, o.components, p));
+  sink(p, [&](std::size_t first, std::size_t count, std::span<float> out) { blocks(first, count, out); });
   return p;
+}
+
+BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& o) {
+  BrdfPrior whole;
+  build_prior(grids, o, [&](const BrdfPrior& p, const ComponentSource& blocks) {
+    whole = p;
+    const std::size_t d = p.cells(), k = p.k();
+    whole.components.assign(k * d, 0.0f);
+    std::vector<float> block;
+    for (std::size_t first = 0; first < d; first += store::kPriorBlockCells) {
+      const std::size_t count = std::min(store::kPriorBlockCells, d - first);
+      block.resize(k * count);
+      blocks(first, count, block);
+      for (std::size_t q = 0; q < k; ++q)
+        std::copy_n(block.begin() + std::ptrdiff_t(q * count), count,
+                    whole.components.begin() + std::ptrdiff_t(q * d + first));
+    }
+  });
+  return whole;
+}
+
+BrdfPrior build_prior(std::size_t count, const std::function<store::Grid(std::size_t)>& load,
+                      std::span<const std::string> names, const PriorOptions& o) {
+  if (names.size() != count) throw UsageError("prior: give at least 2 training grids, each named");
+  std::vector<TrainingGrid> grids;
+  for (std::size_t i = 0; i < count; ++i)
+    grids.push_back(memory_training_grid(std::make_shared<const store::Grid>(load(i)), names[i]));
+  return build_prior(grids, o);
+}
+
+std::vector<double> observation_weights(const BrdfPrior& p, const PriorObservations& obs, const PriorFitOptions& o) {
+  const std::size_t n = obs.cell.size(), b = p.wavelengths.size(), c = p.channels();
+  if (obs.weight.size() != n || obs.values.size() != n * b || !(obs.spread.empty() || obs.spread.size() == n * b))
+    throw UsageError("prior: observation sizes do not match the prior's " + std::to_string(b) + " bands");
+  if (!(o.noise_shrinkage >= 0) || !std::isfinite(o.noise_shrinkage) || !(o.noise_floor > 0) || !(o.noise_floor <= 1))
+    throw UsageError("prior: noise_shrinkage must be finite and >= 0, noise_floor in (0, 1]");
+  std::vector<double> w(obs.weight.begin(), obs.weight.end());
+  if (o.weights == PriorWeights::count || obs.spread.empty()) return w;
+  const auto& cosines = valid_cell_cosines();
+  const Eigen::MatrixXd proj = projection(hat_basis(p.wavelengths, p.knots));
+  const Eigen::MatrixXd proj2 = proj.cwiseAbs2();
+  // Per cell the per-sample variance of the mapped value (delta method, bands independent), averaged over channels.
+  std::vector<double> s2(n, -1.0);
+  parallel_for(
+      n,
+      [&](std::size_t s) {
+        if (!(obs.weight[s] >= 2) || obs.cell[s] >= cosines.size()) return;
+        const double cw = cosines[obs.cell[s]];
+        const Eigen::Map<const Eigen::VectorXf> mean(&obs.values[s * b], Eigen::Index(b));
+        const Eigen::Map<const Eigen::VectorXf> spread(&obs.spread[s * b], Eigen::Index(b));
+        const Eigen::ArrayXd ch = (proj * mean.cast<double>()).cwiseMax(0.0).array() * cw;
+        const Eigen::ArrayXd var = (proj2 * spread.cast<double>().cwiseMax(0.0)).array() * cw * cw;
+        s2[s] = (var / (ch + p.epsilon).square()).sum() / double(c);
+      },
+      4096);
+  std::vector<double> known;
+  for (const double v : s2)
+    if (v >= 0) known.push_back(v);
+  if (known.empty()) return w;
+  std::nth_element(known.begin(), known.begin() + std::ptrdiff_t(known.size() / 2), known.end());
+  const double sigma0 = known[known.size() / 2];
+  if (!(sigma0 > 0) || !std::isfinite(sigma0)) return w;  // noiseless samples: nothing to tell the cells apart
+  for (std::size_t s = 0; s < n; ++s) {
+    const double dof = std::max(0.0, double(obs.weight[s]) - 1), own = s2[s] >= 0 ? s2[s] : sigma0;
+    double var = (o.noise_shrinkage * sigma0 + dof * own) / (o.noise_shrinkage + dof);
+    if (!(o.noise_shrinkage + dof > 0)) var = sigma0;
+    w[s] *= sigma0 / std::max(var, o.noise_floor * sigma0);
+  }
+  return w;
 }
 
 void fit_prior(const BrdfPrior& p, const PriorObservations& obs, const PriorFitOptions& o, std::span<float> grid) {
@@ -185,23 +376,41 @@ void fit_prior(const BrdfPrior& p, const PriorObservations& obs, const PriorFitO
     throw UsageError("prior: observation or grid sizes do not match the prior's " + std::to_string(b) + " bands");
   if (n == 0) throw InputError("prior: no observation to fit");
   if (!(o.lambda >= 0) || !std::isfinite(o.lambda)) throw UsageError("prior: lambda must be finite and >= 0");
+  const std::vector<double> weight = observation_weights(p, obs, o);
   const Eigen::MatrixXd hats = hat_basis(p.wavelengths, p.knots);
   const Eigen::MatrixXd proj = projection(hats);
   // Per channel: minimise sum_s w_s (mean_s + Q_s a - y_s)^2 + lambda sum_q a_q^2 / variance_q.
+  for (const std::uint32_t i : obs.cell)
+    if (i >= d) throw UsageError("prior: observation cell out of range");
+  // The normal equations summed over pieces of kBlock observations (GEMMs on every thread), in order.
   Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(Eigen::Index(k), Eigen::Index(k));
   Eigen::MatrixXd atb = Eigen::MatrixXd::Zero(Eigen::Index(k), Eigen::Index(c));
-  Eigen::VectorXd q(static_cast<Eigen::Index>(k));
-  for (std::size_t s = 0; s < n; ++s) {
-    const std::size_t i = obs.cell[s];
-    if (i >= d) throw UsageError("prior: observation cell out of range");
-    const Eigen::Map<const Eigen::VectorXf> spec(&obs.values[s * b], Eigen::Index(b));
-    const Eigen::VectorXd ch = (proj * spec.cast<double>()).cwiseMax(0.0) * double(cosines[i]);
-    for (std::size_t j = 0; j < k; ++j) q[Eigen::Index(j)] = p.components[j * d + i];
-    const double w = obs.weight[s];
-    ata.noalias() += w * q * q.transpose();
-    for (std::size_t j = 0; j < c; ++j)
-      atb.col(Eigen::Index(j)) +=
-          w * (double(mapped(float(ch[Eigen::Index(j)]), p.reference[i], p.epsilon)) - p.mean[i]) * q;
+  const std::size_t pieces = (n + kBlock - 1) / kBlock, group = 8;
+  for (std::size_t g0 = 0; g0 < pieces; g0 += group) {
+    const std::size_t count = std::min(group, pieces - g0);
+    std::vector<Eigen::MatrixXd> pa(count), pb(count);
+    parallel_for(count, [&](std::size_t t) {
+      const std::size_t s0 = (g0 + t) * kBlock, rows = std::min(n, s0 + kBlock) - s0;
+      Eigen::MatrixXd q(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(k)), y(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(c));
+      Eigen::VectorXd w(static_cast<Eigen::Index>(rows));
+      for (std::size_t r = 0; r < rows; ++r) {
+        const std::size_t s = s0 + r, i = obs.cell[s];
+        const Eigen::Map<const Eigen::VectorXf> spec(&obs.values[s * b], Eigen::Index(b));
+        const Eigen::VectorXd ch = (proj * spec.cast<double>()).cwiseMax(0.0) * double(cosines[i]);
+        for (std::size_t j = 0; j < k; ++j) q(Eigen::Index(r), Eigen::Index(j)) = p.components[j * d + i];
+        for (std::size_t j = 0; j < c; ++j)
+          y(Eigen::Index(r), Eigen::Index(j)) =
+              double(mapped(float(ch[Eigen::Index(j)]), p.reference[i], p.epsilon)) - p.mean[i];
+        w[Eigen::Index(r)] = weight[s];
+      }
+      const Eigen::MatrixXd wq = w.asDiagonal() * q;
+      pa[t] = wq.transpose() * q;
+      pb[t] = wq.transpose() * y;
+    });
+    for (std::size_t t = 0; t < count; ++t) {
+      ata += pa[t];
+      atb += pb[t];
+    }
   }
   for (std::size_t j = 0; j < k; ++j) ata(Eigen::Index(j), Eigen::Index(j)) += o.lambda / p.variances[j];
   const Eigen::MatrixXd a = ata.ldlt().solve(atb);  // k x c

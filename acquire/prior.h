@@ -7,10 +7,11 @@
 // observations gives a mean and components over the valid MERL cells. A capture is fitted per channel by
 // Tikhonov-regularised weighted least squares on the components (docs/prior.md).
 //
-// Memory: building holds 4 bytes x valid cells (1.1 M) x materials x channels; the prior holds 4 bytes x cells
-// x (components + 2).
+// Memory: building streams blocks of cells from the grids (PriorOptions::block_bytes); the prior holds 4 bytes x
+// cells x (components + 2).
 #include <Eigen/Core>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -25,6 +26,7 @@ struct PriorOptions {
   std::size_t channels = 8;    ///< knots of the spectral basis, spread evenly over the grids' wavelengths (>= 2)
   std::size_t components = 0;  ///< principal components kept; 0: all (observations - 1)
   double epsilon = 1e-3;       ///< eps of the log-relative mapping (1/sr, as Nielsen et al.)
+  std::size_t block_bytes = std::size_t(256) << 20;  ///< memory for a block's cells x observations (float32)
 };
 
 /// A learned prior: PCA of log-relative mapped channels over the valid MERL cells (brdf::merl_cell_valid, in
@@ -53,24 +55,71 @@ const std::vector<float>& valid_cell_cosines();
 /// neighbours (constant beyond the end knots).
 Eigen::MatrixXd hat_basis(const WavelengthGrid& wavelengths, std::span<const double> knots);
 
-/// Learns a prior from `count` grids that load(i) returns (one at a time; names[i] names grid i): all on the same
-/// wavelengths, each with data at every valid cell. InputError naming the grid otherwise; UsageError for bad
-/// options or fewer than 2 grids.
+/// One training grid, read block by block in whole theta_h rows.
+struct TrainingGrid {
+  std::string name;
+  WavelengthGrid wavelengths;
+  double scale = 1;
+  /// theta_h rows [h0, h0 + rows) into out: bands x rows x 90 x 180 unscaled values.
+  std::function<void(std::size_t h0, std::size_t rows, std::span<float> out)> read_rows;
+};
+/// Grid `name` of store s, read by rows from the store (only the chunks a block needs); InputError when absent.
+TrainingGrid store_training_grid(const store::Store& s, const std::string& name, const std::string& label);
+/// A grid in memory, shared (not copied).
+TrainingGrid memory_training_grid(std::shared_ptr<const store::Grid> grid, const std::string& name);
+
+/// Makes the k x count components of cells [first, first + count) of a prior being built (row-major into out), for
+/// consecutive blocks of store::kPriorBlockCells cells in cell order.
+using ComponentSource = std::function<void(std::size_t first, std::size_t count, std::span<float> out)>;
+
+/// Learns a prior from grids, all on the same wavelengths, each with data at every valid cell, in two passes over
+/// blocks of cells (each reading the block's rows of every grid): the per-cell reference and mean and the Gram
+/// matrix of the observations; then, as sink asks for them, the components. sink gets the prior without its
+/// components and their source (valid during the call). Memory: options.block_bytes plus one grid's rows of a
+/// block. The result does not depend on the thread count or block_bytes. InputError naming the grid for other
+/// bands or holes; UsageError for bad options or fewer than 2 grids. Returns the prior without its components.
+BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& options,
+                      const std::function<void(const BrdfPrior&, ComponentSource)>& sink);
+/// build_prior into memory (the whole prior, components included).
+BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& options);
+/// build_prior of `count` grids that load(i) returns, held in memory while building (names[i] names grid i).
 BrdfPrior build_prior(std::size_t count, const std::function<store::Grid(std::size_t)>& load,
                       std::span<const std::string> names, const PriorOptions& options);
+/// build_prior streamed into prior `name` of the transaction out (components written block by block); returns the
+/// prior's tables without its components.
+BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& options, store::StoreWriter& out,
+                      const std::string& name);
 
 /// Scattered observations of a BRDF on the prior's cells: per observed cell its index into valid_cells(), the
-/// BRDF spectrum there (bands values, 1/sr) and a weight (inverse noise variance, e.g. the samples averaged).
+/// BRDF spectrum there (bands values, 1/sr), the samples it averages and, when known, their noise.
 struct PriorObservations {
   std::vector<std::uint32_t> cell;
   std::vector<float> values;  ///< cells x bands
-  std::vector<float> weight;
+  std::vector<float> weight;  ///< samples averaged (n), or any weight proportional to the mean's inverse variance
+  /// cells x bands, or empty (unknown): the variance of one sample about the cell's mean (1/sr^2), from the samples'
+  /// scatter (cell_means) or a noise model; with it the fit weighs a cell by n / its noise (PriorFitOptions).
+  std::vector<float> spread;
+};
+
+/// How a cell's observation is weighted in the fit (docs/prior.md).
+enum class PriorWeights {
+  noise,  ///< n / sigma^2: sigma^2 the cell's noise in the mapped domain, shrunk toward the median cell's
+  count,  ///< n, the samples averaged (as if every sample had the same noise)
 };
 
 /// How a prior is fitted.
 struct PriorFitOptions {
   double lambda = 1e-3;  ///< Tikhonov weight: lambda * sum_i a_i^2 / variance_i is added to the weighted residual
+  PriorWeights weights = PriorWeights::noise;  ///< noise needs PriorObservations::spread; count without it
+  double noise_shrinkage = 2;  ///< nu0: pseudo-samples at the median noise a cell's own scatter is pooled with
+  double noise_floor = 0.01;   ///< a cell's noise variance is at least this fraction of the median cell's
 };
+
+/// Per observation its weight in the fit: n (count, or no spread) or n sigma0^2 / sigma^2 (noise), sigma^2 the
+/// cell's per-sample noise variance in the mapped domain, (nu0 sigma0^2 + (n - 1) s^2) / (nu0 + n - 1) floored at
+/// noise_floor sigma0^2, s^2 its scatter, sigma0^2 the median s^2 of the cells with n >= 2. UsageError on sizes.
+std::vector<double> observation_weights(const BrdfPrior& prior, const PriorObservations& obs,
+                                        const PriorFitOptions& options);
 
 /// Fits the prior to obs per channel and writes the reconstruction at every valid cell into grid (bands x
 /// kMerlCells, band slowest; other cells untouched). UsageError on sizes, InputError for no observation.

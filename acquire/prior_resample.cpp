@@ -30,7 +30,7 @@ PriorObservations cell_means(const SampleSource& src) {
   const std::size_t b = src.bands(), n = src.size(), block = src.block_rows();
   const auto& slot = valid_slot();
   std::vector<std::int32_t> obs_of(valid_cells().size(), -1);
-  std::vector<double> sums;
+  std::vector<double> sums, squares;
   std::vector<std::uint32_t> counts;
   PriorObservations out;
   std::vector<double> angles;
@@ -62,18 +62,28 @@ PriorObservations cell_means(const SampleSource& src) {
         obs_of[std::size_t(v)] = std::int32_t(out.cell.size());
         out.cell.push_back(std::uint32_t(v));
         sums.resize(sums.size() + b, 0.0);
+        squares.resize(squares.size() + b, 0.0);
         counts.push_back(0);
       }
       const std::size_t o = std::size_t(obs_of[std::size_t(v)]);
-      for (std::size_t k = 0; k < b; ++k) sums[o * b + k] += values[s * b + k];
+      for (std::size_t k = 0; k < b; ++k) {
+        sums[o * b + k] += values[s * b + k];
+        squares[o * b + k] += double(values[s * b + k]) * values[s * b + k];
+      }
       ++counts[o];
     }
   }
   out.values.resize(sums.size());
+  out.spread.resize(sums.size());
   out.weight.resize(counts.size());
   for (std::size_t o = 0; o < counts.size(); ++o) {
-    out.weight[o] = float(counts[o]);
-    for (std::size_t k = 0; k < b; ++k) out.values[o * b + k] = float(sums[o * b + k] / counts[o]);
+    const double n = counts[o];
+    out.weight[o] = float(n);
+    for (std::size_t k = 0; k < b; ++k) {
+      const double mean = sums[o * b + k] / n;
+      out.values[o * b + k] = float(mean);
+      out.spread[o * b + k] = n > 1 ? float(std::max(0.0, (squares[o * b + k] - n * mean * mean) / (n - 1))) : 0.0f;
+    }
   }
   return out;
 }

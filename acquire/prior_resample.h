@@ -1,6 +1,6 @@
 #pragma once
 // Resampling scattered samples with a learned prior (acquire/prior.h): the samples averaged per MERL cell are
-// the observations the prior is fitted to (weighted by how many samples each cell averages), the kd-tree
+// the observations the prior is fitted to (weighted by their count and their scatter, PriorWeights), the kd-tree
 // estimate of acquire/resample.h is kept where samples are near, and the two are blended by a per-cell
 // confidence c = max(0, 1 - (g / (r max_gap))^2) of the distance g from the cell centre to its nearest sample
 // (config_distance, as the kd-tree's support test); every valid cell gets data. Or (residuals) the kd-tree
@@ -35,7 +35,8 @@ struct PriorResampleStats {
 PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
                                        std::span<float> grid, std::span<float> confidence);
 
-/// The samples of src averaged per valid cell (values) with their counts as weights (observations of prior.h).
+/// The samples of src averaged per valid cell (values), their counts as weights and their scatter (the unbiased
+/// variance per band, 0 for one sample) as spread: the observations of prior.h.
 PriorObservations cell_means(const SampleSource& src);
 
 }  // namespace specula::acquire

@@ -4,16 +4,34 @@
 
 namespace specula::acquire {
 
+namespace {
+
+store::PriorTables tables_of(const BrdfPrior& p) {
+  return {.wavelengths = std::vector<double>(p.wavelengths.values().begin(), p.wavelengths.values().end()),
+          .knots = p.knots,
+          .variances = p.variances,
+          .epsilon = p.epsilon,
+          .reference = p.reference,
+          .mean = p.mean,
+          .components = p.components,
+          .training = p.training};
+}
+
+}  // namespace
+
 void write_prior(store::StoreWriter& out, const std::string& name, const BrdfPrior& p) {
   store::validate_name(name, "prior");
-  out.add_prior(name, {.wavelengths = std::vector<double>(p.wavelengths.values().begin(), p.wavelengths.values().end()),
-                       .knots = p.knots,
-                       .variances = p.variances,
-                       .epsilon = p.epsilon,
-                       .reference = p.reference,
-                       .mean = p.mean,
-                       .components = p.components,
-                       .training = p.training});
+  out.add_prior(name, tables_of(p));
+}
+
+BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& options, store::StoreWriter& out,
+                      const std::string& name) {
+  store::validate_name(name, "prior");
+  return build_prior(grids, options, [&](const BrdfPrior& p, const ComponentSource& blocks) {
+    store::PriorTables t = tables_of(p);
+    t.component_blocks = blocks;
+    out.add_prior(name, t);
+  });
 }
 
 std::vector<std::string> prior_names(const store::Store& in) { return in.objects("priors"); }

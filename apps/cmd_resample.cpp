@@ -11,8 +11,10 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/acquire/base_resample.h"
+#include "specula/acquire/prior_output.h"
 #include "specula/acquire/prior_resample.h"
 #include "specula/acquire/resample.h"
+#include "specula/codec/grid_files.h"
 #include "specula/core/error.h"
 #include "specula/store/object_spec.h"
 #include "specula/store/store.h"
@@ -63,10 +65,26 @@ void check_output(const std::string& spec, bool replace) {
 // The confidence grid beside `output`: STORE.h5:NAME.confidence, or X.confidence.spgrid beside X.spgrid.
 std::string confidence_output(const std::string& output) {
   const std::filesystem::path p(output);
-  if (p.extension() == ".spgrid") return (p.parent_path() / (p.stem().string() + ".confidence.spgrid")).string();
+  if (p.extension() == ".spgrid") return acquire::confidence_path(p).string();
   if (p.extension() == ".binary")
     throw UsageError("resample --prior/--model: write STORE.h5:NAME or a .spgrid (the confidence goes beside it)");
   return output + ".confidence";
+}
+
+// The grid and its confidence, both or neither: one store transaction, or two exchange files renamed into place
+// only when both are written.
+std::string save_prior_grids(const store::Grid& grid, const store::Grid& conf, const std::string& output,
+                             const std::string& conf_out, bool replace) {
+  if (std::filesystem::path(output).extension() == ".spgrid") {
+    const std::pair<std::filesystem::path, const store::Grid*> files[] = {{output, &grid}, {conf_out, &conf}};
+    codec::write_grid_files(files);
+    return "spectral grid file " + output;
+  }
+  const auto spec = store::parse_object_spec(output);
+  store::StoreWriter w(spec->file, {.compression = {}, .replace = replace, .command_line = command_line()});
+  acquire::add_prior_grids(w, spec->name, grid, conf);
+  w.commit();
+  return "grid '" + spec->name + "' in " + spec->file.string();
 }
 
 // What both kinds of resampling report first: the samples read and the grid's cells.
@@ -85,24 +103,22 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);
-  store::Grid grid, conf;
+  store::Grid grid;
   grid.wavelengths = info.wavelengths;
   grid.units = info.units;
   grid.brdf.resize(info.bands * brdf::kMerlCells);
-  conf.wavelengths = WavelengthGrid({info.wavelengths[info.bands / 2]});
-  conf.units = "confidence";
-  conf.brdf.resize(brdf::kMerlCells);
+  std::vector<float> confidence(brdf::kMerlCells);
   const acquire::PriorResampleOptions po{.local = ro,
                                          .fit = {.lambda = o.lambda},
                                          .confidence_reach = o.confidence_reach,
                                          .residuals = o.prior_residuals};
-  const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, conf.brdf);
+  const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, confidence);
+  store::Grid conf = acquire::confidence_grid(confidence, info.wavelengths);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
   grid.provenance.importer = fmt::format("resample prior={} lambda={} confidence_reach={} mapping={} k={} weights={}",
                                          o.prior, o.lambda, o.confidence_reach, o.mapping, o.k, o.weights);
   conf.provenance.importer = "resample confidence of " + o.output;
-  const std::string what = save_grid(grid, o.output, o.replace, "resample");
-  save_grid(conf, conf_out, o.replace, "resample");
+  const std::string what = save_prior_grids(grid, conf, o.output, conf_out, o.replace);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
     Json j = report_head(info, st.filled_cells);
@@ -152,24 +168,22 @@ void run_model_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);
-  store::Grid grid, conf;
+  store::Grid grid;
   grid.wavelengths = info.wavelengths;
   grid.units = info.units;
   grid.brdf.resize(info.bands * brdf::kMerlCells);
-  conf.wavelengths = WavelengthGrid({info.wavelengths[info.bands / 2]});
-  conf.units = "confidence";
-  conf.brdf.resize(brdf::kMerlCells);
+  std::vector<float> confidence(brdf::kMerlCells);
   std::unique_ptr<acquire::MicrofacetBrdf> model;
   const acquire::ModelResampleStats st = acquire::resample_with_model(
-      src, info.wavelengths, {.local = ro, .fit = fo, .confidence_reach = o.confidence_reach}, grid.brdf, conf.brdf,
+      src, info.wavelengths, {.local = ro, .fit = fo, .confidence_reach = o.confidence_reach}, grid.brdf, confidence,
       &model);
+  store::Grid conf = acquire::confidence_grid(confidence, info.wavelengths);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
   grid.provenance.importer = "resample model=" + model_json(*model).dump() +
                              fmt::format(" confidence_reach={} mapping={} k={} weights={}", o.confidence_reach,
                                          o.mapping, o.k, o.weights);
   conf.provenance.importer = "resample confidence of " + o.output;
-  const std::string what = save_grid(grid, o.output, o.replace, "resample");
-  save_grid(conf, conf_out, o.replace, "resample");
+  const std::string what = save_prior_grids(grid, conf, o.output, conf_out, o.replace);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
     Json j = report_head(info, st.filled_cells);

@@ -7,10 +7,13 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <memory>
 #include <string>
+#include <vector>
 
 #include <Eigen/LU>
 
+#include "specula/codec/grid_files.h"
 #include "specula/core/atomic_file.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
@@ -66,14 +69,11 @@ std::uint64_t grid_file_bytes(std::size_t bands) {
   return kHeaderBytes + 8 * std::uint64_t(bands) + 4 * std::uint64_t(bands) * brdf::kMerlCells + 4;
 }
 
-void write_grid_file(const std::filesystem::path& path, const store::Grid& grid) {
+namespace {
+
+// The exchange file of grid, written to `to` (a temporary; `path` names it in messages).
+void write_grid_to(const std::filesystem::path& path, const std::filesystem::path& to, const store::Grid& grid) {
   const std::size_t b = grid.bands();
-  if (b == 0 || b > kGridMaxBands || grid.brdf.size() != b * brdf::kMerlCells)
-    throw UsageError(path.string() + ": a grid needs 1-" + std::to_string(kGridMaxBands) +
-                     " bands and bands x 90 x 90 x 180 values (" + std::to_string(b) + " bands, " +
-                     std::to_string(grid.brdf.size()) + " values)");
-  if (!std::isfinite(grid.scale) || grid.scale <= 0)
-    throw UsageError(path.string() + ": grid scale " + num(grid.scale) + " must be finite and positive");
   std::string header(kGridMagic, sizeof kGridMagic);
   put<std::uint32_t>(header, kGridFileVersion);
   put<std::uint32_t>(header, std::uint32_t(b));
@@ -83,19 +83,52 @@ void write_grid_file(const std::filesystem::path& path, const store::Grid& grid)
   put<std::uint32_t>(header, 0);
   put<double>(header, grid.scale);
   for (double nm : grid.wavelengths.values()) put<double>(header, nm);
-  AtomicOutput out(path);
-  {
-    std::ofstream f(out.temp_path(), std::ios::binary | std::ios::trunc);
-    if (!f) throw LibraryError(out.temp_path().string() + ": cannot create (" + std::strerror(errno) + ")");
-    CrcWriter w(f);
-    w.write(header.data(), header.size());
-    w.write(grid.brdf.data(), grid.brdf.size() * sizeof(float));
-    const auto crc = std::uint32_t(w.crc());
-    f.write(reinterpret_cast<const char*>(&crc), sizeof crc);
-    f.flush();
-    if (!f) throw LibraryError(out.temp_path().string() + ": cannot write (" + std::strerror(errno) + ")");
+  std::ofstream f(to, std::ios::binary | std::ios::trunc);
+  if (!f) throw LibraryError(to.string() + ": cannot create (" + std::strerror(errno) + ") for " + path.string());
+  CrcWriter w(f);
+  w.write(header.data(), header.size());
+  w.write(grid.brdf.data(), grid.brdf.size() * sizeof(float));
+  const auto crc = std::uint32_t(w.crc());
+  f.write(reinterpret_cast<const char*>(&crc), sizeof crc);
+  f.flush();
+  if (!f) throw LibraryError(to.string() + ": cannot write (" + std::strerror(errno) + ") for " + path.string());
+}
+
+void check_grid(const std::filesystem::path& path, const store::Grid& grid) {
+  const std::size_t b = grid.bands();
+  if (b == 0 || b > kGridMaxBands || grid.brdf.size() != b * brdf::kMerlCells)
+    throw UsageError(path.string() + ": a grid needs 1-" + std::to_string(kGridMaxBands) +
+                     " bands and bands x 90 x 90 x 180 values (" + std::to_string(b) + " bands, " +
+                     std::to_string(grid.brdf.size()) + " values)");
+  if (!std::isfinite(grid.scale) || grid.scale <= 0)
+    throw UsageError(path.string() + ": grid scale " + num(grid.scale) + " must be finite and positive");
+}
+
+}  // namespace
+
+void write_grid_file(const std::filesystem::path& path, const store::Grid& grid) {
+  const std::pair<std::filesystem::path, const store::Grid*> one[] = {{path, &grid}};
+  write_grid_files(one);
+}
+
+void write_grid_files(std::span<const std::pair<std::filesystem::path, const store::Grid*>> files) {
+  for (const auto& [path, grid] : files) check_grid(path, *grid);
+  std::vector<std::unique_ptr<AtomicOutput>> outs;
+  for (const auto& [path, grid] : files) {
+    outs.push_back(std::make_unique<AtomicOutput>(path));
+    write_grid_to(path, outs.back()->temp_path(), *grid);
   }
-  out.commit();
+  std::vector<std::filesystem::path> renamed;  // the last file first, so that the first appears last
+  try {
+    for (std::size_t i = outs.size(); i-- > 0;) {
+      outs[i]->commit();
+      renamed.push_back(outs[i]->target());
+    }
+  } catch (...) {
+    std::error_code ec;
+    for (const auto& p : renamed) std::filesystem::remove(p, ec);
+    throw;
+  }
 }
 
 store::Grid read_grid_file(const std::filesystem::path& path) {

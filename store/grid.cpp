@@ -12,6 +12,7 @@
 #include "specula/store/detail/deflate.h"
 #include "specula/store/detail/objects.h"
 #include "specula/store/detail/writer_state.h"
+#include "specula/store/grid_rows.h"
 
 namespace specula::store {
 
@@ -55,6 +56,25 @@ Grid Store::read_grid(const std::string& name) const {
   if (!grid.brdf.empty())
     h5::check(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, grid.brdf.data()), ctx, "cannot read brdf");
   return grid;
+}
+
+void read_grid_rows(const Store& s, const std::string& name, std::size_t theta_h0, std::size_t rows,
+                    std::span<float> out) {
+  const std::string ctx = s.label() + ": /grids/" + name;
+  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(StoreAccess::root(s), "/grids/" + name))
+    throw InputError(s.label() + ": no grid '" + name + "' (grids: " + join(s.grids()) + ")");
+  h5::Id g = open_group(StoreAccess::root(s), "/grids/" + name, ctx);
+  h5::Id ds = open_dataset(g, "brdf", ctx);
+  const auto dims = h5::shape(ds, ctx);
+  if (dims.size() != 4 || dims[1] != kGridDims[0] || dims[2] != kGridDims[1] || dims[3] != kGridDims[2])
+    throw InputError(ctx + "/brdf: expected shape (bands, 90, 90, 180), the MERL layout");
+  const std::size_t row = std::size_t(kGridDims[1] * kGridDims[2]);
+  if (theta_h0 + rows > kGridDims[0] || out.size() != dims[0] * rows * row)
+    throw UsageError(ctx + ": theta_h rows [" + std::to_string(theta_h0) + ", " + std::to_string(theta_h0 + rows) +
+                     ") of 90, or " + std::to_string(out.size()) + " values for them");
+  if (rows == 0 || dims[0] == 0) return;
+  const hsize_t start[4] = {0, theta_h0, 0, 0}, count[4] = {dims[0], rows, kGridDims[1], kGridDims[2]};
+  read_hyperslab(ds, H5T_NATIVE_FLOAT, start, count, out.data(), ctx);
 }
 
 void StoreWriter::add_grid(const std::string& name, const Grid& grid) {

@@ -48,6 +48,9 @@ std::vector<float> read_f32(hid_t loc, const std::string& name, hsize_t rows, hs
 
 void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   const std::string path = "/priors/" + name, ctx = label() + ": " + path;
+  const std::size_t k = p.variances.size(), cells = p.mean.size();
+  if (p.reference.size() != cells || (p.components.empty() ? k && !p.component_blocks : p.components.size() != k * cells))
+    throw UsageError(ctx + ": reference, mean and components (k x cells, or made by component_blocks) disagree");
   h5::Id g = make_group(begin("priors", name, "prior"), path, ctx);
   h5::write_attr(g, "prior_version", kPriorVersion, ctx);
   h5::write_attr(g, "mapping", std::string_view("log-relative-cos"), ctx);
@@ -57,7 +60,33 @@ void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   h5::write_vector(g, "variances", p.variances, ctx);
   write_f32(g, "reference", p.reference, 1, ctx);
   write_f32(g, "mean", p.mean, 1, ctx);
-  write_f32(g, "components", p.components, p.variances.size(), ctx);
+  const hsize_t dims[2] = {k, cells};
+  h5::Id space(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
+  h5::Id dcpl(h5::check(H5Pcreate(H5P_DATASET_CREATE), ctx, "H5Pcreate"));
+  if (k && cells) {
+    const hsize_t chunk[2] = {1, std::min<hsize_t>(cells, kPriorBlockCells)};
+    h5::check(H5Pset_chunk(dcpl, 2, chunk), ctx, "H5Pset_chunk");
+    h5::check(H5Pset_shuffle(dcpl), ctx, "H5Pset_shuffle");
+    h5::check(H5Pset_deflate(dcpl, 4), ctx, "H5Pset_deflate");
+  }
+  h5::Id ds(h5::check(H5Dcreate2(g, "components", H5T_IEEE_F32LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), ctx,
+                      "cannot create components"));
+  std::vector<float> block;
+  for (std::size_t first = 0; k && first < cells; first += kPriorBlockCells) {  // whole chunks, each written once
+    const std::size_t count = std::min(kPriorBlockCells, cells - first);
+    block.assign(k * count, 0.0f);
+    if (p.components.empty()) {
+      p.component_blocks(first, count, block);
+    } else {
+      for (std::size_t q = 0; q < k; ++q)
+        std::copy_n(p.components.begin() + std::ptrdiff_t(q * cells + first), count,
+                    block.begin() + std::ptrdiff_t(q * count));
+    }
+    for (const float x : block)
+      if (!std::isfinite(x)) throw InputError(ctx + ": a non-finite component value");
+    const hsize_t start[2] = {0, first}, cnt[2] = {k, count};
+    write_hyperslab(ds, H5T_NATIVE_FLOAT, start, cnt, block.data(), ctx);
+  }
   std::string list;
   for (const auto& t : p.training) list += (list.empty() ? "" : "\n") + t;
   h5::write_attr(g, "training", std::string_view(list), ctx);

@@ -1,6 +1,10 @@
 #pragma once
 // The tables of a learned BRDF prior (acquire/prior.h) as the store keeps them: the "priors" object kind
-// (docs/store-format.md). Written by StoreWriter::add_prior, read by Store::read_prior.
+// (docs/store-format.md). Written by StoreWriter::add_prior (its components in memory or made block by block as
+// they are written), read by Store::read_prior.
+#include <cstddef>
+#include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -13,8 +17,14 @@ struct PriorTables {
   double epsilon = 0;
   std::vector<float> reference;       ///< one value per cell
   std::vector<float> mean;            ///< one value per cell
-  std::vector<float> components;      ///< k x cells, row-major
+  std::vector<float> components;      ///< k x cells, row-major; or empty, and component_blocks makes them
+  /// When components is empty: fills out with the k x count components of cells [first, first + count), row-major;
+  /// add_prior calls it for consecutive blocks of kPriorBlockCells cells (the last may be shorter), in order.
+  std::function<void(std::size_t first, std::size_t count, std::span<float> out)> component_blocks;
   std::vector<std::string> training;  ///< the training grids, one name per material
 };
+
+/// Cells per block of a prior's components: add_prior writes (and asks component_blocks for) this many at a time.
+inline constexpr std::size_t kPriorBlockCells = std::size_t(1) << 16;
 
 }  // namespace specula::store

@@ -10,6 +10,7 @@
 
 #include "apps/common.h"
 #include "specula/acquire/incidence.h"
+#include "specula/acquire/prior_output.h"
 #include "specula/codec/grid_slice.h"
 #include "specula/codec/render.h"
 #include "specula/codec/spectral_grid.h"
@@ -132,6 +133,7 @@ Response Service::get(const std::string& path, const Query& query) {
       store_ = store::Store::open(store_.path());
       image_.reset();
       grid_.reset();
+      confidence_.reset();
       png_cache_.clear();
     }
     return dispatch(path, query);
@@ -172,9 +174,13 @@ Response Service::store_listing() {
     const store::CollectionInfo c = store_.collection_info(n);
     collections.push_back({{"name", n}, {"size", c.size}, {"bands", c.bands}});
   }
-  for (const auto& n : store_.grids()) {
+  const std::vector<std::string> grid_names = store_.grids();
+  for (const auto& n : grid_names) {
     const store::GridInfo g = store_.grid_info(n);
-    grids.push_back({{"name", n}, {"bands", g.bands}, {"wavelengths", json_wavelengths(g.wavelengths)}});
+    Json entry = {{"name", n}, {"bands", g.bands}, {"wavelengths", json_wavelengths(g.wavelengths)}};
+    if (std::ranges::find(grid_names, acquire::confidence_name(n)) != grid_names.end())
+      entry["confidence"] = acquire::confidence_name(n);
+    grids.push_back(entry);
   }
   for (const auto& n : store_.samples()) {
     const store::SamplesInfo i = store_.samples_info(n);
@@ -209,6 +215,15 @@ const store::Grid& Service::grid(const std::string& name) {
     grid_name_ = name;
   }
   return *grid_;
+}
+
+const store::Grid& Service::confidence(const std::string& name) {
+  if (!confidence_ || confidence_name_ != name) {
+    confidence_.reset();
+    confidence_ = std::make_unique<store::Grid>(store_.read_grid(name));
+    confidence_name_ = name;
+  }
+  return *confidence_;
 }
 
 Response Service::image_rgb(const Query& q) {
@@ -305,11 +320,21 @@ Response Service::grid_incidence(const Query& q) {
   Json values = Json::array();
   for (std::size_t a = 0; a < slice.theta_o_deg.size(); ++a)
     values.push_back(app::json_numbers(std::span(slice.values).subspan(a * slice.bands, slice.bands)));
-  return json({{"grid", name},
-               {"theta_i", theta_i * 180 / pi},
-               {"wavelengths", json_wavelengths(g.wavelengths)},
-               {"theta_o", slice.theta_o_deg},
-               {"values", values}});
+  Json out = {{"grid", name},
+              {"theta_i", theta_i * 180 / pi},
+              {"wavelengths", json_wavelengths(g.wavelengths)},
+              {"theta_o", slice.theta_o_deg},
+              {"values", values}};
+  // A reconstruction with a prior has its per-cell confidence beside it (docs/prior.md): the same slice of it.
+  const std::string conf = acquire::confidence_name(name);
+  const std::vector<std::string> grid_names = store_.grids();
+  if (std::ranges::find(grid_names, conf) != grid_names.end()) {
+    const codec::GridSlice c = codec::incidence_slice(confidence(conf), theta_i);
+    if (c.bands != 1) throw HttpError(500, conf + " is not a one-band confidence grid");
+    out["confidence_grid"] = conf;
+    out["confidence"] = app::json_numbers(c.values);
+  }
+  return json(out);
 }
 
 Response Service::samples_incidence(const Query& q) {

@@ -45,6 +45,7 @@ class Service {
   Response samples_incidence(const Query& q);
   const store::Cube& image(const std::string& name);
   const store::Grid& grid(const std::string& name);
+  const store::Grid& confidence(const std::string& name);
 
   store::Store store_;
   std::mutex mutex_;
@@ -52,6 +53,8 @@ class Service {
   std::string image_name_, grid_name_;
   std::unique_ptr<store::Cube> image_;
   std::unique_ptr<store::Grid> grid_;
+  std::string confidence_name_;  // and the last confidence grid beside a grid (one band)
+  std::unique_ptr<store::Grid> confidence_;
   std::map<std::string, std::string> png_cache_;  // a few recent renders, keyed by request
 };
 

@@ -39,6 +39,14 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
     ASSERT_LE(c.brdf[cell], 1.0f) << cell;
   }
 
+  // Exchange files: the grid and its confidence beside it, and no temporary left.
+  r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "x.spgrid").string() + "'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(dir / "x.spgrid"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "x.confidence.spgrid"));
+  for (const auto& e : std::filesystem::directory_iterator(dir.path()))
+    EXPECT_EQ(e.path().string().find(".tmp-"), std::string::npos) << e.path();
+
   const std::string before = test::read_bytes(dir / "out.h5");
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":nope' -o '" + (dir / "out.h5").string() + ":h'");
   EXPECT_NE(r.status, 0);

@@ -6,11 +6,13 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/SVD>
 
 #include <cmath>
 #include <random>
 
 #include "specula/acquire/prior_resample.h"
+#include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_models.h"
 #include "test_support.h"
 
@@ -188,4 +190,108 @@ TEST(Prior, ConfidenceIsZeroWhereNoSampleFallsAndEveryValidCellGetsData) {
   EXPECT_LT(cos_weighted_rel_rms(
                 grid, [&] { return grid_of(m).brdf; }(), 5),
             0.15);
+}
+
+TEST(Prior, NoiseWeightsBeatCountWeightsWhenHalfTheCellsAreTenTimesNoisier) {
+  const Family& f = family();
+  const store::Grid& truth = f.grids[2];  // in the prior's span: what is left is the noise the fit lets through
+  const auto& cells = acquire::valid_cells();
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<std::size_t> pick(0, cells.size() - 1);
+  std::normal_distribution<double> gauss;
+  std::vector<double> angles, sigma_of(cells.size(), 0.0);
+  std::vector<float> values;
+  for (std::size_t n = 0; n < 2000; ++n) {
+    const std::size_t i = pick(rng);
+    const brdf::StdAngles a = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[i])));
+    const double sigma = n % 2 ? 0.3 : 0.03;  // half the cells 10x noisier
+    sigma_of[i] = sigma_of[i] > 0 ? -1 : sigma;  // -1: drawn twice, both levels
+    for (int s = 0; s < 6; ++s) {
+      angles.insert(angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
+      const double e = 1 + sigma * gauss(rng);
+      for (std::size_t k = 0; k < 5; ++k) values.push_back(float(truth.brdf[k * brdf::kMerlCells + cells[i]] * e));
+    }
+  }
+  const acquire::PriorObservations obs = acquire::cell_means(acquire::MemorySamples(angles, values, 5));
+  ASSERT_GT(obs.cell.size(), 1900u);
+  ASSERT_EQ(obs.spread.size(), obs.values.size());
+  std::vector<float> by_noise(truth.brdf.size(), -1.0f), by_count(truth.brdf.size(), -1.0f);
+  acquire::fit_prior(f.prior, obs, {.lambda = 1e-9, .weights = acquire::PriorWeights::noise}, by_noise);
+  acquire::fit_prior(f.prior, obs, {.lambda = 1e-9, .weights = acquire::PriorWeights::count}, by_count);
+  const double e_noise = cos_weighted_rel_rms(by_noise, truth.brdf, 5),
+               e_count = cos_weighted_rel_rms(by_count, truth.brdf, 5);
+  // Inverse-variance weights approach a fit to the quiet half alone, whose error is about 1/5 of equal weights'.
+  EXPECT_LT(e_noise, 0.5 * e_count) << e_noise << " vs " << e_count;
+  // Per cell: the quiet cells weigh many times the noisy ones (100x at most; shrinkage toward the median tempers it).
+  const std::vector<double> w = acquire::observation_weights(f.prior, obs, {});
+  std::vector<double> quiet, noisy;
+  for (std::size_t s = 0; s < obs.cell.size(); ++s) {
+    if (sigma_of[obs.cell[s]] == 0.03) quiet.push_back(w[s]);
+    if (sigma_of[obs.cell[s]] == 0.3) noisy.push_back(w[s]);
+  }
+  ASSERT_GT(quiet.size(), 900u);
+  ASSERT_GT(noisy.size(), 900u);
+  std::ranges::sort(quiet);
+  std::ranges::sort(noisy);
+  const double ratio = quiet[quiet.size() / 2] / noisy[noisy.size() / 2];
+  EXPECT_GT(ratio, 5);
+  EXPECT_LT(ratio, 300);
+  // Without scatter (one sample a cell) the weights are the counts.
+  acquire::PriorObservations single = obs;
+  single.spread.clear();
+  EXPECT_EQ(acquire::observation_weights(f.prior, single, {}), std::vector<double>(obs.weight.begin(), obs.weight.end()));
+}
+
+TEST(Prior, StreamedThroughAStoreEqualsABruteForcePca) {
+  const Family& f = family();
+  test::ScratchDir dir;
+  std::vector<acquire::TrainingGrid> grids;
+  for (std::size_t g = 0; g < f.grids.size(); ++g)
+    grids.push_back(acquire::memory_training_grid(std::make_shared<const store::Grid>(f.grids[g]), f.names[g]));
+  {  // the smallest blocks: 17 of them, each written to the store as it is made
+    store::StoreWriter w(dir / "db.h5", {});
+    acquire::build_prior(grids, {.channels = 3, .components = 0, .epsilon = 1e-3, .block_bytes = 1}, w, "p");
+    w.commit();
+  }
+  const acquire::BrdfPrior p = acquire::read_prior(store::Store::open(dir / "db.h5"), "p");
+  // One block or seventeen: the same sums in the same order.
+  EXPECT_EQ(p.components, f.prior.components);
+  EXPECT_EQ(p.variances, f.prior.variances);
+  EXPECT_EQ(p.mean, f.prior.mean);
+  // Brute force: the mapped, centred observations in double, their SVD.
+  const auto& cells = acquire::valid_cells();
+  const std::size_t d = cells.size(), c = 3, m = f.grids.size() * c;
+  const Eigen::MatrixXd hats = acquire::hat_basis(kBands, p.knots);
+  const Eigen::MatrixXd proj = (hats.transpose() * hats).ldlt().solve(hats.transpose());
+  Eigen::MatrixXd x(static_cast<Eigen::Index>(d), static_cast<Eigen::Index>(m));
+  std::vector<double> row(m);
+  for (std::size_t i = 0; i < d; ++i) {
+    Eigen::Vector3d wi, wo;
+    brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(cells[i])), wi, wo);
+    for (std::size_t g = 0; g < f.grids.size(); ++g) {
+      Eigen::VectorXd s(5);
+      for (int k = 0; k < 5; ++k) s[k] = f.grids[g].brdf[std::size_t(k) * brdf::kMerlCells + cells[i]];
+      const Eigen::VectorXd ch = (proj * s).cwiseMax(0.0) * (wi.z() * wo.z());
+      for (std::size_t j = 0; j < c; ++j) x(Eigen::Index(i), Eigen::Index(g * c + j)) = ch[Eigen::Index(j)];
+    }
+    for (std::size_t j = 0; j < m; ++j) row[j] = x(Eigen::Index(i), Eigen::Index(j));
+    std::ranges::sort(row);
+    const double ref = row[m / 2];
+    ASSERT_NEAR(p.reference[i], ref, 1e-6 * ref + 1e-9);
+    for (std::size_t j = 0; j < m; ++j)
+      x(Eigen::Index(i), Eigen::Index(j)) = std::log((x(Eigen::Index(i), Eigen::Index(j)) + 1e-3) / (ref + 1e-3));
+    const double mean = x.row(Eigen::Index(i)).mean();
+    ASSERT_NEAR(p.mean[i], mean, 1e-5 * (1 + std::abs(mean)));
+    x.row(Eigen::Index(i)).array() -= mean;
+  }
+  const Eigen::BDCSVD<Eigen::MatrixXd> svd(x, Eigen::ComputeThinU);
+  ASSERT_GE(p.k(), 5u);
+  for (std::size_t q = 0; q < p.k(); ++q) {
+    const double sv = svd.singularValues()[Eigen::Index(q)];
+    EXPECT_NEAR(p.variances[q], sv * sv / double(m - 1), 1e-4 * p.variances[0]) << q;
+  }
+  for (std::size_t q = 0; q < 5; ++q) {  // the leading components, up to sign
+    const Eigen::Map<const Eigen::VectorXf> ours(&p.components[q * d], Eigen::Index(d));
+    EXPECT_NEAR(std::abs(ours.cast<double>().dot(svd.matrixU().col(Eigen::Index(q)))), 1.0, 1e-4) << q;
+  }
 }

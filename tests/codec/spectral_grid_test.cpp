@@ -8,6 +8,7 @@
 #include <fstream>
 #include <random>
 
+#include "specula/codec/grid_files.h"
 #include "specula/core/brdf_models.h"
 #include "specula/core/error.h"
 #include "test_support.h"
@@ -181,6 +182,41 @@ TEST(GridExport, LambertianGridToMerl) {
       ASSERT_GE(b.brdf.stored(0, cell), 0.0);
     }
   EXPECT_THROW(grid_to_merl(g, Eigen::Matrix<double, 3, Eigen::Dynamic>::Zero(3, 6)), UsageError);
+}
+
+store::Grid flat_grid(std::size_t bands, float value) {
+  store::Grid g;
+  g.wavelengths = WavelengthGrid::range(400, 400 + 10 * double(bands - 1), 10);
+  g.brdf.assign(bands * brdf::kMerlCells, value);
+  return g;
+}
+
+TEST(GridFile, SeveralFilesAppearAllOrNone) {
+  test::ScratchDir dir;
+  const store::Grid brdf = flat_grid(3, 0.125f), conf = flat_grid(1, 0.75f);
+  store::Grid bad = conf;
+  bad.brdf.pop_back();
+  const auto a = dir / "x.spgrid", b = dir / "x.confidence.spgrid";
+  const auto files_in = [&] {
+    std::size_t n = 0;
+    for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir.path())) ++n;
+    return n;
+  };
+  {  // the second grid is malformed: nothing is written
+    const std::pair<std::filesystem::path, const store::Grid*> files[] = {{a, &brdf}, {b, &bad}};
+    EXPECT_THROW(write_grid_files(files), UsageError);
+  }
+  EXPECT_EQ(files_in(), 0u);
+  {  // the second cannot be created (its directory is missing): the first, already written, is not left behind
+    const std::pair<std::filesystem::path, const store::Grid*> files[] = {{a, &brdf}, {dir / "no" / "c.spgrid", &conf}};
+    EXPECT_ANY_THROW(write_grid_files(files));
+  }
+  EXPECT_EQ(files_in(), 0u);
+  const std::pair<std::filesystem::path, const store::Grid*> files[] = {{a, &brdf}, {b, &conf}};
+  write_grid_files(files);
+  EXPECT_EQ(files_in(), 2u);
+  EXPECT_EQ(read_grid_file(a).brdf, brdf.brdf);
+  EXPECT_EQ(read_grid_file(b).brdf, conf.brdf);
 }
 
 }  // namespace

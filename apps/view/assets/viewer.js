@@ -221,6 +221,16 @@ function showGrid(info) {
   slider(controls, (v) => `θi ${v}°`, 0, 89, 1, state.theta, (v) => { state.theta = v; load(); });
   slider(controls, (v) => `Band ${v} (${info.wavelengths[v]} nm)`, 0, info.bands - 1, 1, state.band, (v) => { state.band = v; draw(); });
   const svg = el("svg", { class: "plot", id: "incidence", width: 560, height: 330 }, right, SVG);
+  // A reconstruction with a prior (docs/prior.md): its confidence along the same slice, 1 at a sample, 0 where the
+  // prior alone fills the cell.
+  let confidence = null;
+  if (info.confidence) {
+    const l = el("label", { class: "controls" }, right);
+    const box = el("input", { type: "checkbox", id: "show-confidence", checked: "" }, l);
+    el("span", { text: ` Show the confidence (${info.confidence})` }, l);
+    confidence = el("svg", { class: "plot", id: "confidence", width: 560, height: 170 }, right, SVG);
+    box.addEventListener("change", () => { confidence.style.display = box.checked ? "" : "none"; });
+  }
   async function load() {
     try { state.data = await getJSON(`/api/grid/incidence?${query({ name: info.name, theta_i: state.theta })}`); showError(""); draw(); }
     catch (e) { showError(e.message); }
@@ -232,6 +242,12 @@ function showGrid(info) {
     plot(svg, [{ xs: d.theta_o, ys: raw.map((v) => (v === null ? null : Math.cbrt(Math.max(0, v)))), raw, colour: COLOURS[0],
                  line: true, points: true, radius: 1.4, label: `${d.wavelengths[state.band]} nm` }],
          { xmin: -90, xmax: 90, xlabel: "θo (degrees; negative: the light's side)", ylabel: "cube root of the BRDF (1/sr)" });
+    if (confidence && d.confidence) {
+      plot(confidence, [{ xs: d.theta_o, ys: d.confidence.map((v) => (v === null || v < 0 ? null : v)), colour: COLOURS[2],
+                          line: true, points: true, radius: 1.4, cls: "confidence" }],
+           { xmin: -90, xmax: 90, ymin: 0, ymax: 1, xlabel: "θo (degrees)", ylabel: "confidence (1: measured, 0: the prior alone)" });
+      confidence.dataset.theta = d.theta_i;
+    }
   }
   load();
 }

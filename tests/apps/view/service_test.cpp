@@ -105,6 +105,12 @@ class ViewService : public ::testing::Test {
     std::fill(g.brdf.begin(), g.brdf.end(), 0.1f);
     g.scale = 1.0;
     w.add_grid("flat", g);
+    store::Grid conf;  // grid's confidence: theta_h index / 89
+    conf.wavelengths = WavelengthGrid({550.0});
+    conf.units = "confidence";
+    conf.brdf.resize(brdf::kMerlCells);
+    for (std::size_t i = 0; i < brdf::kMerlCells; ++i) conf.brdf[i] = float(brdf::merl_cell(i).theta_h) / 89.0f;
+    w.add_grid("grid.confidence", conf);
 
     w.create_samples("s", wl, "1/sr", {});
     const double d = pi / 180;
@@ -256,6 +262,20 @@ TEST_F(ViewService, GridSlicesAndSphere) {
   const Eigen::Vector3d n(x, y, std::sqrt(1 - x * x - y * y)), l(-0.5, 0.5, std::sqrt(0.5));
   const double want = 255 * srgb_encode(pi * 0.1 * n.dot(l));
   for (std::size_t c = 0; c < 3; ++c) EXPECT_NEAR(flat.samples[3 * (128 * 256 + 128) + c], want, 1.0) << c;
+}
+
+TEST_F(ViewService, AGridWithAConfidenceBesideItOffersItsSlice) {
+  const view::Response l = get("/api/store");
+  EXPECT_NE(l.body.find("\"confidence\":\"grid.confidence\""), std::string::npos) << l.body;
+  const view::Response r = get("/api/grid/incidence", {{"name", "grid"}, {"theta_i", "45"}});
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_NE(r.body.find("\"confidence_grid\":\"grid.confidence\""), std::string::npos);
+  const std::vector<double> conf = json_array_of(r.body, "confidence");
+  ASSERT_EQ(conf.size(), 179u);
+  EXPECT_NEAR(conf[89 + 45], 0.0, 1e-7);          // the mirror direction: theta_h = 0
+  EXPECT_NEAR(conf[89 - 45], 63.0 / 89, 1e-6);    // retro-reflection: theta_h = 45 degrees, index 63
+  const view::Response f = get("/api/grid/incidence", {{"name", "flat"}, {"theta_i", "45"}});
+  EXPECT_EQ(f.body.find("confidence"), std::string::npos);
 }
 
 TEST_F(ViewService, SampleScatterKeepsExactlyThePlaneAtThetaI) {

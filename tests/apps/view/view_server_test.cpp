@@ -8,10 +8,12 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <map>
 #include <regex>
 #include <string>
 #include <vector>
 
+#include "specula/core/brdf_geometry.h"
 #include "specula/store/store.h"
 #include "test_support.h"
 
@@ -40,6 +42,15 @@ std::filesystem::path make_store(const std::filesystem::path& dir) {
     for (std::size_t x = 0; x < kW; ++x)
       for (std::size_t b = 0; b < kB; ++b) c.pixel(y, x)[b] = value(x, y, b);
   w.add_image("scene", c);
+  store::Grid g;  // a reconstruction and its confidence (theta_h index / 89)
+  g.wavelengths = WavelengthGrid({500.0, 600.0});
+  g.brdf.assign(2 * brdf::kMerlCells, 0.1f);
+  w.add_grid("rec", g);
+  g.wavelengths = WavelengthGrid({550.0});
+  g.units = "confidence";
+  g.brdf.resize(brdf::kMerlCells);
+  for (std::size_t i = 0; i < brdf::kMerlCells; ++i) g.brdf[i] = float(brdf::merl_cell(i).theta_h) / 89.0f;
+  w.add_grid("rec.confidence", g);
   w.commit();
   return path;
 }
@@ -144,6 +155,32 @@ TEST(ViewServer, BrowserPlotsTheSpectrumUnderTheMouse) {
     EXPECT_DOUBLE_EQ(points[b].first, 420.0 + 10.0 * double(b));
     EXPECT_NEAR(points[b].second, value(x, y, b), 1e-6) << "band " << b;
   }
+}
+
+// The page offers a grid's confidence: plotted along the slice (the values the store holds), and hidden on request.
+TEST(ViewServer, BrowserPlotsAGridsConfidence) {
+  const std::filesystem::path e2e = std::filesystem::path(SPECULA_SOURCE_DIR) / "tests/apps/view/e2e";
+  if (!std::filesystem::exists("/usr/bin/chromium"))
+    GTEST_SKIP() << "Debian's chromium is not installed (scripts/setup-deps --browser installs it)";
+  ASSERT_TRUE(std::filesystem::exists(e2e / "node_modules/playwright-core"))
+      << "playwright-core is missing: run 'npm ci' in " << e2e << " (scripts/test does)";
+  test::ScratchDir dir;
+  const Server server(make_store(dir.path()));
+  ASSERT_GT(server.port(), 0) << server.first_line();
+  const auto r = test::run_shell("cd '" + e2e.string() + "' && node confidence.mjs http://127.0.0.1:" +
+                                 std::to_string(server.port()) + "/ rec");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("\"hidden\":true"), std::string::npos) << r.output;
+  const std::size_t at = r.output.find("\"points\":[[");
+  ASSERT_NE(at, std::string::npos) << r.output;
+  std::map<int, double> conf;
+  const std::regex pair(R"(\[([-0-9.e]+),([-0-9.e]+)\])");
+  const std::string body = r.output.substr(at + 10);
+  for (auto it = std::sregex_iterator(body.begin(), body.end(), pair); it != std::sregex_iterator(); ++it)
+    conf[std::stoi((*it)[1].str())] = std::stod((*it)[2].str());
+  EXPECT_EQ(conf.size(), 179u) << r.output;
+  EXPECT_NEAR(conf[45], 0.0, 1e-6);         // theta_i 45: the mirror direction, theta_h = 0
+  EXPECT_NEAR(conf[-45], 63.0 / 89, 1e-6);  // retro-reflection, theta_h = 45 degrees: index 63
 }
 
 }  // namespace
