@@ -25,21 +25,25 @@ std::shared_ptr<const store::Grid> grid_of(const brdf::SpectralModel& model) {
   return g;
 }
 
-// Median over n random configurations (both directions below 80 degrees) of |lookup / model - 1| over every band.
-double median_error(const brdf::SpectralModel& lookup, const brdf::SpectralModel& model, std::size_t n) {
+// Relative L1 error sum |lookup - model| / sum model over n configurations around the specular direction (the
+// outgoing direction the mirror of the incident one turned by up to 20 degrees), where the models vary most.
+double lobe_error(const brdf::SpectralModel& lookup, const brdf::SpectralModel& model, std::size_t n) {
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(0, 1);
-  std::vector<double> a(4 * n);
-  for (std::size_t i = 0; i < n; ++i)
-    a[4 * i] = std::acos(1 - 0.82 * u(rng)), a[4 * i + 1] = 6.28 * u(rng), a[4 * i + 2] = std::acos(1 - 0.82 * u(rng)),
-          a[4 * i + 3] = 6.28 * u(rng);
-  std::vector<float> got(n * model.bands()), want(n * model.bands());
-  brdf::evaluate_at(lookup, a, got);
-  brdf::evaluate_at(model, a, want);
-  std::vector<double> e(got.size());
-  for (std::size_t i = 0; i < got.size(); ++i) e[i] = std::abs(double(got[i]) / want[i] - 1);
-  std::nth_element(e.begin(), e.begin() + std::ptrdiff_t(e.size() / 2), e.end());
-  return e[e.size() / 2];
+  std::vector<double> got(model.bands()), want(model.bands());
+  double diff = 0, sum = 0;
+  for (std::size_t i = 0; i < n;) {
+    const Eigen::Vector3d wi = brdf::direction(1.2 * u(rng), 6.28 * u(rng));
+    const Eigen::Vector3d wo =
+        (Eigen::Vector3d(-wi.x(), -wi.y(), wi.z()) + 0.35 * u(rng) * brdf::direction(1.5708, 6.28 * u(rng)))
+            .normalized();
+    if (wo.z() < 0.1) continue;
+    lookup.eval(wi, wo, got);
+    model.eval(wi, wo, want);
+    for (std::size_t k = 0; k < got.size(); ++k) diff += std::abs(got[k] - want[k]), sum += want[k];
+    ++i;
+  }
+  return diff / sum;
 }
 
 TEST(GridLookup, TrilinearAgreesWithTheClosedFormWithinTheGridsDiscretisation) {
@@ -47,10 +51,10 @@ TEST(GridLookup, TrilinearAgreesWithTheClosedFormWithinTheGridsDiscretisation) {
   for (const char* name : {"study-ts", "blue-paint"}) {
     const auto model = brdf::make_material(name, g);
     const auto grid = grid_of(*model);
-    const double tri = median_error(*grid_material(grid, g, GridLookup::trilinear), *model, 20000);
-    const double near = median_error(*grid_material(grid, g, GridLookup::nearest), *model, 20000);
-    EXPECT_LT(tri, 0.003) << name;
-    EXPECT_LT(tri, near / 3) << name << ": nearest " << near;
+    const double tri = lobe_error(*grid_material(grid, g, GridLookup::trilinear), *model, 20000);
+    const double near = lobe_error(*grid_material(grid, g, GridLookup::nearest), *model, 20000);
+    EXPECT_LT(tri, 0.003) << name;  // measured 0.0012 (study-ts), 0.0010 (blue-paint)
+    EXPECT_LT(tri, near / 10) << name << ": nearest " << near;
   }
 }
 
