@@ -157,8 +157,7 @@ class GridMaterial final : public brdf::SpectralModel {
     for (int c = 0; c < 8; ++c) {
       const double w = (c & 1 ? ah.t : 1 - ah.t) * (c & 2 ? ad.t : 1 - ad.t) * (c & 4 ? ap.t : 1 - ap.t);
       if (w <= 0) continue;
-      const std::size_t cell = brdf::merl_index(
-          {c & 1 ? ah.hi : ah.lo, c & 2 ? ad.hi : ad.lo, c & 4 ? ap.hi : ap.lo});
+      const std::size_t cell = brdf::merl_index({c & 1 ? ah.hi : ah.lo, c & 2 ? ad.hi : ad.lo, c & 4 ? ap.hi : ap.lo});
       for (std::size_t k = 0; k < out.size(); ++k) {
         const double v = value(k, cell, false);
         if (v < 0) continue;

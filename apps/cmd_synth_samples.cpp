@@ -54,14 +54,14 @@ void run_synth_samples(const SynthSamplesOptions& o) {
     throw UsageError("--lookup '" + o.lookup + "': use trilinear or nearest");
   const WavelengthGrid g = WavelengthGrid::parse(o.wavelengths);
   // A store grid (STORE.h5:GRID), a .spgrid or an RGB MERL .binary (uplifted onto the bands) instead of a named one.
-  const bool is_grid = !brdf::material_catalogue().count(o.material) &&
-                       (store::parse_object_spec(o.material) || o.material.ends_with(".spgrid") ||
-                        o.material.ends_with(".binary"));
-  const auto model =
-      is_grid ? acquire::grid_material(std::make_shared<const store::Grid>(load_grid(o.material, "synth-samples", g)),
-                                       g, o.lookup == "nearest" ? acquire::GridLookup::nearest
-                                                                : acquire::GridLookup::trilinear)
-              : brdf::make_material(o.material, g);
+  const bool is_grid =
+      !brdf::material_catalogue().count(o.material) &&
+      (store::parse_object_spec(o.material) || o.material.ends_with(".spgrid") || o.material.ends_with(".binary"));
+  const auto model = is_grid
+                         ? acquire::grid_material(
+                               std::make_shared<const store::Grid>(load_grid(o.material, "synth-samples", g)), g,
+                               o.lookup == "nearest" ? acquire::GridLookup::nearest : acquire::GridLookup::trilinear)
+                         : brdf::make_material(o.material, g);
   const std::size_t b = g.size();
 
   store::StoreWriter writer(
@@ -109,7 +109,8 @@ void run_synth_samples(const SynthSamplesOptions& o) {
 void setup_synth_samples(CLI::App& app) {
   auto o = std::make_shared<SynthSamplesOptions>();
   auto* cmd = app.add_subcommand(
-      "synth-samples", "Scattered samples of an analytic BRDF or a grid at a simulated scan's (or random) configurations");
+      "synth-samples",
+      "Scattered samples of an analytic BRDF or a grid at a simulated scan's (or random) configurations");
   std::string help = "Material: STORE.h5:GRID, a .spgrid, an RGB MERL .binary (uplifted), or";
   for (const auto& [n, d] : brdf::material_catalogue()) help += " " + n + " (" + d + ");";
   cmd->add_option("material", o->material, help)->required();
@@ -128,8 +129,9 @@ void setup_synth_samples(CLI::App& app) {
   cmd->add_option("--noise", o->noise, "Relative Gaussian noise on every value (e.g. 0.02)")->capture_default_str();
   cmd->add_option("--seed", o->seed, "Seed of the random configurations and the noise")->capture_default_str();
   cmd->add_option("--compression", o->compression, "none, deflate or deflate:LEVEL")->capture_default_str();
-  cmd->add_option("--lookup", o->lookup,
-                  "A grid material between cell centres: trilinear (in MERL index space) or nearest (BRDFRead.cpp's cell)")
+  cmd->add_option(
+         "--lookup", o->lookup,
+         "A grid material between cell centres: trilinear (in MERL index space) or nearest (BRDFRead.cpp's cell)")
       ->capture_default_str();
   cmd->add_flag("--replace", o->replace, "Replace samples of the same name");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, bands, pixels, lights, bytes, seconds)");
