@@ -54,10 +54,16 @@ void check_simulator(const SimulatorOptions& o);
 /// Deterministic for a seed, whatever the thread count. Returns the manifest.
 Capture simulate_capture(const SimulatorOptions& o, const std::filesystem::path& dir);
 
-/// A spectral grid as an analytic-style model on `target` wavelengths: looked up as MERL's BRDFRead.cpp does
-/// (no data counts as 0), value * scale, linearly interpolated between the grid's bands and held constant beyond.
+/// How a grid is read between its cell centres: the cell MERL's BRDFRead.cpp reads, or trilinear in MERL index space
+/// (sqrt theta_h, theta_d, phi_d; phi_d wraps at pi by reciprocity) between the 8 surrounding centres.
+enum class GridLookup { nearest, trilinear };
+
+/// A spectral grid as an analytic-style model on `target` wavelengths, value * scale, linearly interpolated between
+/// the grid's bands and held constant beyond. nearest: as BRDFRead.cpp (no data counts as 0); trilinear: corners
+/// without data left out and the others' weights renormalised (0 when none has data).
 std::unique_ptr<brdf::SpectralModel> grid_material(std::shared_ptr<const store::Grid> grid,
-                                                   const WavelengthGrid& target);
+                                                   const WavelengthGrid& target,
+                                                   GridLookup lookup = GridLookup::nearest);
 
 /// The simulated camera's relative quantum efficiency (with the optics' transmission) at `nm`.
 double camera_quantum_efficiency(double nm);

@@ -1,6 +1,7 @@
-// specula synth-samples: scattered spectral BRDF samples of an analytic material (core/brdf_materials.h) at the
-// configurations of a simulated scan of the reference's rig (acquire/scan.h) or at random ones, appended to a
-// store in batches as a capture would be. Ground truth for resampling tests, the study and the benchmark.
+// specula synth-samples: scattered spectral BRDF samples of an analytic material (core/brdf_materials.h) or of a
+// grid (looked up trilinearly by default, acquire/simulate.h) at the configurations of a simulated scan of the
+// reference's rig (acquire/scan.h) or at random ones, appended to a store in batches as a capture would be. Ground
+// truth for resampling tests, the study and the benchmarks.
 #include <fmt/format.h>
 
 #include <chrono>
@@ -9,6 +10,7 @@
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/acquire/scan.h"
+#include "specula/acquire/simulate.h"
 #include "specula/acquire/synth_samples.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/error.h"
@@ -30,6 +32,7 @@ struct SynthSamplesOptions {
   std::uint64_t seed = 1;
   double noise = 0;
   std::string compression = "deflate";
+  std::string lookup = "trilinear";
   bool replace = false;
   bool json = false;
 };
@@ -47,8 +50,18 @@ void run_synth_samples(const SynthSamplesOptions& o) {
     throw UsageError("--geometry random needs -n, 1 to 2^32 - 2 samples");
   if (o.geometry == "scan") acquire::check_rig(o.rig);
   if (!(o.noise >= 0 && o.noise <= 1)) throw UsageError("--noise must be a relative standard deviation from 0 to 1");
+  if (o.lookup != "trilinear" && o.lookup != "nearest")
+    throw UsageError("--lookup '" + o.lookup + "': use trilinear or nearest");
   const WavelengthGrid g = WavelengthGrid::parse(o.wavelengths);
-  const auto model = brdf::make_material(o.material, g);
+  // A store grid (STORE.h5:GRID), a .spgrid or an RGB MERL .binary (uplifted onto the bands) instead of a named one.
+  const bool is_grid =
+      !brdf::material_catalogue().count(o.material) &&
+      (store::parse_object_spec(o.material) || o.material.ends_with(".spgrid") || o.material.ends_with(".binary"));
+  const auto model = is_grid
+                         ? acquire::grid_material(
+                               std::make_shared<const store::Grid>(load_grid(o.material, "synth-samples", g)), g,
+                               o.lookup == "nearest" ? acquire::GridLookup::nearest : acquire::GridLookup::trilinear)
+                         : brdf::make_material(o.material, g);
   const std::size_t b = g.size();
 
   store::StoreWriter writer(
@@ -56,7 +69,8 @@ void run_synth_samples(const SynthSamplesOptions& o) {
       {.compression = store::Compression::parse(o.compression), .replace = o.replace, .command_line = command_line()});
   store::Provenance prov;
   prov.importer = fmt::format("synth-samples {} ({}) at {} configurations, noise {}", o.material,
-                              brdf::material_catalogue().at(o.material), o.geometry, o.noise);
+                              is_grid ? "grid, " + o.lookup + " lookup" : brdf::material_catalogue().at(o.material),
+                              o.geometry, o.noise);
   writer.create_samples(name, g, "1/sr", prov);
   const acquire::SynthesisCount made =
       acquire::synthesize_samples(*model,
@@ -95,8 +109,9 @@ void run_synth_samples(const SynthSamplesOptions& o) {
 void setup_synth_samples(CLI::App& app) {
   auto o = std::make_shared<SynthSamplesOptions>();
   auto* cmd = app.add_subcommand(
-      "synth-samples", "Scattered samples of an analytic BRDF at a simulated scan's (or random) configurations");
-  std::string help = "Material:";
+      "synth-samples",
+      "Scattered samples of an analytic BRDF or a grid at a simulated scan's (or random) configurations");
+  std::string help = "Material: STORE.h5:GRID, a .spgrid, an RGB MERL .binary (uplifted), or";
   for (const auto& [n, d] : brdf::material_catalogue()) help += " " + n + " (" + d + ");";
   cmd->add_option("material", o->material, help)->required();
   cmd->add_option("-o,--output", o->output, "STORE.h5:NAME")->required();
@@ -114,6 +129,10 @@ void setup_synth_samples(CLI::App& app) {
   cmd->add_option("--noise", o->noise, "Relative Gaussian noise on every value (e.g. 0.02)")->capture_default_str();
   cmd->add_option("--seed", o->seed, "Seed of the random configurations and the noise")->capture_default_str();
   cmd->add_option("--compression", o->compression, "none, deflate or deflate:LEVEL")->capture_default_str();
+  cmd->add_option(
+         "--lookup", o->lookup,
+         "A grid material between cell centres: trilinear (in MERL index space) or nearest (BRDFRead.cpp's cell)")
+      ->capture_default_str();
   cmd->add_flag("--replace", o->replace, "Replace samples of the same name");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, bands, pixels, lights, bytes, seconds)");
   cmd->callback([o] { run_synth_samples(*o); });
