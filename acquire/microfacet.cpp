@@ -32,7 +32,8 @@ double normal_distribution(Distribution d, double alpha, double cos_h) {
 void check_shape(FresnelKind f, const LobeShape& s) {
   if (!(std::isfinite(s.alpha) && s.alpha > 0))
     throw UsageError("microfacet model: roughness alpha is " + num(s.alpha) + "; it must be > 0");
-  const bool ok = f == FresnelKind::schlick ? s.fresnel > 0 && s.fresnel <= 1 : s.fresnel > 1 && std::isfinite(s.fresnel);
+  const bool ok =
+      f == FresnelKind::schlick ? s.fresnel > 0 && s.fresnel <= 1 : s.fresnel > 1 && std::isfinite(s.fresnel);
   if (!ok)
     throw UsageError("microfacet model: Fresnel parameter " + num(s.fresnel) +
                      (f == FresnelKind::schlick ? " (Schlick F0) must be in (0, 1]" : " (dielectric eta) must be > 1"));
@@ -104,8 +105,7 @@ void MicrofacetBrdf::eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, 
                      std::to_string(bands()) + " bands");
   const bool above = wi.z() > 0 && wo.z() > 0;
   double lobe[2] = {0, 0};
-  for (std::size_t j = 0; j < shapes_.size() && above; ++j)
-    lobe[j] = microfacet_lobe(kind_, shapes_[j], wi, wo);
+  for (std::size_t j = 0; j < shapes_.size() && above; ++j) lobe[j] = microfacet_lobe(kind_, shapes_[j], wi, wo);
   for (std::size_t k = 0; k < out.size(); ++k) {
     const auto e = Eigen::Index(k);
     double v = above ? diffuse_[e] / pi : 0.0;

@@ -276,7 +276,8 @@ MicrofacetBrdf fit_model(const PriorObservations& obs, const WavelengthGrid& ban
   const std::vector<LobeShape> shapes = decode(o.kind.fresnel, fit_shapes(d, o, rep.evaluations));
   // The albedos per band on every observed cell, with their own IRLS rounds.
   std::vector<CellDirs> dirs(n);
-  parallel_for(n, [&](std::size_t i) { dirs[i] = cell_dirs(obs.cell[i]); }, 4096);
+  parallel_for(
+      n, [&](std::size_t i) { dirs[i] = cell_dirs(obs.cell[i]); }, 4096);
   const Eigen::MatrixXd x = design(dirs, o, shapes);
   std::vector<double> count(obs.weight.begin(), obs.weight.end());
   Eigen::MatrixXd albedo(x.cols(), Eigen::Index(b));

@@ -1,8 +1,8 @@
 #pragma once
 // An analytic BRDF fitted to scattered samples: a Lambertian term plus one or two microfacet lobes (GGX or
-// Beckmann normal distribution, Smith height-correlated or V-groove shadowing, Schlick or dielectric Fresnel), each term with
-// its own albedo per band. The albedos enter linearly once the lobes' shapes (roughness and Fresnel parameter)
-// are fixed, so the fit is a variable projection: Levenberg-Marquardt (Eigen) over the few shape parameters,
+// Beckmann normal distribution, Smith height-correlated or V-groove shadowing, Schlick or dielectric Fresnel), each
+// term with its own albedo per band. The albedos enter linearly once the lobes' shapes (roughness and Fresnel
+// parameter) are fixed, so the fit is a variable projection: Levenberg-Marquardt (Eigen) over the few shape parameters,
 // and for every trial shape a non-negative least-squares solve for the albedos. Robust by iteratively
 // reweighted least squares with Huber weights on relative residuals (docs/resampling.md, "Model fit").
 #include <Eigen/Core>

@@ -115,7 +115,8 @@ void read_block(const Training& t, std::size_t i0, std::size_t n, Eigen::MatrixX
         }
         missing[blk] += hole;
         const Eigen::VectorXd ch = (t.proj * s).cwiseMax(0.0) * double(cosines[i0 + i]);
-        for (std::size_t j = 0; j < t.c; ++j) x(Eigen::Index(i), Eigen::Index(g * t.c + j)) = float(ch[Eigen::Index(j)]);
+        for (std::size_t j = 0; j < t.c; ++j)
+          x(Eigen::Index(i), Eigen::Index(g * t.c + j)) = float(ch[Eigen::Index(j)]);
       }
     });
     for (const std::size_t h : missing) holes[g] += h;
@@ -391,7 +392,8 @@ void fit_prior(const BrdfPrior& p, const PriorObservations& obs, const PriorFitO
     std::vector<Eigen::MatrixXd> pa(count), pb(count);
     parallel_for(count, [&](std::size_t t) {
       const std::size_t s0 = (g0 + t) * kBlock, rows = std::min(n, s0 + kBlock) - s0;
-      Eigen::MatrixXd q(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(k)), y(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(c));
+      Eigen::MatrixXd q(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(k)),
+          y(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(c));
       Eigen::VectorXd w(static_cast<Eigen::Index>(rows));
       for (std::size_t r = 0; r < rows; ++r) {
         const std::size_t s = s0 + r, i = obs.cell[s];

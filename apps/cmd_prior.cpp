@@ -104,7 +104,8 @@ void setup_prior(CLI::App& app) {
   cmd->add_option("--channels", o->channels, "Knots of the spectral basis the prior works in")->capture_default_str();
   cmd->add_option("--components", o->components, "Principal components kept (0: all)")->capture_default_str();
   cmd->add_option("--epsilon", o->epsilon, "eps of the log-relative mapping, 1/sr")->capture_default_str();
-  cmd->add_option("--block-mb", o->block_mb, "Memory for one block of cells x observations, MiB (results do not depend on it)")
+  cmd->add_option("--block-mb", o->block_mb,
+                  "Memory for one block of cells x observations, MiB (results do not depend on it)")
       ->capture_default_str()
       ->check(CLI::Range(std::size_t(1), std::size_t(1) << 20));
   cmd->add_flag("--replace", o->replace, "Replace a prior of the same name");

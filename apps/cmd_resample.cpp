@@ -108,10 +108,8 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   grid.units = info.units;
   grid.brdf.resize(info.bands * brdf::kMerlCells);
   std::vector<float> confidence(brdf::kMerlCells);
-  const acquire::PriorResampleOptions po{.local = ro,
-                                         .fit = {.lambda = o.lambda},
-                                         .confidence_reach = o.confidence_reach,
-                                         .residuals = o.prior_residuals};
+  const acquire::PriorResampleOptions po{
+      .local = ro, .fit = {.lambda = o.lambda}, .confidence_reach = o.confidence_reach, .residuals = o.prior_residuals};
   const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, confidence);
   store::Grid conf = acquire::confidence_grid(confidence, info.wavelengths);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
@@ -179,9 +177,9 @@ void run_model_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
       &model);
   store::Grid conf = acquire::confidence_grid(confidence, info.wavelengths);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
-  grid.provenance.importer = "resample model=" + model_json(*model).dump() +
-                             fmt::format(" confidence_reach={} mapping={} k={} weights={}", o.confidence_reach,
-                                         o.mapping, o.k, o.weights);
+  grid.provenance.importer =
+      "resample model=" + model_json(*model).dump() +
+      fmt::format(" confidence_reach={} mapping={} k={} weights={}", o.confidence_reach, o.mapping, o.k, o.weights);
   conf.provenance.importer = "resample confidence of " + o.output;
   const std::string what = save_prior_grids(grid, conf, o.output, conf_out, o.replace);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -202,8 +200,8 @@ void run_model_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
     return;
   }
   std::string shapes;
-  for (const auto& sh : model->shapes()) shapes += fmt::format(" alpha {:.4g}, {} {:.4g};", sh.alpha,
-                                                               o.fresnel == "schlick" ? "F0" : "eta", sh.fresnel);
+  for (const auto& sh : model->shapes())
+    shapes += fmt::format(" alpha {:.4g}, {} {:.4g};", sh.alpha, o.fresnel == "schlick" ? "F0" : "eta", sh.fresnel);
   fmt::print(
       "resampled {} samples of {} on a fitted {} model ({} lobe(s):{} relative RMS of the fit {:.3f}) onto all {} "
       "valid cells in {:.2f} s: {}; confidence in {}\n",
@@ -286,8 +284,9 @@ void setup_resample(CLI::App& app) {
   cmd->add_option("--shadowing", o->shadowing, "--model: smith (height-correlated) or vgroove (Torrance-Sparrow)")
       ->capture_default_str();
   cmd->add_option("--lambda", o->lambda, "--prior: Tikhonov weight of the fit")->capture_default_str();
-  cmd->add_option("--confidence-reach", o->confidence_reach,
-                  "--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction of --max-gap")
+  cmd->add_option(
+         "--confidence-reach", o->confidence_reach,
+         "--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction of --max-gap")
       ->capture_default_str();
   cmd->add_flag("--prior-residuals", o->prior_residuals,
                 "--prior: add the kd-tree estimate of the residuals against the prior fit (as --model) instead of "

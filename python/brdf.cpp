@@ -157,8 +157,8 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::op
     }
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  auto report = codec::spc_encode_json(rep, b, transform ? nullptr : &bounded, target_de00 ? &t : nullptr,
-                                             &target, codec::spc_format_version(bytes, "spc_encode"), seconds);
+  auto report = codec::spc_encode_json(rep, b, transform ? nullptr : &bounded, target_de00 ? &t : nullptr, &target,
+                                       codec::spc_format_version(bytes, "spc_encode"), seconds);
   if (choose_k) report["k_search"] = codec::spc_k_search_json(k_report);
   return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
                         py::module_::import("json").attr("loads")(report.dump()));

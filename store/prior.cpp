@@ -49,7 +49,8 @@ std::vector<float> read_f32(hid_t loc, const std::string& name, hsize_t rows, hs
 void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   const std::string path = "/priors/" + name, ctx = label() + ": " + path;
   const std::size_t k = p.variances.size(), cells = p.mean.size();
-  if (p.reference.size() != cells || (p.components.empty() ? k && !p.component_blocks : p.components.size() != k * cells))
+  if (p.reference.size() != cells ||
+      (p.components.empty() ? k && !p.component_blocks : p.components.size() != k * cells))
     throw UsageError(ctx + ": reference, mean and components (k x cells, or made by component_blocks) disagree");
   h5::Id g = make_group(begin("priors", name, "prior"), path, ctx);
   h5::write_attr(g, "prior_version", kPriorVersion, ctx);

@@ -18,8 +18,8 @@ using test::run_specula;
 TEST(ModelCli, ResamplesEveryValidCellOnAFittedModelWithConfidenceBeside) {
   test::ScratchDir dir;
   const std::string db = (dir / "db.h5").string(), out = (dir / "out.h5").string();
-  auto r = run_specula("synth-samples cyan-gloss --geometry random -n 30000 --wavelengths 400:700:100 -o '" + db +
-                       ":scan'");
+  auto r =
+      run_specula("synth-samples cyan-gloss --geometry random -n 30000 --wavelengths 400:700:100 -o '" + db + ":scan'");
   ASSERT_EQ(r.status, 0) << r.output;
   r = run_specula("resample '" + db + "' scan --model beckmann --fresnel dielectric -k 4 -o '" + out + ":g' --json");
   ASSERT_EQ(r.status, 0) << r.output;
@@ -36,7 +36,8 @@ TEST(ModelCli, ResamplesEveryValidCellOnAFittedModelWithConfidenceBeside) {
   }
 
   const std::string before = test::read_bytes(out);
-  for (const std::string& bad : {std::string("--model phong"), std::string("--model ggx --lobes 3"), "--model ggx --prior '" + db + ":p'"}) {
+  for (const std::string& bad :
+       {std::string("--model phong"), std::string("--model ggx --lobes 3"), "--model ggx --prior '" + db + ":p'"}) {
     r = run_specula("resample '" + db + "' scan " + bad + " -o '" + out + ":h'");
     EXPECT_NE(r.status, 0) << bad;
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;

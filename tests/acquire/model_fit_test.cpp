@@ -52,7 +52,8 @@ PriorObservations ggx_observations(const Truth& t, std::size_t count) {
     const std::uint32_t v = std::uint32_t(i * n / count);
     Eigen::Vector3d wi, wo;
     brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(valid_cells()[v])), wi, wo);
-    const double l1 = ggx_reference(t.alpha1, t.f01, wi, wo), l2 = t.alpha2 > 0 ? ggx_reference(t.alpha2, t.f02, wi, wo) : 0;
+    const double l1 = ggx_reference(t.alpha1, t.f01, wi, wo),
+                 l2 = t.alpha2 > 0 ? ggx_reference(t.alpha2, t.f02, wi, wo) : 0;
     obs.cell.push_back(v);
     obs.weight.push_back(1);
     for (std::size_t k = 0; k < b; ++k) {
@@ -261,7 +262,8 @@ TEST(ModelResample, ABaseEqualToTheTruthComesBackUnchanged) {
   for (const std::uint32_t c : valid_cells()) {
     near += conf[c] > 0;
     for (std::size_t k = 0; k < 5; ++k)
-      ASSERT_NEAR(grid[k * brdf::kMerlCells + c], truth[k * brdf::kMerlCells + c], 1e-6 * truth[k * brdf::kMerlCells + c]);
+      ASSERT_NEAR(grid[k * brdf::kMerlCells + c], truth[k * brdf::kMerlCells + c],
+                  1e-6 * truth[k * brdf::kMerlCells + c]);
   }
   EXPECT_GT(near, valid_cells().size() / 10);
   EXPECT_LT(near, valid_cells().size());

@@ -204,7 +204,7 @@ TEST(Prior, NoiseWeightsBeatCountWeightsWhenHalfTheCellsAreTenTimesNoisier) {
   for (std::size_t n = 0; n < 2000; ++n) {
     const std::size_t i = pick(rng);
     const brdf::StdAngles a = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[i])));
-    const double sigma = n % 2 ? 0.3 : 0.03;  // half the cells 10x noisier
+    const double sigma = n % 2 ? 0.3 : 0.03;     // half the cells 10x noisier
     sigma_of[i] = sigma_of[i] > 0 ? -1 : sigma;  // -1: drawn twice, both levels
     for (int s = 0; s < 6; ++s) {
       angles.insert(angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
@@ -239,7 +239,8 @@ TEST(Prior, NoiseWeightsBeatCountWeightsWhenHalfTheCellsAreTenTimesNoisier) {
   // Without scatter (one sample a cell) the weights are the counts.
   acquire::PriorObservations single = obs;
   single.spread.clear();
-  EXPECT_EQ(acquire::observation_weights(f.prior, single, {}), std::vector<double>(obs.weight.begin(), obs.weight.end()));
+  EXPECT_EQ(acquire::observation_weights(f.prior, single, {}),
+            std::vector<double>(obs.weight.begin(), obs.weight.end()));
 }
 
 TEST(Prior, StreamedThroughAStoreEqualsABruteForcePca) {

@@ -272,8 +272,8 @@ TEST_F(ViewService, AGridWithAConfidenceBesideItOffersItsSlice) {
   EXPECT_NE(r.body.find("\"confidence_grid\":\"grid.confidence\""), std::string::npos);
   const std::vector<double> conf = json_array_of(r.body, "confidence");
   ASSERT_EQ(conf.size(), 179u);
-  EXPECT_NEAR(conf[89 + 45], 0.0, 1e-7);          // the mirror direction: theta_h = 0
-  EXPECT_NEAR(conf[89 - 45], 63.0 / 89, 1e-6);    // retro-reflection: theta_h = 45 degrees, index 63
+  EXPECT_NEAR(conf[89 + 45], 0.0, 1e-7);        // the mirror direction: theta_h = 0
+  EXPECT_NEAR(conf[89 - 45], 63.0 / 89, 1e-6);  // retro-reflection: theta_h = 45 degrees, index 63
   const view::Response f = get("/api/grid/incidence", {{"name", "flat"}, {"theta_i", "45"}});
   EXPECT_EQ(f.body.find("confidence"), std::string::npos);
 }

@@ -167,8 +167,8 @@ TEST(ViewServer, BrowserPlotsAGridsConfidence) {
   test::ScratchDir dir;
   const Server server(make_store(dir.path()));
   ASSERT_GT(server.port(), 0) << server.first_line();
-  const auto r = test::run_shell("cd '" + e2e.string() + "' && node confidence.mjs http://127.0.0.1:" +
-                                 std::to_string(server.port()) + "/ rec");
+  const auto r = test::run_shell(
+      "cd '" + e2e.string() + "' && node confidence.mjs http://127.0.0.1:" + std::to_string(server.port()) + "/ rec");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("\"hidden\":true"), std::string::npos) << r.output;
   const std::size_t at = r.output.find("\"points\":[[");
