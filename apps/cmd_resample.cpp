@@ -87,6 +87,15 @@ std::string save_prior_grids(const store::Grid& grid, const store::Grid& conf, c
   return "grid '" + spec->name + "' in " + spec->file.string();
 }
 
+// A grid on the samples' bands and units, every value zero, for a resampler to fill.
+store::Grid empty_grid(const store::SamplesInfo& info) {
+  store::Grid grid;
+  grid.wavelengths = info.wavelengths;
+  grid.units = info.units;
+  grid.brdf.resize(info.bands * brdf::kMerlCells);
+  return grid;
+}
+
 // What both kinds of resampling report first: the samples read and the grid's cells.
 Json report_head(const store::SamplesInfo& info, std::uint64_t valid_cells) {
   return {{"samples", info.size}, {"bands", info.bands}, {"cells", brdf::kMerlCells}, {"valid_cells", valid_cells}};
@@ -103,10 +112,7 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);
-  store::Grid grid;
-  grid.wavelengths = info.wavelengths;
-  grid.units = info.units;
-  grid.brdf.resize(info.bands * brdf::kMerlCells);
+  store::Grid grid = empty_grid(info);
   std::vector<float> confidence(brdf::kMerlCells);
   const acquire::PriorResampleOptions po{
       .local = ro, .fit = {.lambda = o.lambda}, .confidence_reach = o.confidence_reach, .residuals = o.prior_residuals};
@@ -166,10 +172,7 @@ void run_model_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);
-  store::Grid grid;
-  grid.wavelengths = info.wavelengths;
-  grid.units = info.units;
-  grid.brdf.resize(info.bands * brdf::kMerlCells);
+  store::Grid grid = empty_grid(info);
   std::vector<float> confidence(brdf::kMerlCells);
   std::unique_ptr<acquire::MicrofacetBrdf> model;
   const acquire::ModelResampleStats st = acquire::resample_with_model(
@@ -224,10 +227,7 @@ void run_resample(const ResampleCliOptions& o) {
   const store::Store s = store::Store::open(o.store);
   const store::SamplesInfo info = s.samples_info(o.samples);
   const acquire::StoreSamples src(s, o.samples);
-  store::Grid grid;
-  grid.wavelengths = info.wavelengths;
-  grid.units = info.units;
-  grid.brdf.resize(info.bands * brdf::kMerlCells);
+  store::Grid grid = empty_grid(info);
   const acquire::GridStats stats = acquire::resample_grid(src, ro, grid.brdf);
   grid.provenance.source_file = o.store + ":" + o.samples;
   grid.provenance.importer = fmt::format("resample mapping={} k={} weights={} power={} max_gap_deg={}", o.mapping, o.k,
