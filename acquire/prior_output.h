@@ -16,7 +16,7 @@ std::string confidence_name(const std::string& name);
 std::filesystem::path confidence_path(const std::filesystem::path& path);
 
 /// Per-cell confidence (kMerlCells values, -1 below the horizon) as a one-band grid, units "confidence"; its one
-/// wavelength is the middle band of `bands`, a placeholder the grid format requires. UsageError on the size.
+/// wavelength is the middle band of `bands` (a grid names its bands; confidence has none). UsageError on size.
 store::Grid confidence_grid(std::span<const float> confidence, const WavelengthGrid& bands);
 
 /// Adds grid `name` and its confidence (confidence_name(name)) to the transaction `out`: both appear at
