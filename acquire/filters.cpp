@@ -102,6 +102,25 @@ FilterSet read_filters_csv(const std::filesystem::path& path) {
 }
 
 void write_filters_csv(const std::filesystem::path& path, const FilterSet& f) {
+  const std::string where = "write_filters_csv(" + path.string() + ")";
+  if (f.size() == 0 || f.names.size() != f.size() || f.nm.size() < 2)
+    throw UsageError(where + ": one name per filter, at least one filter and two wavelengths");
+  for (std::size_t i = 0; i < f.nm.size(); ++i)
+    if (!(f.nm[i] > 0) || !std::isfinite(f.nm[i]) || (i > 0 && !(f.nm[i] > f.nm[i - 1])))
+      throw UsageError(where + ": wavelength " + num(f.nm[i]) + " nm; wavelengths must be positive and increase");
+  for (std::size_t k = 0; k < f.size(); ++k) {
+    if (f.names[k].empty() ||
+        std::any_of(f.names[k].begin(), f.names[k].end(),
+                    [](char ch) { return (ch >= 0 && ch < 0x20) || ch == 0x7f || ch == ','; }) ||
+        trim(f.names[k]) != f.names[k])
+      throw UsageError(where + ": filter name '" + printable(f.names[k]) +
+                       "'; a name is not empty, has no commas, control characters or surrounding spaces");
+    if (f.transmission[k].size() != f.nm.size())
+      throw UsageError(where + ": filter '" + f.names[k] + "' has the wrong number of values");
+    for (const double t : f.transmission[k])
+      if (!(t >= 0 && t <= 1))
+        throw UsageError(where + ": filter '" + f.names[k] + "' transmits " + num(t) + "; a transmission is 0 to 1");
+  }
   AtomicOutput out(path);
   {
     std::ofstream o(out.temp_path());

@@ -20,7 +20,9 @@ namespace specula::acquire {
 FilterSet parse_filters_csv(std::string_view text, const std::string& source);
 /// Reads and parses a filter CSV file.
 FilterSet read_filters_csv(const std::filesystem::path& path);
-/// Writes `f` as a filter CSV (through a temporary renamed into place).
+/// Writes `f` as a filter CSV (through a temporary renamed into place); UsageError, nothing written, for what
+/// parse_filters_csv would refuse (names empty or with commas or control characters, wavelengths that do not
+/// increase, transmissions outside [0, 1], rows of the wrong length).
 void write_filters_csv(const std::filesystem::path& path, const FilterSet& f);
 /// InputError naming `source` unless the set has filters, its curves are in [0, 1], its tabulation covers
 /// [bands.front(), bands.back()] and every filter passes some light there.

@@ -40,6 +40,7 @@ void init_brdf(py::module_& m);
 void init_bsdf(py::module_& m);
 void init_render(py::module_& m);
 void init_fidelity(py::module_& m);
+void init_filters(py::module_& m);
 
 class PyStore;
 
@@ -151,6 +152,7 @@ SPECULA_PY_ARG(OptStr)
 SPECULA_PY_ARG(NamesArg)
 SPECULA_PY_ARG(CallbackArg)
 SPECULA_PY_ARG(StoresArg)
+SPECULA_PY_ARG(StoreArg)
 SPECULA_PY_ARG(BasisResult)
 SPECULA_PY_ARG(ProjectResult)
 SPECULA_PY_ARG(OptArrayResult)
@@ -278,6 +280,7 @@ SPECULA_PY_ARG_NAME(OptStr, "str | None")
 SPECULA_PY_ARG_NAME(NamesArg, "Sequence[str] | None")
 SPECULA_PY_ARG_NAME(CallbackArg, "Callable[[dict], None] | None")
 SPECULA_PY_ARG_NAME(StoresArg, "str | os.PathLike[str] | Store | Sequence[str | os.PathLike[str] | Store]")
+SPECULA_PY_ARG_NAME(StoreArg, "str | os.PathLike[str] | Store")
 SPECULA_PY_ARG_NAME(BasisResult, "Basis")
 SPECULA_PY_ARG_NAME(ProjectResult, "dict[str, Any] | dict[int, dict[str, Any]]")
 SPECULA_PY_ARG_NAME(OptArrayResult, "numpy.ndarray | None")
