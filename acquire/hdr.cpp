@@ -15,22 +15,59 @@ const char* status_name(HdrStatus s) {
   return names[std::size_t(s)];
 }
 
-HdrImage merge_exposures(std::span<const std::span<const std::uint16_t>> exposures, std::span<const double> times,
-                         int bit_depth, const HdrOptions& o) {
-  if (exposures.empty() || exposures.size() != times.size())
-    throw UsageError("HDR merge: give one exposure time per image, at least one image");
+namespace {
+
+// The checks merge_exposures and hdr_rate_variance share; the exposures' order, shortest first.
+std::vector<std::size_t> checked_order(std::span<const double> times, int bit_depth, const HdrOptions& o) {
+  if (times.empty()) throw UsageError("HDR merge: give one exposure time per image, at least one image");
   if (bit_depth < 8 || bit_depth > 16) throw UsageError("HDR merge: bit depth must be 8 to 16");
   if (!(o.low >= 0 && o.low < o.high && o.high <= 1) || !(o.min_pearson >= -1 && o.min_pearson <= 1))
     throw UsageError("HDR merge: the linear range must satisfy 0 <= low < high <= 1, and min_pearson lie in [-1, 1]");
-  const std::size_t n = exposures.front().size();
-  for (std::size_t e = 0; e < exposures.size(); ++e) {
-    if (exposures[e].size() != n) throw UsageError("HDR merge: every exposure must have the same number of pixels");
-    if (!(times[e] > 0) || !std::isfinite(times[e])) throw UsageError("HDR merge: exposure times must be positive");
-  }
-  const double full = double((1 << bit_depth) - 1), lo = o.low * full, hi = o.high * full;
+  for (const double t : times)
+    if (!(t > 0) || !std::isfinite(t)) throw UsageError("HDR merge: exposure times must be positive");
   std::vector<std::size_t> order(times.size());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return times[a] < times[b]; });
+  return order;
+}
+
+}  // namespace
+
+double hdr_rate_variance(double rate, std::span<const double> times, int bit_depth, const SensorNoise& noise,
+                         const HdrOptions& o) {
+  const std::vector<std::size_t> order = checked_order(times, bit_depth, o);
+  if (!(rate >= 0) || !std::isfinite(rate) || !(noise.read_noise_dn >= 0) || !(noise.electrons_per_dn > 0) ||
+      !(noise.dark_dn >= 0))
+    throw UsageError("HDR noise: the rate and read noise must be >= 0, the gain positive, the bias >= 0");
+  const double full = double((1 << bit_depth) - 1), lo = o.low * full, hi = o.high * full;
+  auto variance = [&](double t) {
+    return noise.read_noise_dn * noise.read_noise_dn + rate * t / noise.electrons_per_dn + 1.0 / 12;
+  };
+  std::vector<double> used;
+  for (const std::size_t e : order)
+    if (const double v = noise.dark_dn + rate * times[e]; v >= lo && v <= hi) used.push_back(times[e]);
+  if (used.empty()) {
+    const double t = noise.dark_dn + rate * times[order.front()] > hi ? times[order.front()] : times[order.back()];
+    return variance(t) / (t * t);
+  }
+  if (used.size() == 1) return variance(used[0]) / (used[0] * used[0]);
+  double mean = 0;
+  for (const double t : used) mean += t / double(used.size());
+  double stt = 0, sum = 0;
+  for (const double t : used) stt += (t - mean) * (t - mean), sum += (t - mean) * (t - mean) * variance(t);
+  if (!(stt > 0)) return variance(used[0]) / (used[0] * used[0] * double(used.size()));
+  return sum / (stt * stt);
+}
+
+HdrImage merge_exposures(std::span<const std::span<const std::uint16_t>> exposures, std::span<const double> times,
+                         int bit_depth, const HdrOptions& o) {
+  if (exposures.size() != times.size())
+    throw UsageError("HDR merge: give one exposure time per image, at least one image");
+  const std::vector<std::size_t> order = checked_order(times, bit_depth, o);
+  const std::size_t n = exposures.front().size();
+  for (std::size_t e = 0; e < exposures.size(); ++e)
+    if (exposures[e].size() != n) throw UsageError("HDR merge: every exposure must have the same number of pixels");
+  const double full = double((1 << bit_depth) - 1), lo = o.low * full, hi = o.high * full;
   HdrImage out;
   out.pixels = n;
   out.rate.assign(n, 0.0f);

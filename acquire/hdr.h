@@ -35,6 +35,22 @@ struct HdrImage {
   std::vector<std::uint8_t> used;
 };
 
+/// The camera's noise (the simulator's sensor, acquire/simulate.h): each value is bias + rate t + Gaussian noise of
+/// variance read_noise_dn^2 + rate t / electrons_per_dn (shot noise: Poisson in electrons), rounded to an integer.
+struct SensorNoise {
+  double read_noise_dn = 1.5;
+  double electrons_per_dn = 4;
+  double dark_dn = 8;  ///< the bias every value carries
+};
+
+/// Variance ((DN/s)^2) of merge_exposures' rate for a pixel of true rate `rate` (DN/s above the bias) over `times`:
+/// each value's variance read^2 + rate t / gain + 1/12 (rounding), the values inside the linear range combined as
+/// the least-squares slope combines them (sum (t - mean t)^2 var / (sum (t - mean t)^2)^2); one value, or none
+/// (low signal: the longest exposure; saturated: the shortest), its variance over its time squared. UsageError for
+/// bad times, bit depth, options or noise.
+double hdr_rate_variance(double rate, std::span<const double> times, int bit_depth, const SensorNoise& noise,
+                         const HdrOptions& o = {});
+
 /// Merges `exposures` (one image of `pixels` values each, 0 .. 2^bit_depth - 1) taken at `times` (seconds,
 /// positive, any order). UsageError for mismatched sizes, fewer than one exposure, bad options or bit depth.
 HdrImage merge_exposures(std::span<const std::span<const std::uint16_t>> exposures, std::span<const double> times,

@@ -138,8 +138,43 @@ HdrSummary write_hdr_images(const Capture& cap, const fs::path& dir, const HdrOp
 
 namespace {
 
-SpectralCalibration calibrate_filters(const Capture& cap, const Tabulated& light, const PipelineOptions& o,
-                                      const Eigen::MatrixXd& fit_h, const Eigen::MatrixXd& fit_r);
+SpectralCalibration calibrate_filters(const Capture& cap, const fs::path& dir, const Tabulated& light,
+                                      const PipelineOptions& o, const Eigen::MatrixXd& fit_h,
+                                      const Eigen::MatrixXd& fit_r);
+}  // namespace
+
+Eigen::VectorXd filter_reading_noise(const Capture& cap, const fs::path& dir, const SensorNoise& noise,
+                                     const HdrOptions& o, std::size_t lights) {
+  const std::size_t K = cap.channels(), L = cap.light_angles_deg.size(), n = std::min(L, lights);
+  if (n == 0) throw UsageError("filter_reading_noise: a capture with lights, and lights >= 1");
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(Eigen::Index(K));
+  std::uint64_t pixels = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    check_interrupt();
+    const int l = int(n == 1 ? 0 : i * (L - 1) / (n - 1));
+    std::vector<std::vector<double>> times(K);
+    for (const auto& im : cap.images)
+      if (im.kind == ImageKind::scene && im.light == l) times[std::size_t(im.band)].push_back(im.exposure_s);
+    const std::vector<HdrImage> hdr = merge_light(cap, dir, l, o);
+    for (std::size_t p = 0; p < hdr[0].pixels; ++p) {
+      bool valid = true;
+      for (std::size_t k = 0; k < K && valid; ++k)
+        valid = (hdr[k].status[p] == HdrStatus::ok || hdr[k].status[p] == HdrStatus::single) && hdr[k].rate[p] > 0;
+      if (!valid) continue;
+      for (std::size_t k = 0; k < K; ++k) {
+        const double r = hdr[k].rate[p];
+        sum[Eigen::Index(k)] += hdr_rate_variance(r, times[k], cap.bit_depth, noise, o) / (r * r);
+      }
+      ++pixels;
+    }
+  }
+  if (pixels == 0)
+    throw InputError(dir.string() + ": no scene pixel is read in every filter; the readings' noise is unknown");
+  return (sum / double(pixels)).cwiseSqrt();
+}
+
+namespace {
+
 void add_target_reports(Calibration& c, const Capture& cap, const Eigen::MatrixXd& measured,
                         const Eigen::MatrixXd& reflectance, const std::vector<Eigen::Index>& fit_rows);
 void calibrate_lctf(Calibration& c, const Capture& cap, const fs::path& dir, const Tabulated& light,
@@ -196,7 +231,7 @@ Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const Pip
   const Eigen::MatrixXd fit_h = measured(fit_rows, Eigen::all), fit_r = reflectance(fit_rows, Eigen::all);
   const Tabulated light{cap.light_spectrum_nm, cap.light_spectrum};
   if (cap.filters) {
-    c.spectral = calibrate_filters(cap, light, o, fit_h, fit_r);
+    c.spectral = calibrate_filters(cap, dir, light, o, fit_h, fit_r);
     add_target_reports(c, cap, measured, reflectance, fit_rows);
   } else {
     calibrate_lctf(c, cap, dir, light, o, measured, reflectance, fit_rows);
@@ -207,8 +242,9 @@ Calibration calibrate_capture(const Capture& cap, const fs::path& dir, const Pip
 
 namespace {
 
-SpectralCalibration calibrate_filters(const Capture& cap, const Tabulated& light, const PipelineOptions& o,
-                                      const Eigen::MatrixXd& fit_h, const Eigen::MatrixXd& fit_r) {
+SpectralCalibration calibrate_filters(const Capture& cap, const fs::path& dir, const Tabulated& light,
+                                      const PipelineOptions& o, const Eigen::MatrixXd& fit_h,
+                                      const Eigen::MatrixXd& fit_r) {
   const std::vector<Eigen::MatrixXd> system = filter_system(*cap.filters, cap.bands, light, o.filter_terms);
   const Eigen::MatrixXd a = fit_filter_response(system, fit_h, fit_r);
   SpectralCalibration s;
@@ -219,9 +255,17 @@ SpectralCalibration calibrate_filters(const Capture& cap, const Tabulated& light
     for (std::size_t d = 0; d < system.size(); ++d) sys.row(k) += a(k, Eigen::Index(d)) * system[d].row(k);
   s.scale = Eigen::Map<const Eigen::VectorXd>(Eigen::MatrixXd(a.transpose()).data(), a.size());
   if (o.filter_prior.size()) {
-    const Eigen::VectorXd white = sys.rowwise().sum();
-    s.recovery = filter_wiener_recovery(sys, o.filter_prior, o.filter_noise * white.cwiseAbs());
-    s.posterior = filter_wiener_posterior(sys, o.filter_prior, o.filter_noise * white.cwiseAbs());
+    s.noise = Eigen::VectorXd::Constant(sys.rows(), o.filter_noise);
+    if (o.filter_noise_from_capture) {
+      const Eigen::VectorXd rel = filter_reading_noise(cap, dir, o.sensor, o.hdr, o.filter_noise_lights);
+      std::vector<double> sorted(rel.data(), rel.data() + rel.size());
+      std::nth_element(sorted.begin(), sorted.begin() + std::ptrdiff_t(sorted.size() / 2), sorted.end());
+      s.noise *= 1.0 / sorted[sorted.size() / 2];
+      s.noise = s.noise.cwiseProduct(rel);
+    }
+    const Eigen::VectorXd sigma = s.noise.cwiseProduct(sys.rowwise().sum().cwiseAbs());
+    s.recovery = filter_wiener_recovery(sys, o.filter_prior, sigma);
+    s.posterior = filter_wiener_posterior(sys, o.filter_prior, sigma);
   } else {
     s.recovery = filter_recovery(sys, o.filter_basis, o.filter_ridge);
     s.posterior = filter_ridge_posterior(sys, o.filter_basis, o.filter_ridge);
@@ -443,6 +487,9 @@ void write_calibration(store::StoreWriter& out, const std::string& name, const C
                {"sphere_m", {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z(), c.sphere.radius}},
                {"light_confidence", c.light_confidence},
                {"light_distance_m", {c.light_distance}}};
+  if (c.spectral.noise.size())
+    r.vectors.emplace_back("filter_noise", std::vector<double>(c.spectral.noise.data(),
+                                                               c.spectral.noise.data() + c.spectral.noise.size()));
   r.texts = {{"spectral_model", c.spectral.model == SpectralModel::delta      ? "delta"
                                 : c.spectral.model == SpectralModel::factored ? "factored"
                                                                               : "filters"}};
@@ -464,6 +511,8 @@ Calibration read_calibration(const store::Store& in, const std::string& name) {
   // Calibrations written before the non-negative reconstruction have no posterior: their recovery stays linear.
   for (const auto& [key, m] : r.matrices)
     if (key == "spectral_posterior") c.spectral.posterior = m;
+  for (const auto& [key, v] : r.vectors)
+    if (key == "filter_noise") c.spectral.noise = Eigen::Map<const Eigen::VectorXd>(v.data(), Eigen::Index(v.size()));
   const std::vector<double>& scale = r.vector("spectral_scale");
   c.spectral.scale = Eigen::Map<const Eigen::VectorXd>(scale.data(), Eigen::Index(scale.size()));
   c.spectral.bands = r.vector("bands_nm");

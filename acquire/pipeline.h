@@ -28,10 +28,22 @@ struct PipelineOptions {
   double filter_ridge = 1e-3;
   int filter_terms = 2;
   /// Filter captures: when not empty, the spectra's second moment (B x B) and the Wiener solve
-  /// (filter_wiener_recovery) with noise filter_noise times each filter's white reading replace the ridge.
+  /// (filter_wiener_recovery) replace the ridge, with filter k's reading noise filter_noise times its white reading
+  /// times, when filter_noise_from_capture, its recorded readings' relative noise over the filters' median
+  /// (filter_reading_noise with `sensor`; else 1: every filter as if exposed alike).
   Eigen::MatrixXd filter_prior;
   double filter_noise = 0.002;
+  bool filter_noise_from_capture = true;
+  SensorNoise sensor;
+  std::size_t filter_noise_lights = 8;  ///< light positions filter_reading_noise reads
 };
+
+/// Each filter's relative reading noise as a filter capture recorded it: over the scene pixels of up to `lights`
+/// light positions (evenly spaced) whose every filter merged ok or single with a positive rate, the root mean square
+/// of sqrt(hdr_rate_variance(rate, that filter's exposure times)) / rate. InputError naming the capture when no
+/// pixel qualifies.
+Eigen::VectorXd filter_reading_noise(const Capture& capture, const std::filesystem::path& dir, const SensorNoise& noise,
+                                     const HdrOptions& o, std::size_t lights = 8);
 
 /// One target's recovered reflectance under both models against its known reflectance (eq 4.8).
 struct TargetReport {

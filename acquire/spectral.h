@@ -30,6 +30,8 @@ struct SpectralCalibration {
   Eigen::MatrixXd recovery;   ///< (R L)^-1, N x N; for filters B x K (filter_recovery)
   /// filters: the solve's posterior covariance (B x B; nonnegative_spectrum's metric); empty: the linear recovery
   Eigen::MatrixXd posterior;
+  /// filters, Wiener: each filter's reading noise relative to its white reading, as the solve assumed; else empty
+  Eigen::VectorXd noise;
 };
 
 /// Fits the delta model: H_ij = w_j L(lambda_j) rho_i(lambda_j) by least squares over the targets used.

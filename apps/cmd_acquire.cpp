@@ -89,6 +89,9 @@ struct AcquireOptions {
   int filter_terms = 2;
   std::string filter_solve = "wiener";
   double filter_noise = 0.002;
+  bool equal_filter_noise = false;
+  double read_noise_dn = acquire::SensorNoise{}.read_noise_dn;
+  double electrons_per_dn = acquire::SensorNoise{}.electrons_per_dn;
   std::vector<std::string> fit_targets;
   bool replace = false;
   bool json = false;
@@ -223,6 +226,9 @@ void print_calibration(const acquire::Capture& cap, const acquire::Calibration& 
     fmt::print(")\n  target      RMS filters (eq 4.8)\n");
     for (const auto& t : c.targets)
       fmt::print("  {:<10}  {:.5f}{}\n", t.name, t.rms_filters, t.held_out ? "" : "   (fitted)");
+    if (c.spectral.noise.size())
+      fmt::print("  reading noise per filter (relative to its white reading): {:.4f}\n",
+                 fmt::join(c.spectral.noise, " "));
     return;
   }
   fmt::print(")\n  target      RMS delta   RMS factored (eq 4.8)\n");
@@ -248,6 +254,8 @@ void add_calibration_json(Json& j, const acquire::Capture& cap, const acquire::C
   j["sphere"] = {{"centre", {c.sphere.centre.x(), c.sphere.centre.y(), c.sphere.centre.z()}},
                  {"radius", c.sphere.radius}};
   j["targets"] = std::move(targets);
+  if (c.spectral.noise.size())
+    j["filter_noise"] = std::vector<double>(c.spectral.noise.data(), c.spectral.noise.data() + c.spectral.noise.size());
   if (mean >= 0) {
     j["light_dir_error_deg"] = mean;
     j["light_dir_error_max_deg"] = worst;
@@ -270,6 +278,11 @@ acquire::PipelineOptions pipeline_options(const AcquireOptions& o, const acquire
       po.filter_prior = acquire::capture_prior(basis, cap, o.basis);
     if (!(o.filter_noise >= 0 && o.filter_noise < 1)) throw UsageError("acquire: --filter-noise must be in [0, 1)");
     po.filter_noise = o.filter_noise;
+    po.filter_noise_from_capture = !o.equal_filter_noise;
+    if (!(o.read_noise_dn >= 0) || !(o.electrons_per_dn > 0))
+      throw UsageError("acquire: --read-noise must be >= 0 and --electrons-per-dn positive");
+    po.sensor.read_noise_dn = o.read_noise_dn;
+    po.sensor.electrons_per_dn = o.electrons_per_dn;
   }
   return po;
 }
@@ -378,7 +391,16 @@ void add_pipeline_options(CLI::App* cmd, AcquireOptions& o, bool calibrates, boo
                     "Filter captures: wiener (the basis's second moment as prior) or ridge (in the basis)")
         ->capture_default_str();
     cmd->add_option("--filter-noise", o.filter_noise,
-                    "Filter captures, wiener: reading noise relative to each filter's white reading")
+                    "Filter captures, wiener: a typical filter's reading noise relative to its white reading (each "
+                    "filter's scaled by its recorded readings' noise over the median)")
+        ->capture_default_str();
+    cmd->add_flag("--equal-filter-noise", o.equal_filter_noise,
+                  "Filter captures, wiener: every filter the same relative noise, whatever its exposures");
+    cmd->add_option("--read-noise", o.read_noise_dn,
+                    "Filter captures: the camera's read noise (DN), for the readings' noise")
+        ->capture_default_str();
+    cmd->add_option("--electrons-per-dn", o.electrons_per_dn,
+                    "Filter captures: the camera's gain, for the readings' shot noise")
         ->capture_default_str();
     cmd->add_option("--ridge", o.ridge, "Filter captures: the solve's regularisation")->capture_default_str();
     cmd->add_option("--filter-terms", o.filter_terms, "Filter captures: response terms fitted per filter (1-4)")

@@ -1,11 +1,15 @@
 // HDR merge in closed form: exact lines give their slope, each kind of pixel gets its status, the order of the
-// exposures does not matter, and bad calls throw with the rule.
+// exposures does not matter, and bad calls throw with the rule; the merged rate's variance against merged simulated
+// pixels and closed forms.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 #include <vector>
 
 #include "specula/acquire/hdr.h"
+#include "specula/acquire/simulate.h"
 #include "specula/core/error.h"
 
 using namespace specula;
@@ -88,3 +92,60 @@ TEST(Hdr, BadCallsThrowWithTheRule) {
 }
 
 }  // namespace
+
+// The simulator's sensor (acquire/simulate.cpp's Sensor), written out here: bias + rate t + Gaussian noise of
+// variance read^2 + rate t / gain, rounded and clipped to 12 bits.
+std::vector<std::vector<std::uint16_t>> simulated_exposures(double rate, const std::vector<double>& times,
+                                                            std::size_t pixels, const SensorNoise& n) {
+  std::mt19937_64 rng(11);
+  std::vector<std::vector<std::uint16_t>> images(times.size(), std::vector<std::uint16_t>(pixels));
+  for (std::size_t e = 0; e < times.size(); ++e)
+    for (auto& v : images[e]) {
+      const double mean = n.dark_dn + rate * times[e];
+      const double sigma = std::sqrt(rate * times[e] / n.electrons_per_dn + n.read_noise_dn * n.read_noise_dn);
+      v = std::uint16_t(std::clamp(std::lround(mean + std::normal_distribution<double>(0, sigma)(rng)), 0L, 4095L));
+    }
+  return images;
+}
+
+TEST(HdrNoise, TheRatesVarianceMatchesMergedSimulatedPixels) {
+  const SensorNoise n;
+  // Three values in range (LS slope), two, one, none below the range (the longest), none above it (the shortest).
+  const std::vector<std::pair<double, std::vector<double>>> cases = {
+      {300, {0.1, 0.3, 1, 3, 10}}, {100, {1, 10, 30}}, {100, {3, 100}}, {3, {20, 60}}, {1e5, {0.05, 0.1}}};
+  for (const auto& [rate, times] : cases) {
+    const auto images = simulated_exposures(rate, times, 40000, n);
+    const HdrImage h = merge(images, times);
+    double mean = 0, var = 0;
+    for (const float r : h.rate) mean += r / double(h.rate.size());
+    for (const float r : h.rate) var += (r - mean) * (r - mean) / double(h.rate.size() - 1);
+    if (rate > 1e4) {
+      // Saturated: merge gives no rate; the variance is that of the shortest exposure's value over its time.
+      EXPECT_EQ(h.status[0], HdrStatus::saturated);
+      EXPECT_DOUBLE_EQ(hdr_rate_variance(rate, times, 12, n),
+                       (n.read_noise_dn * n.read_noise_dn + rate * 0.05 / n.electrons_per_dn + 1.0 / 12) / 0.0025);
+      continue;
+    }
+    EXPECT_NEAR(hdr_rate_variance(rate, times, 12, n) / var, 1.0, 0.04) << rate << " DN/s";
+  }
+}
+
+TEST(HdrNoise, ClosedFormsOfADimReadingAtTheCapAndOfExposuresInARatio) {
+  const SensorNoise n;
+  // 3 DN/s at the 60 s cap: 188 DN, below the range; its value over 60 s.
+  EXPECT_DOUBLE_EQ(hdr_rate_variance(3, std::vector<double>{20, 60}, 12, n), (2.25 + 3 * 60 / 4.0 + 1.0 / 12) / 3600);
+  // Shot noise alone: one exposure 4 times longer gives a variance 4 times smaller (to the rounding's 1/12).
+  const SensorNoise shot{.read_noise_dn = 0};
+  const double v1 = hdr_rate_variance(800, std::vector<double>{1}, 12, shot),
+               v4 = hdr_rate_variance(800, std::vector<double>{4}, 12, shot);
+  EXPECT_DOUBLE_EQ(v1, 800 / 4.0 + 1.0 / 12);
+  EXPECT_NEAR(v1 / v4, 4, 2e-3);
+  // The defaults are the simulator's sensor.
+  const SimulatorOptions sim;
+  EXPECT_EQ(n.read_noise_dn, sim.read_noise_dn);
+  EXPECT_EQ(n.electrons_per_dn, sim.electrons_per_dn);
+  EXPECT_EQ(n.dark_dn, sim.dark_dn);
+  EXPECT_THROW(hdr_rate_variance(-1, std::vector<double>{1}, 12, n), UsageError);
+  EXPECT_THROW(hdr_rate_variance(1, std::vector<double>{}, 12, n), UsageError);
+  EXPECT_THROW(hdr_rate_variance(1, std::vector<double>{1}, 12, {.electrons_per_dn = 0}), UsageError);
+}

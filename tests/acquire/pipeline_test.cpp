@@ -170,3 +170,66 @@ TEST(Pipeline, GridMaterialIsRecovered) {
 }
 
 }  // namespace
+
+namespace {
+
+// A filter capture of two lights in `dir` whose scene images through filter k are uniform at values[k][e], taken at
+// times[k][e]; the manifest written.
+Capture uniform_filter_capture(const std::filesystem::path& dir, const std::vector<std::vector<double>>& times,
+                               const std::vector<std::vector<std::uint16_t>>& values) {
+  Capture c;
+  c.width = c.height = 4;
+  c.focal_px = 100;
+  c.bands = {450, 550, 650};
+  c.light_angles_deg = {20, 40};
+  c.light_spectrum_nm = {400, 700};
+  c.light_spectrum = {1, 1};
+  FilterSet f;
+  f.nm = {400, 700};
+  for (std::size_t k = 0; k < times.size(); ++k)
+    f.names.push_back("F" + std::to_string(k)), f.transmission.push_back({1, 1});
+  c.filters = f;
+  std::filesystem::create_directories(dir);
+  for (int l = 0; l < 2; ++l)
+    for (std::size_t k = 0; k < times.size(); ++k)
+      for (std::size_t e = 0; e < times[k].size(); ++e) {
+        const std::string file = "L" + std::to_string(l) + "-F" + std::to_string(k) + "-" + std::to_string(e) + ".png";
+        store::write_png_gray16(dir / file, 4, 4, std::vector<std::uint16_t>(16, values[k][e]));
+        c.images.push_back({file, ImageKind::scene, l, int(k), -1, times[k][e]});
+      }
+  return c;
+}
+
+// Relative noise of a merged rate in closed form: sqrt(variance) / rate.
+double relative(double rate, double variance) { return std::sqrt(variance) / rate; }
+
+}  // namespace
+
+TEST(FilterReadingNoise, FollowsEachFiltersRecordedExposuresAndLevels) {
+  test::ScratchDir dir;
+  const SensorNoise shot{.read_noise_dn = 0}, n;
+  // Filter 1 exposed 4 times longer at the same light (808 and 3208 DN with the bias of 8: one value each, merged
+  // as value over time): shot-noise-limited relative variances in the ratio 4 (the rounding and the bias aside),
+  // i.e. the Wiener solve's weights 1/sigma^2 in the ratio 1:4.
+  Capture c = uniform_filter_capture(dir / "a", {{1}, {4}}, {{808}, {3208}});
+  Eigen::VectorXd rel = filter_reading_noise(c, dir / "a", shot, {});
+  const double r0 = 808, r1 = 3208 / 4.0;
+  EXPECT_DOUBLE_EQ(rel[0], relative(r0, r0 / 4 + 1.0 / 12));
+  EXPECT_DOUBLE_EQ(rel[1], relative(r1, (r1 * 4 / 4 + 1.0 / 12) / 16));
+  EXPECT_NEAR(std::pow(rel[0] / rel[1], 2), 4, 0.05);
+  // A dim filter at the 60 s cap read once at 300 DN against a bright one bracketed to 3 values on a line
+  // (rate 1000 DN/s): the dim one's value over 60 s has sqrt(read^2 + shot + 1/12) / 60 of noise.
+  c = uniform_filter_capture(dir / "b", {{20, 60}, {0.1, 0.3, 1, 3}}, {{100, 300}, {108, 308, 1008, 3008}});
+  rel = filter_reading_noise(c, dir / "b", n, {});
+  EXPECT_DOUBLE_EQ(rel[0], relative(5, (2.25 + 300 / 4.0 + 1.0 / 12) / 3600));
+  EXPECT_NEAR(rel[1], relative(1000, hdr_rate_variance(1000, std::vector<double>{0.1, 0.3, 1, 3}, 12, n)), 1e-12);
+  EXPECT_GT(rel[0], 2 * rel[1]);
+  // No pixel read in every filter (the dim one below the linear range): refused, naming the capture.
+  c = uniform_filter_capture(dir / "c", {{60}, {1}}, {{188}, {1008}});
+  try {
+    filter_reading_noise(c, dir / "c", n, {});
+    ADD_FAILURE() << "no pixel qualifies";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no scene pixel is read in every filter"), std::string::npos) << e.what();
+  }
+}
