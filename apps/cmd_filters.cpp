@@ -8,6 +8,7 @@
 #include "apps/common.h"
 #include "apps/gnuplot.h"
 #include "specula/acquire/filter_design.h"
+#include "specula/acquire/filter_report.h"
 #include "specula/core/error.h"
 #include "specula/store/store.h"
 
@@ -37,11 +38,6 @@ void plot_filters(const std::filesystem::path& gnuplot, const std::filesystem::p
   plot_png(gnuplot, target, gnuplot_png_terminal(900, 500), script + "\n");
 }
 
-Json error_json(const acquire::FilterError& e, const std::string& name) {
-  return {{"spectra", name},      {"count", e.spectra},      {"rms_mean", e.rms_mean}, {"rms_median", e.rms_median},
-          {"rms_max", e.rms_max}, {"noise_rms", e.noise_rms}};
-}
-
 void run_filters_design(FiltersDesignOptions o) {
   o.design.method = acquire::parse_filter_method(o.method);
   o.design.solve = acquire::parse_filter_solve(o.solve);
@@ -59,20 +55,8 @@ void run_filters_design(FiltersDesignOptions o) {
                                         o.basis, d.held_out.rms_mean);
   if (!o.plot.empty()) plot_filters(gnuplot, o.plot, d, title);
   if (o.json) {
-    Json j;
-    j["output"] = o.output;
-    j["filters"] = d.filters.size();
-    j["method"] = o.method;
-    j["noise"] = o.design.noise;
-    j["ridge"] = o.design.ridge;
-    j["solve"] = o.solve;
-    j["exposure"] = o.design.per_filter_exposure ? "per filter" : "equal";
-    j["min_throughput"] = o.design.min_throughput;
-    j["throughput"] =
-        acquire::filter_throughput(d.filters, d.bands, acquire::design_sensitivity(o.design.light_kelvin));
-    j["roughness"] = acquire::filter_roughness(d.filters);
-    j["training"] = error_json(d.training, d.training_name);
-    j["held_out"] = error_json(d.held_out, d.held_out_name);
+    Json j = {{"output", o.output}};
+    j.update(acquire::filter_design_json(d, o.design));
     print_json(j);
     return;
   }

@@ -3,10 +3,11 @@
 // arrays and the expected-error report as the CLI's --json gives it.
 #include <fmt/format.h>
 
-#include <algorithm>
+#include <nlohmann/json.hpp>
 
 #include "python/common.h"
 #include "specula/acquire/filter_design.h"
+#include "specula/acquire/filter_report.h"
 #include "specula/acquire/filters.h"
 
 namespace specula::python {
@@ -54,17 +55,6 @@ acquire::FilterSet filters_from(const ArrayLike& transmission, const ArrayLike& 
   return f;
 }
 
-py::dict error_dict(const acquire::FilterError& e, const std::string& name) {
-  py::dict d;
-  d["spectra"] = name;
-  d["count"] = e.spectra;
-  d["rms_mean"] = e.rms_mean;
-  d["rms_median"] = e.rms_median;
-  d["rms_max"] = e.rms_max;
-  d["noise_rms"] = e.noise_rms;
-  return d;
-}
-
 }  // namespace
 
 void init_filters(py::module_& m) {
@@ -90,14 +80,13 @@ void init_filters(py::module_& m) {
         const std::string test_name = test.is_none() ? "" : test.cast<std::string>();
         const acquire::FilterDesign d =
             interruptible([&] { return acquire::design_filters(stores.front(), basis, train_name, test_name, o); });
-        py::dict r = filters_dict(d.filters);
+        // the fields of `specula filters design --json`, then the curves and the bands as arrays
+        const nlohmann::ordered_json report = acquire::filter_design_json(d, o);
+        py::dict r = py::module_::import("json").attr("loads")(report.dump());
+        r.attr("update")(filters_dict(d.filters));
         r["bands"] = py::array_t<double>(py::ssize_t(d.bands.size()), d.bands.data());
-        const std::vector<double> throughput =
-            acquire::filter_throughput(d.filters, d.bands, acquire::design_sensitivity(light_kelvin));
+        const std::vector<double> throughput = report["throughput"].get<std::vector<double>>();
         r["throughput"] = py::array_t<double>(py::ssize_t(throughput.size()), throughput.data());
-        r["roughness"] = acquire::filter_roughness(d.filters);
-        r["training"] = error_dict(d.training, d.training_name);
-        r["held_out"] = error_dict(d.held_out, d.held_out_name);
         return r;
       },
       py::arg("store"), py::arg("basis"), py::arg("k") = 6, py::kw_only(), py::arg("method") = "optimal",

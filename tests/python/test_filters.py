@@ -2,6 +2,8 @@
 CLI's filter CSV for the same arguments, its expected error equals a numpy computation of the Wiener error from the
 returned curves (system integrated here, independently of the library), and the filter CSV round-trips and is
 refused with one clear error."""
+import json
+
 import numpy as np
 import pytest
 
@@ -68,8 +70,14 @@ def test_design_matches_the_cli_and_its_expected_error_matches_numpy(spectra_sto
     assert (t >= 0).all() and t.max() <= 0.9 + 1e-12
     assert np.array_equal(d["bands"], BANDS)
     # The CLI writes the same curves (to the CSV's six decimals) for the same arguments.
-    cli("filters", "design", spectra_store, "--basis", "pca", "-k", 4, "-o", tmp_path / "cli.csv")
+    report = json.loads(cli("filters", "design", spectra_store, "--basis", "pca", "-k", 4, "-o", tmp_path / "cli.csv",
+                            "--json").stdout)
     c = specula.read_filters(tmp_path / "cli.csv")
+    # ... and the same report: every field of --json but the output file, equal.
+    assert set(report) - set(d) == {"output"}
+    for key, value in report.items():
+        if key != "output":
+            assert (list(d[key]) if key == "throughput" else d[key]) == value, key
     assert c["names"] == d["names"]
     assert np.array_equal(c["wavelengths"], nm)
     assert np.abs(c["transmission"] - t).max() <= 5e-7
@@ -78,13 +86,13 @@ def test_design_matches_the_cli_and_its_expected_error_matches_numpy(spectra_sto
     x = specula.Store(spectra_store).collection("spectra").astype(np.float64)
     train, held = x[np.arange(len(x)) % 5 != 4], x[np.arange(len(x)) % 5 == 4]
     a = _normalised_system(nm, t, BANDS)
-    assert np.allclose(d["throughput"], a.sum(axis=1), rtol=1e-4)
+    assert np.allclose(d["throughput"], a.sum(axis=1), rtol=1e-6)
     prior = train.T @ train / len(train)
     for part, spectra in (("training", train), ("held_out", held)):
         rms = _expected_rms(a, prior, spectra, 0.002, 0.01)
         assert d[part]["count"] == len(spectra)
-        assert d[part]["rms_mean"] == pytest.approx(rms.mean(), rel=1e-3)
-        assert d[part]["rms_max"] == pytest.approx(rms.max(), rel=1e-3)
+        assert d[part]["rms_mean"] == pytest.approx(rms.mean(), rel=1e-6)
+        assert d[part]["rms_max"] == pytest.approx(rms.max(), rel=1e-6)
     assert d["held_out"]["spectra"] == "spectra (every fifth spectrum)"
 
 
