@@ -21,7 +21,7 @@ struct CrossValidationOptions {
 struct CrossValidationRow {
   Mapping mapping = Mapping::standard;
   std::size_t k = 1;
-  Weights weights = Weights::mean;  ///< mean for k = 1 (the nearest sample; Shepard would predict the same)
+  Weights weights = Weights::mean;  ///< mean for k = 1 (the nearest sample; any weights predict the same)
   double rel_rms = 0;         ///< sqrt(sum (pred - true)^2 / sum true^2) over predicted held-out samples and bands
   double median_rel = 0;      ///< median over predicted held-out samples of |pred - true| / |true| (spectra as vectors)
   std::size_t predicted = 0;  ///< held-out samples predicted (all: no support limit)
@@ -30,7 +30,8 @@ struct CrossValidationRow {
 /// What a cross-validation held out and found.
 struct CrossValidation {
   std::size_t samples = 0, held_out = 0;
-  std::vector<CrossValidationRow> rows;  ///< standard, marschner, halfdiff; per mapping each k; per k mean, shepard
+  std::vector<CrossValidationRow>
+      rows;  ///< standard, marschner, halfdiff; per mapping each k; per k mean, shepard, renka
 };
 
 /// Shuffles the n samples (angles n x 4, values n x bands) with a generator seeded by o.seed, holds out the first

@@ -55,12 +55,20 @@ struct WeightedNeighbours {
   std::vector<float> w;
   std::vector<std::pair<std::uint32_t, float>> by_sample;
 
-  // False when the query has no support.
+  // False when the query has no support. Renka's weights need the (k+1)-th nearest sample's distance, the reach;
+  // that sample itself has weight 0 and is dropped.
   bool find(const SampleTree& tree, const IsoAngles& at, const ResampleOptions& o) {
-    tree.nearest(at, o.k, nb);
+    const bool renka = o.weights == Weights::renka;
+    tree.nearest(at, renka ? o.k + 1 : o.k, nb);
     if (nb.index.empty() || !(nb.gap <= o.max_gap)) return false;
+    double reach2 = std::numeric_limits<double>::infinity();
+    if (renka && nb.index.size() > o.k) {
+      reach2 = nb.dist2.back();
+      nb.index.pop_back();
+      nb.dist2.pop_back();
+    }
     w.resize(nb.index.size());
-    neighbour_weights(o.weights, o.power, nb.dist2, w);
+    neighbour_weights(o.weights, o.power, nb.dist2, w, reach2);
     by_sample.resize(nb.index.size());
     for (std::size_t j = 0; j < nb.index.size(); ++j) by_sample[j] = {nb.index[j], w[j]};
     std::sort(by_sample.begin(), by_sample.end());
@@ -171,10 +179,22 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
 Weights parse_weights(std::string_view name) {
   if (name == "mean") return Weights::mean;
   if (name == "shepard") return Weights::shepard;
-  throw UsageError("weights '" + std::string(name) + "': use shepard (eqs 5.9-5.10) or mean");
+  if (name == "renka") return Weights::renka;
+  throw UsageError("weights '" + std::string(name) +
+                   "': use renka (Franke-Little, continuous), shepard (eqs 5.9-5.10) or mean");
 }
 
-std::string_view weights_name(Weights w) { return w == Weights::mean ? "mean" : "shepard"; }
+std::string_view weights_name(Weights w) {
+  switch (w) {
+    case Weights::mean:
+      return "mean";
+    case Weights::shepard:
+      return "shepard";
+    case Weights::renka:
+      return "renka";
+  }
+  return "?";
+}
 
 void check_options(const ResampleOptions& o) {
   if (o.k < 1 || o.k > 100000) throw UsageError("k = " + std::to_string(o.k) + ": give 1 to 100000 neighbours");
@@ -383,27 +403,39 @@ void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out) co
 
 // ------------------------------------------------------------------ weights and reconstruction
 
-void neighbour_weights(Weights w, double power, std::span<const float> dist2, std::span<float> out) {
+void neighbour_weights(Weights w, double power, std::span<const float> dist2, std::span<float> out, double reach2) {
   const std::size_t n = dist2.size();
   if (out.size() != n) throw UsageError("neighbour_weights: out must have one weight per neighbour");
   if (n == 0) return;
   // Raw weights in double, written to out only once normalised.
   thread_local std::vector<double> raw;
   raw.assign(n, 1.0);
-  if (w == Weights::shepard) {
-    std::size_t at_zero = 0;
-    for (const float d : dist2) at_zero += d == 0;
+  std::size_t at_zero = 0;
+  for (const float d : dist2) at_zero += d == 0;
+  if (w != Weights::mean && at_zero) {
+    for (std::size_t j = 0; j < n; ++j) raw[j] = dist2[j] == 0 ? 1.0 : 0.0;
+  } else if (w == Weights::shepard) {
     for (std::size_t j = 0; j < n; ++j) {
       const double d2 = dist2[j];
-      if (at_zero)
-        raw[j] = d2 == 0 ? 1.0 : 0.0;
-      else if (power == 1)
+      if (power == 1)
         raw[j] = 1 / std::sqrt(d2);
       else if (power == 2)
         raw[j] = 1 / d2;
       else
         raw[j] = std::pow(d2, -0.5 * power);
     }
+  } else if (w == Weights::renka) {
+    // ((R - d) / (R d))^2 = (1/d - 1/R)^2; with no reach (R infinite) 1/d^2.
+    const double inv_r = std::isfinite(reach2) ? 1 / std::sqrt(reach2) : 0.0;
+    bool any = false;
+    for (std::size_t j = 0; j < n; ++j) {
+      const double t = std::max(0.0, 1 / std::sqrt(double(dist2[j])) - inv_r);
+      raw[j] = t * t;
+      any = any || raw[j] > 0;
+    }
+    // Every neighbour as far as the reach (ties): the nearest share the weight, as the limit from inside does.
+    if (!any)
+      for (std::size_t j = 0; j < n; ++j) raw[j] = dist2[j] == dist2[0] ? 1.0 : 0.0;
   }
   double sum = 0;
   for (const double r : raw) sum += r;

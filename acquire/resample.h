@@ -2,7 +2,9 @@
 // Scattered BRDF samples onto the MERL grid (reference §5.3, algorithm 3D_BRDF_Resample): the samples'
 // configurations mapped into 3D (acquire/mapping.h), a kd-tree over them (nanoflann), and at every query (a
 // grid cell's centre, or any configuration) the k nearest samples combined with one set of weights for every
-// band: their mean, or Shepard's inverse distances to the power p (eqs 5.9-5.10).
+// band: their mean, Shepard's inverse distances to the power p (eqs 5.9-5.10), or Franke-Little's (Renka's
+// modified Shepard) weights, which fall to 0 at the (k+1)-th nearest sample so that the estimate is continuous
+// where the neighbour set changes.
 //
 // Out of core: a grid is filled in two streams over the samples. The angles are read in blocks and mapped
 // into the tree (16 bytes per sample); the neighbours and weights of the cells are found; then the values are
@@ -10,6 +12,7 @@
 // points, the neighbour lists and the grid are held, never the sample values as a whole.
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <span>
 #include <string>
@@ -26,18 +29,18 @@ class BlockReader;
 
 namespace specula::acquire {
 
-enum class Weights { mean, shepard };
+enum class Weights { mean, shepard, renka };
 
-/// Parses "mean" or "shepard"; UsageError naming the choices otherwise.
+/// Parses "mean", "shepard" or "renka"; UsageError naming the choices otherwise.
 Weights parse_weights(std::string_view name);
-/// "mean" or "shepard".
+/// "mean", "shepard" or "renka".
 std::string_view weights_name(Weights w);
 
 struct ResampleOptions {
   Mapping mapping = Mapping::standard;
   std::size_t k = 32;
   Weights weights = Weights::shepard;
-  double power = 1;
+  double power = 1;  ///< Shepard's p; renka's exponent is 2 and mean has none
   /// A query has no support (a cell is left without data) when its nearest sample is farther than this in
   /// config_distance (about radians; reciprocal as the mapping).
   double max_gap = 0.15;
@@ -129,8 +132,11 @@ class SampleTree {
 };
 
 /// Normalised weights (summing to 1) of neighbours at squared mapped distances dist2 (ascending) into out:
-/// equal for mean; for Shepard d^-p (eq 5.10), with the samples at distance 0, if any, sharing all the weight.
-void neighbour_weights(Weights w, double power, std::span<const float> dist2, std::span<float> out);
+/// equal for mean; for Shepard d^-p (eq 5.10); for renka ((R - d)+ / (R d))^2 with R^2 = reach2 (the (k+1)-th
+/// nearest sample's; infinite when there is none: 1/d^2), equal among the nearest when all fall at R; samples
+/// at distance 0, if any, share all the weight.
+void neighbour_weights(Weights w, double power, std::span<const float> dist2, std::span<float> out,
+                       double reach2 = std::numeric_limits<double>::infinity());
 
 /// Timing and counts of one grid reconstruction.
 struct GridStats {

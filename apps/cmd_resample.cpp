@@ -265,8 +265,12 @@ void setup_resample(CLI::App& app) {
   cmd->add_option("--mapping", o->mapping, "standard (M_s), marschner (M_m, eq 5.8) or halfdiff (M_h)")
       ->capture_default_str();
   cmd->add_option("-k", o->k, "Nearest samples per cell")->capture_default_str();
-  cmd->add_option("--weights", o->weights, "shepard (eqs 5.9-5.10) or mean")->capture_default_str();
-  cmd->add_option("--power", o->power, "Shepard's power p")->capture_default_str();
+  cmd->add_option("--weights", o->weights,
+                  "renka (Franke-Little: ((R - d)+ / (R d))^2, R the (k+1)-th nearest; continuous), shepard (eqs "
+                  "5.9-5.10, the reference's) or mean")
+      ->capture_default_str();
+  auto* power =
+      cmd->add_option("--power", o->power, "Shepard's power p (--weights shepard only)")->capture_default_str();
   cmd->add_option(
          "--max-gap", o->max_gap_deg,
          "Leave a cell without data when its nearest sample is farther than this (degrees in theta_i, theta_o, phi_d)")
@@ -293,7 +297,10 @@ void setup_resample(CLI::App& app) {
                 "blending the two");
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
-  cmd->callback([o] { run_resample(*o); });
+  cmd->callback([o, power] {
+    if (power->count() > 0 && o->weights != "shepard") throw UsageError("--power: only Shepard's weights have a power");
+    run_resample(*o);
+  });
 }
 
 }  // namespace specula::app

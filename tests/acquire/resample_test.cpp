@@ -129,6 +129,81 @@ TEST(Resampler, ShepardAndMeanWeightsInClosedForm) {
   EXPECT_FLOAT_EQ(w[2], 1.0f / 3);
 }
 
+TEST(Resampler, RenkaWeightsInClosedForm) {
+  std::vector<float> w(3);
+  // R = 4: (1/d - 1/R)^2 = 9/16, 1/16, 1/144 over their sum 91/144.
+  neighbour_weights(Weights::renka, 1, std::vector<float>{1, 4, 9}, w, 16);
+  EXPECT_FLOAT_EQ(w[0], 81.0f / 91);
+  EXPECT_FLOAT_EQ(w[1], 9.0f / 91);
+  EXPECT_FLOAT_EQ(w[2], 1.0f / 91);
+  // No (k+1)-th sample (R infinite): 1/d^2 = 1, 1/4, 1/9 over 49/36; the power plays no part.
+  neighbour_weights(Weights::renka, 7, std::vector<float>{1, 4, 9}, w);
+  EXPECT_FLOAT_EQ(w[0], 36.0f / 49);
+  EXPECT_FLOAT_EQ(w[2], 4.0f / 49);
+  // A neighbour at the reach has weight 0; all of them there: the mean.
+  neighbour_weights(Weights::renka, 1, std::vector<float>{1, 4, 4}, w, 4);
+  EXPECT_EQ(w, (std::vector<float>{1.0f, 0.0f, 0.0f}));
+  neighbour_weights(Weights::renka, 1, std::vector<float>{4, 4, 4}, w, 4);
+  for (const float x : w) EXPECT_FLOAT_EQ(x, 1.0f / 3);
+  // A sample at distance 0 takes everything.
+  neighbour_weights(Weights::renka, 1, std::vector<float>{0, 1, 4}, w, 9);
+  EXPECT_EQ(w, (std::vector<float>{1.0f, 0.0f, 0.0f}));
+}
+
+// Renka's weights computed here from every sample's distance (no tree, no shared code): predict must equal that,
+// and along a path of small steps the estimate must not jump where the neighbour set changes, as Shepard's does.
+TEST(Resampler, RenkaEqualsABruteForceModifiedShepardAndIsContinuous) {
+  const Samples s = random_samples(2000, 1, 21);
+  const std::size_t k = 8;
+  std::vector<Eigen::Vector3d> points;
+  for (std::size_t i = 0; i < s.size(); ++i) points.push_back(map_angles(Mapping::standard, iso_angles(s.at(i))));
+  auto brute = [&](const brdf::StdAngles& at) {
+    const Eigen::Vector3d p = map_angles(Mapping::standard, iso_angles(at));
+    std::vector<std::pair<double, std::size_t>> d;
+    for (std::size_t i = 0; i < points.size(); ++i) d.emplace_back((points[i] - p).norm(), i);
+    std::partial_sort(d.begin(), d.begin() + std::ptrdiff_t(k + 1), d.end());
+    const double r = d[k].first;
+    double num = 0, den = 0;
+    for (std::size_t j = 0; j < k; ++j) {
+      const double w = std::pow(std::max(0.0, r - d[j].first) / (r * d[j].first), 2);
+      num += w * s.values[d[j].second];
+      den += w;
+    }
+    return num / den;
+  };
+  const Resampler renka(s.angles, s.values, 1, {.k = k, .weights = Weights::renka, .max_gap = 10});
+  const Resampler shepard(s.angles, s.values, 1, {.k = k, .weights = Weights::shepard, .max_gap = 10});
+  std::vector<float> out(1);
+  double prev_r = 0, prev_s = 0, jump_r = 0, jump_s = 0;
+  const int steps = 20000;
+  for (int i = 0; i <= steps; ++i) {
+    const brdf::StdAngles at{0.3 + 0.9 * i / steps, 0.0, 0.7, 2.0 - 1.2 * i / steps};
+    ASSERT_TRUE(renka.predict(at, out));
+    const double r = out[0];
+    if (i % 500 == 0) EXPECT_NEAR(r, brute(at), 1e-5 * std::abs(r)) << i;
+    ASSERT_TRUE(shepard.predict(at, out));
+    if (i > 0) {
+      jump_r = std::max(jump_r, std::abs(r - prev_r));
+      jump_s = std::max(jump_s, std::abs(out[0] - prev_s));
+    }
+    prev_r = r;
+    prev_s = out[0];
+  }
+  // Steps of 5e-5 rad: a continuous estimate moves by its gradient times that; Shepard's jumps by a share of
+  // the values' spread (about 1) where one neighbour swaps for another.
+  EXPECT_LT(jump_r, 2e-3);
+  EXPECT_GT(jump_s, 5 * jump_r);
+  // The streamed grid keeps k entries per cell while Renka's search finds k + 1: still predict at the centres.
+  std::vector<float> grid(brdf::kMerlCells);
+  renka.fill_grid(grid);
+  for (std::size_t c = 0; c < brdf::kMerlCells; c += 4099) {
+    const brdf::MerlCell cell = brdf::merl_cell(c);
+    if (!brdf::merl_cell_valid(cell)) continue;
+    ASSERT_TRUE(renka.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), out));
+    ASSERT_EQ(grid[c], out[0]) << c;
+  }
+}
+
 TEST(Resampler, SamplesAtCellCentresAreReproducedExactlyWithOneNeighbour) {
   Samples s;
   std::vector<std::size_t> cells;
@@ -141,7 +216,7 @@ TEST(Resampler, SamplesAtCellCentresAreReproducedExactlyWithOneNeighbour) {
     s.values.push_back(float(c) * 0.25f + 0.3f);
     cells.push_back(c);
   }
-  for (const Weights w : {Weights::mean, Weights::shepard}) {
+  for (const Weights w : {Weights::mean, Weights::shepard, Weights::renka}) {
     const Resampler r(s.angles, s.values, 2, {.mapping = Mapping::standard, .k = 1, .weights = w, .max_gap = 10});
     std::vector<float> grid(2 * brdf::kMerlCells);
     r.fill_grid(grid);
@@ -325,6 +400,8 @@ TEST(Resampler, BadOptionsAreRefused) {
   EXPECT_THROW(Resampler(angles, values, 2, {}), UsageError);
   EXPECT_THROW(Resampler(std::span<const double>(), std::span<const float>(), 1, {}), InputError);
   EXPECT_THROW(parse_weights("median"), UsageError);
+  for (const Weights w : {Weights::mean, Weights::shepard, Weights::renka})
+    EXPECT_EQ(parse_weights(weights_name(w)), w);
   const Resampler r(angles, values, 1, {});
   std::vector<float> small(10);
   EXPECT_THROW(r.fill_grid(small), UsageError);

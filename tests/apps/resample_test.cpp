@@ -36,8 +36,8 @@ TEST(ResampleCli, CornellSamplesResampleOntoTheGridAndCrossValidate) {
   EXPECT_NE(r.output.find("\"valid_cells\":" + std::to_string(valid)), std::string::npos) << r.output;
   r = run_specula("eval-resample '" + db.string() + "' garnet_red --holdout 0.1 -k 1,16 --json");
   ASSERT_EQ(r.status, 0) << r.output;
-  // 3 mappings x (k = 1 nearest; k = 16 mean and Shepard), inside one object.
-  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '{'), 1 + 3 * 3) << r.output;
+  // 3 mappings x (k = 1 nearest; k = 16 mean, Shepard and Renka), inside one object.
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '{'), 1 + 3 * 4) << r.output;
 }
 
 TEST(ResampleCli, SimulatedScanSamplesResampleIntoAStoreOrAGridFile) {
@@ -114,6 +114,7 @@ TEST(ResampleCli, BadInputIsOneLineAndLeavesTheStoreAlone) {
         "import '" + (dir / "count.brdf").string() + "' -o '" + db.string() + "'",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --weights median",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --power -1",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --weights renka --power 2",
         "resample '" + db.string() + "' ok -o '" + (dir / "g.txt").string() + "'",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":bad/name'",
         "eval-resample '" + db.string() + "' ok -k 0", "synth-samples velvet -o '" + db.string() + ":s'",

@@ -2,6 +2,8 @@
 // An evaluation of the lighting suite written apart from codec/suite.cpp (docs/brdf.md, "The lighting suite"):
 // per pixel, its own view frames and tangent frame, standard angles and brdf::merl_cell(StdAngles), its own
 // exposure and CIEDE2000 pooling. Tests check the suite and the codec's target against it.
+#include <gtest/gtest.h>
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -9,6 +11,7 @@
 #include <numbers>
 #include <vector>
 
+#include "specula/codec/spc_target.h"
 #include "specula/codec/suite.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/cie.h"
@@ -145,6 +148,13 @@ inline ReferenceVerdict reference_verdict(const store::Grid& a, const store::Gri
   std::sort(all.begin(), all.end());
   v.p95 = all.empty() ? 0 : all[std::size_t(std::ceil(0.95 * double(all.size()))) - 1];
   return v;
+}
+
+/// Whether v meets t: pooled mean and 95th percentile, and no condition's mean above t.condition_mean.
+inline testing::AssertionResult meets_target(const ReferenceVerdict& v, const codec::SpcTarget& t) {
+  if (v.mean <= t.de00_mean && v.p95 <= t.de00_p95 && v.worst <= t.condition_mean) return testing::AssertionSuccess();
+  return testing::AssertionFailure() << "dE00 mean " << v.mean << ", p95 " << v.p95 << ", worst condition " << v.worst
+                                     << " against " << t.de00_mean << ", " << t.de00_p95 << ", " << t.condition_mean;
 }
 
 }  // namespace specula::test
