@@ -230,8 +230,10 @@ void run_resample(const ResampleCliOptions& o) {
   store::Grid grid = empty_grid(info);
   const acquire::GridStats stats = acquire::resample_grid(src, ro, grid.brdf);
   grid.provenance.source_file = o.store + ":" + o.samples;
-  grid.provenance.importer = fmt::format("resample mapping={} k={} weights={} power={} max_gap_deg={}", o.mapping, o.k,
-                                         o.weights, o.power, o.max_gap_deg);
+  // Renka's weights have no power (check_options refuses one), so the provenance names it only for Shepard's.
+  const std::string power = ro.weights == acquire::Weights::shepard ? fmt::format(" power={}", o.power) : "";
+  grid.provenance.importer = fmt::format("resample mapping={} k={} weights={}{} max_gap_deg={}", o.mapping, o.k,
+                                         o.weights, power, o.max_gap_deg);
   const std::string what = save_grid(grid, o.output, o.replace, "resample");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.json) {
