@@ -21,6 +21,9 @@ struct RglFitSettings {
   double floor = 1e-2;
   /// Cells weighted by (cos theta_i cos theta_o)^cosine_power at their centre.
   double cosine_power = 1;
+  /// Conjugate gradients (Jacobi preconditioned) per channel stop at this relative residual or iteration count.
+  double tolerance = 1e-6;
+  std::size_t max_iterations = 500;
 };
 
 /// Replaces the stored values of `b` (its ndf, sigma, theta_i, vndf and resolution kept; its values the starting
