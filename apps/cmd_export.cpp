@@ -2,12 +2,15 @@
 // (8-bit PNG or linear EXR).
 #include <fmt/format.h>
 
+#include <optional>
+
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/codec/merl.h"
 #include "specula/codec/rgl_bsdf.h"
 #include "specula/codec/rgl_export.h"
 #include "specula/codec/rgl_scene.h"
+#include "specula/codec/rgl_target.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/error.h"
 #include "specula/core/illuminant.h"
@@ -29,8 +32,25 @@ struct ExportOptions {
   PreviewOptions preview;
   bool rgb = false;
   std::size_t theta_i = 8, resolution = 32;
+  std::optional<double> target_de00, target_p95;
   std::vector<std::string> scenes;
 };
+
+// The spectral file of `grid` at the smallest resolution whose import the lighting suite finds within the target.
+codec::RglBsdf export_to_target(const store::Grid& grid, const codec::RglExportSettings& settings,
+                                const ExportOptions& o) {
+  const codec::RglTarget target{.de00_mean = *o.target_de00, .de00_p95 = o.target_p95.value_or(3 * *o.target_de00)};
+  codec::RglTargetReport report;
+  codec::RglBsdf bsdf =
+      codec::export_rgl_to_target(grid, settings, target, codec::LightingSuite(grid.wavelengths), report);
+  for (const auto& t : report.trials)
+    fmt::print("  {} theta_i x {}^2 samples: {} bytes, suite dE00 mean {:.3f}, 95th percentile {:.3f}{}\n", t.theta_i,
+               t.resolution, t.bytes, t.de00_mean, t.de00_p95, t.met ? " (meets the target)" : "");
+  if (!report.reached)
+    fmt::print("no resolution tried meets dE00 mean {} and 95th percentile {}; wrote the largest\n", target.de00_mean,
+               target.de00_p95);
+  return bsdf;
+}
 
 // An RGL .bsdf from a BRDF named as STORE.h5 GRID, STORE.h5:GRID, a .spgrid, a .spc or an RGB MERL .binary.
 void export_bsdf(const ExportOptions& o) {
@@ -39,7 +59,12 @@ void export_bsdf(const ExportOptions& o) {
       .theta_i = o.theta_i, .resolution = o.resolution, .description = "specula export of " + spec};
   const bool merl = std::filesystem::path(spec).extension() == ".binary";
   codec::RglBsdf bsdf;
-  if (o.rgb) {
+  if (o.target_p95 && !o.target_de00) throw UsageError("export: --target-p95 goes with --target-de00");
+  if (o.target_de00 && o.rgb)
+    throw UsageError("export: --target-de00 judges the spectral file under the lighting suite; drop --rgb");
+  if (o.target_de00) {
+    bsdf = export_to_target(load_grid(spec, "export", default_uplift_wavelengths()), settings, o);
+  } else if (o.rgb) {
     if (merl) {
       bsdf = codec::export_rgl(codec::read_merl(spec), settings);
     } else {
@@ -87,7 +112,8 @@ std::string format_of(const ExportOptions& o) {
 
 void run_export(const ExportOptions& o) {
   if (std::filesystem::path(o.output).extension() == ".bsdf") return export_bsdf(o);
-  if (!o.scenes.empty() || o.rgb) throw UsageError("export: --rgb and --scene are for .bsdf output");
+  if (!o.scenes.empty() || o.rgb || o.target_de00)
+    throw UsageError("export: --rgb, --scene and --target-de00 are for .bsdf output");
   if (o.object.empty()) throw UsageError("export: name the object to export from " + o.store);
   const store::Store s = store::Store::open(o.store);
   const auto grids = s.grids();
@@ -164,6 +190,12 @@ void setup_export(CLI::App& app) {
   cmd->add_option("--resolution", o->resolution, ".bsdf: sample grid nodes per side")
       ->check(CLI::Range(2, 512))
       ->capture_default_str();
+  cmd->add_option("--target-de00", o->target_de00,
+                  ".bsdf: the smallest resolution from --theta-i/--resolution up (ladder in docs/brdf.md) whose import "
+                  "the lighting suite finds within this pooled dE00 mean")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--target-p95", o->target_p95, ".bsdf: with --target-de00, the 95th percentile allowed (default 3x)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option(
          "--scene", o->scenes,
          ".bsdf: also write a minimal scene beside it: pbrt (pbrt-v4, X.pbrt) and/or mitsuba (Mitsuba 3, X.xml)")

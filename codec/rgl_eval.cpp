@@ -40,15 +40,26 @@ RglEvaluator::RglEvaluator(const RglBsdf& b)
 double RglEvaluator::ndf(double u, double v) const { return ndf_.eval(u, v, {}); }
 double RglEvaluator::sigma(double theta_i) const { return sigma_.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(0), {}); }
 
-Eigen::Vector2d RglEvaluator::sample_point(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const {
+RglEvaluator::Query RglEvaluator::locate(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const {
   const Eigen::Vector3d m = (wi + wo).normalized();
   const double theta_i = rgl_elevation(wi), phi_i = std::atan2(wi.y(), wi.x());
   const double theta_m = rgl_elevation(m), phi_m = std::atan2(m.y(), m.x());
-  double v = rgl_phi_to_v(phi_m - phi_i);
-  v -= std::floor(v);
-  const double params[2] = {phi_i, theta_i};
-  const WarpPoint s = vndf_.invert(rgl_theta_to_u(theta_m), v, params);
-  return {s.x, s.y};
+  const double u_m = rgl_theta_to_u(theta_m);
+  double v_m = rgl_phi_to_v(phi_m - phi_i);
+  v_m -= std::floor(v_m);
+  Query q;
+  q.params[0] = phi_i;
+  q.params[1] = theta_i;
+  q.s = vndf_.invert(u_m, v_m, q.params);
+  q.factor = 1 / wo.z();
+  if (jacobian_)
+    q.factor *= ndf_.eval(u_m, v_m, {}) / (4 * sigma_.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(phi_i), {}));
+  return q;
+}
+
+Eigen::Vector2d RglEvaluator::sample_point(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const {
+  const Query q = locate(wi, wo);
+  return {q.s.x, q.s.y};
 }
 
 void RglEvaluator::eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, std::span<double> out) const {
@@ -57,19 +68,27 @@ void RglEvaluator::eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, st
                      std::to_string(channels_));
   std::fill(out.begin(), out.end(), 0.0);
   if (!(wi.z() > 0 && wo.z() > 0)) return;
-  const Eigen::Vector3d m = (wi + wo).normalized();
-  const double theta_i = rgl_elevation(wi), phi_i = std::atan2(wi.y(), wi.x());
-  const double theta_m = rgl_elevation(m), phi_m = std::atan2(m.y(), m.x());
-  const double u_m = rgl_theta_to_u(theta_m);
-  double v_m = rgl_phi_to_v(phi_m - phi_i);
-  v_m -= std::floor(v_m);
-  const double params[2] = {phi_i, theta_i};
-  const WarpPoint s = vndf_.invert(u_m, v_m, params);
-  double factor = 1 / wo.z();
-  if (jacobian_)
-    factor *= ndf_.eval(u_m, v_m, {}) / (4 * sigma_.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(phi_i), {}));
-  values_.eval_last(s.x, s.y, params, out);
-  for (auto& v : out) v = std::max(0.0, v) * factor;
+  const Query q = locate(wi, wo);
+  values_.eval_last(q.s.x, q.s.y, q.params, out);
+  for (auto& v : out) v = std::max(0.0, v) * q.factor;
+}
+
+RglStencil RglEvaluator::stencil(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const {
+  RglStencil out;
+  if (!(wi.z() > 0 && wo.z() > 0)) return out;
+  const Query q = locate(wi, wo);
+  // The value table's slices run over (theta_i, channel), channel fastest: channel 0 of each elevation.
+  const WarpStencil w = values_.stencil(q.s.x, q.s.y, q.params, 2);
+  const std::size_t per_slice = values_.width() * values_.height(), per_theta = per_slice * channels_;
+  for (int k = 0; k < w.n; ++k) {
+    const std::size_t i = w.index[std::size_t(k)], o = std::size_t(out.n);
+    if (w.weight[std::size_t(k)] == 0) continue;
+    out.theta[o] = std::uint32_t(i / per_theta);
+    out.node[o] = std::uint32_t(i % per_slice);
+    out.weight[o] = w.weight[std::size_t(k)] * q.factor;
+    ++out.n;
+  }
+  return out;
 }
 
 std::vector<double> RglEvaluator::albedo(double theta_i, std::size_t n) const {

@@ -2,6 +2,8 @@
 // Evaluating an RGL material as Mitsuba 3's `measured` plugin (eval) and pbrt-v4's MeasuredBxDF (Sample_f) do, and
 // turning it into a MERL-layout grid by evaluating it at every cell centre.
 #include <Eigen/Core>
+#include <array>
+#include <cstdint>
 #include <span>
 #include <string>
 
@@ -21,6 +23,14 @@ double rgl_v_to_phi(double v);
 /// Elevation of a unit vector as the renderers compute it, 2 asin(|d - z| / 2) (stable near the pole).
 double rgl_elevation(const Eigen::Vector3d& d);
 
+/// The stored values eval reads for one pair of directions: f(wi, wo)[c] = max(0, sum over k < n of weight[k] *
+/// values[theta[k]][c][node[k]]), node = row * resolution + column; n = 0 when either direction is below the horizon.
+struct RglStencil {
+  std::array<std::uint32_t, 8> theta{}, node{};
+  std::array<double, 8> weight{};
+  int n = 0;
+};
+
 /// The tables of one material made into the renderers' interpolants.
 class RglEvaluator {
  public:
@@ -32,6 +42,8 @@ class RglEvaluator {
   /// value f cos(theta_o) = stored(vndf^-1(u_m)) D(u_m) / (4 sigma(u_wi)) divided by cos(theta_o), each channel
   /// clamped at 0 as pbrt-v4 does; all 0 when either direction is not above the horizon. Unit vectors, z the normal.
   void eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, std::span<double> out) const;
+  /// eval as a linear map of the stored values (the factor D / (4 sigma cos(theta_o)) folded into the weights).
+  RglStencil stencil(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const;
   /// The point of the sample square whose stored value eval interpolates for (wi, wo) (the inverse VNDF warp).
   Eigen::Vector2d sample_point(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const;
   /// D at the square point u (the ndf table), sigma at the square point of wi, and the vndf warp.
@@ -43,6 +55,13 @@ class RglEvaluator {
   std::vector<double> albedo(double theta_i, std::size_t n = 128) const;
 
  private:
+  struct Query {
+    double params[2] = {0, 0};  // phi_i, theta_i
+    WarpPoint s;                // the sample-square point
+    double factor = 0;          // what eval multiplies the interpolated stored value by
+  };
+  Query locate(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) const;  // both above the horizon
+
   std::size_t channels_;
   bool jacobian_;
   Warp2D ndf_, sigma_, vndf_, values_;

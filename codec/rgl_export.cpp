@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "specula/codec/rgl_eval.h"
+#include "specula/codec/rgl_fit.h"
 #include "specula/codec/rgl_warp.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/core/brdf_geometry.h"
@@ -26,6 +27,8 @@ class MerlField {
   MerlField(std::span<const float> values, std::size_t channels, double scale)
       : values_(values), channels_(channels), scale_(scale) {}
   std::size_t channels() const { return channels_; }
+  std::span<const float> values() const { return values_; }
+  double scale() const { return scale_; }
 
   // f at half/difference angles into out; false when no neighbour holds data.
   bool eval(double theta_h, double theta_d, double phi_d, std::span<double> out) const {
@@ -128,8 +131,8 @@ std::vector<float> theta_nodes(std::span<const double> sigma, std::size_t n) {
 
 // Where a node's half vector reaches the horizon, D(m) -> 0 and f cos(theta_o) 4 sigma / D explodes (for models whose
 // f grows at grazing angles); bilinear interpolation would carry that into every query between such a node and its
-// neighbours. Values above kOutlier times a channel's 99th percentile are clamped there, and the luminance follows.
-void clamp_outliers(RglBsdf& b, std::size_t channels, std::span<const double> lum_weights) {
+// neighbours. Values above kOutlier times a channel's 99th percentile are clamped there.
+void clamp_outliers(RglBsdf& b, std::size_t channels) {
   constexpr double kOutlier = 8;
   const std::size_t T = b.theta_i.size(), R2 = b.resolution * b.resolution;
   for (std::size_t c = 0; c < channels; ++c) {
@@ -144,11 +147,26 @@ void clamp_outliers(RglBsdf& b, std::size_t channels, std::span<const double> lu
     for (std::size_t t = 0; t < T; ++t)
       for (std::size_t k = 0; k < R2; ++k) {
         float& x = b.values[(t * channels + c) * R2 + k];
-        if (x > cap) {
-          b.luminance[t * R2 + k] = std::max(0.0f, b.luminance[t * R2 + k] - float(lum_weights[c]) * (x - cap));
-          x = cap;
-        }
+        x = std::min(x, cap);
       }
+  }
+}
+
+// The luminance of the stored values, with a tiny floor under each incident direction's so that the renderers can
+// normalise it as a density.
+void set_luminance(RglBsdf& b, std::size_t channels, std::span<const double> lum_weights) {
+  const std::size_t T = b.theta_i.size(), R2 = b.resolution * b.resolution;
+  b.luminance.assign(T * R2, 0.0f);
+  for (std::size_t t = 0; t < T; ++t) {
+    float* lum = b.luminance.data() + t * R2;
+    for (std::size_t k = 0; k < R2; ++k) {
+      double y = 0;
+      for (std::size_t c = 0; c < channels; ++c) y += lum_weights[c] * b.values[(t * channels + c) * R2 + k];
+      lum[k] = float(std::max(y, 0.0));
+    }
+    const float top = *std::max_element(lum, lum + R2);
+    const float floor = top > 0 ? top * 1e-6f : 1.0f;
+    for (std::size_t i = 0; i < R2; ++i) lum[i] = std::max(lum[i], floor);
   }
 }
 
@@ -173,23 +191,20 @@ void vndf_slice(const Warp2D& ndf_table, const Eigen::Vector3d& wi, const RglExp
         float((1 - s.vndf_uniform) * dens[k] / std::max(dsum, 1e-300) + s.vndf_uniform * vis[k] / std::max(vsum, 1.0));
 }
 
-RglBsdf build(const MerlField& field, std::span<const double> lum_weights, const RglExportSettings& s) {
-  check(s);
-  const std::size_t C = field.channels(), N = s.ndf_nodes, R = s.resolution, V = s.vndf_resolution, T = s.theta_i;
-  RglBsdf b;
-  b.description = s.description.empty() ? "specula export" : s.description;
+// The ndf and sigma tables (D from the retro-reflection of `field`, sigma(0) = 1) and theta_i into b.
+void microfacet_tables(const MerlField& field, std::span<const double> lum_weights, const RglExportSettings& s,
+                       RglBsdf& b) {
+  const std::size_t C = field.channels(), N = s.ndf_nodes;
   // Retro-reflection (theta_d = 0) at the ndf nodes, as luminance.
-  std::vector<double> retro(N), f(C);
+  std::vector<double> retro(N), f(C), node_theta(N);
   for (std::size_t k = 0; k < N; ++k) {
-    const double theta = rgl_u_to_theta(double(k) / double(N - 1));
+    node_theta[k] = rgl_u_to_theta(double(k) / double(N - 1));
     double y = 0;
-    if (field.eval(theta, 0, 0, f))
+    if (field.eval(node_theta[k], 0, 0, f))
       for (std::size_t c = 0; c < C; ++c) y += lum_weights[c] * f[c];
     retro[k] = std::max(y, 0.0);
   }
   const std::vector<double> ndf = rgl_ndf_from_retro(retro, s.power_iterations);
-  std::vector<double> node_theta(N);
-  for (std::size_t k = 0; k < N; ++k) node_theta[k] = rgl_u_to_theta(double(k) / double(N - 1));
   std::vector<double> sigma = rgl_sigma(ndf, node_theta);
   const double sigma0 = sigma[0];
   for (auto& v : sigma) v /= sigma0;
@@ -200,14 +215,19 @@ RglBsdf build(const MerlField& field, std::span<const double> lum_weights, const
       b.ndf.push_back(float(ndf[k] / sigma0));
       b.sigma.push_back(float(sigma[k]));
     }
+  b.theta_i = theta_nodes(sigma, s.theta_i);
+}
+
+// Per incident elevation the vndf table and the point samples f cos(theta_o) 4 sigma / D at the nodes of the sample
+// square warped by it; returns the nodes whose wo lies above the horizon (theta_i x rows x columns).
+std::vector<std::uint8_t> sample_nodes(const MerlField& field, const RglExportSettings& s, RglBsdf& b) {
+  const std::size_t C = field.channels(), R = s.resolution, V = s.vndf_resolution, T = b.theta_i.size();
   // The tables as the renderers read them (float, bilinear).
-  const Warp2D ndf_table(b.ndf, N, 2, {}, false), sigma_table(b.sigma, N, 2, {}, false);
-  b.theta_i = theta_nodes(sigma, T);
+  const Warp2D ndf_table(b.ndf, b.ndf_width, 2, {}, false), sigma_table(b.sigma, b.sigma_width, 2, {}, false);
   b.vndf_width = b.vndf_height = V;
   b.resolution = R;
   b.vndf.resize(T * V * V);
   b.values.assign(T * C * R * R, 0.0f);
-  b.luminance.assign(T * R * R, 0.0f);
   std::vector<std::uint8_t> valid(T * R * R, 0);
   parallel_for(T, [&](std::size_t t) {
     const double theta_i = b.theta_i[t];
@@ -228,22 +248,29 @@ RglBsdf build(const MerlField& field, std::span<const double> lum_weights, const
         if (!field.eval(hd.theta_h, hd.theta_d, hd.phi_d, fv)) continue;
         valid[(t * R + j) * R + i] = 1;
         const double k = wo.z() * 4 * sigma_i / d;
-        double y = 0;
-        for (std::size_t c = 0; c < C; ++c) {
-          b.values[((t * C + c) * R + j) * R + i] = float(fv[c] * k);
-          y += lum_weights[c] * fv[c] * k;
-        }
-        b.luminance[(t * R + j) * R + i] = float(std::max(y, 0.0));
+        for (std::size_t c = 0; c < C; ++c) b.values[((t * C + c) * R + j) * R + i] = float(fv[c] * k);
       }
   });
-  clamp_outliers(b, C, lum_weights);
-  // A density the renderers can normalise: a tiny floor under each incident direction's luminance.
-  for (std::size_t t = 0; t < T; ++t) {
-    float* lum = b.luminance.data() + t * R * R;
-    const float top = *std::max_element(lum, lum + R * R);
-    const float floor = top > 0 ? top * 1e-6f : 1.0f;
-    for (std::size_t i = 0; i < R * R; ++i) lum[i] = std::max(lum[i], floor);
+  return valid;
+}
+
+// The file of `field`: spectral on `wavelengths`, or RGB when they are empty.
+RglBsdf build(const MerlField& field, std::span<const double> lum_weights, std::vector<float> wavelengths,
+              const RglExportSettings& s) {
+  check(s);
+  const std::size_t C = field.channels();
+  RglBsdf b;
+  b.description = s.description.empty() ? "specula export" : s.description;
+  b.rgb = wavelengths.empty();
+  b.wavelengths = std::move(wavelengths);
+  microfacet_tables(field, lum_weights, s, b);
+  const std::vector<std::uint8_t> valid = sample_nodes(field, s, b);
+  clamp_outliers(b, C);
+  if (s.least_squares) {
+    rgl_fit_values(b, field.values(), field.scale(), lum_weights, s.fit);
+    clamp_outliers(b, C);
   }
+  set_luminance(b, C, lum_weights);
   b.valid.assign((valid.size() + 7) / 8, 0);
   for (std::size_t i = 0; i < valid.size(); ++i)
     if (valid[i]) b.valid[i / 8] |= std::uint8_t(0x80u >> (i % 8));
@@ -297,10 +324,8 @@ RglBsdf export_rgl(const store::Grid& grid, const RglExportSettings& settings) {
   const Eigen::Matrix<double, 3, Eigen::Dynamic> w = rgb_weights(grid.wavelengths, illuminant("D65", grid.wavelengths));
   const Eigen::RowVectorXd y = Eigen::RowVector3d(0.2126, 0.7152, 0.0722) * w;
   const std::vector<double> lum(y.data(), y.data() + y.size());
-  RglBsdf b = build(MerlField(grid.brdf, grid.bands(), grid.scale), lum, settings);
-  b.rgb = false;
-  b.wavelengths.assign(grid.wavelengths.values().begin(), grid.wavelengths.values().end());
-  return b;
+  return build(MerlField(grid.brdf, grid.bands(), grid.scale), lum,
+               std::vector<float>(grid.wavelengths.values().begin(), grid.wavelengths.values().end()), settings);
 }
 
 RglBsdf export_rgl(const MerlBrdf& brdf, const RglExportSettings& settings) {
@@ -311,9 +336,7 @@ RglBsdf export_rgl(const MerlBrdf& brdf, const RglExportSettings& settings) {
       v[c * brdf::kMerlCells + cell] = x < 0 ? -1.0f : float(x * kMerlScale[c]);
     }
   const double lum[3] = {0.2126, 0.7152, 0.0722};
-  RglBsdf b = build(MerlField(v, 3, 1.0), lum, settings);
-  b.rgb = true;
-  return b;
+  return build(MerlField(v, 3, 1.0), lum, {}, settings);
 }
 
 }  // namespace specula::codec

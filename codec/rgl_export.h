@@ -4,8 +4,10 @@
 // retro-reflection by power iteration (Dupuy et al. 2015, D_{n+1}(theta) = f(k, k) cos(theta) sigma_n(theta)),
 // sigma(theta) = integral of D(m) <k . m>+ dm by quadrature, D scaled so sigma(0) = 1, the incident elevations chosen
 // uniformly in sigma, per elevation a vndf table on the square (u, v) led by the visible-normal density D(m) <wi . m>+
-// (RglExportSettings), and at the nodes of the sample square warped by it the values f cos(theta_o) 4 sigma / D.
-// f between MERL cells is interpolated trilinearly in the grid's index space over the cells that hold data.
+// (RglExportSettings), and at the nodes of the sample square warped by it the values f cos(theta_o) 4 sigma / D,
+// then refitted by least squares so that the renderers' interpolation of them matches f at every MERL cell
+// (codec/rgl_fit.h). f between MERL cells is interpolated trilinearly in the grid's index space over the cells that
+// hold data.
 #include <Eigen/Core>
 #include <cstddef>
 #include <span>
@@ -13,6 +15,7 @@
 
 #include "specula/codec/merl.h"
 #include "specula/codec/rgl_bsdf.h"
+#include "specula/codec/rgl_fit.h"
 #include "specula/store/store.h"
 
 namespace specula::codec {
@@ -35,6 +38,10 @@ struct RglExportSettings {
   double vndf_exponent = 0.7;
   double vndf_floor = 0.3;
   double vndf_uniform = 0.3;
+  /// The stored values: the least-squares fit to the BRDF at every MERL cell (codec/rgl_fit.h), or without it the
+  /// point samples at the nodes (which the fit starts from).
+  bool least_squares = true;
+  RglFitSettings fit;
   std::string description;  ///< empty: "specula export"
 };
 

@@ -107,12 +107,20 @@ double Warp2D::lookup(const std::vector<float>& a, std::size_t stride, std::size
   return v;
 }
 
-double Warp2D::eval(double x, double y, std::span<const double> param) const {
-  const Corners c = corners(param, params_.size());
+Warp2D::Patch Warp2D::patch(double x, double y) const {
   x = std::clamp(x, 0.0, 1.0) * double(w_ - 1);
   y = std::clamp(y, 0.0, 1.0) * double(h_ - 1);
-  const std::size_t ix = std::min(std::size_t(x), w_ - 2), iy = std::min(std::size_t(y), h_ - 2);
-  const double fx = x - double(ix), fy = y - double(iy);
+  Patch p;
+  p.ix = std::min(std::size_t(x), w_ - 2);
+  p.iy = std::min(std::size_t(y), h_ - 2);
+  p.fx = x - double(p.ix);
+  p.fy = y - double(p.iy);
+  return p;
+}
+
+double Warp2D::eval(double x, double y, std::span<const double> param) const {
+  const Corners c = corners(param, params_.size());
+  const auto [ix, iy, fx, fy] = patch(x, y);
   const std::size_t n = w_ * h_, i = ix + iy * w_;
   const double v00 = lookup(data_, n, i, c), v10 = lookup(data_, n, i + 1, c), v01 = lookup(data_, n, i + w_, c),
                v11 = lookup(data_, n, i + w_ + 1, c);
@@ -127,10 +135,7 @@ void Warp2D::eval_last(double x, double y, std::span<const double> param, std::s
     throw UsageError("Warp2D::eval_last: out holds " + std::to_string(out.size()) + " values, the last parameter " +
                      std::to_string(params_[last].size()));
   const Corners c = corners(param, last);
-  x = std::clamp(x, 0.0, 1.0) * double(w_ - 1);
-  y = std::clamp(y, 0.0, 1.0) * double(h_ - 1);
-  const std::size_t ix = std::min(std::size_t(x), w_ - 2), iy = std::min(std::size_t(y), h_ - 2);
-  const double fx = x - double(ix), fy = y - double(iy);
+  const auto [ix, iy, fx, fy] = patch(x, y);
   const std::size_t n = w_ * h_, step = param_stride_[last] * n;
   for (std::size_t k = 0; k < out.size(); ++k) {
     const std::size_t i = ix + iy * w_ + k * step;
@@ -138,6 +143,22 @@ void Warp2D::eval_last(double x, double y, std::span<const double> param, std::s
                  v11 = lookup(data_, n, i + w_ + 1, c);
     out[k] = (1 - fy) * ((1 - fx) * v00 + fx * v10) + fy * ((1 - fx) * v01 + fx * v11);
   }
+}
+
+WarpStencil Warp2D::stencil(double x, double y, std::span<const double> param, std::size_t dims) const {
+  if (density_) throw UsageError("Warp2D::stencil: a density table's values are normalised copies of its data");
+  const Corners c = corners(param, std::min(dims, params_.size()));
+  const auto [ix, iy, fx, fy] = patch(x, y);
+  const std::size_t n = w_ * h_, i = ix + iy * w_;
+  const std::size_t node[4] = {i, i + 1, i + w_, i + w_ + 1};
+  const double bilinear[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+  WarpStencil s;
+  for (int k = 0; k < c.n; ++k)
+    for (int q = 0; q < 4; ++q) {
+      s.index[std::size_t(s.n)] = c.slice[std::size_t(k)] * n + node[q];
+      s.weight[std::size_t(s.n++)] = c.weight[std::size_t(k)] * bilinear[q];
+    }
+  return s;
 }
 
 WarpPoint Warp2D::sample(double x, double y, std::span<const double> param) const {
@@ -175,11 +196,10 @@ WarpPoint Warp2D::sample(double x, double y, std::span<const double> param) cons
 WarpPoint Warp2D::invert(double x, double y, std::span<const double> param) const {
   if (!density_) throw UsageError("Warp2D::invert: the table was built without a CDF");
   const Corners c = corners(param, params_.size());
-  x = std::clamp(x, 0.0, 1.0) * double(w_ - 1);
-  y = std::clamp(y, 0.0, 1.0) * double(h_ - 1);
-  const std::size_t ix = std::min(std::size_t(x), w_ - 2), iy = std::min(std::size_t(y), h_ - 2);
-  x -= double(ix);
-  y -= double(iy);
+  const Patch p = patch(x, y);
+  const std::size_t ix = p.ix, iy = p.iy;
+  x = p.fx;
+  y = p.fy;
   const std::size_t n = w_ * h_, i = ix + iy * w_;
   const double v00 = lookup(data_, n, i, c), v10 = lookup(data_, n, i + 1, c), v01 = lookup(data_, n, i + w_, c),
                v11 = lookup(data_, n, i + w_ + 1, c);

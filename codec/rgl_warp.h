@@ -17,6 +17,13 @@ struct WarpPoint {
   double x = 0, y = 0, pdf = 0;
 };
 
+/// The table entries an interpolated value blends: value = sum of weight[k] * data[index[k]] for k < n.
+struct WarpStencil {
+  std::array<std::size_t, 32> index{};
+  std::array<double, 32> weight{};
+  int n = 0;
+};
+
 class Warp2D {
  public:
   Warp2D() = default;
@@ -34,6 +41,9 @@ class Warp2D {
   /// `param`: one table lookup for all channels of a spectrum. Throws UsageError for a density or parameterless table
   /// or a wrong out size.
   void eval_last(double x, double y, std::span<const double> param, std::span<double> out) const;
+  /// The entries eval blends at (x, y) for a table without `density`, the first `dims` parameters from `param` and
+  /// the others at their first value; indices into `data` as given to the constructor.
+  WarpStencil stencil(double x, double y, std::span<const double> param, std::size_t dims) const;
   /// Warps the uniform point (x, y) (clamped to [eps, 1 - eps]) to the density; needs `density`.
   WarpPoint sample(double x, double y, std::span<const double> param) const;
   /// The uniform point that `sample` maps to (x, y) (clamped to [0, 1]^2), and the density at (x, y); needs `density`.
@@ -49,6 +59,11 @@ class Warp2D {
     int n = 0;
   };
   Corners corners(std::span<const double> param, std::size_t dims) const;  // blends the first dims parameters
+  struct Patch {
+    std::size_t ix = 0, iy = 0;
+    double fx = 0, fy = 0;
+  };
+  Patch patch(double x, double y) const;  // the bilinear patch holding (x, y) clamped to [0, 1]^2
   double lookup(const std::vector<float>& a, std::size_t stride, std::size_t index, const Corners& c) const;
 
   std::size_t w_ = 0, h_ = 0;

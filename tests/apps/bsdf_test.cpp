@@ -58,6 +58,23 @@ TEST(BsdfCli, ExportImportRenderAndDiff) {
   ASSERT_EQ(r.status, 0) << r.output;
 }
 
+TEST(BsdfCli, ExportToATargetReportsTheResolutionsTried) {
+  test::ScratchDir dir;
+  const auto grid = dir / "paint.spgrid";
+  auto r = run_specula("synth-brdf blue-paint --wavelengths 400:700:50 -o " + q(grid));
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run_specula("export " + q(grid) + " -o " + q(dir / "t.bsdf") + " --target-de00 0.5");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("8 theta_i x 32^2 samples"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("(meets the target)"), std::string::npos) << r.output;
+  EXPECT_EQ(codec::read_rgl_bsdf(dir / "t.bsdf").theta_i.size(), 8u);
+  r = run_specula("export " + q(grid) + " -o " + q(dir / "u.bsdf") + " --target-de00 0.5 --rgb");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("drop --rgb"), std::string::npos) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "u.bsdf"));
+}
+
 TEST(BsdfCli, MalformedFilesGiveOneLineAndExitOne) {
   test::ScratchDir dir;
   const auto store_path = dir / "s.h5";

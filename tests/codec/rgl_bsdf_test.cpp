@@ -92,11 +92,12 @@ TEST(RglBsdf, AMeasuredMaterialRoundTripsThroughExport) {
   std::sort(rel.begin(), rel.end());
   const double median = rel[rel.size() / 2], rms = std::sqrt(num / den);
   std::printf("chm_orange re-exported: median relative error %.4f, cos-weighted relative RMS %.4f\n", median, rms);
-  // Known gap (docs/brdf.md): off the peak of this very glossy film (D(0) near 5000) the re-export is 7 % off in
-  // the median (12 % with the 128-node ndf and the earlier vndf mixture), 0.116 relative RMS; the bounds guard
-  // against regressions, they are not the goal.
-  EXPECT_LT(median, 0.10);
-  EXPECT_LT(rms, 0.13);
+  // Known gap (docs/brdf.md): off the peak of this very glossy film (D(0) near 5000) the re-export is 4.3 % off in
+  // the median, 0.069 relative RMS, with the stored values fitted by least squares (7 % and 0.116 from point
+  // samples at the nodes, 12 % with the 128-node ndf and the earlier vndf mixture); the bounds guard against
+  // regressions, they are not the goal.
+  EXPECT_LT(median, 0.055);
+  EXPECT_LT(rms, 0.085);
 }
 
 TEST(RglBsdf, ACellIsImportedWithBothDirectionsTabulated) {

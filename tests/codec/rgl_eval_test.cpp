@@ -17,6 +17,10 @@ namespace {
 
 constexpr double kPi = std::numbers::pi;
 
+Eigen::Vector3d brdf_direction(double theta, double phi) {
+  return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
+}
+
 // Bilinear interpolation of a w x h node table (row-major, y rows) at (x, y) in [0, 1]^2.
 double bilinear(const float* t, std::size_t w, std::size_t h, double x, double y) {
   const double fx = x * double(w - 1), fy = y * double(h - 1);
@@ -107,6 +111,28 @@ TEST(RglEval, MatchesABruteForceEvaluationAtTheTabulatedElevations) {
   EXPECT_EQ(checked, 54);
 }
 
+TEST(RglEval, TheStencilIsEvalAsALinearMapOfTheStoredValues) {
+  const RglBsdf b = hand_made();
+  const RglEvaluator e(b);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> theta(0.05, 1.45), phi(-kPi, kPi);
+  const std::size_t r2 = b.resolution * b.resolution;
+  for (int k = 0; k < 40; ++k) {
+    const Eigen::Vector3d wi = brdf_direction(theta(rng), phi(rng)), wo = brdf_direction(theta(rng), phi(rng));
+    std::vector<double> f(3);
+    e.eval(wi, wo, f);
+    const RglStencil st = e.stencil(wi, wo);
+    ASSERT_GE(st.n, 4);
+    for (std::size_t c = 0; c < 3; ++c) {
+      double sum = 0;
+      for (int q = 0; q < st.n; ++q)
+        sum += st.weight[std::size_t(q)] * b.values[(st.theta[std::size_t(q)] * 3 + c) * r2 + st.node[std::size_t(q)]];
+      EXPECT_NEAR(std::max(sum, 0.0), f[c], 1e-9 * std::max(1.0, f[c])) << k << " " << c;
+    }
+  }
+  EXPECT_EQ(e.stencil(Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(1, 0, -0.1).normalized()).n, 0);
+}
+
 TEST(RglEval, BelowTheHorizonIsZero) {
   const RglEvaluator e(hand_made());
   std::vector<double> f(3, 1.0);
@@ -145,6 +171,25 @@ TEST(RglWarp, NonDensityTablesInterpolateAsStored) {
   EXPECT_DOUBLE_EQ(w.eval(0, 0, {}), 1);
   EXPECT_DOUBLE_EQ(w.eval(1, 1, {}), 6);
   EXPECT_DOUBLE_EQ(w.eval(0.25, 0.5, {}), 0.5 * (1.5 + 4.5));
+}
+
+TEST(RglWarp, TheStencilIsWhatEvalBlends) {
+  std::vector<float> t(3 * 4 * 6);
+  for (std::size_t i = 0; i < t.size(); ++i) t[i] = float((i * 29) % 13) - 3.5f;
+  const Warp2D w(t, 3, 2, {{0.0f}, {0.0f, 0.5f, 1.5f}, {0.0f, 1.0f, 2.0f, 3.0f}}, false);
+  for (const double theta : {0.0, 0.3, 1.0, 1.5, 2.0})
+    for (const double c : {0.0, 1.0, 2.5}) {
+      const double p[3] = {0, theta, c};
+      for (const std::size_t dims : {2u, 3u}) {
+        const WarpStencil s = w.stencil(0.7, 0.2, p, dims);
+        double sum = 0;
+        for (int k = 0; k < s.n; ++k) sum += s.weight[std::size_t(k)] * t[s.index[std::size_t(k)]];
+        const double q[3] = {0, theta, dims == 3 ? c : 0.0};  // parameters past dims at their first value
+        EXPECT_NEAR(sum, w.eval(0.7, 0.2, q), 1e-12) << theta << " " << c << " " << dims;
+      }
+    }
+  const float d[] = {1, 2, 3, 4};
+  EXPECT_THROW(Warp2D(d, 2, 2, {}, true).stencil(0, 0, {}, 0), UsageError);
 }
 
 TEST(RglWarp, AllChannelsAtOnceAreEachChannelInTurn) {

@@ -77,8 +77,10 @@ TEST(RglExport, TheFileIsWhatTheRenderersCheck) {
 
 struct Trip {
   const char* material;
-  std::size_t resolution;         // the sample grid: the default 32, or what the material needs to meet the goal
-  double mean = 0.35, p95 = 1.2;  // tighter than the goal (0.5, 1.5): what the default export keeps
+  std::size_t resolution;  // the sample grid: the default 32, or what the material needs to meet the goal
+  // Tighter than the goal (0.5, 1.5): what the default export keeps with its values fitted by least squares (0.045
+  // to 0.13 mean, 0.20 to 0.48 p95); point samples at the nodes gave 0.14 to 0.29 and 0.64 to 0.92.
+  double mean = 0.16, p95 = 0.6;
 };
 class RoundTrip : public ::testing::TestWithParam<Trip> {};
 
