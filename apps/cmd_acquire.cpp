@@ -157,8 +157,12 @@ std::pair<double, double> holdout_summary(const std::vector<acquire::HoldoutRepo
 Json holdout_json(const std::vector<acquire::HoldoutReport>& holdout) {
   Json patches = Json::array();
   for (const auto& h : holdout)
-    patches.push_back(
-        {{"name", h.name}, {"rms", h.rms}, {"pixel_rms", h.pixel_rms}, {"pixels", h.pixels}, {"rejected", h.rejected}});
+    patches.push_back({{"name", h.name},
+                       {"rms", h.rms},
+                       {"recovered", std::vector<double>(h.recovered.data(), h.recovered.data() + h.recovered.size())},
+                       {"pixel_rms", h.pixel_rms},
+                       {"pixels", h.pixels},
+                       {"rejected", h.rejected}});
   const auto [mean, worst] = holdout_summary(holdout);
   return {{"patches", std::move(patches)}, {"rms_mean", mean}, {"rms_max", worst}};
 }
