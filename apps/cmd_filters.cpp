@@ -65,6 +65,7 @@ void run_filters_design(FiltersDesignOptions o) {
     j["method"] = o.method;
     j["noise"] = o.design.noise;
     j["ridge"] = o.design.ridge;
+    j["colour_weight"] = o.design.colour_weight;
     j["solve"] = o.solve;
     j["exposure"] = o.design.per_filter_exposure ? "per filter" : "equal";
     j["min_throughput"] = o.design.min_throughput;
@@ -109,6 +110,10 @@ void setup_filters(CLI::App& app) {
                 "Light (fraction of an open filter's) below which a filter's exposure is capped: its noise floor")
       ->capture_default_str();
   d->add_option("--solve", o->solve, "wiener (the training spectra's second moment as prior) or ridge (in the basis)")
+      ->capture_default_str();
+  d->add_option(
+       "--colour-weight", o->design.colour_weight,
+       "optimal: weight of the expected XYZ error under D65 and A against the spectral error (0: spectral only)")
       ->capture_default_str();
   d->add_option("--ridge", o->design.ridge, "Regularisation of the solve (relative to the system's trace)")
       ->capture_default_str();

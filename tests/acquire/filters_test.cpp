@@ -368,3 +368,62 @@ TEST(FilterDesign, ThroughputAndTheExposureCapsNoiseFloor) {
   o.min_throughput = 1;
   EXPECT_THROW(check_filter_design(o), UsageError);
 }
+
+TEST(FilterDesign, ColourRowsGiveTheIlluminantsWhitePoints) {
+  // A white reflectance's XYZ under D65 and A, against CIE's published white points (2 degree; band sums over
+  // 420-720 nm every 10 nm miss the tails, hence 4 %).
+  const Eigen::MatrixXd c = colour_rows(bands_420_720()) * std::sqrt(6.0);
+  const Eigen::VectorXd white = c * Eigen::VectorXd::Ones(c.cols());
+  const double expected[6] = {0.9505, 1.0, 1.0888, 1.0985, 1.0, 0.3558};
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(white[i] / expected[i], 1.0, 0.04) << i;
+  EXPECT_NEAR(white[1], 1.0, 1e-12);
+  EXPECT_NEAR(white[4], 1.0, 1e-12);
+  EXPECT_GE(c.minCoeff(), 0.0);
+}
+
+TEST(FilterDesign, TheColourTermLowersTheExpectedColourError) {
+  const std::vector<double> bands = bands_420_720();
+  const Eigen::Index B = Eigen::Index(bands.size());
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0, 1);
+  Eigen::MatrixXd spectra(200, B);
+  for (Eigen::Index i = 0; i < spectra.rows(); ++i) {
+    const double c = 420 + 300 * u(rng), w = 25 + 80 * u(rng), base = 0.05 + 0.2 * u(rng);
+    for (Eigen::Index b = 0; b < B; ++b)
+      spectra(i, b) = base + 0.6 * std::exp(-0.5 * std::pow((bands[std::size_t(b)] - c) / w, 2));
+  }
+  store::Basis pca;
+  pca.method = "pca";
+  pca.wavelengths = WavelengthGrid(bands);
+  pca.mean = spectra.colwise().mean().transpose();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(spectra.rowwise() - pca.mean.transpose(), Eigen::ComputeThinV);
+  pca.components = svd.matrixV().leftCols(4).transpose();
+  FilterDesignOptions o;
+  o.k = 4;
+  o.colour_weight = 0;
+  const FilterSet spectral = design_filters(pca, spectra, o);
+  o.colour_weight = 1;
+  const FilterSet coloured = design_filters(pca, spectra, o);
+  // Each design's expected error, spectral and of colour, under the Wiener solve with each filter's noise.
+  const Eigen::MatrixXd m = spectra.transpose() * spectra / double(spectra.rows()), rows = colour_rows(bands);
+  const Tabulated s = design_sensitivity(o.light_kelvin);
+  auto errors = [&](const FilterSet& f) {
+    const std::vector<double> w = filter_throughput(f, bands, s);
+    Eigen::VectorXd sigma(Eigen::Index(w.size()));
+    for (std::size_t k = 0; k < w.size(); ++k) sigma[Eigen::Index(k)] = o.noise * std::max(w[k], o.min_throughput);
+    FilterSet open;
+    open.names = {"open"};
+    open.nm = bands;
+    open.transmission = {std::vector<double>(bands.size(), 1.0)};
+    const Eigen::MatrixXd a = filter_system(f, bands, s, 1)[0] / filter_system(open, bands, s, 1)[0].sum();
+    const Eigen::MatrixXd r = filter_wiener_recovery(a, m, sigma);
+    const Eigen::MatrixXd e = Eigen::MatrixXd::Identity(B, B) - r * a, ce = rows * e;
+    return std::pair{((e * m * e.transpose()).trace() + (r * sigma.asDiagonal()).squaredNorm()) / double(B),
+                     (ce * m * ce.transpose()).trace() + (rows * r * sigma.asDiagonal()).squaredNorm()};
+  };
+  const auto [spectral_s, spectral_c] = errors(spectral);
+  const auto [coloured_s, coloured_c] = errors(coloured);
+  EXPECT_LT(coloured_c, spectral_c);
+  EXPECT_LT(coloured_s + coloured_c, spectral_s + spectral_c);
+  EXPECT_LE(spectral_s, coloured_s * (1 + 1e-9));  // the spectral design is the better one on its own criterion
+}
