@@ -9,6 +9,7 @@
 #include <cmath>
 #include <random>
 
+#include "acquire/small_rig.h"
 #include "specula/acquire/filter_design.h"
 #include "specula/acquire/filters.h"
 #include "specula/acquire/spectral.h"
@@ -19,11 +20,7 @@ using namespace specula::acquire;
 
 namespace {
 
-std::vector<double> bands_420_720() {
-  std::vector<double> b;
-  for (int l = 420; l <= 720; l += 10) b.push_back(l);
-  return b;
-}
+using test::bands_420_720;
 
 // K Gaussian filters of width `sigma` spread over 420-720 nm, tabulated every `step` nm over 400-740.
 FilterSet gaussians(int k, double sigma, double step = 2) {
@@ -46,6 +43,34 @@ Tabulated smooth_light() {
     s.value.push_back(0.4 + l / 800);
   }
   return s;
+}
+
+// n smooth random reflectances on 420-720 nm (rows): a base, a bump of random place and width and a broad one.
+Eigen::MatrixXd smooth_spectra(Eigen::Index n, unsigned seed) {
+  const std::vector<double> bands = bands_420_720();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  Eigen::MatrixXd spectra(n, Eigen::Index(bands.size()));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double c1 = 420 + 300 * u(rng), c2 = 420 + 300 * u(rng), w1 = 30 + 80 * u(rng), base = 0.05 + 0.2 * u(rng);
+    for (Eigen::Index b = 0; b < spectra.cols(); ++b) {
+      const double l = bands[std::size_t(b)];
+      spectra(i, b) =
+          base + 0.6 * std::exp(-0.5 * std::pow((l - c1) / w1, 2)) + 0.2 * std::exp(-0.5 * std::pow((l - c2) / 60, 2));
+    }
+  }
+  return spectra;
+}
+
+// A PCA basis of the spectra (rows on 420-720 nm): their mean and first k components.
+store::Basis pca_basis(const Eigen::MatrixXd& spectra, Eigen::Index k) {
+  store::Basis pca;
+  pca.method = "pca";
+  pca.wavelengths = WavelengthGrid(bands_420_720());
+  pca.mean = spectra.colwise().mean().transpose();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(spectra.rowwise() - pca.mean.transpose(), Eigen::ComputeThinV);
+  pca.components = svd.matrixV().leftCols(k).transpose();
+  return pca;
 }
 
 std::string error_of(const std::string& text) {
@@ -184,23 +209,8 @@ TEST(FilterDesign, CurvesAreSmoothBoundedTransmissionsAndTheOptimumBeatsNmf) {
   // non-negative bumps.
   const std::vector<double> bands = bands_420_720();
   const Eigen::Index B = Eigen::Index(bands.size());
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> u(0, 1);
-  Eigen::MatrixXd spectra(300, B);
-  for (Eigen::Index i = 0; i < spectra.rows(); ++i) {
-    const double c1 = 420 + 300 * u(rng), c2 = 420 + 300 * u(rng), w1 = 30 + 80 * u(rng), base = 0.05 + 0.2 * u(rng);
-    for (Eigen::Index b = 0; b < B; ++b) {
-      const double l = bands[std::size_t(b)];
-      spectra(i, b) =
-          base + 0.6 * std::exp(-0.5 * std::pow((l - c1) / w1, 2)) + 0.2 * std::exp(-0.5 * std::pow((l - c2) / 60, 2));
-    }
-  }
-  store::Basis pca;
-  pca.method = "pca";
-  pca.wavelengths = WavelengthGrid(bands);
-  pca.mean = spectra.colwise().mean().transpose();
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(spectra.rowwise() - pca.mean.transpose(), Eigen::ComputeThinV);
-  pca.components = svd.matrixV().leftCols(6).transpose();
+  const Eigen::MatrixXd spectra = smooth_spectra(300, 5);
+  const store::Basis pca = pca_basis(spectra, 6);
   store::Basis nmf;
   nmf.method = "nmf";
   nmf.wavelengths = pca.wavelengths;
@@ -384,20 +394,8 @@ TEST(FilterDesign, ColourRowsGiveTheIlluminantsWhitePoints) {
 TEST(FilterDesign, TheColourTermLowersTheExpectedColourError) {
   const std::vector<double> bands = bands_420_720();
   const Eigen::Index B = Eigen::Index(bands.size());
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> u(0, 1);
-  Eigen::MatrixXd spectra(200, B);
-  for (Eigen::Index i = 0; i < spectra.rows(); ++i) {
-    const double c = 420 + 300 * u(rng), w = 25 + 80 * u(rng), base = 0.05 + 0.2 * u(rng);
-    for (Eigen::Index b = 0; b < B; ++b)
-      spectra(i, b) = base + 0.6 * std::exp(-0.5 * std::pow((bands[std::size_t(b)] - c) / w, 2));
-  }
-  store::Basis pca;
-  pca.method = "pca";
-  pca.wavelengths = WavelengthGrid(bands);
-  pca.mean = spectra.colwise().mean().transpose();
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(spectra.rowwise() - pca.mean.transpose(), Eigen::ComputeThinV);
-  pca.components = svd.matrixV().leftCols(4).transpose();
+  const Eigen::MatrixXd spectra = smooth_spectra(200, 7);
+  const store::Basis pca = pca_basis(spectra, 4);
   FilterDesignOptions o;
   o.k = 4;
   o.colour_weight = 0;

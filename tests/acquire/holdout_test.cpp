@@ -21,11 +21,7 @@ using namespace specula::acquire;
 
 namespace {
 
-std::vector<double> bands_420_720() {
-  std::vector<double> b;
-  for (int l = 420; l <= 720; l += 10) b.push_back(l);
-  return b;
-}
+using test::bands_420_720;
 
 // A table of spectra f(i, nm) on `nm`, named p0, p1, ...
 template <class F>
