@@ -27,15 +27,17 @@ std::string kind_name(ImageKind k) {
       return "flat";
     case ImageKind::target:
       return "target";
+    case ImageKind::holdout:
+      return "holdout";
   }
   return "?";
 }
 
 ImageKind parse_kind(const std::string& name, const std::string& context) {
-  for (const ImageKind k :
-       {ImageKind::scene, ImageKind::silhouette, ImageKind::mirror, ImageKind::flat, ImageKind::target})
+  for (const ImageKind k : {ImageKind::scene, ImageKind::silhouette, ImageKind::mirror, ImageKind::flat,
+                            ImageKind::target, ImageKind::holdout})
     if (kind_name(k) == name) return k;
-  throw InputError(context + ": unknown image kind '" + name + "' (scene, silhouette, mirror, flat, target)");
+  throw InputError(context + ": unknown image kind '" + name + "' (scene, silhouette, mirror, flat, target, holdout)");
 }
 
 void write_manifest(const fs::path& dir, const Capture& c) {
@@ -56,6 +58,12 @@ void write_manifest(const fs::path& dir, const Capture& c) {
     j["filters"] = {{"names", c.filters->names}, {"nm", c.filters->nm}, {"transmission", c.filters->transmission}};
   j["targets"] = json::array();
   for (const auto& t : c.targets) j["targets"].push_back({{"name", t.name}, {"reflectance", t.reflectance}});
+  if (!c.holdout.empty()) {
+    j["holdout_patches"] = json::array();
+    for (const auto& p : c.holdout)
+      j["holdout_patches"].push_back(
+          {{"name", p.name}, {"reflectance", p.reflectance}, {"region_px", {p.u0, p.v0, p.u1, p.v1}}});
+  }
   j["images"] = json::array();
   for (const auto& im : c.images) {
     json e = {{"file", im.file}, {"kind", kind_name(im.kind)}, {"exposure_s", im.exposure_s}};
@@ -105,7 +113,8 @@ CaptureImage read_image_entry(const json& e, const Capture& c, const fs::path& d
     throw InputError(ictx + ": the file must be a path inside the capture directory");
   if (!(im.exposure_s > 0)) throw InputError(ictx + ": exposure_s must be positive");
   const bool needs_light = im.kind == ImageKind::scene || im.kind == ImageKind::mirror;
-  const bool needs_band = im.kind == ImageKind::scene || im.kind == ImageKind::flat || im.kind == ImageKind::target;
+  const bool needs_band = im.kind == ImageKind::scene || im.kind == ImageKind::flat || im.kind == ImageKind::target ||
+                          im.kind == ImageKind::holdout;
   if (needs_light != (im.light >= 0) || im.light >= int(c.light_angles_deg.size()))
     throw InputError(ictx + ": light " + std::to_string(im.light) + " is not one of the " +
                      std::to_string(c.light_angles_deg.size()) + " light positions a " + kind_name(im.kind) +
@@ -134,6 +143,27 @@ FilterSet read_manifest_filters(const json& fj, const std::vector<double>& bands
                      std::to_string(f.transmission.size()) + " curves");
   check_filters(f, bands, ctx + " filters");
   return f;
+}
+
+// The manifest's "holdout_patches" entry (format 3): names, reflectance on the bands, regions on the image.
+std::vector<HoldoutPatch> read_holdout_patches(const json& hj, const Capture& c, const std::string& ctx) {
+  std::vector<HoldoutPatch> patches;
+  for (const json& e : hj) {
+    HoldoutPatch p{field<std::string>(e, "name", ctx + " holdout_patches"),
+                   field<std::vector<double>>(e, "reflectance", ctx + " holdout_patches")};
+    const std::string pctx = ctx + ": held-out patch '" + p.name + "'";
+    if (p.reflectance.size() != c.bands.size())
+      throw InputError(pctx + " has " + std::to_string(p.reflectance.size()) + " reflectance values for " +
+                       std::to_string(c.bands.size()) + " bands");
+    const auto region = field<std::vector<int>>(e, "region_px", pctx);
+    if (region.size() != 4 || region[0] < 0 || region[1] < 0 || region[2] > c.width || region[3] > c.height ||
+        region[0] >= region[2] || region[1] >= region[3])
+      throw InputError(pctx +
+                       ": \"region_px\" must be [u0, v0, u1, v1] with 0 <= u0 < u1 <= width, 0 <= v0 < v1 <= height");
+    p.u0 = region[0], p.v0 = region[1], p.u1 = region[2], p.v1 = region[3];
+    patches.push_back(std::move(p));
+  }
+  return patches;
 }
 
 }  // namespace
@@ -207,13 +237,27 @@ Capture read_manifest(const fs::path& dir) {
                        " reflectance values for " + std::to_string(c.bands.size()) + " bands");
     c.targets.push_back(std::move(target));
   }
+  if (j.contains("holdout_patches")) {
+    if (version < 3) throw InputError(ctx + ": \"holdout_patches\" needs capture format version 3");
+    c.holdout = read_holdout_patches(j["holdout_patches"], c, ctx);
+  }
   std::set<std::tuple<int, int, double>> scene_exposures;
+  std::set<int> holdout_channels;
   for (const json& e : field<json>(j, "images", ctx)) {
     CaptureImage im = read_image_entry(e, c, dir, ctx);
     if (im.kind == ImageKind::scene && !scene_exposures.insert({im.light, im.band, im.exposure_s}).second)
       throw InputError(ctx + ": image '" + im.file + "': a second image for the same light, band and exposure");
+    if (im.kind == ImageKind::holdout) {
+      if (c.holdout.empty())
+        throw InputError(ctx + ": image '" + im.file + "' is a holdout image but there are no \"holdout_patches\"");
+      holdout_channels.insert(im.band);
+    }
     c.images.push_back(std::move(im));
   }
+  if (!c.holdout.empty() && holdout_channels.size() != c.channels())
+    throw InputError(ctx + ": \"holdout_patches\" needs holdout images in every one of the " +
+                     std::to_string(c.channels()) + " channels; " + std::to_string(holdout_channels.size()) +
+                     " have them");
   for (int l = 0; l < int(c.light_angles_deg.size()); ++l)
     for (int b = 0; b < int(c.channels()); ++b) {
       const auto it = scene_exposures.lower_bound({l, b, 0.0});

@@ -12,10 +12,10 @@
 namespace specula::acquire {
 
 inline constexpr const char* kCaptureFormat = "specula-capture";
-inline constexpr int kCaptureVersion = 2;  ///< 2: captures through a filter wheel ("filters")
+inline constexpr int kCaptureVersion = 3;  ///< 2: captures through a filter wheel; 3: held-out patches
 
-/// What an image shows.
-enum class ImageKind { scene, silhouette, mirror, flat, target };
+/// What an image shows (holdout: the chart of held-out patches, per channel and exposure).
+enum class ImageKind { scene, silhouette, mirror, flat, target, holdout };
 
 /// One image file of a capture.
 struct CaptureImage {
@@ -32,6 +32,14 @@ struct CaptureImage {
 struct CaptureTarget {
   std::string name;
   std::vector<double> reflectance;
+};
+
+/// A reflectance patch imaged only to evaluate the recovery, never used by calibration: its known reflectance on the
+/// bands and the pixels it covers on the holdout images (u0 <= u < u1, v0 <= v < v1).
+struct HoldoutPatch {
+  std::string name;
+  std::vector<double> reflectance;
+  int u0 = 0, v0 = 0, u1 = 0, v1 = 0;
 };
 
 /// Ground truth a simulator knows and a real rig does not (absent in real captures).
@@ -57,6 +65,7 @@ struct Capture {
   std::vector<std::vector<double>> lctf_nm, lctf_value;
   std::optional<FilterSet> filters;  ///< a filter-wheel capture: one channel per filter; bands are what it recovers
   std::vector<CaptureTarget> targets;
+  std::vector<HoldoutPatch> holdout;  ///< patches on the holdout images (format 3; none in older captures)
   std::vector<CaptureImage> images;
   std::optional<CaptureTruth> truth;
   std::string description;
@@ -70,9 +79,10 @@ ImageKind parse_kind(const std::string& name, const std::string& context);
 
 /// Writes dir/manifest.json (through a temporary renamed into place).
 void write_manifest(const std::filesystem::path& dir, const Capture& c);
-/// Reads and checks dir/manifest.json (versions 1 and 2): InputError naming the file and the field for malformed
+/// Reads and checks dir/manifest.json (versions 1 to 3): InputError naming the file and the field for malformed
 /// JSON, a wrong format or newer version, filters that are not transmissions or do not cover the bands,
-/// inconsistent indices, image files that do not exist, or a scene (light, channel) without exposures.
+/// held-out patches off the image or without images in every channel, inconsistent indices, image files that do not
+/// exist, or a scene (light, channel) without exposures.
 Capture read_manifest(const std::filesystem::path& dir);
 
 }  // namespace specula::acquire

@@ -30,6 +30,7 @@ void check_filter_design(const FilterDesignOptions& o) {
   if (!(o.min_throughput >= 0 && o.min_throughput < 1))
     throw UsageError("filter design: the minimum throughput is a fraction of an open filter's light, in [0, 1)");
   if (!(o.ridge >= 0 && o.ridge < 1)) throw UsageError("filter design: ridge must be in [0, 1)");
+  if (!(o.colour_weight >= 0 && o.colour_weight <= 1000)) throw UsageError("filter design: colour weight 0 to 1000");
   if (!(o.peak > 0 && o.peak <= 1)) throw UsageError("filter design: peak transmission must be in (0, 1]");
   if (!(o.light_kelvin >= 1000 && o.light_kelvin <= 20000)) throw UsageError("filter design: light 1000-20000 K");
   if (!(o.step_nm >= 0.5 && o.step_nm <= 20)) throw UsageError("filter design: tabulation step 0.5 to 20 nm");
@@ -77,6 +78,18 @@ Eigen::MatrixXd capture_prior(const store::Basis& basis, const Capture& capture,
   return basis.second_moment;
 }
 
+Eigen::MatrixXd colour_rows(std::span<const double> bands) {
+  const WavelengthGrid grid(std::vector<double>(bands.begin(), bands.end()));
+  const Eigen::MatrixX3d xyz = cmf(grid);
+  Eigen::MatrixXd rows(6, Eigen::Index(bands.size()));
+  for (const int i : {0, 1}) {
+    const Eigen::VectorXd e = illuminant(i == 0 ? "D65" : "A", grid);
+    const double white = xyz.col(1).dot(e);
+    for (int c = 0; c < 3; ++c) rows.row(3 * i + c) = xyz.col(c).cwiseProduct(e).transpose() / white;
+  }
+  return rows / std::sqrt(6.0);
+}
+
 namespace {
 
 // The K x B system divided by the white reading of an open filter (transmission `peak` everywhere on the bands): every
@@ -110,14 +123,19 @@ Eigen::MatrixXd design_recovery(const Eigen::MatrixXd& a, const Eigen::MatrixXd&
   return filter_wiener_recovery(a, prior, sigma);
 }
 
-// Mean expected squared error per band over spectra of second moment m (B x B).
+// Mean expected squared error per band over spectra of second moment m (B x B), plus o.colour_weight times that of
+// their colour (`colour`: colour_rows).
 double mean_squared_error(const Eigen::MatrixXd& a, const Eigen::MatrixXd& u, const Eigen::MatrixXd& m,
-                          const FilterDesignOptions& o) {
+                          const Eigen::MatrixXd& colour, const FilterDesignOptions& o) {
   const Eigen::VectorXd sigma = reading_noise(a, o.noise, o.per_filter_exposure, o.min_throughput);
   const Eigen::MatrixXd r =
       design_recovery(a, u, o.solve == FilterSolve::wiener ? m : Eigen::MatrixXd(), sigma, o.ridge);
   const Eigen::MatrixXd e = Eigen::MatrixXd::Identity(a.cols(), a.cols()) - r * a;
-  return ((e * m * e.transpose()).trace() + (r * sigma.asDiagonal()).squaredNorm()) / double(a.cols());
+  const double spectral = ((e * m * e.transpose()).trace() + (r * sigma.asDiagonal()).squaredNorm()) / double(a.cols());
+  if (o.colour_weight == 0) return spectral;
+  const Eigen::MatrixXd ce = colour * e;
+  return spectral +
+         o.colour_weight * ((ce * m * ce.transpose()).trace() + (colour * r * sigma.asDiagonal()).squaredNorm());
 }
 
 std::vector<double> design_grid(std::span<const double> bands, double step) {
@@ -181,6 +199,7 @@ FilterSet optimal_filters(const store::Basis& basis, const Eigen::MatrixXd& trai
   const Tabulated s = design_sensitivity(o.light_kelvin);
   const Eigen::MatrixXd u = reconstruction_basis(basis, o.k);
   const Eigen::MatrixXd m = training.transpose() * training / double(training.rows());
+  const Eigen::MatrixXd colour = colour_rows(bands);
   const int K = o.k;
   auto build = [&](const Eigen::VectorXd& p) {
     std::vector<std::vector<double>> t{std::size_t(K)};
@@ -189,7 +208,7 @@ FilterSet optimal_filters(const store::Basis& basis, const Eigen::MatrixXd& trai
   };
   auto cost = [&](const Eigen::VectorXd& p) {
     try {
-      return mean_squared_error(normalised_system(build(p), bands, s, 1.0), u, m, o);
+      return mean_squared_error(normalised_system(build(p), bands, s, 1.0), u, m, colour, o);
     } catch (const Error&) {
       return 1e30;
     }

@@ -35,6 +35,8 @@ struct FilterDesignOptions {
   /// per filter exposure: the light (a fraction of an open filter's white reading) below which a filter's exposure
   /// reaches the camera's longest and its noise stops falling with its signal (docs/filters.md)
   double min_throughput = 0.01;
+  /// optimal: weight of the expected colour error (colour_rows) against the spectral one per band in the criterion
+  double colour_weight = 1;
   double ridge = 1e-3;         ///< the solve's regularisation (filter_recovery)
   double peak = 0.9;           ///< the curves' largest transmission
   double light_kelvin = 3200;  ///< the light (a blackbody) the design assumes, with the simulated camera's response
@@ -56,6 +58,11 @@ Eigen::MatrixXd capture_basis(const store::Basis& basis, const Capture& capture,
 /// The basis's second moment (B x B), the Wiener solve's prior, for a filter capture: the checks of capture_basis,
 /// and InputError naming `label` for a basis that stores none.
 Eigen::MatrixXd capture_prior(const store::Basis& basis, const Capture& capture, const std::string& label);
+
+/// CIE 1931 XYZ of a reflectance on `bands` under D65 and under A (6 x B, band sums, each illuminant scaled so a
+/// white's Y is 1, rows divided by sqrt(6) so that |rows * x|^2 is the mean over the six of the squared error), the
+/// colour the lighting suite renders (codec/suite.h): the optimal design's colour term.
+Eigen::MatrixXd colour_rows(std::span<const double> bands);
 
 /// Expected reconstruction error of spectra (rows, on `bands`) read through filters `f` (sensitivity s: light times
 /// camera response), with noise of standard deviation `noise` added to each reading, relative to the filter's own

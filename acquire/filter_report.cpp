@@ -18,6 +18,7 @@ nlohmann::ordered_json filter_design_json(const FilterDesign& d, const FilterDes
   j["method"] = o.method == FilterMethod::nmf ? "nmf" : "optimal";
   j["noise"] = o.noise;
   j["ridge"] = o.ridge;
+  j["colour_weight"] = o.colour_weight;
   j["solve"] = o.solve == FilterSolve::wiener ? "wiener" : "ridge";
   j["exposure"] = o.per_filter_exposure ? "per filter" : "equal";
   j["min_throughput"] = o.min_throughput;

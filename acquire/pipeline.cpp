@@ -280,8 +280,7 @@ void add_target_reports(Calibration& c, const Capture& cap, const Eigen::MatrixX
     r.name = cap.targets[t].name;
     r.held_out = std::find(fit_rows.begin(), fit_rows.end(), Eigen::Index(t)) == fit_rows.end();
     r.truth = reflectance.row(Eigen::Index(t)).transpose();
-    r.filters = c.spectral.recovery * measured.row(Eigen::Index(t)).transpose();
-    if (c.spectral.posterior.size()) nonnegative_spectrum(c.spectral.posterior, r.filters);
+    r.filters = recover_spectrum(c.spectral, measured.row(Eigen::Index(t)).transpose());
     r.rms_filters = spectral_rms(r.filters, r.truth);
     c.targets.push_back(std::move(r));
   }
@@ -376,6 +375,25 @@ std::vector<ScanPixel> sphere_pixels(const Capture& cap, const Sphere& sphere) {
 
 }  // namespace
 
+Reject pixel_readings(const std::vector<HdrImage>& hdr, std::size_t p, const GreyImage& spatial, Eigen::VectorXd& h) {
+  h.resize(Eigen::Index(hdr.size()));
+  Reject why = Reject::count;
+  for (std::size_t b = 0; b < hdr.size(); ++b) {
+    const HdrStatus s = hdr[b].status[p];
+    if (why == Reject::count && s == HdrStatus::saturated) why = Reject::saturated;
+    if (why == Reject::count && s == HdrStatus::low_signal) why = Reject::low_signal;
+    if (why == Reject::count && s == HdrStatus::nonlinear) why = Reject::nonlinear;
+    h[Eigen::Index(b)] = hdr[b].rate[p] / spatial.value[p];
+  }
+  return why;
+}
+
+Eigen::VectorXd recover_spectrum(const SpectralCalibration& s, const Eigen::VectorXd& h) {
+  Eigen::VectorXd f = s.recovery * h;
+  if (s.posterior.size()) nonnegative_spectrum(s.posterior, f);
+  return f;
+}
+
 ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Calibration& c, const PipelineOptions& o,
                               store::StoreWriter& out, const std::string& name) {
   const std::size_t B = cap.channels(), W = std::size_t(cap.width), H = std::size_t(cap.height);
@@ -419,7 +437,7 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
                                       : Eigen::Vector3d(c.sphere.centre + 1e6 * c.light_dirs[l]);
     angles.clear();
     values.clear();
-    Eigen::VectorXd h(static_cast<Eigen::Index>(B));
+    Eigen::VectorXd h;
     for (const ScanPixel& px : pixels) {
       const std::size_t p = std::size_t(px.y) * W + std::size_t(px.x);
       brdf::StdAngles a;
@@ -441,15 +459,7 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
         ++r.rejected[std::size_t(Reject::bloom)];
         continue;
       }
-      Reject why = Reject::count;
-      for (std::size_t b = 0; b < B && why == Reject::count; ++b) {
-        const HdrStatus s = hdr[b].status[p];
-        if (s == HdrStatus::low_signal)
-          why = Reject::low_signal;
-        else if (s == HdrStatus::nonlinear)
-          why = Reject::nonlinear;
-        h[Eigen::Index(b)] = hdr[b].rate[p] / c.spatial.value[p];
-      }
+      const Reject why = pixel_readings(hdr, p, c.spatial, h);
       if (why != Reject::count) {
         ++r.rejected[std::size_t(why)];
         continue;
@@ -458,8 +468,7 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
       // targets' geometry (a distant light: pi cos(theta_i)).
       const double d = (light - px.point).norm();
       const double g = pi * std::cos(a.theta_i) * (c.light_distance > 0 ? std::pow(c.light_distance / d, 2) : 1.0);
-      Eigen::VectorXd f = c.spectral.recovery * h / g;
-      if (c.spectral.posterior.size()) nonnegative_spectrum(c.spectral.posterior, f);
+      const Eigen::VectorXd f = recover_spectrum(c.spectral, h / g);
       angles.insert(angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
       for (Eigen::Index b = 0; b < f.size(); ++b) values.push_back(float(f[b]));
       ++r.samples;

@@ -82,6 +82,14 @@ struct ExtractResult {
   std::uint64_t sphere_pixels = 0;  ///< pixels wholly on the sphere (edge pixels are never used)
 };
 
+/// Pixel p's flat-corrected readings, one per merged channel of `hdr`, into h (resized); the first reason the pixel
+/// is unusable (saturated, low signal, non-linear in some channel), or Reject::count when every channel is usable.
+Reject pixel_readings(const std::vector<HdrImage>& hdr, std::size_t p, const GreyImage& spatial, Eigen::VectorXd& h);
+
+/// The spectrum of flat-corrected readings h: the calibration's recovery, then, when it has a posterior, the most
+/// probable non-negative spectrum (nonnegative_spectrum).
+Eigen::VectorXd recover_spectrum(const SpectralCalibration& s, const Eigen::VectorXd& h);
+
 /// Extracts samples light by light into samples `name` of the open transaction (created here; B bands of the
 /// capture, units 1/sr relative to the targets' scale). One light's images in memory at a time; checks for
 /// interruption between lights.

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "specula/acquire/filters.h"
+#include "specula/acquire/holdout.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/cie.h"
@@ -80,108 +81,7 @@ struct Sensor {
   }
 };
 
-// The continuous MERL index of one coordinate: the cell containing it is floor(x + 1/2), its centre at x = that index.
-struct Axis {
-  int lo = 0, hi = 0;
-  double t = 0;
-};
-
-// Neighbouring cell centres of continuous index x on an axis of n cells: clamped at the ends, or wrapped (phi_d,
-// whose 0 and pi are the same configuration by reciprocity).
-Axis axis_neighbours(double x, int n, bool wrap) {
-  if (!wrap) x = std::clamp(x, 0.0, double(n - 1));
-  const double f = std::floor(x);
-  Axis a{int(f), int(f) + 1, x - f};
-  if (wrap) {
-    a.lo = (a.lo % n + n) % n;
-    a.hi = (a.hi % n + n) % n;
-  } else {
-    a.hi = std::min(a.hi, n - 1);
-  }
-  return a;
-}
-
-class GridMaterial final : public brdf::SpectralModel {
- public:
-  GridMaterial(std::shared_ptr<const store::Grid> grid, WavelengthGrid target, GridLookup lookup)
-      : SpectralModel(std::move(target)), grid_(std::move(grid)), lookup_(lookup) {
-    const WavelengthGrid& from = grid_->wavelengths;
-    for (std::size_t k = 0; k < bands(); ++k) {
-      const double l = wavelengths()[k];
-      std::size_t a = 0, b = 0;
-      double t = 0;
-      if (l <= from.front()) {
-        a = b = 0;
-      } else if (l >= from.back()) {
-        a = b = from.size() - 1;
-      } else {
-        b = std::size_t(std::upper_bound(from.values().begin(), from.values().end(), l) - from.values().begin());
-        a = b - 1;
-        t = (l - from[a]) / (from[b] - from[a]);
-      }
-      lo_.push_back(a), hi_.push_back(b), t_.push_back(t);
-    }
-  }
-  using SpectralModel::eval;
-  void eval(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo, std::span<double> out) const override {
-    std::fill(out.begin(), out.end(), 0.0);
-    if (wi.z() <= 0 || wo.z() <= 0) return;
-    if (lookup_ == GridLookup::nearest) {
-      const brdf::StdAngles a{std::acos(std::min(1.0, wi.z())), std::atan2(wi.y(), wi.x()),
-                              std::acos(std::min(1.0, wo.z())), std::atan2(wo.y(), wo.x())};
-      const std::size_t cell = brdf::merl_index(brdf::merl_cell(a));
-      for (std::size_t k = 0; k < out.size(); ++k) out[k] = value(k, cell, true);
-      return;
-    }
-    trilinear(brdf::half_diff(wi, wo), out);
-  }
-
- private:
-  // Band k (of the target) at a cell: the grid's bands interpolated; negative (no data) counts as 0 when `clamp`.
-  double value(std::size_t k, std::size_t cell, bool clamp) const {
-    float va = grid_->brdf[lo_[k] * brdf::kMerlCells + cell], vb = grid_->brdf[hi_[k] * brdf::kMerlCells + cell];
-    if (clamp) va = std::max(0.0f, va), vb = std::max(0.0f, vb);
-    if (va < 0 || vb < 0) return -1;
-    return grid_->scale * ((1 - t_[k]) * va + t_[k] * vb);
-  }
-
-  // Trilinear in MERL index space between the 8 surrounding cell centres; corners without data are left out and
-  // the weights of the others renormalised (0 when none has data).
-  void trilinear(const brdf::HalfDiff& h, std::span<double> out) const {
-    const double phi_d = h.phi_d < 0 ? h.phi_d + pi : h.phi_d;
-    const Axis ah = axis_neighbours(brdf::kMerlThetaH * std::sqrt(std::max(0.0, h.theta_h) / (pi / 2)) - 0.5,
-                                    brdf::kMerlThetaH, false);
-    const Axis ad = axis_neighbours(brdf::kMerlThetaD * h.theta_d / (pi / 2) - 0.5, brdf::kMerlThetaD, false);
-    const Axis ap = axis_neighbours(brdf::kMerlPhiD * phi_d / pi - 0.5, brdf::kMerlPhiD, true);
-    std::vector<double> weight(out.size(), 0.0);
-    for (int c = 0; c < 8; ++c) {
-      const double w = (c & 1 ? ah.t : 1 - ah.t) * (c & 2 ? ad.t : 1 - ad.t) * (c & 4 ? ap.t : 1 - ap.t);
-      if (w <= 0) continue;
-      const std::size_t cell = brdf::merl_index({c & 1 ? ah.hi : ah.lo, c & 2 ? ad.hi : ad.lo, c & 4 ? ap.hi : ap.lo});
-      for (std::size_t k = 0; k < out.size(); ++k) {
-        const double v = value(k, cell, false);
-        if (v < 0) continue;
-        out[k] += w * v;
-        weight[k] += w;
-      }
-    }
-    for (std::size_t k = 0; k < out.size(); ++k) out[k] = weight[k] > 0 ? out[k] / weight[k] : 0.0;
-  }
-
-  std::shared_ptr<const store::Grid> grid_;
-  GridLookup lookup_;
-  std::vector<std::size_t> lo_, hi_;
-  std::vector<double> t_;
-};
-
 }  // namespace
-
-std::unique_ptr<brdf::SpectralModel> grid_material(std::shared_ptr<const store::Grid> grid,
-                                                   const WavelengthGrid& target, GridLookup lookup) {
-  if (!grid || grid->brdf.size() != grid->bands() * brdf::kMerlCells || grid->bands() == 0)
-    throw UsageError("grid_material: a grid of bands x 90 x 90 x 180 values");
-  return std::make_unique<GridMaterial>(std::move(grid), target, lookup);
-}
 
 void check_simulator(const SimulatorOptions& o) {
   if (o.width < 16 || o.height < 16 || o.width > 8192 || o.height > 8192)
@@ -203,6 +103,7 @@ void check_simulator(const SimulatorOptions& o) {
     throw UsageError(
         "simulate-capture: brightness and gain must be positive, noise and bias >= 0, vignetting in [0, 1)");
   if (o.filters) check_filters(*o.filters, o.bands.empty() ? default_bands() : o.bands, "simulate-capture filters");
+  if (o.holdout) holdout_chart(*o.holdout, o.bands.empty() ? default_bands() : o.bands, o.width, o.height);
   if (!(o.lctf_peak > 0 && o.lctf_peak <= 1))
     throw UsageError("simulate-capture: the LCTF's peak transmission is in (0, 1]");
   if (!o.grid && !brdf::material_catalogue().count(o.material))
@@ -248,6 +149,7 @@ double vignetting_factor(const SimulatorOptions& o, int u, int v) {
 // The folders the images of `cap` go in.
 void make_image_directories(const fs::path& dir, const Capture& cap, std::size_t lights) {
   for (const char* sub : {"mirror", "flat", "target", "scene"}) fs::create_directories(dir / sub);
+  if (!cap.holdout.empty()) fs::create_directories(dir / "holdout");
   for (const auto& t : cap.targets) fs::create_directories(dir / "target" / t.name);
   for (std::size_t l = 0; l < lights; ++l) fs::create_directories(dir / "scene" / fmt::format("L{:03}", l));
 }
@@ -275,6 +177,36 @@ std::pair<std::vector<double>, std::vector<double>> flat_and_target_sums(const s
         target_sum[t * B + j] += w[j][k] * interpolate(bands, targets[t].reflectance, nm[k]);
   }
   return {flat_sum, target_sum};
+}
+
+// Per held-out patch and channel (p * B + j), the weights times the table's reflectance (linear between its
+// wavelengths, constant beyond); then, at B * patches + j, the chart's dark body (a flat 0.05).
+std::vector<double> holdout_sums(const std::vector<std::vector<double>>& w, const SimulatorOptions& o,
+                                 const std::vector<double>& nm) {
+  if (!o.holdout) return {};
+  const store::Collection& t = *o.holdout;
+  const std::size_t B = w.size(), nb = t.bands(), n = t.size();
+  const std::vector<double> x(t.wavelengths.values().begin(), t.wavelengths.values().end());
+  std::vector<double> sums((n + 1) * B, 0.0);
+  for (std::size_t p = 0; p <= n; ++p) {
+    const std::vector<double> y = p < n ? std::vector<double>(t.values.begin() + std::ptrdiff_t(p * nb),
+                                                              t.values.begin() + std::ptrdiff_t((p + 1) * nb))
+                                        : std::vector<double>(nb, 0.05);
+    for (std::size_t j = 0; j < B; ++j)
+      for (std::size_t k = 0; k < nm.size(); ++k) sums[p * B + j] += w[j][k] * interpolate(x, y, nm[k]);
+  }
+  return sums;
+}
+
+// Which held-out patch each pixel of the chart shows (the patches' count for the chart's body).
+std::vector<std::size_t> holdout_pixels(const Capture& cap) {
+  std::vector<std::size_t> patch(std::size_t(cap.width) * std::size_t(cap.height), cap.holdout.size());
+  for (std::size_t i = 0; i < cap.holdout.size(); ++i) {
+    const HoldoutPatch& p = cap.holdout[i];
+    for (int v = p.v0; v < p.v1; ++v)
+      for (int u = p.u0; u < p.u1; ++u) patch[std::size_t(v) * std::size_t(cap.width) + std::size_t(u)] = i;
+  }
+  return patch;
 }
 
 // A mirror sphere in the same place: the light's reflection is a small bright spot (a source of 1 degree), found by
@@ -333,7 +265,12 @@ std::vector<Job> image_jobs(const SimulatorOptions& o, const Capture& cap, const
           last = time(j, e), add(ImageKind::target, -1, int(j), int(t), last,
                                  fmt::format("target/{}/{}-{}.png", cap.targets[t].name, channel(j), ms(last)));
   // A filter whose scaled bracket passes the longest exposure (60 s) takes it once: clamped exposures are not
-  // repeated.
+  // repeated. The held-out chart has the scene's bracket.
+  for (std::size_t j = 0; j < B && !cap.holdout.empty(); ++j)
+    for (double last = -1; const double e : o.exposures_s)
+      if (time(j, e) != last)
+        last = time(j, e),
+        add(ImageKind::holdout, -1, int(j), -1, last, fmt::format("holdout/{}-{}.png", channel(j), ms(last)));
   for (std::size_t l = 0; l < rig.lights; ++l)
     for (std::size_t j = 0; j < B; ++j) {
       double last = -1;
@@ -403,6 +340,7 @@ Capture capture_description(const SimulatorOptions& o, const std::vector<double>
   cap.light_spectrum_nm = nm;
   cap.light_spectrum.assign(light.data(), light.data() + light.size());
   cap.targets = default_targets(o.bands);
+  if (o.holdout) cap.holdout = holdout_chart(*o.holdout, o.bands, o.width, o.height);
   cap.filters = o.filters;
   // The manufacturer's transmission data: the passbands without the camera's quantum efficiency.
   for (std::size_t j = 0; j < B && !o.filters; ++j) {
@@ -520,6 +458,8 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
   // What a flat field and each target send through each channel (the same at every pixel but for vignetting).
   const auto [flat_sum, target_sum] = flat_and_target_sums(w, o.bands, cap.targets, nm);
   const std::vector<Job> jobs = image_jobs(o, cap, flat_sum);
+  const std::vector<double> chart_sum = holdout_sums(w, o, nm);
+  const std::vector<std::size_t> chart_patch = holdout_pixels(cap);
   make_image_directories(dir, cap, rig.lights);
 
   std::vector<float> scene_rate;
@@ -549,6 +489,9 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
             case ImageKind::target:
               rate = o.brightness * vignette(u, v) * target_sum[std::size_t(im.target) * B + std::size_t(im.band)];
               break;
+            case ImageKind::holdout:
+              rate = o.brightness * vignette(u, v) * chart_sum[chart_patch[p] * B + std::size_t(im.band)];
+              break;
             case ImageKind::mirror: {
               if (coverage[p] > 0)
                 rate = mirror_rate(u, v, cx, cy, light_position(rig, std::size_t(im.light)), rig, centre, radius);
@@ -560,12 +503,17 @@ Capture simulate_capture(const SimulatorOptions& opt, const fs::path& dir) {
       store::write_png_gray16(dir / im.file, std::size_t(W), std::size_t(H), img, true);
     });
   };
-  // Calibration images first, then the scene light by light (one light's rates in memory at a time).
-  const std::size_t per_light = B * o.exposures_s.size(), scene_first = jobs.size() - rig.lights * per_light;
-  render(0, scene_first);
+  // Calibration images first, then the scene light by light (one light's rates in memory at a time). A light's
+  // count of images varies when a filter's clamped exposures were not repeated.
+  std::size_t first = 0;
+  while (first < jobs.size() && jobs[first].image.kind != ImageKind::scene) ++first;
+  render(0, first);
   for (std::size_t l = 0; l < rig.lights; ++l) {
+    std::size_t last = first;
+    while (last < jobs.size() && jobs[last].image.light == int(l)) ++last;
     scene_rate = light_rates(o, rig, pixels, *material, w, l);
-    render(scene_first + l * per_light, scene_first + (l + 1) * per_light);
+    render(first, last);
+    first = last;
   }
   for (const Job& j : jobs) cap.images.push_back(j.image);
   write_manifest(dir, cap);

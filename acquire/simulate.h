@@ -15,6 +15,7 @@
 #include "specula/acquire/filter_set.h"
 #include "specula/acquire/scan.h"
 #include "specula/core/brdf_models.h"
+#include "specula/store/cube.h"
 #include "specula/store/grid.h"
 
 namespace specula::acquire {
@@ -42,6 +43,10 @@ struct SimulatorOptions {
   /// bracket above divided by the filter's white signal relative to the LCTF's strongest band.
   std::optional<FilterSet> filters;
   double lctf_peak = 0.35;  ///< the LCTF's peak transmission, the scale filter captures are exposed against
+  /// Held-out reflectance patches (a table, linear between its wavelengths, constant beyond them) imaged as a chart
+  /// in the targets' place through every channel with the scene's bracket (holdout_chart lays them out); the
+  /// manifest records them, calibration never uses them.
+  std::optional<store::Collection> holdout;
   unsigned seed = 1;
   int threads_hint = 0;  ///< unused by results: the images do not depend on the thread count
 };

@@ -17,6 +17,7 @@
 #include "specula/acquire/capture.h"
 #include "specula/acquire/filter_design.h"
 #include "specula/acquire/hdr.h"
+#include "specula/acquire/holdout.h"
 #include "specula/acquire/incidence.h"
 #include "specula/acquire/mapping.h"
 #include "specula/acquire/pipeline.h"
@@ -103,19 +104,18 @@ std::pair<std::string, std::string> split_output(const std::string& spec, const 
   return {spec, fallback};
 }
 
-// Figures 4.6-4.9: each target's known reflectance against the delta and factored recoveries.
-void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::path& dir,
-                  const acquire::Calibration& c) {
+// Figures 4.6-4.9: each target's known reflectance against the delta and factored recoveries, into `png`.
+void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::path& png,
+                  const std::vector<acquire::TargetReport>& targets, const std::vector<double>& bands) {
   std::string script;
-  for (std::size_t t = 0; t < c.targets.size(); ++t) {
-    script += fmt::format("$T{} << EOD\n{}EOD\n", t, acquire::target_table(c.targets[t], c.spectral.bands));
-  }
-  const std::size_t n = c.targets.size(), cols = std::min<std::size_t>(n, 3), rows = (n + cols - 1) / cols;
+  for (std::size_t t = 0; t < targets.size(); ++t)
+    script += fmt::format("$T{} << EOD\n{}EOD\n", t, acquire::target_table(targets[t], bands));
+  const std::size_t n = targets.size(), cols = std::min<std::size_t>(n, n > 9 ? 6 : 3), rows = (n + cols - 1) / cols;
   script += fmt::format(
       "set multiplot layout {},{}\nset grid\nset key bottom right\nset xlabel 'wavelength (nm)'\nset yrange [0:1.1]\n",
       rows, cols);
   for (std::size_t t = 0; t < n; ++t) {
-    const auto& r = c.targets[t];
+    const auto& r = targets[t];
     script += "set title " +
               gnuplot_quote(
                   fmt::format("{} ({}): RMS {} {:.4f}{}", r.name, r.held_out ? "held out" : "fitted",
@@ -129,7 +129,58 @@ void plot_targets(const std::filesystem::path& gnuplot, const std::filesystem::p
         t, r.filters.size() ? "filters" : "delta");
   }
   script += "unset multiplot\n";
-  plot_png(gnuplot, dir / "spectral-calibration.png", gnuplot_png_terminal(int(cols) * 420, int(rows) * 320), script);
+  plot_png(gnuplot, png, gnuplot_png_terminal(int(cols) * 420, int(rows) * 320), script);
+}
+
+// The held-out patches as target reports (held out, recovered by the capture's model) for plot_targets.
+std::vector<acquire::TargetReport> holdout_as_targets(const std::vector<acquire::HoldoutReport>& holdout,
+                                                      const acquire::Calibration& c) {
+  std::vector<acquire::TargetReport> out;
+  for (const auto& h : holdout) {
+    acquire::TargetReport r{h.name, true, h.truth};
+    const Eigen::VectorXd recovered = h.pixels ? h.recovered : Eigen::VectorXd::Constant(h.truth.size(), NAN);
+    if (c.spectral.model == acquire::SpectralModel::filters)
+      r.filters = recovered, r.rms_filters = h.rms;
+    else
+      r.delta = recovered, r.rms_delta = h.rms;
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+// Mean and largest eq 4.8 over the held-out patches that had usable pixels (-1 when none had).
+std::pair<double, double> holdout_summary(const std::vector<acquire::HoldoutReport>& holdout) {
+  double sum = 0, worst = -1;
+  std::size_t n = 0;
+  for (const auto& h : holdout)
+    if (h.rms >= 0) sum += h.rms, worst = std::max(worst, h.rms), ++n;
+  return {n ? sum / double(n) : -1.0, worst};
+}
+
+Json holdout_json(const std::vector<acquire::HoldoutReport>& holdout) {
+  Json patches = Json::array();
+  for (const auto& h : holdout)
+    patches.push_back({{"name", h.name},
+                       {"rms", h.rms},
+                       {"recovered", std::vector<double>(h.recovered.data(), h.recovered.data() + h.recovered.size())},
+                       {"pixel_rms", h.pixel_rms},
+                       {"pixels", h.pixels},
+                       {"rejected", h.rejected}});
+  const auto [mean, worst] = holdout_summary(holdout);
+  return {{"patches", std::move(patches)}, {"rms_mean", mean}, {"rms_max", worst}};
+}
+
+void print_holdout(const std::vector<acquire::HoldoutReport>& holdout) {
+  fmt::print(
+      "held-out patches (never used by calibration), recovered from their images:\n"
+      "  patch                     RMS (eq 4.8)  per-pixel RMS  pixels\n");
+  for (const auto& h : holdout)
+    fmt::print("  {:<24}  {}  {}  {} ({} rejected)\n", h.name,
+               h.rms >= 0 ? fmt::format("{:12.5f}", h.rms) : fmt::format("{:>12}", "-"),
+               h.pixel_rms >= 0 ? fmt::format("{:13.5f}", h.pixel_rms) : fmt::format("{:>13}", "-"), h.pixels,
+               h.rejected);
+  const auto [mean, worst] = holdout_summary(holdout);
+  fmt::print("  mean {:.5f}, largest {:.5f}\n", mean, worst);
 }
 
 // A simulated capture's material on `wavelengths` (a named material or the grid it was simulated from), or null.
@@ -310,6 +361,8 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
       throw InputError(store_path + ": the stored calibration has " + std::to_string(c.spectral.bands.size()) +
                        " bands, the capture " + std::to_string(cap.bands.size()));
   }
+  const std::vector<acquire::HoldoutReport> holdout =
+      calibrate ? acquire::recover_holdout(cap, o.capture, c, po) : std::vector<acquire::HoldoutReport>{};
   const double calibrate_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cal).count();
   const auto t_ext = std::chrono::steady_clock::now();
   acquire::ExtractResult r;
@@ -322,7 +375,11 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
   const double extract_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_ext).count();
   if (!o.plots.empty()) {
     std::filesystem::create_directories(o.plots);
-    if (calibrate) plot_targets(gnuplot, o.plots, c);
+    if (calibrate)
+      plot_targets(gnuplot, std::filesystem::path(o.plots) / "spectral-calibration.png", c.targets, c.spectral.bands);
+    if (!holdout.empty())
+      plot_targets(gnuplot, std::filesystem::path(o.plots) / "holdout-patches.png", holdout_as_targets(holdout, c),
+                   c.spectral.bands);
     if (extract) plot_incidence(gnuplot, o.plots, store::Store::open(store_path), name, cap, o);
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -344,6 +401,7 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
     j["sphere_pixels"] = r.sphere_pixels;
     j["rejected"] = std::move(rejected);
     add_calibration_json(j, cap, c);
+    if (!holdout.empty()) j["holdout"] = holdout_json(holdout);
     if (truth_err >= 0) {
       j["truth_median_rel_error"] = truth_err;
       j["truth_median_ratio"] = truth_ratio;
@@ -356,6 +414,7 @@ void run_acquire(const AcquireOptions& o, bool calibrate, bool extract) {
     return;
   }
   if (calibrate) print_calibration(cap, c);
+  if (!holdout.empty()) print_holdout(holdout);
   if (const auto [mean, worst] = acquire::light_direction_error(cap, c); mean >= 0)
     fmt::print("light directions against the manifest's truth: mean {:.3f} deg, largest {:.3f} deg\n", mean, worst);
   if (extract) {

@@ -94,6 +94,10 @@ void setup_filters(CLI::App& app) {
       ->capture_default_str();
   d->add_option("--solve", o->solve, "wiener (the training spectra's second moment as prior) or ridge (in the basis)")
       ->capture_default_str();
+  d->add_option(
+       "--colour-weight", o->design.colour_weight,
+       "optimal: weight of the expected XYZ error under D65 and A against the spectral error (0: spectral only)")
+      ->capture_default_str();
   d->add_option("--ridge", o->design.ridge, "Regularisation of the solve (relative to the system's trace)")
       ->capture_default_str();
   d->add_option("--peak", o->design.peak, "Largest transmission of a curve")->capture_default_str();

@@ -14,6 +14,7 @@
 #include "specula/core/brdf_materials.h"
 #include "specula/core/error.h"
 #include "specula/core/wavelengths.h"
+#include "specula/store/io/csv.h"
 #include "specula/store/object_spec.h"
 
 namespace specula::app {
@@ -26,6 +27,7 @@ struct SimulateCaptureOptions {
   std::string bands = "420:720:10";
   std::string passband = "gaussian";
   std::string filters;
+  std::string holdout;
   bool no_noise = false;
   bool json = false;
 };
@@ -46,6 +48,7 @@ void run_simulate_capture(SimulateCaptureOptions o) {
     o.sim.filters = acquire::read_filters_csv(o.filters);
     acquire::check_filters(*o.sim.filters, o.sim.bands, o.filters);
   }
+  if (!o.holdout.empty()) o.sim.holdout = store::read_csv_collection(o.holdout);
   o.sim.noise = !o.no_noise;
   // The sphere sits a little off the optical axis (5 % and 2 % of its image diameter), as on the real rig.
   o.sim.rig.off_axis = 0.05 * o.sim.rig.sphere_px / o.sim.rig.focal_px * o.sim.rig.distance;
@@ -79,6 +82,7 @@ void run_simulate_capture(SimulateCaptureOptions o) {
       if (im.kind == acquire::ImageKind::scene) ++scene, exposure += im.exposure_s;
     j["scene_images"] = scene;
     j["scene_exposure_s"] = exposure;
+    j["holdout_patches"] = c.holdout.size();
     j["seconds"] = seconds;
     print_json(j);
     return;
@@ -111,6 +115,9 @@ void setup_simulate_capture(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--filters", o->filters,
                   "Filter CSV (specula filters design): a filter wheel instead of the LCTF, exposures per filter");
+  cmd->add_option("--holdout-targets", o->holdout,
+                  "Reflectance table (CSV, as specula import reads) imaged as a chart of held-out patches that "
+                  "acquire run recovers and never calibrates on");
   cmd->add_option("--lctf-peak", o->sim.lctf_peak,
                   "The LCTF's peak transmission (filter captures are exposed "
                   "relative to it)")

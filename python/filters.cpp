@@ -62,7 +62,7 @@ void init_filters(py::module_& m) {
       "design_filters",
       [](const StoreArg& store_arg, const std::string& basis, int k, const std::string& method, double noise,
          double min_throughput, bool equal_exposure, const std::string& solve, double ridge, double peak,
-         double light_kelvin, const OptStr& train, const OptStr& test) {
+         double light_kelvin, double colour_weight, const OptStr& train, const OptStr& test) {
         if (py::isinstance<py::list>(store_arg) || py::isinstance<py::tuple>(store_arg))
           throw UsageError("design_filters: give one store (a path or a specula.Store)");
         const std::vector<store::Store> stores = stores_from(store_arg);
@@ -72,6 +72,7 @@ void init_filters(py::module_& m) {
                                        .noise = noise,
                                        .per_filter_exposure = !equal_exposure,
                                        .min_throughput = min_throughput,
+                                       .colour_weight = colour_weight,
                                        .ridge = ridge,
                                        .peak = peak,
                                        .light_kelvin = light_kelvin};
@@ -92,7 +93,7 @@ void init_filters(py::module_& m) {
       py::arg("store"), py::arg("basis"), py::arg("k") = 6, py::kw_only(), py::arg("method") = "optimal",
       py::arg("noise") = 0.002, py::arg("min_throughput") = 0.01, py::arg("equal_exposure") = false,
       py::arg("solve") = "wiener", py::arg("ridge") = 1e-3, py::arg("peak") = 0.9, py::arg("light_kelvin") = 3200.0,
-      py::arg("train") = py::none(), py::arg("test") = py::none(),
+      py::arg("colour_weight") = acquire::FilterDesignOptions{}.colour_weight, py::arg("train") = py::none(), py::arg("test") = py::none(),
       "Designs k broadband filters for basis `basis` of `store` as `specula filters design` does (docs/filters.md): "
       "method 'optimal' (super-Gaussians minimising the expected reconstruction error under camera noise) or 'nmf' "
       "(smoothed NMF components). Returns a dict: names, wavelengths (n,) and transmission (k, n) float64 (what "

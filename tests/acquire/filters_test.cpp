@@ -9,6 +9,7 @@
 #include <cmath>
 #include <random>
 
+#include "acquire/small_rig.h"
 #include "specula/acquire/filter_design.h"
 #include "specula/acquire/filters.h"
 #include "specula/acquire/spectral.h"
@@ -19,11 +20,7 @@ using namespace specula::acquire;
 
 namespace {
 
-std::vector<double> bands_420_720() {
-  std::vector<double> b;
-  for (int l = 420; l <= 720; l += 10) b.push_back(l);
-  return b;
-}
+using test::bands_420_720;
 
 // K Gaussian filters of width `sigma` spread over 420-720 nm, tabulated every `step` nm over 400-740.
 FilterSet gaussians(int k, double sigma, double step = 2) {
@@ -46,6 +43,34 @@ Tabulated smooth_light() {
     s.value.push_back(0.4 + l / 800);
   }
   return s;
+}
+
+// n smooth random reflectances on 420-720 nm (rows): a base, a bump of random place and width and a broad one.
+Eigen::MatrixXd smooth_spectra(Eigen::Index n, unsigned seed) {
+  const std::vector<double> bands = bands_420_720();
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  Eigen::MatrixXd spectra(n, Eigen::Index(bands.size()));
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double c1 = 420 + 300 * u(rng), c2 = 420 + 300 * u(rng), w1 = 30 + 80 * u(rng), base = 0.05 + 0.2 * u(rng);
+    for (Eigen::Index b = 0; b < spectra.cols(); ++b) {
+      const double l = bands[std::size_t(b)];
+      spectra(i, b) =
+          base + 0.6 * std::exp(-0.5 * std::pow((l - c1) / w1, 2)) + 0.2 * std::exp(-0.5 * std::pow((l - c2) / 60, 2));
+    }
+  }
+  return spectra;
+}
+
+// A PCA basis of the spectra (rows on 420-720 nm): their mean and first k components.
+store::Basis pca_basis(const Eigen::MatrixXd& spectra, Eigen::Index k) {
+  store::Basis pca;
+  pca.method = "pca";
+  pca.wavelengths = WavelengthGrid(bands_420_720());
+  pca.mean = spectra.colwise().mean().transpose();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(spectra.rowwise() - pca.mean.transpose(), Eigen::ComputeThinV);
+  pca.components = svd.matrixV().leftCols(k).transpose();
+  return pca;
 }
 
 std::string error_of(const std::string& text) {
@@ -184,23 +209,8 @@ TEST(FilterDesign, CurvesAreSmoothBoundedTransmissionsAndTheOptimumBeatsNmf) {
   // non-negative bumps.
   const std::vector<double> bands = bands_420_720();
   const Eigen::Index B = Eigen::Index(bands.size());
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<double> u(0, 1);
-  Eigen::MatrixXd spectra(300, B);
-  for (Eigen::Index i = 0; i < spectra.rows(); ++i) {
-    const double c1 = 420 + 300 * u(rng), c2 = 420 + 300 * u(rng), w1 = 30 + 80 * u(rng), base = 0.05 + 0.2 * u(rng);
-    for (Eigen::Index b = 0; b < B; ++b) {
-      const double l = bands[std::size_t(b)];
-      spectra(i, b) =
-          base + 0.6 * std::exp(-0.5 * std::pow((l - c1) / w1, 2)) + 0.2 * std::exp(-0.5 * std::pow((l - c2) / 60, 2));
-    }
-  }
-  store::Basis pca;
-  pca.method = "pca";
-  pca.wavelengths = WavelengthGrid(bands);
-  pca.mean = spectra.colwise().mean().transpose();
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(spectra.rowwise() - pca.mean.transpose(), Eigen::ComputeThinV);
-  pca.components = svd.matrixV().leftCols(6).transpose();
+  const Eigen::MatrixXd spectra = smooth_spectra(300, 5);
+  const store::Basis pca = pca_basis(spectra, 6);
   store::Basis nmf;
   nmf.method = "nmf";
   nmf.wavelengths = pca.wavelengths;
@@ -367,4 +377,51 @@ TEST(FilterDesign, ThroughputAndTheExposureCapsNoiseFloor) {
   FilterDesignOptions o;
   o.min_throughput = 1;
   EXPECT_THROW(check_filter_design(o), UsageError);
+}
+
+TEST(FilterDesign, ColourRowsGiveTheIlluminantsWhitePoints) {
+  // A white reflectance's XYZ under D65 and A, against CIE's published white points (2 degree; band sums over
+  // 420-720 nm every 10 nm miss the tails, hence 4 %).
+  const Eigen::MatrixXd c = colour_rows(bands_420_720()) * std::sqrt(6.0);
+  const Eigen::VectorXd white = c * Eigen::VectorXd::Ones(c.cols());
+  const double expected[6] = {0.9505, 1.0, 1.0888, 1.0985, 1.0, 0.3558};
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(white[i] / expected[i], 1.0, 0.04) << i;
+  EXPECT_NEAR(white[1], 1.0, 1e-12);
+  EXPECT_NEAR(white[4], 1.0, 1e-12);
+  EXPECT_GE(c.minCoeff(), 0.0);
+}
+
+TEST(FilterDesign, TheColourTermLowersTheExpectedColourError) {
+  const std::vector<double> bands = bands_420_720();
+  const Eigen::Index B = Eigen::Index(bands.size());
+  const Eigen::MatrixXd spectra = smooth_spectra(200, 7);
+  const store::Basis pca = pca_basis(spectra, 4);
+  FilterDesignOptions o;
+  o.k = 4;
+  o.colour_weight = 0;
+  const FilterSet spectral = design_filters(pca, spectra, o);
+  o.colour_weight = 1;
+  const FilterSet coloured = design_filters(pca, spectra, o);
+  // Each design's expected error, spectral and of colour, under the Wiener solve with each filter's noise.
+  const Eigen::MatrixXd m = spectra.transpose() * spectra / double(spectra.rows()), rows = colour_rows(bands);
+  const Tabulated s = design_sensitivity(o.light_kelvin);
+  auto errors = [&](const FilterSet& f) {
+    const std::vector<double> w = filter_throughput(f, bands, s);
+    Eigen::VectorXd sigma(Eigen::Index(w.size()));
+    for (std::size_t k = 0; k < w.size(); ++k) sigma[Eigen::Index(k)] = o.noise * std::max(w[k], o.min_throughput);
+    FilterSet open;
+    open.names = {"open"};
+    open.nm = bands;
+    open.transmission = {std::vector<double>(bands.size(), 1.0)};
+    const Eigen::MatrixXd a = filter_system(f, bands, s, 1)[0] / filter_system(open, bands, s, 1)[0].sum();
+    const Eigen::MatrixXd r = filter_wiener_recovery(a, m, sigma);
+    const Eigen::MatrixXd e = Eigen::MatrixXd::Identity(B, B) - r * a, ce = rows * e;
+    return std::pair{((e * m * e.transpose()).trace() + (r * sigma.asDiagonal()).squaredNorm()) / double(B),
+                     (ce * m * ce.transpose()).trace() + (rows * r * sigma.asDiagonal()).squaredNorm()};
+  };
+  const auto [spectral_s, spectral_c] = errors(spectral);
+  const auto [coloured_s, coloured_c] = errors(coloured);
+  EXPECT_LT(coloured_c, spectral_c);
+  EXPECT_LT(coloured_s + coloured_c, spectral_s + spectral_c);
+  EXPECT_LE(spectral_s, coloured_s * (1 + 1e-9));  // the spectral design is the better one on its own criterion
 }

@@ -113,7 +113,7 @@ TEST(Simulator, BadCapturesAreRefusedWithOneLine) {
   };
   refuse("{ not json", "not valid JSON");
   refuse(std::regex_replace(good, std::regex("specula-capture"), "other"), "not a specula capture manifest");
-  refuse(std::regex_replace(good, std::regex("\"version\": 2"), "\"version\": 9"), "version 9");
+  refuse(std::regex_replace(good, std::regex("\"version\": 3"), "\"version\": 9"), "version 9");
   refuse(std::regex_replace(good, std::regex("\"band\": 2"), "\"band\": 7", std::regex_constants::format_first_only),
          "band 7");
   refuse(std::regex_replace(good, std::regex("scene/L000/B450-1ms.png"), "../escape.png"),

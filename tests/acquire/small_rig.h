@@ -7,6 +7,13 @@
 
 namespace specula::test {
 
+/// The LCTF's default bands: 420 to 720 nm every 10.
+inline std::vector<double> bands_420_720() {
+  std::vector<double> b;
+  for (int l = 420; l <= 720; l += 10) b.push_back(l);
+  return b;
+}
+
 inline acquire::SimulatorOptions small_rig(int size, double sphere_px, std::size_t lights, double step_deg,
                                            std::vector<double> bands, bool noise) {
   acquire::SimulatorOptions o;

@@ -60,7 +60,7 @@ TEST(FiltersCli, DesignSimulateAndReconstruct) {
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(json_number(r.output, "channels"), 4);
   EXPECT_EQ(json_number(r.output, "scene_images"), 3 * 4 * 11);
-  EXPECT_NE(test::read_bytes(std::filesystem::path(cap) / "manifest.json").find("\"version\": 2"), std::string::npos);
+  EXPECT_NE(test::read_bytes(std::filesystem::path(cap) / "manifest.json").find("\"version\": 3"), std::string::npos);
   r = run_specula("acquire run '" + cap + "' -o '" + out + ":scan' --basis '" + db +
                   ":pca' --fit-targets red,green,blue,yellow,white --filter-terms 3 --json");
   ASSERT_EQ(r.status, 0) << r.output;
@@ -152,7 +152,7 @@ TEST(FiltersCli, VersionOneCapturesStillRead) {
             0);
   const auto manifest = std::filesystem::path(cap) / "manifest.json";
   std::string text = test::read_bytes(manifest);
-  const auto at = text.find("\"version\": 2");
+  const auto at = text.find("\"version\": 3");
   ASSERT_NE(at, std::string::npos);
   text.replace(at, 12, "\"version\": 1");
   test::write_file(manifest, text);
