@@ -93,7 +93,8 @@ void init_filters(py::module_& m) {
       py::arg("store"), py::arg("basis"), py::arg("k") = 6, py::kw_only(), py::arg("method") = "optimal",
       py::arg("noise") = 0.002, py::arg("min_throughput") = 0.01, py::arg("equal_exposure") = false,
       py::arg("solve") = "wiener", py::arg("ridge") = 1e-3, py::arg("peak") = 0.9, py::arg("light_kelvin") = 3200.0,
-      py::arg("colour_weight") = acquire::FilterDesignOptions{}.colour_weight, py::arg("train") = py::none(), py::arg("test") = py::none(),
+      py::arg("colour_weight") = acquire::FilterDesignOptions{}.colour_weight, py::arg("train") = py::none(),
+      py::arg("test") = py::none(),
       "Designs k broadband filters for basis `basis` of `store` as `specula filters design` does (docs/filters.md): "
       "method 'optimal' (super-Gaussians minimising the expected reconstruction error under camera noise) or 'nmf' "
       "(smoothed NMF components). Returns a dict: names, wavelengths (n,) and transmission (k, n) float64 (what "
