@@ -180,7 +180,9 @@ TEST(Resampler, RenkaEqualsABruteForceModifiedShepardAndIsContinuous) {
     const brdf::StdAngles at{0.3 + 0.9 * i / steps, 0.0, 0.7, 2.0 - 1.2 * i / steps};
     ASSERT_TRUE(renka.predict(at, out));
     const double r = out[0];
-    if (i % 500 == 0) EXPECT_NEAR(r, brute(at), 1e-5 * std::abs(r)) << i;
+    if (i % 500 == 0) {
+      EXPECT_NEAR(r, brute(at), 1e-5 * std::abs(r)) << i;
+    }
     ASSERT_TRUE(shepard.predict(at, out));
     if (i > 0) {
       jump_r = std::max(jump_r, std::abs(r - prev_r));
