@@ -310,6 +310,17 @@ RglMicrofacet rgl_microfacet(std::span<const float> values, std::size_t channels
   return mf;
 }
 
+std::vector<float> rgl_vndf(std::span<const double> ndf, double theta_i, const RglExportSettings& s) {
+  check(s);
+  if (ndf.size() < 2) throw UsageError("rgl_vndf: at least 2 ndf nodes");
+  std::vector<float> rows(2 * ndf.size());
+  for (std::size_t k = 0; k < rows.size(); ++k) rows[k] = float(ndf[k % ndf.size()]);
+  const std::size_t V = s.vndf_resolution;
+  std::vector<float> out(V * V);
+  vndf_slice(Warp2D(rows, ndf.size(), 2, {}, false), brdf::direction(theta_i, 0), s, out, V);
+  return out;
+}
+
 std::vector<float> rgl_theta_i(std::span<const double> sigma, std::size_t n) {
   if (n < 2 || sigma.size() < 2) throw UsageError("rgl_theta_i: at least 2 elevations and 2 sigma nodes");
   std::vector<float> theta(n);

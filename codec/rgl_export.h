@@ -64,6 +64,11 @@ RglMicrofacet rgl_microfacet(std::span<const float> values, std::size_t channels
 /// strictly ascending in float, as export_rgl places them.
 std::vector<float> rgl_theta_i(std::span<const double> sigma, std::size_t n);
 
+/// The vndf table export_rgl writes for incident elevation theta_i (vndf_resolution^2 values, rows in phi) from D at
+/// nodes uniform in u (read linearly): the mixture of RglExportSettings; with vndf_exponent 1, vndf_floor 0 and
+/// vndf_uniform 0, the visible-normal density D(m) <wi . m>+ times the square's Jacobian, as the published files hold.
+std::vector<float> rgl_vndf(std::span<const double> ndf, double theta_i, const RglExportSettings& settings);
+
 /// The pieces of the construction, exposed for tests: D at ndf_nodes nodes u_k = k / (n - 1) (theta = u^2 pi / 2)
 /// from the retro-reflection `retro` (values at those nodes), normalised so that sigma(0) = 1.
 std::vector<double> rgl_ndf_from_retro(std::span<const double> retro, std::size_t iterations);
