@@ -115,7 +115,8 @@ std::vector<double> RglEvaluator::albedo(double theta_i, std::size_t n) const {
 void RglEvaluator::merl_cell(std::size_t cell, std::span<double> out) const {
   Eigen::Vector3d wi, wo;
   brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(cell)), wi, wo);
-  std::vector<double> g(channels_);
+  thread_local std::vector<double> g;  // one per thread: no allocation per cell of an import
+  g.resize(channels_);
   eval(wi, wo, out);
   eval(wo, wi, g);
   const double a = wo.z(), b = wi.z();
