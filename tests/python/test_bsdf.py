@@ -18,12 +18,18 @@ def spgrid(tmp_path_factory):
     return path
 
 
-def test_write_then_read_reproduces_the_grid(spgrid, tmp_path):
+@pytest.fixture(scope="module")
+def cli_bsdf(spgrid):
+    path = spgrid.parent / "cli.bsdf"
+    cli("export", spgrid, "-o", path)
+    return path
+
+
+def test_write_then_read_reproduces_the_grid(spgrid, cli_bsdf, tmp_path):
     g = specula.read_spgrid(spgrid)
     out = tmp_path / "bp.bsdf"
     specula.write_bsdf(out, g, description="specula export of " + str(spgrid))
-    cli("export", spgrid, "-o", tmp_path / "cli.bsdf")
-    assert out.read_bytes() == (tmp_path / "cli.bsdf").read_bytes()
+    assert out.read_bytes() == cli_bsdf.read_bytes()
     back = specula.read_bsdf(out)
     np.testing.assert_array_equal(back.wavelengths, g.wavelengths)
     a, b = g.values * g.scale, back.values * back.scale
@@ -60,7 +66,7 @@ def test_read_bsdf_missing_file_is_file_not_found(tmp_path):
         specula.read_bsdf(tmp_path / "nope.bsdf")
 
 
-def test_write_to_a_target_is_the_cli_export_and_reports_its_trials(spgrid, tmp_path):
+def test_write_to_a_target_is_the_cli_export_and_reports_its_trials(spgrid, cli_bsdf, tmp_path):
     g = specula.read_spgrid(spgrid)
     out = tmp_path / "t.bsdf"
     desc = "specula export of " + str(spgrid)
@@ -70,8 +76,8 @@ def test_write_to_a_target_is_the_cli_export_and_reports_its_trials(spgrid, tmp_
     t = report["trials"][0]
     assert (t["theta_i"], t["resolution"], t["met"]) == (8, 32, True)
     assert t["de00_mean"] <= 0.5 and t["de00_p95"] <= 1.5 and t["bytes"] == out.stat().st_size
-    cli("export", spgrid, "-o", tmp_path / "cli.bsdf", "--theta-i", "4", "--resolution", "16", "--target-de00", "0.5")
-    assert out.read_bytes() == (tmp_path / "cli.bsdf").read_bytes()
+    # The CLI's export at that size (its --target-de00 search is tested in tests/apps/bsdf_test.cpp).
+    assert out.read_bytes() == cli_bsdf.read_bytes()
     assert specula.write_bsdf(tmp_path / "plain.bsdf", g, theta_i=2, resolution=2) is None
 
 
