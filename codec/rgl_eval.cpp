@@ -112,22 +112,27 @@ std::vector<double> RglEvaluator::albedo(double theta_i, std::size_t n) const {
   return sum;
 }
 
+void RglEvaluator::merl_cell(std::size_t cell, std::span<double> out) const {
+  Eigen::Vector3d wi, wo;
+  brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(cell)), wi, wo);
+  thread_local std::vector<double> g;  // one per thread: no allocation per cell of an import
+  g.resize(channels_);
+  eval(wi, wo, out);
+  eval(wo, wi, g);
+  const double a = wo.z(), b = wi.z();
+  for (std::size_t ch = 0; ch < channels_; ++ch) out[ch] = (out[ch] * a + g[ch] * b) / (a + b);
+}
+
 std::vector<float> rgl_merl_values(const RglBsdf& bsdf) {
   const RglEvaluator e(bsdf);
   const std::size_t channels = e.channels(), per_h = std::size_t(brdf::kMerlThetaD) * brdf::kMerlPhiD;
   std::vector<float> out(channels * brdf::kMerlCells, -1.0f);
   parallel_for(std::size_t(brdf::kMerlThetaH), [&](std::size_t h) {
-    std::vector<double> f(channels), g(channels);
+    std::vector<double> f(channels);
     for (std::size_t k = 0; k < per_h; ++k) {
       const std::size_t cell = h * per_h + k;
-      const brdf::MerlCell c = brdf::merl_cell(cell);
-      if (!brdf::merl_cell_valid(c)) continue;
-      Eigen::Vector3d wi, wo;
-      brdf::directions(brdf::merl_cell_centre(c), wi, wo);
-      e.eval(wi, wo, f);
-      e.eval(wo, wi, g);
-      const double a = wo.z(), b = wi.z();
-      for (std::size_t ch = 0; ch < channels; ++ch) f[ch] = (f[ch] * a + g[ch] * b) / (a + b);
+      if (!brdf::merl_cell_valid(brdf::merl_cell(cell))) continue;
+      e.merl_cell(cell, f);
       for (std::size_t ch = 0; ch < channels; ++ch) out[ch * brdf::kMerlCells + cell] = float(f[ch]);
     }
   });

@@ -50,6 +50,9 @@ class RglEvaluator {
   double ndf(double u, double v) const;
   double sigma(double theta_i) const;
   const Warp2D& vndf() const { return vndf_; }
+  /// The value rgl_merl_values holds at MERL cell `cell` (whose centre lies above the horizon) into out (channels()
+  /// values): f at the centre with either direction tabulated, cosine-weighted.
+  void merl_cell(std::size_t cell, std::span<double> out) const;
   /// The directional albedo (integral of f cos(theta_o) over the outgoing hemisphere) per channel at incident
   /// elevation theta_i, integrated over the sample square (n x n midpoints) through the vndf warp and its density.
   std::vector<double> albedo(double theta_i, std::size_t n = 128) const;

@@ -110,25 +110,6 @@ void check(const RglExportSettings& s) {
     throw UsageError("RGL export: at most 90 theta_i, a 512 sample grid, 4096 ndf nodes and a 1024 vndf grid");
 }
 
-// Elevations uniform in sigma between sigma(0) = 1 and sigma(pi/2), sigma read from its table linearly in u.
-std::vector<float> theta_nodes(std::span<const double> sigma, std::size_t n) {
-  std::vector<float> theta(n);
-  theta[0] = 0;
-  theta[n - 1] = float(kPi / 2);
-  const double s0 = sigma.front(), s1 = sigma.back();
-  for (std::size_t j = 1; j + 1 < n; ++j) {
-    const double target = s0 - double(j) / double(n - 1) * (s0 - s1);
-    double lo = 0, hi = 1;
-    for (int it = 0; it < 60; ++it) {
-      const double mid = 0.5 * (lo + hi);
-      (at_u(sigma, mid) > target ? lo : hi) = mid;
-    }
-    theta[j] = std::max(float(rgl_u_to_theta(0.5 * (lo + hi))), std::nextafter(theta[j - 1], 2.0f));
-  }
-  for (std::size_t j = n - 1; j-- > 1;) theta[j] = std::min(theta[j], std::nextafter(theta[j + 1], 0.0f));
-  return theta;
-}
-
 // Where a node's half vector reaches the horizon, D(m) -> 0 and f cos(theta_o) 4 sigma / D explodes (for models whose
 // f grows at grazing angles); bilinear interpolation would carry that into every query between such a node and its
 // neighbours. Values above kOutlier times a channel's 99th percentile are clamped there.
@@ -194,28 +175,16 @@ void vndf_slice(const Warp2D& ndf_table, const Eigen::Vector3d& wi, const RglExp
 // The ndf and sigma tables (D from the retro-reflection of `field`, sigma(0) = 1) and theta_i into b.
 void microfacet_tables(const MerlField& field, std::span<const double> lum_weights, const RglExportSettings& s,
                        RglBsdf& b) {
-  const std::size_t C = field.channels(), N = s.ndf_nodes;
-  // Retro-reflection (theta_d = 0) at the ndf nodes, as luminance.
-  std::vector<double> retro(N), f(C), node_theta(N);
-  for (std::size_t k = 0; k < N; ++k) {
-    node_theta[k] = rgl_u_to_theta(double(k) / double(N - 1));
-    double y = 0;
-    if (field.eval(node_theta[k], 0, 0, f))
-      for (std::size_t c = 0; c < C; ++c) y += lum_weights[c] * f[c];
-    retro[k] = std::max(y, 0.0);
-  }
-  const std::vector<double> ndf = rgl_ndf_from_retro(retro, s.power_iterations);
-  std::vector<double> sigma = rgl_sigma(ndf, node_theta);
-  const double sigma0 = sigma[0];
-  for (auto& v : sigma) v /= sigma0;
+  const RglMicrofacet mf = rgl_microfacet(field.values(), field.channels(), field.scale(), lum_weights, s);
+  const std::size_t N = mf.ndf.size();
   b.ndf_width = b.sigma_width = N;
   b.ndf_height = b.sigma_height = 2;
   for (int row = 0; row < 2; ++row)
     for (std::size_t k = 0; k < N; ++k) {
-      b.ndf.push_back(float(ndf[k] / sigma0));
-      b.sigma.push_back(float(sigma[k]));
+      b.ndf.push_back(float(mf.ndf[k]));
+      b.sigma.push_back(float(mf.sigma[k]));
     }
-  b.theta_i = theta_nodes(sigma, s.theta_i);
+  b.theta_i = rgl_theta_i(mf.sigma, s.theta_i);
 }
 
 // Per incident elevation the vndf table and the point samples f cos(theta_o) 4 sigma / D at the nodes of the sample
@@ -315,6 +284,60 @@ std::vector<double> rgl_ndf_from_retro(std::span<const double> retro, std::size_
     for (std::size_t k = 0; k < N; ++k) d[k] = std::max(retro[k], 0.0) * std::cos(theta[k]) * sigma[k];
   }
   return d;
+}
+
+RglMicrofacet rgl_microfacet(std::span<const float> values, std::size_t channels, double scale,
+                             std::span<const double> lum_weights, const RglExportSettings& s) {
+  check(s);
+  if (channels == 0 || values.size() != channels * brdf::kMerlCells || lum_weights.size() != channels)
+    throw UsageError("rgl_microfacet: the BRDF and the luminance weights disagree in size");
+  const MerlField field(values, channels, scale);
+  const std::size_t N = s.ndf_nodes;
+  // Retro-reflection (theta_d = 0) at the ndf nodes, as luminance.
+  std::vector<double> retro(N), f(channels), node_theta(N);
+  for (std::size_t k = 0; k < N; ++k) {
+    node_theta[k] = rgl_u_to_theta(double(k) / double(N - 1));
+    double y = 0;
+    if (field.eval(node_theta[k], 0, 0, f))
+      for (std::size_t c = 0; c < channels; ++c) y += lum_weights[c] * f[c];
+    retro[k] = std::max(y, 0.0);
+  }
+  RglMicrofacet mf{rgl_ndf_from_retro(retro, s.power_iterations), {}};
+  mf.sigma = rgl_sigma(mf.ndf, node_theta);
+  const double sigma0 = mf.sigma[0];
+  for (auto& v : mf.sigma) v /= sigma0;
+  for (auto& v : mf.ndf) v /= sigma0;
+  return mf;
+}
+
+std::vector<float> rgl_vndf(std::span<const double> ndf, double theta_i, const RglExportSettings& s) {
+  check(s);
+  if (ndf.size() < 2) throw UsageError("rgl_vndf: at least 2 ndf nodes");
+  std::vector<float> rows(2 * ndf.size());
+  for (std::size_t k = 0; k < rows.size(); ++k) rows[k] = float(ndf[k % ndf.size()]);
+  const std::size_t V = s.vndf_resolution;
+  std::vector<float> out(V * V);
+  vndf_slice(Warp2D(rows, ndf.size(), 2, {}, false), brdf::direction(theta_i, 0), s, out, V);
+  return out;
+}
+
+std::vector<float> rgl_theta_i(std::span<const double> sigma, std::size_t n) {
+  if (n < 2 || sigma.size() < 2) throw UsageError("rgl_theta_i: at least 2 elevations and 2 sigma nodes");
+  std::vector<float> theta(n);
+  theta[0] = 0;
+  theta[n - 1] = float(kPi / 2);
+  const double s0 = sigma.front(), s1 = sigma.back();
+  for (std::size_t j = 1; j + 1 < n; ++j) {
+    const double target = s0 - double(j) / double(n - 1) * (s0 - s1);
+    double lo = 0, hi = 1;
+    for (int it = 0; it < 60; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (at_u(sigma, mid) > target ? lo : hi) = mid;
+    }
+    theta[j] = std::max(float(rgl_u_to_theta(0.5 * (lo + hi))), std::nextafter(theta[j - 1], 2.0f));
+  }
+  for (std::size_t j = n - 1; j-- > 1;) theta[j] = std::min(theta[j], std::nextafter(theta[j + 1], 0.0f));
+  return theta;
 }
 
 RglBsdf export_rgl(const store::Grid& grid, const RglExportSettings& settings) {

@@ -51,6 +51,24 @@ RglBsdf export_rgl(const store::Grid& grid, const RglExportSettings& settings);
 /// An RGB MERL BRDF as an RGB file (luminance 0.2126 R + 0.7152 G + 0.0722 B).
 RglBsdf export_rgl(const MerlBrdf& brdf, const RglExportSettings& settings);
 
+/// The microfacet tables of an export, at the nodes u_k = k / (n - 1) (theta = u^2 pi / 2) of the ndf table.
+struct RglMicrofacet {
+  std::vector<double> ndf, sigma;  ///< D and sigma, scaled so that sigma(0) = 1
+};
+/// D and sigma as export_rgl builds them from `values` (channels x MERL cells, channel slowest, negative: no data)
+/// times `scale`: D by rgl_ndf_from_retro from the luminance (`lum_weights` per channel) of the retro-reflection
+/// (theta_d = 0, interpolated as between any cells) at settings.ndf_nodes nodes. UsageError for sizes that disagree.
+RglMicrofacet rgl_microfacet(std::span<const float> values, std::size_t channels, double scale,
+                             std::span<const double> lum_weights, const RglExportSettings& settings);
+/// n >= 2 incident elevations uniform in sigma (a table at nodes uniform in u, read linearly) from theta = 0 to pi/2,
+/// strictly ascending in float, as export_rgl places them.
+std::vector<float> rgl_theta_i(std::span<const double> sigma, std::size_t n);
+
+/// The vndf table export_rgl writes for incident elevation theta_i (vndf_resolution^2 values, rows in phi) from D at
+/// nodes uniform in u (read linearly): the mixture of RglExportSettings; with vndf_exponent 1, vndf_floor 0 and
+/// vndf_uniform 0, the visible-normal density D(m) <wi . m>+ times the square's Jacobian, as the published files hold.
+std::vector<float> rgl_vndf(std::span<const double> ndf, double theta_i, const RglExportSettings& settings);
+
 /// The pieces of the construction, exposed for tests: D at ndf_nodes nodes u_k = k / (n - 1) (theta = u^2 pi / 2)
 /// from the retro-reflection `retro` (values at those nodes), normalised so that sigma(0) = 1.
 std::vector<double> rgl_ndf_from_retro(std::span<const double> retro, std::size_t iterations);

@@ -18,12 +18,18 @@ def spgrid(tmp_path_factory):
     return path
 
 
-def test_write_then_read_reproduces_the_grid(spgrid, tmp_path):
+@pytest.fixture(scope="module")
+def cli_bsdf(spgrid):
+    path = spgrid.parent / "cli.bsdf"
+    cli("export", spgrid, "-o", path)
+    return path
+
+
+def test_write_then_read_reproduces_the_grid(spgrid, cli_bsdf, tmp_path):
     g = specula.read_spgrid(spgrid)
     out = tmp_path / "bp.bsdf"
     specula.write_bsdf(out, g, description="specula export of " + str(spgrid))
-    cli("export", spgrid, "-o", tmp_path / "cli.bsdf")
-    assert out.read_bytes() == (tmp_path / "cli.bsdf").read_bytes()
+    assert out.read_bytes() == cli_bsdf.read_bytes()
     back = specula.read_bsdf(out)
     np.testing.assert_array_equal(back.wavelengths, g.wavelengths)
     a, b = g.values * g.scale, back.values * back.scale
@@ -58,3 +64,29 @@ def test_errors_are_input_errors(tmp_path):
 def test_read_bsdf_missing_file_is_file_not_found(tmp_path):
     with pytest.raises(FileNotFoundError, match=str(tmp_path / "nope.bsdf")):
         specula.read_bsdf(tmp_path / "nope.bsdf")
+
+
+def test_write_to_a_target_is_the_cli_export_and_reports_its_trials(spgrid, cli_bsdf, tmp_path):
+    g = specula.read_spgrid(spgrid)
+    out = tmp_path / "t.bsdf"
+    desc = "specula export of " + str(spgrid)
+    report = specula.write_bsdf(out, g, theta_i=4, resolution=16, description=desc, target_de00=0.5)
+    # The ladder starts at its first size not smaller than 4 x 16^2 (8 x 32^2), which an analytic paint meets.
+    assert report["reached"] is True and len(report["trials"]) == 1
+    t = report["trials"][0]
+    assert (t["theta_i"], t["resolution"], t["met"]) == (8, 32, True)
+    assert t["de00_mean"] <= 0.5 and t["de00_p95"] <= 1.5 and t["bytes"] == out.stat().st_size
+    # The CLI's export at that size (its --target-de00 search is tested in tests/apps/bsdf_test.cpp).
+    assert out.read_bytes() == cli_bsdf.read_bytes()
+    assert specula.write_bsdf(tmp_path / "plain.bsdf", g, theta_i=2, resolution=2) is None
+
+
+def test_write_to_a_target_refuses_what_the_cli_refuses(spgrid, tmp_path):
+    g = specula.read_spgrid(spgrid)
+    with pytest.raises(specula.UsageError, match="target_p95 goes with target_de00"):
+        specula.write_bsdf(tmp_path / "a.bsdf", g, target_p95=1.0)
+    with pytest.raises(specula.UsageError, match="drop rgb"):
+        specula.write_bsdf(tmp_path / "b.bsdf", g, rgb=True, target_de00=0.5)
+    with pytest.raises(specula.UsageError, match="must be positive"):
+        specula.write_bsdf(tmp_path / "c.bsdf", g, target_de00=-1.0)
+    assert not any(tmp_path.iterdir())
