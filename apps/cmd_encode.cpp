@@ -80,14 +80,14 @@ void run_encode(const EncodeOptions& o) {
   codec::SpcTransformOptions options{.grazing_factor = o.grazing_factor, .magnitude_scale = o.magnitude_scale};
   if (o.step) options.step = *o.step;
   const bool transform = o.step || o.target_de00;
-  const double p95 = o.target_p95.value_or(3 * o.target_de00.value_or(0));
+  const double p95 = o.target_p95.value_or(codec::default_p95_target(o.target_de00.value_or(0)));
   codec::SpcReport rep;
   codec::SpcTargetReport target_report;
   codec::SpcKReport k_report;
   std::vector<std::uint8_t> bytes;
   const codec::SpcTarget target{.de00_mean = o.target_de00.value_or(0),
                                 .de00_p95 = p95,
-                                .condition_mean = 2 * o.target_de00.value_or(0),
+                                .condition_mean = codec::condition_mean_target(o.target_de00.value_or(0)),
                                 .max_trials = o.trials};
   if (o.target_de00) {
     const codec::LightingSuite suite = o.env == "default"

@@ -12,6 +12,7 @@
 #include "specula/codec/rgl_scene.h"
 #include "specula/codec/rgl_target.h"
 #include "specula/codec/spectral_grid.h"
+#include "specula/codec/suite.h"
 #include "specula/core/error.h"
 #include "specula/core/illuminant.h"
 #include "specula/store/io/csv.h"
@@ -39,7 +40,8 @@ struct ExportOptions {
 // The spectral file of `grid` at the smallest resolution whose import the lighting suite finds within the target.
 codec::RglBsdf export_to_target(const store::Grid& grid, const codec::RglExportSettings& settings,
                                 const ExportOptions& o) {
-  const codec::RglTarget target{.de00_mean = *o.target_de00, .de00_p95 = o.target_p95.value_or(3 * *o.target_de00)};
+  const codec::RglTarget target{.de00_mean = *o.target_de00,
+                                .de00_p95 = o.target_p95.value_or(codec::default_p95_target(*o.target_de00))};
   codec::RglTargetReport report;
   codec::RglBsdf bsdf =
       codec::export_rgl_to_target(grid, settings, target, codec::LightingSuite(grid.wavelengths), report);

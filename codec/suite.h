@@ -68,6 +68,12 @@ struct SuiteDiff {
   std::array<double, 4> albedo_a{}, albedo_b{}, albedo_rel_error{};  ///< at kSuiteAlbedoAngles
 };
 
+/// The pooled 95th-percentile ΔE00 target that goes with a pooled mean target `de00_mean` when none is given: 3x.
+constexpr double default_p95_target(double de00_mean) { return 3 * de00_mean; }
+
+/// The largest single-condition ΔE00 mean that a pooled mean target `de00_mean` allows: 2x.
+constexpr double condition_mean_target(double de00_mean) { return 2 * de00_mean; }
+
 /// The incidence angles (degrees) at which the suite compares directional albedo.
 inline constexpr std::array<double, 4> kSuiteAlbedoAngles{0, 30, 60, 80};
 

@@ -117,12 +117,12 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::op
   codec::SpcTransformOptions options{.magnitude_scale = magnitude_scale};
   if (step) options.step = *step;
   const bool transform = step || target_de00;
-  const double p95 = target_p95.value_or(3 * target_de00.value_or(0));
+  const double p95 = target_p95.value_or(codec::default_p95_target(target_de00.value_or(0)));
   std::optional<codec::LightingSuite> suite;
   if (target_de00) suite.emplace(environment_from(env_arg, grid.wavelengths), codec::SuiteOptions{});
   const codec::SpcTarget t{.de00_mean = target_de00.value_or(0),
                            .de00_p95 = p95,
-                           .condition_mean = 2 * target_de00.value_or(0),
+                           .condition_mean = codec::condition_mean_target(target_de00.value_or(0)),
                            .max_trials = trials};
   codec::SpcReport rep;
   codec::SpcTargetReport target;

@@ -28,7 +28,8 @@ py::object write_bsdf(const py::object& p, const store::Grid& g, bool rgb, std::
     py::gil_scoped_release release;
     codec::RglBsdf b;
     if (target_de00) {
-      const codec::RglTarget t{.de00_mean = *target_de00, .de00_p95 = target_p95.value_or(3 * *target_de00)};
+      const codec::RglTarget t{.de00_mean = *target_de00,
+                               .de00_p95 = target_p95.value_or(codec::default_p95_target(*target_de00))};
       b = codec::export_rgl_to_target(g, s, t, codec::LightingSuite(g.wavelengths), report);
     } else if (rgb) {
       b = codec::export_rgl(
