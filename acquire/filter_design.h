@@ -36,7 +36,8 @@ struct FilterDesignOptions {
   /// reaches the camera's longest and its noise stops falling with its signal (docs/filters.md)
   double min_throughput = 0.01;
   /// optimal: weight of the expected colour error (colour_rows) against the spectral one per band in the criterion
-  double colour_weight = 1;
+  /// (100: chosen on held-out Munsell chips, docs/filters.md)
+  double colour_weight = 100;
   double ridge = 1e-3;         ///< the solve's regularisation (filter_recovery)
   double peak = 0.9;           ///< the curves' largest transmission
   double light_kelvin = 3200;  ///< the light (a blackbody) the design assumes, with the simulated camera's response
