@@ -13,8 +13,8 @@
 
 namespace specula::acquire {
 
-/// Per theta_d index, the number of theta_h rows below the first row holding an observed cell of that theta_d
-/// (kMerlThetaH when the theta_d row holds none).
+/// Per theta_d index, the number of theta_h rows below the lowest row holding an observed cell in the theta_d rows
+/// within 8 of it (kMerlThetaH when none does).
 using UnseenCap = std::array<int, brdf::kMerlThetaD>;
 
 /// The unseen cap of observations obs (cells index valid_cells()).
