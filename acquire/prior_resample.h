@@ -21,7 +21,7 @@ struct PriorResampleOptions {
   bool residuals = false;
   /// true: cells of the unseen cap round the specular peak (acquire/peak_cap.h) take the prior alone (confidence 0)
   /// in the blend; false: the kd-tree estimate as elsewhere. The residuals form ignores it.
-  bool prior_in_cap = false;
+  bool prior_in_cap = true;
 };
 
 /// What one reconstruction with a prior did.
