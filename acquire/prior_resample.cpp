@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "specula/acquire/base_resample.h"
+#include "specula/acquire/peak_cap.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/parallel.h"
@@ -114,13 +115,14 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
     return st;
   }
   std::vector<float> gaps(brdf::kMerlCells, -1.0f);
+  const UnseenCap cap = unseen_cap(obs);
   st.local = resample_grid(SampleTree(src, o.local.mapping), src, o.local, grid, gaps);
   std::fill(confidence.begin(), confidence.end(), -1.0f);
   parallel_for(
       cells.size(),
       [&](std::size_t i) {
         const std::size_t cell = cells[i];
-        const bool local = grid[cell] >= 0;
+        const bool local = grid[cell] >= 0 && !(o.prior_in_cap && in_unseen_cap(cap, cell));
         const double c = local ? support_confidence(gaps[cell], o.local.max_gap, o.confidence_reach) : 0.0;
         confidence[cell] = float(c);
         for (std::size_t k = 0; k < b; ++k) {

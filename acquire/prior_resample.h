@@ -19,6 +19,9 @@ struct PriorResampleOptions {
   /// false: c * local + (1 - c) * prior; true: max(0, prior + c * local estimate of the residuals against the
   /// prior fit) (acquire/base_resample.h, as --model)
   bool residuals = false;
+  /// true: cells of the unseen cap round the specular peak (acquire/peak_cap.h) take the prior alone (confidence 0)
+  /// in the blend; false: the kd-tree estimate as elsewhere. The residuals form ignores it.
+  bool prior_in_cap = true;
 };
 
 /// What one reconstruction with a prior did.

@@ -41,6 +41,7 @@ struct ResampleCliOptions {
   std::string fresnel = "schlick";
   std::string shadowing = "smith";
   bool prior_residuals = false;
+  bool kd_tree_in_cap = false;
 };
 
 // What save_grid would refuse after the work, refused before it: an output that is neither STORE.h5:NAME, a
@@ -114,13 +115,17 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   const acquire::StoreSamples src(s, o.samples);
   store::Grid grid = empty_grid(info);
   std::vector<float> confidence(brdf::kMerlCells);
-  const acquire::PriorResampleOptions po{
-      .local = ro, .fit = {.lambda = o.lambda}, .confidence_reach = o.confidence_reach, .residuals = o.prior_residuals};
+  const acquire::PriorResampleOptions po{.local = ro,
+                                         .fit = {.lambda = o.lambda},
+                                         .confidence_reach = o.confidence_reach,
+                                         .residuals = o.prior_residuals,
+                                         .prior_in_cap = !o.kd_tree_in_cap};
   const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, confidence);
   store::Grid conf = acquire::confidence_grid(confidence, info.wavelengths);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
-  grid.provenance.importer = fmt::format("resample prior={} lambda={} confidence_reach={} mapping={} k={} weights={}",
-                                         o.prior, o.lambda, o.confidence_reach, o.mapping, o.k, o.weights);
+  grid.provenance.importer =
+      fmt::format("resample prior={} lambda={} confidence_reach={} prior_in_cap={} mapping={} k={} weights={}", o.prior,
+                  o.lambda, o.confidence_reach, !o.kd_tree_in_cap, o.mapping, o.k, o.weights);
   conf.provenance.importer = "resample confidence of " + o.output;
   const std::string what = save_prior_grids(grid, conf, o.output, conf_out, o.replace);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -297,6 +302,9 @@ void setup_resample(CLI::App& app) {
   cmd->add_flag("--prior-residuals", o->prior_residuals,
                 "--prior: add the kd-tree estimate of the residuals against the prior fit (as --model) instead of "
                 "blending the two");
+  cmd->add_flag("--kd-tree-in-cap", o->kd_tree_in_cap,
+                "--prior: keep the kd-tree estimate in the theta_h rows below the lowest sampled one (the unseen cap "
+                "round the specular peak) instead of the prior alone there (docs/prior.md)");
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
   cmd->callback([o, power] {
