@@ -33,30 +33,51 @@ std::vector<std::size_t> checked_order(std::span<const double> times, int bit_de
 
 }  // namespace
 
-double hdr_rate_variance(double rate, std::span<const double> times, int bit_depth, const SensorNoise& noise,
-                         const HdrOptions& o) {
-  const std::vector<std::size_t> order = checked_order(times, bit_depth, o);
-  if (!(rate >= 0) || !std::isfinite(rate) || !(noise.read_noise_dn >= 0) || !(noise.electrons_per_dn > 0) ||
-      !(noise.dark_dn >= 0))
+RateVariance::RateVariance(std::span<const double> times, int bit_depth, const SensorNoise& noise, const HdrOptions& o)
+    : noise_(noise) {
+  for (const std::size_t e : checked_order(times, bit_depth, o)) sorted_.push_back(times[e]);
+  if (!(noise.read_noise_dn >= 0) || !(noise.electrons_per_dn > 0) || !(noise.dark_dn >= 0))
     throw UsageError("HDR noise: the rate and read noise must be >= 0, the gain positive, the bias >= 0");
-  const double full = double((1 << bit_depth) - 1), lo = o.low * full, hi = o.high * full;
+  const double full = double((1 << bit_depth) - 1);
+  lo_ = o.low * full;
+  hi_ = o.high * full;
+}
+
+double RateVariance::operator()(double rate) const {
+  rate = std::max(rate, 0.0);
   auto variance = [&](double t) {
-    return noise.read_noise_dn * noise.read_noise_dn + rate * t / noise.electrons_per_dn + 1.0 / 12;
+    return noise_.read_noise_dn * noise_.read_noise_dn + rate * t / noise_.electrons_per_dn + 1.0 / 12;
   };
-  std::vector<double> used;
-  for (const std::size_t e : order)
-    if (const double v = noise.dark_dn + rate * times[e]; v >= lo && v <= hi) used.push_back(times[e]);
-  if (used.empty()) {
-    const double t = noise.dark_dn + rate * times[order.front()] > hi ? times[order.front()] : times[order.back()];
+  // The values grow with the time: the ones in range are a run of the sorted times.
+  std::size_t first = sorted_.size(), used = 0;
+  double mean = 0;
+  for (std::size_t e = 0; e < sorted_.size(); ++e)
+    if (const double v = noise_.dark_dn + rate * sorted_[e]; v >= lo_ && v <= hi_) {
+      first = std::min(first, e);
+      ++used;
+      mean += sorted_[e];
+    }
+  if (used == 0) {
+    const double t = noise_.dark_dn + rate * sorted_.front() > hi_ ? sorted_.front() : sorted_.back();
     return variance(t) / (t * t);
   }
-  if (used.size() == 1) return variance(used[0]) / (used[0] * used[0]);
-  double mean = 0;
-  for (const double t : used) mean += t / double(used.size());
+  if (used == 1) return variance(sorted_[first]) / (sorted_[first] * sorted_[first]);
+  mean /= double(used);
   double stt = 0, sum = 0;
-  for (const double t : used) stt += (t - mean) * (t - mean), sum += (t - mean) * (t - mean) * variance(t);
-  if (!(stt > 0)) return variance(used[0]) / (used[0] * used[0] * double(used.size()));
+  for (std::size_t e = first; e < first + used; ++e) {
+    const double d = sorted_[e] - mean;
+    stt += d * d;
+    sum += d * d * variance(sorted_[e]);
+  }
+  if (!(stt > 0)) return variance(sorted_[first]) / (sorted_[first] * sorted_[first] * double(used));
   return sum / (stt * stt);
+}
+
+double hdr_rate_variance(double rate, std::span<const double> times, int bit_depth, const SensorNoise& noise,
+                         const HdrOptions& o) {
+  if (!(rate >= 0) || !std::isfinite(rate))
+    throw UsageError("HDR noise: the rate and read noise must be >= 0, the gain positive, the bias >= 0");
+  return RateVariance(times, bit_depth, noise, o)(rate);
 }
 
 HdrImage merge_exposures(std::span<const std::span<const std::uint16_t>> exposures, std::span<const double> times,

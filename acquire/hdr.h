@@ -51,6 +51,20 @@ struct SensorNoise {
 double hdr_rate_variance(double rate, std::span<const double> times, int bit_depth, const SensorNoise& noise,
                          const HdrOptions& o = {});
 
+/// hdr_rate_variance for many pixels of one exposure series: the times checked and sorted once.
+class RateVariance {
+ public:
+  /// UsageError for bad times, bit depth, options or noise (as hdr_rate_variance).
+  RateVariance(std::span<const double> times, int bit_depth, const SensorNoise& noise, const HdrOptions& o = {});
+  /// hdr_rate_variance(max(rate, 0), ...) without allocating.
+  double operator()(double rate) const;
+
+ private:
+  std::vector<double> sorted_;
+  double lo_ = 0, hi_ = 0;
+  SensorNoise noise_;
+};
+
 /// Merges `exposures` (one image of `pixels` values each, 0 .. 2^bit_depth - 1) taken at `times` (seconds,
 /// positive, any order). UsageError for mismatched sizes, fewer than one exposure, bad options or bit depth.
 HdrImage merge_exposures(std::span<const std::span<const std::uint16_t>> exposures, std::span<const double> times,

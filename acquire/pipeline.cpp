@@ -6,6 +6,7 @@
 #include <numbers>
 
 #include "specula/acquire/filters.h"
+#include "specula/acquire/sample_noise.h"
 #include "specula/acquire/scan.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
@@ -407,15 +408,16 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
   store::Provenance prov;
   prov.source_file = dir.string();
   prov.importer = "acquire";
-  out.create_samples(name, WavelengthGrid(cap.bands), "1/sr", prov);
+  out.create_samples(name, WavelengthGrid(cap.bands), "1/sr", prov, true);
   const std::size_t L = cap.light_angles_deg.size();
   Progress progress("samples", L);
   std::vector<double> angles;
-  std::vector<float> values;
+  std::vector<float> values, variance;
   std::vector<std::uint8_t> saturated(W * H);
   for (std::size_t l = 0; l < L; ++l) {
     check_interrupt();
     const std::vector<HdrImage> hdr = merge_light(cap, dir, int(l), o.hdr);
+    const SampleNoise noise(cap, dir, int(l), c.spectral, o.sensor, o.hdr);
     std::fill(saturated.begin(), saturated.end(), 0);
     for (std::size_t b = 0; b < B; ++b) {
       std::size_t on_sphere = 0;
@@ -437,6 +439,7 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
                                       : Eigen::Vector3d(c.sphere.centre + 1e6 * c.light_dirs[l]);
     angles.clear();
     values.clear();
+    variance.clear();
     Eigen::VectorXd h;
     for (const ScanPixel& px : pixels) {
       const std::size_t p = std::size_t(px.y) * W + std::size_t(px.x);
@@ -469,11 +472,12 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
       const double d = (light - px.point).norm();
       const double g = pi * std::cos(a.theta_i) * (c.light_distance > 0 ? std::pow(c.light_distance / d, 2) : 1.0);
       const Eigen::VectorXd f = recover_spectrum(c.spectral, h / g);
+      const Eigen::VectorXd v = noise.variance(hdr, p, c.spatial.value[p] * g);
       angles.insert(angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
-      for (Eigen::Index b = 0; b < f.size(); ++b) values.push_back(float(f[b]));
+      for (Eigen::Index b = 0; b < f.size(); ++b) values.push_back(float(f[b])), variance.push_back(float(v[b]));
       ++r.samples;
     }
-    if (!angles.empty()) out.append_samples(name, angles, values);
+    if (!angles.empty()) out.append_samples(name, angles, values, variance);
     progress.advance();
   }
   return r;

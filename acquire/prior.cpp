@@ -326,6 +326,13 @@ BrdfPrior build_prior(std::size_t count, const std::function<store::Grid(std::si
   return build_prior(grids, o);
 }
 
+PriorWeights parse_prior_weights(std::string_view name) {
+  if (name == "noise") return PriorWeights::noise;
+  if (name == "count") return PriorWeights::count;
+  if (name == "scatter") return PriorWeights::scatter;
+  throw UsageError("prior weights '" + std::string(name) + "': use noise, count or scatter");
+}
+
 std::vector<double> observation_weights(const BrdfPrior& p, const PriorObservations& obs, const PriorFitOptions& o) {
   const std::size_t n = obs.cell.size(), b = p.wavelengths.size(), c = p.channels();
   if (obs.weight.size() != n || obs.values.size() != n * b || !(obs.spread.empty() || obs.spread.size() == n * b))
@@ -342,7 +349,7 @@ std::vector<double> observation_weights(const BrdfPrior& p, const PriorObservati
   parallel_for(
       n,
       [&](std::size_t s) {
-        if (!(obs.weight[s] >= 2) || obs.cell[s] >= cosines.size()) return;
+        if (!(obs.weight[s] >= (obs.spread_is_noise ? 1 : 2)) || obs.cell[s] >= cosines.size()) return;
         const double cw = cosines[obs.cell[s]];
         const Eigen::Map<const Eigen::VectorXf> mean(&obs.values[s * b], Eigen::Index(b));
         const Eigen::Map<const Eigen::VectorXf> spread(&obs.spread[s * b], Eigen::Index(b));
@@ -360,8 +367,8 @@ std::vector<double> observation_weights(const BrdfPrior& p, const PriorObservati
   if (!(sigma0 > 0) || !std::isfinite(sigma0)) return w;  // noiseless samples: nothing to tell the cells apart
   for (std::size_t s = 0; s < n; ++s) {
     const double dof = std::max(0.0, double(obs.weight[s]) - 1), own = s2[s] >= 0 ? s2[s] : sigma0;
-    double var = (o.noise_shrinkage * sigma0 + dof * own) / (o.noise_shrinkage + dof);
-    if (!(o.noise_shrinkage + dof > 0)) var = sigma0;
+    double var = obs.spread_is_noise ? own : (o.noise_shrinkage * sigma0 + dof * own) / (o.noise_shrinkage + dof);
+    if (!obs.spread_is_noise && !(o.noise_shrinkage + dof > 0)) var = sigma0;
     w[s] *= sigma0 / std::max(var, o.noise_floor * sigma0);
   }
   return w;

@@ -14,6 +14,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "specula/core/wavelengths.h"
@@ -99,13 +100,20 @@ struct PriorObservations {
   /// cells x bands, or empty (unknown): the variance of one sample about the cell's mean (1/sr^2), from the samples'
   /// scatter (cell_means) or a noise model; with it the fit weighs a cell by n / its noise (PriorFitOptions).
   std::vector<float> spread;
+  /// true: spread is the mean of the samples' own noise variances (acquisition's noise model, known exactly, so not
+  /// shrunk toward the median cell's); false: the samples' scatter.
+  bool spread_is_noise = false;
 };
 
 /// How a cell's observation is weighted in the fit (docs/prior.md).
 enum class PriorWeights {
-  noise,  ///< n / sigma^2: sigma^2 the cell's noise in the mapped domain, shrunk toward the median cell's
-  count,  ///< n, the samples averaged (as if every sample had the same noise)
+  noise,    ///< n / sigma^2: sigma^2 the samples' own variance when they carry one, else their scatter (shrunk)
+  count,    ///< n, the samples averaged (as if every sample had the same noise)
+  scatter,  ///< as noise, from the samples' scatter even when they carry a variance
 };
+
+/// Parses "noise", "count" or "scatter"; UsageError naming the choices otherwise.
+PriorWeights parse_prior_weights(std::string_view name);
 
 /// How a prior is fitted.
 struct PriorFitOptions {
@@ -117,7 +125,8 @@ struct PriorFitOptions {
 
 /// Per observation its weight in the fit: n (count, or no spread) or n sigma0^2 / sigma^2 (noise), sigma^2 the
 /// cell's per-sample noise variance in the mapped domain, (nu0 sigma0^2 + (n - 1) s^2) / (nu0 + n - 1) floored at
-/// noise_floor sigma0^2, s^2 its scatter, sigma0^2 the median s^2 of the cells with n >= 2. UsageError on sizes.
+/// noise_floor sigma0^2, s^2 its scatter, sigma0^2 the median s^2 of the cells with n >= 2; with spread_is_noise,
+/// sigma^2 = s^2 (the samples' own variance, every cell) floored likewise. UsageError on sizes.
 std::vector<double> observation_weights(const BrdfPrior& prior, const PriorObservations& obs,
                                         const PriorFitOptions& options);
 

@@ -27,15 +27,16 @@ const std::vector<std::int32_t>& valid_slot() {
 
 }  // namespace
 
-PriorObservations cell_means(const SampleSource& src) {
+PriorObservations cell_means(const SampleSource& src, bool use_variance) {
   const std::size_t b = src.bands(), n = src.size(), block = src.block_rows();
   const auto& slot = valid_slot();
   std::vector<std::int32_t> obs_of(valid_cells().size(), -1);
   std::vector<double> sums, squares;
   std::vector<std::uint32_t> counts;
   PriorObservations out;
+  out.spread_is_noise = use_variance && src.has_variance();
   std::vector<double> angles;
-  std::vector<float> values;
+  std::vector<float> values, variance;
   std::vector<std::int32_t> cell_of;
   for (std::size_t first = 0; first < n; first += block) {
     const std::size_t count = std::min(block, n - first);
@@ -44,6 +45,10 @@ PriorObservations cell_means(const SampleSource& src) {
     cell_of.resize(count);
     src.read_angles(first, count, angles);
     src.read_values(first, count, values);
+    if (out.spread_is_noise) {
+      variance.resize(count * b);
+      src.read_variance(first, count, variance);
+    }
     parallel_for(
         count,
         [&](std::size_t s) {
@@ -67,9 +72,10 @@ PriorObservations cell_means(const SampleSource& src) {
         counts.push_back(0);
       }
       const std::size_t o = std::size_t(obs_of[std::size_t(v)]);
-      for (std::size_t k = 0; k < b; ++k) {
+      for (std::size_t k = 0; k < b; ++k) {  // squares: the samples' variances when they carry them
         sums[o * b + k] += values[s * b + k];
-        squares[o * b + k] += double(values[s * b + k]) * values[s * b + k];
+        squares[o * b + k] +=
+            out.spread_is_noise ? double(variance[s * b + k]) : double(values[s * b + k]) * values[s * b + k];
       }
       ++counts[o];
     }
@@ -83,7 +89,9 @@ PriorObservations cell_means(const SampleSource& src) {
     for (std::size_t k = 0; k < b; ++k) {
       const double mean = sums[o * b + k] / n;
       out.values[o * b + k] = float(mean);
-      out.spread[o * b + k] = n > 1 ? float(std::max(0.0, (squares[o * b + k] - n * mean * mean) / (n - 1))) : 0.0f;
+      out.spread[o * b + k] = out.spread_is_noise ? float(squares[o * b + k] / n)
+                              : n > 1 ? float(std::max(0.0, (squares[o * b + k] - n * mean * mean) / (n - 1)))
+                                      : 0.0f;
     }
   }
   return out;
@@ -101,7 +109,7 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
     throw UsageError("prior: confidence_reach (the reach of the confidence, a fraction of max_gap) must be in (0, 1]");
   PriorResampleStats st;
   const auto t0 = std::chrono::steady_clock::now();
-  const PriorObservations obs = cell_means(src);
+  const PriorObservations obs = cell_means(src, o.fit.weights != PriorWeights::scatter);
   if (obs.cell.empty()) throw InputError("prior: no sample falls in a cell above the horizon");
   st.observed_cells = obs.cell.size();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);

@@ -38,8 +38,9 @@ struct PriorResampleStats {
 PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
                                        std::span<float> grid, std::span<float> confidence);
 
-/// The samples of src averaged per valid cell (values), their counts as weights and their scatter (the unbiased
-/// variance per band, 0 for one sample) as spread: the observations of prior.h.
-PriorObservations cell_means(const SampleSource& src);
+/// The samples of src averaged per valid cell (values), their counts as weights and as spread their scatter (the
+/// unbiased variance per band, 0 for one sample) or, when src carries variances and use_variance, the mean of the
+/// samples' own variances (spread_is_noise): the observations of prior.h.
+PriorObservations cell_means(const SampleSource& src, bool use_variance = true);
 
 }  // namespace specula::acquire

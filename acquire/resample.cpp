@@ -206,10 +206,16 @@ void check_options(const ResampleOptions& o) {
 
 // ------------------------------------------------------------------ sources
 
-MemorySamples::MemorySamples(std::span<const double> angles, std::span<const float> values, std::size_t bands)
-    : angles_(angles), values_(values), bands_(bands) {
-  if (bands == 0 || angles.size() % 4 != 0 || values.size() != angles.size() / 4 * bands)
-    throw UsageError("resample: angles must be n x 4 and values n x bands");
+void SampleSource::read_variance(std::size_t, std::size_t, std::span<float>) const {
+  throw UsageError("these samples carry no variance");
+}
+
+MemorySamples::MemorySamples(std::span<const double> angles, std::span<const float> values, std::size_t bands,
+                             std::span<const float> variance)
+    : angles_(angles), values_(values), variance_(variance), bands_(bands) {
+  if (bands == 0 || angles.size() % 4 != 0 || values.size() != angles.size() / 4 * bands ||
+      !(variance.empty() || variance.size() == values.size()))
+    throw UsageError("resample: angles must be n x 4, values n x bands and variance empty or n x bands");
 }
 
 void MemorySamples::read_angles(std::size_t first, std::size_t count, std::span<double> out) const {
@@ -222,11 +228,19 @@ void MemorySamples::read_values(std::size_t first, std::size_t count, std::span<
   std::copy_n(values_.begin() + std::ptrdiff_t(bands_ * first), bands_ * count, out.begin());
 }
 
+void MemorySamples::read_variance(std::size_t first, std::size_t count, std::span<float> out) const {
+  if (variance_.empty()) SampleSource::read_variance(first, count, out);
+  if (first + count > size() || out.size() != bands_ * count)
+    throw UsageError("MemorySamples::read_variance: bad range");
+  std::copy_n(variance_.begin() + std::ptrdiff_t(bands_ * first), bands_ * count, out.begin());
+}
+
 StoreSamples::StoreSamples(const store::Store& store, std::string name)
     : store_(std::make_unique<store::Store>(store)), name_(std::move(name)) {
   const store::SamplesInfo info = store_->samples_info(name_);
   size_ = info.size;
   bands_ = info.bands;
+  variance_ = info.variance;
   // One reader block per storage chunk (a contiguous dataset is read through HDF5 in blocks of 2^16 rows).
   reader_rows_ = info.chunk_rows ? info.chunk_rows : std::size_t(1) << 16;
   if (info.chunk_rows)
@@ -238,6 +252,10 @@ StoreSamples::~StoreSamples() = default;
 
 void StoreSamples::read_angles(std::size_t first, std::size_t count, std::span<double> out) const {
   store_->read_samples(name_, first, count, out, {});
+}
+
+void StoreSamples::read_variance(std::size_t first, std::size_t count, std::span<float> out) const {
+  store_->read_samples(name_, first, count, {}, {}, out);
 }
 
 void StoreSamples::read_values(std::size_t first, std::size_t count, std::span<float> out) const {

@@ -65,21 +65,28 @@ class SampleSource {
   virtual void read_values(std::size_t first, std::size_t count, std::span<float> out) const = 0;
   /// Samples per read that suit the source.
   virtual std::size_t block_rows() const { return std::size_t(1) << 16; }
+  /// Whether each value carries its noise variance (read_variance).
+  virtual bool has_variance() const { return false; }
+  /// Variances of samples [first, first + count) into out (count x bands(), units^2); UsageError without them.
+  virtual void read_variance(std::size_t first, std::size_t count, std::span<float> out) const;
 };
 
 /// Samples held by the caller (who keeps them alive): angles n x 4, values n x bands.
 class MemorySamples final : public SampleSource {
  public:
-  /// UsageError when the sizes disagree or bands is 0.
-  MemorySamples(std::span<const double> angles, std::span<const float> values, std::size_t bands);
+  /// UsageError when the sizes disagree or bands is 0; variance empty (none) or one per value.
+  MemorySamples(std::span<const double> angles, std::span<const float> values, std::size_t bands,
+                std::span<const float> variance = {});
   std::size_t size() const override { return angles_.size() / 4; }
   std::size_t bands() const override { return bands_; }
   void read_angles(std::size_t first, std::size_t count, std::span<double> out) const override;
   void read_values(std::size_t first, std::size_t count, std::span<float> out) const override;
+  bool has_variance() const override { return !variance_.empty(); }
+  void read_variance(std::size_t first, std::size_t count, std::span<float> out) const override;
 
  private:
   std::span<const double> angles_;
-  std::span<const float> values_;
+  std::span<const float> values_, variance_;
   std::size_t bands_;
 };
 
@@ -95,12 +102,15 @@ class StoreSamples final : public SampleSource {
   void read_angles(std::size_t first, std::size_t count, std::span<double> out) const override;
   void read_values(std::size_t first, std::size_t count, std::span<float> out) const override;
   std::size_t block_rows() const override { return block_rows_; }
+  bool has_variance() const override { return variance_; }
+  void read_variance(std::size_t first, std::size_t count, std::span<float> out) const override;
 
  private:
   std::unique_ptr<store::Store> store_;
   std::unique_ptr<store::BlockReader> reader_;
   std::string name_;
   std::size_t size_ = 0, bands_ = 0, block_rows_ = 0, reader_rows_ = 0;
+  bool variance_ = false;
 };
 
 /// The k nearest samples of a query and how far the nearest one is.

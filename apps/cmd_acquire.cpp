@@ -330,11 +330,11 @@ acquire::PipelineOptions pipeline_options(const AcquireOptions& o, const acquire
     if (!(o.filter_noise >= 0 && o.filter_noise < 1)) throw UsageError("acquire: --filter-noise must be in [0, 1)");
     po.filter_noise = o.filter_noise;
     po.filter_noise_from_capture = !o.equal_filter_noise;
-    if (!(o.read_noise_dn >= 0) || !(o.electrons_per_dn > 0))
-      throw UsageError("acquire: --read-noise must be >= 0 and --electrons-per-dn positive");
-    po.sensor.read_noise_dn = o.read_noise_dn;
-    po.sensor.electrons_per_dn = o.electrons_per_dn;
   }
+  if (!(o.read_noise_dn >= 0) || !(o.electrons_per_dn > 0))
+    throw UsageError("acquire: --read-noise must be >= 0 and --electrons-per-dn positive");
+  po.sensor.read_noise_dn = o.read_noise_dn;
+  po.sensor.electrons_per_dn = o.electrons_per_dn;
   return po;
 }
 
@@ -455,18 +455,18 @@ void add_pipeline_options(CLI::App* cmd, AcquireOptions& o, bool calibrates, boo
         ->capture_default_str();
     cmd->add_flag("--equal-filter-noise", o.equal_filter_noise,
                   "Filter captures, wiener: every filter the same relative noise, whatever its exposures");
-    cmd->add_option("--read-noise", o.read_noise_dn,
-                    "Filter captures: the camera's read noise (DN), for the readings' noise")
-        ->capture_default_str();
-    cmd->add_option("--electrons-per-dn", o.electrons_per_dn,
-                    "Filter captures: the camera's gain, for the readings' shot noise")
-        ->capture_default_str();
     cmd->add_option("--ridge", o.ridge, "Filter captures: the solve's regularisation")->capture_default_str();
     cmd->add_option("--filter-terms", o.filter_terms, "Filter captures: response terms fitted per filter (1-4)")
         ->capture_default_str();
     cmd->add_option("--fit-targets", o.fit_targets, "Targets the spectral model is fitted on (default blue,white)")
         ->delimiter(',');
   }
+  cmd->add_option("--read-noise", o.read_noise_dn,
+                  "The camera's read noise (DN): the samples' variance and filter captures' readings' noise")
+      ->capture_default_str();
+  cmd->add_option("--electrons-per-dn", o.electrons_per_dn,
+                  "The camera's gain: the samples' and filter captures' readings' shot noise")
+      ->capture_default_str();
   if (!calibrates) cmd->add_option("--calibration", o.calibration, "Stored calibration to use (default: NAME)");
   cmd->add_option("--plots", o.plots, "Directory for PNG figures");
   if (extracts) {

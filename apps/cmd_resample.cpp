@@ -42,6 +42,7 @@ struct ResampleCliOptions {
   std::string shadowing = "smith";
   bool prior_residuals = false;
   bool kd_tree_in_cap = false;
+  std::string prior_weights = "noise";
 };
 
 // What save_grid would refuse after the work, refused before it: an output that is neither STORE.h5:NAME, a
@@ -115,17 +116,19 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   const acquire::StoreSamples src(s, o.samples);
   store::Grid grid = empty_grid(info);
   std::vector<float> confidence(brdf::kMerlCells);
-  const acquire::PriorResampleOptions po{.local = ro,
-                                         .fit = {.lambda = o.lambda},
-                                         .confidence_reach = o.confidence_reach,
-                                         .residuals = o.prior_residuals,
-                                         .prior_in_cap = !o.kd_tree_in_cap};
+  const acquire::PriorResampleOptions po{
+      .local = ro,
+      .fit = {.lambda = o.lambda, .weights = acquire::parse_prior_weights(o.prior_weights)},
+      .confidence_reach = o.confidence_reach,
+      .residuals = o.prior_residuals,
+      .prior_in_cap = !o.kd_tree_in_cap};
   const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, confidence);
   store::Grid conf = acquire::confidence_grid(confidence, info.wavelengths);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
   grid.provenance.importer =
-      fmt::format("resample prior={} lambda={} confidence_reach={} prior_in_cap={} mapping={} k={} weights={}", o.prior,
-                  o.lambda, o.confidence_reach, !o.kd_tree_in_cap, o.mapping, o.k, o.weights);
+      fmt::format("resample prior={} lambda={} prior_weights={} confidence_reach={} prior_in_cap={} mapping={} k={} "
+                  "weights={}",
+                  o.prior, o.lambda, o.prior_weights, o.confidence_reach, !o.kd_tree_in_cap, o.mapping, o.k, o.weights);
   conf.provenance.importer = "resample confidence of " + o.output;
   const std::string what = save_prior_grids(grid, conf, o.output, conf_out, o.replace);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -295,6 +298,10 @@ void setup_resample(CLI::App& app) {
   cmd->add_option("--shadowing", o->shadowing, "--model: smith (height-correlated) or vgroove (Torrance-Sparrow)")
       ->capture_default_str();
   cmd->add_option("--lambda", o->lambda, "--prior: Tikhonov weight of the fit")->capture_default_str();
+  cmd->add_option("--prior-weights", o->prior_weights,
+                  "--prior: a cell's weight in the fit: noise (the samples' own variance when they carry one, else "
+                  "their scatter), scatter, or count")
+      ->capture_default_str();
   cmd->add_option(
          "--confidence-reach", o->confidence_reach,
          "--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction of --max-gap")

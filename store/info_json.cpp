@@ -52,6 +52,7 @@ Json samples_json(const SamplesInfo& s) {
           {"bands", s.bands},
           {"wavelengths", numbers(s.wavelengths.values())},
           {"units", s.units},
+          {"variance", s.variance},
           {"provenance", provenance_json(s.provenance)}};
 }
 

@@ -71,6 +71,7 @@ struct SamplesInfo {
   WavelengthGrid wavelengths;
   std::string units;
   std::size_t chunk_rows = 0;  ///< samples per storage chunk of the values (read in multiples of it)
+  bool variance = false;       ///< each value carries its noise variance (samples_version 2; docs/store-format.md)
   Provenance provenance;
 };
 
@@ -176,10 +177,11 @@ class Store {
   /// masked pixels) and, when not empty, mask (rows x width, 1 = valid). UsageError on out-of-range rows or sizes.
   void read_coefficient_rows(const std::string& name, std::size_t y0, std::size_t rows, std::span<float> coefficients,
                              std::span<std::uint8_t> mask) const;
-  /// Rows [first, first + count) of samples `name`: angles (count x 4, radians) and values (count x B); an
-  /// empty span skips that dataset.
+  /// Rows [first, first + count) of samples `name`: angles (count x 4, radians), values (count x B) and, for samples
+  /// with a variance, their variances (count x B); an empty span skips that dataset. UsageError for a variance
+  /// asked of samples without one.
   void read_samples(const std::string& name, std::size_t first, std::size_t count, std::span<double> angles,
-                    std::span<float> values) const;
+                    std::span<float> values, std::span<float> variance = {}) const;
   /// Record `name` of `kind` (written by StoreWriter::add_record); InputError when absent or malformed.
   Record read_record(const std::string& kind, const std::string& name) const;
   /// Prior `name` (store/prior.h) of `cells` cells; InputError naming what the store holds when absent or malformed.
@@ -229,11 +231,14 @@ class StoreWriter {
   void add_basis(const std::string& name, const Basis& basis);
   /// Adds BRDF grid `name` (chunked, compressed); throws InputError on NaN/Inf or a bad scale, UsageError on sizes.
   void add_grid(const std::string& name, const Grid& grid);
-  /// Creates an empty extendible set of scattered BRDF samples.
+  /// Creates an empty extendible set of scattered BRDF samples; with variance, each value also carries its noise
+  /// variance (in units squared; samples_version 2).
   void create_samples(const std::string& name, const WavelengthGrid& wavelengths, const std::string& units,
-                      const Provenance& provenance);
-  /// Appends n samples: angles (n x 4: theta_i, phi_i, theta_o, phi_o in radians) and values (n x B).
-  void append_samples(const std::string& name, std::span<const double> angles, std::span<const float> values);
+                      const Provenance& provenance, bool variance = false);
+  /// Appends n samples: angles (n x 4: theta_i, phi_i, theta_o, phi_o in radians), values (n x B) and, exactly when
+  /// the samples were created with a variance, variances (n x B, finite and >= 0).
+  void append_samples(const std::string& name, std::span<const double> angles, std::span<const float> values,
+                      std::span<const float> variance = {});
   /// Creates coefficient map `name` for the height x width pixels of `image` on `basis` (all its k rows; a copy is
   /// stored with the map), chunked by chunk_rows whole rows; rows are then written by write_coefficient_rows.
   void create_coefficients(const std::string& name, const CoefficientsInfo& info, const Basis& basis);

@@ -243,6 +243,119 @@ TEST(Prior, NoiseWeightsBeatCountWeightsWhenHalfTheCellsAreTenTimesNoisier) {
             std::vector<double>(obs.weight.begin(), obs.weight.end()));
 }
 
+TEST(Prior, SamplesOwnVariancesWeighCellsOfOneSampleWhereScatterCannot) {
+  const Family& f = family();
+  const store::Grid& truth = f.grids[2];
+  const auto& cells = acquire::valid_cells();
+  std::mt19937 rng(4);
+  std::uniform_int_distribution<std::size_t> pick(0, cells.size() - 1);
+  std::normal_distribution<double> gauss;
+  std::vector<double> angles;
+  std::vector<float> values, variance;
+  std::vector<int> seen(cells.size(), 0);
+  for (std::size_t n = 0; n < 3000; ++n) {  // one sample a cell: no scatter to tell the noisy cells
+    const std::size_t i = pick(rng);
+    if (seen[i]++) continue;
+    const brdf::StdAngles a = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[i])));
+    const double sigma = n % 2 ? 0.3 : 0.03;
+    angles.insert(angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
+    const double e = 1 + sigma * gauss(rng);
+    for (std::size_t k = 0; k < 5; ++k) {
+      const double v = truth.brdf[k * brdf::kMerlCells + cells[i]];
+      values.push_back(float(v * e));
+      variance.push_back(float(v * v * sigma * sigma));
+    }
+  }
+  const acquire::PriorObservations with = acquire::cell_means(acquire::MemorySamples(angles, values, 5, variance));
+  const acquire::PriorObservations without = acquire::cell_means(acquire::MemorySamples(angles, values, 5));
+  ASSERT_TRUE(with.spread_is_noise);
+  ASSERT_FALSE(without.spread_is_noise);
+  ASSERT_EQ(with.spread, variance) << "one sample a cell: its own variance";
+  // The weights: exactly the inverse of each cell's mapped variance, relative to the median cell's (no shrinkage).
+  const std::vector<double> w = acquire::observation_weights(f.prior, with, {});
+  const std::vector<double> counts(without.weight.begin(), without.weight.end());
+  EXPECT_EQ(acquire::observation_weights(f.prior, without, {}), counts) << "scatter of one sample: the counts";
+  const Eigen::MatrixXd hats = acquire::hat_basis(kBands, f.prior.knots);
+  const Eigen::MatrixXd proj = (hats.transpose() * hats).ldlt().solve(hats.transpose());
+  std::vector<double> mapped(w.size());
+  for (std::size_t s = 0; s < w.size(); ++s) {  // the delta method written out: channel variance / (value + eps)^2
+    const double cw = acquire::valid_cell_cosines()[with.cell[s]];
+    double sum = 0;
+    for (Eigen::Index j = 0; j < proj.rows(); ++j) {
+      double value = 0, var = 0;
+      for (std::size_t k = 0; k < 5; ++k) {
+        value += proj(j, Eigen::Index(k)) * with.values[s * 5 + k];
+        var += proj(j, Eigen::Index(k)) * proj(j, Eigen::Index(k)) * with.spread[s * 5 + k];
+      }
+      sum += var * cw * cw / std::pow(std::max(value, 0.0) * cw + f.prior.epsilon, 2);
+    }
+    mapped[s] = sum / double(proj.rows());
+  }
+  std::vector<double> sorted = mapped;
+  std::ranges::sort(sorted);
+  const double median = sorted[sorted.size() / 2];
+  for (std::size_t s = 0; s < w.size(); ++s)
+    ASSERT_NEAR(w[s], median / std::max(mapped[s], 0.01 * median), 1e-6 * w[s]) << s;
+  std::vector<float> by_noise(truth.brdf.size(), -1.0f), by_count(truth.brdf.size(), -1.0f);
+  acquire::fit_prior(f.prior, with, {.lambda = 1e-9}, by_noise);
+  acquire::fit_prior(f.prior, without, {.lambda = 1e-9}, by_count);
+  const double e_noise = cos_weighted_rel_rms(by_noise, truth.brdf, 5),
+               e_count = cos_weighted_rel_rms(by_count, truth.brdf, 5);
+  EXPECT_LT(e_noise, 0.5 * e_count) << e_noise << " vs " << e_count;
+}
+
+TEST(Prior, ResidualsModeAddsTheShepardEstimateOfTheResidualsAgainstTheFitScaledByConfidence) {
+  const Family& f = family();
+  const brdf::Ward m = ward(0.45, 0.25, 0.07, 0.12);  // not a training material: the fit leaves residuals
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<double> angles;
+  for (int n = 0; n < 20000; ++n) {  // anywhere in their cells, within 40 degrees of the normal
+    const double ti = std::acos(1 - u(rng) * (1 - std::cos(0.7))), to = std::acos(1 - u(rng) * (1 - std::cos(0.7)));
+    angles.insert(angles.end(), {ti, 0.0, to, (2 * u(rng) - 1) * std::numbers::pi});
+  }
+  std::vector<float> values(angles.size() / 4 * 5);
+  brdf::evaluate_at(m, angles, values);
+  const acquire::MemorySamples src(angles, values, 5);
+  acquire::PriorResampleOptions o;
+  o.local.k = 8;
+  o.residuals = true;
+  std::vector<float> grid(5 * brdf::kMerlCells), conf(brdf::kMerlCells);
+  acquire::resample_with_prior(src, f.prior, o, grid, conf);
+  // Written out from the parts: the fit to the cell means, each sample's residual against its cell's fitted value,
+  // their Shepard estimate at the cell centre, scaled by 1 - (gap / max_gap)^2, added, clamped at 0.
+  std::vector<float> fitted(grid.size(), -1.0f);
+  acquire::fit_prior(f.prior, acquire::cell_means(src), o.fit, fitted);
+  std::vector<float> residuals(values.size());
+  for (std::size_t s = 0; s < angles.size() / 4; ++s) {
+    const brdf::StdAngles a{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]};
+    const std::size_t cell = brdf::merl_index(brdf::merl_cell(a));
+    for (std::size_t k = 0; k < 5; ++k) residuals[s * 5 + k] = values[s * 5 + k] - fitted[k * brdf::kMerlCells + cell];
+  }
+  const acquire::Resampler shepard(angles, residuals, 5, o.local);
+  acquire::Neighbours nb;
+  std::vector<float> r(5);
+  std::size_t corrected = 0, checked = 0;
+  const auto& cells = acquire::valid_cells();
+  for (std::size_t i = 0; i < cells.size(); i += 37) {
+    const std::size_t cell = cells[i];
+    const brdf::StdAngles at = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cell)));
+    shepard.neighbours(at, nb);
+    const double g = nb.gap / o.local.max_gap, c = g < 1 ? 1 - g * g : 0.0;
+    ASSERT_NEAR(conf[cell], c, 1e-6) << cell;
+    const bool local = c > 0 && shepard.predict(at, r);
+    for (std::size_t k = 0; k < 5; ++k) {
+      const std::size_t x = k * brdf::kMerlCells + cell;
+      const double expect = local ? std::max(0.0, fitted[x] + c * r[k]) : fitted[x];
+      ASSERT_NEAR(grid[x], expect, 1e-5 * (1 + std::abs(expect))) << cell << " band " << k;
+      if (c > 0.5) corrected += std::abs(grid[x] - fitted[x]) > 1e-3 * fitted[x];
+    }
+    ++checked;
+  }
+  ASSERT_GT(checked, 20000u);
+  EXPECT_GT(corrected, 1000u) << "the residuals must change the fit where samples are near";
+}
+
 TEST(Prior, StreamedThroughAStoreEqualsABruteForcePca) {
   const Family& f = family();
   test::ScratchDir dir;
