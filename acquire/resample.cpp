@@ -88,14 +88,14 @@ struct WeightedNeighbours {
   // that sample itself has weight 0 and is dropped.
   bool find(const SampleTree& tree, const IsoAngles& at, const ResampleOptions& o) {
     const bool reach = has_reach(o.weights);
-    tree.nearest(at, reach ? o.k + 1 : o.k, nb);
+    tree.nearest(at, reach ? o.k + 1 : o.k, nb, o.weights == Weights::loess);
     if (nb.index.empty() || !(nb.gap <= o.max_gap)) return false;
     double reach2 = std::numeric_limits<double>::infinity();
     if (reach && nb.index.size() > o.k) {
       reach2 = nb.dist2.back();
       nb.index.pop_back();
       nb.dist2.pop_back();
-      nb.offset.resize(3 * nb.index.size());
+      nb.offset.resize(std::min(nb.offset.size(), 3 * nb.index.size()));
     }
     w.resize(nb.index.size());
     neighbour_weights(o.weights, o.power, nb.dist2, w, reach2, nb.offset);
@@ -407,7 +407,7 @@ SampleTree::SampleTree(const SampleSource& src, Mapping m)
 
 SampleTree::~SampleTree() = default;
 
-void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out) const {
+void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out, bool offsets) const {
   const Index& ix = *index_;
   const Eigen::Vector3f q = mapped(mapping_, at);
   k = std::min(k, n_);
@@ -435,12 +435,13 @@ void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out) co
   const std::size_t found = result.size();
   out.index.resize(found);
   out.dist2.resize(found);
-  out.offset.resize(3 * found);
+  out.offset.resize(offsets ? 3 * found : 0);
   out.gap = std::numeric_limits<double>::infinity();
   if (found == 0) return;
-  for (std::size_t j = 0; j < found; ++j)
-    for (std::size_t d = 0; d < 3; ++d)
-      out.offset[3 * j + d] = ix.xyz[3 * std::size_t(out.index[j]) + d] - q[Eigen::Index(d)];
+  if (offsets)
+    for (std::size_t j = 0; j < found; ++j)
+      for (std::size_t d = 0; d < 3; ++d)
+        out.offset[3 * j + d] = ix.xyz[3 * std::size_t(out.index[j]) + d] - q[Eigen::Index(d)];
   const float* p = ix.xyz.data() + 3 * std::size_t(out.index[0]);
   out.gap = config_distance(at, unmap(mapping_, Eigen::Vector3d(p[0], p[1], p[2])), mapping_is_reciprocal(mapping_));
   for (auto& i : out.index) i = ix.sample[i];

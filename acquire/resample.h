@@ -109,7 +109,7 @@ class StoreSamples final : public SampleSource {
 struct Neighbours {
   std::vector<std::uint32_t> index;  ///< sample indices, nearest first
   std::vector<float> dist2;          ///< squared distances in the mapped space
-  std::vector<float> offset;         ///< 3 per neighbour: its mapped point minus the query's
+  std::vector<float> offset;         ///< 3 per neighbour: its mapped point minus the query's (when asked for)
   double gap = 0;  ///< config_distance from the query to the nearest sample (reciprocal as the mapping)
 };
 
@@ -124,8 +124,9 @@ class SampleTree {
 
   Mapping mapping() const { return mapping_; }
   std::size_t size() const { return n_; }
-  /// The min(k, size()) nearest samples of `at` into out (ties in an order fixed by the tree).
-  void nearest(const IsoAngles& at, std::size_t k, Neighbours& out) const;
+  /// The min(k, size()) nearest samples of `at` into out (ties in an order fixed by the tree); their offsets
+  /// only when `offsets` (else out.offset is emptied).
+  void nearest(const IsoAngles& at, std::size_t k, Neighbours& out, bool offsets = false) const;
 
  private:
   struct Index;
