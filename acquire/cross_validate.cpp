@@ -70,12 +70,12 @@ CrossValidation cross_validate(std::span<const double> angles, std::span<const f
   CrossValidation out;
   out.samples = n;
   out.held_out = held;
-  Progress progress("cross-validating", 3 * o.ks.size() * 3 * held);  // mappings x k x weightings
+  Progress progress("cross-validating", 3 * o.ks.size() * 5 * held);  // mappings x k x weightings
   for (const auto mapping : {Mapping::standard, Mapping::marschner, Mapping::halfdiff}) {
     const MemorySamples train(train_a, train_v, b);
     const auto tree = std::make_shared<const SampleTree>(train, mapping);
     for (const auto k : o.ks)
-      for (const auto weights : {Weights::mean, Weights::shepard, Weights::renka}) {
+      for (const auto weights : {Weights::mean, Weights::shepard, Weights::renka, Weights::wendland, Weights::loess}) {
         if (k == 1 && weights != Weights::mean) continue;  // one neighbour: the same prediction
         // No support limit: every held-out sample is predicted from its k nearest, however far.
         const Resampler r(tree, train_v, b, {.mapping = mapping, .k = k, .weights = weights, .max_gap = 10});
@@ -96,7 +96,7 @@ CrossValidation cross_validate(std::span<const double> angles, std::span<const f
             },
             16);
         check_interrupt();
-        progress.advance(k == 1 ? 3 * held : held);
+        progress.advance(k == 1 ? 5 * held : held);
         out.rows.push_back(summarise(mapping, k, weights, e2, t2));
       }
   }

@@ -31,7 +31,7 @@ struct CrossValidationRow {
 struct CrossValidation {
   std::size_t samples = 0, held_out = 0;
   std::vector<CrossValidationRow>
-      rows;  ///< standard, marschner, halfdiff; per mapping each k; per k mean, shepard, renka
+      rows;  ///< standard, marschner, halfdiff; per mapping each k; per k mean, shepard, renka, wendland, loess
 };
 
 /// Shuffles the n samples (angles n x 4, values n x bands) with a generator seeded by o.seed, holds out the first

@@ -1,6 +1,7 @@
 #include "specula/acquire/resample.h"
 
 #include <omp.h>
+#include <Eigen/Cholesky>
 #include <nanoflann.hpp>
 
 #include <algorithm>
@@ -48,6 +49,34 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 Eigen::Vector3f mapped(Mapping m, const IsoAngles& a) { return map_angles(m, a).cast<float>(); }
 
+// Weightings whose weights fall to 0 at the (k+1)-th nearest sample (the reach).
+bool has_reach(Weights w) { return w == Weights::renka || w == Weights::wendland || w == Weights::loess; }
+
+// Wendland's C2 kernel, (1 - r)^4 (4 r + 1) for r = d / R < 1, else 0.
+double wendland(double d2, double reach2) {
+  const double r = std::sqrt(d2 / reach2);
+  return r >= 1 ? 0.0 : std::pow(1 - r, 4) * (4 * r + 1);
+}
+
+// The local linear fit's equivalent weights: the fit of values y_j by a + b . x_j (x_j = offset_j / R) minimising
+// sum kernel_j (y_j - a - b . x_j)^2 predicts a = sum l_j y_j with l_j = kernel_j e1' A^-1 (1, x_j), A =
+// sum kernel_j (1, x_j)(1, x_j)'. A relative ridge of 1e-6 on b keeps A invertible when the neighbours are
+// coplanar (the slope across them is then 0); sum l_j = 1 for any ridge on b.
+void local_linear(std::span<const double> kernel, std::span<const float> offsets, double reach2, std::span<double> l) {
+  const double inv_r = 1 / std::sqrt(reach2);
+  Eigen::Matrix4d a = Eigen::Matrix4d::Zero();
+  double total = 0;
+  for (std::size_t j = 0; j < kernel.size(); ++j) {
+    const Eigen::Vector4d x(1, offsets[3 * j] * inv_r, offsets[3 * j + 1] * inv_r, offsets[3 * j + 2] * inv_r);
+    a.noalias() += kernel[j] * x * x.transpose();
+    total += kernel[j];
+  }
+  for (int d = 1; d < 4; ++d) a(d, d) += 1e-6 * total;
+  const Eigen::Vector4d b = a.ldlt().solve(Eigen::Vector4d::UnitX());
+  for (std::size_t j = 0; j < kernel.size(); ++j)
+    l[j] = kernel[j] * (b[0] + inv_r * (b[1] * offsets[3 * j] + b[2] * offsets[3 * j + 1] + b[3] * offsets[3 * j + 2]));
+}
+
 // Neighbours of a query, their weights, reordered by sample index so that every band is accumulated in the same
 // order wherever the values come from (memory or blocks of a file).
 struct WeightedNeighbours {
@@ -58,23 +87,27 @@ struct WeightedNeighbours {
   // False when the query has no support. Renka's weights need the (k+1)-th nearest sample's distance, the reach;
   // that sample itself has weight 0 and is dropped.
   bool find(const SampleTree& tree, const IsoAngles& at, const ResampleOptions& o) {
-    const bool renka = o.weights == Weights::renka;
-    tree.nearest(at, renka ? o.k + 1 : o.k, nb);
+    const bool reach = has_reach(o.weights);
+    tree.nearest(at, reach ? o.k + 1 : o.k, nb, o.weights == Weights::loess);
     if (nb.index.empty() || !(nb.gap <= o.max_gap)) return false;
     double reach2 = std::numeric_limits<double>::infinity();
-    if (renka && nb.index.size() > o.k) {
+    if (reach && nb.index.size() > o.k) {
       reach2 = nb.dist2.back();
       nb.index.pop_back();
       nb.dist2.pop_back();
+      nb.offset.resize(std::min(nb.offset.size(), 3 * nb.index.size()));
     }
     w.resize(nb.index.size());
-    neighbour_weights(o.weights, o.power, nb.dist2, w, reach2);
+    neighbour_weights(o.weights, o.power, nb.dist2, w, reach2, nb.offset);
     by_sample.resize(nb.index.size());
     for (std::size_t j = 0; j < nb.index.size(); ++j) by_sample[j] = {nb.index[j], w[j]};
     std::sort(by_sample.begin(), by_sample.end());
     return true;
   }
 };
+
+// A cell's value from its accumulated sum: LOESS's weights may be negative, and a BRDF is not.
+float estimate(Weights w, double sum) { return float(w == Weights::loess ? std::max(0.0, sum) : sum); }
 
 std::vector<std::uint32_t> physical_cells() {
   std::vector<std::uint32_t> cells;
@@ -167,7 +200,8 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
     for (std::size_t c = 0; c < m; ++c) {
       if (count[c] == 0) continue;
       ++stats.valid_cells;
-      for (std::size_t q = 0; q < bands; ++q) grid[q * brdf::kMerlCells + cells[first + c]] = float(acc[c * bands + q]);
+      for (std::size_t q = 0; q < bands; ++q)
+        grid[q * brdf::kMerlCells + cells[first + c]] = estimate(o.weights, acc[c * bands + q]);
     }
     stats.average_seconds += seconds_since(t0);
   }
@@ -180,8 +214,11 @@ Weights parse_weights(std::string_view name) {
   if (name == "mean") return Weights::mean;
   if (name == "shepard") return Weights::shepard;
   if (name == "renka") return Weights::renka;
+  if (name == "wendland") return Weights::wendland;
+  if (name == "loess") return Weights::loess;
   throw UsageError("weights '" + std::string(name) +
-                   "': use renka (Franke-Little, continuous), shepard (eqs 5.9-5.10) or mean");
+                   "': use loess (local linear, smoothing), wendland (kernel, smoothing), renka (Franke-Little, "
+                   "continuous), shepard (eqs 5.9-5.10) or mean");
 }
 
 std::string_view weights_name(Weights w) {
@@ -192,6 +229,10 @@ std::string_view weights_name(Weights w) {
       return "shepard";
     case Weights::renka:
       return "renka";
+    case Weights::wendland:
+      return "wendland";
+    case Weights::loess:
+      return "loess";
   }
   return "?";
 }
@@ -384,7 +425,7 @@ SampleTree::SampleTree(const SampleSource& src, Mapping m)
 
 SampleTree::~SampleTree() = default;
 
-void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out) const {
+void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out, bool offsets) const {
   const Index& ix = *index_;
   const Eigen::Vector3f q = mapped(mapping_, at);
   k = std::min(k, n_);
@@ -412,8 +453,13 @@ void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out) co
   const std::size_t found = result.size();
   out.index.resize(found);
   out.dist2.resize(found);
+  out.offset.resize(offsets ? 3 * found : 0);
   out.gap = std::numeric_limits<double>::infinity();
   if (found == 0) return;
+  if (offsets)
+    for (std::size_t j = 0; j < found; ++j)
+      for (std::size_t d = 0; d < 3; ++d)
+        out.offset[3 * j + d] = ix.xyz[3 * std::size_t(out.index[j]) + d] - q[Eigen::Index(d)];
   const float* p = ix.xyz.data() + 3 * std::size_t(out.index[0]);
   out.gap = config_distance(at, unmap(mapping_, Eigen::Vector3d(p[0], p[1], p[2])), mapping_is_reciprocal(mapping_));
   for (auto& i : out.index) i = ix.sample[i];
@@ -421,16 +467,20 @@ void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out) co
 
 // ------------------------------------------------------------------ weights and reconstruction
 
-void neighbour_weights(Weights w, double power, std::span<const float> dist2, std::span<float> out, double reach2) {
+void neighbour_weights(Weights w, double power, std::span<const float> dist2, std::span<float> out, double reach2,
+                       std::span<const float> offsets) {
   const std::size_t n = dist2.size();
   if (out.size() != n) throw UsageError("neighbour_weights: out must have one weight per neighbour");
+  if (w == Weights::loess && offsets.size() != 3 * n)
+    throw UsageError("neighbour_weights: loess needs 3 offsets per neighbour");
   if (n == 0) return;
   // Raw weights in double, written to out only once normalised.
-  thread_local std::vector<double> raw;
+  thread_local std::vector<double> raw, kernel;
   raw.assign(n, 1.0);
   std::size_t at_zero = 0;
   for (const float d : dist2) at_zero += d == 0;
-  if (w != Weights::mean && at_zero) {
+  const bool smoothing = w == Weights::wendland || w == Weights::loess;
+  if ((w == Weights::shepard || w == Weights::renka) && at_zero) {
     for (std::size_t j = 0; j < n; ++j) raw[j] = dist2[j] == 0 ? 1.0 : 0.0;
   } else if (w == Weights::shepard) {
     for (std::size_t j = 0; j < n; ++j) {
@@ -442,18 +492,23 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
       else
         raw[j] = std::pow(d2, -0.5 * power);
     }
-  } else if (w == Weights::renka) {
-    // ((R - d) / (R d))^2 = (1/d - 1/R)^2; with no reach (R infinite) 1/d^2.
+  } else if (w == Weights::renka || (smoothing && at_zero < n)) {
+    // Renka: ((R - d) / (R d))^2 = (1/d - 1/R)^2; with no reach (R infinite) 1/d^2.
     const double inv_r = std::isfinite(reach2) ? 1 / std::sqrt(reach2) : 0.0;
+    if (smoothing && !std::isfinite(reach2)) reach2 = 2.25 * double(dist2.back());
     bool any = false;
     for (std::size_t j = 0; j < n; ++j) {
       const double t = std::max(0.0, 1 / std::sqrt(double(dist2[j])) - inv_r);
-      raw[j] = t * t;
+      raw[j] = smoothing ? wendland(dist2[j], reach2) : t * t;
       any = any || raw[j] > 0;
     }
     // Every neighbour as far as the reach (ties): the nearest share the weight, as the limit from inside does.
     if (!any)
       for (std::size_t j = 0; j < n; ++j) raw[j] = dist2[j] == dist2[0] ? 1.0 : 0.0;
+    else if (w == Weights::loess) {
+      kernel.assign(raw.begin(), raw.end());
+      local_linear(kernel, offsets, reach2, raw);
+    }
   }
   double sum = 0;
   for (const double r : raw) sum += r;
@@ -508,7 +563,7 @@ bool Resampler::predict(const IsoAngles& at, std::span<float> out) const {
     const float* v = values_.data() + std::size_t(s) * bands_;
     for (std::size_t q = 0; q < bands_; ++q) acc[q] += double(w) * double(v[q]);
   }
-  for (std::size_t q = 0; q < bands_; ++q) out[q] = float(acc[q]);
+  for (std::size_t q = 0; q < bands_; ++q) out[q] = estimate(o_.weights, acc[q]);
   return true;
 }
 

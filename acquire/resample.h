@@ -2,9 +2,11 @@
 // Scattered BRDF samples onto the MERL grid (reference §5.3, algorithm 3D_BRDF_Resample): the samples'
 // configurations mapped into 3D (acquire/mapping.h), a kd-tree over them (nanoflann), and at every query (a
 // grid cell's centre, or any configuration) the k nearest samples combined with one set of weights for every
-// band: their mean, Shepard's inverse distances to the power p (eqs 5.9-5.10), or Franke-Little's (Renka's
+// band: their mean, Shepard's inverse distances to the power p (eqs 5.9-5.10), Franke-Little's (Renka's
 // modified Shepard) weights, which fall to 0 at the (k+1)-th nearest sample so that the estimate is continuous
-// where the neighbour set changes.
+// where the neighbour set changes, or two approximating (smoothing) estimates with the same continuous reach:
+// Wendland's C2 kernel, and a local linear (LOESS) fit weighted by it, whose equivalent weights reproduce any
+// linear function of the mapped coordinates exactly.
 //
 // Out of core: a grid is filled in two streams over the samples. The angles are read in blocks and mapped
 // into the tree (16 bytes per sample); the neighbours and weights of the cells are found; then the values are
@@ -29,18 +31,18 @@ class BlockReader;
 
 namespace specula::acquire {
 
-enum class Weights { mean, shepard, renka };
+enum class Weights { mean, shepard, renka, wendland, loess };
 
-/// Parses "mean", "shepard" or "renka"; UsageError naming the choices otherwise.
+/// Parses "mean", "shepard", "renka", "wendland" or "loess"; UsageError naming the choices otherwise.
 Weights parse_weights(std::string_view name);
-/// "mean", "shepard" or "renka".
+/// "mean", "shepard", "renka", "wendland" or "loess".
 std::string_view weights_name(Weights w);
 
 struct ResampleOptions {
   Mapping mapping = Mapping::standard;
   std::size_t k = 32;
   Weights weights = Weights::shepard;
-  double power = 1;  ///< Shepard's p; renka's exponent is 2 and mean has none
+  double power = 1;  ///< Shepard's p; the other weightings have none
   /// A query has no support (a cell is left without data) when its nearest sample is farther than this in
   /// config_distance (about radians; reciprocal as the mapping).
   double max_gap = 0.15;
@@ -117,6 +119,7 @@ class StoreSamples final : public SampleSource {
 struct Neighbours {
   std::vector<std::uint32_t> index;  ///< sample indices, nearest first
   std::vector<float> dist2;          ///< squared distances in the mapped space
+  std::vector<float> offset;         ///< 3 per neighbour: its mapped point minus the query's (when asked for)
   double gap = 0;  ///< config_distance from the query to the nearest sample (reciprocal as the mapping)
 };
 
@@ -131,8 +134,9 @@ class SampleTree {
 
   Mapping mapping() const { return mapping_; }
   std::size_t size() const { return n_; }
-  /// The min(k, size()) nearest samples of `at` into out (ties in an order fixed by the tree).
-  void nearest(const IsoAngles& at, std::size_t k, Neighbours& out) const;
+  /// The min(k, size()) nearest samples of `at` into out (ties in an order fixed by the tree); their offsets
+  /// only when `offsets` (else out.offset is emptied).
+  void nearest(const IsoAngles& at, std::size_t k, Neighbours& out, bool offsets = false) const;
 
  private:
   struct Index;
@@ -143,10 +147,13 @@ class SampleTree {
 
 /// Normalised weights (summing to 1) of neighbours at squared mapped distances dist2 (ascending) into out:
 /// equal for mean; for Shepard d^-p (eq 5.10); for renka ((R - d)+ / (R d))^2 with R^2 = reach2 (the (k+1)-th
-/// nearest sample's; infinite when there is none: 1/d^2), equal among the nearest when all fall at R; samples
-/// at distance 0, if any, share all the weight.
+/// nearest sample's; infinite when there is none: 1/d^2); for wendland (1 - d/R)^4 (4 d/R + 1) and for loess the
+/// local linear fit's equivalent weights with that kernel (offsets: 3 per neighbour, mapped; they may be
+/// negative), both with R as for renka (infinite: the farthest neighbour's distance x 1.5); equal among the nearest
+/// when all fall at R; for shepard and renka, samples at distance 0, if any, share all the weight. UsageError for
+/// loess without offsets.
 void neighbour_weights(Weights w, double power, std::span<const float> dist2, std::span<float> out,
-                       double reach2 = std::numeric_limits<double>::infinity());
+                       double reach2 = std::numeric_limits<double>::infinity(), std::span<const float> offsets = {});
 
 /// Timing and counts of one grid reconstruction.
 struct GridStats {

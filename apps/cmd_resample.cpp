@@ -238,7 +238,7 @@ void run_resample(const ResampleCliOptions& o) {
   store::Grid grid = empty_grid(info);
   const acquire::GridStats stats = acquire::resample_grid(src, ro, grid.brdf);
   grid.provenance.source_file = o.store + ":" + o.samples;
-  // Renka's weights have no power (check_options refuses one), so the provenance names it only for Shepard's.
+  // Only Shepard's weights have a power, so the provenance names it only for them.
   const std::string power = ro.weights == acquire::Weights::shepard ? fmt::format(" power={}", o.power) : "";
   grid.provenance.importer = fmt::format("resample mapping={} k={} weights={}{} max_gap_deg={}", o.mapping, o.k,
                                          o.weights, power, o.max_gap_deg);
@@ -276,8 +276,9 @@ void setup_resample(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("-k", o->k, "Nearest samples per cell")->capture_default_str();
   cmd->add_option("--weights", o->weights,
-                  "renka (Franke-Little: ((R - d)+ / (R d))^2, R the (k+1)-th nearest; continuous), shepard (eqs "
-                  "5.9-5.10, the reference's) or mean")
+                  "loess (local linear fit, Wendland-weighted; smoothing), wendland (kernel (1 - d/R)^4 (4 d/R + 1); "
+                  "smoothing), renka (Franke-Little: ((R - d)+ / (R d))^2; continuous), shepard (eqs 5.9-5.10, the "
+                  "reference's) or mean; R the (k+1)-th nearest sample's distance")
       ->capture_default_str();
   auto* power =
       cmd->add_option("--power", o->power, "Shepard's power p (--weights shepard only)")->capture_default_str();

@@ -47,7 +47,7 @@ TEST(CrossValidate, OneRowPerMappingKAndWeightingInOrder) {
   const CrossValidation cv = cross_validate(s.angles, s.values, s.bands, {.holdout = 0.1, .seed = 3, .ks = {1, 8}});
   EXPECT_EQ(cv.samples, 400u);
   EXPECT_EQ(cv.held_out, 40u);
-  ASSERT_EQ(cv.rows.size(), 3u * 4u);  // per mapping: k = 1 once, k = 8 mean, Shepard and Renka
+  ASSERT_EQ(cv.rows.size(), 3u * 6u);  // per mapping: k = 1 once, k = 8 mean, Shepard, Renka, Wendland, LOESS
   std::size_t i = 0;
   for (const Mapping m : {Mapping::standard, Mapping::marschner, Mapping::halfdiff}) {
     EXPECT_EQ(cv.rows[i].mapping, m);
@@ -56,8 +56,10 @@ TEST(CrossValidate, OneRowPerMappingKAndWeightingInOrder) {
     EXPECT_EQ(cv.rows[i + 1].weights, Weights::mean);
     EXPECT_EQ(cv.rows[i + 2].weights, Weights::shepard);
     EXPECT_EQ(cv.rows[i + 3].weights, Weights::renka);
-    for (std::size_t j = i; j < i + 4; ++j) EXPECT_EQ(cv.rows[j].predicted, 40u);  // no support limit
-    i += 4;
+    EXPECT_EQ(cv.rows[i + 4].weights, Weights::wendland);
+    EXPECT_EQ(cv.rows[i + 5].weights, Weights::loess);
+    for (std::size_t j = i; j < i + 6; ++j) EXPECT_EQ(cv.rows[j].predicted, 40u);  // no support limit
+    i += 6;
   }
 }
 

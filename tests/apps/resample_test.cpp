@@ -36,8 +36,8 @@ TEST(ResampleCli, CornellSamplesResampleOntoTheGridAndCrossValidate) {
   EXPECT_NE(r.output.find("\"valid_cells\":" + std::to_string(valid)), std::string::npos) << r.output;
   r = run_specula("eval-resample '" + db.string() + "' garnet_red --holdout 0.1 -k 1,16 --json");
   ASSERT_EQ(r.status, 0) << r.output;
-  // 3 mappings x (k = 1 nearest; k = 16 mean, Shepard and Renka), inside one object.
-  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '{'), 1 + 3 * 4) << r.output;
+  // 3 mappings x (k = 1 nearest; k = 16 mean, Shepard, Renka, Wendland and LOESS), inside one object.
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '{'), 1 + 3 * 6) << r.output;
 }
 
 TEST(ResampleCli, SimulatedScanSamplesResampleIntoAStoreOrAGridFile) {
