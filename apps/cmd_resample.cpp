@@ -125,10 +125,10 @@ void run_prior_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
   const acquire::PriorResampleStats st = acquire::resample_with_prior(src, prior, po, grid.brdf, confidence);
   store::Grid conf = acquire::confidence_grid(confidence, info.wavelengths);
   grid.provenance.source_file = conf.provenance.source_file = o.store + ":" + o.samples;
-  grid.provenance.importer =
-      fmt::format("resample prior={} lambda={} prior_weights={} confidence_reach={} prior_in_cap={} mapping={} k={} "
-                  "weights={}",
-                  o.prior, o.lambda, o.prior_weights, o.confidence_reach, !o.kd_tree_in_cap, o.mapping, o.k, o.weights);
+  grid.provenance.importer = fmt::format(
+      "resample prior={} lambda={} prior_weights={} confidence_reach={} prior_in_cap={} mapping={} k={} "
+      "weights={}",
+      o.prior, o.lambda, o.prior_weights, o.confidence_reach, !o.kd_tree_in_cap, o.mapping, o.k, o.weights);
   conf.provenance.importer = "resample confidence of " + o.output;
   const std::string what = save_prior_grids(grid, conf, o.output, conf_out, o.replace);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
