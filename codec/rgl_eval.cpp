@@ -11,7 +11,8 @@
 namespace specula::codec {
 
 namespace {
-constexpr double kPi = std::numbers::pi;
+
+using std::numbers::pi;
 
 std::vector<float> channel_index(std::size_t n) {
   std::vector<float> v(n);
@@ -20,10 +21,10 @@ std::vector<float> channel_index(std::size_t n) {
 }
 }  // namespace
 
-double rgl_theta_to_u(double theta) { return std::sqrt(std::max(theta, 0.0) * (2 / kPi)); }
-double rgl_u_to_theta(double u) { return u * u * (kPi / 2); }
-double rgl_phi_to_v(double phi) { return (phi + kPi) / (2 * kPi); }
-double rgl_v_to_phi(double v) { return (2 * v - 1) * kPi; }
+double rgl_theta_to_u(double theta) { return std::sqrt(std::max(theta, 0.0) * (2 / pi)); }
+double rgl_u_to_theta(double u) { return u * u * (pi / 2); }
+double rgl_phi_to_v(double phi) { return (phi + pi) / (2 * pi); }
+double rgl_v_to_phi(double v) { return (2 * v - 1) * pi; }
 double rgl_elevation(const Eigen::Vector3d& d) {
   const double dist = std::sqrt(d.x() * d.x() + d.y() * d.y() + (d.z() - 1) * (d.z() - 1));
   return 2 * std::asin(std::clamp(0.5 * dist, -1.0, 1.0));
@@ -104,7 +105,7 @@ std::vector<double> RglEvaluator::albedo(double theta_i, std::size_t n) const {
       const Eigen::Vector3d wo = 2 * wi.dot(m) * m - wi;
       if (!(wo.z() > 0) || !(wi.dot(m) > 0) || !(p.pdf > 0)) continue;
       // Density of wo: the square's density over the Jacobian of (u, v) -> m (2 pi^2 u sin theta_m) and of m -> wo.
-      const double pdf = p.pdf / (std::max(2 * kPi * kPi * p.x * std::sin(theta_m), 1e-12) * 4 * wi.dot(m));
+      const double pdf = p.pdf / (std::max(2 * pi * pi * p.x * std::sin(theta_m), 1e-12) * 4 * wi.dot(m));
       eval(wi, wo.normalized(), f);
       for (std::size_t c = 0; c < channels_; ++c) sum[c] += f[c] * wo.z() / pdf;
     }

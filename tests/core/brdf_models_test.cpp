@@ -14,7 +14,7 @@ namespace specula::brdf {
 namespace {
 
 using std::numbers::pi;
-constexpr double kDeg = pi / 180;
+constexpr double kRadPerDeg = pi / 180;
 
 // Gauss-Legendre nodes and weights on [a, b] (Newton on P_n).
 void gauss_legendre(int n, double a, double b, std::vector<double>& x, std::vector<double>& w) {
@@ -96,11 +96,11 @@ TorranceSparrow ts(double m, Eigen::Vector3d eta, double rho_d = 0) {
 TEST(BrdfModels, FresnelMatchesTheCosineForm) {
   for (double eta : {1.2, 1.5, 2.4})
     for (double t = 0.5; t < 89.6; t += 1.0)
-      EXPECT_NEAR(fresnel_dielectric(t * kDeg, eta), fresnel_cos(t * kDeg, eta), 1e-12);
+      EXPECT_NEAR(fresnel_dielectric(t * kRadPerDeg, eta), fresnel_cos(t * kRadPerDeg, eta), 1e-12);
   EXPECT_NEAR(fresnel_dielectric(0, 1.5), 0.04, 1e-15);
   EXPECT_NEAR(fresnel_dielectric(1e-9, 1.5), 0.04, 1e-12);
   EXPECT_NEAR(fresnel_dielectric(pi / 2 - 1e-9, 1.5), 1.0, 1e-6);
-  EXPECT_EQ(fresnel_dielectric(60 * kDeg, 1 / 1.5), 1.0);  // beyond the critical angle asin(1/1.5) = 41.8 deg
+  EXPECT_EQ(fresnel_dielectric(60 * kRadPerDeg, 1 / 1.5), 1.0);  // beyond the critical angle asin(1/1.5) = 41.8 deg
 }
 
 TEST(BrdfModels, Reciprocity) {
@@ -125,7 +125,7 @@ TEST(BrdfModels, Reciprocity) {
 TEST(BrdfModels, LambertianAlbedoIsRhoExactly) {
   const Lambertian lam(grid3(), Eigen::Vector3d(0.2, 0.5, 1.0));
   for (double ti : {0.0, 30.0, 75.0, 89.0}) {
-    const Eigen::Vector3d wi = direction(ti * kDeg, 0.3);
+    const Eigen::Vector3d wi = direction(ti * kRadPerDeg, 0.3);
     // Exact quadrature: only rounding remains.
     EXPECT_NEAR(albedo_direct(lam, wi, 0), 0.2, 1e-13);
     EXPECT_NEAR(albedo_direct(lam, wi, 1), 0.5, 1e-13);
@@ -142,19 +142,19 @@ TEST(BrdfModels, TorranceSparrowKnownValues) {
   const auto t = ts(m, Eigen::Vector3d(1.5, 1.5, 1.5));
   std::vector<double> v(3);
   // Mirror at 30 deg: theta_h = 0 so D = 1 / (4 m^2), G = 1, theta_d = 30 deg.
-  t.eval(StdAngles{30 * kDeg, 0, 30 * kDeg, pi}, v);
-  const double f_mirror = fresnel_cos(30 * kDeg, 1.5) / (4 * m * m * pi * std::pow(std::cos(30 * kDeg), 2));
+  t.eval(StdAngles{30 * kRadPerDeg, 0, 30 * kRadPerDeg, pi}, v);
+  const double f_mirror = fresnel_cos(30 * kRadPerDeg, 1.5) / (4 * m * m * pi * std::pow(std::cos(30 * kRadPerDeg), 2));
   EXPECT_NEAR(v[1], f_mirror, 1e-12 * f_mirror);
-  EXPECT_NEAR(fresnel_cos(30 * kDeg, 1.5), 0.041523, 1e-6);
+  EXPECT_NEAR(fresnel_cos(30 * kRadPerDeg, 1.5), 0.041523, 1e-6);
   // Normal incidence, theta_o = 40 deg: theta_h = theta_d = 20 deg, G = min(1, 2, 2 cos 40) = 1.
-  t.eval(StdAngles{0, 0, 40 * kDeg, 0}, v);
-  const double c20 = std::cos(20 * kDeg), t20 = std::tan(20 * kDeg);
-  const double f_off = std::exp(-t20 * t20 / (m * m)) / (4 * m * m * std::pow(c20, 4)) * fresnel_cos(20 * kDeg, 1.5) /
-                       (pi * std::cos(40 * kDeg));
+  t.eval(StdAngles{0, 0, 40 * kRadPerDeg, 0}, v);
+  const double c20 = std::cos(20 * kRadPerDeg), t20 = std::tan(20 * kRadPerDeg);
+  const double f_off = std::exp(-t20 * t20 / (m * m)) / (4 * m * m * std::pow(c20, 4)) * fresnel_cos(20 * kRadPerDeg, 1.5) /
+                       (pi * std::cos(40 * kRadPerDeg));
   EXPECT_NEAR(v[1], f_off, 1e-12 * f_off);
   // Both at 85 deg, 90 deg apart in azimuth: masking, G = 4 c^2 / (s^2 + 2 c^2) with c = cos 85, s = sin 85.
-  t.eval(StdAngles{85 * kDeg, 0, 85 * kDeg, pi / 2}, v);
-  const double c = std::cos(85 * kDeg), s = std::sin(85 * kDeg);
+  t.eval(StdAngles{85 * kRadPerDeg, 0, 85 * kRadPerDeg, pi / 2}, v);
+  const double c = std::cos(85 * kRadPerDeg), s = std::sin(85 * kRadPerDeg);
   const double norm = std::sqrt(2 * s * s + 4 * c * c);
   const double ch = 2 * c / norm, cd = (s * s + 2 * c * c) / norm;
   const double g = 4 * c * c / (s * s + 2 * c * c);
@@ -182,7 +182,7 @@ TEST(BrdfModels, TorranceSparrowConservesEnergy) {
   for (double m : {0.1, 0.3, 0.6}) {
     const auto t = ts(m, Eigen::Vector3d(1.5, 1e6, 3.0));
     for (double ti : {0.0, 30.0, 60.0, 80.0, 88.0}) {
-      const Eigen::Vector3d wi = direction(ti * kDeg, 0.7);
+      const Eigen::Vector3d wi = direction(ti * kRadPerDeg, 0.7);
       const Eigen::VectorXd a = albedos_half(t, wi);
       for (Eigen::Index b = 0; b < 3; ++b) {
         EXPECT_LE(a[b], 1.0) << "m " << m << " theta_i " << ti << " band " << b;
@@ -228,14 +228,14 @@ TEST(BrdfModels, WardNormalisationAndEnergy) {
   EXPECT_GT(deficit_small, 0.0);
   EXPECT_LT(deficit_small, 3.5 * 0.03 * 0.03);
   EXPECT_LT(deficit_small / (0.03 * 0.03), (1.0 - ward_normal_albedo_1d(0.08)) / (0.08 * 0.08) * 1.1);
-  for (double ti : {20.0, 45.0, 70.0}) EXPECT_LE(albedo_half(w, direction(ti * kDeg, 0), 0), 1.0) << ti;
+  for (double ti : {20.0, 45.0, 70.0}) EXPECT_LE(albedo_half(w, direction(ti * kRadPerDeg, 0), 0), 1.0) << ti;
   // Hand value at the mirror direction of 30 deg: rho_s / (4 pi alpha^2 cos 30).
   std::vector<double> v(3);
-  w.eval(StdAngles{30 * kDeg, 0, 30 * kDeg, pi}, v);
-  EXPECT_NEAR(v[1], 0.6 / (4 * pi * 0.08 * 0.08 * std::cos(30 * kDeg)), 1e-10);
-  w.eval(StdAngles{0, 0, 40 * kDeg, 1.0}, v);
-  const double t20 = std::tan(20 * kDeg);
-  EXPECT_NEAR(v[2], 0.3 * std::exp(-t20 * t20 / 0.04) / (4 * pi * 0.04 * std::sqrt(std::cos(40 * kDeg))), 1e-12);
+  w.eval(StdAngles{30 * kRadPerDeg, 0, 30 * kRadPerDeg, pi}, v);
+  EXPECT_NEAR(v[1], 0.6 / (4 * pi * 0.08 * 0.08 * std::cos(30 * kRadPerDeg)), 1e-10);
+  w.eval(StdAngles{0, 0, 40 * kRadPerDeg, 1.0}, v);
+  const double t20 = std::tan(20 * kRadPerDeg);
+  EXPECT_NEAR(v[2], 0.3 * std::exp(-t20 * t20 / 0.04) / (4 * pi * 0.04 * std::sqrt(std::cos(40 * kRadPerDeg))), 1e-12);
 }
 
 TEST(BrdfModels, ParametersAreChecked) {
