@@ -340,11 +340,13 @@ void setup_resample(CLI::App& app) {
                   "Nearest samples per cell, or auto: the k of a fixed ladder (4 to 128) predicting held-out samples "
                   "best by leave-one-out (docs/resampling.md)")
       ->capture_default_str();
-  cmd->add_option("--k-criterion", o->k_criterion,
-                  "-k auto: median (median relative error of the held-out spectra) or rms (their relative RMS)")
-      ->capture_default_str();
-  cmd->add_option("--k-held-out", o->k_held_out, "-k auto: samples left out one at a time (fixed seed)")
-      ->capture_default_str();
+  auto* k_criterion =
+      cmd->add_option("--k-criterion", o->k_criterion,
+                      "-k auto: median (median relative error of the held-out spectra) or rms (their relative RMS)")
+          ->capture_default_str();
+  auto* k_held_out =
+      cmd->add_option("--k-held-out", o->k_held_out, "-k auto: samples left out one at a time (fixed seed)")
+          ->capture_default_str();
   cmd->add_option("--weights", o->weights,
                   "loess (local linear fit, Wendland-weighted; smoothing), wendland (kernel (1 - d/R)^4 (4 d/R + 1); "
                   "smoothing), renka (Franke-Little: ((R - d)+ / (R d))^2; continuous), shepard (eqs 5.9-5.10, the "
@@ -385,8 +387,10 @@ void setup_resample(CLI::App& app) {
                 "round the specular peak) instead of the prior alone there (docs/prior.md)");
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
-  cmd->callback([o, power] {
+  cmd->callback([o, power, k_criterion, k_held_out] {
     if (power->count() > 0 && o->weights != "shepard") throw UsageError("--power: only Shepard's weights have a power");
+    if ((k_criterion->count() > 0 || k_held_out->count() > 0) && o->k != "auto")
+      throw UsageError("--k-criterion, --k-held-out: only with -k auto");
     run_resample(*o);
   });
 }

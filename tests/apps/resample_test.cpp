@@ -140,6 +140,7 @@ TEST(ResampleCli, BadInputIsOneLineAndLeavesTheStoreAlone) {
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k many",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k auto --k-criterion mean",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k auto --k-held-out 0",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k 8 --k-held-out 100",
         "resample '" + db.string() + "' missing -o '" + db.string() + ":g'",
         "eval-resample '" + db.string() + "' ok --holdout 1.5"}) {
     const auto r = run_specula(args);
