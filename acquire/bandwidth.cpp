@@ -208,10 +208,20 @@ void predict_held_out(const HeldOut& ho, const ResampleOptions& o, std::span<con
       16);
 }
 
+// The mean of v over the bands that hold samples.
+double band_mean(const std::vector<double>& v, const std::vector<std::size_t>& samples) {
+  double sum = 0;
+  std::size_t n = 0;
+  for (std::size_t g = 0; g < v.size(); ++g)
+    if (samples[g] > 0) sum += v[g], ++n;
+  return n ? sum / double(n) : 0.0;
+}
+
 // The rows, the global choice and the per-band choices from the squared errors.
 BandwidthChoice summarise(const BandwidthOptions& b, const std::vector<double>& e2, const std::vector<double>& t2,
                           const std::vector<std::size_t>& band) {
   const std::size_t levels = b.ladder.size(), bands = b.theta_h_edges.size() + 1;
+  const bool rms = b.criterion == BandwidthCriterion::rms;
   BandwidthChoice c;
   c.held_out = t2.size();
   c.band_samples.assign(bands, 0);
@@ -230,27 +240,32 @@ BandwidthChoice summarise(const BandwidthOptions& b, const std::vector<double>& 
       auto in = [&](std::size_t j) { return band[j] == g; };
       r.band_median.push_back(error_of(BandwidthCriterion::median, e2, t2, levels, in, at));
       r.band_rms.push_back(error_of(BandwidthCriterion::rms, e2, t2, levels, in, at));
-      const double e = b.criterion == BandwidthCriterion::median ? r.band_median[g] : r.band_rms[g];
+      const double e = rms ? r.band_rms[g] : r.band_median[g];
       if (c.band_samples[g] > 0 && e < band_best[g]) band_best[g] = e, c.band_k[g] = b.ladder[l], band_level[g] = l;
     }
-    const double e = b.criterion == BandwidthCriterion::median ? r.median_rel : r.rel_rms;
+    r.band_mean = band_mean(r.band_median, c.band_samples);
+    const double e = rms ? r.rel_rms : b.criterion == BandwidthCriterion::median ? r.median_rel : r.band_mean;
     if (e < best) best = e, c.k = b.ladder[l];
     c.rows.push_back(std::move(r));
   }
-  c.per_band_error = error_of(b.criterion, e2, t2, levels, all, [&](std::size_t j) { return band_level[band[j]]; });
+  c.per_band_error =
+      b.criterion == BandwidthCriterion::bands
+          ? band_mean(band_best, c.band_samples)
+          : error_of(b.criterion, e2, t2, levels, all, [&](std::size_t j) { return band_level[band[j]]; });
   return c;
 }
 
 }  // namespace
 
 BandwidthCriterion parse_bandwidth_criterion(std::string_view name) {
+  if (name == "bands") return BandwidthCriterion::bands;
   if (name == "median") return BandwidthCriterion::median;
   if (name == "rms") return BandwidthCriterion::rms;
-  throw UsageError(fmt::format("unknown bandwidth criterion '{}': give median or rms", name));
+  throw UsageError(fmt::format("unknown bandwidth criterion '{}': give bands, median or rms", name));
 }
 
 std::string_view bandwidth_criterion_name(BandwidthCriterion c) {
-  return c == BandwidthCriterion::median ? "median" : "rms";
+  return c == BandwidthCriterion::bands ? "bands" : c == BandwidthCriterion::median ? "median" : "rms";
 }
 
 BandwidthChoice choose_bandwidth(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,

@@ -14,20 +14,23 @@ namespace specula::acquire {
 
 /// What the leave-one-out error of a k is judged by.
 enum class BandwidthCriterion {
+  /// The mean over theta_h bands (those with held-out samples) of each band's median relative error: every band
+  /// counts alike, so the few samples near the specular peak are not outvoted by the many diffuse ones.
+  bands,
   median,  ///< the median over held-out samples of |pred - true| / |true| (spectra as vectors)
   rms,     ///< sqrt(sum |pred - true|^2 / sum |true|^2) over held-out samples and bands
 };
 
-/// Parses "median" or "rms"; UsageError naming the choices otherwise.
+/// Parses "bands", "median" or "rms"; UsageError naming the choices otherwise.
 BandwidthCriterion parse_bandwidth_criterion(std::string_view name);
-/// "median" or "rms".
+/// "bands", "median" or "rms".
 std::string_view bandwidth_criterion_name(BandwidthCriterion c);
 
 struct BandwidthOptions {
   std::vector<std::size_t> ladder = {4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128};  ///< ascending, each >= 1
   std::size_t held_out = 2000;  ///< samples left out one at a time (all of them when there are fewer)
   std::uint64_t seed = 0;       ///< seed of the choice of held-out samples
-  BandwidthCriterion criterion = BandwidthCriterion::median;
+  BandwidthCriterion criterion = BandwidthCriterion::bands;
   /// Upper edges (degrees) of the theta_h bands the error is also reported in; the last band ends at 90.
   std::vector<double> theta_h_edges = {10, 30, 60};
 };
@@ -35,8 +38,8 @@ struct BandwidthOptions {
 /// The leave-one-out errors of one k, over all held-out samples and per theta_h band.
 struct BandwidthRow {
   std::size_t k = 0;
-  double median_rel = 0, rel_rms = 0;         ///< as BandwidthCriterion describes them
-  std::vector<double> band_median, band_rms;  ///< per theta_h band (0 for a band without held-out samples)
+  double band_mean = 0, median_rel = 0, rel_rms = 0;  ///< bands, median and rms of BandwidthCriterion
+  std::vector<double> band_median, band_rms;          ///< per theta_h band (0 for a band without held-out samples)
 };
 
 /// What the choice found.

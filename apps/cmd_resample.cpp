@@ -29,7 +29,7 @@ struct ResampleCliOptions {
   std::string output;
   std::string mapping = "standard";
   std::string k = "32";  // a count, or "auto": chosen by leave-one-out (acquire/bandwidth.h)
-  std::string k_criterion = "median";
+  std::string k_criterion = "bands";
   std::size_t k_held_out = 2000;
   std::string weights = "shepard";
   double power = 1;
@@ -233,6 +233,7 @@ Json choice_json(const acquire::BandwidthChoice& c, const acquire::BandwidthOpti
   Json rows = Json::array();
   for (const auto& r : c.rows)
     rows.push_back({{"k", r.k},
+                    {"band_mean", r.band_mean},
                     {"median_rel", r.median_rel},
                     {"rel_rms", r.rel_rms},
                     {"band_median", r.band_median},
@@ -341,8 +342,10 @@ void setup_resample(CLI::App& app) {
                   "best by leave-one-out (docs/resampling.md)")
       ->capture_default_str();
   auto* k_criterion =
-      cmd->add_option("--k-criterion", o->k_criterion,
-                      "-k auto: median (median relative error of the held-out spectra) or rms (their relative RMS)")
+      cmd->add_option(
+             "--k-criterion", o->k_criterion,
+             "-k auto: bands (the mean over theta_h bands of each band's median relative error of the held-out "
+             "spectra), median (their median relative error) or rms (their relative RMS)")
           ->capture_default_str();
   auto* k_held_out =
       cmd->add_option("--k-held-out", o->k_held_out, "-k auto: samples left out one at a time (fixed seed)")

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <numeric>
 #include <random>
 
 #include "specula/acquire/bandwidth.h"
@@ -105,7 +106,7 @@ TEST(Bandwidth, TheChosenKIsTheBruteForceLeaveOneOutMinimum) {
   const MemorySamples src(s.angles, s.values, 2);
   const ResampleOptions o{.k = 128, .weights = Weights::wendland};
   const SampleTree tree(src, o.mapping);
-  const BandwidthOptions b{.ladder = kLadder, .held_out = 5000};
+  const BandwidthOptions b{.ladder = kLadder, .held_out = 5000, .criterion = BandwidthCriterion::median};
   const BandwidthChoice c = choose_bandwidth(tree, src, o, b);
   const Brute bf = brute_force(s, kLadder, b.theta_h_edges);
   const auto best = std::size_t(std::min_element(bf.median.begin(), bf.median.end()) - bf.median.begin());
@@ -124,6 +125,12 @@ TEST(Bandwidth, TheChosenKIsTheBruteForceLeaveOneOutMinimum) {
   std::size_t total = 0;
   for (const auto m : c.band_samples) total += m;
   EXPECT_EQ(total, 700u);
+  // The default criterion: each theta_h band's median counts alike (every band holds samples here).
+  std::vector<double> band_mean;
+  for (const auto& m : bf.band_median) band_mean.push_back(std::accumulate(m.begin(), m.end(), 0.0) / double(m.size()));
+  const BandwidthChoice d = choose_bandwidth(tree, src, o, {.ladder = kLadder, .held_out = 5000});
+  EXPECT_EQ(d.k, kLadder[std::size_t(std::min_element(band_mean.begin(), band_mean.end()) - band_mean.begin())]);
+  for (std::size_t l = 0; l < kLadder.size(); ++l) EXPECT_NEAR(d.rows[l].band_mean, band_mean[l], 1e-5);
   // The rms criterion picks the brute force's rms minimum.
   const BandwidthChoice r =
       choose_bandwidth(tree, src, o, {.ladder = kLadder, .held_out = 5000, .criterion = BandwidthCriterion::rms});
@@ -154,6 +161,7 @@ void expect_same(const BandwidthChoice& a, const BandwidthChoice& b) {
   EXPECT_EQ(a.per_band_error, b.per_band_error);
   ASSERT_EQ(a.rows.size(), b.rows.size());
   for (std::size_t l = 0; l < a.rows.size(); ++l) {
+    EXPECT_EQ(a.rows[l].band_mean, b.rows[l].band_mean);
     EXPECT_EQ(a.rows[l].median_rel, b.rows[l].median_rel);
     EXPECT_EQ(a.rows[l].rel_rms, b.rows[l].rel_rms);
     EXPECT_EQ(a.rows[l].band_median, b.rows[l].band_median);

@@ -81,7 +81,7 @@ TEST(ResampleCli, SimulatedScanSamplesResampleIntoAStoreOrAGridFile) {
   EXPECT_NE(r.output.find("\"held_out\":500"), std::string::npos) << r.output;
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '{'), 2 + 11) << r.output;  // report, choice, 11 rows
   const std::string provenance = store::Store::open(db).read_grid("auto").provenance.importer;
-  EXPECT_NE(provenance.find("k=" + std::to_string(k) + " k_auto=loo criterion=median held_out=500"), std::string::npos)
+  EXPECT_NE(provenance.find("k=" + std::to_string(k) + " k_auto=loo criterion=bands held_out=500"), std::string::npos)
       << provenance;
 }
 
