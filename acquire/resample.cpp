@@ -49,9 +49,6 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 Eigen::Vector3f mapped(Mapping m, const IsoAngles& a) { return map_angles(m, a).cast<float>(); }
 
-// Weightings whose weights fall to 0 at the (k+1)-th nearest sample (the reach).
-bool has_reach(Weights w) { return w == Weights::renka || w == Weights::wendland || w == Weights::loess; }
-
 // Wendland's C2 kernel, (1 - r)^4 (4 r + 1) for r = d / R < 1, else 0.
 double wendland(double d2, double reach2) {
   const double r = std::sqrt(d2 / reach2);
@@ -87,7 +84,7 @@ struct WeightedNeighbours {
   // False when the query has no support. Renka's weights need the (k+1)-th nearest sample's distance, the reach;
   // that sample itself has weight 0 and is dropped.
   bool find(const SampleTree& tree, const IsoAngles& at, const ResampleOptions& o) {
-    const bool reach = has_reach(o.weights);
+    const bool reach = weights_have_reach(o.weights);
     tree.nearest(at, reach ? o.k + 1 : o.k, nb, o.weights == Weights::loess);
     if (nb.index.empty() || !(nb.gap <= o.max_gap)) return false;
     double reach2 = std::numeric_limits<double>::infinity();
@@ -236,6 +233,8 @@ std::string_view weights_name(Weights w) {
   }
   return "?";
 }
+
+bool weights_have_reach(Weights w) { return w == Weights::renka || w == Weights::wendland || w == Weights::loess; }
 
 void check_options(const ResampleOptions& o) {
   if (o.k < 1 || o.k > 100000) throw UsageError("k = " + std::to_string(o.k) + ": give 1 to 100000 neighbours");

@@ -38,6 +38,9 @@ Weights parse_weights(std::string_view name);
 /// "mean", "shepard", "renka", "wendland" or "loess".
 std::string_view weights_name(Weights w);
 
+/// True for the weightings whose weights fall to 0 at the (k+1)-th nearest sample, the reach (renka, wendland, loess).
+bool weights_have_reach(Weights w);
+
 struct ResampleOptions {
   Mapping mapping = Mapping::standard;
   std::size_t k = 32;

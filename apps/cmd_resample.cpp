@@ -10,6 +10,7 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/acquire/bandwidth.h"
 #include "specula/acquire/base_resample.h"
 #include "specula/acquire/prior_output.h"
 #include "specula/acquire/prior_resample.h"
@@ -27,7 +28,9 @@ struct ResampleCliOptions {
   std::string samples;
   std::string output;
   std::string mapping = "standard";
-  std::size_t k = 32;
+  std::string k = "32";  // a count, or "auto": chosen by leave-one-out (acquire/bandwidth.h)
+  std::string k_criterion = "bands";
+  std::size_t k_held_out = 2000;
   std::string weights = "shepard";
   double power = 1;
   double max_gap_deg = 8.6;
@@ -219,17 +222,75 @@ void run_model_resample(const ResampleCliOptions& o, const acquire::ResampleOpti
       info.size, o.samples, o.model, o.lobes, shapes, st.fit.relative_rms, st.filled_cells, seconds, what, conf_out);
 }
 
-void run_resample(const ResampleCliOptions& o) {
+// A resolved -k: the count, or the leave-one-out choice with its table (JSON) and its provenance words.
+struct ResolvedK {
+  std::size_t k = 32;
+  Json report;             // null unless -k auto
+  std::string provenance;  // "k=K", with how it was chosen for -k auto
+};
+
+Json choice_json(const acquire::BandwidthChoice& c, const acquire::BandwidthOptions& b) {
+  Json rows = Json::array();
+  for (const auto& r : c.rows)
+    rows.push_back({{"k", r.k},
+                    {"band_mean", r.band_mean},
+                    {"median_rel", r.median_rel},
+                    {"rel_rms", r.rel_rms},
+                    {"band_median", r.band_median},
+                    {"band_rms", r.band_rms}});
+  return {{"k", c.k},
+          {"criterion", acquire::bandwidth_criterion_name(b.criterion)},
+          {"held_out", c.held_out},
+          {"seed", b.seed},
+          {"ladder", b.ladder},
+          {"theta_h_edges_deg", b.theta_h_edges},
+          {"band_samples", c.band_samples},
+          {"band_k", c.band_k},
+          {"per_band_error", c.per_band_error},
+          {"rows", rows}};
+}
+
+ResolvedK resolve_k(const ResampleCliOptions& o, acquire::ResampleOptions ro) {
+  if (o.k != "auto") {
+    std::size_t used = 0;
+    ResolvedK r;
+    try {
+      r.k = std::stoul(o.k, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != o.k.size())
+      throw UsageError("-k: give a count of neighbours or 'auto', got '" + o.k + "'");
+    r.provenance = fmt::format("k={}", r.k);
+    return r;
+  }
+  const acquire::BandwidthOptions b{.held_out = o.k_held_out,
+                                    .criterion = acquire::parse_bandwidth_criterion(o.k_criterion)};
+  const store::Store s = store::Store::open(o.store);
+  const acquire::StoreSamples src(s, o.samples);
+  const acquire::SampleTree tree(src, ro.mapping);
+  ro.k = b.ladder.back();
+  const acquire::BandwidthChoice c = acquire::choose_bandwidth(tree, src, ro, b);
+  return {c.k, choice_json(c, b),
+          fmt::format("k={} k_auto=loo criterion={} held_out={} seed={}", c.k, o.k_criterion, c.held_out, b.seed)};
+}
+
+void run_resample(ResampleCliOptions o) {
   const auto t0 = std::chrono::steady_clock::now();
   if (!(o.max_gap_deg > 0 && o.max_gap_deg <= 180)) throw UsageError("--max-gap: give degrees in (0, 180]");
-  const acquire::ResampleOptions ro{.mapping = acquire::parse_mapping(o.mapping),
-                                    .k = o.k,
-                                    .weights = acquire::parse_weights(o.weights),
-                                    .power = o.power,
-                                    .max_gap = o.max_gap_deg * std::numbers::pi / 180};
-  acquire::check_options(ro);
+  acquire::ResampleOptions ro{.mapping = acquire::parse_mapping(o.mapping),
+                              .weights = acquire::parse_weights(o.weights),
+                              .power = o.power,
+                              .max_gap = o.max_gap_deg * std::numbers::pi / 180};
+  if (o.k_held_out < 1) throw UsageError("--k-held-out: give at least 1");
+  acquire::parse_bandwidth_criterion(o.k_criterion);
+  if (o.k == "auto") acquire::check_options(ro);
   check_output(o.output, o.replace);
   if (!o.prior.empty() && !o.model.empty()) throw UsageError("resample: give --prior or --model, not both");
+  const ResolvedK rk = resolve_k(o, ro);
+  ro.k = rk.k;
+  acquire::check_options(ro);
+  o.k = rk.provenance.substr(2);  // the prior's and the model's provenance name k as the plain one does
   if (!o.prior.empty()) return run_prior_resample(o, ro);
   if (!o.model.empty()) return run_model_resample(o, ro);
   const store::Store s = store::Store::open(o.store);
@@ -240,7 +301,7 @@ void run_resample(const ResampleCliOptions& o) {
   grid.provenance.source_file = o.store + ":" + o.samples;
   // Only Shepard's weights have a power, so the provenance names it only for them.
   const std::string power = ro.weights == acquire::Weights::shepard ? fmt::format(" power={}", o.power) : "";
-  grid.provenance.importer = fmt::format("resample mapping={} k={} weights={}{} max_gap_deg={}", o.mapping, o.k,
+  grid.provenance.importer = fmt::format("resample mapping={} {} weights={}{} max_gap_deg={}", o.mapping, rk.provenance,
                                          o.weights, power, o.max_gap_deg);
   const std::string what = save_grid(grid, o.output, o.replace, "resample");
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -252,7 +313,8 @@ void run_resample(const ResampleCliOptions& o) {
     j["average_seconds"] = stats.average_seconds;
     j["passes"] = stats.passes;
     j["mapping"] = o.mapping;
-    j["k"] = o.k;
+    j["k"] = rk.k;
+    if (!rk.report.is_null()) j["k_auto"] = rk.report;
     j["weights"] = o.weights;
     j["power"] = o.power;
     j["output"] = o.output;
@@ -260,8 +322,9 @@ void run_resample(const ResampleCliOptions& o) {
     print_json(j);
     return;
   }
-  fmt::print("resampled {} samples of {} onto {} of {} cells ({} mapping, k = {}, {} weights) in {:.2f} s: {}\n",
-             info.size, o.samples, stats.valid_cells, brdf::kMerlCells, o.mapping, o.k, o.weights, seconds, what);
+  fmt::print("resampled {} samples of {} onto {} of {} cells ({} mapping, k = {}{}, {} weights) in {:.2f} s: {}\n",
+             info.size, o.samples, stats.valid_cells, brdf::kMerlCells, o.mapping, rk.k,
+             rk.report.is_null() ? "" : " chosen by leave-one-out", o.weights, seconds, what);
 }
 
 }  // namespace
@@ -274,7 +337,19 @@ void setup_resample(CLI::App& app) {
   cmd->add_option("-o,--output", o->output, "STORE.h5:GRID, a .spgrid file, or an RGB .binary")->required();
   cmd->add_option("--mapping", o->mapping, "standard (M_s), marschner (M_m, eq 5.8) or halfdiff (M_h)")
       ->capture_default_str();
-  cmd->add_option("-k", o->k, "Nearest samples per cell")->capture_default_str();
+  cmd->add_option("-k", o->k,
+                  "Nearest samples per cell, or auto: the k of a fixed ladder (4 to 128) predicting held-out samples "
+                  "best by leave-one-out (docs/resampling.md)")
+      ->capture_default_str();
+  auto* k_criterion =
+      cmd->add_option(
+             "--k-criterion", o->k_criterion,
+             "-k auto: bands (the mean over theta_h bands of each band's median relative error of the held-out "
+             "spectra), median (their median relative error) or rms (their relative RMS)")
+          ->capture_default_str();
+  auto* k_held_out =
+      cmd->add_option("--k-held-out", o->k_held_out, "-k auto: samples left out one at a time (fixed seed)")
+          ->capture_default_str();
   cmd->add_option("--weights", o->weights,
                   "loess (local linear fit, Wendland-weighted; smoothing), wendland (kernel (1 - d/R)^4 (4 d/R + 1); "
                   "smoothing), renka (Franke-Little: ((R - d)+ / (R d))^2; continuous), shepard (eqs 5.9-5.10, the "
@@ -315,8 +390,10 @@ void setup_resample(CLI::App& app) {
                 "round the specular peak) instead of the prior alone there (docs/prior.md)");
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
-  cmd->callback([o, power] {
+  cmd->callback([o, power, k_criterion, k_held_out] {
     if (power->count() > 0 && o->weights != "shepard") throw UsageError("--power: only Shepard's weights have a power");
+    if ((k_criterion->count() > 0 || k_held_out->count() > 0) && o->k != "auto")
+      throw UsageError("--k-criterion, --k-held-out: only with -k auto");
     run_resample(*o);
   });
 }

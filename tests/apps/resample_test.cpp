@@ -72,6 +72,17 @@ TEST(ResampleCli, SimulatedScanSamplesResampleIntoAStoreOrAGridFile) {
   EXPECT_EQ(test::read_bytes(db), before);
   r = run_specula("resample " + q(db) + " scan -o " + q(db) + ":g --replace --power 2");
   EXPECT_EQ(r.status, 0) << r.output;
+  // -k auto: the leave-one-out choice in the JSON (every ladder row) and in the grid's provenance.
+  r = run_specula("resample " + q(db) + " scan -o " + q(db) +
+                  ":auto --weights wendland -k auto --k-held-out 500 --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto k = std::size_t(test::json_number(r.output, "k"));
+  EXPECT_NE(r.output.find("\"k_auto\":{"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\"held_out\":500"), std::string::npos) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '{'), 2 + 11) << r.output;  // report, choice, 11 rows
+  const std::string provenance = store::Store::open(db).read_grid("auto").provenance.importer;
+  EXPECT_NE(provenance.find("k=" + std::to_string(k) + " k_auto=loo criterion=bands held_out=500"), std::string::npos)
+      << provenance;
 }
 
 TEST(ResampleCli, TheStudyPrintsEveryMappingKAndWeighting) {
@@ -117,13 +128,19 @@ TEST(ResampleCli, BadInputIsOneLineAndLeavesTheStoreAlone) {
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --weights renka --power 2",
         "resample '" + db.string() + "' ok -o '" + (dir / "g.txt").string() + "'",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":bad/name'",
-        "eval-resample '" + db.string() + "' ok -k 0", "synth-samples velvet -o '" + db.string() + ":s'",
+        "eval-resample '" + db.string() + "' ok -k 0",
+        "synth-samples velvet -o '" + db.string() + ":s'",
         "synth-samples study-ts --geometry random -o '" + db.string() + ":s'",
         "synth-samples study-ts --sphere-px 0 -o '" + db.string() + ":s'",
-        "synth-samples study-ts -o '" + (dir / "s.txt").string() + "'", std::string("resample-study -k 0"),
+        "synth-samples study-ts -o '" + (dir / "s.txt").string() + "'",
+        std::string("resample-study -k 0"),
         std::string("resample-study --material velvet"),
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --mapping polar",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k 0",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k many",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k auto --k-criterion mean",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k auto --k-held-out 0",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k 8 --k-held-out 100",
         "resample '" + db.string() + "' missing -o '" + db.string() + ":g'",
         "eval-resample '" + db.string() + "' ok --holdout 1.5"}) {
     const auto r = run_specula(args);
