@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -282,6 +284,41 @@ BandwidthChoice choose_bandwidth(const SampleTree& tree, const SampleSource& src
   std::vector<double> e2, t2;
   predict_held_out(ho, o, b.ladder, src.bands(), wanted, values, e2, t2, progress);
   return summarise(b, e2, t2, ho.band);
+}
+
+BandwidthChoice choose_bandwidth(const store::Store& store, const std::string& samples, const ResampleOptions& o,
+                                 const BandwidthOptions& b) {
+  const StoreSamples src(store, samples);
+  const SampleTree tree(src, o.mapping);
+  ResampleOptions at_most = o;
+  at_most.k = b.ladder.empty() ? o.k : b.ladder.back();
+  return choose_bandwidth(tree, src, at_most, b);
+}
+
+nlohmann::ordered_json bandwidth_choice_json(const BandwidthChoice& c, const BandwidthOptions& b) {
+  nlohmann::ordered_json rows = nlohmann::ordered_json::array();
+  for (const auto& r : c.rows)
+    rows.push_back({{"k", r.k},
+                    {"band_mean", r.band_mean},
+                    {"median_rel", r.median_rel},
+                    {"rel_rms", r.rel_rms},
+                    {"band_median", r.band_median},
+                    {"band_rms", r.band_rms}});
+  return {{"k", c.k},
+          {"criterion", bandwidth_criterion_name(b.criterion)},
+          {"held_out", c.held_out},
+          {"seed", b.seed},
+          {"ladder", b.ladder},
+          {"theta_h_edges_deg", b.theta_h_edges},
+          {"band_samples", c.band_samples},
+          {"band_k", c.band_k},
+          {"per_band_error", c.per_band_error},
+          {"rows", rows}};
+}
+
+std::string bandwidth_provenance(const BandwidthChoice& c, const BandwidthOptions& b) {
+  return fmt::format("k={} k_auto=loo criterion={} held_out={} seed={}", c.k, bandwidth_criterion_name(b.criterion),
+                     c.held_out, b.seed);
 }
 
 }  // namespace specula::acquire

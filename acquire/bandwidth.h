@@ -5,6 +5,8 @@
 // error is also reported per theta_h band, to show whether one global k leaves accuracy behind.
 #include <cstddef>
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -60,5 +62,12 @@ struct BandwidthChoice {
 /// above 100000, held_out 0 or edges not ascending in (0, 90); InputError when src has fewer than 2 samples.
 BandwidthChoice choose_bandwidth(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
                                  const BandwidthOptions& b);
+/// choose_bandwidth over the samples object `samples` of `store`, indexed by o's mapping.
+BandwidthChoice choose_bandwidth(const store::Store& store, const std::string& samples, const ResampleOptions& o,
+                                 const BandwidthOptions& b);
+/// The choice and every ladder row's errors, as `resample --json` reports them under "k_auto".
+nlohmann::ordered_json bandwidth_choice_json(const BandwidthChoice& c, const BandwidthOptions& b);
+/// "k=K k_auto=loo criterion=C held_out=N seed=S": how the grid's provenance names a chosen k.
+std::string bandwidth_provenance(const BandwidthChoice& c, const BandwidthOptions& b);
 
 }  // namespace specula::acquire

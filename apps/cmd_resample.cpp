@@ -229,27 +229,6 @@ struct ResolvedK {
   std::string provenance;  // "k=K", with how it was chosen for -k auto
 };
 
-Json choice_json(const acquire::BandwidthChoice& c, const acquire::BandwidthOptions& b) {
-  Json rows = Json::array();
-  for (const auto& r : c.rows)
-    rows.push_back({{"k", r.k},
-                    {"band_mean", r.band_mean},
-                    {"median_rel", r.median_rel},
-                    {"rel_rms", r.rel_rms},
-                    {"band_median", r.band_median},
-                    {"band_rms", r.band_rms}});
-  return {{"k", c.k},
-          {"criterion", acquire::bandwidth_criterion_name(b.criterion)},
-          {"held_out", c.held_out},
-          {"seed", b.seed},
-          {"ladder", b.ladder},
-          {"theta_h_edges_deg", b.theta_h_edges},
-          {"band_samples", c.band_samples},
-          {"band_k", c.band_k},
-          {"per_band_error", c.per_band_error},
-          {"rows", rows}};
-}
-
 ResolvedK resolve_k(const ResampleCliOptions& o, acquire::ResampleOptions ro) {
   if (o.k != "auto") {
     std::size_t used = 0;
@@ -266,13 +245,8 @@ ResolvedK resolve_k(const ResampleCliOptions& o, acquire::ResampleOptions ro) {
   }
   const acquire::BandwidthOptions b{.held_out = o.k_held_out,
                                     .criterion = acquire::parse_bandwidth_criterion(o.k_criterion)};
-  const store::Store s = store::Store::open(o.store);
-  const acquire::StoreSamples src(s, o.samples);
-  const acquire::SampleTree tree(src, ro.mapping);
-  ro.k = b.ladder.back();
-  const acquire::BandwidthChoice c = acquire::choose_bandwidth(tree, src, ro, b);
-  return {c.k, choice_json(c, b),
-          fmt::format("k={} k_auto=loo criterion={} held_out={} seed={}", c.k, o.k_criterion, c.held_out, b.seed)};
+  const acquire::BandwidthChoice c = acquire::choose_bandwidth(store::Store::open(o.store), o.samples, ro, b);
+  return {c.k, acquire::bandwidth_choice_json(c, b), acquire::bandwidth_provenance(c, b)};
 }
 
 void run_resample(ResampleCliOptions o) {
