@@ -27,6 +27,7 @@ struct RglTarget {
 /// One resolution tried.
 struct RglTargetTrial {
   std::size_t theta_i = 0, resolution = 0;
+  RglParameterisation parameterisation = RglParameterisation::estimate;  ///< source or estimate
   std::uint64_t bytes = 0;
   double de00_mean = 0, de00_p95 = 0;
   bool met = false;
@@ -38,9 +39,11 @@ struct RglTargetReport {
   std::vector<RglTargetTrial> trials;
 };
 
-/// The export of `grid` (export_rgl with `settings`, its theta_i and resolution replaced) at the first ladder entry,
-/// from the first not smaller than settings' own size, whose import (rgl_to_grid) meets `target` under `suite`; the
-/// trials go into `report`. UsageError for a target that is not positive or a grid off the suite's wavelengths.
+/// The export of `grid` (export_rgl with `settings`) meeting `target` under `suite` (its import, rgl_to_grid): first on
+/// the grid's source parameterisation when rgl_parameterisation_used picks it, then (unless settings ask `source`)
+/// estimated at each ladder entry from the first not smaller than settings' own size (0:
+/// 8 theta_i, 32^2), stopping at the first that meets it; the trials go into `report`. UsageError for a target that is
+/// not positive, a grid off the suite's wavelengths, or `source` asked of a grid without one.
 RglBsdf export_rgl_to_target(const store::Grid& grid, const RglExportSettings& settings, const RglTarget& target,
                              const LightingSuite& suite, RglTargetReport& report);
 
