@@ -79,13 +79,16 @@ void export_bsdf(const ExportOptions& o) {
   } else {
     const store::Grid grid = load_grid(spec, "export", default_uplift_wavelengths());
     const store::GridParameterisation* source = grid.parameterisation ? &*grid.parameterisation : nullptr;
-    used = codec::rgl_parameterisation_name(codec::rgl_parameterisation_used(source, settings));
-    bsdf = o.rgb ? codec::export_rgl(codec::grid_to_merl(grid, codec::rgb_weights(grid.wavelengths,
-                                                                                  parse_illuminant(o.preview.illuminant,
-                                                                                                   grid.wavelengths)))
-                                         .brdf,
-                                     settings, source)
-                 : codec::export_rgl(grid, settings);
+    codec::RglParameterisation p = codec::rgl_parameterisation_used(source, settings);
+    if (o.rgb)
+      bsdf = codec::export_rgl(
+          codec::grid_to_merl(
+              grid, codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths)))
+              .brdf,
+          settings, source);
+    else
+      bsdf = codec::export_rgl_judged(grid, settings, codec::LightingSuite(grid.wavelengths), p);
+    used = codec::rgl_parameterisation_name(p);
   }
   for (const auto& scene : o.scenes)
     if (scene == "pbrt" && bsdf.rgb)

@@ -25,6 +25,26 @@ bool attempt(const store::Grid& grid, const RglExportSettings& s, const RglTarge
 
 }  // namespace
 
+RglBsdf export_rgl_judged(const store::Grid& grid, const RglExportSettings& settings, const LightingSuite& suite,
+                          RglParameterisation& used) {
+  const auto* source = grid.parameterisation ? &*grid.parameterisation : nullptr;
+  used = rgl_parameterisation_used(source, settings);
+  if (settings.parameterisation != RglParameterisation::automatic || used != RglParameterisation::source)
+    return export_rgl(grid, settings);
+  RglExportSettings s = settings;
+  s.parameterisation = RglParameterisation::source;
+  RglBsdf on_source = export_rgl(grid, s);
+  s.parameterisation = RglParameterisation::estimate;
+  if (s.theta_i == 0) s.theta_i = on_source.theta_i.size();
+  if (s.resolution == 0) s.resolution = on_source.resolution;
+  RglBsdf estimated = export_rgl(grid, s);
+  const double a = suite_diff(grid, rgl_to_grid(on_source, "export"), suite).de00_mean;
+  const double b = suite_diff(grid, rgl_to_grid(estimated, "export"), suite).de00_mean;
+  if (a <= b) return on_source;
+  used = RglParameterisation::estimate;
+  return estimated;
+}
+
 RglBsdf export_rgl_to_target(const store::Grid& grid, const RglExportSettings& settings, const RglTarget& target,
                              const LightingSuite& suite, RglTargetReport& report) {
   if (!(target.de00_mean > 0) || !(target.de00_p95 > 0))

@@ -18,6 +18,13 @@ namespace specula::codec {
 inline constexpr std::array<std::pair<std::size_t, std::size_t>, 8> kRglTargetLadder{
     {{8, 32}, {12, 32}, {16, 32}, {24, 32}, {32, 32}, {24, 48}, {32, 48}, {32, 64}}};
 
+/// export_rgl, except under `automatic` for a grid whose source parameterisation rgl_parameterisation_used picks:
+/// then both it and the estimated one are exported and the file whose import (rgl_to_grid) `suite` finds closer to
+/// the grid (pooled ΔE00 mean) is returned; the source's tables are not always the better (docs/brdf.md, Export).
+/// `used` says which was returned. UsageError as export_rgl.
+RglBsdf export_rgl_judged(const store::Grid& grid, const RglExportSettings& settings, const LightingSuite& suite,
+                          RglParameterisation& used);
+
 /// What a target asks: the suite's pooled ΔE00 mean and 95th percentile of the grid against the file's import.
 struct RglTarget {
   double de00_mean = 0.5;

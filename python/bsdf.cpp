@@ -39,7 +39,8 @@ py::object write_bsdf(const py::object& p, const store::Grid& g, bool rgb, std::
           codec::grid_to_merl(g, codec::rgb_weights(g.wavelengths, illuminant("D65", g.wavelengths))).brdf, s,
           g.parameterisation ? &*g.parameterisation : nullptr);
     } else {
-      b = codec::export_rgl(g, s);
+      codec::RglParameterisation used;
+      b = codec::export_rgl_judged(g, s, codec::LightingSuite(g.wavelengths), used);
     }
     codec::write_rgl_bsdf(path, b);
   }

@@ -92,7 +92,7 @@ TEST(BsdfCli, ImportKeepsTheSourceParameterisationAndExportSaysWhichItUsed) {
   EXPECT_EQ(kept->resolution, 12u);
 
   const std::string back = q(dir / "s.h5") + ":back";
-  r = run_specula("export " + back + " -o " + q(dir / "again.bsdf"));
+  r = run_specula("export " + back + " -o " + q(dir / "again.bsdf") + " --parameterisation source");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("source parameterisation"), std::string::npos) << r.output;
   const codec::RglBsdf again = codec::read_rgl_bsdf(dir / "again.bsdf");
