@@ -101,7 +101,7 @@ TEST(BsdfCli, ImportKeepsTheSourceParameterisationAndExportSaysWhichItUsed) {
   EXPECT_EQ(again.sigma, src.sigma);
   EXPECT_EQ(again.vndf, src.vndf);
   EXPECT_EQ(again.resolution, 12u);
-  r = run_specula("export " + back + " -o " + q(dir / "rgb.bsdf") + " --rgb");
+  r = run_specula("export " + back + " -o " + q(dir / "rgb.bsdf") + " --rgb --parameterisation source");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("source parameterisation"), std::string::npos) << r.output;
   EXPECT_EQ(codec::read_rgl_bsdf(dir / "rgb.bsdf").vndf, src.vndf);
