@@ -78,24 +78,10 @@ void export_bsdf(const ExportOptions& o) {
     bsdf = codec::export_rgl(codec::read_merl(spec), settings);
   } else {
     const store::Grid grid = load_grid(spec, "export", default_uplift_wavelengths());
-    const store::GridParameterisation* source = grid.parameterisation ? &*grid.parameterisation : nullptr;
-    codec::RglParameterisation p = codec::rgl_parameterisation_used(source, settings);
-    const codec::LightingSuite suite(grid.wavelengths);
-    if (o.rgb && settings.parameterisation == codec::RglParameterisation::automatic &&
-        p == codec::RglParameterisation::source)
-      codec::export_rgl_judged(grid, settings, suite, p);  // the spectral files judged decide for the RGB one
-    codec::RglExportSettings chosen = settings;
-    chosen.parameterisation = p;
-    if (source && !chosen.theta_i) chosen.theta_i = source->theta_i.size();  // the size judged
-    if (source && !chosen.resolution) chosen.resolution = source->resolution;
-    if (o.rgb)
-      bsdf = codec::export_rgl(
-          codec::grid_to_merl(
-              grid, codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths)))
-              .brdf,
-          chosen, source);
-    else
-      bsdf = codec::export_rgl_judged(grid, settings, suite, p);
+    const auto weights = codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths));
+    codec::RglParameterisation p;
+    bsdf =
+        codec::export_rgl_judged(grid, settings, codec::LightingSuite(grid.wavelengths), p, o.rgb ? &weights : nullptr);
     used = codec::rgl_parameterisation_name(p);
   }
   for (const auto& scene : o.scenes)

@@ -253,8 +253,8 @@ RglBsdf build(const MerlField& field, std::span<const double> lum_weights, std::
               const RglExportSettings& settings, const store::GridParameterisation* source) {
   const bool on_source = rgl_parameterisation_used(source, settings) == RglParameterisation::source;
   RglExportSettings s = settings;
-  if (s.theta_i == 0) s.theta_i = on_source ? source->theta_i.size() : 8;
-  if (s.resolution == 0) s.resolution = on_source ? source->resolution : 32;
+  if (s.theta_i == 0) s.theta_i = source ? source->theta_i.size() : 8;
+  if (s.resolution == 0) s.resolution = source ? source->resolution : 32;
   check(s);
   const std::size_t C = field.channels();
   RglBsdf b;

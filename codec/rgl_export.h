@@ -37,8 +37,8 @@ RglParameterisation parse_rgl_parameterisation(const std::string& name);
 /// table (see docs/brdf.md: 181 ndf nodes put one at every MERL theta_h cell centre; a 32 x 32 vndf keeps a 31-band
 /// file near 1 MB, where the published files use 128 x 128).
 struct RglExportSettings {
-  std::size_t theta_i = 8;           ///< incident elevations, >= 2; 0: the source's when it is used, else 8
-  std::size_t resolution = 32;       ///< sample-square nodes per side, >= 2; 0: the source's when used, else 32
+  std::size_t theta_i = 8;           ///< incident elevations, >= 2; 0: the grid's source's if it has one, else 8
+  std::size_t resolution = 32;       ///< sample-square nodes per side, >= 2; 0: the source's if any, else 32
   std::size_t ndf_nodes = 181;       ///< nodes of the ndf and sigma tables in u, >= 2
   std::size_t vndf_resolution = 32;  ///< vndf nodes per side, >= 2
   std::size_t power_iterations = 30;

@@ -2,6 +2,7 @@
 
 #include "specula/codec/rgl_eval.h"
 #include "specula/codec/rgl_tensor.h"
+#include "specula/codec/spectral_grid.h"
 #include "specula/core/error.h"
 
 namespace specula::codec {
@@ -26,23 +27,26 @@ bool attempt(const store::Grid& grid, const RglExportSettings& s, const RglTarge
 }  // namespace
 
 RglBsdf export_rgl_judged(const store::Grid& grid, const RglExportSettings& settings, const LightingSuite& suite,
-                          RglParameterisation& used) {
+                          RglParameterisation& used, const Eigen::Matrix<double, 3, Eigen::Dynamic>* rgb) {
   const auto* source = grid.parameterisation ? &*grid.parameterisation : nullptr;
   used = rgl_parameterisation_used(source, settings);
-  if (settings.parameterisation != RglParameterisation::automatic || used != RglParameterisation::source)
-    return export_rgl(grid, settings);
   RglExportSettings s = settings;
-  s.parameterisation = RglParameterisation::source;
-  RglBsdf on_source = export_rgl(grid, s);
-  s.parameterisation = RglParameterisation::estimate;
-  if (s.theta_i == 0) s.theta_i = on_source.theta_i.size();
-  if (s.resolution == 0) s.resolution = on_source.resolution;
-  RglBsdf estimated = export_rgl(grid, s);
-  const double a = suite_diff(grid, rgl_to_grid(on_source, "export"), suite).de00_mean;
-  const double b = suite_diff(grid, rgl_to_grid(estimated, "export"), suite).de00_mean;
-  if (a <= b) return on_source;
-  used = RglParameterisation::estimate;
-  return estimated;
+  if (source && !s.theta_i) s.theta_i = source->theta_i.size();  // both candidates at the source's size
+  if (source && !s.resolution) s.resolution = source->resolution;
+  RglBsdf spectral;
+  if (settings.parameterisation == RglParameterisation::automatic && used == RglParameterisation::source) {
+    s.parameterisation = RglParameterisation::source;
+    RglBsdf on_source = export_rgl(grid, s);
+    s.parameterisation = RglParameterisation::estimate;
+    RglBsdf estimated = export_rgl(grid, s);
+    const double a = suite_diff(grid, rgl_to_grid(on_source, "export"), suite).de00_mean;
+    const double b = suite_diff(grid, rgl_to_grid(estimated, "export"), suite).de00_mean;
+    used = a <= b ? RglParameterisation::source : RglParameterisation::estimate;
+    spectral = a <= b ? std::move(on_source) : std::move(estimated);
+  }
+  s.parameterisation = used;
+  if (rgb) return export_rgl(grid_to_merl(grid, *rgb).brdf, s, source);
+  return spectral.theta_i.empty() ? export_rgl(grid, s) : spectral;
 }
 
 RglBsdf export_rgl_to_target(const store::Grid& grid, const RglExportSettings& settings, const RglTarget& target,

@@ -21,9 +21,10 @@ inline constexpr std::array<std::pair<std::size_t, std::size_t>, 8> kRglTargetLa
 /// export_rgl, except under `automatic` for a grid whose source parameterisation rgl_parameterisation_used picks:
 /// then both it and the estimated one are exported and the file whose import (rgl_to_grid) `suite` finds closer to
 /// the grid (pooled ΔE00 mean) is returned; the source's tables are not always the better (docs/brdf.md, Export).
-/// `used` says which was returned. UsageError as export_rgl.
+/// `used` says which was returned. With `rgb` (grid_to_merl's weights), the RGB file of grid_to_merl(grid, *rgb) on
+/// the parameterisation the spectral files so judged pick. UsageError as export_rgl.
 RglBsdf export_rgl_judged(const store::Grid& grid, const RglExportSettings& settings, const LightingSuite& suite,
-                          RglParameterisation& used);
+                          RglParameterisation& used, const Eigen::Matrix<double, 3, Eigen::Dynamic>* rgb = nullptr);
 
 /// What a target asks: the suite's pooled ΔE00 mean and 95th percentile of the grid against the file's import.
 struct RglTarget {

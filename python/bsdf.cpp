@@ -34,13 +34,10 @@ py::object write_bsdf(const py::object& p, const store::Grid& g, bool rgb, std::
       const codec::RglTarget t{.de00_mean = *target_de00,
                                .de00_p95 = target_p95.value_or(codec::default_p95_target(*target_de00))};
       b = codec::export_rgl_to_target(g, s, t, codec::LightingSuite(g.wavelengths), report);
-    } else if (rgb) {
-      b = codec::export_rgl(
-          codec::grid_to_merl(g, codec::rgb_weights(g.wavelengths, illuminant("D65", g.wavelengths))).brdf, s,
-          g.parameterisation ? &*g.parameterisation : nullptr);
     } else {
+      const auto weights = codec::rgb_weights(g.wavelengths, illuminant("D65", g.wavelengths));
       codec::RglParameterisation used;
-      b = codec::export_rgl_judged(g, s, codec::LightingSuite(g.wavelengths), used);
+      b = codec::export_rgl_judged(g, s, codec::LightingSuite(g.wavelengths), used, rgb ? &weights : nullptr);
     }
     codec::write_rgl_bsdf(path, b);
   }
