@@ -32,7 +32,8 @@ struct ExportOptions {
   std::string interleave = "bsq";
   PreviewOptions preview;
   bool rgb = false;
-  std::size_t theta_i = 8, resolution = 32;
+  std::size_t theta_i = 0, resolution = 0;  // 0: the library's choice (the source's, else 8 and 32)
+  std::string parameterisation = "auto";
   std::optional<double> target_de00, target_p95;
   std::vector<std::string> scenes;
 };
@@ -46,8 +47,11 @@ codec::RglBsdf export_to_target(const store::Grid& grid, const codec::RglExportS
   codec::RglBsdf bsdf =
       codec::export_rgl_to_target(grid, settings, target, codec::LightingSuite(grid.wavelengths), report);
   for (const auto& t : report.trials)
-    fmt::print("  {} theta_i x {}^2 samples: {} bytes, suite dE00 mean {:.3f}, 95th percentile {:.3f}{}\n", t.theta_i,
-               t.resolution, t.bytes, t.de00_mean, t.de00_p95, t.met ? " (meets the target)" : "");
+    fmt::print(
+        "  {} theta_i x {}^2 samples, {} parameterisation: {} bytes, suite dE00 mean {:.3f}, 95th percentile "
+        "{:.3f}{}\n",
+        t.theta_i, t.resolution, codec::rgl_parameterisation_name(t.parameterisation), t.bytes, t.de00_mean, t.de00_p95,
+        t.met ? " (meets the target)" : "");
   if (!report.reached)
     fmt::print("no resolution tried meets dE00 mean {} and 95th percentile {}; wrote the largest\n", target.de00_mean,
                target.de00_p95);
@@ -57,36 +61,37 @@ codec::RglBsdf export_to_target(const store::Grid& grid, const codec::RglExportS
 // An RGL .bsdf from a BRDF named as STORE.h5 GRID, STORE.h5:GRID, a .spgrid, a .spc or an RGB MERL .binary.
 void export_bsdf(const ExportOptions& o) {
   const std::string spec = o.object.empty() ? o.store : o.store + ":" + o.object;
-  const codec::RglExportSettings settings{
-      .theta_i = o.theta_i, .resolution = o.resolution, .description = "specula export of " + spec};
+  const codec::RglExportSettings settings{.theta_i = o.theta_i,
+                                          .resolution = o.resolution,
+                                          .description = "specula export of " + spec,
+                                          .parameterisation = codec::parse_rgl_parameterisation(o.parameterisation)};
   const bool merl = std::filesystem::path(spec).extension() == ".binary";
   codec::RglBsdf bsdf;
   if (o.target_p95 && !o.target_de00) throw UsageError("export: --target-p95 goes with --target-de00");
   if (o.target_de00 && o.rgb)
     throw UsageError("export: --target-de00 judges the spectral file under the lighting suite; drop --rgb");
+  std::string used;
   if (o.target_de00) {
     bsdf = export_to_target(load_grid(spec, "export", default_uplift_wavelengths()), settings, o);
-  } else if (o.rgb) {
-    if (merl) {
-      bsdf = codec::export_rgl(codec::read_merl(spec), settings);
-    } else {
-      const store::Grid grid = load_grid(spec, "export");
-      bsdf = codec::export_rgl(
-          codec::grid_to_merl(
-              grid, codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths)))
-              .brdf,
-          settings);
-    }
+  } else if (o.rgb && merl) {
+    used = codec::rgl_parameterisation_name(codec::rgl_parameterisation_used(nullptr, settings));
+    bsdf = codec::export_rgl(codec::read_merl(spec), settings);
   } else {
-    bsdf = codec::export_rgl(load_grid(spec, "export", default_uplift_wavelengths()), settings);
+    const store::Grid grid = load_grid(spec, "export", default_uplift_wavelengths());
+    const auto weights = codec::rgb_weights(grid.wavelengths, parse_illuminant(o.preview.illuminant, grid.wavelengths));
+    codec::RglParameterisation p;
+    bsdf =
+        codec::export_rgl_judged(grid, settings, codec::LightingSuite(grid.wavelengths), p, o.rgb ? &weights : nullptr);
+    used = codec::rgl_parameterisation_name(p);
   }
   for (const auto& scene : o.scenes)
     if (scene == "pbrt" && bsdf.rgb)
       throw UsageError("export: pbrt-v4 reads spectral .bsdf files only; drop --rgb for --scene pbrt");
   codec::write_rgl_bsdf(o.output, bsdf);
-  fmt::print("wrote {} ({}, {} theta_i, {}x{} samples, {} bytes)\n", o.output,
+  fmt::print("wrote {} ({}, {} theta_i, {}x{} samples, {} bytes{})\n", o.output,
              bsdf.rgb ? "RGB" : std::to_string(bsdf.channels()) + " wavelengths", bsdf.theta_i.size(), bsdf.resolution,
-             bsdf.resolution, std::filesystem::file_size(o.output));
+             bsdf.resolution, std::filesystem::file_size(o.output),
+             used.empty() ? "" : ", " + used + " parameterisation");
   const std::filesystem::path out(o.output);
   const std::string name = out.filename().string(), stem = out.stem().string();
   for (const auto& scene : o.scenes) {
@@ -114,8 +119,9 @@ std::string format_of(const ExportOptions& o) {
 
 void run_export(const ExportOptions& o) {
   if (std::filesystem::path(o.output).extension() == ".bsdf") return export_bsdf(o);
-  if (!o.scenes.empty() || o.rgb || o.target_de00)
-    throw UsageError("export: --rgb, --scene and --target-de00 are for .bsdf output");
+  if (!o.scenes.empty() || o.rgb || o.target_de00 || o.theta_i || o.resolution || o.parameterisation != "auto")
+    throw UsageError(
+        "export: --rgb, --scene, --target-de00, --theta-i, --resolution and --parameterisation are for .bsdf output");
   if (o.object.empty()) throw UsageError("export: name the object to export from " + o.store);
   const store::Store s = store::Store::open(o.store);
   const auto grids = s.grids();
@@ -186,11 +192,17 @@ void setup_export(CLI::App& app) {
                   "Output file; the extension picks the format (.exr .hdr .png .csv; .binary .spgrid .bsdf for grids)")
       ->required();
   cmd->add_flag("--rgb", o->rgb, ".bsdf: an RGB file (under --illuminant) instead of the spectral one pbrt-v4 needs");
-  cmd->add_option("--theta-i", o->theta_i, ".bsdf: incident elevations (uniform in projected area)")
-      ->check(CLI::Range(2, 90))
-      ->capture_default_str();
-  cmd->add_option("--resolution", o->resolution, ".bsdf: sample grid nodes per side")
-      ->check(CLI::Range(2, 512))
+  cmd->add_option("--theta-i", o->theta_i,
+                  ".bsdf: incident elevations (uniform in projected area; default: the source file's for a grid "
+                  "imported from a .bsdf, else 8)")
+      ->check(CLI::Range(2, 90));
+  cmd->add_option("--resolution", o->resolution,
+                  ".bsdf: sample grid nodes per side (default: the source file's, else 32)")
+      ->check(CLI::Range(2, 512));
+  cmd->add_option("--parameterisation", o->parameterisation,
+                  ".bsdf: auto (the source file's theta_i, ndf, sigma and vndf when the grid was imported from a .bsdf "
+                  "and the sizes are its own), source, or estimate (from the grid alone)")
+      ->check(CLI::IsMember({"auto", "source", "estimate"}))
       ->capture_default_str();
   cmd->add_option("--target-de00", o->target_de00,
                   ".bsdf: the smallest resolution from --theta-i/--resolution up (ladder in docs/brdf.md) whose import "

@@ -133,6 +133,7 @@ store::Grid load_grid(const std::string& spec, const std::string& command,
                                        codec::UpliftMethod::clamp);
     g.provenance.source_file = spec;
     g.provenance.importer = "uplift-clamp";
+    if (rgl) g.parameterisation = codec::rgl_parameterisation(*rgl);
     return g;
   }
   if (in.extension() == ".spc") return codec::decode_spc(codec::read_spc_file(in), spec);

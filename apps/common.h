@@ -60,7 +60,8 @@ std::string basis_output(const std::vector<std::string>& inputs, const std::stri
 
 /// A spectral BRDF grid named as STORE.h5:GRID, a grid exchange file (.spgrid) or a .spc (decoded by decode_spc);
 /// `command` prefixes usage errors.
-/// A spectral RGL .bsdf is evaluated at the cell centres on its own wavelengths (codec/rgl_eval.h).
+/// A spectral RGL .bsdf is evaluated at the cell centres on its own wavelengths (codec/rgl_eval.h); a grid made from a
+/// .bsdf (spectral or RGB) carries the file's parameterisation (store::Grid::parameterisation).
 /// With `uplift_onto`, an RGB MERL .binary or RGB .bsdf is accepted too, uplifted onto those bands as `specula uplift`
 /// does by default (Appendix A under D65, default alpha, clamped); without, either is a UsageError saying so.
 store::Grid load_grid(const std::string& spec, const std::string& command,

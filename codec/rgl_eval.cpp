@@ -140,6 +140,22 @@ std::vector<float> rgl_merl_values(const RglBsdf& bsdf) {
   return out;
 }
 
+store::GridParameterisation rgl_parameterisation(const RglBsdf& b) {
+  return {.phi_i = b.phi_i,
+          .theta_i = b.theta_i,
+          .ndf_width = b.ndf_width,
+          .ndf_height = b.ndf_height,
+          .ndf = b.ndf,
+          .sigma_width = b.sigma_width,
+          .sigma_height = b.sigma_height,
+          .sigma = b.sigma,
+          .vndf_width = b.vndf_width,
+          .vndf_height = b.vndf_height,
+          .vndf = b.vndf,
+          .resolution = b.resolution,
+          .description = b.description};
+}
+
 store::Grid rgl_to_grid(const RglBsdf& bsdf, const std::string& source) {
   if (bsdf.rgb) throw UsageError(source + ": an RGB RGL file has no spectra; uplift its RGB (rgl_to_merl) instead");
   store::Grid g;
@@ -147,6 +163,7 @@ store::Grid rgl_to_grid(const RglBsdf& bsdf, const std::string& source) {
   g.brdf = rgl_merl_values(bsdf);
   g.provenance.source_file = source;
   g.provenance.importer = "rgl-bsdf";
+  g.parameterisation = rgl_parameterisation(bsdf);
   return g;
 }
 

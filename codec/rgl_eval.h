@@ -77,7 +77,10 @@ class RglEvaluator {
 /// 90 x 180 values, channel slowest; -1 (no data) for cells whose centre is below the horizon. Parallel over
 /// theta_h; the result does not depend on the thread count.
 std::vector<float> rgl_merl_values(const RglBsdf& bsdf);
-/// A spectral file as a grid on its own wavelengths; UsageError for an RGB file.
+/// The tables of `bsdf` an export re-tabulates on (theta_i, phi_i, ndf, sigma, vndf, the sample grid's size), as a grid
+/// keeps them (store::Grid::parameterisation).
+store::GridParameterisation rgl_parameterisation(const RglBsdf& bsdf);
+/// A spectral file as a grid on its own wavelengths, carrying its parameterisation; UsageError for an RGB file.
 store::Grid rgl_to_grid(const RglBsdf& bsdf, const std::string& source);
 /// An RGB file as a MERL BRDF; UsageError for a spectral file.
 MerlBrdf rgl_to_merl(const RglBsdf& bsdf);

@@ -187,23 +187,47 @@ void microfacet_tables(const MerlField& field, std::span<const double> lum_weigh
   b.theta_i = rgl_theta_i(mf.sigma, s.theta_i);
 }
 
-// Per incident elevation the vndf table and the point samples f cos(theta_o) 4 sigma / D at the nodes of the sample
-// square warped by it; returns the nodes whose wo lies above the horizon (theta_i x rows x columns).
-std::vector<std::uint8_t> sample_nodes(const MerlField& field, const RglExportSettings& s, RglBsdf& b) {
-  const std::size_t C = field.channels(), R = s.resolution, V = s.vndf_resolution, T = b.theta_i.size();
-  // The tables as the renderers read them (float, bilinear).
-  const Warp2D ndf_table(b.ndf, b.ndf_width, 2, {}, false), sigma_table(b.sigma, b.sigma_width, 2, {}, false);
+// The vndf tables of the estimated parameterisation (RglExportSettings::vndf_*), one per theta_i of b.
+void estimate_vndf(const RglExportSettings& s, RglBsdf& b) {
+  const std::size_t V = s.vndf_resolution, T = b.theta_i.size();
+  const Warp2D ndf_table(b.ndf, b.ndf_width, b.ndf_height, {}, false);
   b.vndf_width = b.vndf_height = V;
-  b.resolution = R;
   b.vndf.resize(T * V * V);
+  parallel_for(T, [&](std::size_t t) {
+    vndf_slice(ndf_table, brdf::direction(b.theta_i[t], 0), s, {b.vndf.data() + t * V * V, V * V}, V);
+  });
+}
+
+// The source file's tables into b as they are.
+void source_tables(const store::GridParameterisation& p, RglBsdf& b) {
+  b.phi_i = p.phi_i;
+  b.theta_i = p.theta_i;
+  b.ndf_width = p.ndf_width;
+  b.ndf_height = p.ndf_height;
+  b.ndf = p.ndf;
+  b.sigma_width = p.sigma_width;
+  b.sigma_height = p.sigma_height;
+  b.sigma = p.sigma;
+  b.vndf_width = p.vndf_width;
+  b.vndf_height = p.vndf_height;
+  b.vndf = p.vndf;
+  b.resolution = p.resolution;
+}
+
+// Per incident elevation the point samples f cos(theta_o) 4 sigma / D at the nodes of the sample square warped by b's
+// vndf table; returns the nodes whose wo lies above the horizon (theta_i x rows x columns).
+std::vector<std::uint8_t> sample_nodes(const MerlField& field, RglBsdf& b) {
+  const std::size_t C = field.channels(), R = b.resolution, T = b.theta_i.size();
+  const std::size_t VW = b.vndf_width, VH = b.vndf_height;
+  // The tables as the renderers read them (float, bilinear).
+  const Warp2D ndf_table(b.ndf, b.ndf_width, b.ndf_height, {}, false);
+  const Warp2D sigma_table(b.sigma, b.sigma_width, b.sigma_height, {}, false);
   b.values.assign(T * C * R * R, 0.0f);
   std::vector<std::uint8_t> valid(T * R * R, 0);
   parallel_for(T, [&](std::size_t t) {
     const double theta_i = b.theta_i[t];
     const Eigen::Vector3d wi = brdf::direction(theta_i, 0);
-    float* vndf = b.vndf.data() + t * V * V;
-    vndf_slice(ndf_table, wi, s, {vndf, V * V}, V);
-    const Warp2D warp({vndf, V * V}, V, V, {}, true);
+    const Warp2D warp({b.vndf.data() + t * VW * VH, VW * VH}, VW, VH, {}, true);
     const double sigma_i = sigma_table.eval(rgl_theta_to_u(theta_i), rgl_phi_to_v(0), {});
     std::vector<double> fv(C);
     for (std::size_t j = 0; j < R; ++j)
@@ -223,17 +247,28 @@ std::vector<std::uint8_t> sample_nodes(const MerlField& field, const RglExportSe
   return valid;
 }
 
-// The file of `field`: spectral on `wavelengths`, or RGB when they are empty.
+// The file of `field`: spectral on `wavelengths`, or RGB when they are empty; on `source` when
+// rgl_parameterisation_used says so.
 RglBsdf build(const MerlField& field, std::span<const double> lum_weights, std::vector<float> wavelengths,
-              const RglExportSettings& s) {
+              const RglExportSettings& settings, const store::GridParameterisation* source) {
+  const bool on_source = rgl_parameterisation_used(source, settings) == RglParameterisation::source;
+  RglExportSettings s = settings;
+  if (s.theta_i == 0) s.theta_i = source ? source->theta_i.size() : 8;
+  if (s.resolution == 0) s.resolution = source ? source->resolution : 32;
   check(s);
   const std::size_t C = field.channels();
   RglBsdf b;
   b.description = s.description.empty() ? "specula export" : s.description;
   b.rgb = wavelengths.empty();
   b.wavelengths = std::move(wavelengths);
-  microfacet_tables(field, lum_weights, s, b);
-  const std::vector<std::uint8_t> valid = sample_nodes(field, s, b);
+  if (on_source) {
+    source_tables(*source, b);
+  } else {
+    microfacet_tables(field, lum_weights, s, b);
+    b.resolution = s.resolution;
+    estimate_vndf(s, b);
+  }
+  const std::vector<std::uint8_t> valid = sample_nodes(field, b);
   clamp_outliers(b, C);
   if (s.least_squares) {
     rgl_fit_values(b, field.values(), field.scale(), lum_weights, s.fit);
@@ -247,6 +282,41 @@ RglBsdf build(const MerlField& field, std::span<const double> lum_weights, std::
 }
 
 }  // namespace
+
+const char* rgl_parameterisation_name(RglParameterisation p) {
+  switch (p) {
+    case RglParameterisation::automatic:
+      return "auto";
+    case RglParameterisation::source:
+      return "source";
+    case RglParameterisation::estimate:
+      return "estimate";
+  }
+  return "?";
+}
+
+RglParameterisation parse_rgl_parameterisation(const std::string& name) {
+  for (const auto p : {RglParameterisation::automatic, RglParameterisation::source, RglParameterisation::estimate})
+    if (name == rgl_parameterisation_name(p)) return p;
+  throw UsageError("RGL export: parameterisation '" + name + "'; use auto, source or estimate");
+}
+
+RglParameterisation rgl_parameterisation_used(const store::GridParameterisation* source, const RglExportSettings& s) {
+  if (s.parameterisation == RglParameterisation::estimate) return RglParameterisation::estimate;
+  const bool own_size = source && (s.theta_i == 0 || s.theta_i == source->theta_i.size()) &&
+                        (s.resolution == 0 || s.resolution == source->resolution);
+  if (s.parameterisation == RglParameterisation::automatic)
+    return own_size ? RglParameterisation::source : RglParameterisation::estimate;
+  if (!source)
+    throw UsageError(
+        "RGL export: the source parameterisation was asked, but the grid carries none (only grids "
+        "imported from a .bsdf keep it)");
+  if (!own_size)
+    throw UsageError("RGL export: the source parameterisation has " + std::to_string(source->theta_i.size()) +
+                     " theta_i and a " + std::to_string(source->resolution) + "^2 sample grid; " +
+                     std::to_string(s.theta_i) + " theta_i and " + std::to_string(s.resolution) + "^2 were asked");
+  return RglParameterisation::source;
+}
 
 std::vector<double> rgl_sigma(std::span<const double> ndf, std::span<const double> theta) {
   const std::size_t N = ndf.size();
@@ -348,10 +418,11 @@ RglBsdf export_rgl(const store::Grid& grid, const RglExportSettings& settings) {
   const Eigen::RowVectorXd y = Eigen::RowVector3d(0.2126, 0.7152, 0.0722) * w;
   const std::vector<double> lum(y.data(), y.data() + y.size());
   return build(MerlField(grid.brdf, grid.bands(), grid.scale), lum,
-               std::vector<float>(grid.wavelengths.values().begin(), grid.wavelengths.values().end()), settings);
+               std::vector<float>(grid.wavelengths.values().begin(), grid.wavelengths.values().end()), settings,
+               grid.parameterisation ? &*grid.parameterisation : nullptr);
 }
 
-RglBsdf export_rgl(const MerlBrdf& brdf, const RglExportSettings& settings) {
+RglBsdf export_rgl(const MerlBrdf& brdf, const RglExportSettings& settings, const store::GridParameterisation* source) {
   std::vector<float> v(3 * brdf::kMerlCells);
   for (std::size_t c = 0; c < 3; ++c)
     for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
@@ -359,7 +430,7 @@ RglBsdf export_rgl(const MerlBrdf& brdf, const RglExportSettings& settings) {
       v[c * brdf::kMerlCells + cell] = x < 0 ? -1.0f : float(x * kMerlScale[c]);
     }
   const double lum[3] = {0.2126, 0.7152, 0.0722};
-  return build(MerlField(v, 3, 1.0), lum, {}, settings);
+  return build(MerlField(v, 3, 1.0), lum, {}, settings, source);
 }
 
 }  // namespace specula::codec

@@ -8,6 +8,8 @@
 // then refitted by least squares so that the renderers' interpolation of them matches f at every MERL cell
 // (codec/rgl_fit.h). f between MERL cells is interpolated trilinearly in the grid's index space over the cells that
 // hold data.
+// A grid imported from an RGL file keeps that file's parameterisation (store::Grid::parameterisation); an export at
+// the file's size then tabulates on it (its theta_i, ndf, sigma and vndf as they are) and only fits the values.
 #include <Eigen/Core>
 #include <cstddef>
 #include <span>
@@ -20,12 +22,23 @@
 
 namespace specula::codec {
 
+/// Which tables an export tabulates the BRDF on.
+enum class RglParameterisation {
+  automatic,  ///< the grid's source parameterisation when it carries one and the sizes asked are its own (or 0)
+  source,     ///< the grid's source parameterisation; UsageError when it carries none or other sizes are asked
+  estimate,   ///< built from the BRDF alone (D from the retro-reflection, sigma, theta_i uniform in sigma, vndf)
+};
+/// "auto", "source", "estimate".
+const char* rgl_parameterisation_name(RglParameterisation p);
+/// The parameterisation named by rgl_parameterisation_name; UsageError for another name.
+RglParameterisation parse_rgl_parameterisation(const std::string& name);
+
 /// The resolution of an exported file; the defaults follow the published RGL files except the ndf nodes and the vndf
 /// table (see docs/brdf.md: 181 ndf nodes put one at every MERL theta_h cell centre; a 32 x 32 vndf keeps a 31-band
 /// file near 1 MB, where the published files use 128 x 128).
 struct RglExportSettings {
-  std::size_t theta_i = 8;           ///< incident elevations, >= 2
-  std::size_t resolution = 32;       ///< sample-square nodes per side, >= 2
+  std::size_t theta_i = 8;           ///< incident elevations, >= 2; 0: the grid's source's if it has one, else 8
+  std::size_t resolution = 32;       ///< sample-square nodes per side, >= 2; 0: the source's if any, else 32
   std::size_t ndf_nodes = 181;       ///< nodes of the ndf and sigma tables in u, >= 2
   std::size_t vndf_resolution = 32;  ///< vndf nodes per side, >= 2
   std::size_t power_iterations = 30;
@@ -43,13 +56,22 @@ struct RglExportSettings {
   bool least_squares = true;
   RglFitSettings fit;
   std::string description;  ///< empty: "specula export"
+  RglParameterisation parameterisation = RglParameterisation::automatic;
 };
 
-/// A spectral grid as a spectral file on the grid's wavelengths (luminance: CIE Y under D65 as sRGB's luminance).
-/// UsageError for settings out of range.
+/// The parameterisation an export of a grid carrying `source` (nullptr: none) uses under `settings`: source or
+/// estimate (automatic resolved); UsageError when `source` is asked and the grid carries none or other sizes are asked.
+RglParameterisation rgl_parameterisation_used(const store::GridParameterisation* source,
+                                              const RglExportSettings& settings);
+
+/// A spectral grid as a spectral file on the grid's wavelengths (luminance: CIE Y under D65 as sRGB's luminance), on
+/// the parameterisation rgl_parameterisation_used picks for grid.parameterisation. UsageError for settings out of
+/// range.
 RglBsdf export_rgl(const store::Grid& grid, const RglExportSettings& settings);
-/// An RGB MERL BRDF as an RGB file (luminance 0.2126 R + 0.7152 G + 0.0722 B).
-RglBsdf export_rgl(const MerlBrdf& brdf, const RglExportSettings& settings);
+/// An RGB MERL BRDF as an RGB file (luminance 0.2126 R + 0.7152 G + 0.0722 B), on the parameterisation
+/// rgl_parameterisation_used picks for `source` (the grid the BRDF was made from, or nullptr).
+RglBsdf export_rgl(const MerlBrdf& brdf, const RglExportSettings& settings,
+                   const store::GridParameterisation* source = nullptr);
 
 /// The microfacet tables of an export, at the nodes u_k = k / (n - 1) (theta = u^2 pi / 2) of the ndf table.
 struct RglMicrofacet {

@@ -18,6 +18,14 @@ namespace specula::codec {
 inline constexpr std::array<std::pair<std::size_t, std::size_t>, 8> kRglTargetLadder{
     {{8, 32}, {12, 32}, {16, 32}, {24, 32}, {32, 32}, {24, 48}, {32, 48}, {32, 64}}};
 
+/// export_rgl, except under `automatic` for a grid whose source parameterisation rgl_parameterisation_used picks:
+/// then both it and the estimated one are exported and the file whose import (rgl_to_grid) `suite` finds closer to
+/// the grid (pooled ΔE00 mean) is returned; the source's tables are not always the better (docs/brdf.md, Export).
+/// `used` says which was returned. With `rgb` (grid_to_merl's weights), the RGB file of grid_to_merl(grid, *rgb) on
+/// the parameterisation the spectral files so judged pick. UsageError as export_rgl.
+RglBsdf export_rgl_judged(const store::Grid& grid, const RglExportSettings& settings, const LightingSuite& suite,
+                          RglParameterisation& used, const Eigen::Matrix<double, 3, Eigen::Dynamic>* rgb = nullptr);
+
 /// What a target asks: the suite's pooled ΔE00 mean and 95th percentile of the grid against the file's import.
 struct RglTarget {
   double de00_mean = 0.5;
@@ -27,6 +35,7 @@ struct RglTarget {
 /// One resolution tried.
 struct RglTargetTrial {
   std::size_t theta_i = 0, resolution = 0;
+  RglParameterisation parameterisation = RglParameterisation::estimate;  ///< source or estimate
   std::uint64_t bytes = 0;
   double de00_mean = 0, de00_p95 = 0;
   bool met = false;
@@ -38,9 +47,11 @@ struct RglTargetReport {
   std::vector<RglTargetTrial> trials;
 };
 
-/// The export of `grid` (export_rgl with `settings`, its theta_i and resolution replaced) at the first ladder entry,
-/// from the first not smaller than settings' own size, whose import (rgl_to_grid) meets `target` under `suite`; the
-/// trials go into `report`. UsageError for a target that is not positive or a grid off the suite's wavelengths.
+/// The export of `grid` (export_rgl with `settings`) meeting `target` under `suite` (its import, rgl_to_grid): first on
+/// the grid's source parameterisation when rgl_parameterisation_used picks it, then (unless settings ask `source`)
+/// estimated at each ladder entry from the first not smaller than settings' own size (0:
+/// 8 theta_i, 32^2), stopping at the first that meets it; the trials go into `report`. UsageError for a target that is
+/// not positive, a grid off the suite's wavelengths, or `source` asked of a grid without one.
 RglBsdf export_rgl_to_target(const store::Grid& grid, const RglExportSettings& settings, const RglTarget& target,
                              const LightingSuite& suite, RglTargetReport& report);
 

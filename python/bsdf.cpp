@@ -18,11 +18,14 @@ namespace {
 
 py::object write_bsdf(const py::object& p, const store::Grid& g, bool rgb, std::size_t theta_i, std::size_t resolution,
                       const std::string& description, std::optional<double> target_de00,
-                      std::optional<double> target_p95) {
+                      std::optional<double> target_p95, const std::string& parameterisation) {
   if (target_p95 && !target_de00) throw UsageError("write_bsdf: target_p95 goes with target_de00");
   if (target_de00 && rgb) throw UsageError("write_bsdf: target_de00 judges the spectral file; drop rgb");
   const std::string path = path_from(p).string();
-  const codec::RglExportSettings s{.theta_i = theta_i, .resolution = resolution, .description = description};
+  const codec::RglExportSettings s{.theta_i = theta_i,
+                                   .resolution = resolution,
+                                   .description = description,
+                                   .parameterisation = codec::parse_rgl_parameterisation(parameterisation)};
   codec::RglTargetReport report;
   {
     py::gil_scoped_release release;
@@ -31,11 +34,10 @@ py::object write_bsdf(const py::object& p, const store::Grid& g, bool rgb, std::
       const codec::RglTarget t{.de00_mean = *target_de00,
                                .de00_p95 = target_p95.value_or(codec::default_p95_target(*target_de00))};
       b = codec::export_rgl_to_target(g, s, t, codec::LightingSuite(g.wavelengths), report);
-    } else if (rgb) {
-      b = codec::export_rgl(
-          codec::grid_to_merl(g, codec::rgb_weights(g.wavelengths, illuminant("D65", g.wavelengths))).brdf, s);
     } else {
-      b = codec::export_rgl(g, s);
+      const auto weights = codec::rgb_weights(g.wavelengths, illuminant("D65", g.wavelengths));
+      codec::RglParameterisation used;
+      b = codec::export_rgl_judged(g, s, codec::LightingSuite(g.wavelengths), used, rgb ? &weights : nullptr);
     }
     codec::write_rgl_bsdf(path, b);
   }
@@ -44,7 +46,8 @@ py::object write_bsdf(const py::object& p, const store::Grid& g, bool rgb, std::
   for (const auto& t : report.trials)
     trials.append(py::dict(py::arg("theta_i") = t.theta_i, py::arg("resolution") = t.resolution,
                            py::arg("bytes") = t.bytes, py::arg("de00_mean") = t.de00_mean,
-                           py::arg("de00_p95") = t.de00_p95, py::arg("met") = t.met));
+                           py::arg("de00_p95") = t.de00_p95, py::arg("met") = t.met,
+                           py::arg("parameterisation") = codec::rgl_parameterisation_name(t.parameterisation)));
   return py::dict(py::arg("reached") = report.reached, py::arg("trials") = trials);
 }
 
@@ -76,13 +79,15 @@ void init_bsdf(py::module_& m) {
       "Grid on its wavelengths, an RGB file as (3, 90, 90, 180) float32 BRDF values in 1/sr (-1: below the horizon).");
   m.def("write_bsdf", &write_bsdf, py::arg("path"), py::arg("grid"), py::arg("rgb") = false, py::arg("theta_i") = 8,
         py::arg("resolution") = 32, py::arg("description") = "", py::arg("target_de00") = py::none(),
-        py::arg("target_p95") = py::none(),
+        py::arg("target_p95") = py::none(), py::arg("parameterisation") = "auto",
         "Writes grid as an isotropic RGL .bsdf (spectral, or RGB under D65 with rgb=True) that Mitsuba 3 and pbrt-v4 "
         "read; complete or not at all (docs/brdf.md). With target_de00 (spectral only) the smallest (theta_i, "
         "resolution) of the ladder, from the one given, whose import the lighting suite finds within ΔE00 mean "
         "target_de00 and 95th percentile target_p95 (default 3x), as `specula export --target-de00`; returns then "
-        "{'reached': bool, 'trials': [{'theta_i', 'resolution', 'bytes', 'de00_mean', 'de00_p95', 'met'}, ...]} (the "
-        "largest tried is written when none meets it), else None.");
+        "{'reached': bool, 'trials': [{'theta_i', 'resolution', 'bytes', 'de00_mean', 'de00_p95', 'met', "
+        "'parameterisation'}, ...]} (the largest tried is written when none meets it), else None. parameterisation: "
+        "auto (a grid read from a .bsdf, or from a store it was imported into, is tabulated on its source file's "
+        "tables when theta_i and resolution are the source's), source or estimate, as `export --parameterisation`.");
 }
 
 }  // namespace specula::python

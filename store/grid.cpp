@@ -10,6 +10,7 @@
 #include "specula/core/progress.h"
 #include "specula/core/text.h"
 #include "specula/store/detail/deflate.h"
+#include "specula/store/detail/grid_parameterisation.h"
 #include "specula/store/detail/objects.h"
 #include "specula/store/detail/writer_state.h"
 #include "specula/store/grid_rows.h"
@@ -51,6 +52,7 @@ Grid Store::read_grid(const std::string& name) const {
   grid.scale = info.scale;
   grid.units = info.units;
   grid.provenance = info.provenance;
+  grid.parameterisation = read_parameterisation(g, ctx);
   grid.brdf.resize(info.bands * brdf::kMerlCells);
   h5::Id ds = open_dataset(g, "brdf", ctx);
   if (!grid.brdf.empty())
@@ -100,6 +102,7 @@ void StoreWriter::add_grid(const std::string& name, const Grid& grid) {
     h5::write_attr(g, "layout", std::string_view("merl"), ctx);
     write_provenance(g, grid.provenance, options_.command_line, ctx);
     write_grid(g, grid.wavelengths, ctx);
+    if (grid.parameterisation) write_parameterisation(g, *grid.parameterisation, ctx);
     const hsize_t dims[4] = {b, kGridDims[0], kGridDims[1], kGridDims[2]};
     const hsize_t chunk[4] = {1, kGridChunkThetaH, kGridDims[1], kGridDims[2]};
     h5::Id space(h5::check(H5Screate_simple(4, dims, nullptr), ctx, "H5Screate_simple"));

@@ -75,6 +75,50 @@ TEST(BsdfCli, ExportToATargetReportsTheResolutionsTried) {
   EXPECT_FALSE(std::filesystem::exists(dir / "u.bsdf"));
 }
 
+TEST(BsdfCli, ImportKeepsTheSourceParameterisationAndExportSaysWhichItUsed) {
+  test::ScratchDir dir;
+  const auto grid = dir / "paint.spgrid";
+  auto r = run_specula("synth-brdf blue-paint --wavelengths 400:700:50 -o " + q(grid));
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run_specula("export " + q(grid) + " -o " + q(dir / "src.bsdf") + " --theta-i 4 --resolution 12");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("estimate parameterisation"), std::string::npos) << r.output;
+  const codec::RglBsdf src = codec::read_rgl_bsdf(dir / "src.bsdf");
+  r = run_specula("import " + q(dir / "src.bsdf") + " -o " + q(dir / "s.h5") + " --name back");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto kept = store::Store::open(dir / "s.h5").read_grid("back").parameterisation;
+  ASSERT_TRUE(kept);
+  EXPECT_EQ(kept->theta_i, src.theta_i);
+  EXPECT_EQ(kept->resolution, 12u);
+
+  const std::string back = q(dir / "s.h5") + ":back";
+  r = run_specula("export " + back + " -o " + q(dir / "again.bsdf") + " --parameterisation source");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("source parameterisation"), std::string::npos) << r.output;
+  const codec::RglBsdf again = codec::read_rgl_bsdf(dir / "again.bsdf");
+  EXPECT_EQ(again.theta_i, src.theta_i);
+  EXPECT_EQ(again.ndf, src.ndf);
+  EXPECT_EQ(again.sigma, src.sigma);
+  EXPECT_EQ(again.vndf, src.vndf);
+  EXPECT_EQ(again.resolution, 12u);
+  r = run_specula("export " + back + " -o " + q(dir / "rgb.bsdf") + " --rgb --parameterisation source");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("source parameterisation"), std::string::npos) << r.output;
+  EXPECT_EQ(codec::read_rgl_bsdf(dir / "rgb.bsdf").vndf, src.vndf);
+  r = run_specula("export " + back + " -o " + q(dir / "t.bsdf") + " --target-de00 0.5");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("4 theta_i x 12^2 samples, source parameterisation"), std::string::npos) << r.output;
+
+  for (const std::string& args :
+       {q(grid) + " --parameterisation source", back + " --parameterisation source --resolution 16"}) {
+    r = run_specula("export " + args + " -o " + q(dir / "x.bsdf"));
+    EXPECT_EQ(r.status, 1) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_NE(r.output.find("source parameterisation"), std::string::npos) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(dir / "x.bsdf"));
+  }
+}
+
 TEST(BsdfCli, MalformedFilesGiveOneLineAndExitOne) {
   test::ScratchDir dir;
   const auto store_path = dir / "s.h5";
