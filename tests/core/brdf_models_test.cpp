@@ -149,8 +149,8 @@ TEST(BrdfModels, TorranceSparrowKnownValues) {
   // Normal incidence, theta_o = 40 deg: theta_h = theta_d = 20 deg, G = min(1, 2, 2 cos 40) = 1.
   t.eval(StdAngles{0, 0, 40 * kRadPerDeg, 0}, v);
   const double c20 = std::cos(20 * kRadPerDeg), t20 = std::tan(20 * kRadPerDeg);
-  const double f_off = std::exp(-t20 * t20 / (m * m)) / (4 * m * m * std::pow(c20, 4)) * fresnel_cos(20 * kRadPerDeg, 1.5) /
-                       (pi * std::cos(40 * kRadPerDeg));
+  const double f_off = std::exp(-t20 * t20 / (m * m)) / (4 * m * m * std::pow(c20, 4)) *
+                       fresnel_cos(20 * kRadPerDeg, 1.5) / (pi * std::cos(40 * kRadPerDeg));
   EXPECT_NEAR(v[1], f_off, 1e-12 * f_off);
   // Both at 85 deg, 90 deg apart in azimuth: masking, G = 4 c^2 / (s^2 + 2 c^2) with c = cos 85, s = sin 85.
   t.eval(StdAngles{85 * kRadPerDeg, 0, 85 * kRadPerDeg, pi / 2}, v);
