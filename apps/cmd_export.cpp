@@ -200,8 +200,9 @@ void setup_export(CLI::App& app) {
                   ".bsdf: sample grid nodes per side (default: the source file's, else 32)")
       ->check(CLI::Range(2, 512));
   cmd->add_option("--parameterisation", o->parameterisation,
-                  ".bsdf: auto (the source file's theta_i, ndf, sigma and vndf when the grid was imported from a .bsdf "
-                  "and the sizes are its own), source, or estimate (from the grid alone)")
+                  ".bsdf: auto (for a grid imported from a .bsdf at its own sizes, export on the source file's "
+                  "theta_i, ndf, sigma and vndf and on estimated ones and keep what the lighting suite finds closer; "
+                  "else estimate), source, or estimate (from the grid alone)")
       ->check(CLI::IsMember({"auto", "source", "estimate"}))
       ->capture_default_str();
   cmd->add_option("--target-de00", o->target_de00,
