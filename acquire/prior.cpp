@@ -333,6 +333,18 @@ PriorWeights parse_prior_weights(std::string_view name) {
   throw UsageError("prior weights '" + std::string(name) + "': use noise, count or scatter");
 }
 
+std::string_view prior_weights_name(PriorWeights w) {
+  switch (w) {
+    case PriorWeights::noise:
+      return "noise";
+    case PriorWeights::count:
+      return "count";
+    case PriorWeights::scatter:
+      return "scatter";
+  }
+  return "noise";
+}
+
 std::vector<double> observation_weights(const BrdfPrior& p, const PriorObservations& obs, const PriorFitOptions& o) {
   const std::size_t n = obs.cell.size(), b = p.wavelengths.size(), c = p.channels();
   if (obs.weight.size() != n || obs.values.size() != n * b || !(obs.spread.empty() || obs.spread.size() == n * b))

@@ -114,6 +114,8 @@ enum class PriorWeights {
 
 /// Parses "noise", "count" or "scatter"; UsageError naming the choices otherwise.
 PriorWeights parse_prior_weights(std::string_view name);
+/// "noise", "count" or "scatter".
+std::string_view prior_weights_name(PriorWeights w);
 
 /// How a prior is fitted.
 struct PriorFitOptions {

@@ -1,0 +1,220 @@
+#include "specula/acquire/resample_run.h"
+
+#include <fmt/format.h>
+#include <omp.h>
+
+#include <chrono>
+#include <numbers>
+
+#include "specula/acquire/base_resample.h"
+#include "specula/acquire/mapping.h"
+#include "specula/acquire/prior_output.h"
+#include "specula/acquire/prior_resample.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/error.h"
+#include "specula/store/object_spec.h"
+
+namespace specula::acquire {
+namespace {
+
+using Json = nlohmann::ordered_json;
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// A grid on the samples' bands and units, every value zero, for a resampler to fill.
+store::Grid empty_grid(const store::SamplesInfo& info, const ResampleJob& job) {
+  store::Grid grid;
+  grid.wavelengths = info.wavelengths;
+  grid.units = info.units;
+  grid.brdf.resize(info.bands * brdf::kMerlCells);
+  grid.provenance.source_file = job.store + ":" + job.samples;
+  return grid;
+}
+
+// What every kind of resampling reports first: the samples read and the grid's cells.
+Json report_head(const store::SamplesInfo& info, std::uint64_t valid_cells) {
+  return {{"samples", info.size}, {"bands", info.bands}, {"cells", brdf::kMerlCells}, {"valid_cells", valid_cells}};
+}
+
+// The k the job resamples with and how it came to be: the leave-one-out choice when asked for one.
+struct ChosenK {
+  std::size_t k = 0;
+  Json report;             // null unless chosen by leave-one-out
+  std::string provenance;  // "k=K", with how it was chosen
+};
+
+ChosenK choice_of(const BandwidthChoice& c, const BandwidthOptions& b) {
+  return {c.k, bandwidth_choice_json(c, b), bandwidth_provenance(c, b)};
+}
+
+ChosenK given_k(std::size_t k) { return {k, nullptr, fmt::format("k={}", k)}; }
+
+// The common words of every provenance: the mapping, k and the weights.
+std::string local_words(const ResampleOptions& o, const ChosenK& k) {
+  return fmt::format("mapping={} {} weights={}", mapping_name(o.mapping), k.provenance, weights_name(o.weights));
+}
+
+void add_k_auto(Json& j, const ChosenK& k) {
+  if (!k.report.is_null()) j["k_auto"] = k.report;
+}
+
+ResampleOutcome plain(const ResampleJob& job, const store::Store& s, const store::SamplesInfo& info) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const StoreSamples src(s, job.samples);
+  const SampleTree tree(src, job.local.mapping);
+  const double tree_seconds = seconds_since(t0);
+  ResampleOptions o = job.local;
+  ChosenK k = given_k(o.k);
+  if (job.k_auto) {
+    ResampleOptions at_most = o;
+    at_most.k = job.k_auto->ladder.empty() ? o.k : job.k_auto->ladder.back();
+    k = choice_of(choose_bandwidth(tree, src, at_most, *job.k_auto), *job.k_auto);
+    o.k = k.k;
+  }
+  ResampleOutcome out{.grid = empty_grid(info, job)};
+  GridStats stats = resample_grid(tree, src, o, out.grid.brdf);
+  stats.tree_seconds = tree_seconds;
+  // Only Shepard's weights have a power, so the provenance names it only for them.
+  const std::string power = o.weights == Weights::shepard ? fmt::format(" power={}", o.power) : "";
+  out.grid.provenance.importer =
+      fmt::format("resample {}{} max_gap_deg={:.6g}", local_words(o, k), power, o.max_gap * 180 / std::numbers::pi);
+  const double seconds = seconds_since(t0);
+  out.report = report_head(info, stats.valid_cells);
+  out.report["seconds"] = seconds;
+  out.report["tree_seconds"] = stats.tree_seconds;
+  out.report["query_seconds"] = stats.query_seconds;
+  out.report["average_seconds"] = stats.average_seconds;
+  out.report["passes"] = stats.passes;
+  out.report["mapping"] = mapping_name(o.mapping);
+  out.report["k"] = k.k;
+  add_k_auto(out.report, k);
+  out.report["weights"] = weights_name(o.weights);
+  out.report["power"] = o.power;
+  out.summary =
+      fmt::format("resampled {} samples of {} onto {} of {} cells ({} mapping, k = {}{}, {} weights) in {:.2f} s",
+                  info.size, job.samples, stats.valid_cells, brdf::kMerlCells, mapping_name(o.mapping), k.k,
+                  k.report.is_null() ? "" : " chosen by leave-one-out", weights_name(o.weights), seconds);
+  return out;
+}
+
+// The k of a prior's or a model's kd-tree estimate: given, or chosen on a tree of its own.
+ChosenK resolved_k(const ResampleJob& job, const store::Store& s) {
+  if (!job.k_auto) return given_k(job.local.k);
+  return choice_of(choose_bandwidth(s, job.samples, job.local, *job.k_auto), *job.k_auto);
+}
+
+ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const store::Store& s,
+                           const store::SamplesInfo& info) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto spec = store::parse_object_spec(m.prior);
+  if (!spec) throw UsageError("resample: prior '" + m.prior + "': give STORE.h5:PRIOR");
+  const BrdfPrior prior = read_prior(store::Store::open(spec->file), spec->name);
+  const ChosenK k = resolved_k(job, s);
+  PriorResampleOptions po{.local = job.local,
+                          .fit = m.fit,
+                          .confidence_reach = m.confidence_reach,
+                          .residuals = m.residuals,
+                          .prior_in_cap = m.prior_in_cap};
+  po.local.k = k.k;
+  const StoreSamples src(s, job.samples);
+  ResampleOutcome out{.grid = empty_grid(info, job)};
+  std::vector<float> confidence(brdf::kMerlCells);
+  const PriorResampleStats st = resample_with_prior(src, prior, po, out.grid.brdf, confidence);
+  out.confidence = confidence_grid(confidence, info.wavelengths);
+  out.confidence->provenance.source_file = out.grid.provenance.source_file;
+  out.grid.provenance.importer = fmt::format(
+      "resample prior={} lambda={} prior_weights={} confidence_reach={} prior_in_cap={} {}", m.prior, m.fit.lambda,
+      prior_weights_name(m.fit.weights), m.confidence_reach, m.prior_in_cap, local_words(po.local, k));
+  const double seconds = seconds_since(t0);
+  out.report = report_head(info, st.filled_cells);
+  out.report["observed_cells"] = st.observed_cells;
+  out.report["seconds"] = seconds;
+  out.report["fit_seconds"] = st.fit_seconds;
+  out.report["prior"] = m.prior;
+  add_k_auto(out.report, k);
+  out.summary =
+      fmt::format("resampled {} samples of {} with prior {} onto all {} valid cells ({} observed) in {:.2f} s",
+                  info.size, job.samples, m.prior, st.filled_cells, st.observed_cells, seconds);
+  return out;
+}
+
+// The fitted model as JSON: its kind, each lobe's shape, and the albedos per band.
+Json model_json(const MicrofacetBrdf& m) {
+  Json lobes = Json::array();
+  for (std::size_t j = 0; j < m.shapes().size(); ++j) {
+    const Eigen::VectorXd& s = m.specular()[j];
+    lobes.push_back({{"alpha", m.shapes()[j].alpha},
+                     {m.kind().fresnel == FresnelKind::schlick ? "f0" : "eta", m.shapes()[j].fresnel},
+                     {"albedo", std::vector<double>(s.begin(), s.end())}});
+  }
+  return {{"distribution", distribution_name(m.kind().distribution)},
+          {"shadowing", shadowing_name(m.kind().shadowing)},
+          {"fresnel", fresnel_name(m.kind().fresnel)},
+          {"diffuse", std::vector<double>(m.diffuse().begin(), m.diffuse().end())},
+          {"lobes", lobes}};
+}
+
+// "Lobe(s): alpha A, F0 F; ..." of the summary line.
+std::string shapes_words(const MicrofacetBrdf& m) {
+  std::string words;
+  for (const auto& sh : m.shapes())
+    words += fmt::format(" alpha {:.4g}, {} {:.4g};", sh.alpha, m.kind().fresnel == FresnelKind::schlick ? "F0" : "eta",
+                         sh.fresnel);
+  return words;
+}
+
+ResampleOutcome with_model(const ResampleJob& job, const ModelMethod& m, const store::Store& s,
+                           const store::SamplesInfo& info) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const ChosenK k = resolved_k(job, s);
+  ModelResampleOptions mo{.local = job.local, .fit = m.fit, .confidence_reach = m.confidence_reach};
+  mo.local.k = k.k;
+  const StoreSamples src(s, job.samples);
+  ResampleOutcome out{.grid = empty_grid(info, job)};
+  std::vector<float> confidence(brdf::kMerlCells);
+  std::unique_ptr<MicrofacetBrdf> model;
+  const ModelResampleStats st = resample_with_model(src, info.wavelengths, mo, out.grid.brdf, confidence, &model);
+  out.confidence = confidence_grid(confidence, info.wavelengths);
+  out.confidence->provenance.source_file = out.grid.provenance.source_file;
+  const Json mj = model_json(*model);
+  out.grid.provenance.importer = "resample model=" + mj.dump() +
+                                 fmt::format(" confidence_reach={} {}", m.confidence_reach, local_words(mo.local, k));
+  const double seconds = seconds_since(t0);
+  out.report = report_head(info, st.filled_cells);
+  out.report["observed_cells"] = st.fit.observed_cells;
+  out.report["shape_cells"] = st.fit.shape_cells;
+  out.report["evaluations"] = st.fit.evaluations;
+  out.report["downweighted"] = st.fit.downweighted;
+  out.report["fit_relative_rms"] = st.fit.relative_rms;
+  out.report["seconds"] = seconds;
+  out.report["fit_seconds"] = st.fit_seconds;
+  out.report["model"] = mj;
+  add_k_auto(out.report, k);
+  out.summary = fmt::format(
+      "resampled {} samples of {} on a fitted {} model ({} lobe(s):{} relative RMS of the fit {:.3f}) onto all {} "
+      "valid cells in {:.2f} s",
+      info.size, job.samples, distribution_name(m.fit.kind.distribution), m.fit.lobes, shapes_words(*model),
+      st.fit.relative_rms, st.filled_cells, seconds);
+  return out;
+}
+
+}  // namespace
+
+ResampleOutcome run_resample(const ResampleJob& job) {
+  check_options(job.local);
+  const store::Store s = store::Store::open(job.store);
+  const store::SamplesInfo info = s.samples_info(job.samples);
+  ResampleOutcome out;
+  if (const auto* m = std::get_if<PriorMethod>(&job.method))
+    out = with_prior(job, *m, s, info);
+  else if (const auto* m = std::get_if<ModelMethod>(&job.method))
+    out = with_model(job, *m, s, info);
+  else
+    out = plain(job, s, info);
+  out.report["threads"] = omp_get_max_threads();
+  return out;
+}
+
+}  // namespace specula::acquire

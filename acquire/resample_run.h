@@ -1,0 +1,58 @@
+#pragma once
+// One whole resample of a store's samples (`specula resample`): the bandwidth resolved (a count, or chosen by
+// leave-one-out on the same k-d tree the grid is then built from), the samples put onto the MERL grid plainly,
+// with a learned prior or on a fitted model, and the grid's provenance, report and summary built, ready to save.
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <variant>
+
+#include "specula/acquire/bandwidth.h"
+#include "specula/acquire/model_fit.h"
+#include "specula/acquire/prior.h"
+#include "specula/acquire/resample.h"
+#include "specula/store/store.h"
+
+namespace specula::acquire {
+
+/// The kd-tree estimate alone; cells without support are left without data.
+struct PlainMethod {};
+
+/// A learned prior fitted to the samples and blended with the kd-tree estimate (acquire/prior_resample.h).
+struct PriorMethod {
+  std::string prior;  ///< STORE.h5:PRIOR
+  PriorFitOptions fit;
+  double confidence_reach = 1;
+  bool residuals = false;
+  bool prior_in_cap = true;
+};
+
+/// A Lambertian plus microfacet lobes fitted as the base, the kd-tree estimate of the residuals added near samples.
+struct ModelMethod {
+  ModelFitOptions fit;
+  double confidence_reach = 1;
+};
+
+struct ResampleJob {
+  std::string store;    ///< the store holding the samples
+  std::string samples;  ///< their name
+  ResampleOptions local;
+  std::optional<BandwidthOptions> k_auto;  ///< given: local.k is chosen by leave-one-out over this ladder
+  std::variant<PlainMethod, PriorMethod, ModelMethod> method;
+};
+
+/// What a resample made: the grid (with provenance), the confidence beside it for a prior or a model, what
+/// `resample --json` reports (without the output names) and a one-line summary (without the destination).
+struct ResampleOutcome {
+  store::Grid grid;
+  std::optional<store::Grid> confidence;
+  nlohmann::ordered_json report;
+  std::string summary;
+};
+
+/// Resamples job.samples of job.store as job.method says, writing nothing; the plain method with -k auto builds
+/// its k-d tree once for the choice and the grid. UsageError for bad options (before any work), InputError for
+/// missing samples or prior, Interrupted between blocks.
+ResampleOutcome run_resample(const ResampleJob& job);
+
+}  // namespace specula::acquire
