@@ -1,7 +1,7 @@
 // Exporting a grid on the parameterisation of the RGL file it was imported from (store::Grid::parameterisation): the
-// source's tables come back bit for bit, grids without one (or told to estimate) export as before, and the real
-// orange vinyl, which misses the fidelity goal at the default size from the grid alone, meets it on its source's
-// tables (docs/brdf.md, Export).
+// source's tables come back bit for bit (a vndf above 32 per side resampled), grids without one (or told to estimate)
+// export as before, and the real orange vinyl, which misses the fidelity goal at the default size from the grid
+// alone, meets it and the size goal on its source's tables (docs/brdf.md, Export).
 #include <gtest/gtest.h>
 
 #include <cmath>
