@@ -201,8 +201,9 @@ void setup_export(CLI::App& app) {
       ->check(CLI::Range(2, 512));
   cmd->add_option("--parameterisation", o->parameterisation,
                   ".bsdf: auto (for a grid imported from a .bsdf at its own sizes, export on the source file's "
-                  "theta_i, ndf, sigma and vndf and on estimated ones and keep what the lighting suite finds closer; "
-                  "else estimate), source, or estimate (from the grid alone)")
+                  "theta_i, ndf, sigma and vndf (a vndf side above 32 nodes resampled to 32) and on estimated ones and "
+                  "keep what the lighting suite finds closer; else estimate), source, or estimate (from the grid "
+                  "alone)")
       ->check(CLI::IsMember({"auto", "source", "estimate"}))
       ->capture_default_str();
   cmd->add_option("--target-de00", o->target_de00,

@@ -30,6 +30,11 @@ std::string samples_line(const store::SamplesInfo& s) {
   return fmt::format("samples     {:<24} {} samples  {}  {}", s.name, s.size, s.wavelengths.describe(), s.units);
 }
 
+std::string grid_line(const store::GridInfo& g) {
+  return fmt::format("grid        {:<24} {}  {}  parameterisation: {}", g.name, g.wavelengths.describe(), g.units,
+                     store::parameterisation_text(g));
+}
+
 std::string coefficients_line(const store::CoefficientsInfo& c) {
   return fmt::format("coefficients {:<23} {}x{}  {} {} coefficients of image {} on basis {}  [{}]", c.name, c.height,
                      c.width, c.k, c.method, c.image, c.basis, c.compression);
@@ -40,7 +45,7 @@ void list_objects(const store::Store& s) {
   for (const auto& n : s.images()) fmt::print("{}\n", image_line(s.image_info(n)));
   for (const auto& n : s.collections()) fmt::print("{}\n", collection_line(s.collection_info(n)));
   for (const auto& n : s.samples()) fmt::print("{}\n", samples_line(s.samples_info(n)));
-  for (const auto& n : s.grids()) fmt::print("grid        {}\n", n);
+  for (const auto& n : s.grids()) fmt::print("{}\n", grid_line(s.grid_info(n)));
   for (const auto& n : s.bases()) fmt::print("basis       {}\n", n);
   for (const auto& n : s.coefficients()) fmt::print("{}\n", coefficients_line(s.coefficients_info(n)));
   for (const auto& n : s.objects("acquire")) {
@@ -69,8 +74,8 @@ void run_info(const InfoOptions& o) {
     return;
   }
   std::string name = o.object;
-  for (const char* prefix : {"images/", "collections/", "samples/", "bases/", "coefficients/", "/images/",
-                             "/collections/", "/samples/", "/bases/", "/coefficients/"})
+  for (const char* prefix : {"images/", "collections/", "samples/", "grids/", "bases/", "coefficients/", "/images/",
+                             "/collections/", "/samples/", "/grids/", "/bases/", "/coefficients/"})
     if (name.rfind(prefix, 0) == 0) name = name.substr(std::string(prefix).size());
   auto has = [](const std::vector<std::string>& v, const std::string& n) {
     return std::find(v.begin(), v.end(), n) != v.end();
@@ -90,6 +95,11 @@ void run_info(const InfoOptions& o) {
     const auto c = s.samples_info(name);
     if (o.json) return print_json(store::samples_json(c));
     fmt::print("{}\n  source {}\n", samples_line(c), c.provenance.source_file);
+  } else if (has(s.grids(), name)) {
+    const auto g = s.grid_info(name);
+    if (o.json) return print_json(store::grid_json(g));
+    fmt::print("{}\n  source {}\n  created {} by: {}\n", grid_line(g), g.provenance.source_file,
+               g.provenance.created_utc, g.provenance.command_line);
   } else if (has(s.bases(), name)) {
     const store::Basis b = s.read_basis(name);
     if (o.json) return print_json(store::basis_json(name, b));
@@ -112,7 +122,7 @@ void setup_info(CLI::App& app) {
   auto o = std::make_shared<InfoOptions>();
   auto* cmd = app.add_subcommand("info", "Describe a store, or one object in it");
   cmd->add_option("store", o->store, "Store file")->required();
-  cmd->add_option("object", o->object, "Object name (image, collection, samples, basis or coefficient map)");
+  cmd->add_option("object", o->object, "Object name (image, collection, samples, grid, basis or coefficient map)");
   cmd->add_flag("--json", o->json, "Print JSON");
   cmd->callback([o] { run_info(*o); });
 }

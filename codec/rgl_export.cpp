@@ -198,8 +198,9 @@ void estimate_vndf(const RglExportSettings& s, RglBsdf& b) {
   });
 }
 
-// The source file's tables into b as they are.
-void source_tables(const store::GridParameterisation& p, RglBsdf& b) {
+// The source file's tables into b as they are, except a vndf with more than `vndf_side` nodes per side: resampled to
+// at most that by resample_density (the published files' 128^2 would make a 31-band file 1.58 MB; docs/brdf.md).
+void source_tables(const store::GridParameterisation& p, std::size_t vndf_side, RglBsdf& b) {
   b.phi_i = p.phi_i;
   b.theta_i = p.theta_i;
   b.ndf_width = p.ndf_width;
@@ -208,9 +209,9 @@ void source_tables(const store::GridParameterisation& p, RglBsdf& b) {
   b.sigma_width = p.sigma_width;
   b.sigma_height = p.sigma_height;
   b.sigma = p.sigma;
-  b.vndf_width = p.vndf_width;
-  b.vndf_height = p.vndf_height;
-  b.vndf = p.vndf;
+  b.vndf_width = std::min(p.vndf_width, vndf_side);
+  b.vndf_height = std::min(p.vndf_height, vndf_side);
+  b.vndf = resample_density(p.vndf, p.vndf_width, p.vndf_height, b.vndf_width, b.vndf_height);
   b.resolution = p.resolution;
 }
 
@@ -262,7 +263,7 @@ RglBsdf build(const MerlField& field, std::span<const double> lum_weights, std::
   b.rgb = wavelengths.empty();
   b.wavelengths = std::move(wavelengths);
   if (on_source) {
-    source_tables(*source, b);
+    source_tables(*source, s.vndf_resolution, b);
   } else {
     microfacet_tables(field, lum_weights, s, b);
     b.resolution = s.resolution;

@@ -9,7 +9,8 @@
 // (codec/rgl_fit.h). f between MERL cells is interpolated trilinearly in the grid's index space over the cells that
 // hold data.
 // A grid imported from an RGL file keeps that file's parameterisation (store::Grid::parameterisation); an export at
-// the file's size then tabulates on it (its theta_i, ndf, sigma and vndf as they are) and only fits the values.
+// the file's size then tabulates on it (its theta_i, ndf and sigma as they are, its vndf at most vndf_resolution
+// nodes per side) and only fits the values.
 #include <Eigen/Core>
 #include <cstddef>
 #include <span>
@@ -37,10 +38,12 @@ RglParameterisation parse_rgl_parameterisation(const std::string& name);
 /// table (see docs/brdf.md: 181 ndf nodes put one at every MERL theta_h cell centre; a 32 x 32 vndf keeps a 31-band
 /// file near 1 MB, where the published files use 128 x 128).
 struct RglExportSettings {
-  std::size_t theta_i = 8;           ///< incident elevations, >= 2; 0: the grid's source's if it has one, else 8
-  std::size_t resolution = 32;       ///< sample-square nodes per side, >= 2; 0: the source's if any, else 32
-  std::size_t ndf_nodes = 181;       ///< nodes of the ndf and sigma tables in u, >= 2
-  std::size_t vndf_resolution = 32;  ///< vndf nodes per side, >= 2
+  std::size_t theta_i = 8;      ///< incident elevations, >= 2; 0: the grid's source's if it has one, else 8
+  std::size_t resolution = 32;  ///< sample-square nodes per side, >= 2; 0: the source's if any, else 32
+  std::size_t ndf_nodes = 181;  ///< nodes of the ndf and sigma tables in u, >= 2
+  /// vndf nodes per side, >= 2; on the source's tables, the most per side (a larger source vndf is resampled so that
+  /// its warp follows the source's, resample_density)
+  std::size_t vndf_resolution = 32;
   std::size_t power_iterations = 30;
   /// The vndf table only places the sample nodes (stored values use the ndf) and guides the renderers' sampling. Per
   /// incident direction it is the mixture (1 - vndf_uniform) p + vndf_uniform q, both normalised over the table's

@@ -1,11 +1,15 @@
 #include "specula/codec/rgl_warp.h"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <string>
 
 #include "specula/core/error.h"
+#include "specula/core/nnls.h"
+#include "specula/core/parallel.h"
 
 namespace specula::codec {
 namespace {
@@ -28,6 +32,58 @@ std::size_t find_interval(std::size_t size, Pred pred) {
 }
 
 double safe_sqrt(double v) { return std::sqrt(std::max(v, 0.0)); }
+
+// The CDF at x in [0, 1] of the piecewise-linear density on n nodes uniform in [0, 1], as a row of weights on the
+// node values.
+Eigen::RowVectorXd cdf_weights(double x, std::size_t n) {
+  const double h = 1.0 / double(n - 1), s = std::clamp(x, 0.0, 1.0) * double(n - 1);
+  const std::size_t k = std::min(std::size_t(s), n - 2);
+  const double t = s - double(k);
+  Eigen::RowVectorXd r = Eigen::RowVectorXd::Zero(Eigen::Index(n));
+  for (std::size_t m = 0; m < k; ++m) {
+    r[Eigen::Index(m)] += h / 2;
+    r[Eigen::Index(m + 1)] += h / 2;
+  }
+  r[Eigen::Index(k)] += h * (t - t * t / 2);
+  r[Eigen::Index(k + 1)] += h * t * t / 2;
+  return r;
+}
+
+// Piecewise-linear densities on `from` nodes uniform in [0, 1] as ones on n nodes: the non-negative values whose CDF
+// is closest in least squares to the original's at 8 points per original interval. Prepared once per pair of sizes.
+class CdfFit {
+ public:
+  CdfFit(std::size_t from, std::size_t n) : nnls_(gram(from, n)) {}
+  std::vector<double> operator()(std::span<const double> values) const {
+    const Eigen::VectorXd h = to_rhs_ * Eigen::Map<const Eigen::VectorXd>(values.data(), Eigen::Index(values.size()));
+    std::vector<double> out(nnls_.k());
+    nnls_.solve(h.data(), out.data());
+    return out;
+  }
+
+ private:
+  Eigen::MatrixXd gram(std::size_t from, std::size_t n) {
+    const std::size_t points = (from - 1) * 8;
+    Eigen::MatrixXd g = Eigen::MatrixXd::Zero(Eigen::Index(n), Eigen::Index(n));
+    to_rhs_ = Eigen::MatrixXd::Zero(Eigen::Index(n), Eigen::Index(from));
+    for (std::size_t q = 0; q <= points; ++q) {
+      const double x = double(q) / double(points);
+      const Eigen::RowVectorXd r = cdf_weights(x, n);
+      g.noalias() += r.transpose() * r;
+      to_rhs_.noalias() += r.transpose() * cdf_weights(x, from);
+    }
+    return g;
+  }
+  Eigen::MatrixXd to_rhs_;  // n x from: the right-hand side of the normal equations from the original values
+  GramNnls nnls_;
+};
+
+// Integral over [0, 1] of the piecewise-linear density on the nodes uniform in [0, 1].
+double integral(std::span<const double> v) {
+  double s = 0;
+  for (std::size_t i = 0; i + 1 < v.size(); ++i) s += 0.5 * (v[i] + v[i + 1]);
+  return s / double(v.size() - 1);
+}
 
 }  // namespace
 
@@ -211,6 +267,45 @@ WarpPoint Warp2D::invert(double x, double y, std::span<const double> param) cons
   y *= r0 + 0.5 * y * (r1 - r0);
   y += lookup(marginal_, h_, iy, c);
   return {x, y, pdf * double(w_ - 1) * double(h_ - 1)};
+}
+
+std::vector<float> resample_density(std::span<const float> data, std::size_t width, std::size_t height,
+                                    std::size_t new_width, std::size_t new_height) {
+  if (width < 2 || height < 2 || new_width < 2 || new_height < 2)
+    throw UsageError("resample_density: a table needs at least 2 x 2 nodes");
+  const std::size_t n = width * height, slices = data.size() / n;
+  if (data.size() != slices * n)
+    throw UsageError("resample_density: " + std::to_string(data.size()) + " values are not slices of " +
+                     std::to_string(width) + " x " + std::to_string(height));
+  if (new_width == width && new_height == height) return {data.begin(), data.end()};
+  std::optional<CdfFit> columns, rows;  // for the sides that change
+  if (new_width != width) columns.emplace(width, new_width);
+  if (new_height != height) rows.emplace(height, new_height);
+  std::vector<float> out(slices * new_width * new_height);
+  parallel_for(slices, [&](std::size_t s) {
+    const float* in = data.data() + s * n;
+    std::vector<double> row(width), totals(height);
+    for (std::size_t y = 0; y < height; ++y) {
+      for (std::size_t x = 0; x < width; ++x) row[x] = in[y * width + x];
+      totals[y] = integral(row);
+    }
+    if (rows) totals = (*rows)(totals);
+    for (std::size_t j = 0; j < new_height; ++j) {
+      std::size_t r = j;  // the original interpolant at the new row's v: rows r and r + 1 blended by t
+      double t = 0;
+      if (rows) {
+        const double v = double(j) / double(new_height - 1) * double(height - 1);
+        r = std::min(std::size_t(v), height - 2);
+        t = v - double(r);
+      }
+      for (std::size_t x = 0; x < width; ++x)
+        row[x] = (1 - t) * in[r * width + x] + (t > 0 ? t * in[(r + 1) * width + x] : 0.0);
+      const std::vector<double> fitted = columns ? (*columns)(row) : row;
+      const double have = integral(fitted), scale = have > 0 ? totals[j] / have : 0.0;
+      for (std::size_t i = 0; i < new_width; ++i) out[(s * new_height + j) * new_width + i] = float(fitted[i] * scale);
+    }
+  });
+  return out;
 }
 
 }  // namespace specula::codec

@@ -73,4 +73,14 @@ class Warp2D {
   bool density_ = false;
 };
 
+/// A density table (slices of height x width values, as Warp2D takes it with `density`) on new_height x new_width
+/// nodes whose warp follows the original's: each new row is the original interpolant's row at its v, refitted so that
+/// its CDF over the columns matches that row's, and the rows' integrals are refitted so that their CDF over the rows
+/// matches the original's marginal (each a non-negative least-squares fit of the CDF at 8 points per original
+/// interval); every slice keeps its integral. Point samples at the new nodes would instead lose the mass of a peak
+/// between them (docs/brdf.md, Export). Both sizes unchanged: the data as it is. UsageError for a side below 2 or a
+/// data size that is not a multiple of width x height.
+std::vector<float> resample_density(std::span<const float> data, std::size_t width, std::size_t height,
+                                    std::size_t new_width, std::size_t new_height);
+
 }  // namespace specula::codec

@@ -3,6 +3,7 @@
 #include <array>
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "specula/core/error.h"
@@ -40,11 +41,12 @@ GridInfo Store::grid_info(const std::string& name) const {
   info.units = h5::has_attr(g, "units") ? h5::read_string_attr(g, "units", ctx) : "unknown";
   info.compression = compression_of(ds, ctx);
   info.provenance = read_provenance(g, ctx);
+  info.parameterisation = read_parameterisation(g, ctx);
   return info;
 }
 
 Grid Store::read_grid(const std::string& name) const {
-  const GridInfo info = grid_info(name);
+  GridInfo info = grid_info(name);
   const std::string ctx = label() + ": /grids/" + name;
   h5::Id g = open_group(StoreAccess::root(*this), "/grids/" + name, ctx);
   Grid grid;
@@ -52,7 +54,7 @@ Grid Store::read_grid(const std::string& name) const {
   grid.scale = info.scale;
   grid.units = info.units;
   grid.provenance = info.provenance;
-  grid.parameterisation = read_parameterisation(g, ctx);
+  grid.parameterisation = std::move(info.parameterisation);
   grid.brdf.resize(info.bands * brdf::kMerlCells);
   h5::Id ds = open_dataset(g, "brdf", ctx);
   if (!grid.brdf.empty())

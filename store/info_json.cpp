@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace specula::store {
@@ -69,6 +70,40 @@ Json coefficients_json(const CoefficientsInfo& c) {
           {"provenance", provenance_json(c.provenance)}};
 }
 
+Json grid_json(const GridInfo& g) {
+  Json p = nullptr;
+  if (const auto& s = g.parameterisation) {
+    const auto table = [](std::size_t height, std::size_t width) { return Json{{"height", height}, {"width", width}}; };
+    p = {{"source", "rgl"},
+         {"description", s->description},
+         {"theta_i", Json(s->theta_i)},
+         {"ndf", table(s->ndf_height, s->ndf_width)},
+         {"sigma", table(s->sigma_height, s->sigma_width)},
+         {"vndf", table(s->vndf_height, s->vndf_width)},
+         {"resolution", s->resolution}};
+  }
+  return {{"kind", "grid"},
+          {"name", g.name},
+          {"bands", g.bands},
+          {"wavelengths", numbers(g.wavelengths.values())},
+          {"scale", g.scale},
+          {"units", g.units},
+          {"compression", g.compression},
+          {"parameterisation", p},
+          {"provenance", provenance_json(g.provenance)}};
+}
+
+std::string parameterisation_text(const GridInfo& g) {
+  if (!g.parameterisation) return "none";
+  const GridParameterisation& p = *g.parameterisation;
+  const auto size = [](std::size_t height, std::size_t width) {
+    return height == width ? std::to_string(width) + "^2" : std::to_string(width) + "x" + std::to_string(height);
+  };
+  return "source tables (RGL), " + std::to_string(p.theta_i.size()) + " theta_i, ndf " +
+         size(p.ndf_height, p.ndf_width) + ", vndf " + size(p.vndf_height, p.vndf_width) + ", " +
+         size(p.resolution, p.resolution) + " sample grid";
+}
+
 Json basis_json(const std::string& name, const Basis& b) {
   return {{"kind", "basis"},
           {"name", name},
@@ -88,7 +123,7 @@ Json objects_json(const Store& s) {
   for (const auto& n : s.images()) rows.push_back(image_json(s.image_info(n)));
   for (const auto& n : s.collections()) rows.push_back(collection_json(s.collection_info(n)));
   for (const auto& n : s.samples()) rows.push_back(samples_json(s.samples_info(n)));
-  for (const auto& n : s.grids()) rows.push_back({{"kind", "grid"}, {"name", n}});
+  for (const auto& n : s.grids()) rows.push_back(grid_json(s.grid_info(n)));
   for (const auto& n : s.bases()) rows.push_back({{"kind", "basis"}, {"name", n}});
   for (const auto& n : s.coefficients()) rows.push_back(coefficients_json(s.coefficients_info(n)));
   return rows;

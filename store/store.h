@@ -84,6 +84,8 @@ struct GridInfo {
   std::string units;
   std::string compression;
   Provenance provenance;
+  /// The tables of the RGL file the grid was imported from, when it carries them (Grid::parameterisation).
+  std::optional<GridParameterisation> parameterisation;
 };
 
 /// What a store knows about one coefficient map: the coefficients of an image's pixels on a basis, kept with a

@@ -1,6 +1,9 @@
 // `specula info`, `ls` and `synth-db` through the CLI.
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
+#include "specula/codec/rgl_bsdf.h"
 #include "specula/store/store.h"
 #include "test_support.h"
 
@@ -50,4 +53,51 @@ TEST(InfoCli, MissingStoreAndObject) {
   auto r = run_specula("info '" + (dir / "none.h5").string() + "'");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("none.h5: no such file"), std::string::npos) << r.output;
+}
+
+// A grid imported from a .bsdf carries its file's parameterisation; info says so, in text and JSON, with the sizes read
+// from the file itself; a grid made otherwise says none.
+TEST(InfoCli, GridsSayWhetherTheyCarryTheirSourcesParameterisation) {
+  test::ScratchDir dir;
+  const std::string db = "'" + (dir / "s.h5").string() + "'", bsdf = "'" + (dir / "src.bsdf").string() + "'";
+  ASSERT_EQ(run_specula("-q synth-brdf blue-paint --wavelengths 400:700:50 -o " + db + ":plain").status, 0);
+  auto r = run_specula("-q export " + db + ":plain -o " + bsdf + " --theta-i 4 --resolution 12");
+  ASSERT_EQ(r.status, 0) << r.output;
+  ASSERT_EQ(run_specula("-q import " + bsdf + " -o " + db + " --name back").status, 0);
+  const codec::RglBsdf file = codec::read_rgl_bsdf(dir / "src.bsdf");
+  const std::string expected = "parameterisation: source tables (RGL), " + std::to_string(file.theta_i.size()) +
+                               " theta_i, ndf " + std::to_string(file.ndf_width) + "x" +
+                               std::to_string(file.ndf_height) + ", vndf " + std::to_string(file.vndf_width) +
+                               "^2, 12^2 sample grid";
+  ASSERT_EQ(file.vndf_width, file.vndf_height);
+
+  r = run_specula("info " + db);
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto line_of = [&](const std::string& name) {
+    const std::size_t at = r.output.find("grid        " + name + " ");
+    return at == std::string::npos ? std::string() : r.output.substr(at, r.output.find('\n', at) - at);
+  };
+  EXPECT_NE(line_of("back").find(expected), std::string::npos) << r.output;
+  EXPECT_NE(line_of("plain").find("parameterisation: none"), std::string::npos) << r.output;
+  r = run_specula("info " + db + " back");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find(expected), std::string::npos) << r.output;
+
+  r = run_specula("info " + db + " --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(r.output);
+  std::map<std::string, nlohmann::json> grids;
+  for (const auto& o : j.at("objects"))
+    if (o.at("kind") == "grid") grids[o.at("name").get<std::string>()] = o;
+  ASSERT_EQ(grids.size(), 2u);
+  EXPECT_TRUE(grids["plain"].at("parameterisation").is_null());
+  const nlohmann::json p = grids["back"].at("parameterisation");
+  EXPECT_EQ(p.at("theta_i").get<std::vector<float>>(), file.theta_i);
+  EXPECT_EQ(p.at("ndf").at("width").get<std::size_t>(), file.ndf_width);
+  EXPECT_EQ(p.at("vndf").at("height").get<std::size_t>(), file.vndf_height);
+  EXPECT_EQ(p.at("resolution").get<std::size_t>(), file.resolution);
+  EXPECT_EQ(grids["back"].at("bands").get<std::size_t>(), 7u);
+  r = run_specula("info " + db + " plain --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(nlohmann::json::parse(r.output).at("parameterisation").is_null()) << r.output;
 }
