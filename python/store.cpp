@@ -2,10 +2,13 @@
 // store_write.cpp).
 #include <fmt/format.h>
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 
 #include "python/common.h"
 #include "specula/core/error.h"
+#include "specula/store/info_json.h"
 
 namespace specula::python {
 namespace {
@@ -68,12 +71,19 @@ py::dict info_dict(const store::CollectionInfo& i) { return list_dict("collectio
 
 py::dict info_dict(const store::SamplesInfo& i) { return list_dict("samples", i); }
 
+// The parameterisation of a grid's source .bsdf: None, or what `info --json` gives for it (store/info_json.h).
+py::object parameterisation_dict(const store::GridInfo& i) {
+  if (!i.parameterisation) return py::none();
+  return py::module_::import("json").attr("loads")(store::grid_json(i)["parameterisation"].dump());
+}
+
 py::dict info_dict(const store::GridInfo& i) {
   py::dict d = named("grid", i.name);
   add_spectral(d, i);
   d["scale"] = i.scale;
   d["units"] = i.units;
   d["compression"] = i.compression;
+  d["parameterisation"] = parameterisation_dict(i);
   d["provenance"] = provenance_dict(i.provenance);
   return d;
 }

@@ -1,5 +1,6 @@
 """RGL .bsdf from Python: write_bsdf then read_bsdf against the grid (cosine-weighted relative error, the CLI's
 export as a peer byte for byte), the real RGB files of ../shared as arrays, and errors as specula.InputError."""
+import json
 import os
 
 import numpy as np
@@ -52,6 +53,18 @@ def test_real_rgb_files_read_as_arrays():
     ok = v[0] >= 0
     assert ok.mean() > 0.4 and np.isfinite(v).all()
     assert np.median(v[2][ok]) > np.median(v[0][ok])  # a blue silk
+
+
+def test_store_info_names_an_imported_grids_parameterisation_as_the_cli_does(cli_bsdf, tmp_path):
+    db = tmp_path / "s.h5"
+    cli("import", cli_bsdf, "-o", db, "--name", "back")
+    cli("synth-brdf", "blue-paint", "--wavelengths", "400:700:100", "-o", f"{db}:plain")
+    s = specula.Store(db)
+    p = s.info("back")["parameterisation"]
+    assert p == json.loads(cli("info", db, "back", "--json").stdout)["parameterisation"]
+    # The defaults of the export that made the file (docs/brdf.md): 8 incident elevations on a 32^2 sample square.
+    assert p["source"] == "rgl" and len(p["theta_i"]) == 8 and p["resolution"] == 32
+    assert s.info("plain")["parameterisation"] is None
 
 
 def test_errors_are_input_errors(tmp_path):
