@@ -12,10 +12,15 @@
 
 namespace specula::acquire {
 
+/// The default reach r of the kd-tree estimate in the blend: chosen on held-out NBRDF materials (docs/prior.md), where
+/// the prior's fit beat the kd-tree's average except very near samples.
+inline constexpr double kPriorConfidenceReach = 0.1;
+
 struct PriorResampleOptions {
   ResampleOptions local;  ///< the kd-tree estimate
   PriorFitOptions fit;
-  double confidence_reach = 1;  ///< r: confidence falls to 0 at r * local.max_gap from the nearest sample (0 < r <= 1)
+  /// r: confidence falls to 0 at r * local.max_gap from the nearest sample (0 < r <= 1)
+  double confidence_reach = kPriorConfidenceReach;
   /// false: c * local + (1 - c) * prior; true: max(0, prior + c * local estimate of the residuals against the
   /// prior fit) (acquire/base_resample.h, as --model)
   bool residuals = false;

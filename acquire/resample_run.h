@@ -10,6 +10,7 @@
 #include "specula/acquire/bandwidth.h"
 #include "specula/acquire/model_fit.h"
 #include "specula/acquire/prior.h"
+#include "specula/acquire/prior_resample.h"
 #include "specula/acquire/resample.h"
 #include "specula/store/store.h"
 
@@ -22,7 +23,7 @@ struct PlainMethod {};
 struct PriorMethod {
   std::string prior;  ///< STORE.h5:PRIOR
   PriorFitOptions fit;
-  double confidence_reach = 1;
+  double confidence_reach = kPriorConfidenceReach;
   bool residuals = false;
   bool prior_in_cap = true;
 };

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <numbers>
+#include <optional>
 
 #include "apps/commands.h"
 #include "apps/common.h"
@@ -33,8 +34,8 @@ struct ResampleCliOptions {
   bool json = false;
   std::string prior;  // STORE.h5:PRIOR
   double lambda = 1e-3;
-  double confidence_reach = 1;
-  std::string model;  // ggx | beckmann
+  std::optional<double> confidence_reach;  // the library's default for each method when not given
+  std::string model;                       // ggx | beckmann
   std::size_t lobes = 1;
   std::string fresnel = "schlick";
   std::string shadowing = "smith";
@@ -112,19 +113,21 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     if (used == 0 || used != o.k.size())
       throw UsageError("-k: give a count of neighbours or 'auto', got '" + o.k + "'");
   }
-  if (!o.prior.empty())
-    job.method =
-        acquire::PriorMethod{.prior = o.prior,
-                             .fit = {.lambda = o.lambda, .weights = acquire::parse_prior_weights(o.prior_weights)},
-                             .confidence_reach = o.confidence_reach,
-                             .residuals = o.prior_residuals,
-                             .prior_in_cap = !o.kd_tree_in_cap};
-  else if (!o.model.empty())
-    job.method = acquire::ModelMethod{.fit = {.kind = {.distribution = acquire::parse_distribution(o.model),
-                                                       .shadowing = acquire::parse_shadowing(o.shadowing),
-                                                       .fresnel = acquire::parse_fresnel(o.fresnel)},
-                                              .lobes = o.lobes},
-                                      .confidence_reach = o.confidence_reach};
+  if (!o.prior.empty()) {
+    acquire::PriorMethod m{.prior = o.prior,
+                           .fit = {.lambda = o.lambda, .weights = acquire::parse_prior_weights(o.prior_weights)},
+                           .residuals = o.prior_residuals,
+                           .prior_in_cap = !o.kd_tree_in_cap};
+    m.confidence_reach = o.confidence_reach.value_or(m.confidence_reach);
+    job.method = m;
+  } else if (!o.model.empty()) {
+    acquire::ModelMethod m{.fit = {.kind = {.distribution = acquire::parse_distribution(o.model),
+                                            .shadowing = acquire::parse_shadowing(o.shadowing),
+                                            .fresnel = acquire::parse_fresnel(o.fresnel)},
+                                   .lobes = o.lobes}};
+    m.confidence_reach = o.confidence_reach.value_or(m.confidence_reach);
+    job.method = m;
+  }
   acquire::check_options(job.local);
   return job;
 }
@@ -203,9 +206,10 @@ void setup_resample(CLI::App& app) {
                   "their scatter), scatter, or count")
       ->capture_default_str();
   cmd->add_option(
-         "--confidence-reach", o->confidence_reach,
-         "--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction of --max-gap")
-      ->capture_default_str();
+      "--confidence-reach", o->confidence_reach,
+      fmt::format("--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction "
+                  "of --max-gap (default {} with --prior, {} with --model)",
+                  acquire::kPriorConfidenceReach, acquire::ModelMethod{}.confidence_reach));
   cmd->add_flag("--prior-residuals", o->prior_residuals,
                 "--prior: add the kd-tree estimate of the residuals against the prior fit (as --model) instead of "
                 "blending the two");

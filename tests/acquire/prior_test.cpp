@@ -320,6 +320,7 @@ TEST(Prior, ResidualsModeAddsTheShepardEstimateOfTheResidualsAgainstTheFitScaled
   acquire::PriorResampleOptions o;
   o.local.k = 8;
   o.residuals = true;
+  o.confidence_reach = 1;  // the whole support, so that many cells take the residuals
   std::vector<float> grid(5 * brdf::kMerlCells), conf(brdf::kMerlCells);
   acquire::resample_with_prior(src, f.prior, o, grid, conf);
   // Written out from the parts: the fit to the cell means, each sample's residual against its cell's fitted value,
