@@ -19,7 +19,7 @@ namespace {
 
 using Json = nlohmann::ordered_json;
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
+double elapsed_seconds(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
@@ -64,7 +64,7 @@ ResampleOutcome plain(const ResampleJob& job, const store::Store& s, const store
   const auto t0 = std::chrono::steady_clock::now();
   const StoreSamples src(s, job.samples);
   const SampleTree tree(src, job.local.mapping);
-  const double tree_seconds = seconds_since(t0);
+  const double tree_seconds = elapsed_seconds(t0);
   ResampleOptions o = job.local;
   ChosenK k = given_k(o.k);
   if (job.k_auto) {
@@ -80,7 +80,7 @@ ResampleOutcome plain(const ResampleJob& job, const store::Store& s, const store
   const std::string power = o.weights == Weights::shepard ? fmt::format(" power={}", o.power) : "";
   out.grid.provenance.importer =
       fmt::format("resample {}{} max_gap_deg={:.6g}", local_words(o, k), power, o.max_gap * 180 / std::numbers::pi);
-  const double seconds = seconds_since(t0);
+  const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, stats.valid_cells);
   out.report["seconds"] = seconds;
   out.report["tree_seconds"] = stats.tree_seconds;
@@ -127,7 +127,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.grid.provenance.importer = fmt::format(
       "resample prior={} lambda={} prior_weights={} confidence_reach={} prior_in_cap={} {}", m.prior, m.fit.lambda,
       prior_weights_name(m.fit.weights), m.confidence_reach, m.prior_in_cap, local_words(po.local, k));
-  const double seconds = seconds_since(t0);
+  const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
   out.report["observed_cells"] = st.observed_cells;
   out.report["seconds"] = seconds;
@@ -181,7 +181,7 @@ ResampleOutcome with_model(const ResampleJob& job, const ModelMethod& m, const s
   const Json mj = model_json(*model);
   out.grid.provenance.importer = "resample model=" + mj.dump() +
                                  fmt::format(" confidence_reach={} {}", m.confidence_reach, local_words(mo.local, k));
-  const double seconds = seconds_since(t0);
+  const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
   out.report["observed_cells"] = st.fit.observed_cells;
   out.report["shape_cells"] = st.fit.shape_cells;
