@@ -91,6 +91,7 @@ HdrImage merge_exposures(std::span<const std::span<const std::uint16_t>> exposur
   const double full = double((1 << bit_depth) - 1), lo = o.low * full, hi = o.high * full;
   HdrImage out;
   out.pixels = n;
+  out.longest_time = times[order.back()];
   out.rate.assign(n, 0.0f);
   out.status.assign(n, HdrStatus::ok);
   out.pearson.assign(n, 1.0f);

@@ -33,6 +33,7 @@ struct HdrImage {
   std::vector<HdrStatus> status;
   std::vector<float> pearson;
   std::vector<std::uint8_t> used;
+  double longest_time = 0;  ///< the longest exposure (s): a low_signal pixel's value is rate x this time
 };
 
 /// The camera's noise (the simulator's sensor, acquire/simulate.h): each value is bias + rate t + Gaussian noise of

@@ -65,7 +65,7 @@ std::vector<HoldoutReport> recover_holdout(const Capture& cap, const fs::path& d
     for (int v = patch.v0 + qv; v < patch.v1 - qv; ++v)
       for (int u = patch.u0 + qu; u < patch.u1 - qu; ++u) {
         const std::size_t p = std::size_t(v) * std::size_t(cap.width) + std::size_t(u);
-        if (pixel_readings(hdr, p, c.spatial, h) != Reject::count) {
+        if (pixel_readings(hdr, p, c.spatial, o, h) != Reject::count) {
           ++r.rejected;
           continue;
         }

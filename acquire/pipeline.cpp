@@ -376,17 +376,25 @@ std::vector<ScanPixel> sphere_pixels(const Capture& cap, const Sphere& sphere) {
 
 }  // namespace
 
-Reject pixel_readings(const std::vector<HdrImage>& hdr, std::size_t p, const GreyImage& spatial, Eigen::VectorXd& h) {
+Reject pixel_readings(const std::vector<HdrImage>& hdr, std::size_t p, const GreyImage& spatial,
+                      const PipelineOptions& o, Eigen::VectorXd& h) {
   h.resize(Eigen::Index(hdr.size()));
   Reject why = Reject::count;
+  bool lit = false;
   for (std::size_t b = 0; b < hdr.size(); ++b) {
     const HdrStatus s = hdr[b].status[p];
+    double rate = hdr[b].rate[p];
     if (why == Reject::count && s == HdrStatus::saturated) why = Reject::saturated;
-    if (why == Reject::count && s == HdrStatus::low_signal) why = Reject::low_signal;
     if (why == Reject::count && s == HdrStatus::nonlinear) why = Reject::nonlinear;
-    h[Eigen::Index(b)] = hdr[b].rate[p] / spatial.value[p];
+    if (s == HdrStatus::low_signal) {
+      if (why == Reject::count && !o.keep_dark_channels) why = Reject::low_signal;
+      rate = std::max(0.0, rate - o.sensor.dark_dn / hdr[b].longest_time);
+    } else {
+      lit = true;
+    }
+    h[Eigen::Index(b)] = rate / spatial.value[p];
   }
-  return why;
+  return why == Reject::count && !lit ? Reject::low_signal : why;
 }
 
 Eigen::VectorXd recover_spectrum(const SpectralCalibration& s, const Eigen::VectorXd& h) {
@@ -462,7 +470,7 @@ ExtractResult extract_samples(const Capture& cap, const fs::path& dir, const Cal
         ++r.rejected[std::size_t(Reject::bloom)];
         continue;
       }
-      const Reject why = pixel_readings(hdr, p, c.spatial, h);
+      const Reject why = pixel_readings(hdr, p, c.spatial, o, h);
       if (why != Reject::count) {
         ++r.rejected[std::size_t(why)];
         continue;

@@ -36,6 +36,10 @@ struct PipelineOptions {
   bool filter_noise_from_capture = true;
   SensorNoise sensor;
   std::size_t filter_noise_lights = 8;  ///< light positions filter_reading_noise reads
+  /// true: a pixel whose channels are low in signal (below the linear range at the longest exposure) in some but not
+  /// all channels is kept, each such channel read at its longest exposure less the bias (sensor.dark_dn), over that
+  /// time, at least 0; false: rejected, as the reference discards any value below the range.
+  bool keep_dark_channels = true;
 };
 
 /// Each filter's relative reading noise as a filter capture recorded it: over the scene pixels of up to `lights`
@@ -83,8 +87,10 @@ struct ExtractResult {
 };
 
 /// Pixel p's flat-corrected readings, one per merged channel of `hdr`, into h (resized); the first reason the pixel
-/// is unusable (saturated, low signal, non-linear in some channel), or Reject::count when every channel is usable.
-Reject pixel_readings(const std::vector<HdrImage>& hdr, std::size_t p, const GreyImage& spatial, Eigen::VectorXd& h);
+/// is unusable (saturated or non-linear in some channel; low in signal in every channel, or in some with
+/// o.keep_dark_channels false), or Reject::count when it is usable.
+Reject pixel_readings(const std::vector<HdrImage>& hdr, std::size_t p, const GreyImage& spatial,
+                      const PipelineOptions& o, Eigen::VectorXd& h);
 
 /// The spectrum of flat-corrected readings h: the calibration's recovery, then, when it has a posterior, the most
 /// probable non-negative spectrum (nonnegative_spectrum).

@@ -93,6 +93,8 @@ struct AcquireOptions {
   bool equal_filter_noise = false;
   double read_noise_dn = acquire::SensorNoise{}.read_noise_dn;
   double electrons_per_dn = acquire::SensorNoise{}.electrons_per_dn;
+  double bias_dn = acquire::SensorNoise{}.dark_dn;
+  bool reject_dark = false;
   std::vector<std::string> fit_targets;
   bool replace = false;
   bool json = false;
@@ -331,10 +333,12 @@ acquire::PipelineOptions pipeline_options(const AcquireOptions& o, const acquire
     po.filter_noise = o.filter_noise;
     po.filter_noise_from_capture = !o.equal_filter_noise;
   }
-  if (!(o.read_noise_dn >= 0) || !(o.electrons_per_dn > 0))
-    throw UsageError("acquire: --read-noise must be >= 0 and --electrons-per-dn positive");
+  if (!(o.read_noise_dn >= 0) || !(o.electrons_per_dn > 0) || !(o.bias_dn >= 0))
+    throw UsageError("acquire: --read-noise and --bias must be >= 0 and --electrons-per-dn positive");
   po.sensor.read_noise_dn = o.read_noise_dn;
   po.sensor.electrons_per_dn = o.electrons_per_dn;
+  po.sensor.dark_dn = o.bias_dn;
+  po.keep_dark_channels = !o.reject_dark;
   return po;
 }
 
@@ -467,6 +471,11 @@ void add_pipeline_options(CLI::App* cmd, AcquireOptions& o, bool calibrates, boo
   cmd->add_option("--electrons-per-dn", o.electrons_per_dn,
                   "The camera's gain: the samples' and filter captures' readings' shot noise")
       ->capture_default_str();
+  cmd->add_option("--bias", o.bias_dn, "The camera's bias (DN): subtracted from a dark channel's longest exposure")
+      ->capture_default_str();
+  cmd->add_flag("--reject-dark-pixels", o.reject_dark,
+                "Reject a pixel when any channel is below the linear range at the longest exposure (the reference's "
+                "rule); by default it is kept while some channel is in range");
   if (!calibrates) cmd->add_option("--calibration", o.calibration, "Stored calibration to use (default: NAME)");
   cmd->add_option("--plots", o.plots, "Directory for PNG figures");
   if (extracts) {

@@ -233,3 +233,32 @@ TEST(FilterReadingNoise, FollowsEachFiltersRecordedExposuresAndLevels) {
     EXPECT_NE(std::string(e.what()).find("no scene pixel is read in every filter"), std::string::npos) << e.what();
   }
 }
+
+TEST(PixelReadings, ADarkChannelIsReadAtItsLongestExposureLessTheBias) {
+  // Exact lines of value = 8 (SensorNoise's bias) + rate t on a 12-bit sensor, range 241-3854: channel 0 at 400 DN/s
+  // is in range; channel 1 at 20 DN/s stays below it (168 DN at 8 s), so its rate is (168 - 8) / 8 = 20.
+  const std::vector<double> times = {1, 2, 4, 8};
+  auto channel = [&](std::vector<double> rates) {
+    std::vector<std::vector<std::uint16_t>> images(times.size(), std::vector<std::uint16_t>(rates.size()));
+    for (std::size_t e = 0; e < times.size(); ++e)
+      for (std::size_t p = 0; p < rates.size(); ++p)
+        images[e][p] = std::uint16_t(std::min(4095.0, std::round(8 + rates[p] * times[e])));
+    std::vector<std::span<const std::uint16_t>> views(images.begin(), images.end());
+    return merge_exposures(views, times, 12, {});
+  };
+  // Pixel 0: one channel lit, one dark; pixel 1: both dark; pixel 2: channel 0 saturated, channel 1 dark.
+  const std::vector<HdrImage> hdr = {channel({400, 20, 1e6}), channel({20, 12, 20})};
+  ASSERT_EQ(hdr[1].status[0], HdrStatus::low_signal);
+  const GreyImage flat{.width = 3, .height = 1, .value = {0.5f, 0.5f, 0.5f}};
+  Eigen::VectorXd h;
+  const PipelineOptions keep;
+  EXPECT_EQ(pixel_readings(hdr, 0, flat, keep, h), Reject::count);
+  EXPECT_NEAR(h[0], 400 / 0.5, 1e-3);
+  EXPECT_NEAR(h[1], 20 / 0.5, 1e-3);
+  EXPECT_EQ(pixel_readings(hdr, 1, flat, keep, h), Reject::low_signal);
+  EXPECT_EQ(pixel_readings(hdr, 2, flat, keep, h), Reject::saturated);
+  PipelineOptions reference;
+  reference.keep_dark_channels = false;
+  EXPECT_EQ(pixel_readings(hdr, 0, flat, reference, h), Reject::low_signal);
+  EXPECT_EQ(pixel_readings(hdr, 2, flat, reference, h), Reject::saturated);
+}
