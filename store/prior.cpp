@@ -30,18 +30,43 @@ void write_f32(hid_t loc, const std::string& name, std::span<const float> v, hsi
     h5::check(H5Dwrite(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot write " + name);
 }
 
-std::vector<float> read_f32(hid_t loc, const std::string& name, hsize_t rows, hsize_t cols, const std::string& ctx) {
+// Dataset `name` of loc, checked to be rows x cols.
+h5::Id open_f32(hid_t loc, const std::string& name, hsize_t rows, hsize_t cols, const std::string& ctx) {
   if (!h5::exists(loc, name)) throw InputError(ctx + ": dataset '" + name + "' is missing");
   h5::Id ds(h5::check(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), ctx, "cannot open " + name));
   const auto dims = h5::shape(ds, ctx);
   if (dims != std::vector<hsize_t>{rows, cols})
     throw InputError(ctx + ": dataset '" + name + "' is not " + std::to_string(rows) + " x " + std::to_string(cols));
+  return ds;
+}
+
+void check_finite(std::span<const float> v, const std::string& name, const std::string& ctx) {
+  for (const float x : v)
+    if (!std::isfinite(x)) throw InputError(ctx + ": dataset '" + name + "' holds a non-finite value");
+}
+
+std::vector<float> read_f32(hid_t loc, const std::string& name, hsize_t rows, hsize_t cols, const std::string& ctx) {
+  h5::Id ds = open_f32(loc, name, rows, cols, ctx);
   std::vector<float> v(rows * cols);
   if (!v.empty())
     h5::check(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot read " + name);
-  for (const float x : v)
-    if (!std::isfinite(x)) throw InputError(ctx + ": dataset '" + name + "' holds a non-finite value");
+  check_finite(v, name, ctx);
   return v;
+}
+
+// The group of prior `name`, its version checked; InputError listing the store's priors when absent.
+h5::Id open_prior(const Store& s, const std::string& name, const std::string& ctx) {
+  const hid_t root = StoreAccess::root(s);
+  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(root, "/priors") ||
+      !h5::exists(root, "/priors/" + name))
+    throw InputError(s.label() + ": no prior '" + name + "' (priors: " + join(s.objects("priors")) +
+                     "; build one with specula prior build)");
+  h5::Id g = open_group(root, "/priors/" + name, ctx);
+  const long long version = h5::read_int_attr(g, "prior_version", ctx);
+  if (version > kPriorVersion)
+    throw InputError(ctx + ": prior version " + std::to_string(version) + " is newer than this specula reads (" +
+                     std::to_string(kPriorVersion) + "); upgrade specula");
+  return g;
 }
 
 }  // namespace
@@ -96,17 +121,9 @@ void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   write_provenance(g, prov, options_.command_line, ctx);
 }
 
-PriorTables Store::read_prior(const std::string& name, std::size_t cells) const {
-  const std::string path = "/priors/" + name, ctx = label() + ": " + path;
-  const hid_t root = StoreAccess::root(*this);
-  if (name.empty() || name.find('/') != std::string::npos || !h5::exists(root, "/priors") || !h5::exists(root, path))
-    throw InputError(label() + ": no prior '" + name + "' (priors: " + join(objects("priors")) +
-                     "; build one with specula prior build)");
-  h5::Id g = open_group(root, path, ctx);
-  const long long version = h5::read_int_attr(g, "prior_version", ctx);
-  if (version > kPriorVersion)
-    throw InputError(ctx + ": prior version " + std::to_string(version) + " is newer than this specula reads (" +
-                     std::to_string(kPriorVersion) + "); upgrade specula");
+PriorTables Store::read_prior(const std::string& name, std::size_t cells, bool components) const {
+  const std::string ctx = label() + ": /priors/" + name;
+  h5::Id g = open_prior(*this, name, ctx);
   PriorTables p;
   p.wavelengths = h5::read_vector(g, "wavelengths", ctx);
   p.knots = h5::read_vector(g, "knots", ctx);
@@ -114,7 +131,10 @@ PriorTables Store::read_prior(const std::string& name, std::size_t cells) const 
   p.epsilon = read_double_attr(g, "epsilon", ctx);
   p.reference = read_f32(g, "reference", 1, cells, ctx);
   p.mean = read_f32(g, "mean", 1, cells, ctx);
-  p.components = read_f32(g, "components", p.variances.size(), cells, ctx);
+  if (components)
+    p.components = read_f32(g, "components", p.variances.size(), cells, ctx);
+  else
+    open_f32(g, "components", p.variances.size(), cells, ctx);
   const std::string list = h5::read_string_attr(g, "training", ctx);
   for (std::size_t at = 0; at < list.size();) {
     const std::size_t nl = std::min(list.find('\n', at), list.size());
@@ -125,6 +145,21 @@ PriorTables Store::read_prior(const std::string& name, std::size_t cells) const 
       std::any_of(p.variances.begin(), p.variances.end(), [](double v) { return !(v > 0); }))
     throw InputError(ctx + ": malformed prior (knots, epsilon or variances)");
   return p;
+}
+
+void Store::read_prior_components(const std::string& name, std::size_t first, std::size_t count,
+                                  std::span<float> out) const {
+  const std::string ctx = label() + ": /priors/" + name;
+  h5::Id g = open_prior(*this, name, ctx);
+  h5::Id ds = open_dataset(g, "components", ctx);
+  const auto dims = h5::shape(ds, ctx);
+  if (dims.size() != 2) throw InputError(ctx + ": dataset 'components' is not k x cells");
+  if (first > dims[1] || count > dims[1] - first || out.size() != dims[0] * count)
+    throw UsageError(ctx + ": read_prior_components range or buffer size is wrong");
+  if (out.empty()) return;
+  const hsize_t start[2] = {0, first}, cnt[2] = {dims[0], count};
+  read_hyperslab(ds, H5T_NATIVE_FLOAT, start, cnt, out.data(), ctx);
+  check_finite(out, "components", ctx);
 }
 
 }  // namespace specula::store
