@@ -99,6 +99,12 @@ PriorObservations cell_means(const SampleSource& src, bool use_variance) {
 
 PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
                                        std::span<float> grid, std::span<float> confidence) {
+  return resample_with_prior(src, prior, memory_components(prior), o, grid, confidence);
+}
+
+PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior,
+                                       const ComponentSource& components, const PriorResampleOptions& o,
+                                       std::span<float> grid, std::span<float> confidence) {
   const std::size_t b = src.bands();
   if (b != prior.wavelengths.size())
     throw UsageError("prior: the samples have " + std::to_string(b) + " bands, the prior " +
@@ -113,7 +119,7 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
   if (obs.cell.empty()) throw InputError("prior: no sample falls in a cell above the horizon");
   st.observed_cells = obs.cell.size();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
-  fit_prior(prior, obs, o.fit, fitted);
+  fit_prior(prior, components, obs, o.fit, fitted);
   st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto& cells = valid_cells();
   if (o.residuals) {
