@@ -417,16 +417,19 @@ void piece_equations(const Fit& f, Piece piece, std::size_t i0, std::size_t coun
   Eigen::MatrixXd qm(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(f.k)),
       y(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(f.c));
   Eigen::VectorXd w(static_cast<Eigen::Index>(rows));
+  std::vector<std::size_t> at(rows);  // each observation's cell in the block
   for (std::size_t r = 0; r < rows; ++r) {
     const std::size_t s = f.order[piece.s0 + r], i = f.obs.cell[s];
+    at[r] = i - i0;
     const Eigen::Map<const Eigen::VectorXf> spec(&f.obs.values[s * f.b], Eigen::Index(f.b));
     const Eigen::VectorXd ch = (f.proj * spec.cast<double>()).cwiseMax(0.0) * double(cosines[i]);
-    for (std::size_t j = 0; j < f.k; ++j) qm(Eigen::Index(r), Eigen::Index(j)) = q[j * count + (i - i0)];
     for (std::size_t j = 0; j < f.c; ++j)
       y(Eigen::Index(r), Eigen::Index(j)) =
           double(mapped(float(ch[Eigen::Index(j)]), f.p.reference[i], f.p.epsilon)) - f.p.mean[i];
     w[Eigen::Index(r)] = f.weight[s];
   }
+  for (std::size_t j = 0; j < f.k; ++j)  // component by component: the cells ascend along q's rows
+    for (std::size_t r = 0; r < rows; ++r) qm(Eigen::Index(r), Eigen::Index(j)) = q[j * count + at[r]];
   const Eigen::MatrixXd wq = w.asDiagonal() * qm;
   pa = wq.transpose() * qm;
   pb = wq.transpose() * y;
@@ -463,11 +466,16 @@ void reconstruct(const Fit& f, const Eigen::MatrixXd& a, std::size_t i0, std::si
                  std::span<float> grid) {
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
-  parallel_for((count + kBlock - 1) / kBlock, [&](std::size_t blk) {
+  constexpr std::size_t tile = 64;  // cells whose components are gathered at once, row by row of q
+  parallel_for((count + tile - 1) / tile, [&](std::size_t blk) {
+    const std::size_t r0 = blk * tile, n = std::min(count, r0 + tile) - r0;
+    Eigen::MatrixXd qt(static_cast<Eigen::Index>(f.k), static_cast<Eigen::Index>(n));
+    for (std::size_t j = 0; j < f.k; ++j)
+      for (std::size_t t = 0; t < n; ++t) qt(Eigen::Index(j), Eigen::Index(t)) = q[j * count + r0 + t];
     Eigen::VectorXd y(static_cast<Eigen::Index>(f.c)), qi(static_cast<Eigen::Index>(f.k));
-    for (std::size_t r = blk * kBlock; r < std::min(count, (blk + 1) * kBlock); ++r) {
+    for (std::size_t r = r0; r < r0 + n; ++r) {
       const std::size_t i = i0 + r;
-      for (std::size_t j = 0; j < f.k; ++j) qi[Eigen::Index(j)] = q[j * count + r];
+      qi = qt.col(Eigen::Index(r - r0));
       const Eigen::VectorXd mapped_y = (a.transpose() * qi).array() + double(f.p.mean[i]);
       const double cw = std::max(double(cosines[i]), 1e-6), ref = double(f.p.reference[i]) + f.p.epsilon;
       for (std::size_t j = 0; j < f.c; ++j)

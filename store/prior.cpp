@@ -5,6 +5,8 @@
 #include <cmath>
 
 #include "specula/core/error.h"
+#include "specula/core/parallel.h"
+#include "specula/store/detail/deflate.h"
 #include "specula/store/detail/objects.h"
 
 namespace specula::store {
@@ -52,6 +54,52 @@ std::vector<float> read_f32(hid_t loc, const std::string& name, hsize_t rows, hs
     h5::check(H5Dread(ds, H5T_NATIVE_FLOAT, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data()), ctx, "cannot read " + name);
   check_finite(v, name, ctx);
   return v;
+}
+
+// How a prior's components are stored: chunks of (1, cols) with filters decode_chunk undoes, or (cols 0) not
+// readable chunk by chunk here (HDF5 decodes them).
+struct ComponentChunks {
+  ChunkFilters filters;
+  std::size_t cols = 0;
+};
+
+ComponentChunks component_chunks(hid_t ds, const std::string& ctx) {
+  h5::Id dcpl(h5::check(H5Dget_create_plist(ds), ctx, "H5Dget_create_plist"));
+  if (H5Pget_layout(dcpl) != H5D_CHUNKED) return {};
+  const ChunkFilters filters = chunk_filters(dcpl);
+  hsize_t dims[2] = {0, 0};
+  if (!filters.known || H5Pget_chunk(dcpl, 2, dims) != 2 || dims[0] != 1) return {};
+  return {filters, std::size_t(dims[1])};
+}
+
+// Rows x cells [first, first + count) of the components into out, their chunks read raw (H5Dread_chunk) in batches
+// and decoded on every thread; first and count cover whole chunks (count may end at the last cell).
+void read_component_chunks(hid_t ds, const ComponentChunks& cc, std::size_t rows, std::size_t first, std::size_t count,
+                           std::span<float> out, const std::string& ctx) {
+  const std::size_t per_row = (count + cc.cols - 1) / cc.cols, chunks = rows * per_row;
+  const std::size_t batch = 8 * std::size_t(std::max(1, omp_get_max_threads()));
+  std::vector<std::vector<unsigned char>> raw(batch);
+  std::vector<std::uint32_t> skipped(batch);
+  for (std::size_t c0 = 0; c0 < chunks; c0 += batch) {
+    const std::size_t n = std::min(batch, chunks - c0);
+    for (std::size_t j = 0; j < n; ++j) {
+      const hsize_t at[2] = {(c0 + j) / per_row, first + (c0 + j) % per_row * cc.cols};
+      hsize_t bytes = 0;
+      h5::check(H5Dget_chunk_storage_size(ds, at, &bytes), ctx, "H5Dget_chunk_storage_size");
+      if (bytes == 0) throw InputError(ctx + ": a chunk of dataset 'components' was never written");
+      raw[j].resize(bytes);
+      h5::check(H5Dread_chunk(ds, H5P_DEFAULT, at, &skipped[j], raw[j].data()), ctx, "cannot read a chunk");
+    }
+    parallel_for(n, [&](std::size_t j) {
+      const std::size_t q = (c0 + j) / per_row, x0 = (c0 + j) % per_row * cc.cols;
+      const float* v = decode_chunk(raw[j].data(), raw[j].size(), cc.filters.deflated(skipped[j]),
+                                    cc.filters.shuffled(skipped[j]), cc.cols * sizeof(float));
+      if (!v) throw InputError(ctx + ": a chunk of dataset 'components' is corrupt");
+      const std::span<const float> values(v, std::min(cc.cols, count - x0));
+      check_finite(values, "components", ctx);
+      std::ranges::copy(values, out.begin() + std::ptrdiff_t(q * count + x0));
+    });
+  }
 }
 
 // The group of prior `name`, its version checked; InputError listing the store's priors when absent.
@@ -157,9 +205,14 @@ void Store::read_prior_components(const std::string& name, std::size_t first, st
   if (first > dims[1] || count > dims[1] - first || out.size() != dims[0] * count)
     throw UsageError(ctx + ": read_prior_components range or buffer size is wrong");
   if (out.empty()) return;
-  const hsize_t start[2] = {0, first}, cnt[2] = {dims[0], count};
-  read_hyperslab(ds, H5T_NATIVE_FLOAT, start, cnt, out.data(), ctx);
-  check_finite(out, "components", ctx);
+  const ComponentChunks cc = component_chunks(ds, ctx);
+  if (cc.cols && first % cc.cols == 0 && (count % cc.cols == 0 || first + count == dims[1])) {
+    read_component_chunks(ds, cc, dims[0], first, count, out, ctx);  // checked chunk by chunk
+  } else {
+    const hsize_t start[2] = {0, first}, cnt[2] = {dims[0], count};
+    read_hyperslab(ds, H5T_NATIVE_FLOAT, start, cnt, out.data(), ctx);
+    check_finite(out, "components", ctx);
+  }
 }
 
 }  // namespace specula::store

@@ -1,6 +1,7 @@
-// The "priors" kind (store/prior.h): a prior's components read back range by range (across the store's chunks of
-// kPriorBlockCells cells) equal the slices of what was written, the tables read without the components, and a range
-// or buffer that does not fit, or a prior that is not there, is refused.
+// The "priors" kind (store/prior.h): a prior's components read back range by range equal the slices of what was
+// written, both for ranges of whole chunks (decoded here, chunk by chunk) and for others (HDF5 decodes them); the
+// tables read without the components; and a range or buffer that does not fit, or a prior that is not there, is
+// refused.
 #include "specula/store/prior.h"
 
 #include <gtest/gtest.h>
@@ -31,8 +32,11 @@ TEST(StorePrior, ComponentsReadBackRangeByRangeAcrossChunks) {
   EXPECT_EQ(tables.mean, t.mean);
   EXPECT_EQ(tables.variances, t.variances);
   EXPECT_EQ(s.read_prior("p", cells).components, t.components);
-  for (const auto& [first, count] :
-       {std::pair<std::size_t, std::size_t>{0, cells}, {kPriorBlockCells - 7, 20}, {cells - 1, 1}, {12, 0}}) {
+  for (const auto& [first, count] : {std::pair<std::size_t, std::size_t>{0, cells},
+                                     {kPriorBlockCells, cells - kPriorBlockCells},
+                                     {kPriorBlockCells - 7, 20},
+                                     {cells - 1, 1},
+                                     {12, 0}}) {
     std::vector<float> out(k * count, -1.0f), expect;
     for (std::size_t q = 0; q < k; ++q)
       for (std::size_t i = first; i < first + count; ++i) expect.push_back(t.components[q * cells + i]);
