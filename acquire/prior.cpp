@@ -27,6 +27,12 @@ std::vector<double> even_knots(const WavelengthGrid& w, std::size_t c) {
   return k;
 }
 
+// Cells of a block: whole blocks of the prior's component storage (store::kPriorBlockCells cells), as many as bytes
+// holds at cell_bytes a cell (at least one).
+std::size_t whole_blocks(std::size_t bytes, std::size_t cell_bytes) {
+  return store::kPriorBlockCells * std::max<std::size_t>(1, bytes / (cell_bytes * store::kPriorBlockCells));
+}
+
 // ln((x + eps) / (ref + eps)) of cos-weighted values x, ref.
 inline float mapped(float x, float ref, double eps) { return float(std::log((double(x) + eps) / (double(ref) + eps))); }
 
@@ -173,8 +179,7 @@ Training check_training(std::span<const TrainingGrid> grids, const PriorOptions&
                      " bands, fewer than the " + std::to_string(t.c) + " channels asked for");
   p.knots = even_knots(p.wavelengths, t.c);
   t.proj = projection(hat_basis(p.wavelengths, p.knots));
-  // Whole blocks of the prior's component storage, as many as block_bytes holds (at least one).
-  t.block = store::kPriorBlockCells * std::max<std::size_t>(1, o.block_bytes / (4 * t.m * store::kPriorBlockCells));
+  t.block = whole_blocks(o.block_bytes, 4 * t.m);
   return t;
 }
 
@@ -386,68 +391,172 @@ std::vector<double> observation_weights(const BrdfPrior& p, const PriorObservati
   return w;
 }
 
-void fit_prior(const BrdfPrior& p, const PriorObservations& obs, const PriorFitOptions& o, std::span<float> grid) {
-  const std::size_t d = p.cells(), k = p.k(), c = p.channels(), b = p.wavelengths.size(), n = obs.cell.size();
-  const auto& cells = valid_cells();
+namespace {
+
+// What both passes of a fit share: the prior's tables, the observations in cell order and their weights.
+struct Fit {
+  const BrdfPrior& p;
+  const PriorObservations& obs;
+  std::vector<double> weight;
+  std::vector<std::uint32_t> order;  // positions into obs, by cell (stable)
+  Eigen::MatrixXd hats, proj;
+  std::size_t k = 0, c = 0, b = 0, d = 0;
+};
+
+// Observations order[s0, s1), all in one block of store::kPriorBlockCells cells.
+struct Piece {
+  std::size_t s0 = 0, s1 = 0;
+};
+
+// The weighted normal equations of one piece (k x k into pa, k x c into pb); q holds the k x count components of the
+// block of cells from i0.
+void piece_equations(const Fit& f, Piece piece, std::size_t i0, std::size_t count, std::span<const float> q,
+                     Eigen::MatrixXd& pa, Eigen::MatrixXd& pb) {
   const auto& cosines = valid_cell_cosines();
-  if (d != cells.size() || p.components.size() != k * d || p.reference.size() != d)
-    throw UsageError("prior: malformed prior (its sizes disagree)");
-  if (grid.size() != b * brdf::kMerlCells || obs.values.size() != n * b || obs.weight.size() != n)
-    throw UsageError("prior: observation or grid sizes do not match the prior's " + std::to_string(b) + " bands");
-  if (n == 0) throw InputError("prior: no observation to fit");
-  if (!(o.lambda >= 0) || !std::isfinite(o.lambda)) throw UsageError("prior: lambda must be finite and >= 0");
-  const std::vector<double> weight = observation_weights(p, obs, o);
-  const Eigen::MatrixXd hats = hat_basis(p.wavelengths, p.knots);
-  const Eigen::MatrixXd proj = projection(hats);
-  // Per channel: minimise sum_s w_s (mean_s + Q_s a - y_s)^2 + lambda sum_q a_q^2 / variance_q.
-  for (const std::uint32_t i : obs.cell)
-    if (i >= d) throw UsageError("prior: observation cell out of range");
-  // The normal equations summed over pieces of kBlock observations (GEMMs on every thread), in order.
-  Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(Eigen::Index(k), Eigen::Index(k));
-  Eigen::MatrixXd atb = Eigen::MatrixXd::Zero(Eigen::Index(k), Eigen::Index(c));
-  const std::size_t pieces = (n + kBlock - 1) / kBlock, group = 8;
-  for (std::size_t g0 = 0; g0 < pieces; g0 += group) {
-    const std::size_t count = std::min(group, pieces - g0);
-    std::vector<Eigen::MatrixXd> pa(count), pb(count);
-    parallel_for(count, [&](std::size_t t) {
-      const std::size_t s0 = (g0 + t) * kBlock, rows = std::min(n, s0 + kBlock) - s0;
-      Eigen::MatrixXd q(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(k)),
-          y(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(c));
-      Eigen::VectorXd w(static_cast<Eigen::Index>(rows));
-      for (std::size_t r = 0; r < rows; ++r) {
-        const std::size_t s = s0 + r, i = obs.cell[s];
-        const Eigen::Map<const Eigen::VectorXf> spec(&obs.values[s * b], Eigen::Index(b));
-        const Eigen::VectorXd ch = (proj * spec.cast<double>()).cwiseMax(0.0) * double(cosines[i]);
-        for (std::size_t j = 0; j < k; ++j) q(Eigen::Index(r), Eigen::Index(j)) = p.components[j * d + i];
-        for (std::size_t j = 0; j < c; ++j)
-          y(Eigen::Index(r), Eigen::Index(j)) =
-              double(mapped(float(ch[Eigen::Index(j)]), p.reference[i], p.epsilon)) - p.mean[i];
-        w[Eigen::Index(r)] = weight[s];
-      }
-      const Eigen::MatrixXd wq = w.asDiagonal() * q;
-      pa[t] = wq.transpose() * q;
-      pb[t] = wq.transpose() * y;
-    });
-    for (std::size_t t = 0; t < count; ++t) {
+  const std::size_t rows = piece.s1 - piece.s0;
+  Eigen::MatrixXd qm(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(f.k)),
+      y(static_cast<Eigen::Index>(rows), static_cast<Eigen::Index>(f.c));
+  Eigen::VectorXd w(static_cast<Eigen::Index>(rows));
+  std::vector<std::size_t> at(rows);  // each observation's cell in the block
+  for (std::size_t r = 0; r < rows; ++r) {
+    const std::size_t s = f.order[piece.s0 + r], i = f.obs.cell[s];
+    at[r] = i - i0;
+    const Eigen::Map<const Eigen::VectorXf> spec(&f.obs.values[s * f.b], Eigen::Index(f.b));
+    const Eigen::VectorXd ch = (f.proj * spec.cast<double>()).cwiseMax(0.0) * double(cosines[i]);
+    for (std::size_t j = 0; j < f.c; ++j)
+      y(Eigen::Index(r), Eigen::Index(j)) =
+          double(mapped(float(ch[Eigen::Index(j)]), f.p.reference[i], f.p.epsilon)) - f.p.mean[i];
+    w[Eigen::Index(r)] = f.weight[s];
+  }
+  for (std::size_t j = 0; j < f.k; ++j)  // component by component: the cells ascend along q's rows
+    for (std::size_t r = 0; r < rows; ++r) qm(Eigen::Index(r), Eigen::Index(j)) = q[j * count + at[r]];
+  const Eigen::MatrixXd wq = w.asDiagonal() * qm;
+  pa = wq.transpose() * qm;
+  pb = wq.transpose() * y;
+}
+
+// Adds the normal equations of the observations in cells [i0, i0 + count) (components q) to ata and atb: pieces of
+// at most kBlock observations within one store::kPriorBlockCells block of cells, made on every thread in groups and
+// summed in cell order, so the sums do not depend on the thread count or the block size. next: the first
+// observation (in cell order) not yet added.
+void add_equations(const Fit& f, std::size_t i0, std::size_t count, std::span<const float> q, std::size_t& next,
+                   Eigen::MatrixXd& ata, Eigen::MatrixXd& atb) {
+  std::vector<Piece> pieces;
+  for (std::size_t first = i0; first < i0 + count; first += store::kPriorBlockCells) {
+    const std::size_t end = std::min(first + store::kPriorBlockCells, i0 + count);
+    std::size_t s1 = next;
+    while (s1 < f.order.size() && f.obs.cell[f.order[s1]] < end) ++s1;
+    for (std::size_t s = next; s < s1; s += kBlock) pieces.push_back({s, std::min(s1, s + kBlock)});
+    next = s1;
+  }
+  constexpr std::size_t group = 8;  // pieces in flight: bounds the k x k partial sums held at once
+  for (std::size_t g0 = 0; g0 < pieces.size(); g0 += group) {
+    const std::size_t n = std::min(group, pieces.size() - g0);
+    std::vector<Eigen::MatrixXd> pa(n), pb(n);
+    parallel_for(n, [&](std::size_t t) { piece_equations(f, pieces[g0 + t], i0, count, q, pa[t], pb[t]); });
+    for (std::size_t t = 0; t < n; ++t) {
       ata += pa[t];
       atb += pb[t];
     }
   }
-  for (std::size_t j = 0; j < k; ++j) ata(Eigen::Index(j), Eigen::Index(j)) += o.lambda / p.variances[j];
-  const Eigen::MatrixXd a = ata.ldlt().solve(atb);  // k x c
-  parallel_for((d + kBlock - 1) / kBlock, [&](std::size_t blk) {
-    Eigen::VectorXd y(static_cast<Eigen::Index>(c)), qi(static_cast<Eigen::Index>(k));
-    for (std::size_t i = blk * kBlock; i < std::min(d, (blk + 1) * kBlock); ++i) {
-      for (std::size_t j = 0; j < k; ++j) qi[Eigen::Index(j)] = p.components[j * d + i];
-      const Eigen::VectorXd mapped_y = (a.transpose() * qi).array() + double(p.mean[i]);
-      const double cw = std::max(double(cosines[i]), 1e-6), ref = double(p.reference[i]) + p.epsilon;
-      for (std::size_t j = 0; j < c; ++j)
-        y[Eigen::Index(j)] = std::max(0.0, (ref * std::exp(mapped_y[Eigen::Index(j)]) - p.epsilon) / cw);
-      const Eigen::VectorXd s = hats * y;
-      for (std::size_t band = 0; band < b; ++band)
+}
+
+// The fitted coefficients a (k x c) mapped back at cells [i0, i0 + count) (components q) into grid.
+void reconstruct(const Fit& f, const Eigen::MatrixXd& a, std::size_t i0, std::size_t count, std::span<const float> q,
+                 std::span<float> grid) {
+  const auto& cells = valid_cells();
+  const auto& cosines = valid_cell_cosines();
+  constexpr std::size_t tile = 64;  // cells whose components are gathered at once, row by row of q
+  parallel_for((count + tile - 1) / tile, [&](std::size_t blk) {
+    const std::size_t r0 = blk * tile, n = std::min(count, r0 + tile) - r0;
+    Eigen::MatrixXd qt(static_cast<Eigen::Index>(f.k), static_cast<Eigen::Index>(n));
+    for (std::size_t j = 0; j < f.k; ++j)
+      for (std::size_t t = 0; t < n; ++t) qt(Eigen::Index(j), Eigen::Index(t)) = q[j * count + r0 + t];
+    Eigen::VectorXd y(static_cast<Eigen::Index>(f.c)), qi(static_cast<Eigen::Index>(f.k));
+    for (std::size_t r = r0; r < r0 + n; ++r) {
+      const std::size_t i = i0 + r;
+      qi = qt.col(Eigen::Index(r - r0));
+      const Eigen::VectorXd mapped_y = (a.transpose() * qi).array() + double(f.p.mean[i]);
+      const double cw = std::max(double(cosines[i]), 1e-6), ref = double(f.p.reference[i]) + f.p.epsilon;
+      for (std::size_t j = 0; j < f.c; ++j)
+        y[Eigen::Index(j)] = std::max(0.0, (ref * std::exp(mapped_y[Eigen::Index(j)]) - f.p.epsilon) / cw);
+      const Eigen::VectorXd s = f.hats * y;
+      for (std::size_t band = 0; band < f.b; ++band)
         grid[band * brdf::kMerlCells + cells[i]] = float(s[Eigen::Index(band)]);
     }
   });
+}
+
+Fit check_fit(const BrdfPrior& p, const ComponentSource& components, const PriorObservations& obs,
+              const PriorFitOptions& o, std::span<const float> grid) {
+  Fit f{.p = p, .obs = obs, .k = p.k(), .c = p.channels(), .b = p.wavelengths.size(), .d = p.cells()};
+  const std::size_t n = obs.cell.size();
+  if (f.d != valid_cells().size() || p.reference.size() != f.d || !components)
+    throw UsageError("prior: malformed prior (its sizes disagree, or no components)");
+  if (grid.size() != f.b * brdf::kMerlCells || obs.values.size() != n * f.b || obs.weight.size() != n)
+    throw UsageError("prior: observation or grid sizes do not match the prior's " + std::to_string(f.b) + " bands");
+  if (n == 0) throw InputError("prior: no observation to fit");
+  if (!(o.lambda >= 0) || !std::isfinite(o.lambda)) throw UsageError("prior: lambda must be finite and >= 0");
+  for (const std::uint32_t i : obs.cell)
+    if (i >= f.d) throw UsageError("prior: observation cell out of range");
+  f.weight = observation_weights(p, obs, o);
+  f.order.resize(n);
+  for (std::size_t s = 0; s < n; ++s) f.order[s] = std::uint32_t(s);
+  std::ranges::stable_sort(f.order, {}, [&](std::uint32_t s) { return obs.cell[s]; });
+  f.hats = hat_basis(p.wavelengths, p.knots);
+  f.proj = projection(f.hats);
+  return f;
+}
+
+}  // namespace
+
+void fit_prior(const BrdfPrior& p, const ComponentSource& components, const PriorObservations& obs,
+               const PriorFitOptions& o, std::span<float> grid) {
+  const Fit f = check_fit(p, components, obs, o, grid);
+  const std::size_t block = whole_blocks(o.block_bytes, 4 * std::max<std::size_t>(f.k, 1));
+  std::vector<float> q;
+  std::size_t loaded = std::size_t(-1);
+  const auto load = [&](std::size_t i0) {  // the components of the block from i0; its cell count
+    const std::size_t count = std::min(block, f.d - i0);
+    if (loaded != i0) {
+      check_interrupt();
+      q.resize(f.k * count);
+      components(i0, count, q);
+      loaded = i0;
+    }
+    return count;
+  };
+  // Per channel: minimise sum_s w_s (mean_s + Q_s a - y_s)^2 + lambda sum_q a_q^2 / variance_q.
+  Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(Eigen::Index(f.k), Eigen::Index(f.k));
+  Eigen::MatrixXd atb = Eigen::MatrixXd::Zero(Eigen::Index(f.k), Eigen::Index(f.c));
+  std::size_t next = 0;
+  for (std::size_t i0 = 0; i0 < f.d; i0 += block) {
+    const std::size_t count = load(i0);  // before q is taken: load resizes it
+    add_equations(f, i0, count, q, next, ata, atb);
+  }
+  for (std::size_t j = 0; j < f.k; ++j) ata(Eigen::Index(j), Eigen::Index(j)) += o.lambda / p.variances[j];
+  const Eigen::MatrixXd a = ata.ldlt().solve(atb);                  // k x c
+  for (std::size_t i0 = (f.d - 1) / block * block;; i0 -= block) {  // backwards: the last block read is reused
+    const std::size_t count = load(i0);
+    reconstruct(f, a, i0, count, q, grid);
+    if (i0 == 0) break;
+  }
+}
+
+void fit_prior(const BrdfPrior& p, const PriorObservations& obs, const PriorFitOptions& o, std::span<float> grid) {
+  fit_prior(p, memory_components(p), obs, o, grid);
+}
+
+ComponentSource memory_components(const BrdfPrior& p) {
+  if (p.components.size() != p.k() * p.cells())
+    throw UsageError("prior: malformed prior (its components are not k x cells)");
+  return [&p](std::size_t first, std::size_t count, std::span<float> out) {
+    const std::size_t d = p.cells(), k = p.k();
+    if (first > d || count > d - first || out.size() != k * count)
+      throw UsageError("prior: component range or buffer size is wrong");
+    for (std::size_t q = 0; q < k; ++q)
+      std::copy_n(p.components.begin() + std::ptrdiff_t(q * d + first), count, out.begin() + std::ptrdiff_t(q * count));
+  };
 }
 
 }  // namespace specula::acquire

@@ -7,8 +7,8 @@
 // observations gives a mean and components over the valid MERL cells. A capture is fitted per channel by
 // Tikhonov-regularised weighted least squares on the components (docs/prior.md).
 //
-// Memory: building streams blocks of cells from the grids (PriorOptions::block_bytes); the prior holds 4 bytes x
-// cells x (components + 2).
+// Memory: building streams blocks of cells from the grids (PriorOptions::block_bytes); fitting streams blocks of the
+// components from wherever they are (a ComponentSource: the store, or a prior in memory; PriorFitOptions::block_bytes).
 #include <Eigen/Core>
 #include <functional>
 #include <memory>
@@ -69,8 +69,9 @@ TrainingGrid store_training_grid(const store::Store& s, const std::string& name,
 /// A grid in memory, shared (not copied).
 TrainingGrid memory_training_grid(std::shared_ptr<const store::Grid> grid, const std::string& name);
 
-/// Makes the k x count components of cells [first, first + count) of a prior being built (row-major into out), for
-/// consecutive blocks of store::kPriorBlockCells cells in cell order.
+/// Fills out with the k x count components of cells [first, first + count) (row-major). A prior being built makes
+/// them for consecutive blocks of store::kPriorBlockCells cells in cell order; a stored or in-memory prior reads any
+/// range.
 using ComponentSource = std::function<void(std::size_t first, std::size_t count, std::span<float> out)>;
 
 /// Learns a prior from grids, all on the same wavelengths, each with data at every valid cell, in two passes over
@@ -123,6 +124,8 @@ struct PriorFitOptions {
   PriorWeights weights = PriorWeights::noise;  ///< noise needs PriorObservations::spread; count without it
   double noise_shrinkage = 2;  ///< nu0: pseudo-samples at the median noise a cell's own scatter is pooled with
   double noise_floor = 0.01;   ///< a cell's noise variance is at least this fraction of the median cell's
+  /// memory for one block of k x cells components (float32), rounded to whole blocks of store::kPriorBlockCells
+  std::size_t block_bytes = std::size_t(256) << 20;
 };
 
 /// Per observation its weight in the fit: n (count, or no spread) or n sigma0^2 / sigma^2 (noise), sigma^2 the
@@ -132,15 +135,27 @@ struct PriorFitOptions {
 std::vector<double> observation_weights(const BrdfPrior& prior, const PriorObservations& obs,
                                         const PriorFitOptions& options);
 
-/// Fits the prior to obs per channel and writes the reconstruction at every valid cell into grid (bands x
-/// kMerlCells, band slowest; other cells untouched). UsageError on sizes, InputError for no observation.
+/// Fits the prior (its tables; components from `components`) to obs per channel and writes the reconstruction at
+/// every valid cell into grid (bands x kMerlCells, band slowest; other cells untouched), in two passes over blocks
+/// of options.block_bytes: the normal equations of each block's observed cells, then the reconstruction of each
+/// block's cells. The result does not depend on the thread count or block_bytes. UsageError on sizes, InputError for
+/// no observation.
+void fit_prior(const BrdfPrior& prior, const ComponentSource& components, const PriorObservations& obs,
+               const PriorFitOptions& options, std::span<float> grid);
+/// fit_prior with the components of prior (in memory).
 void fit_prior(const BrdfPrior& prior, const PriorObservations& obs, const PriorFitOptions& options,
                std::span<float> grid);
+/// The components of prior, in memory (referenced, not copied): any range of cells.
+ComponentSource memory_components(const BrdfPrior& prior);
 
 /// Writes `prior` as object `name` of kind "priors" (docs/store-format.md).
 void write_prior(store::StoreWriter& out, const std::string& name, const BrdfPrior& prior);
 /// Reads prior `name`; InputError naming the store and the prior when absent or malformed.
 BrdfPrior read_prior(const store::Store& in, const std::string& name);
+/// Reads prior `name` without its components (their shape checked); InputError as read_prior.
+BrdfPrior read_prior_tables(const store::Store& in, const std::string& name);
+/// The components of prior `name` of store in, read from it range by range (the store shared, not copied).
+ComponentSource store_components(const store::Store& in, const std::string& name);
 /// Names of the priors in a store.
 std::vector<std::string> prior_names(const store::Store& in);
 

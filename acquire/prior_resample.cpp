@@ -99,6 +99,12 @@ PriorObservations cell_means(const SampleSource& src, bool use_variance) {
 
 PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
                                        std::span<float> grid, std::span<float> confidence) {
+  return resample_with_prior(src, prior, memory_components(prior), o, grid, confidence);
+}
+
+PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior,
+                                       const ComponentSource& components, const PriorResampleOptions& o,
+                                       std::span<float> grid, std::span<float> confidence) {
   const std::size_t b = src.bands();
   if (b != prior.wavelengths.size())
     throw UsageError("prior: the samples have " + std::to_string(b) + " bands, the prior " +
@@ -109,11 +115,15 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
     throw UsageError("prior: confidence_reach (the reach of the confidence, a fraction of max_gap) must be in (0, 1]");
   PriorResampleStats st;
   const auto t0 = std::chrono::steady_clock::now();
-  const PriorObservations obs = cell_means(src, o.fit.weights != PriorWeights::scatter);
-  if (obs.cell.empty()) throw InputError("prior: no sample falls in a cell above the horizon");
-  st.observed_cells = obs.cell.size();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
-  fit_prior(prior, obs, o.fit, fitted);
+  UnseenCap cap{};
+  {  // the observations are freed before the kd-tree pass
+    const PriorObservations obs = cell_means(src, o.fit.weights != PriorWeights::scatter);
+    if (obs.cell.empty()) throw InputError("prior: no sample falls in a cell above the horizon");
+    st.observed_cells = obs.cell.size();
+    fit_prior(prior, components, obs, o.fit, fitted);
+    cap = unseen_cap(obs);
+  }
   st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto& cells = valid_cells();
   if (o.residuals) {
@@ -123,7 +133,6 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
     return st;
   }
   std::vector<float> gaps(brdf::kMerlCells, -1.0f);
-  const UnseenCap cap = unseen_cap(obs);
   st.local = resample_grid(SampleTree(src, o.local.mapping), src, o.local, grid, gaps);
   std::fill(confidence.begin(), confidence.end(), -1.0f);
   parallel_for(

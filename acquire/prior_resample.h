@@ -40,6 +40,11 @@ struct PriorResampleStats {
 /// Every valid cell of grid (bands x kMerlCells) from src: confidence c per cell (written into
 /// confidence, kMerlCells values, -1 below the horizon), the result as o.residuals says. UsageError on
 /// sizes or bands that differ from the prior's; InputError when no sample falls in a valid cell.
+/// The prior's components come from `components` block by block (fit_prior).
+PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior,
+                                       const ComponentSource& components, const PriorResampleOptions& o,
+                                       std::span<float> grid, std::span<float> confidence);
+/// resample_with_prior with the components of prior (in memory).
 PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
                                        std::span<float> grid, std::span<float> confidence);
 

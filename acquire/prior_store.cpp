@@ -17,6 +17,19 @@ store::PriorTables tables_of(const BrdfPrior& p) {
           .training = p.training};
 }
 
+BrdfPrior prior_of(store::PriorTables t) {
+  BrdfPrior p;
+  p.wavelengths = WavelengthGrid(t.wavelengths);
+  p.knots = std::move(t.knots);
+  p.variances = std::move(t.variances);
+  p.epsilon = t.epsilon;
+  p.reference = std::move(t.reference);
+  p.mean = std::move(t.mean);
+  p.components = std::move(t.components);
+  p.training = std::move(t.training);
+  return p;
+}
+
 }  // namespace
 
 void write_prior(store::StoreWriter& out, const std::string& name, const BrdfPrior& p) {
@@ -37,17 +50,17 @@ BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& o
 std::vector<std::string> prior_names(const store::Store& in) { return in.objects("priors"); }
 
 BrdfPrior read_prior(const store::Store& in, const std::string& name) {
-  store::PriorTables t = in.read_prior(name, valid_cells().size());
-  BrdfPrior p;
-  p.wavelengths = WavelengthGrid(t.wavelengths);
-  p.knots = std::move(t.knots);
-  p.variances = std::move(t.variances);
-  p.epsilon = t.epsilon;
-  p.reference = std::move(t.reference);
-  p.mean = std::move(t.mean);
-  p.components = std::move(t.components);
-  p.training = std::move(t.training);
-  return p;
+  return prior_of(in.read_prior(name, valid_cells().size()));
+}
+
+BrdfPrior read_prior_tables(const store::Store& in, const std::string& name) {
+  return prior_of(in.read_prior(name, valid_cells().size(), false));
+}
+
+ComponentSource store_components(const store::Store& in, const std::string& name) {
+  return [in, name](std::size_t first, std::size_t count, std::span<float> out) {
+    in.read_prior_components(name, first, count, out);
+  };
 }
 
 }  // namespace specula::acquire

@@ -110,7 +110,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   const auto t0 = std::chrono::steady_clock::now();
   const auto spec = store::parse_object_spec(m.prior);
   if (!spec) throw UsageError("resample: prior '" + m.prior + "': give STORE.h5:PRIOR");
-  const BrdfPrior prior = read_prior(store::Store::open(spec->file), spec->name);
+  const store::Store prior_store = store::Store::open(spec->file);
+  const BrdfPrior prior = read_prior_tables(prior_store, spec->name);  // components streamed by the fit
   const ChosenK k = resolved_k(job, s);
   PriorResampleOptions po{.local = job.local,
                           .fit = m.fit,
@@ -121,7 +122,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   const StoreSamples src(s, job.samples);
   ResampleOutcome out{.grid = empty_grid(info, job)};
   std::vector<float> confidence(brdf::kMerlCells);
-  const PriorResampleStats st = resample_with_prior(src, prior, po, out.grid.brdf, confidence);
+  const PriorResampleStats st =
+      resample_with_prior(src, prior, store_components(prior_store, spec->name), po, out.grid.brdf, confidence);
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(

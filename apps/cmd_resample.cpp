@@ -42,6 +42,7 @@ struct ResampleCliOptions {
   bool prior_residuals = false;
   bool kd_tree_in_cap = false;
   std::string prior_weights = "noise";
+  std::size_t prior_block_mb = 256;
 };
 
 // What save_grid would refuse after the work, refused before it: an output that is neither STORE.h5:NAME, a
@@ -115,7 +116,9 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
   }
   if (!o.prior.empty()) {
     acquire::PriorMethod m{.prior = o.prior,
-                           .fit = {.lambda = o.lambda, .weights = acquire::parse_prior_weights(o.prior_weights)},
+                           .fit = {.lambda = o.lambda,
+                                   .weights = acquire::parse_prior_weights(o.prior_weights),
+                                   .block_bytes = o.prior_block_mb << 20},
                            .residuals = o.prior_residuals,
                            .prior_in_cap = !o.kd_tree_in_cap};
     m.confidence_reach = o.confidence_reach.value_or(m.confidence_reach);
@@ -205,6 +208,11 @@ void setup_resample(CLI::App& app) {
                   "--prior: a cell's weight in the fit: noise (the samples' own variance when they carry one, else "
                   "their scatter), scatter, or count")
       ->capture_default_str();
+  cmd->add_option("--prior-block-mb", o->prior_block_mb,
+                  "--prior: memory for one block of the prior's components the fit reads at a time, MiB (results do "
+                  "not depend on it)")
+      ->capture_default_str()
+      ->check(CLI::Range(std::size_t(1), std::size_t(1) << 20));
   cmd->add_option(
       "--confidence-reach", o->confidence_reach,
       fmt::format("--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction "

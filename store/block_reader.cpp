@@ -2,7 +2,6 @@
 
 #include <fcntl.h>
 #include <fnmatch.h>
-#include <libdeflate.h>
 #include <unistd.h>
 
 #include <cstring>
@@ -10,6 +9,7 @@
 #include <type_traits>
 
 #include "specula/core/error.h"
+#include "specula/store/detail/deflate.h"
 #include "specula/store/detail/objects.h"
 #include "specula/store/object_spec.h"
 
@@ -36,20 +36,6 @@ std::size_t group_rows(std::size_t chunk_rows, std::size_t width, std::size_t mi
   return std::max<std::size_t>(1, chunk_rows) * chunks;
 }
 
-// Undoes HDF5's shuffle filter: byte k of element i was stored at k * n + i.
-void unshuffle4(const unsigned char* in, std::size_t n, unsigned char* out) {
-  const unsigned char* b0 = in;
-  const unsigned char* b1 = in + n;
-  const unsigned char* b2 = in + 2 * n;
-  const unsigned char* b3 = in + 3 * n;
-  for (std::size_t i = 0; i < n; ++i) {
-    out[4 * i] = b0[i];
-    out[4 * i + 1] = b1[i];
-    out[4 * i + 2] = b2[i];
-    out[4 * i + 3] = b3[i];
-  }
-}
-
 }  // namespace
 
 BlockReader::~BlockReader() {
@@ -67,18 +53,10 @@ void BlockReader::map_chunks(SourceData& sd, std::size_t rows) const {
   const std::string ctx = stores_[sd.store].label();
   h5::Id dcpl(h5::check(H5Dget_create_plist(*sd.cube), ctx, "H5Dget_create_plist"));
   if (H5Pget_layout(dcpl) != H5D_CHUNKED) return;
-  const int nf = H5Pget_nfilters(dcpl);
-  for (int i = 0; i < nf; ++i) {
-    unsigned flags = 0, values[8];
-    std::size_t nvalues = 8;
-    const H5Z_filter_t f = H5Pget_filter2(dcpl, unsigned(i), &flags, &nvalues, values, 0, nullptr, nullptr);
-    if (f == H5Z_FILTER_SHUFFLE && i == 0)
-      sd.shuffle = true;
-    else if (f == H5Z_FILTER_DEFLATE && i == nf - 1)
-      sd.deflate = true;
-    else
-      return;  // an unknown pipeline: HDF5 decodes it
-  }
+  const ChunkFilters filters = chunk_filters(dcpl);
+  if (!filters.known) return;  // an unknown pipeline: HDF5 decodes it
+  sd.shuffle = filters.shuffle;
+  sd.deflate = filters.deflate;
   hsize_t cdims[3] = {0, 0, 0};
   const int rank = H5Pget_chunk(dcpl, 3, cdims);
   if (rank < 2 || cdims[rank - 1] != bands()) return;
@@ -130,7 +108,7 @@ void BlockReader::pread_all(const SourceData& src, unsigned char* dst, std::size
 void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size_t rows, float* out) const {
   const std::size_t b = bands();
   const std::size_t chunk_values = src.chunk_rows * src.chunk_cols * b;
-  thread_local std::vector<unsigned char> packed, plain, unshuffled;
+  thread_local std::vector<unsigned char> packed, plain;
   for (std::size_t r = row0 / src.chunk_rows; r * src.chunk_rows < row0 + rows; ++r) {
     const std::size_t y0 = r * src.chunk_rows;
     const std::size_t ny = std::min(src.chunk_rows, row0 + rows - y0);
@@ -152,32 +130,13 @@ void BlockReader::read_direct(const SourceData& src, std::size_t row0, std::size
       } else {
         packed.resize(ref.size);
         pread_all(src, packed.data(), ref.size, ref.address);
-        const unsigned char* data = packed.data();
-        std::size_t size = ref.size;
-        const bool deflated = src.deflate && !(ref.filter_mask & (1u << (src.shuffle ? 1 : 0)));
-        const bool shuffled = src.shuffle && !(ref.filter_mask & 1u);
-        if (deflated) {
-          thread_local std::unique_ptr<libdeflate_decompressor, void (*)(libdeflate_decompressor*)> inflater(
-              libdeflate_alloc_decompressor(), libdeflate_free_decompressor);
-          std::size_t len = 0;
-          if (!inflater ||
-              libdeflate_zlib_decompress(inflater.get(), data, size, plain.data(), plain.size(), &len) !=
-                  LIBDEFLATE_SUCCESS ||
-              len != plain.size())
-            throw InputError(stores_[src.store].label() + ": corrupt compressed chunk at byte " +
-                             std::to_string(ref.address));
-          data = plain.data();
-          size = len;
-        } else if (size != plain.size()) {
-          throw InputError(stores_[src.store].label() + ": chunk at byte " + std::to_string(ref.address) + " has " +
-                           std::to_string(size) + " bytes, expected " + std::to_string(plain.size()));
-        }
-        if (shuffled) {
-          unshuffled.resize(size);
-          unshuffle4(data, size / 4, unshuffled.data());
-          data = unshuffled.data();
-        }
-        values = reinterpret_cast<const float*>(data);
+        const ChunkFilters filters{.known = true, .shuffle = src.shuffle, .deflate = src.deflate};
+        values = decode_chunk(packed.data(), ref.size, filters.deflated(ref.filter_mask),
+                              filters.shuffled(ref.filter_mask), plain.size());
+        if (!values)
+          throw InputError(stores_[src.store].label() + ": corrupt chunk at byte " + std::to_string(ref.address) +
+                           " (" + std::to_string(ref.size) + " bytes that do not decode to " +
+                           std::to_string(plain.size()) + ")");
       }
       // Chunk rows [y0, y0 + ny) x columns [x0, x0 + nx) into the block buffer.
       for (std::size_t y = 0; y < ny; ++y)

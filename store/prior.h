@@ -1,7 +1,8 @@
 #pragma once
 // The tables of a learned BRDF prior (acquire/prior.h) as the store keeps them: the "priors" object kind
 // (docs/store-format.md). Written by StoreWriter::add_prior (its components in memory or made block by block as
-// they are written), read by Store::read_prior.
+// they are written), read by Store::read_prior (the components whole, or not at all) and
+// Store::read_prior_components (a range of cells).
 #include <cstddef>
 #include <functional>
 #include <span>

@@ -186,8 +186,12 @@ class Store {
                     std::span<float> values, std::span<float> variance = {}) const;
   /// Record `name` of `kind` (written by StoreWriter::add_record); InputError when absent or malformed.
   Record read_record(const std::string& kind, const std::string& name) const;
-  /// Prior `name` (store/prior.h) of `cells` cells; InputError naming what the store holds when absent or malformed.
-  PriorTables read_prior(const std::string& name, std::size_t cells) const;
+  /// Prior `name` (store/prior.h) of `cells` cells, with its components or (components false) without them (their
+  /// shape checked); InputError naming what the store holds when absent or malformed.
+  PriorTables read_prior(const std::string& name, std::size_t cells, bool components = true) const;
+  /// The k x count components of cells [first, first + count) of prior `name` into out (row-major), reading only the
+  /// chunks that hold them; UsageError on a range or size that does not fit, InputError for a non-finite value.
+  void read_prior_components(const std::string& name, std::size_t first, std::size_t count, std::span<float> out) const;
 
  private:
   friend struct StoreAccess;

@@ -21,6 +21,23 @@ namespace specula::store {
 /// Thread-safe.
 std::size_t shuffle_deflate(const float* plain, std::size_t elems, int level, std::vector<unsigned char>& dst);
 
+/// The filter pipeline of a chunked dataset when it is HDF5's shuffle (first) and/or deflate (last) and nothing
+/// else (known), which decode_chunk undoes.
+struct ChunkFilters {
+  bool known = false, shuffle = false, deflate = false;
+  /// Whether a chunk stored with this filter mask (bit i set: filter i skipped) is deflated, shuffled.
+  bool deflated(unsigned mask) const { return deflate && !(mask & (1u << (shuffle ? 1 : 0))); }
+  bool shuffled(unsigned mask) const { return shuffle && !(mask & 1u); }
+};
+/// The filters of dataset creation properties dcpl (known false for a pipeline with other filters).
+ChunkFilters chunk_filters(hid_t dcpl);
+
+/// The floats of one stored chunk (size bytes at data) with HDF5's deflate and/or shuffle filters undone as
+/// deflated and shuffled say: in a buffer of the calling thread (valid until its next call), or data itself with
+/// neither; nullptr when it does not decode to exactly plain_bytes. Thread-safe.
+const float* decode_chunk(const unsigned char* data, std::size_t size, bool deflated, bool shuffled,
+                          std::size_t plain_bytes);
+
 // Compresses `chunks` chunks in parallel batches, fill(k, plain) giving chunk k's values and offset(k) its
 // position, and hands them to H5Dwrite_chunk in order.
 template <class Fill, class Offset>

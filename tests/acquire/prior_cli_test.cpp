@@ -1,6 +1,7 @@
 // `specula prior build` and `specula resample --prior` from the command line on small analytic materials: the
 // prior is stored with its training list (the captured material left out by --exclude), every valid cell of the
-// result has data, the confidence grid lies beside it, and a bad prior name is one line leaving the store alone.
+// result has data, the confidence grid lies beside it, the grid does not depend on --prior-block-mb, and a bad prior
+// name is one line leaving the store alone.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -30,8 +31,13 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "out.h5").string() + ":g' --json");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(test::json_number(r.output, "valid_cells"), double(acquire::valid_cells().size()));
+  // The prior's components read one store chunk at a time instead of all at once: the same grid, bit for bit.
+  r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' --prior-block-mb 1 -o '" +
+                  (dir / "out.h5").string() + ":g1'");
+  ASSERT_EQ(r.status, 0) << r.output;
   const store::Store out = store::Store::open(dir / "out.h5");
   const store::Grid g = out.read_grid("g"), c = out.read_grid("g.confidence");
+  EXPECT_EQ(out.read_grid("g1").brdf, g.brdf);
   EXPECT_EQ(c.units, "confidence");
   for (const std::uint32_t cell : acquire::valid_cells()) {
     ASSERT_GE(g.brdf[cell], 0.0f) << cell;

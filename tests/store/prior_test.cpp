@@ -1,0 +1,52 @@
+// The "priors" kind (store/prior.h): a prior's components read back range by range equal the slices of what was
+// written, both for ranges of whole chunks (decoded here, chunk by chunk) and for others (HDF5 decodes them); the
+// tables read without the components; and a range or buffer that does not fit, or a prior that is not there, is
+// refused.
+#include "specula/store/prior.h"
+
+#include <gtest/gtest.h>
+
+#include "specula/core/error.h"
+#include "specula/store/store.h"
+#include "test_support.h"
+
+using namespace specula;
+using namespace specula::store;
+
+TEST(StorePrior, ComponentsReadBackRangeByRangeAcrossChunks) {
+  constexpr std::size_t cells = kPriorBlockCells + 4500, k = 3;
+  PriorTables t{.wavelengths = {400, 700}, .knots = {400, 700}, .variances = {3, 2, 1}, .epsilon = 1e-3};
+  t.reference.assign(cells, 0.5f);
+  t.mean.assign(cells, -0.25f);
+  for (std::size_t i = 0; i < k * cells; ++i) t.components.push_back(float(i % 9973) - 4986.5f);
+  t.training = {"a", "b"};
+  test::ScratchDir dir;
+  {
+    StoreWriter w(dir / "db.h5", {});
+    w.add_prior("p", t);
+    w.commit();
+  }
+  const Store s = Store::open(dir / "db.h5");
+  const PriorTables tables = s.read_prior("p", cells, false);
+  EXPECT_TRUE(tables.components.empty());
+  EXPECT_EQ(tables.mean, t.mean);
+  EXPECT_EQ(tables.variances, t.variances);
+  EXPECT_EQ(s.read_prior("p", cells).components, t.components);
+  for (const auto& [first, count] : {std::pair<std::size_t, std::size_t>{0, cells},
+                                     {kPriorBlockCells, cells - kPriorBlockCells},
+                                     {kPriorBlockCells - 7, 20},
+                                     {cells - 1, 1},
+                                     {12, 0}}) {
+    std::vector<float> out(k * count, -1.0f), expect;
+    for (std::size_t q = 0; q < k; ++q)
+      for (std::size_t i = first; i < first + count; ++i) expect.push_back(t.components[q * cells + i]);
+    s.read_prior_components("p", first, count, out);
+    EXPECT_EQ(out, expect) << first << " + " << count;
+  }
+  std::vector<float> out(k * 10);
+  EXPECT_THROW(s.read_prior_components("p", cells - 9, 10, out), UsageError);
+  EXPECT_THROW(s.read_prior_components("p", 0, 11, out), UsageError);
+  const std::string m = test::error_of([&] { s.read_prior_components("q", 0, 10, out); });
+  EXPECT_NE(m.find("db.h5: no prior 'q' (priors: p"), std::string::npos) << m;
+  EXPECT_THROW(s.read_prior("p", cells + 1, false), InputError);  // the components' shape is checked
+}
