@@ -10,6 +10,7 @@
 #include "specula/acquire/bandwidth.h"
 #include "specula/acquire/model_fit.h"
 #include "specula/acquire/prior.h"
+#include "specula/acquire/prior_reach.h"
 #include "specula/acquire/prior_resample.h"
 #include "specula/acquire/resample.h"
 #include "specula/store/store.h"
@@ -24,6 +25,7 @@ struct PriorMethod {
   std::string prior;  ///< STORE.h5:PRIOR
   PriorFitOptions fit;
   double confidence_reach = kPriorConfidenceReach;
+  std::optional<ReachOptions> reach_auto;  ///< given: confidence_reach is chosen by holdout (acquire/prior_reach.h)
   bool residuals = false;
   bool prior_in_cap = true;
 };

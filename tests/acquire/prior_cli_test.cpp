@@ -1,11 +1,14 @@
 // `specula prior build` and `specula resample --prior` from the command line on small analytic materials: the
 // prior is stored with its training list (the captured material left out by --exclude), every valid cell of the
-// result has data, the confidence grid lies beside it, and a bad prior name is one line leaving the store alone.
+// result has data, the confidence grid lies beside it, --confidence-reach auto reports its choice, and a bad prior
+// name or reach is one line leaving the store alone.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 
 #include "specula/acquire/prior.h"
+#include "specula/acquire/prior_reach.h"
 #include "specula/store/store.h"
 #include "test_support.h"
 
@@ -38,6 +41,27 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
     ASSERT_GE(c.brdf[cell], 0.0f) << cell;
     ASSERT_LE(c.brdf[cell], 1.0f) << cell;
   }
+
+  // The kd-tree's reach chosen by holdout: one of the ladder's, reported with the validation's rows.
+  r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
+                  ":a' --confidence-reach auto --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const double reach = test::json_number(r.output, "confidence_reach");
+  const std::vector<double> ladder = acquire::ReachOptions{}.ladder;
+  EXPECT_NE(std::find(ladder.begin(), ladder.end(), reach), ladder.end()) << r.output;
+  EXPECT_EQ(test::json_number(r.output, "reach"), reach) << r.output;
+  EXPECT_GT(test::json_number(r.output, "split_cells"), 0) << r.output;
+  for (const char* bad : {"--confidence-reach 0.1x", "--confidence-reach auto --prior-residuals"}) {
+    r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "out.h5").string() + ":b' " +
+                    bad);
+    EXPECT_NE(r.status, 0) << bad;
+    EXPECT_NE(r.output.find("--confidence-reach"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  }
+  r = run_specula("resample '" + db + "' scan --model ggx -o '" + (dir / "m.spgrid").string() +
+                  "' --confidence-reach auto");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("--confidence-reach auto: only with --prior"), std::string::npos) << r.output;
 
   // Exchange files: the grid and its confidence beside it, and no temporary left.
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "x.spgrid").string() + "'");
