@@ -29,9 +29,9 @@ void check_reach_options(const ReachOptions& o) {
 // The samples of a source whose role is kept, in their order (the source outlives it).
 class KeptSamples final : public SampleSource {
  public:
-  KeptSamples(const SampleSource& src, std::span<const ReachRole> role) : src_(src) {
-    for (std::size_t s = 0; s < role.size(); ++s)
-      if (role[s] == ReachRole::kept) kept_.push_back(std::uint32_t(s));
+  KeptSamples(const SampleSource& src, std::span<const std::uint8_t> held) : src_(src) {
+    for (std::size_t s = 0; s < held.size(); ++s)
+      if (!held[s]) kept_.push_back(std::uint32_t(s));
   }
   std::size_t size() const override { return kept_.size(); }
   std::size_t bands() const override { return src_.bands(); }
@@ -84,7 +84,7 @@ std::vector<std::int32_t> sample_slots(const SampleSource& src) {
   return slots;
 }
 
-// Per held-out cell of obs (one kind) and ladder entry, its error (cells x ladder, row-major).
+// Per held-out cell of obs and ladder entry, its error (cells x ladder, row-major).
 std::vector<double> held_out_errors(const PriorObservations& obs, std::span<const float> fitted,
                                     std::span<const float> kd, std::span<const float> gaps, std::size_t b,
                                     const ReachOptions& r, double max_gap, double eps) {
@@ -124,26 +124,6 @@ std::vector<double> mean_errors(const std::vector<double>& err, std::size_t m) {
   return mean;
 }
 
-// The weights of the two kinds: the scan's observed cells, and its unobserved valid cells whose gap to the kept
-// samples is at most the largest held-out whole cell's.
-void kind_weights(std::span<const PriorObservations> parts, std::span<const float> gaps, ReachChoice& out) {
-  const auto& cells = valid_cells();
-  std::vector<std::uint8_t> observed(cells.size(), 0);
-  for (const auto& p : parts)
-    for (const std::uint32_t i : p.cell) observed[i] = 1;
-  const PriorObservations& whole = parts[std::size_t(ReachRole::whole)];
-  float widest = -1;
-  for (const std::uint32_t i : whole.cell) widest = std::max(widest, gaps[cells[i]]);
-  std::size_t near = 0, seen = 0;
-  for (std::size_t i = 0; i < cells.size(); ++i) {
-    seen += observed[i];
-    near += !observed[i] && gaps[cells[i]] >= 0 && gaps[cells[i]] <= widest;
-  }
-  out.split_weight = parts[std::size_t(ReachRole::split)].cell.empty() ? 0.0 : double(seen);
-  out.whole_weight = whole.cell.empty() ? 0.0 : double(near);
-  if (out.split_weight + out.whole_weight == 0) out.split_weight = out.whole_weight = 1;
-}
-
 }  // namespace
 
 ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o) {
@@ -152,33 +132,23 @@ ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o) {
   std::vector<std::uint32_t> count(valid_cells().size(), 0);
   for (const std::int32_t v : slots)
     if (v >= 0) ++count[std::size_t(v)];
-  std::vector<std::uint32_t> observed;
-  for (std::size_t i = 0; i < count.size(); ++i)
-    if (count[i]) observed.push_back(std::uint32_t(i));
-  if (observed.size() < 2)
-    throw InputError("confidence reach: samples fall in " + std::to_string(observed.size()) +
-                     " valid cell(s); holding some out needs at least 2");
   ReachHoldout h;
-  h.observed_cells = observed.size();
+  std::vector<std::uint32_t> splittable;
+  for (std::size_t i = 0; i < count.size(); ++i) {
+    h.observed_cells += count[i] > 0;
+    if (count[i] >= 2) splittable.push_back(std::uint32_t(i));
+  }
+  if (splittable.empty())
+    throw InputError("confidence reach: no valid cell holds two samples, so none can lose half of them to validate on");
   const std::size_t want =
-      std::clamp<std::size_t>(std::size_t(std::llround(o.held_out * double(observed.size()))), 1, observed.size() - 1);
-  // 0: kept; 1: split; 2: whole, per valid cell.
-  std::vector<std::uint8_t> kind(count.size(), 0);
-  const std::vector<std::size_t> picked = select_indices(observed.size(), want, o.seed);
-  for (std::size_t j = 0; j < picked.size(); ++j) {
-    const std::uint32_t v = observed[picked[j]];
-    const bool whole = j % 2 == 0 || count[v] < 2;
-    kind[v] = whole ? 2 : 1;
-    ++(whole ? h.whole_cells : h.split_cells);
-  }
-  h.role.assign(slots.size(), ReachRole::kept);
+      std::clamp<std::size_t>(std::size_t(std::llround(o.held_out * double(splittable.size()))), 1, splittable.size());
+  std::vector<std::uint8_t> chosen(count.size(), 0);
+  for (const std::size_t j : select_indices(splittable.size(), want, o.seed)) chosen[splittable[j]] = 1;
+  h.held_cells = want;
+  h.held.assign(slots.size(), 0);
   std::vector<std::uint32_t> seen(count.size(), 0);
-  for (std::size_t s = 0; s < slots.size(); ++s) {
-    if (slots[s] < 0) continue;
-    const std::size_t v = std::size_t(slots[s]);
-    if (kind[v] == 2) h.role[s] = ReachRole::whole;
-    if (kind[v] == 1 && seen[v]++ % 2 == 1) h.role[s] = ReachRole::split;
-  }
+  for (std::size_t s = 0; s < slots.size(); ++s)
+    if (slots[s] >= 0 && chosen[std::size_t(slots[s])] && seen[std::size_t(slots[s])]++ % 2 == 1) h.held[s] = 1;
   return h;
 }
 
@@ -194,47 +164,35 @@ ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& pr
   ReachChoice out;
   out.holdout = reach_holdout(src, r);
   const std::vector<PriorObservations> parts =
-      cell_means(src, o.fit.weights != PriorWeights::scatter,
-                 std::span(reinterpret_cast<const std::uint8_t*>(out.holdout.role.data()), out.holdout.role.size()), 3);
+      cell_means(src, o.fit.weights != PriorWeights::scatter, out.holdout.held, 2);
   const std::size_t b = src.bands();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
-  fit_prior(prior, parts[std::size_t(ReachRole::kept)], o.fit, fitted);
-  const KeptSamples kept(src, out.holdout.role);
+  fit_prior(prior, parts[0], o.fit, fitted);
+  const KeptSamples kept(src, out.holdout.held);
   std::vector<float> kd(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
   resample_grid(SampleTree(kept, o.local.mapping), kept, o.local, kd, gaps);
-  out.holdout.role = {};
-  kind_weights(parts, gaps, out);
+  out.holdout.held = {};
   const std::size_t m = r.ladder.size();
-  const auto mean_of = [&](ReachRole kind) {
-    return mean_errors(
-        held_out_errors(parts[std::size_t(kind)], fitted, kd, gaps, b, r, o.local.max_gap, prior.epsilon), m);
-  };
-  const std::vector<double> split = mean_of(ReachRole::split), whole = mean_of(ReachRole::whole);
-  for (std::size_t l = 0; l < m; ++l) {
-    const double e =
-        (out.split_weight * split[l] + out.whole_weight * whole[l]) / (out.split_weight + out.whole_weight);
-    out.rows.push_back({.reach = r.ladder[l], .error = e, .split = split[l], .whole = whole[l]});
-  }
+  const std::vector<double> mean =
+      mean_errors(held_out_errors(parts[1], fitted, kd, gaps, b, r, o.local.max_gap, prior.epsilon), m);
   std::size_t best = 0;
-  for (std::size_t l = 1; l < m; ++l)
-    if (out.rows[l].error < out.rows[best].error) best = l;
-  out.reach = out.rows[best].reach;
+  for (std::size_t l = 0; l < m; ++l) {
+    out.rows.push_back({.reach = r.ladder[l], .error = mean[l]});
+    if (mean[l] < mean[best]) best = l;
+  }
+  out.reach = r.ladder[best];
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
 
 nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOptions& r) {
   nlohmann::ordered_json rows = nlohmann::ordered_json::array();
-  for (const ReachRow& row : c.rows)
-    rows.push_back({{"reach", row.reach}, {"error", row.error}, {"split", row.split}, {"whole", row.whole}});
+  for (const ReachRow& row : c.rows) rows.push_back({{"reach", row.reach}, {"error", row.error}});
   return {{"reach", c.reach},
           {"held_out", r.held_out},
           {"seed", r.seed},
           {"observed_cells", c.holdout.observed_cells},
-          {"split_cells", c.holdout.split_cells},
-          {"whole_cells", c.holdout.whole_cells},
-          {"split_weight", c.split_weight},
-          {"whole_weight", c.whole_weight},
+          {"held_cells", c.holdout.held_cells},
           {"seconds", c.seconds},
           {"rows", rows}};
 }

@@ -1,11 +1,9 @@
 #pragma once
 // The kd-tree's reach r in the prior's blend chosen from the scan itself (`resample --prior --confidence-reach
-// auto`, docs/prior.md): a fixed-seed share of the observed cells is held out, the prior fitted and the kd-tree
-// built without their samples, and at each held-out cell the blend c(g, r) kd + (1 - c) prior of every candidate r
-// (g from the cell centre to the nearest kept sample) is compared with the mean of the cell's held-out samples in
-// the log domain of the fit. Half the held-out cells lose all their samples (as the unobserved cells next to data)
-// and half only every other one (as the observed cells, whose own samples are near); the two errors are weighed by
-// how many cells of the scan are of each kind, and the r of least error is kept.
+// auto`, docs/prior.md): in a fixed-seed share of the observed cells of two or more samples every other sample is held
+// out, the prior fitted and the kd-tree built without them, and at each such cell the blend c(g, r) kd + (1 - c) prior
+// of every candidate r (g from the cell centre to the nearest kept sample) is compared with the mean of the cell's
+// held-out samples in the log domain of the fit; the r of least mean error is kept.
 #include <cstdint>
 #include <nlohmann/json_fwd.hpp>
 #include <span>
@@ -20,44 +18,32 @@ namespace specula::acquire {
 
 struct ReachOptions {
   std::vector<double> ladder = {0.001, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3, 0.5, 1};  ///< ascending, in (0, 1]
-  double held_out = 0.1;   ///< share of the observed cells held out, in (0, 1)
+  double held_out = 0.1;   ///< share of the observed cells of two or more samples held out, in (0, 1)
   std::uint64_t seed = 0;  ///< seed of the choice of held-out cells
-};
-
-/// What a sample is in the validation.
-enum class ReachRole : std::uint8_t {
-  kept = 0,   ///< fitted and in the kd-tree
-  split = 1,  ///< held out of a cell that keeps its other samples (every other one, in sample order)
-  whole = 2,  ///< held out with all its cell's samples
 };
 
 /// Which samples the validation holds out.
 struct ReachHoldout {
-  std::vector<ReachRole> role;     ///< per sample
+  std::vector<std::uint8_t> held;  ///< per sample: 1 held out, 0 kept (fitted and in the kd-tree)
   std::size_t observed_cells = 0;  ///< valid cells holding a sample
-  std::size_t split_cells = 0, whole_cells = 0;
+  std::size_t held_cells = 0;      ///< cells that lose samples
 };
 
-/// The held-out cells: round(held_out x observed cells) of them by selection sampling seeded by o.seed over the
-/// observed valid cells in cell order; of these, the 1st, 3rd, ... lose all their samples and the 2nd, 4th, ... every
-/// other sample (the 2nd, 4th, ... in sample order; a cell of one sample loses it whole). UsageError for bad options,
-/// InputError when fewer than 2 valid cells hold a sample.
+/// The held-out cells: round(held_out x the observed valid cells of two or more samples) of those (at least one), by
+/// selection sampling seeded by o.seed over them in cell order; each loses its 2nd, 4th, ... sample in sample order.
+/// UsageError for bad options, InputError when no valid cell holds two samples.
 ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o);
 
-/// One candidate reach: the mean log-domain error over the held-out cells of each kind, and their weighted sum.
+/// One candidate reach and its mean log-domain error over the held-out cells.
 struct ReachRow {
   double reach = 0;
-  double error = 0;             ///< (split_weight x split + whole_weight x whole) / (split_weight + whole_weight)
-  double split = 0, whole = 0;  ///< means over the split and whole held-out cells (0 without any)
+  double error = 0;
 };
 
 /// What the choice found.
 struct ReachChoice {
-  double reach = 0;      ///< the ladder's r of least error (the smaller on a tie)
-  ReachHoldout holdout;  ///< without its roles
-  /// the scan's observed cells, and its unobserved valid cells whose nearest kept sample is no farther than the
-  /// farthest held-out whole cell's (each kind's cells of the scan, counted; 0 for a kind without held-out cells)
-  double split_weight = 0, whole_weight = 0;
+  double reach = 0;            ///< the ladder's r of least error (the smaller on a tie)
+  ReachHoldout holdout;        ///< without its per-sample flags
   std::vector<ReachRow> rows;  ///< one per ladder entry
   double seconds = 0;
 };

@@ -14,7 +14,8 @@
 
 namespace specula::acquire {
 
-/// The default reach r of the kd-tree estimate in the blend: chosen on held-out NBRDF materials (docs/prior.md), where
+/// The reach r of the kd-tree estimate in the blend when it is not chosen from the scan (acquire/prior_reach.h, the
+/// default of `resample --prior`) and with the residuals: chosen on held-out NBRDF materials (docs/prior.md), where
 /// the prior's fit beat the kd-tree's average except very near samples.
 inline constexpr double kPriorConfidenceReach = 0.1;
 

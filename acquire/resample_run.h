@@ -24,8 +24,9 @@ struct PlainMethod {};
 struct PriorMethod {
   std::string prior;  ///< STORE.h5:PRIOR
   PriorFitOptions fit;
-  double confidence_reach = kPriorConfidenceReach;
-  std::optional<ReachOptions> reach_auto;  ///< given: confidence_reach is chosen by holdout (acquire/prior_reach.h)
+  double confidence_reach = kPriorConfidenceReach;  ///< the reach without reach_auto
+  /// given (the default): the reach is chosen by holdout (acquire/prior_reach.h); residuals need it empty
+  std::optional<ReachOptions> reach_auto = ReachOptions{};
   bool residuals = false;
   bool prior_in_cap = true;
 };

@@ -134,10 +134,8 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
                            .prior_in_cap = !o.kd_tree_in_cap};
     if (o.confidence_reach == "auto" && o.prior_residuals)
       throw UsageError("--confidence-reach auto: chosen for the blend, not with --prior-residuals");
-    if (o.confidence_reach == "auto")
-      m.reach_auto = acquire::ReachOptions{};
-    else if (o.confidence_reach)
-      m.confidence_reach = reach_of(*o.confidence_reach);
+    if (o.confidence_reach ? *o.confidence_reach != "auto" : o.prior_residuals) m.reach_auto.reset();
+    if (o.confidence_reach && *o.confidence_reach != "auto") m.confidence_reach = reach_of(*o.confidence_reach);
     job.method = m;
   } else if (!o.model.empty()) {
     acquire::ModelMethod m{.fit = {.kind = {.distribution = acquire::parse_distribution(o.model),
@@ -228,8 +226,8 @@ void setup_resample(CLI::App& app) {
   cmd->add_option(
       "--confidence-reach", o->confidence_reach,
       fmt::format("--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction "
-                  "of --max-gap (default {} with --prior, {} with --model); --prior: or auto, chosen by holding out "
-                  "a tenth of the observed cells (docs/prior.md)",
+                  "of --max-gap, or (--prior) auto: chosen by holding out half the samples of a tenth of the observed "
+                  "cells (docs/prior.md). Default auto with --prior ({} with --prior-residuals), {} with --model",
                   acquire::kPriorConfidenceReach, acquire::ModelMethod{}.confidence_reach));
   cmd->add_flag("--prior-residuals", o->prior_residuals,
                 "--prior: add the kd-tree estimate of the residuals against the prior fit (as --model) instead of "

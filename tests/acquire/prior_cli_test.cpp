@@ -1,7 +1,7 @@
 // `specula prior build` and `specula resample --prior` from the command line on small analytic materials: the
 // prior is stored with its training list (the captured material left out by --exclude), every valid cell of the
-// result has data, the confidence grid lies beside it, --confidence-reach auto reports its choice, and a bad prior
-// name or reach is one line leaving the store alone.
+// result has data, the confidence grid lies beside it, the kd-tree's reach is chosen from the scan unless given, and a
+// bad prior name or reach is one line leaving the store alone.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -33,6 +33,12 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "out.h5").string() + ":g' --json");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(test::json_number(r.output, "valid_cells"), double(acquire::valid_cells().size()));
+  // The reach chosen by default: one of the ladder's, reported with the validation's rows.
+  const double reach = test::json_number(r.output, "confidence_reach");
+  const std::vector<double> ladder = acquire::ReachOptions{}.ladder;
+  EXPECT_NE(std::find(ladder.begin(), ladder.end(), reach), ladder.end()) << r.output;
+  EXPECT_EQ(test::json_number(r.output, "reach"), reach) << r.output;
+  EXPECT_GT(test::json_number(r.output, "held_cells"), 0) << r.output;
   const store::Store out = store::Store::open(dir / "out.h5");
   const store::Grid g = out.read_grid("g"), c = out.read_grid("g.confidence");
   EXPECT_EQ(c.units, "confidence");
@@ -42,15 +48,12 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
     ASSERT_LE(c.brdf[cell], 1.0f) << cell;
   }
 
-  // The kd-tree's reach chosen by holdout: one of the ladder's, reported with the validation's rows.
+  // A reach given is used as it is.
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
-                  ":a' --confidence-reach auto --json");
+                  ":f' --confidence-reach 0.25 --json");
   ASSERT_EQ(r.status, 0) << r.output;
-  const double reach = test::json_number(r.output, "confidence_reach");
-  const std::vector<double> ladder = acquire::ReachOptions{}.ladder;
-  EXPECT_NE(std::find(ladder.begin(), ladder.end(), reach), ladder.end()) << r.output;
-  EXPECT_EQ(test::json_number(r.output, "reach"), reach) << r.output;
-  EXPECT_GT(test::json_number(r.output, "split_cells"), 0) << r.output;
+  EXPECT_EQ(test::json_number(r.output, "confidence_reach"), 0.25);
+  EXPECT_EQ(r.output.find("confidence_reach_auto"), std::string::npos) << r.output;
   for (const char* bad : {"--confidence-reach 0.1x", "--confidence-reach auto --prior-residuals"}) {
     r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "out.h5").string() + ":b' " +
                     bad);

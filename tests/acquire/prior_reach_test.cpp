@@ -93,7 +93,7 @@ TEST(PriorReach, ASmallReachWhereThePriorHoldsTheMaterialAndTheSamplesAreNoisy) 
   o.local.k = 4;
   const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), o, {});
   EXPECT_LE(c.reach, 0.03);
-  // The held-out means of a sample or two carry the noise too (an error of about 0.11 for every reach).
+  // The held-out means of a sample or two carry the noise too (the same error under every reach).
   EXPECT_GT(c.rows.back().error, 1.15 * c.rows.front().error) << "the prior alone better than the kd-tree";
 }
 
@@ -107,12 +107,11 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
   const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), o, r);
   const acquire::ReachHoldout h = acquire::reach_holdout(src, r);
   const std::size_t n = s.angles.size() / 4;
-  ASSERT_EQ(h.role.size(), n);
+  ASSERT_EQ(h.held.size(), n);
 
   // Each sample's MERL cell, by the test's own lookup; per cell the kept and held-out samples' sums.
   struct Cell {
     std::size_t kept = 0, held = 0;
-    acquire::ReachRole kind = acquire::ReachRole::kept;
     std::vector<double> kept_sum = std::vector<double>(5, 0.0), held_sum = std::vector<double>(5, 0.0);
   };
   std::map<std::size_t, Cell> cells;
@@ -121,8 +120,7 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
   for (std::size_t i = 0; i < n; ++i) {
     const brdf::StdAngles a{s.angles[4 * i], s.angles[4 * i + 1], s.angles[4 * i + 2], s.angles[4 * i + 3]};
     Cell& cell = cells[brdf::merl_index(brdf::merl_cell(a))];
-    const bool kept = h.role[i] == acquire::ReachRole::kept;
-    if (!kept) cell.kind = h.role[i];
+    const bool kept = !h.held[i];
     ++(kept ? cell.kept : cell.held);
     for (std::size_t k = 0; k < 5; ++k) (kept ? cell.kept_sum : cell.held_sum)[k] += s.values[i * 5 + k];
     if (kept) {
@@ -130,32 +128,31 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
       kept_values.insert(kept_values.end(), &s.values[i * 5], &s.values[i * 5 + 5]);
     }
   }
-  EXPECT_EQ(h.observed_cells, cells.size());
-  EXPECT_EQ(h.split_cells + h.whole_cells, std::size_t(std::llround(0.1 * double(cells.size()))));
-  EXPECT_GT(h.split_cells, 100u);  // most cells hold one sample, which is held out whole
-
+  std::size_t splittable = 0, held_cells = 0;
   const auto& valid = acquire::valid_cells();
   acquire::PriorObservations kept_obs;
   for (const auto& [index, cell] : cells) {
-    if (cell.kind == acquire::ReachRole::whole) ASSERT_EQ(cell.kept, 0u) << index;
-    if (cell.kind == acquire::ReachRole::split) ASSERT_EQ(cell.held, (cell.kept + cell.held) / 2) << index;
-    if (cell.kind == acquire::ReachRole::kept) ASSERT_EQ(cell.held, 0u) << index;
-    if (!cell.kept) continue;
+    splittable += cell.kept + cell.held >= 2;
+    held_cells += cell.held > 0;
+    if (cell.held) ASSERT_EQ(cell.held, (cell.kept + cell.held) / 2) << "every other sample of " << index;
     kept_obs.cell.push_back(std::uint32_t(std::lower_bound(valid.begin(), valid.end(), index) - valid.begin()));
     for (std::size_t k = 0; k < 5; ++k) kept_obs.values.push_back(float(cell.kept_sum[k] / double(cell.kept)));
     kept_obs.weight.push_back(float(cell.kept));
   }
+  EXPECT_EQ(h.observed_cells, cells.size());
+  EXPECT_EQ(h.held_cells, held_cells);
+  EXPECT_EQ(held_cells, std::size_t(std::llround(0.1 * double(splittable))));
+  EXPECT_GT(held_cells, 100u);
   std::vector<float> fitted(5 * brdf::kMerlCells, -1.0f);
   acquire::fit_prior(family_prior(), kept_obs, o.fit, fitted);
   const acquire::Resampler kd(kept_angles, kept_values, 5, o.local);
 
   // At each held-out cell, for every reach, the log-domain error of the blend against the held-out samples' mean.
   const std::size_t m = r.ladder.size();
-  std::vector<double> split(m, 0.0), whole(m, 0.0);
-  std::size_t n_split = 0, n_whole = 0;
+  std::vector<double> error(m, 0.0);
   const double eps = family_prior().epsilon;
   for (const auto& [index, cell] : cells) {
-    if (cell.kind == acquire::ReachRole::kept) continue;
+    if (!cell.held) continue;
     const brdf::StdAngles centre = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(index)));
     Eigen::Vector3d wi, wo;
     brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(index)), wi, wo);
@@ -164,32 +161,21 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
     const bool supported = kd.predict(centre, local);
     acquire::Neighbours nb;
     kd.neighbours(centre, nb);
-    const bool is_split = cell.kind == acquire::ReachRole::split;
-    ++(is_split ? n_split : n_whole);
     for (std::size_t l = 0; l < m; ++l) {
       const double g = nb.gap / (r.ladder[l] * o.local.max_gap);
       const double conf = supported ? std::max(0.0, 1 - g * g) : 0.0;
-      double e = 0;
       for (std::size_t k = 0; k < 5; ++k) {
         const double blend = conf * local[k] + (1 - conf) * fitted[k * brdf::kMerlCells + index];
         const double target = cell.held_sum[k] / double(cell.held);
         const double d = std::log((blend * cc + eps) / (target * cc + eps));
-        e += d * d / 5;
+        error[l] += d * d / 5 / double(held_cells);
       }
-      (is_split ? split : whole)[l] += e;
     }
   }
-  ASSERT_EQ(n_split, h.split_cells);
-  ASSERT_EQ(n_whole, h.whole_cells);
   ASSERT_EQ(c.rows.size(), m);
-  EXPECT_EQ(c.split_weight, double(cells.size()));
-  EXPECT_GT(c.whole_weight, 0.0);
   std::size_t best = 0;
   for (std::size_t l = 0; l < m; ++l) {
-    EXPECT_NEAR(c.rows[l].split, split[l] / double(n_split), 1e-4 * split[l] / double(n_split)) << r.ladder[l];
-    EXPECT_NEAR(c.rows[l].whole, whole[l] / double(n_whole), 1e-4 * whole[l] / double(n_whole)) << r.ladder[l];
-    EXPECT_DOUBLE_EQ(c.rows[l].error, (c.split_weight * c.rows[l].split + c.whole_weight * c.rows[l].whole) /
-                                          (c.split_weight + c.whole_weight));
+    EXPECT_NEAR(c.rows[l].error, error[l], 1e-4 * error[l]) << r.ladder[l];
     if (c.rows[l].error < c.rows[best].error) best = l;
   }
   EXPECT_EQ(c.reach, r.ladder[best]);
@@ -200,9 +186,5 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
   omp_set_num_threads(1);
   const acquire::ReachChoice one = acquire::choose_confidence_reach(src, family_prior(), o, r);
   omp_set_num_threads(saved);
-  for (std::size_t l = 0; l < m; ++l) {
-    EXPECT_EQ(one.rows[l].split, c.rows[l].split) << r.ladder[l];
-    EXPECT_EQ(one.rows[l].whole, c.rows[l].whole) << r.ladder[l];
-  }
-  EXPECT_EQ(one.whole_weight, c.whole_weight);
+  for (std::size_t l = 0; l < m; ++l) EXPECT_EQ(one.rows[l].error, c.rows[l].error) << r.ladder[l];
 }
