@@ -32,16 +32,6 @@ void check(const BandwidthOptions& b) {
       throw UsageError("choose_bandwidth: theta_h band edges must ascend within (0, 90) degrees");
 }
 
-// h of the indices [0, n), ascending, by Knuth's selection sampling (algorithm S) with a fixed generator.
-std::vector<std::size_t> pick(std::size_t n, std::size_t h, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::vector<std::size_t> out;
-  out.reserve(h);
-  for (std::size_t i = 0; i < n && out.size() < h; ++i)
-    if (rng() % (n - i) < h - out.size()) out.push_back(i);
-  return out;
-}
-
 // The rows of `rows_wanted` (ascending sample indices) read from src in its blocks, rows_wanted.size() x bands.
 std::vector<float> read_rows(const SampleSource& src, std::span<const std::uint32_t> rows_wanted) {
   const std::size_t n = src.size(), bands = src.bands(), block_rows = std::max<std::size_t>(1, src.block_rows());
@@ -139,7 +129,7 @@ struct HeldOut {
 HeldOut find_held_out(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
                       const BandwidthOptions& b, Progress& progress) {
   HeldOut ho;
-  ho.held = pick(src.size(), std::min(b.held_out, src.size()), b.seed);
+  ho.held = select_indices(src.size(), std::min(b.held_out, src.size()), b.seed);
   const std::size_t h = ho.held.size(), kmax = b.ladder.back();
   const bool loess = o.weights == Weights::loess;
   ho.per = kmax + 1;
@@ -258,6 +248,15 @@ BandwidthChoice summarise(const BandwidthOptions& b, const std::vector<double>& 
 }
 
 }  // namespace
+
+std::vector<std::size_t> select_indices(std::size_t n, std::size_t h, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<std::size_t> out;
+  out.reserve(std::min(h, n));
+  for (std::size_t i = 0; i < n && out.size() < h; ++i)
+    if (rng() % (n - i) < h - out.size()) out.push_back(i);
+  return out;
+}
 
 BandwidthCriterion parse_bandwidth_criterion(std::string_view name) {
   if (name == "bands") return BandwidthCriterion::bands;

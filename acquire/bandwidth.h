@@ -55,6 +55,10 @@ struct BandwidthChoice {
   std::vector<BandwidthRow> rows;  ///< one per ladder entry
 };
 
+/// min(h, n) of the indices [0, n), ascending, by Knuth's selection sampling (algorithm S) with a generator seeded by
+/// seed: the same indices on every run.
+std::vector<std::size_t> select_indices(std::size_t n, std::size_t h, std::uint64_t seed);
+
 /// The leave-one-out choice of o.k for resampling src with o's mapping and weights: o.held_out samples picked by
 /// selection sampling seeded by o.seed, each predicted from its nearest other samples (however far; no support
 /// limit) for every ladder k, with the weights a cell there would get; the values streamed once in blocks, on all

@@ -25,61 +25,10 @@ const std::vector<std::int32_t>& valid_slot() {
   return slot;
 }
 
-}  // namespace
-
-PriorObservations cell_means(const SampleSource& src, bool use_variance) {
-  const std::size_t b = src.bands(), n = src.size(), block = src.block_rows();
-  const auto& slot = valid_slot();
-  std::vector<std::int32_t> obs_of(valid_cells().size(), -1);
-  std::vector<double> sums, squares;
-  std::vector<std::uint32_t> counts;
-  PriorObservations out;
-  out.spread_is_noise = use_variance && src.has_variance();
-  std::vector<double> angles;
-  std::vector<float> values, variance;
-  std::vector<std::int32_t> cell_of;
-  for (std::size_t first = 0; first < n; first += block) {
-    const std::size_t count = std::min(block, n - first);
-    angles.resize(count * 4);
-    values.resize(count * b);
-    cell_of.resize(count);
-    src.read_angles(first, count, angles);
-    src.read_values(first, count, values);
-    if (out.spread_is_noise) {
-      variance.resize(count * b);
-      src.read_variance(first, count, variance);
-    }
-    parallel_for(
-        count,
-        [&](std::size_t s) {
-          const brdf::StdAngles a{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]};
-          const bool ok = std::isfinite(a.theta_i) && std::isfinite(a.theta_o) && a.theta_i < std::numbers::pi / 2 &&
-                          a.theta_o < std::numbers::pi / 2;
-          cell_of[s] = ok ? slot[brdf::merl_index(brdf::merl_cell(a))] : -1;
-        },
-        4096);
-    for (std::size_t s = 0; s < count; ++s) {  // in sample order: the sums do not depend on the thread count
-      const std::int32_t v = cell_of[s];
-      if (v < 0) continue;
-      bool finite = true;
-      for (std::size_t k = 0; k < b; ++k) finite &= std::isfinite(values[s * b + k]) && values[s * b + k] >= 0;
-      if (!finite) continue;
-      if (obs_of[std::size_t(v)] < 0) {
-        obs_of[std::size_t(v)] = std::int32_t(out.cell.size());
-        out.cell.push_back(std::uint32_t(v));
-        sums.resize(sums.size() + b, 0.0);
-        squares.resize(squares.size() + b, 0.0);
-        counts.push_back(0);
-      }
-      const std::size_t o = std::size_t(obs_of[std::size_t(v)]);
-      for (std::size_t k = 0; k < b; ++k) {  // squares: the samples' variances when they carry them
-        sums[o * b + k] += values[s * b + k];
-        squares[o * b + k] +=
-            out.spread_is_noise ? double(variance[s * b + k]) : double(values[s * b + k]) * values[s * b + k];
-      }
-      ++counts[o];
-    }
-  }
+// The observations' means, weights and spreads from their per-band sums (squares: of the values, or of the
+// samples' own variances when obs.spread_is_noise) and counts.
+void finish_means(std::span<const double> sums, std::span<const double> squares, std::span<const std::uint32_t> counts,
+                  std::size_t b, PriorObservations& out) {
   out.values.resize(sums.size());
   out.spread.resize(sums.size());
   out.weight.resize(counts.size());
@@ -94,7 +43,85 @@ PriorObservations cell_means(const SampleSource& src, bool use_variance) {
                                       : 0.0f;
     }
   }
+}
+
+}  // namespace
+
+void valid_slots(std::span<const double> angles, std::span<std::int32_t> out) {
+  if (angles.size() != 4 * out.size()) throw UsageError("prior: angles and slots of different sizes");
+  const auto& slot = valid_slot();
+  parallel_for(
+      out.size(),
+      [&](std::size_t s) {
+        const brdf::StdAngles a{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]};
+        const bool ok = std::isfinite(a.theta_i) && std::isfinite(a.theta_o) && a.theta_i < std::numbers::pi / 2 &&
+                        a.theta_o < std::numbers::pi / 2;
+        out[s] = ok ? slot[brdf::merl_index(brdf::merl_cell(a))] : -1;
+      },
+      4096);
+}
+
+std::vector<PriorObservations> cell_means(const SampleSource& src, bool use_variance,
+                                          std::span<const std::uint8_t> part, std::size_t parts) {
+  const std::size_t b = src.bands(), n = src.size(), block = src.block_rows();
+  if (parts == 0 || !(part.empty() || part.size() == n))
+    throw UsageError("prior: give at least one part and one part label per sample");
+  struct Sums {
+    std::vector<std::int32_t> obs_of;
+    std::vector<double> sums, squares;
+    std::vector<std::uint32_t> counts;
+  };
+  std::vector<Sums> acc(parts);
+  std::vector<PriorObservations> out(parts);
+  for (std::size_t q = 0; q < parts; ++q) {
+    acc[q].obs_of.assign(valid_cells().size(), -1);
+    out[q].spread_is_noise = use_variance && src.has_variance();
+  }
+  const bool noise = use_variance && src.has_variance();
+  std::vector<double> angles;
+  std::vector<float> values, variance;
+  std::vector<std::int32_t> cell_of;
+  for (std::size_t first = 0; first < n; first += block) {
+    const std::size_t count = std::min(block, n - first);
+    angles.resize(count * 4);
+    values.resize(count * b);
+    cell_of.resize(count);
+    src.read_angles(first, count, angles);
+    src.read_values(first, count, values);
+    if (noise) {
+      variance.resize(count * b);
+      src.read_variance(first, count, variance);
+    }
+    valid_slots(angles, cell_of);
+    for (std::size_t s = 0; s < count; ++s) {  // in sample order: the sums do not depend on the thread count
+      const std::int32_t v = cell_of[s];
+      const std::size_t q = part.empty() ? 0 : part[first + s];
+      if (v < 0 || q >= parts) continue;
+      bool finite = true;
+      for (std::size_t k = 0; k < b; ++k) finite &= std::isfinite(values[s * b + k]) && values[s * b + k] >= 0;
+      if (!finite) continue;
+      Sums& a = acc[q];
+      if (a.obs_of[std::size_t(v)] < 0) {
+        a.obs_of[std::size_t(v)] = std::int32_t(out[q].cell.size());
+        out[q].cell.push_back(std::uint32_t(v));
+        a.sums.resize(a.sums.size() + b, 0.0);
+        a.squares.resize(a.squares.size() + b, 0.0);
+        a.counts.push_back(0);
+      }
+      const std::size_t o = std::size_t(a.obs_of[std::size_t(v)]);
+      for (std::size_t k = 0; k < b; ++k) {  // squares: the samples' variances when they carry them
+        a.sums[o * b + k] += values[s * b + k];
+        a.squares[o * b + k] += noise ? double(variance[s * b + k]) : double(values[s * b + k]) * values[s * b + k];
+      }
+      ++a.counts[o];
+    }
+  }
+  for (std::size_t q = 0; q < parts; ++q) finish_means(acc[q].sums, acc[q].squares, acc[q].counts, b, out[q]);
   return out;
+}
+
+PriorObservations cell_means(const SampleSource& src, bool use_variance) {
+  return std::move(cell_means(src, use_variance, {}, 1)[0]);
 }
 
 PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,

@@ -5,14 +5,17 @@
 // confidence c = max(0, 1 - (g / (r max_gap))^2) of the distance g from the cell centre to its nearest sample
 // (config_distance, as the kd-tree's support test); every valid cell gets data. Or (residuals) the kd-tree
 // estimate of the samples' residuals against the fit is added to it, scaled by c (acquire/base_resample.h).
+#include <cstdint>
 #include <span>
+#include <vector>
 
 #include "specula/acquire/prior.h"
 #include "specula/acquire/resample.h"
 
 namespace specula::acquire {
 
-/// The default reach r of the kd-tree estimate in the blend: chosen on held-out NBRDF materials (docs/prior.md), where
+/// The reach r of the kd-tree estimate in the blend when it is not chosen from the scan (acquire/prior_reach.h, the
+/// default of `resample --prior`) and with the residuals: chosen on held-out NBRDF materials (docs/prior.md), where
 /// the prior's fit beat the kd-tree's average except very near samples.
 inline constexpr double kPriorConfidenceReach = 0.1;
 
@@ -52,5 +55,13 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
 /// unbiased variance per band, 0 for one sample) or, when src carries variances and use_variance, the mean of the
 /// samples' own variances (spread_is_noise): the observations of prior.h.
 PriorObservations cell_means(const SampleSource& src, bool use_variance = true);
+/// cell_means of the samples of each part: observations q average the samples s with part[s] == q (samples with a
+/// label of parts or more are left out; part empty: every sample is in part 0). UsageError for parts 0 or a part
+/// list that is neither empty nor one label per sample.
+std::vector<PriorObservations> cell_means(const SampleSource& src, bool use_variance,
+                                          std::span<const std::uint8_t> part, std::size_t parts);
+/// Per sample (angles n x 4, radians) its valid cell's position in valid_cells(), or -1 (a direction below the
+/// horizon or not finite) into out (n values); on all threads.
+void valid_slots(std::span<const double> angles, std::span<std::int32_t> out);
 
 }  // namespace specula::acquire

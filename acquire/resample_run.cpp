@@ -120,6 +120,11 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
                           .prior_in_cap = m.prior_in_cap};
   po.local.k = k.k;
   const StoreSamples src(s, job.samples);
+  std::optional<ReachChoice> reach;
+  if (m.reach_auto) {
+    reach = choose_confidence_reach(src, prior, po, *m.reach_auto);
+    po.confidence_reach = reach->reach;
+  }
   ResampleOutcome out{.grid = empty_grid(info, job)};
   std::vector<float> confidence(brdf::kMerlCells);
   const PriorResampleStats st =
@@ -127,18 +132,23 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(
-      "resample prior={} lambda={} prior_weights={} confidence_reach={} prior_in_cap={} {}", m.prior, m.fit.lambda,
-      prior_weights_name(m.fit.weights), m.confidence_reach, m.prior_in_cap, local_words(po.local, k));
+      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={} {}", m.prior, m.fit.lambda,
+      prior_weights_name(m.fit.weights),
+      reach ? reach_provenance(*reach, *m.reach_auto) : fmt::format("confidence_reach={}", m.confidence_reach),
+      m.prior_in_cap, local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
   out.report["observed_cells"] = st.observed_cells;
   out.report["seconds"] = seconds;
   out.report["fit_seconds"] = st.fit_seconds;
   out.report["prior"] = m.prior;
+  out.report["confidence_reach"] = po.confidence_reach;
+  if (reach) out.report["confidence_reach_auto"] = reach_choice_json(*reach, *m.reach_auto);
   add_k_auto(out.report, k);
-  out.summary =
-      fmt::format("resampled {} samples of {} with prior {} onto all {} valid cells ({} observed) in {:.2f} s",
-                  info.size, job.samples, m.prior, st.filled_cells, st.observed_cells, seconds);
+  out.summary = fmt::format(
+      "resampled {} samples of {} with prior {} onto all {} valid cells ({} observed; kd-tree reach {}{}) in {:.2f} s",
+      info.size, job.samples, m.prior, st.filled_cells, st.observed_cells, po.confidence_reach,
+      reach ? " chosen by holdout" : "", seconds);
   return out;
 }
 

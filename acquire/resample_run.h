@@ -10,6 +10,7 @@
 #include "specula/acquire/bandwidth.h"
 #include "specula/acquire/model_fit.h"
 #include "specula/acquire/prior.h"
+#include "specula/acquire/prior_reach.h"
 #include "specula/acquire/prior_resample.h"
 #include "specula/acquire/resample.h"
 #include "specula/store/store.h"
@@ -23,7 +24,9 @@ struct PlainMethod {};
 struct PriorMethod {
   std::string prior;  ///< STORE.h5:PRIOR
   PriorFitOptions fit;
-  double confidence_reach = kPriorConfidenceReach;
+  double confidence_reach = kPriorConfidenceReach;  ///< the reach without reach_auto
+  /// given (the default): the reach is chosen by holdout (acquire/prior_reach.h); residuals need it empty
+  std::optional<ReachOptions> reach_auto = ReachOptions{};
   bool residuals = false;
   bool prior_in_cap = true;
 };

@@ -34,8 +34,8 @@ struct ResampleCliOptions {
   bool json = false;
   std::string prior;  // STORE.h5:PRIOR
   double lambda = 1e-3;
-  std::optional<double> confidence_reach;  // the library's default for each method when not given
-  std::string model;                       // ggx | beckmann
+  std::optional<std::string> confidence_reach;  // a fraction, or "auto"; the library's default when not given
+  std::string model;                            // ggx | beckmann
   std::size_t lobes = 1;
   std::string fresnel = "schlick";
   std::string shadowing = "smith";
@@ -89,6 +89,20 @@ std::string save_prior_grids(const store::Grid& grid, const store::Grid& conf, c
   return "grid '" + spec->name + "' in " + spec->file.string();
 }
 
+// --confidence-reach as a number (the library checks its range).
+double reach_of(const std::string& text) {
+  std::size_t used = 0;
+  double r = 0;
+  try {
+    r = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size())
+    throw UsageError("--confidence-reach: give a fraction of --max-gap in (0, 1] or 'auto', got '" + text + "'");
+  return r;
+}
+
 // The job the options describe; UsageError naming the flag for what only the command line can get wrong.
 acquire::ResampleJob job_of(const ResampleCliOptions& o) {
   if (!(o.max_gap_deg > 0 && o.max_gap_deg <= 180)) throw UsageError("--max-gap: give degrees in (0, 180]");
@@ -121,14 +135,18 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
                                    .block_bytes = o.prior_block_mb << 20},
                            .residuals = o.prior_residuals,
                            .prior_in_cap = !o.kd_tree_in_cap};
-    m.confidence_reach = o.confidence_reach.value_or(m.confidence_reach);
+    if (o.confidence_reach == "auto" && o.prior_residuals)
+      throw UsageError("--confidence-reach auto: chosen for the blend, not with --prior-residuals");
+    if (o.confidence_reach ? *o.confidence_reach != "auto" : o.prior_residuals) m.reach_auto.reset();
+    if (o.confidence_reach && *o.confidence_reach != "auto") m.confidence_reach = reach_of(*o.confidence_reach);
     job.method = m;
   } else if (!o.model.empty()) {
     acquire::ModelMethod m{.fit = {.kind = {.distribution = acquire::parse_distribution(o.model),
                                             .shadowing = acquire::parse_shadowing(o.shadowing),
                                             .fresnel = acquire::parse_fresnel(o.fresnel)},
                                    .lobes = o.lobes}};
-    m.confidence_reach = o.confidence_reach.value_or(m.confidence_reach);
+    if (o.confidence_reach == "auto") throw UsageError("--confidence-reach auto: only with --prior");
+    if (o.confidence_reach) m.confidence_reach = reach_of(*o.confidence_reach);
     job.method = m;
   }
   acquire::check_options(job.local);
@@ -216,7 +234,8 @@ void setup_resample(CLI::App& app) {
   cmd->add_option(
       "--confidence-reach", o->confidence_reach,
       fmt::format("--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction "
-                  "of --max-gap (default {} with --prior, {} with --model)",
+                  "of --max-gap, or (--prior) auto: chosen by holding out half the samples of a tenth of the observed "
+                  "cells (docs/prior.md). Default auto with --prior ({} with --prior-residuals), {} with --model",
                   acquire::kPriorConfidenceReach, acquire::ModelMethod{}.confidence_reach));
   cmd->add_flag("--prior-residuals", o->prior_residuals,
                 "--prior: add the kd-tree estimate of the residuals against the prior fit (as --model) instead of "

@@ -1,12 +1,14 @@
 // `specula prior build` and `specula resample --prior` from the command line on small analytic materials: the
 // prior is stored with its training list (the captured material left out by --exclude), every valid cell of the
-// result has data, the confidence grid lies beside it, the grid does not depend on --prior-block-mb, and a bad prior
-// name is one line leaving the store alone.
+// result has data, the confidence grid lies beside it, the kd-tree's reach is chosen from the scan unless given, the
+// grid does not depend on --prior-block-mb, and a bad prior name or reach is one line leaving the store alone.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 
 #include "specula/acquire/prior.h"
+#include "specula/acquire/prior_reach.h"
 #include "specula/store/store.h"
 #include "test_support.h"
 
@@ -31,6 +33,12 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "out.h5").string() + ":g' --json");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(test::json_number(r.output, "valid_cells"), double(acquire::valid_cells().size()));
+  // The reach chosen by default: one of the ladder's, reported with the validation's rows.
+  const double reach = test::json_number(r.output, "confidence_reach");
+  const std::vector<double> ladder = acquire::ReachOptions{}.ladder;
+  EXPECT_NE(std::find(ladder.begin(), ladder.end(), reach), ladder.end()) << r.output;
+  EXPECT_EQ(test::json_number(r.output, "reach"), reach) << r.output;
+  EXPECT_GT(test::json_number(r.output, "held_cells"), 0) << r.output;
   // The prior's components read one store chunk at a time instead of all at once: the same grid, bit for bit.
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' --prior-block-mb 1 -o '" +
                   (dir / "out.h5").string() + ":g1'");
@@ -44,6 +52,24 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
     ASSERT_GE(c.brdf[cell], 0.0f) << cell;
     ASSERT_LE(c.brdf[cell], 1.0f) << cell;
   }
+
+  // A reach given is used as it is.
+  r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
+                  ":f' --confidence-reach 0.25 --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(test::json_number(r.output, "confidence_reach"), 0.25);
+  EXPECT_EQ(r.output.find("confidence_reach_auto"), std::string::npos) << r.output;
+  for (const char* bad : {"--confidence-reach 0.1x", "--confidence-reach auto --prior-residuals"}) {
+    r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "out.h5").string() + ":b' " +
+                    bad);
+    EXPECT_NE(r.status, 0) << bad;
+    EXPECT_NE(r.output.find("--confidence-reach"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  }
+  r = run_specula("resample '" + db + "' scan --model ggx -o '" + (dir / "m.spgrid").string() +
+                  "' --confidence-reach auto");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("--confidence-reach auto: only with --prior"), std::string::npos) << r.output;
 
   // Exchange files: the grid and its confidence beside it, and no temporary left.
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "x.spgrid").string() + "'");

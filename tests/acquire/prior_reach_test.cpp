@@ -1,0 +1,190 @@
+// The kd-tree's reach in the prior's blend chosen by holdout (acquire/prior_reach.h): a material the prior cannot
+// represent, sampled densely without noise, gets a large reach (the kd-tree is right); a material of the prior's
+// family under heavy noise gets a small one (the fit is right); and the validation errors equal a brute-force
+// recomputation from the held-out cells, a separately built fit and kd-tree estimate, on any thread count.
+#include "specula/acquire/prior_reach.h"
+
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <random>
+
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/brdf_models.h"
+
+using namespace specula;
+
+namespace {
+
+const WavelengthGrid kBands = WavelengthGrid::range(400, 700, 75);  // 5 bands keep the grids small
+
+brdf::Ward ward(double red, double blue, double rho_s, double alpha) {
+  Eigen::VectorXd rd(5), rs = Eigen::VectorXd::Constant(5, rho_s), a = Eigen::VectorXd::Constant(5, alpha);
+  for (int i = 0; i < 5; ++i) rd[i] = blue + (red - blue) * i / 4.0;
+  return brdf::Ward(kBands, rd, rs, a);
+}
+
+const double kFamily[][4] = {
+    {0.6, 0.1, 0.05, 0.05}, {0.2, 0.5, 0.1, 0.1}, {0.4, 0.4, 0.02, 0.2}, {0.1, 0.1, 0.2, 0.07}, {0.7, 0.3, 0.08, 0.15}};
+
+// A prior of five Ward materials, built once for the file.
+const acquire::BrdfPrior& family_prior() {
+  static const acquire::BrdfPrior p = [] {
+    std::vector<std::string> names;
+    for (std::size_t i = 0; i < std::size(kFamily); ++i) names.push_back("m" + std::to_string(i));
+    return acquire::build_prior(std::size(kFamily),
+                                [](std::size_t i) {
+                                  store::Grid g;
+                                  g.wavelengths = kBands;
+                                  g.brdf.resize(kBands.size() * brdf::kMerlCells);
+                                  brdf::evaluate_grid(ward(kFamily[i][0], kFamily[i][1], kFamily[i][2], kFamily[i][3]),
+                                                      g.brdf);
+                                  return g;
+                                },
+                                names, {.channels = 3});
+  }();
+  return p;
+}
+
+// n samples of m with both directions within 40 degrees of the normal, each value times (1 + noise N(0, 1)) clamped
+// at 0 and times ripple(theta_i, theta_o).
+struct Scan {
+  std::vector<double> angles;
+  std::vector<float> values;
+};
+Scan scan_of(const brdf::SpectralModel& m, std::size_t n, double noise, double ripple, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::normal_distribution<double> z(0, 1);
+  Scan s;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double ti = std::acos(1 - u(rng) * (1 - std::cos(0.7))), to = std::acos(1 - u(rng) * (1 - std::cos(0.7)));
+    s.angles.insert(s.angles.end(), {ti, 0.0, to, (2 * u(rng) - 1) * std::numbers::pi});
+  }
+  s.values.resize(n * 5);
+  brdf::evaluate_at(m, s.angles, s.values);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double f = 1 + ripple * std::sin(12 * s.angles[4 * i]) * std::cos(9 * s.angles[4 * i + 2]);
+    for (std::size_t k = 0; k < 5; ++k)
+      s.values[i * 5 + k] = float(std::max(0.0, s.values[i * 5 + k] * f * (1 + noise * z(rng))));
+  }
+  return s;
+}
+
+}  // namespace
+
+TEST(PriorReach, ALargeReachWhereThePriorCannotFollowTheMaterialAndTheSamplesAreClean) {
+  // A ripple no Ward of the family has: the fit smooths it, the kd-tree estimate of dense clean samples follows it.
+  const Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 120000, 0.0, 0.6, 1);
+  const acquire::MemorySamples src(s.angles, s.values, 5);
+  const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), {}, {});
+  EXPECT_GE(c.reach, 0.3);
+  EXPECT_LT(c.rows.back().error, 0.5 * c.rows.front().error) << "the kd-tree clearly better than the prior alone";
+}
+
+TEST(PriorReach, ASmallReachWhereThePriorHoldsTheMaterialAndTheSamplesAreNoisy) {
+  // A training material under 30 % noise, a kd-tree of 4 neighbours: the fit over all cells averages the noise away.
+  const Scan s = scan_of(ward(kFamily[2][0], kFamily[2][1], kFamily[2][2], kFamily[2][3]), 120000, 0.3, 0.0, 2);
+  const acquire::MemorySamples src(s.angles, s.values, 5);
+  acquire::PriorResampleOptions o;
+  o.local.k = 4;
+  const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), o, {});
+  EXPECT_LE(c.reach, 0.03);
+  // The held-out means of a sample or two carry the noise too (the same error under every reach).
+  EXPECT_GT(c.rows.back().error, 1.15 * c.rows.front().error) << "the prior alone better than the kd-tree";
+}
+
+TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
+  const Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 60000, 0.05, 0.3, 3);
+  const acquire::MemorySamples src(s.angles, s.values, 5);
+  acquire::PriorResampleOptions o;
+  o.local.k = 8;
+  o.fit.weights = acquire::PriorWeights::count;
+  const acquire::ReachOptions r;
+  const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), o, r);
+  const acquire::ReachHoldout h = acquire::reach_holdout(src, r);
+  const std::size_t n = s.angles.size() / 4;
+  ASSERT_EQ(h.held.size(), n);
+
+  // Each sample's MERL cell, by the test's own lookup; per cell the kept and held-out samples' sums.
+  struct Cell {
+    std::size_t kept = 0, held = 0;
+    std::vector<double> kept_sum = std::vector<double>(5, 0.0), held_sum = std::vector<double>(5, 0.0);
+  };
+  std::map<std::size_t, Cell> cells;
+  std::vector<double> kept_angles;
+  std::vector<float> kept_values;
+  for (std::size_t i = 0; i < n; ++i) {
+    const brdf::StdAngles a{s.angles[4 * i], s.angles[4 * i + 1], s.angles[4 * i + 2], s.angles[4 * i + 3]};
+    Cell& cell = cells[brdf::merl_index(brdf::merl_cell(a))];
+    const bool kept = !h.held[i];
+    ++(kept ? cell.kept : cell.held);
+    for (std::size_t k = 0; k < 5; ++k) (kept ? cell.kept_sum : cell.held_sum)[k] += s.values[i * 5 + k];
+    if (kept) {
+      kept_angles.insert(kept_angles.end(), &s.angles[4 * i], &s.angles[4 * i + 4]);
+      kept_values.insert(kept_values.end(), &s.values[i * 5], &s.values[i * 5 + 5]);
+    }
+  }
+  std::size_t splittable = 0, held_cells = 0;
+  const auto& valid = acquire::valid_cells();
+  acquire::PriorObservations kept_obs;
+  for (const auto& [index, cell] : cells) {
+    splittable += cell.kept + cell.held >= 2;
+    held_cells += cell.held > 0;
+    if (cell.held) ASSERT_EQ(cell.held, (cell.kept + cell.held) / 2) << "every other sample of " << index;
+    kept_obs.cell.push_back(std::uint32_t(std::lower_bound(valid.begin(), valid.end(), index) - valid.begin()));
+    for (std::size_t k = 0; k < 5; ++k) kept_obs.values.push_back(float(cell.kept_sum[k] / double(cell.kept)));
+    kept_obs.weight.push_back(float(cell.kept));
+  }
+  EXPECT_EQ(h.observed_cells, cells.size());
+  EXPECT_EQ(h.held_cells, held_cells);
+  EXPECT_EQ(held_cells, std::size_t(std::llround(0.1 * double(splittable))));
+  EXPECT_GT(held_cells, 100u);
+  std::vector<float> fitted(5 * brdf::kMerlCells, -1.0f);
+  acquire::fit_prior(family_prior(), kept_obs, o.fit, fitted);
+  const acquire::Resampler kd(kept_angles, kept_values, 5, o.local);
+
+  // At each held-out cell, for every reach, the log-domain error of the blend against the held-out samples' mean.
+  const std::size_t m = r.ladder.size();
+  std::vector<double> error(m, 0.0);
+  const double eps = family_prior().epsilon;
+  for (const auto& [index, cell] : cells) {
+    if (!cell.held) continue;
+    const brdf::StdAngles centre = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(index)));
+    Eigen::Vector3d wi, wo;
+    brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(index)), wi, wo);
+    const double cc = wi.z() * wo.z();
+    std::vector<float> local(5);
+    const bool supported = kd.predict(centre, local);
+    acquire::Neighbours nb;
+    kd.neighbours(centre, nb);
+    for (std::size_t l = 0; l < m; ++l) {
+      const double g = nb.gap / (r.ladder[l] * o.local.max_gap);
+      const double conf = supported ? std::max(0.0, 1 - g * g) : 0.0;
+      for (std::size_t k = 0; k < 5; ++k) {
+        const double blend = conf * local[k] + (1 - conf) * fitted[k * brdf::kMerlCells + index];
+        const double target = cell.held_sum[k] / double(cell.held);
+        const double d = std::log((blend * cc + eps) / (target * cc + eps));
+        error[l] += d * d / 5 / double(held_cells);
+      }
+    }
+  }
+  ASSERT_EQ(c.rows.size(), m);
+  std::size_t best = 0;
+  for (std::size_t l = 0; l < m; ++l) {
+    EXPECT_NEAR(c.rows[l].error, error[l], 1e-4 * error[l]) << r.ladder[l];
+    if (c.rows[l].error < c.rows[best].error) best = l;
+  }
+  EXPECT_EQ(c.reach, r.ladder[best]);
+  EXPECT_GT(c.rows.front().error, 0.0);
+
+  // The same rows, bit for bit, on one thread.
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const acquire::ReachChoice one = acquire::choose_confidence_reach(src, family_prior(), o, r);
+  omp_set_num_threads(saved);
+  for (std::size_t l = 0; l < m; ++l) EXPECT_EQ(one.rows[l].error, c.rows[l].error) << r.ladder[l];
+}
