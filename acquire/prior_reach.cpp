@@ -154,6 +154,11 @@ ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o) {
 
 ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
                                     const ReachOptions& r) {
+  return choose_confidence_reach(src, prior, memory_components(prior), o, r);
+}
+
+ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& prior, const ComponentSource& components,
+                                    const PriorResampleOptions& o, const ReachOptions& r) {
   check_reach_options(r);
   check_options(o.local);
   if (o.residuals) throw UsageError("confidence reach: chosen for the blend only, not the residuals form");
@@ -167,7 +172,7 @@ ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& pr
       cell_means(src, o.fit.weights != PriorWeights::scatter, out.holdout.held, 2);
   const std::size_t b = src.bands();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
-  fit_prior(prior, parts[0], o.fit, fitted);
+  fit_prior(prior, components, parts[0], o.fit, fitted);
   const KeptSamples kept(src, out.holdout.held);
   std::vector<float> kd(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
   resample_grid(SampleTree(kept, o.local.mapping), kept, o.local, kd, gaps);

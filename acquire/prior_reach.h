@@ -55,6 +55,9 @@ struct ReachChoice {
 /// bad options or o.residuals (the residuals form is not a blend); errors of reach_holdout and fit_prior.
 ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
                                     const ReachOptions& r);
+/// choose_confidence_reach with the prior's components from `components` block by block (fit_prior).
+ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& prior, const ComponentSource& components,
+                                    const PriorResampleOptions& o, const ReachOptions& r);
 
 /// The choice and every row, as `resample --json` reports it under "confidence_reach_auto".
 nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOptions& r);

@@ -120,15 +120,15 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
                           .prior_in_cap = m.prior_in_cap};
   po.local.k = k.k;
   const StoreSamples src(s, job.samples);
+  const ComponentSource components = store_components(prior_store, spec->name);
   std::optional<ReachChoice> reach;
   if (m.reach_auto) {
-    reach = choose_confidence_reach(src, prior, po, *m.reach_auto);
+    reach = choose_confidence_reach(src, prior, components, po, *m.reach_auto);
     po.confidence_reach = reach->reach;
   }
   ResampleOutcome out{.grid = empty_grid(info, job)};
   std::vector<float> confidence(brdf::kMerlCells);
-  const PriorResampleStats st =
-      resample_with_prior(src, prior, store_components(prior_store, spec->name), po, out.grid.brdf, confidence);
+  const PriorResampleStats st = resample_with_prior(src, prior, components, po, out.grid.brdf, confidence);
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(
