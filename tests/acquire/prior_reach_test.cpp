@@ -14,18 +14,14 @@
 
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_models.h"
+#include "ward_family.h"
 
 using namespace specula;
 
 namespace {
 
-const WavelengthGrid kBands = WavelengthGrid::range(400, 700, 75);  // 5 bands keep the grids small
-
-brdf::Ward ward(double red, double blue, double rho_s, double alpha) {
-  Eigen::VectorXd rd(5), rs = Eigen::VectorXd::Constant(5, rho_s), a = Eigen::VectorXd::Constant(5, alpha);
-  for (int i = 0; i < 5; ++i) rd[i] = blue + (red - blue) * i / 4.0;
-  return brdf::Ward(kBands, rd, rs, a);
-}
+const WavelengthGrid& kBands = test::kWardBands;
+using test::ward;
 
 const double kFamily[][4] = {
     {0.6, 0.1, 0.05, 0.05}, {0.2, 0.5, 0.1, 0.1}, {0.4, 0.4, 0.02, 0.2}, {0.1, 0.1, 0.2, 0.07}, {0.7, 0.3, 0.08, 0.15}};

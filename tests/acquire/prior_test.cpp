@@ -15,19 +15,14 @@
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_models.h"
 #include "test_support.h"
+#include "ward_family.h"
 
 using namespace specula;
 
 namespace {
 
-const WavelengthGrid kBands = WavelengthGrid::range(400, 700, 75);  // 5 bands keep the grids small
-
-// A Ward material with a diffuse colour ramp, a neutral specular lobe and roughness alpha.
-brdf::Ward ward(double red, double blue, double rho_s, double alpha) {
-  Eigen::VectorXd rd(5), rs = Eigen::VectorXd::Constant(5, rho_s), a = Eigen::VectorXd::Constant(5, alpha);
-  for (int i = 0; i < 5; ++i) rd[i] = blue + (red - blue) * i / 4.0;
-  return brdf::Ward(kBands, rd, rs, a);
-}
+const WavelengthGrid& kBands = test::kWardBands;
+using test::ward;
 
 store::Grid grid_of(const brdf::SpectralModel& m) {
   store::Grid g;
