@@ -130,7 +130,9 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
   for (const auto& [index, cell] : cells) {
     splittable += cell.kept + cell.held >= 2;
     held_cells += cell.held > 0;
-    if (cell.held) ASSERT_EQ(cell.held, (cell.kept + cell.held) / 2) << "every other sample of " << index;
+    if (cell.held) {
+      ASSERT_EQ(cell.held, (cell.kept + cell.held) / 2) << "every other sample of " << index;
+    }
     kept_obs.cell.push_back(std::uint32_t(std::lower_bound(valid.begin(), valid.end(), index) - valid.begin()));
     for (std::size_t k = 0; k < 5; ++k) kept_obs.values.push_back(float(cell.kept_sum[k] / double(cell.kept)));
     kept_obs.weight.push_back(float(cell.kept));
