@@ -24,6 +24,9 @@ void check_reach_options(const ReachOptions& o) {
     if (!(o.ladder[l] > 0 && o.ladder[l] <= 1) || (l > 0 && o.ladder[l] <= o.ladder[l - 1]))
       throw UsageError("confidence reach: the ladder must ascend strictly within (0, 1]");
   if (!(o.held_out > 0 && o.held_out < 1)) throw UsageError("confidence reach: held_out must be in (0, 1)");
+  for (std::size_t l = 0; l < o.retro_ladder.size(); ++l)
+    if (!(o.retro_ladder[l] >= 0 && o.retro_ladder[l] <= 1) || (l > 0 && o.retro_ladder[l] <= o.retro_ladder[l - 1]))
+      throw UsageError("confidence reach: the retro band's ladder of weights must ascend strictly within [0, 1]");
 }
 
 // The samples of a source whose role is kept, in their order (the source outlives it).
@@ -114,6 +117,54 @@ std::vector<double> held_out_errors(const PriorObservations& obs, std::span<cons
   return err;
 }
 
+// The judge's eps: the prior's, scaled down by how much darker the kept observations are than the prior's reference
+// (the ratio of their medians over the observed cells, at most 1), so that a dark material's body, all below the
+// prior's eps, still weighs in the choice as a renderer's exposure would show it.
+double judge_epsilon(const PriorObservations& obs, const BrdfPrior& prior, std::size_t b) {
+  const auto& cosines = valid_cell_cosines();
+  std::vector<double> value(obs.cell.size()), reference(obs.cell.size());
+  for (std::size_t o = 0; o < obs.cell.size(); ++o) {
+    double sum = 0;
+    for (std::size_t k = 0; k < b; ++k) sum += obs.values[o * b + k];
+    value[o] = sum / double(b) * cosines[obs.cell[o]];
+    reference[o] = prior.reference[obs.cell[o]];
+  }
+  const auto median = [](std::vector<double>& v) {
+    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  if (value.empty()) return prior.epsilon;
+  const double ref = median(reference);
+  return ref > 0 ? prior.epsilon * std::clamp(median(value) / ref, 1e-6, 1.0) : prior.epsilon;
+}
+
+// Per weight w of the retro ladder, the mean over the band's held cells (obs) of the error of w kd + (1 - w) fit
+// (the fit alone where the kd-tree has no support), summed in cell order.
+std::vector<double> band_errors(const PriorObservations& obs, std::span<const float> fitted, std::span<const float> kd,
+                                std::size_t b, std::span<const double> ladder, double eps) {
+  const auto& cells = valid_cells();
+  const auto& cosines = valid_cell_cosines();
+  std::vector<double> mean(ladder.size(), 0.0);
+  for (std::size_t o = 0; o < obs.cell.size(); ++o) {
+    const std::size_t cell = cells[obs.cell[o]];
+    const double cc = cosines[obs.cell[o]];
+    const bool local = kd[cell] >= 0;
+    for (std::size_t l = 0; l < ladder.size(); ++l) {
+      const double w = local ? ladder[l] : 0.0;
+      double sum = 0;
+      for (std::size_t k = 0; k < b; ++k) {
+        const std::size_t at = k * brdf::kMerlCells + cell;
+        const double blend = w * (local ? kd[at] : 0.0f) + (1 - w) * fitted[at];
+        const double d = std::log((blend * cc + eps) / (double(obs.values[o * b + k]) * cc + eps));
+        sum += d * d;
+      }
+      mean[l] += sum / double(b);
+    }
+  }
+  for (double& x : mean) x = obs.cell.empty() ? 0.0 : x / double(obs.cell.size());
+  return mean;
+}
+
 // Per ladder entry the mean of err (cells x ladder) over the cells, summed in cell order.
 std::vector<double> mean_errors(const std::vector<double>& err, std::size_t m) {
   std::vector<double> mean(m, 0.0);
@@ -129,14 +180,29 @@ std::vector<double> mean_errors(const std::vector<double>& err, std::size_t m) {
 ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o) {
   check_reach_options(o);
   const std::vector<std::int32_t> slots = sample_slots(src);
-  std::vector<std::uint32_t> count(valid_cells().size(), 0);
+  const auto& cells = valid_cells();
+  std::vector<std::uint32_t> count(cells.size(), 0);
   for (const std::int32_t v : slots)
     if (v >= 0) ++count[std::size_t(v)];
+  const auto row_of = [&](std::size_t v) { return brdf::merl_cell(std::size_t(cells[v])).theta_d; };
   ReachHoldout h;
+  h.retro_rows = brdf::kMerlThetaD;
+  int highest = -1;
+  for (std::size_t i = 0; i < count.size(); ++i)
+    if (count[i] > 0) {
+      h.retro_rows = std::min(h.retro_rows, row_of(i));
+      highest = std::max(highest, row_of(i));
+    }
+  if (!o.retro_ladder.empty() && h.retro_rows > 0 && h.retro_rows < brdf::kMerlThetaD &&
+      highest >= std::min(2 * h.retro_rows, brdf::kMerlThetaD)) {  // some rows must stay to extrapolate from
+    h.band_first = h.retro_rows;
+    h.band_end = std::min(2 * h.retro_rows, brdf::kMerlThetaD);
+  }
+  const auto in_band = [&](std::size_t v) { return row_of(v) >= h.band_first && row_of(v) < h.band_end; };
   std::vector<std::uint32_t> splittable;
   for (std::size_t i = 0; i < count.size(); ++i) {
     h.observed_cells += count[i] > 0;
-    if (count[i] >= 2) splittable.push_back(std::uint32_t(i));
+    if (count[i] >= 2 && !in_band(i)) splittable.push_back(std::uint32_t(i));
   }
   if (splittable.empty())
     throw InputError("confidence reach: no valid cell holds two samples, so none can lose half of them to validate on");
@@ -147,8 +213,14 @@ ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o) {
   h.held_cells = want;
   h.held.assign(slots.size(), 0);
   std::vector<std::uint32_t> seen(count.size(), 0);
-  for (std::size_t s = 0; s < slots.size(); ++s)
-    if (slots[s] >= 0 && chosen[std::size_t(slots[s])] && seen[std::size_t(slots[s])]++ % 2 == 1) h.held[s] = 1;
+  for (std::size_t s = 0; s < slots.size(); ++s) {
+    if (slots[s] < 0) continue;
+    const std::size_t v = std::size_t(slots[s]);
+    if (in_band(v))
+      h.held[s] = 2;
+    else if (chosen[v] && seen[v]++ % 2 == 1)
+      h.held[s] = 1;
+  }
   return h;
 }
 
@@ -169,41 +241,62 @@ ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& pr
   ReachChoice out;
   out.holdout = reach_holdout(src, r);
   const std::vector<PriorObservations> parts =
-      cell_means(src, o.fit.weights != PriorWeights::scatter, out.holdout.held, 2);
+      cell_means(src, o.fit.weights != PriorWeights::scatter, out.holdout.held, 3);
   const std::size_t b = src.bands();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
   fit_prior(prior, components, parts[0], o.fit, fitted);
+  out.epsilon = judge_epsilon(parts[0], prior, b);
   const KeptSamples kept(src, out.holdout.held);
   std::vector<float> kd(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
   resample_grid(SampleTree(kept, o.local.mapping), kept, o.local, kd, gaps);
   out.holdout.held = {};
   const std::size_t m = r.ladder.size();
   const std::vector<double> mean =
-      mean_errors(held_out_errors(parts[1], fitted, kd, gaps, b, r, o.local.max_gap, prior.epsilon), m);
+      mean_errors(held_out_errors(parts[1], fitted, kd, gaps, b, r, o.local.max_gap, out.epsilon), m);
   std::size_t best = 0;
   for (std::size_t l = 0; l < m; ++l) {
     out.rows.push_back({.reach = r.ladder[l], .error = mean[l]});
     if (mean[l] < mean[best]) best = l;
   }
   out.reach = r.ladder[best];
+  if (!parts[2].cell.empty()) {
+    const std::vector<double> band = band_errors(parts[2], fitted, kd, b, r.retro_ladder, out.epsilon);
+    std::size_t w = 0;
+    for (std::size_t l = 0; l < band.size(); ++l) {
+      out.retro_rows.push_back({.reach = r.retro_ladder[l], .error = band[l]});
+      if (band[l] < band[w]) w = l;
+    }
+    out.retro_weight = r.retro_ladder[w];
+  }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
 
 nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOptions& r) {
-  nlohmann::ordered_json rows = nlohmann::ordered_json::array();
-  for (const ReachRow& row : c.rows) rows.push_back({{"reach", row.reach}, {"error", row.error}});
-  return {{"reach", c.reach},
-          {"held_out", r.held_out},
-          {"seed", r.seed},
-          {"observed_cells", c.holdout.observed_cells},
-          {"held_cells", c.holdout.held_cells},
-          {"seconds", c.seconds},
-          {"rows", rows}};
+  const auto rows_json = [](const std::vector<ReachRow>& rows, const char* key) {
+    nlohmann::ordered_json out = nlohmann::ordered_json::array();
+    for (const ReachRow& row : rows) out.push_back({{key, row.reach}, {"error", row.error}});
+    return out;
+  };
+  nlohmann::ordered_json j = {{"reach", c.reach},
+                              {"held_out", r.held_out},
+                              {"seed", r.seed},
+                              {"epsilon", c.epsilon},
+                              {"observed_cells", c.holdout.observed_cells},
+                              {"held_cells", c.holdout.held_cells},
+                              {"seconds", c.seconds},
+                              {"rows", rows_json(c.rows, "reach")}};
+  j["retro_band"] = {{"unseen_rows", c.holdout.retro_rows},
+                     {"held_rows", {c.holdout.band_first, c.holdout.band_end}},
+                     {"weight", c.retro_weight ? nlohmann::ordered_json(*c.retro_weight) : nlohmann::ordered_json()},
+                     {"rows", rows_json(c.retro_rows, "weight")}};
+  return j;
 }
 
 std::string reach_provenance(const ReachChoice& c, const ReachOptions& r) {
-  return fmt::format("confidence_reach={} reach_auto=holdout held_out={} seed={}", c.reach, r.held_out, r.seed);
+  return fmt::format("confidence_reach={} reach_auto=holdout held_out={} seed={}{}", c.reach, r.held_out, r.seed,
+                     c.retro_weight ? fmt::format(" retro_weight={} retro_rows={}", *c.retro_weight, c.holdout.retro_rows)
+                                    : std::string());
 }
 
 }  // namespace specula::acquire

@@ -3,8 +3,10 @@
 // auto`, docs/prior.md): in a fixed-seed share of the observed cells of two or more samples every other sample is held
 // out, the prior fitted and the kd-tree built without them, and at each such cell the blend c(g, r) kd + (1 - c) prior
 // of every candidate r (g from the cell centre to the nearest kept sample) is compared with the mean of the cell's
-// held-out samples in the log domain of the fit; the r of least mean error is kept.
+// held-out samples in the log domain of the fit, its eps scaled down to a material darker than the prior's reference;
+// the r of least mean error is kept.
 #include <cstdint>
+#include <optional>
 #include <nlohmann/json_fwd.hpp>
 #include <span>
 #include <string>
@@ -20,18 +22,26 @@ struct ReachOptions {
   std::vector<double> ladder = {0.001, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3, 0.5, 1};  ///< ascending, in (0, 1]
   double held_out = 0.1;   ///< share of the observed cells of two or more samples held out, in (0, 1)
   std::uint64_t seed = 0;  ///< seed of the choice of held-out cells
+  /// the kd-tree's weights tried in the unseen retro-reflection band (acquire/retro_band.h), ascending in [0, 1];
+  /// empty: the band is not chosen for (and not held out)
+  std::vector<double> retro_ladder = {0, 0.25, 0.5, 0.75, 1};
 };
 
 /// Which samples the validation holds out.
 struct ReachHoldout {
-  std::vector<std::uint8_t> held;  ///< per sample: 1 held out, 0 kept (fitted and in the kd-tree)
+  /// per sample: 0 kept (fitted and in the kd-tree), 1 held out of a split cell, 2 held out with its theta_d row
+  std::vector<std::uint8_t> held;
   std::size_t observed_cells = 0;  ///< valid cells holding a sample
-  std::size_t held_cells = 0;      ///< cells that lose samples
+  std::size_t held_cells = 0;      ///< cells that lose samples (split)
+  int retro_rows = 0;              ///< theta_d rows below the lowest observed one (the unseen band)
+  int band_first = 0, band_end = 0;  ///< theta_d rows [first, end) held out whole: the band one band higher
 };
 
-/// The held-out cells: round(held_out x the observed valid cells of two or more samples) of those (at least one), by
-/// selection sampling seeded by o.seed over them in cell order; each loses its 2nd, 4th, ... sample in sample order.
-/// UsageError for bad options, InputError when no valid cell holds two samples.
+/// The held-out cells: round(held_out x the observed valid cells of two or more samples outside the held band) of
+/// those (at least one), by selection sampling seeded by o.seed over them in cell order; each loses its 2nd, 4th, ...
+/// sample in sample order. With a retro ladder and an unseen band of R > 0 theta_d rows, every sample of the rows
+/// [R, min(2R, 90)) is held out too (label 2): the band's extrapolation rehearsed one band higher. UsageError for bad
+/// options, InputError when no valid cell holds two samples.
 ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o);
 
 /// One candidate reach and its mean log-domain error over the held-out cells.
@@ -43,15 +53,20 @@ struct ReachRow {
 /// What the choice found.
 struct ReachChoice {
   double reach = 0;            ///< the ladder's r of least error (the smaller on a tie)
+  /// the retro ladder's weight of least error at the held band's cells (the smaller on a tie); empty without a band
+  std::optional<double> retro_weight;
+  std::vector<ReachRow> retro_rows;  ///< one per retro ladder entry: its weight (as reach) and error
   ReachHoldout holdout;        ///< without its per-sample flags
   std::vector<ReachRow> rows;  ///< one per ladder entry
+  double epsilon = 0;          ///< eps of the error: the prior's times min(1, kept cell means' median / reference's)
   double seconds = 0;
 };
 
 /// Chooses o.confidence_reach for resample_with_prior(src, prior, o) on the holdout of reach_holdout: the prior fitted
 /// (o.fit) to the kept samples' cell means, the kd-tree (o.local) built over the kept samples, and at every held-out
 /// cell, for every ladder r, the mean over bands of (ln((blend cos_i cos_o + eps) / (target cos_i cos_o + eps)))^2,
-/// eps the prior's, target the held-out samples' mean; on all threads, the same for any thread count. UsageError for
+/// eps the prior's times min(1, the kept cell means' median cos-weighted band mean / the prior's median reference at
+/// the same cells), target the held-out samples' mean; on all threads, the same for any thread count. UsageError for
 /// bad options or o.residuals (the residuals form is not a blend); errors of reach_holdout and fit_prior.
 ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
                                     const ReachOptions& r);
@@ -62,7 +77,8 @@ ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& pr
 /// The choice and every row, as `resample --json` reports it under "confidence_reach_auto".
 nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOptions& r);
 
-/// "confidence_reach=R reach_auto=holdout held_out=S seed=N": how the grid's provenance names a chosen reach.
+/// "confidence_reach=R reach_auto=holdout held_out=S seed=N[ retro_weight=W retro_rows=B]": how the grid's
+/// provenance names a chosen reach (and band weight).
 std::string reach_provenance(const ReachChoice& c, const ReachOptions& r);
 
 }  // namespace specula::acquire

@@ -7,6 +7,7 @@
 
 #include "specula/acquire/base_resample.h"
 #include "specula/acquire/peak_cap.h"
+#include "specula/acquire/retro_band.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/parallel.h"
@@ -140,16 +141,20 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
     throw UsageError("prior: grid or confidence of the wrong size");
   if (!(o.confidence_reach > 0 && o.confidence_reach <= 1))
     throw UsageError("prior: confidence_reach (the reach of the confidence, a fraction of max_gap) must be in (0, 1]");
+  if (o.retro_weight && !(*o.retro_weight >= 0 && *o.retro_weight <= 1))
+    throw UsageError("prior: retro_weight (the kd-tree's weight in the unseen retro-reflection band) must be in [0, 1]");
   PriorResampleStats st;
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
   UnseenCap cap{};
+  int retro_rows = 0;
   {  // the observations are freed before the kd-tree pass
     const PriorObservations obs = cell_means(src, o.fit.weights != PriorWeights::scatter);
     if (obs.cell.empty()) throw InputError("prior: no sample falls in a cell above the horizon");
     st.observed_cells = obs.cell.size();
     fit_prior(prior, components, obs, o.fit, fitted);
     cap = unseen_cap(obs);
+    retro_rows = o.retro_weight ? unseen_retro_rows(obs) : 0;
   }
   st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto& cells = valid_cells();
@@ -167,7 +172,10 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
       [&](std::size_t i) {
         const std::size_t cell = cells[i];
         const bool local = grid[cell] >= 0 && !(o.prior_in_cap && in_unseen_cap(cap, cell));
-        const double c = local ? support_confidence(gaps[cell], o.local.max_gap, o.confidence_reach) : 0.0;
+        const double c = !local                              ? 0.0
+                         : in_unseen_retro(retro_rows, cell) ? *o.retro_weight
+                                                             : support_confidence(gaps[cell], o.local.max_gap,
+                                                                                  o.confidence_reach);
         confidence[cell] = float(c);
         for (std::size_t k = 0; k < b; ++k) {
           const std::size_t at = k * brdf::kMerlCells + cell;

@@ -6,6 +6,7 @@
 // (config_distance, as the kd-tree's support test); every valid cell gets data. Or (residuals) the kd-tree
 // estimate of the samples' residuals against the fit is added to it, scaled by c (acquire/base_resample.h).
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -30,6 +31,10 @@ struct PriorResampleOptions {
   /// true: cells of the unseen cap round the specular peak (acquire/peak_cap.h) take the prior alone (confidence 0)
   /// in the blend; false: the kd-tree estimate as elsewhere. The residuals form ignores it.
   bool prior_in_cap = true;
+  /// given: cells of the unseen retro-reflection band (acquire/retro_band.h) take w kd + (1 - w) prior where the
+  /// kd-tree has support (confidence w), the prior where not (chosen by prior_reach.h); empty: the blend as
+  /// elsewhere. The cap wins where both hold. The residuals form ignores it.
+  std::optional<double> retro_weight;
 };
 
 /// What one reconstruction with a prior did.

@@ -41,6 +41,7 @@ struct ResampleCliOptions {
   std::string shadowing = "smith";
   bool prior_residuals = false;
   bool kd_tree_in_cap = false;
+  bool blend_in_retro = false;
   std::string prior_weights = "noise";
   std::size_t prior_block_mb = 256;
 };
@@ -139,6 +140,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
       throw UsageError("--confidence-reach auto: chosen for the blend, not with --prior-residuals");
     if (o.confidence_reach ? *o.confidence_reach != "auto" : o.prior_residuals) m.reach_auto.reset();
     if (o.confidence_reach && *o.confidence_reach != "auto") m.confidence_reach = reach_of(*o.confidence_reach);
+    if (o.blend_in_retro && m.reach_auto) m.reach_auto->retro_ladder.clear();
     job.method = m;
   } else if (!o.model.empty()) {
     acquire::ModelMethod m{.fit = {.kind = {.distribution = acquire::parse_distribution(o.model),
@@ -243,6 +245,10 @@ void setup_resample(CLI::App& app) {
   cmd->add_flag("--kd-tree-in-cap", o->kd_tree_in_cap,
                 "--prior: keep the kd-tree estimate in the theta_h rows below the lowest sampled one (the unseen cap "
                 "round the specular peak) instead of the prior alone there (docs/prior.md)");
+  cmd->add_flag("--blend-in-retro", o->blend_in_retro,
+                "--prior: blend the prior and the kd-tree estimate by confidence in the theta_d rows below the lowest "
+                "sampled one (the unseen band round retro-reflection) as elsewhere, instead of the kd-tree weight "
+                "chosen there with --confidence-reach auto (docs/prior.md)");
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
   cmd->callback([o, power, k_criterion, k_held_out] {

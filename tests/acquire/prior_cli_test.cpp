@@ -71,6 +71,20 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.output.find("--confidence-reach auto: only with --prior"), std::string::npos) << r.output;
 
+  // A rig's scan leaves theta_d below its first light's half angle unseen: auto reports the band it chose a weight
+  // for; --blend-in-retro holds no band out and chooses none.
+  r = run_specula("synth-samples cyan-gloss --sphere-px 60 --lights 30 --light-step 5" + wl + " -o '" + db + ":rig'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() + ":r' --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(test::json_number(r.output, "unseen_rows"), 5) << r.output;
+  const double w = test::json_number(r.output, "weight");
+  EXPECT_TRUE(w == 0 || w == 0.25 || w == 0.5 || w == 0.75 || w == 1) << r.output;
+  r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
+                  ":rb' --blend-in-retro --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("\"weight\":null"), std::string::npos) << r.output;
+
   // Exchange files: the grid and its confidence beside it, and no temporary left.
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "x.spgrid").string() + "'");
   ASSERT_EQ(r.status, 0) << r.output;

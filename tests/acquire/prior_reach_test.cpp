@@ -70,6 +70,24 @@ Scan scan_of(const brdf::SpectralModel& m, std::size_t n, double noise, double r
   return s;
 }
 
+// The judge's eps written out: the prior's times min(1, the upper median over the observed cells of the band-mean
+// cos-weighted cell mean over the upper median of the prior's reference at the same cells).
+double judge_eps(const acquire::PriorObservations& obs, const acquire::BrdfPrior& prior) {
+  std::vector<double> v, ref;
+  for (std::size_t o = 0; o < obs.cell.size(); ++o) {
+    Eigen::Vector3d wi, wo;
+    brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(std::size_t(acquire::valid_cells()[obs.cell[o]]))), wi,
+                     wo);
+    double mean = 0;
+    for (std::size_t k = 0; k < 5; ++k) mean += obs.values[o * 5 + k] / 5.0;
+    v.push_back(mean * wi.z() * wo.z());
+    ref.push_back(prior.reference[obs.cell[o]]);
+  }
+  std::sort(v.begin(), v.end());
+  std::sort(ref.begin(), ref.end());
+  return prior.epsilon * std::min(1.0, v[v.size() / 2] / ref[ref.size() / 2]);
+}
+
 }  // namespace
 
 TEST(PriorReach, ALargeReachWhereThePriorCannotFollowTheMaterialAndTheSamplesAreClean) {
@@ -79,6 +97,94 @@ TEST(PriorReach, ALargeReachWhereThePriorCannotFollowTheMaterialAndTheSamplesAre
   const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), {}, {});
   EXPECT_GE(c.reach, 0.3);
   EXPECT_LT(c.rows.back().error, 0.5 * c.rows.front().error) << "the kd-tree clearly better than the prior alone";
+}
+
+TEST(PriorReach, ADarkMaterialIsJudgedAtItsOwnScale) {
+  // The rippled material of the test above at a thousandth of its value: its whole body lies below the prior's eps
+  // (1e-3 1/sr), where an error in the fit's domain hardly registers; judged with eps scaled to the material, the
+  // kd-tree that follows the ripple is still chosen.
+  Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 120000, 0.0, 0.6, 1);
+  for (float& v : s.values) v *= 1e-3f;
+  const acquire::MemorySamples src(s.angles, s.values, 5);
+  const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), {}, {});
+  EXPECT_LT(c.epsilon, 2e-3 * family_prior().epsilon);
+  EXPECT_GE(c.reach, 0.3);
+  EXPECT_LT(c.rows.back().error, 0.5 * c.rows.front().error);
+}
+
+// A retro-reflective bump 1 + 2 exp(-(theta_d / 10 degrees)^2) on a Ward material, as a fabric has.
+double bump(double theta_d) { return 1 + 2 * std::exp(-std::pow(theta_d / (10 * std::numbers::pi / 180), 2)); }
+
+// The family of the prior with the bump on every member, built once for the file.
+const acquire::BrdfPrior& bumped_prior() {
+  static const acquire::BrdfPrior p = [] {
+    std::vector<std::string> names;
+    for (std::size_t i = 0; i < std::size(kFamily); ++i) names.push_back("b" + std::to_string(i));
+    return acquire::build_prior(std::size(kFamily),
+                                [](std::size_t i) {
+                                  store::Grid g;
+                                  g.wavelengths = kBands;
+                                  g.brdf.resize(kBands.size() * brdf::kMerlCells);
+                                  brdf::evaluate_grid(ward(kFamily[i][0], kFamily[i][1], kFamily[i][2], kFamily[i][3]),
+                                                      g.brdf);
+                                  for (std::size_t c = 0; c < brdf::kMerlCells; ++c) {
+                                    const double f = bump(brdf::merl_cell_centre(brdf::merl_cell(c)).theta_d);
+                                    for (std::size_t k = 0; k < 5; ++k) g.brdf[k * brdf::kMerlCells + c] *= float(f);
+                                  }
+                                  return g;
+                                },
+                                names, {.channels = 3});
+  }();
+  return p;
+}
+
+// The scan of scan_of without its samples of theta_d below 5 degrees, as no light reaches them; with the bump or not.
+Scan band_scan(bool bumped) {
+  const Scan all = scan_of(ward(0.45, 0.25, 0.07, 0.12), 150000, 0.02, 0.0, 4);
+  Scan s;
+  for (std::size_t i = 0; i < all.angles.size() / 4; ++i) {
+    const brdf::StdAngles a{all.angles[4 * i], all.angles[4 * i + 1], all.angles[4 * i + 2], all.angles[4 * i + 3]};
+    const double td = brdf::half_diff(a).theta_d;
+    if (td < 5 * std::numbers::pi / 180) continue;
+    s.angles.insert(s.angles.end(), &all.angles[4 * i], &all.angles[4 * i + 4]);
+    for (std::size_t k = 0; k < 5; ++k) s.values.push_back(float(all.values[i * 5 + k] * (bumped ? bump(td) : 1.0)));
+  }
+  return s;
+}
+
+TEST(PriorReach, TheRetroBandsWeightIsChosenByTheBandOneHigher) {
+  // Every member of the prior has the bump. A material with it: the prior continues the bump into the band, the
+  // kd-tree flattens it, so the prior gets the weight. A material without it: the prior still adds the bump it always
+  // saw, the kd-tree's continuation of the flat samples is right.
+  const Scan with = band_scan(true), without = band_scan(false);
+  const acquire::MemorySamples with_src(with.angles, with.values, 5), without_src(without.angles, without.values, 5);
+  const acquire::ReachHoldout h = acquire::reach_holdout(with_src, {});
+  EXPECT_EQ(h.retro_rows, 5);
+  EXPECT_EQ(h.band_first, 5);
+  EXPECT_EQ(h.band_end, 10);
+  std::size_t in_band = 0;
+  for (std::size_t i = 0; i < with.angles.size() / 4; ++i) {
+    const brdf::StdAngles a{with.angles[4 * i], with.angles[4 * i + 1], with.angles[4 * i + 2], with.angles[4 * i + 3]};
+    const int row = brdf::merl_cell(a).theta_d;
+    const bool band = row >= 5 && row < 10;
+    in_band += band;
+    ASSERT_EQ(h.held[i] == 2, band) << "sample " << i << " in theta_d row " << row;
+  }
+  EXPECT_GT(in_band, 1000u);
+  const acquire::ReachChoice cw = acquire::choose_confidence_reach(with_src, bumped_prior(), {}, {});
+  const acquire::ReachChoice cn = acquire::choose_confidence_reach(without_src, bumped_prior(), {}, {});
+  ASSERT_TRUE(cw.retro_weight && cn.retro_weight);
+  EXPECT_LE(*cw.retro_weight, 0.25);
+  EXPECT_GE(*cn.retro_weight, 0.75);
+  EXPECT_LT(cw.retro_rows.front().error, cw.retro_rows.back().error);
+  EXPECT_GT(cn.retro_rows.front().error, cn.retro_rows.back().error);
+
+  // No band held without a retro ladder.
+  acquire::ReachOptions plain;
+  plain.retro_ladder.clear();
+  const acquire::ReachChoice cp = acquire::choose_confidence_reach(with_src, bumped_prior(), {}, plain);
+  EXPECT_FALSE(cp.retro_weight);
+  EXPECT_EQ(cp.holdout.band_end, cp.holdout.band_first);
 }
 
 TEST(PriorReach, ASmallReachWhereThePriorHoldsTheMaterialAndTheSamplesAreNoisy) {
@@ -148,7 +254,8 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
   // At each held-out cell, for every reach, the log-domain error of the blend against the held-out samples' mean.
   const std::size_t m = r.ladder.size();
   std::vector<double> error(m, 0.0);
-  const double eps = family_prior().epsilon;
+  const double eps = judge_eps(kept_obs, family_prior());
+  EXPECT_NEAR(c.epsilon, eps, 1e-5 * eps);
   for (const auto& [index, cell] : cells) {
     if (!cell.held) continue;
     const brdf::StdAngles centre = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(index)));

@@ -1,0 +1,21 @@
+#pragma once
+// The band round retro-reflection that a rig never samples (docs/prior.md, "The unseen retro-reflection band"): a
+// light cannot stand where the camera is, so with the reference's rig (lights from 10 degrees off the camera) no
+// sample has theta_d below 5 degrees. A prior's fit is unconstrained there and extrapolates from its training
+// materials; the kd-tree's estimate continues the material's own samples from the band's edge. Which is closer
+// depends on the material (a black glass: the continuation; a fabric's retro-reflection: the prior), so the band's
+// weight of the kd-tree is chosen from the scan (acquire/prior_reach.h), by the same extrapolation one band higher.
+#include <cstddef>
+
+#include "specula/acquire/prior.h"
+
+namespace specula::acquire {
+
+/// The number of theta_d rows below the lowest theta_d row holding an observed cell of obs (cells index
+/// valid_cells()); kMerlThetaD when obs holds none.
+int unseen_retro_rows(const PriorObservations& obs);
+
+/// True when MERL cell `cell` (linear index) lies in the band: its theta_d row is below `rows`.
+bool in_unseen_retro(int rows, std::size_t cell);
+
+}  // namespace specula::acquire

@@ -1,0 +1,96 @@
+// The unseen band round retro-reflection (acquire/retro_band.h) in resampling with a prior: a rig whose lights stand
+// at least 10 degrees from the camera leaves theta_d below 5 degrees without samples; there the blend takes
+// w kd + (1 - w) fit where the kd-tree has support (kd: a separately built Resampler at the cell centres; fit: the
+// prior's fit alone), the fit where it has none, and every cell outside the band is as without a band weight.
+#include "specula/acquire/retro_band.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+
+#include "specula/acquire/peak_cap.h"
+#include "specula/acquire/prior_resample.h"
+#include "specula/acquire/scan.h"
+#include "specula/core/brdf_geometry.h"
+#include "ward_family.h"
+
+namespace specula::acquire {
+namespace {
+
+using test::ward;
+
+TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
+  const double family[][4] = {{0.6, 0.1, 0.05, 0.05}, {0.2, 0.5, 0.1, 0.1}, {0.4, 0.4, 0.02, 0.2}, {0.1, 0.1, 0.2, 0.07}};
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < std::size(family); ++i) names.push_back("m" + std::to_string(i));
+  const BrdfPrior prior = build_prior(
+      std::size(family),
+      [&](std::size_t i) {
+        store::Grid g;
+        g.wavelengths = test::kWardBands;
+        g.brdf.resize(5 * brdf::kMerlCells);
+        brdf::evaluate_grid(ward(family[i][0], family[i][1], family[i][2], family[i][3]), g.brdf);
+        return g;
+      },
+      names, {.channels = 3});
+  const ScanRig rig{.sphere_px = 100, .light_step_deg = 4, .lights = 40};
+  const auto pixels = scan_pixels(rig);
+  std::vector<double> angles;
+  for (std::size_t j = 0; j < rig.lights; ++j) scan_light(rig, pixels, j, angles);
+  std::vector<float> values(angles.size() / 4 * 5);
+  brdf::evaluate_at(ward(0.45, 0.25, 0.07, 0.12), angles, values);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0, 0.02);
+  for (float& v : values) v = float(v * (1 + noise(rng)));
+  const MemorySamples src(angles, values, 5);
+
+  // The band's depth: the lowest theta_d row of any sample above the horizon, by the test's own lookup.
+  int lowest = brdf::kMerlThetaD;
+  for (std::size_t s = 0; s < angles.size() / 4; ++s) {
+    const brdf::StdAngles a{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]};
+    if (a.theta_i < std::numbers::pi / 2 && a.theta_o < std::numbers::pi / 2)
+      lowest = std::min(lowest, brdf::merl_cell(a).theta_d);
+  }
+  const int rows = unseen_retro_rows(cell_means(src));
+  EXPECT_EQ(rows, lowest);
+  EXPECT_GE(rows, 4);  // the first light 10 degrees from the camera: theta_d of at least about 5 degrees
+  EXPECT_LE(rows, 6);
+
+  const PriorResampleOptions blend{.local = {.k = 8}, .confidence_reach = 0.1};
+  std::vector<float> without(5 * brdf::kMerlCells), conf_without(brdf::kMerlCells);
+  resample_with_prior(src, prior, blend, without, conf_without);
+  std::vector<float> fitted(5 * brdf::kMerlCells, -1.0f);
+  fit_prior(prior, cell_means(src), blend.fit, fitted);
+  const Resampler kd(angles, values, 5, blend.local);
+  const UnseenCap cap = unseen_cap(cell_means(src));
+  std::size_t supported = 0, unsupported = 0;
+  std::vector<float> local(5);
+  for (const double w : {0.0, 0.5, 1.0}) {
+    PriorResampleOptions o = blend;
+    o.retro_weight = w;
+    std::vector<float> with(5 * brdf::kMerlCells), conf(brdf::kMerlCells);
+    resample_with_prior(src, prior, o, with, conf);
+    supported = unsupported = 0;
+    for (const std::uint32_t c : valid_cells()) {
+      const brdf::MerlCell cell = brdf::merl_cell(std::size_t(c));
+      if (cell.theta_d >= rows || in_unseen_cap(cap, c)) {
+        ASSERT_EQ(conf[c], conf_without[c]);
+        for (std::size_t k = 0; k < 5; ++k)
+          ASSERT_EQ(with[k * brdf::kMerlCells + c], without[k * brdf::kMerlCells + c]);
+        continue;
+      }
+      const bool has = kd.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), local);
+      ++(has ? supported : unsupported);
+      ASSERT_EQ(conf[c], has ? float(w) : 0.0f);
+      for (std::size_t k = 0; k < 5; ++k) {
+        const double fit = fitted[k * brdf::kMerlCells + c], want = has ? w * local[k] + (1 - w) * fit : fit;
+        ASSERT_NEAR(with[k * brdf::kMerlCells + c], want, 1e-5 * want + 1e-9) << "w " << w << " cell " << c;
+      }
+    }
+  }
+  EXPECT_GT(supported, 10000u) << unsupported << " cells of the band without support";
+}
+
+}  // namespace
+}  // namespace specula::acquire
