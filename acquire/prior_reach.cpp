@@ -24,6 +24,10 @@ void check_reach_options(const ReachOptions& o) {
     if (!(o.ladder[l] > 0 && o.ladder[l] <= 1) || (l > 0 && o.ladder[l] <= o.ladder[l - 1]))
       throw UsageError("confidence reach: the ladder must ascend strictly within (0, 1]");
   if (!(o.held_out > 0 && o.held_out < 1)) throw UsageError("confidence reach: held_out must be in (0, 1)");
+  const auto& g = o.theta_h_groups;
+  if (g.size() < 2 || g.front() != 0 || g.back() != brdf::kMerlThetaH || !std::is_sorted(g.begin(), g.end()) ||
+      std::adjacent_find(g.begin(), g.end()) != g.end())
+    throw UsageError("confidence reach: theta_h groups must ascend strictly from row 0 to row 90");
   for (std::size_t l = 0; l < o.retro_ladder.size(); ++l)
     if (!(o.retro_ladder[l] >= 0 && o.retro_ladder[l] <= 1) || (l > 0 && o.retro_ladder[l] <= o.retro_ladder[l - 1]))
       throw UsageError("confidence reach: the retro band's ladder of weights must ascend strictly within [0, 1]");
@@ -165,14 +169,24 @@ std::vector<double> band_errors(const PriorObservations& obs, std::span<const fl
   return mean;
 }
 
-// Per ladder entry the mean of err (cells x ladder) over the cells, summed in cell order.
-std::vector<double> mean_errors(const std::vector<double>& err, std::size_t m) {
+// Per ladder entry the mean of err (cells x ladder) over the held-out cells o with keep(o), summed in their order;
+// the count of such cells into n.
+template <class Keep>
+std::vector<double> mean_errors(const std::vector<double>& err, std::size_t m, const Keep& keep, std::size_t& n) {
   std::vector<double> mean(m, 0.0);
-  const std::size_t n = m ? err.size() / m : 0;
-  for (std::size_t o = 0; o < n; ++o)
+  n = 0;
+  for (std::size_t o = 0; m && o < err.size() / m; ++o) {
+    if (!keep(o)) continue;
+    ++n;
     for (std::size_t l = 0; l < m; ++l) mean[l] += err[o * m + l];
+  }
   for (double& x : mean) x = n ? x / double(n) : 0.0;
   return mean;
+}
+
+// The index of the least entry (the first on a tie).
+std::size_t least(const std::vector<double>& v) {
+  return std::size_t(std::min_element(v.begin(), v.end()) - v.begin());
 }
 
 }  // namespace
@@ -251,22 +265,29 @@ ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& pr
   resample_grid(SampleTree(kept, o.local.mapping), kept, o.local, kd, gaps);
   out.holdout.held = {};
   const std::size_t m = r.ladder.size();
-  const std::vector<double> mean =
-      mean_errors(held_out_errors(parts[1], fitted, kd, gaps, b, r, o.local.max_gap, out.epsilon), m);
-  std::size_t best = 0;
-  for (std::size_t l = 0; l < m; ++l) {
-    out.rows.push_back({.reach = r.ladder[l], .error = mean[l]});
-    if (mean[l] < mean[best]) best = l;
+  const std::vector<double> err = held_out_errors(parts[1], fitted, kd, gaps, b, r, o.local.max_gap, out.epsilon);
+  std::size_t n = 0;
+  const std::vector<double> mean = mean_errors(err, m, [](std::size_t) { return true; }, n);
+  for (std::size_t l = 0; l < m; ++l) out.rows.push_back({.reach = r.ladder[l], .error = mean[l]});
+  out.reach = r.ladder[least(mean)];
+  const auto& cells = valid_cells();
+  for (std::size_t q = 0; q + 1 < r.theta_h_groups.size(); ++q) {
+    ReachGroup g{.first = r.theta_h_groups[q], .end = r.theta_h_groups[q + 1]};
+    const std::vector<double> gm = mean_errors(
+        err, m,
+        [&](std::size_t o) {
+          const int row = brdf::merl_cell(std::size_t(cells[parts[1].cell[o]])).theta_h;
+          return row >= g.first && row < g.end;
+        },
+        g.cells);
+    for (std::size_t l = 0; l < m; ++l) g.rows.push_back({.reach = r.ladder[l], .error = gm[l]});
+    g.reach = g.cells >= r.min_group_cells ? r.ladder[least(gm)] : out.reach;
+    out.groups.push_back(std::move(g));
   }
-  out.reach = r.ladder[best];
   if (!parts[2].cell.empty()) {
     const std::vector<double> band = band_errors(parts[2], fitted, kd, b, r.retro_ladder, out.epsilon);
-    std::size_t w = 0;
-    for (std::size_t l = 0; l < band.size(); ++l) {
-      out.retro_rows.push_back({.reach = r.retro_ladder[l], .error = band[l]});
-      if (band[l] < band[w]) w = l;
-    }
-    out.retro_weight = r.retro_ladder[w];
+    for (std::size_t l = 0; l < band.size(); ++l) out.retro_rows.push_back({.reach = r.retro_ladder[l], .error = band[l]});
+    out.retro_weight = r.retro_ladder[least(band)];
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
@@ -286,6 +307,13 @@ nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOption
                               {"held_cells", c.holdout.held_cells},
                               {"seconds", c.seconds},
                               {"rows", rows_json(c.rows, "reach")}};
+  nlohmann::ordered_json groups = nlohmann::ordered_json::array();
+  for (const ReachGroup& g : c.groups)
+    groups.push_back({{"theta_h_rows", {g.first, g.end}},
+                      {"held_cells", g.cells},
+                      {"reach", g.reach},
+                      {"rows", rows_json(g.rows, "reach")}});
+  j["theta_h_groups"] = groups;
   j["retro_band"] = {{"unseen_rows", c.holdout.retro_rows},
                      {"held_rows", {c.holdout.band_first, c.holdout.band_end}},
                      {"weight", c.retro_weight ? nlohmann::ordered_json(*c.retro_weight) : nlohmann::ordered_json()},
@@ -293,8 +321,18 @@ nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOption
   return j;
 }
 
+std::vector<double> reach_by_theta_h(const ReachChoice& c) {
+  std::vector<double> out(std::size_t(brdf::kMerlThetaH), c.reach);
+  for (const ReachGroup& g : c.groups)
+    for (int row = g.first; row < g.end; ++row) out[std::size_t(row)] = g.reach;
+  return out;
+}
+
 std::string reach_provenance(const ReachChoice& c, const ReachOptions& r) {
-  return fmt::format("confidence_reach={} reach_auto=holdout held_out={} seed={}{}", c.reach, r.held_out, r.seed,
+  std::string groups;
+  for (const ReachGroup& g : c.groups) groups += fmt::format("{}{}-{}:{}", groups.empty() ? "" : ",", g.first, g.end, g.reach);
+  return fmt::format("confidence_reach={} reach_by_theta_h={} reach_auto=holdout held_out={} seed={}{}", c.reach, groups,
+                     r.held_out, r.seed,
                      c.retro_weight ? fmt::format(" retro_weight={} retro_rows={}", *c.retro_weight, c.holdout.retro_rows)
                                     : std::string());
 }

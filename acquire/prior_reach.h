@@ -25,6 +25,10 @@ struct ReachOptions {
   /// the kd-tree's weights tried in the unseen retro-reflection band (acquire/retro_band.h), ascending in [0, 1];
   /// empty: the band is not chosen for (and not held out)
   std::vector<double> retro_ladder = {0, 0.25, 0.5, 0.75, 1};
+  /// theta_h row boundaries of the groups that each choose their reach (ascending from 0 to kMerlThetaH); {0, 90}:
+  /// one reach for all
+  std::vector<int> theta_h_groups = {0, 10, 20, 30, 45, 90};
+  std::size_t min_group_cells = 200;  ///< a group with fewer held-out cells takes the reach chosen over all of them
 };
 
 /// Which samples the validation holds out.
@@ -51,8 +55,17 @@ struct ReachRow {
 };
 
 /// What the choice found.
+/// One group of theta_h rows and its choice.
+struct ReachGroup {
+  int first = 0, end = 0;  ///< theta_h rows [first, end)
+  std::size_t cells = 0;   ///< held-out cells in it
+  double reach = 0;        ///< its r of least error, or the overall one when cells < min_group_cells
+  std::vector<ReachRow> rows;
+};
+
 struct ReachChoice {
-  double reach = 0;            ///< the ladder's r of least error (the smaller on a tie)
+  double reach = 0;            ///< the ladder's r of least error over all held-out cells (the smaller on a tie)
+  std::vector<ReachGroup> groups;  ///< one per theta_h group
   /// the retro ladder's weight of least error at the held band's cells (the smaller on a tie); empty without a band
   std::optional<double> retro_weight;
   std::vector<ReachRow> retro_rows;  ///< one per retro ladder entry: its weight (as reach) and error
@@ -74,11 +87,14 @@ ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& pr
 ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& prior, const ComponentSource& components,
                                     const PriorResampleOptions& o, const ReachOptions& r);
 
+/// Per theta_h row the reach of its group (PriorResampleOptions::reach_by_theta_h).
+std::vector<double> reach_by_theta_h(const ReachChoice& c);
+
 /// The choice and every row, as `resample --json` reports it under "confidence_reach_auto".
 nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOptions& r);
 
-/// "confidence_reach=R reach_auto=holdout held_out=S seed=N[ retro_weight=W retro_rows=B]": how the grid's
-/// provenance names a chosen reach (and band weight).
+/// "confidence_reach=R reach_by_theta_h=0-10:R0,... reach_auto=holdout held_out=S seed=N[ retro_weight=W
+/// retro_rows=B]": how the grid's provenance names the chosen reaches (and band weight).
 std::string reach_provenance(const ReachChoice& c, const ReachOptions& r);
 
 }  // namespace specula::acquire

@@ -46,6 +46,12 @@ void finish_means(std::span<const double> sums, std::span<const double> squares,
   }
 }
 
+// The reach of MERL cell `cell`: its theta_h row's when given per row.
+double reach_of(const PriorResampleOptions& o, std::size_t cell) {
+  return o.reach_by_theta_h.empty() ? o.confidence_reach
+                                    : o.reach_by_theta_h[std::size_t(brdf::merl_cell(cell).theta_h)];
+}
+
 }  // namespace
 
 void valid_slots(std::span<const double> angles, std::span<std::int32_t> out) {
@@ -141,6 +147,10 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
     throw UsageError("prior: grid or confidence of the wrong size");
   if (!(o.confidence_reach > 0 && o.confidence_reach <= 1))
     throw UsageError("prior: confidence_reach (the reach of the confidence, a fraction of max_gap) must be in (0, 1]");
+  if (!o.reach_by_theta_h.empty() &&
+      (o.reach_by_theta_h.size() != std::size_t(brdf::kMerlThetaH) ||
+       !std::all_of(o.reach_by_theta_h.begin(), o.reach_by_theta_h.end(), [](double r) { return r > 0 && r <= 1; })))
+    throw UsageError("prior: reach_by_theta_h needs one reach in (0, 1] per theta_h row (90)");
   if (o.retro_weight && !(*o.retro_weight >= 0 && *o.retro_weight <= 1))
     throw UsageError("prior: retro_weight (the kd-tree's weight in the unseen retro-reflection band) must be in [0, 1]");
   PriorResampleStats st;
@@ -175,7 +185,7 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
         const double c = !local                              ? 0.0
                          : in_unseen_retro(retro_rows, cell) ? *o.retro_weight
                                                              : support_confidence(gaps[cell], o.local.max_gap,
-                                                                                  o.confidence_reach);
+                                                                                  reach_of(o, cell));
         confidence[cell] = float(c);
         for (std::size_t k = 0; k < b; ++k) {
           const std::size_t at = k * brdf::kMerlCells + cell;

@@ -25,6 +25,9 @@ struct PriorResampleOptions {
   PriorFitOptions fit;
   /// r: confidence falls to 0 at r * local.max_gap from the nearest sample (0 < r <= 1)
   double confidence_reach = kPriorConfidenceReach;
+  /// given (kMerlThetaH values, each in (0, 1]): the reach of the cells of each theta_h row instead of
+  /// confidence_reach (chosen per group of rows by prior_reach.h); the residuals form ignores it
+  std::vector<double> reach_by_theta_h;
   /// false: c * local + (1 - c) * prior; true: max(0, prior + c * local estimate of the residuals against the
   /// prior fit) (acquire/base_resample.h, as --model)
   bool residuals = false;

@@ -125,6 +125,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   if (m.reach_auto) {
     reach = choose_confidence_reach(src, prior, components, po, *m.reach_auto);
     po.confidence_reach = reach->reach;
+    po.reach_by_theta_h = reach_by_theta_h(*reach);
     po.retro_weight = reach->retro_weight;
   }
   ResampleOutcome out{.grid = empty_grid(info, job)};

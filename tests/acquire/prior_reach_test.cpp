@@ -14,6 +14,7 @@
 
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_models.h"
+#include "specula/core/error.h"
 #include "ward_family.h"
 
 using namespace specula;
@@ -187,6 +188,31 @@ TEST(PriorReach, TheRetroBandsWeightIsChosenByTheBandOneHigher) {
   EXPECT_EQ(cp.holdout.band_end, cp.holdout.band_first);
 }
 
+TEST(PriorReach, EachThetaHRowTakesItsOwnReach) {
+  const Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 40000, 0.02, 0.3, 5);
+  const acquire::MemorySamples src(s.angles, s.values, 5);
+  acquire::PriorResampleOptions near{.local = {.k = 8}, .confidence_reach = 0.01}, far = near, mixed = near;
+  far.confidence_reach = 1;
+  mixed.reach_by_theta_h.assign(90, 1.0);
+  std::fill_n(mixed.reach_by_theta_h.begin(), 30, 0.01);
+  std::vector<float> gn(5 * brdf::kMerlCells), gf(gn.size()), gm(gn.size()), cn(brdf::kMerlCells),
+      cf(brdf::kMerlCells), cm(brdf::kMerlCells);
+  acquire::resample_with_prior(src, family_prior(), near, gn, cn);
+  acquire::resample_with_prior(src, family_prior(), far, gf, cf);
+  acquire::resample_with_prior(src, family_prior(), mixed, gm, cm);
+  std::size_t differ = 0;
+  for (const std::uint32_t c : acquire::valid_cells()) {
+    const bool low = brdf::merl_cell(std::size_t(c)).theta_h < 30;
+    const auto& want = low ? gn : gf;
+    ASSERT_EQ(cm[c], (low ? cn : cf)[c]) << c;
+    for (std::size_t k = 0; k < 5; ++k) ASSERT_EQ(gm[k * brdf::kMerlCells + c], want[k * brdf::kMerlCells + c]) << c;
+    differ += cn[c] != cf[c];
+  }
+  EXPECT_GT(differ, 1000u) << "the two reaches must differ somewhere for the test to mean anything";
+  mixed.reach_by_theta_h.resize(89);
+  EXPECT_THROW(acquire::resample_with_prior(src, family_prior(), mixed, gm, cm), specula::UsageError);
+}
+
 TEST(PriorReach, ASmallReachWhereThePriorHoldsTheMaterialAndTheSamplesAreNoisy) {
   // A training material under 30 % noise, a kd-tree of 4 neighbours: the fit over all cells averages the noise away.
   const Scan s = scan_of(ward(kFamily[2][0], kFamily[2][1], kFamily[2][2], kFamily[2][3]), 120000, 0.3, 0.0, 2);
@@ -254,6 +280,10 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
   // At each held-out cell, for every reach, the log-domain error of the blend against the held-out samples' mean.
   const std::size_t m = r.ladder.size();
   std::vector<double> error(m, 0.0);
+  // and per group of theta_h rows, by the test's own grouping of the default boundaries
+  const int bounds[] = {0, 10, 20, 30, 45, 90};
+  std::vector<std::vector<double>> group_error(5, std::vector<double>(m, 0.0));
+  std::vector<std::size_t> group_cells(5, 0);
   const double eps = judge_eps(kept_obs, family_prior());
   EXPECT_NEAR(c.epsilon, eps, 1e-5 * eps);
   for (const auto& [index, cell] : cells) {
@@ -264,6 +294,9 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
     const double cc = wi.z() * wo.z();
     std::vector<float> local(5);
     const bool supported = kd.predict(centre, local);
+    std::size_t q = 0;
+    while (brdf::merl_cell(index).theta_h >= bounds[q + 1]) ++q;
+    ++group_cells[q];
     acquire::Neighbours nb;
     kd.neighbours(centre, nb);
     for (std::size_t l = 0; l < m; ++l) {
@@ -274,6 +307,7 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
         const double target = cell.held_sum[k] / double(cell.held);
         const double d = std::log((blend * cc + eps) / (target * cc + eps));
         error[l] += d * d / 5 / double(held_cells);
+        group_error[q][l] += d * d / 5;
       }
     }
   }
@@ -285,6 +319,22 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
   }
   EXPECT_EQ(c.reach, r.ladder[best]);
   EXPECT_GT(c.rows.front().error, 0.0);
+  ASSERT_EQ(c.groups.size(), 5u);
+  const std::vector<double> per_row = acquire::reach_by_theta_h(c);
+  for (std::size_t q = 0; q < 5; ++q) {
+    const acquire::ReachGroup& g = c.groups[q];
+    EXPECT_EQ(g.first, bounds[q]);
+    EXPECT_EQ(g.cells, group_cells[q]) << "group " << q;
+    std::size_t gbest = 0;
+    for (std::size_t l = 0; g.cells && l < m; ++l) {
+      const double want = group_error[q][l] / double(g.cells);
+      EXPECT_NEAR(g.rows[l].error, want, 1e-4 * want) << "group " << q << " reach " << r.ladder[l];
+      if (want < group_error[q][gbest] / double(g.cells)) gbest = l;
+    }
+    EXPECT_EQ(g.reach, g.cells >= r.min_group_cells ? r.ladder[gbest] : c.reach) << "group " << q;
+    for (int row = g.first; row < g.end; ++row) EXPECT_EQ(per_row[std::size_t(row)], g.reach);
+  }
+  EXPECT_GE(group_cells[1] + group_cells[2] + group_cells[3], r.min_group_cells) << "groups choose for themselves";
 
   // The same rows, bit for bit, on one thread.
   const int saved = omp_get_max_threads();
