@@ -91,6 +91,20 @@ std::vector<std::int32_t> sample_slots(const SampleSource& src) {
   return slots;
 }
 
+// The mean over bands of (ln((blend cc + eps) / (target cc + eps)))^2 at observation o (MERL cell `cell`), blend
+// c kd + (1 - c) fitted, target the observation's values.
+double blend_error(const PriorObservations& obs, std::size_t o, std::size_t cell, double cc, double c,
+                   std::span<const float> fitted, std::span<const float> kd, std::size_t b, double eps) {
+  double sum = 0;
+  for (std::size_t k = 0; k < b; ++k) {
+    const std::size_t at = k * brdf::kMerlCells + cell;
+    const double blend = c * (c > 0 ? kd[at] : 0.0f) + (1 - c) * fitted[at];
+    const double d = std::log((blend * cc + eps) / (double(obs.values[o * b + k]) * cc + eps));
+    sum += d * d;
+  }
+  return sum / double(b);
+}
+
 // Per held-out cell of obs and ladder entry, its error (cells x ladder, row-major).
 std::vector<double> held_out_errors(const PriorObservations& obs, std::span<const float> fitted,
                                     std::span<const float> kd, std::span<const float> gaps, std::size_t b,
@@ -107,14 +121,7 @@ std::vector<double> held_out_errors(const PriorObservations& obs, std::span<cons
         const bool local = kd[cell] >= 0;
         for (std::size_t l = 0; l < m; ++l) {
           const double c = local ? support_confidence(gaps[cell], max_gap, r.ladder[l]) : 0.0;
-          double sum = 0;
-          for (std::size_t k = 0; k < b; ++k) {
-            const std::size_t at = k * brdf::kMerlCells + cell;
-            const double blend = c * (local ? kd[at] : 0.0f) + (1 - c) * fitted[at];
-            const double d = std::log((blend * cc + eps) / (double(obs.values[o * b + k]) * cc + eps));
-            sum += d * d;
-          }
-          err[o * m + l] = sum / double(b);
+          err[o * m + l] = blend_error(obs, o, cell, cc, c, fitted, kd, b, eps);
         }
       },
       1024);
@@ -153,17 +160,8 @@ std::vector<double> band_errors(const PriorObservations& obs, std::span<const fl
     const std::size_t cell = cells[obs.cell[o]];
     const double cc = cosines[obs.cell[o]];
     const bool local = kd[cell] >= 0;
-    for (std::size_t l = 0; l < ladder.size(); ++l) {
-      const double w = local ? ladder[l] : 0.0;
-      double sum = 0;
-      for (std::size_t k = 0; k < b; ++k) {
-        const std::size_t at = k * brdf::kMerlCells + cell;
-        const double blend = w * (local ? kd[at] : 0.0f) + (1 - w) * fitted[at];
-        const double d = std::log((blend * cc + eps) / (double(obs.values[o * b + k]) * cc + eps));
-        sum += d * d;
-      }
-      mean[l] += sum / double(b);
-    }
+    for (std::size_t l = 0; l < ladder.size(); ++l)
+      mean[l] += blend_error(obs, o, cell, cc, local ? ladder[l] : 0.0, fitted, kd, b, eps);
   }
   for (double& x : mean) x = obs.cell.empty() ? 0.0 : x / double(obs.cell.size());
   return mean;

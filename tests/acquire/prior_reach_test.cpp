@@ -27,22 +27,36 @@ using test::ward;
 const double kFamily[][4] = {
     {0.6, 0.1, 0.05, 0.05}, {0.2, 0.5, 0.1, 0.1}, {0.4, 0.4, 0.02, 0.2}, {0.1, 0.1, 0.2, 0.07}, {0.7, 0.3, 0.08, 0.15}};
 
-// A prior of five Ward materials, built once for the file.
+// A retro-reflective bump 1 + 2 exp(-(theta_d / 10 degrees)^2) on a Ward material, as a fabric has.
+double bump(double theta_d) { return 1 + 2 * std::exp(-std::pow(theta_d / (10 * std::numbers::pi / 180), 2)); }
+
+// A prior of the five Ward materials of kFamily, each times the bump when bumped.
+acquire::BrdfPrior build_family(bool bumped) {
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < std::size(kFamily); ++i) names.push_back("m" + std::to_string(i));
+  return acquire::build_prior(
+      std::size(kFamily),
+      [bumped](std::size_t i) {
+        store::Grid g;
+        g.wavelengths = kBands;
+        g.brdf.resize(kBands.size() * brdf::kMerlCells);
+        brdf::evaluate_grid(ward(kFamily[i][0], kFamily[i][1], kFamily[i][2], kFamily[i][3]), g.brdf);
+        for (std::size_t c = 0; bumped && c < brdf::kMerlCells; ++c) {
+          const double f = bump(brdf::merl_cell_centre(brdf::merl_cell(c)).theta_d);
+          for (std::size_t k = 0; k < 5; ++k) g.brdf[k * brdf::kMerlCells + c] *= float(f);
+        }
+        return g;
+      },
+      names, {.channels = 3});
+}
+
+// The two priors, built once for the file.
 const acquire::BrdfPrior& family_prior() {
-  static const acquire::BrdfPrior p = [] {
-    std::vector<std::string> names;
-    for (std::size_t i = 0; i < std::size(kFamily); ++i) names.push_back("m" + std::to_string(i));
-    return acquire::build_prior(std::size(kFamily),
-                                [](std::size_t i) {
-                                  store::Grid g;
-                                  g.wavelengths = kBands;
-                                  g.brdf.resize(kBands.size() * brdf::kMerlCells);
-                                  brdf::evaluate_grid(ward(kFamily[i][0], kFamily[i][1], kFamily[i][2], kFamily[i][3]),
-                                                      g.brdf);
-                                  return g;
-                                },
-                                names, {.channels = 3});
-  }();
+  static const acquire::BrdfPrior p = build_family(false);
+  return p;
+}
+const acquire::BrdfPrior& bumped_prior() {
+  static const acquire::BrdfPrior p = build_family(true);
   return p;
 }
 
@@ -111,32 +125,6 @@ TEST(PriorReach, ADarkMaterialIsJudgedAtItsOwnScale) {
   EXPECT_LT(c.epsilon, 2e-3 * family_prior().epsilon);
   EXPECT_GE(c.reach, 0.3);
   EXPECT_LT(c.rows.back().error, 0.5 * c.rows.front().error);
-}
-
-// A retro-reflective bump 1 + 2 exp(-(theta_d / 10 degrees)^2) on a Ward material, as a fabric has.
-double bump(double theta_d) { return 1 + 2 * std::exp(-std::pow(theta_d / (10 * std::numbers::pi / 180), 2)); }
-
-// The family of the prior with the bump on every member, built once for the file.
-const acquire::BrdfPrior& bumped_prior() {
-  static const acquire::BrdfPrior p = [] {
-    std::vector<std::string> names;
-    for (std::size_t i = 0; i < std::size(kFamily); ++i) names.push_back("b" + std::to_string(i));
-    return acquire::build_prior(std::size(kFamily),
-                                [](std::size_t i) {
-                                  store::Grid g;
-                                  g.wavelengths = kBands;
-                                  g.brdf.resize(kBands.size() * brdf::kMerlCells);
-                                  brdf::evaluate_grid(ward(kFamily[i][0], kFamily[i][1], kFamily[i][2], kFamily[i][3]),
-                                                      g.brdf);
-                                  for (std::size_t c = 0; c < brdf::kMerlCells; ++c) {
-                                    const double f = bump(brdf::merl_cell_centre(brdf::merl_cell(c)).theta_d);
-                                    for (std::size_t k = 0; k < 5; ++k) g.brdf[k * brdf::kMerlCells + c] *= float(f);
-                                  }
-                                  return g;
-                                },
-                                names, {.channels = 3});
-  }();
-  return p;
 }
 
 // The scan of scan_of without its samples of theta_d below 5 degrees, as no light reaches them; with the bump or not.
