@@ -265,7 +265,8 @@ ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& pr
   const std::size_t m = r.ladder.size();
   const std::vector<double> err = held_out_errors(parts[1], fitted, kd, gaps, b, r, o.local.max_gap, out.epsilon);
   std::size_t n = 0;
-  const std::vector<double> mean = mean_errors(err, m, [](std::size_t) { return true; }, n);
+  const std::vector<double> mean = mean_errors(
+      err, m, [](std::size_t) { return true; }, n);
   for (std::size_t l = 0; l < m; ++l) out.rows.push_back({.reach = r.ladder[l], .error = mean[l]});
   out.reach = r.ladder[least(mean)];
   const auto& cells = valid_cells();
@@ -284,7 +285,8 @@ ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& pr
   }
   if (!parts[2].cell.empty()) {
     const std::vector<double> band = band_errors(parts[2], fitted, kd, b, r.retro_ladder, out.epsilon);
-    for (std::size_t l = 0; l < band.size(); ++l) out.retro_rows.push_back({.reach = r.retro_ladder[l], .error = band[l]});
+    for (std::size_t l = 0; l < band.size(); ++l)
+      out.retro_rows.push_back({.reach = r.retro_ladder[l], .error = band[l]});
     out.retro_weight = r.retro_ladder[least(band)];
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -328,11 +330,13 @@ std::vector<double> reach_by_theta_h(const ReachChoice& c) {
 
 std::string reach_provenance(const ReachChoice& c, const ReachOptions& r) {
   std::string groups;
-  for (const ReachGroup& g : c.groups) groups += fmt::format("{}{}-{}:{}", groups.empty() ? "" : ",", g.first, g.end, g.reach);
-  return fmt::format("confidence_reach={} reach_by_theta_h={} reach_auto=holdout held_out={} seed={}{}", c.reach, groups,
-                     r.held_out, r.seed,
-                     c.retro_weight ? fmt::format(" retro_weight={} retro_rows={}", *c.retro_weight, c.holdout.retro_rows)
-                                    : std::string());
+  for (const ReachGroup& g : c.groups)
+    groups += fmt::format("{}{}-{}:{}", groups.empty() ? "" : ",", g.first, g.end, g.reach);
+  return fmt::format("confidence_reach={} reach_by_theta_h={} reach_auto=holdout held_out={} seed={}{}", c.reach,
+                     groups, r.held_out, r.seed,
+                     c.retro_weight
+                         ? fmt::format(" retro_weight={} retro_rows={}", *c.retro_weight, c.holdout.retro_rows)
+                         : std::string());
 }
 
 }  // namespace specula::acquire

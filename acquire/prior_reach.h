@@ -6,8 +6,8 @@
 // held-out samples in the log domain of the fit, its eps scaled down to a material darker than the prior's reference;
 // the r of least mean error is kept.
 #include <cstdint>
-#include <optional>
 #include <nlohmann/json_fwd.hpp>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -35,9 +35,9 @@ struct ReachOptions {
 struct ReachHoldout {
   /// per sample: 0 kept (fitted and in the kd-tree), 1 held out of a split cell, 2 held out with its theta_d row
   std::vector<std::uint8_t> held;
-  std::size_t observed_cells = 0;  ///< valid cells holding a sample
-  std::size_t held_cells = 0;      ///< cells that lose samples (split)
-  int retro_rows = 0;              ///< theta_d rows below the lowest observed one (the unseen band)
+  std::size_t observed_cells = 0;    ///< valid cells holding a sample
+  std::size_t held_cells = 0;        ///< cells that lose samples (split)
+  int retro_rows = 0;                ///< theta_d rows below the lowest observed one (the unseen band)
   int band_first = 0, band_end = 0;  ///< theta_d rows [first, end) held out whole: the band one band higher
 };
 
@@ -64,14 +64,14 @@ struct ReachGroup {
 };
 
 struct ReachChoice {
-  double reach = 0;            ///< the ladder's r of least error over all held-out cells (the smaller on a tie)
+  double reach = 0;                ///< the ladder's r of least error over all held-out cells (the smaller on a tie)
   std::vector<ReachGroup> groups;  ///< one per theta_h group
   /// the retro ladder's weight of least error at the held band's cells (the smaller on a tie); empty without a band
   std::optional<double> retro_weight;
   std::vector<ReachRow> retro_rows;  ///< one per retro ladder entry: its weight (as reach) and error
-  ReachHoldout holdout;        ///< without its per-sample flags
-  std::vector<ReachRow> rows;  ///< one per ladder entry
-  double epsilon = 0;          ///< eps of the error: the prior's times min(1, kept cell means' median / reference's)
+  ReachHoldout holdout;              ///< without its per-sample flags
+  std::vector<ReachRow> rows;        ///< one per ladder entry
+  double epsilon = 0;  ///< eps of the error: the prior's times min(1, kept cell means' median / reference's)
   double seconds = 0;
 };
 

@@ -152,7 +152,8 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
        !std::all_of(o.reach_by_theta_h.begin(), o.reach_by_theta_h.end(), [](double r) { return r > 0 && r <= 1; })))
     throw UsageError("prior: reach_by_theta_h needs one reach in (0, 1] per theta_h row (90)");
   if (o.retro_weight && !(*o.retro_weight >= 0 && *o.retro_weight <= 1))
-    throw UsageError("prior: retro_weight (the kd-tree's weight in the unseen retro-reflection band) must be in [0, 1]");
+    throw UsageError(
+        "prior: retro_weight (the kd-tree's weight in the unseen retro-reflection band) must be in [0, 1]");
   PriorResampleStats st;
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
@@ -182,10 +183,10 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
       [&](std::size_t i) {
         const std::size_t cell = cells[i];
         const bool local = grid[cell] >= 0 && !(o.prior_in_cap && in_unseen_cap(cap, cell));
-        const double c = !local                              ? 0.0
-                         : in_unseen_retro(retro_rows, cell) ? *o.retro_weight
-                                                             : support_confidence(gaps[cell], o.local.max_gap,
-                                                                                  reach_of(o, cell));
+        const double c = !local ? 0.0
+                         : in_unseen_retro(retro_rows, cell)
+                             ? *o.retro_weight
+                             : support_confidence(gaps[cell], o.local.max_gap, reach_of(o, cell));
         confidence[cell] = float(c);
         for (std::size_t k = 0; k < b; ++k) {
           const std::size_t at = k * brdf::kMerlCells + cell;

@@ -34,20 +34,20 @@ double bump(double theta_d) { return 1 + 2 * std::exp(-std::pow(theta_d / (10 * 
 acquire::BrdfPrior build_family(bool bumped) {
   std::vector<std::string> names;
   for (std::size_t i = 0; i < std::size(kFamily); ++i) names.push_back("m" + std::to_string(i));
-  return acquire::build_prior(
-      std::size(kFamily),
-      [bumped](std::size_t i) {
-        store::Grid g;
-        g.wavelengths = kBands;
-        g.brdf.resize(kBands.size() * brdf::kMerlCells);
-        brdf::evaluate_grid(ward(kFamily[i][0], kFamily[i][1], kFamily[i][2], kFamily[i][3]), g.brdf);
-        for (std::size_t c = 0; bumped && c < brdf::kMerlCells; ++c) {
-          const double f = bump(brdf::merl_cell_centre(brdf::merl_cell(c)).theta_d);
-          for (std::size_t k = 0; k < 5; ++k) g.brdf[k * brdf::kMerlCells + c] *= float(f);
-        }
-        return g;
-      },
-      names, {.channels = 3});
+  return acquire::build_prior(std::size(kFamily),
+                              [bumped](std::size_t i) {
+                                store::Grid g;
+                                g.wavelengths = kBands;
+                                g.brdf.resize(kBands.size() * brdf::kMerlCells);
+                                brdf::evaluate_grid(ward(kFamily[i][0], kFamily[i][1], kFamily[i][2], kFamily[i][3]),
+                                                    g.brdf);
+                                for (std::size_t c = 0; bumped && c < brdf::kMerlCells; ++c) {
+                                  const double f = bump(brdf::merl_cell_centre(brdf::merl_cell(c)).theta_d);
+                                  for (std::size_t k = 0; k < 5; ++k) g.brdf[k * brdf::kMerlCells + c] *= float(f);
+                                }
+                                return g;
+                              },
+                              names, {.channels = 3});
 }
 
 // The two priors, built once for the file.
@@ -91,8 +91,7 @@ double judge_eps(const acquire::PriorObservations& obs, const acquire::BrdfPrior
   std::vector<double> v, ref;
   for (std::size_t o = 0; o < obs.cell.size(); ++o) {
     Eigen::Vector3d wi, wo;
-    brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(std::size_t(acquire::valid_cells()[obs.cell[o]]))), wi,
-                     wo);
+    brdf::directions(brdf::merl_cell_centre(brdf::merl_cell(std::size_t(acquire::valid_cells()[obs.cell[o]]))), wi, wo);
     double mean = 0;
     for (std::size_t k = 0; k < 5; ++k) mean += obs.values[o * 5 + k] / 5.0;
     v.push_back(mean * wi.z() * wo.z());
@@ -183,8 +182,8 @@ TEST(PriorReach, EachThetaHRowTakesItsOwnReach) {
   far.confidence_reach = 1;
   mixed.reach_by_theta_h.assign(90, 1.0);
   std::fill_n(mixed.reach_by_theta_h.begin(), 30, 0.01);
-  std::vector<float> gn(5 * brdf::kMerlCells), gf(gn.size()), gm(gn.size()), cn(brdf::kMerlCells),
-      cf(brdf::kMerlCells), cm(brdf::kMerlCells);
+  std::vector<float> gn(5 * brdf::kMerlCells), gf(gn.size()), gm(gn.size()), cn(brdf::kMerlCells), cf(brdf::kMerlCells),
+      cm(brdf::kMerlCells);
   acquire::resample_with_prior(src, family_prior(), near, gn, cn);
   acquire::resample_with_prior(src, family_prior(), far, gf, cf);
   acquire::resample_with_prior(src, family_prior(), mixed, gm, cm);

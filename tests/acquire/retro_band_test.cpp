@@ -21,19 +21,20 @@ namespace {
 using test::ward;
 
 TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
-  const double family[][4] = {{0.6, 0.1, 0.05, 0.05}, {0.2, 0.5, 0.1, 0.1}, {0.4, 0.4, 0.02, 0.2}, {0.1, 0.1, 0.2, 0.07}};
+  const double family[][4] = {
+      {0.6, 0.1, 0.05, 0.05}, {0.2, 0.5, 0.1, 0.1}, {0.4, 0.4, 0.02, 0.2}, {0.1, 0.1, 0.2, 0.07}};
   std::vector<std::string> names;
   for (std::size_t i = 0; i < std::size(family); ++i) names.push_back("m" + std::to_string(i));
-  const BrdfPrior prior = build_prior(
-      std::size(family),
-      [&](std::size_t i) {
-        store::Grid g;
-        g.wavelengths = test::kWardBands;
-        g.brdf.resize(5 * brdf::kMerlCells);
-        brdf::evaluate_grid(ward(family[i][0], family[i][1], family[i][2], family[i][3]), g.brdf);
-        return g;
-      },
-      names, {.channels = 3});
+  const BrdfPrior prior =
+      build_prior(std::size(family),
+                  [&](std::size_t i) {
+                    store::Grid g;
+                    g.wavelengths = test::kWardBands;
+                    g.brdf.resize(5 * brdf::kMerlCells);
+                    brdf::evaluate_grid(ward(family[i][0], family[i][1], family[i][2], family[i][3]), g.brdf);
+                    return g;
+                  },
+                  names, {.channels = 3});
   const ScanRig rig{.sphere_px = 100, .light_step_deg = 4, .lights = 40};
   const auto pixels = scan_pixels(rig);
   std::vector<double> angles;
