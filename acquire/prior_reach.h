@@ -22,9 +22,9 @@ struct ReachOptions {
   std::vector<double> ladder = {0.001, 0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3, 0.5, 1};  ///< ascending, in (0, 1]
   double held_out = 0.1;   ///< share of the observed cells of two or more samples held out, in (0, 1)
   std::uint64_t seed = 0;  ///< seed of the choice of held-out cells
-  /// the kd-tree's weights tried in the unseen retro-reflection band (acquire/retro_band.h), ascending in [0, 1]:
-  /// the fit or the kd-tree (a mix measured worse, docs/prior.md); empty: the band is not chosen for (nor held out)
-  std::vector<double> retro_ladder = {0, 1};
+  /// the kd-tree's weights tried in the unseen retro-reflection band (acquire/retro_band.h), ascending in [0, 1];
+  /// empty: the band is not chosen for (and not held out)
+  std::vector<double> retro_ladder = {0, 0.25, 0.5, 0.75, 1};
   /// theta_h row boundaries of the groups that each choose their reach (ascending from 0 to kMerlThetaH); {0, 90}:
   /// one reach for all
   std::vector<int> theta_h_groups = {0, 10, 20, 30, 45, 90};
