@@ -10,6 +10,7 @@
 
 #include "specula/acquire/bandwidth.h"
 #include "specula/acquire/base_resample.h"
+#include "specula/acquire/retro_band.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
@@ -198,13 +199,14 @@ ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o) {
     if (v >= 0) ++count[std::size_t(v)];
   const auto row_of = [&](std::size_t v) { return brdf::merl_cell(std::size_t(cells[v])).theta_d; };
   ReachHoldout h;
-  h.retro_rows = brdf::kMerlThetaD;
+  std::vector<std::uint32_t> observed;
   int highest = -1;
   for (std::size_t i = 0; i < count.size(); ++i)
     if (count[i] > 0) {
-      h.retro_rows = std::min(h.retro_rows, row_of(i));
+      observed.push_back(std::uint32_t(i));
       highest = std::max(highest, row_of(i));
     }
+  h.retro_rows = unseen_retro_rows(observed);  // the band the blend gives its weight to, by the blend's own rule
   if (!o.retro_ladder.empty() && h.retro_rows > 0 && h.retro_rows < brdf::kMerlThetaD &&
       highest >= std::min(2 * h.retro_rows, brdf::kMerlThetaD)) {  // some rows must stay to extrapolate from
     h.band_first = h.retro_rows;

@@ -6,10 +6,10 @@
 
 namespace specula::acquire {
 
-int unseen_retro_rows(const PriorObservations& obs) {
+int unseen_retro_rows(std::span<const std::uint32_t> observed) {
   int rows = brdf::kMerlThetaD;
   const auto& cells = valid_cells();
-  for (const std::uint32_t v : obs.cell) rows = std::min(rows, brdf::merl_cell(std::size_t(cells[v])).theta_d);
+  for (const std::uint32_t v : observed) rows = std::min(rows, brdf::merl_cell(std::size_t(cells[v])).theta_d);
   return rows;
 }
 

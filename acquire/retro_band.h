@@ -6,14 +6,18 @@
 // depends on the material (a black glass: the continuation; a fabric's retro-reflection: the prior), so the band's
 // weight of the kd-tree is chosen from the scan (acquire/prior_reach.h), by the same extrapolation one band higher.
 #include <cstddef>
+#include <cstdint>
+#include <span>
 
 #include "specula/acquire/prior.h"
 
 namespace specula::acquire {
 
-/// The number of theta_d rows below the lowest theta_d row holding an observed cell of obs (cells index
-/// valid_cells()); kMerlThetaD when obs holds none.
-int unseen_retro_rows(const PriorObservations& obs);
+/// The number of theta_d rows below the lowest theta_d row holding one of the observed cells (positions in
+/// valid_cells()); kMerlThetaD when there are none.
+int unseen_retro_rows(std::span<const std::uint32_t> observed);
+/// unseen_retro_rows of the cells of observations obs.
+inline int unseen_retro_rows(const PriorObservations& obs) { return unseen_retro_rows(obs.cell); }
 
 /// True when MERL cell `cell` (linear index) lies in the band: its theta_d row is below `rows`.
 bool in_unseen_retro(int rows, std::size_t cell);

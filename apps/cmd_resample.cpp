@@ -235,10 +235,12 @@ void setup_resample(CLI::App& app) {
       ->check(CLI::Range(std::size_t(1), std::size_t(1) << 20));
   cmd->add_option(
       "--confidence-reach", o->confidence_reach,
-      fmt::format("--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction "
-                  "of --max-gap, or (--prior) auto: chosen by holding out half the samples of a tenth of the observed "
-                  "cells (docs/prior.md). Default auto with --prior ({} with --prior-residuals), {} with --model",
-                  acquire::kPriorConfidenceReach, acquire::ModelMethod{}.confidence_reach));
+      fmt::format(
+          "--prior, --model: the kd-tree estimate's weight falls from 1 at a sample to 0 at this fraction "
+          "of --max-gap, or (--prior) auto: chosen per group of theta_h rows by holding out half the samples of a "
+          "tenth of the observed cells, with the weight in the unseen retro-reflection band (docs/prior.md). Default "
+          "auto with --prior ({} with --prior-residuals), {} with --model",
+          acquire::kPriorConfidenceReach, acquire::ModelMethod{}.confidence_reach));
   cmd->add_flag("--prior-residuals", o->prior_residuals,
                 "--prior: add the kd-tree estimate of the residuals against the prior fit (as --model) instead of "
                 "blending the two");
