@@ -10,6 +10,7 @@
 #include <numbers>
 #include <random>
 
+#include "specula/acquire/store_samples.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/parallel.h"
@@ -33,7 +34,7 @@ void check(const BandwidthOptions& b) {
 }
 
 // The rows of `rows_wanted` (ascending sample indices) read from src in its blocks, rows_wanted.size() x bands.
-std::vector<float> read_rows(const SampleSource& src, std::span<const std::uint32_t> rows_wanted) {
+std::vector<float> read_rows(const brdf::SampleSource& src, std::span<const std::uint32_t> rows_wanted) {
   const std::size_t n = src.size(), bands = src.bands(), block_rows = std::max<std::size_t>(1, src.block_rows());
   std::vector<float> out(rows_wanted.size() * bands), block;
   std::size_t next = 0;
@@ -51,7 +52,7 @@ std::vector<float> read_rows(const SampleSource& src, std::span<const std::uint3
 }
 
 // The angles of the held-out samples (ascending indices), read from src in its blocks: held.size() x 4.
-std::vector<double> read_held_angles(const SampleSource& src, std::span<const std::size_t> held) {
+std::vector<double> read_held_angles(const brdf::SampleSource& src, std::span<const std::size_t> held) {
   const std::size_t n = src.size(), block_rows = std::max<std::size_t>(1, src.block_rows());
   std::vector<double> out(4 * held.size()), block;
   std::size_t next = 0;
@@ -90,8 +91,8 @@ double error_of(BandwidthCriterion c, const std::vector<double>& e2, const std::
 }
 
 // Sample j's nearest other samples, at most kmax + 1 (the reach of the largest k), itself left out.
-void neighbours_without(const SampleTree& tree, const IsoAngles& at, std::size_t self, std::size_t kmax, bool offsets,
-                        Neighbours& nb) {
+void neighbours_without(const brdf::SampleTree& tree, const brdf::IsoAngles& at, std::size_t self, std::size_t kmax,
+                        bool offsets, brdf::Neighbours& nb) {
   tree.nearest(at, kmax + 2, nb, offsets);
   auto it = std::find(nb.index.begin(), nb.index.end(), std::uint32_t(self));
   std::size_t drop = it == nb.index.end() ? nb.index.size() - 1 : std::size_t(it - nb.index.begin());
@@ -126,12 +127,12 @@ struct HeldOut {
   }
 };
 
-HeldOut find_held_out(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
+HeldOut find_held_out(const brdf::SampleTree& tree, const brdf::SampleSource& src, const brdf::ResampleOptions& o,
                       const BandwidthOptions& b, Progress& progress) {
   HeldOut ho;
   ho.held = select_indices(src.size(), std::min(b.held_out, src.size()), b.seed);
   const std::size_t h = ho.held.size(), kmax = b.ladder.back();
-  const bool loess = o.weights == Weights::loess;
+  const bool loess = o.weights == brdf::Weights::loess;
   ho.per = kmax + 1;
   ho.index.resize(h * ho.per);
   ho.used.resize(h);
@@ -140,10 +141,10 @@ HeldOut find_held_out(const SampleTree& tree, const SampleSource& src, const Res
   ho.band.resize(h);
   const std::vector<double> angles = read_held_angles(src, ho.held);
   parallel_for(
-      h, [] { return Neighbours(); },
-      [&](std::size_t j, Neighbours& nb) {
+      h, [] { return brdf::Neighbours(); },
+      [&](std::size_t j, brdf::Neighbours& nb) {
         const brdf::StdAngles a{angles[4 * j], angles[4 * j + 1], angles[4 * j + 2], angles[4 * j + 3]};
-        neighbours_without(tree, iso_angles(a), ho.held[j], kmax, loess, nb);
+        neighbours_without(tree, brdf::iso_angles(a), ho.held[j], kmax, loess, nb);
         ho.used[j] = std::uint32_t(nb.index.size());
         std::copy(nb.index.begin(), nb.index.end(), ho.index.begin() + std::ptrdiff_t(j * ho.per));
         std::copy(nb.dist2.begin(), nb.dist2.end(), ho.dist2.begin() + std::ptrdiff_t(j * ho.per));
@@ -159,11 +160,11 @@ HeldOut find_held_out(const SampleTree& tree, const SampleSource& src, const Res
 
 // Squared error of every held-out sample at every ladder k (e2: h x levels) and its squared norm (t2), predicted
 // with the weights a cell at its configuration would get from its neighbours.
-void predict_held_out(const HeldOut& ho, const ResampleOptions& o, std::span<const std::size_t> ladder,
+void predict_held_out(const HeldOut& ho, const brdf::ResampleOptions& o, std::span<const std::size_t> ladder,
                       std::size_t bands, std::span<const std::uint32_t> wanted, std::span<const float> values,
                       std::vector<double>& e2, std::vector<double>& t2, Progress& progress) {
   const std::size_t h = ho.held.size(), levels = ladder.size(), per = ho.per;
-  const bool loess = o.weights == Weights::loess, reach = weights_have_reach(o.weights);
+  const bool loess = o.weights == brdf::Weights::loess, reach = brdf::weights_have_reach(o.weights);
   auto row_of = [&](std::uint32_t s) {
     return values.data() + std::size_t(std::lower_bound(wanted.begin(), wanted.end(), s) - wanted.begin()) * bands;
   };
@@ -182,7 +183,7 @@ void predict_held_out(const HeldOut& ho, const ResampleOptions& o, std::span<con
           const double reach2 = reach && ho.used[j] > k ? double(d2[k]) : std::numeric_limits<double>::infinity();
           const auto off =
               loess ? std::span<const float>(ho.offset.data() + 3 * j * per, 3 * k) : std::span<const float>();
-          neighbour_weights(o.weights, o.power, {d2, k}, {w.data(), k}, reach2, off);
+          brdf::neighbour_weights(o.weights, o.power, {d2, k}, {w.data(), k}, reach2, off);
           std::fill(acc.begin(), acc.end(), 0.0);
           for (std::size_t i = 0; i < k; ++i) {
             const float* v = row_of(ho.index[j * per + i]);
@@ -269,8 +270,8 @@ std::string_view bandwidth_criterion_name(BandwidthCriterion c) {
   return c == BandwidthCriterion::bands ? "bands" : c == BandwidthCriterion::median ? "median" : "rms";
 }
 
-BandwidthChoice choose_bandwidth(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
-                                 const BandwidthOptions& b) {
+BandwidthChoice choose_bandwidth(const brdf::SampleTree& tree, const brdf::SampleSource& src,
+                                 const brdf::ResampleOptions& o, const BandwidthOptions& b) {
   check(b);
   check_options(o);
   if (tree.mapping() != o.mapping || tree.size() != src.size())
@@ -285,11 +286,11 @@ BandwidthChoice choose_bandwidth(const SampleTree& tree, const SampleSource& src
   return summarise(b, e2, t2, ho.band);
 }
 
-BandwidthChoice choose_bandwidth(const store::Store& store, const std::string& samples, const ResampleOptions& o,
+BandwidthChoice choose_bandwidth(const store::Store& store, const std::string& samples, const brdf::ResampleOptions& o,
                                  const BandwidthOptions& b) {
   const StoreSamples src(store, samples);
-  const SampleTree tree(src, o.mapping);
-  ResampleOptions at_most = o;
+  const brdf::SampleTree tree(src, o.mapping);
+  brdf::ResampleOptions at_most = o;
   at_most.k = b.ladder.empty() ? o.k : b.ladder.back();
   return choose_bandwidth(tree, src, at_most, b);
 }

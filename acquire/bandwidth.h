@@ -10,7 +10,11 @@
 #include <string_view>
 #include <vector>
 
-#include "specula/acquire/resample.h"
+#include "specula/core/brdf_resample.h"
+
+namespace specula::store {
+class Store;
+}  // namespace specula::store
 
 namespace specula::acquire {
 
@@ -64,10 +68,10 @@ std::vector<std::size_t> select_indices(std::size_t n, std::size_t h, std::uint6
 /// limit) for every ladder k, with the weights a cell there would get; the values streamed once in blocks, on all
 /// threads with the same result for any thread count. UsageError for an empty or unsorted ladder, a k of 0 or
 /// above 100000, held_out 0 or edges not ascending in (0, 90); InputError when src has fewer than 2 samples.
-BandwidthChoice choose_bandwidth(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
-                                 const BandwidthOptions& b);
+BandwidthChoice choose_bandwidth(const brdf::SampleTree& tree, const brdf::SampleSource& src,
+                                 const brdf::ResampleOptions& o, const BandwidthOptions& b);
 /// choose_bandwidth over the samples object `samples` of `store`, indexed by o's mapping.
-BandwidthChoice choose_bandwidth(const store::Store& store, const std::string& samples, const ResampleOptions& o,
+BandwidthChoice choose_bandwidth(const store::Store& store, const std::string& samples, const brdf::ResampleOptions& o,
                                  const BandwidthOptions& b);
 /// The choice and every ladder row's errors, as `resample --json` reports them under "k_auto".
 nlohmann::ordered_json bandwidth_choice_json(const BandwidthChoice& c, const BandwidthOptions& b);

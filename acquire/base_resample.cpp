@@ -14,9 +14,9 @@ namespace specula::acquire {
 namespace {
 
 // src's samples minus the base at their configurations.
-class ResidualSamples final : public SampleSource {
+class ResidualSamples final : public brdf::SampleSource {
  public:
-  ResidualSamples(const SampleSource& src, const BaseAtSamples& base) : src_(src), base_(base) {}
+  ResidualSamples(const brdf::SampleSource& src, const BaseAtSamples& base) : src_(src), base_(base) {}
   std::size_t size() const override { return src_.size(); }
   std::size_t bands() const override { return src_.bands(); }
   std::size_t block_rows() const override { return src_.block_rows(); }
@@ -33,7 +33,7 @@ class ResidualSamples final : public SampleSource {
   }
 
  private:
-  const SampleSource& src_;
+  const brdf::SampleSource& src_;
   const BaseAtSamples& base_;
 };
 
@@ -44,17 +44,17 @@ double support_confidence(double gap, double max_gap, double reach) {
   return std::clamp(1 - r * r, 0.0, 1.0);
 }
 
-GridStats resample_on_base(const SampleSource& src, const ResampleOptions& o, double reach, const BaseAtSamples& base,
-                           std::span<float> grid, std::span<float> confidence) {
+brdf::GridStats resample_on_base(const brdf::SampleSource& src, const brdf::ResampleOptions& o, double reach,
+                                 const BaseAtSamples& base, std::span<float> grid, std::span<float> confidence) {
   const std::size_t b = src.bands();
   if (grid.size() != b * brdf::kMerlCells || confidence.size() != brdf::kMerlCells)
     throw UsageError("resampling on a base: grid or confidence of the wrong size");
   if (!(reach > 0 && reach <= 1))
     throw UsageError("resampling on a base: the confidence's reach (a fraction of max_gap) must be in (0, 1]");
   const ResidualSamples residuals(src, base);
-  const SampleTree tree(src, o.mapping);
+  const brdf::SampleTree tree(src, o.mapping);
   std::vector<float> local(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
-  const GridStats st = resample_grid(tree, residuals, o, local, gaps);
+  const brdf::GridStats st = brdf::resample_grid(tree, residuals, o, local, gaps);
   const auto& cells = valid_cells();
   std::fill(confidence.begin(), confidence.end(), -1.0f);
   parallel_for(
@@ -85,7 +85,7 @@ BaseAtSamples base_from_grid(std::span<const float> grid, std::size_t bands) {
   };
 }
 
-ModelResampleStats resample_with_model(const SampleSource& src, const WavelengthGrid& bands,
+ModelResampleStats resample_with_model(const brdf::SampleSource& src, const WavelengthGrid& bands,
                                        const ModelResampleOptions& o, std::span<float> grid,
                                        std::span<float> confidence, std::unique_ptr<MicrofacetBrdf>* model) {
   if (bands.size() != src.bands())

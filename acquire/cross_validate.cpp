@@ -18,7 +18,7 @@ namespace specula::acquire {
 namespace {
 
 // The summed errors of one configuration's predictions, e2[j] < 0 where sample j had no prediction.
-CrossValidationRow summarise(Mapping mapping, std::size_t k, Weights weights, std::span<const double> e2,
+CrossValidationRow summarise(brdf::Mapping mapping, std::size_t k, brdf::Weights weights, std::span<const double> e2,
                              std::span<const double> t2) {
   CrossValidationRow row{mapping, k, weights};
   double err = 0, ref = 0;
@@ -71,14 +71,15 @@ CrossValidation cross_validate(std::span<const double> angles, std::span<const f
   out.samples = n;
   out.held_out = held;
   Progress progress("cross-validating", 3 * o.ks.size() * 5 * held);  // mappings x k x weightings
-  for (const auto mapping : {Mapping::standard, Mapping::marschner, Mapping::halfdiff}) {
-    const MemorySamples train(train_a, train_v, b);
-    const auto tree = std::make_shared<const SampleTree>(train, mapping);
+  for (const auto mapping : {brdf::Mapping::standard, brdf::Mapping::marschner, brdf::Mapping::halfdiff}) {
+    const brdf::MemorySamples train(train_a, train_v, b);
+    const auto tree = std::make_shared<const brdf::SampleTree>(train, mapping);
     for (const auto k : o.ks)
-      for (const auto weights : {Weights::mean, Weights::shepard, Weights::renka, Weights::wendland, Weights::loess}) {
-        if (k == 1 && weights != Weights::mean) continue;  // one neighbour: the same prediction
+      for (const auto weights : {brdf::Weights::mean, brdf::Weights::shepard, brdf::Weights::renka,
+                                 brdf::Weights::wendland, brdf::Weights::loess}) {
+        if (k == 1 && weights != brdf::Weights::mean) continue;  // one neighbour: the same prediction
         // No support limit: every held-out sample is predicted from its k nearest, however far.
-        const Resampler r(tree, train_v, b, {.mapping = mapping, .k = k, .weights = weights, .max_gap = 10});
+        const brdf::Resampler r(tree, train_v, b, {.mapping = mapping, .k = k, .weights = weights, .max_gap = 10});
         std::vector<double> e2(held, -1), t2(held, 0);
         parallel_for(
             held, [&] { return std::vector<float>(b); },

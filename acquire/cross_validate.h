@@ -1,13 +1,13 @@
 #pragma once
 // Leave-out cross-validation of resampling (reference §5.3): a fixed random share of scattered samples is held
-// out, the rest resampled (acquire/resample.h) at the held-out configurations for every mapping, k and
+// out, the rest resampled (core/brdf_resample.h) at the held-out configurations for every mapping, k and
 // weighting, and the prediction error of each configuration summed. `specula eval-resample` prints the rows.
 #include <cstddef>
 #include <cstdint>
 #include <span>
 #include <vector>
 
-#include "specula/acquire/resample.h"
+#include "specula/core/brdf_resample.h"
 
 namespace specula::acquire {
 
@@ -19,9 +19,9 @@ struct CrossValidationOptions {
 
 /// The prediction error of one mapping, k and weighting over the held-out samples it could predict.
 struct CrossValidationRow {
-  Mapping mapping = Mapping::standard;
+  brdf::Mapping mapping = brdf::Mapping::standard;
   std::size_t k = 1;
-  Weights weights = Weights::mean;  ///< mean for k = 1 (the nearest sample; any weights predict the same)
+  brdf::Weights weights = brdf::Weights::mean;  ///< mean for k = 1 (the nearest sample; any weights predict the same)
   double rel_rms = 0;         ///< sqrt(sum (pred - true)^2 / sum true^2) over predicted held-out samples and bands
   double median_rel = 0;      ///< median over predicted held-out samples of |pred - true| / |true| (spectra as vectors)
   std::size_t predicted = 0;  ///< held-out samples predicted (all: no support limit)

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 
-#include "specula/acquire/mapping.h"
+#include "specula/core/brdf_mapping.h"
 #include "specula/core/error.h"
 
 namespace specula::acquire {
@@ -29,10 +29,11 @@ std::vector<PlanePoints> incidence_plane_points(const store::Store& s, const std
     scanned += n;
     bool have_values = false;  // a block's values are read only when some of its samples lie in a plane
     for (std::size_t i = 0; i < n; ++i) {
-      const IsoAngles a = iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
+      const brdf::IsoAngles a =
+          brdf::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
       for (std::size_t k = 0; k < theta_i.size(); ++k) {
         if (out[k].points.size() >= limit) continue;
-        const auto x = incidence_plane_angle(a, theta_i[k], eps);
+        const auto x = brdf::incidence_plane_angle(a, theta_i[k], eps);
         if (!x) continue;
         if (!have_values) {
           values.resize(n * info.bands);

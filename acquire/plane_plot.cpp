@@ -6,10 +6,10 @@
 #include <cmath>
 #include <numbers>
 
-#include "specula/acquire/mapping.h"
 #include "specula/acquire/pipeline.h"
 #include "specula/acquire/study.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/brdf_mapping.h"
 #include "specula/core/error.h"
 
 namespace specula::acquire {
@@ -34,8 +34,9 @@ std::vector<PlanePoint> incidence_plane_points(std::span<const double> angles, s
                                  values.size(), bands, band));
   std::vector<PlanePoint> out;
   for (std::size_t i = 0; i < n; ++i) {
-    const IsoAngles a = iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
-    if (const auto x = incidence_plane_angle(a, theta_i, eps)) out.push_back({*x, values[i * bands + band]});
+    const brdf::IsoAngles a =
+        brdf::iso_angles({angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]});
+    if (const auto x = brdf::incidence_plane_angle(a, theta_i, eps)) out.push_back({*x, values[i * bands + band]});
   }
   return out;
 }
@@ -58,12 +59,12 @@ std::string model_plane_table(const brdf::SpectralModel& model, double theta_i, 
   return t;
 }
 
-std::string grid_plane_table(const Resampler& r, const brdf::SpectralModel& model, double theta_i) {
+std::string grid_plane_table(const brdf::Resampler& r, const brdf::SpectralModel& model, double theta_i) {
   std::vector<double> f(model.bands());
   std::string t;
   for (int d10 = kFirstDeg10; d10 <= kLastDeg10; d10 += kStepDeg10) {
     const brdf::StdAngles at = plane_angles(theta_i, d10);
-    const IsoAngles a{at.theta_i, at.theta_o, at.phi_o};
+    const brdf::IsoAngles a{at.theta_i, at.theta_o, at.phi_o};
     const brdf::MerlCell cell = brdf::merl_cell(std::size_t(merl_lookup_cell(a)));
     float v = 0;
     const bool has = r.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), std::span<float>(&v, 1));

@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "specula/acquire/incidence.h"
-#include "specula/acquire/resample.h"
 #include "specula/core/brdf_models.h"
+#include "specula/core/brdf_resample.h"
 
 namespace specula::acquire {
 
@@ -29,7 +29,7 @@ std::string model_plane_table(const brdf::SpectralModel& model, double theta_i, 
 /// As model_plane_table() for a one-band model, with the grid's value between: "theta_o recon cbrt(f)", recon the
 /// cube root of r's reconstruction (one band) at the centre of the MERL cell the grid lookup reads, NaN where r
 /// has no data there.
-std::string grid_plane_table(const Resampler& r, const brdf::SpectralModel& model, double theta_i);
+std::string grid_plane_table(const brdf::Resampler& r, const brdf::SpectralModel& model, double theta_i);
 
 /// "nm known recovered factored" per band of a calibration target: recovered is the filters' recovery when there
 /// is one, else the delta model's; factored is NaN when there is none. `bands` are the tuning wavelengths.

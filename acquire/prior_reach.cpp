@@ -35,9 +35,9 @@ void check_reach_options(const ReachOptions& o) {
 }
 
 // The samples of a source whose role is kept, in their order (the source outlives it).
-class KeptSamples final : public SampleSource {
+class KeptSamples final : public brdf::SampleSource {
  public:
-  KeptSamples(const SampleSource& src, std::span<const std::uint8_t> held) : src_(src) {
+  KeptSamples(const brdf::SampleSource& src, std::span<const std::uint8_t> held) : src_(src) {
     for (std::size_t s = 0; s < held.size(); ++s)
       if (!held[s]) kept_.push_back(std::uint32_t(s));
   }
@@ -73,12 +73,12 @@ class KeptSamples final : public SampleSource {
                   out.begin() + std::ptrdiff_t(i * width));
   }
 
-  const SampleSource& src_;
+  const brdf::SampleSource& src_;
   std::vector<std::uint32_t> kept_;
 };
 
 // Each sample's valid-cell position (or -1), its angles read in the source's blocks.
-std::vector<std::int32_t> sample_slots(const SampleSource& src) {
+std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src) {
   const std::size_t n = src.size(), block = std::max<std::size_t>(1, src.block_rows());
   std::vector<std::int32_t> slots(n);
   std::vector<double> angles;
@@ -190,7 +190,7 @@ std::size_t least(const std::vector<double>& v) {
 
 }  // namespace
 
-ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o) {
+ReachHoldout reach_holdout(const brdf::SampleSource& src, const ReachOptions& o) {
   check_reach_options(o);
   const std::vector<std::int32_t> slots = sample_slots(src);
   const auto& cells = valid_cells();
@@ -238,13 +238,14 @@ ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o) {
   return h;
 }
 
-ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
-                                    const ReachOptions& r) {
+ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPrior& prior,
+                                    const PriorResampleOptions& o, const ReachOptions& r) {
   return choose_confidence_reach(src, prior, memory_components(prior), o, r);
 }
 
-ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& prior, const ComponentSource& components,
-                                    const PriorResampleOptions& o, const ReachOptions& r) {
+ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPrior& prior,
+                                    const ComponentSource& components, const PriorResampleOptions& o,
+                                    const ReachOptions& r) {
   check_reach_options(r);
   check_options(o.local);
   if (o.residuals) throw UsageError("confidence reach: chosen for the blend only, not the residuals form");
@@ -262,7 +263,7 @@ ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& pr
   out.epsilon = judge_epsilon(parts[0], prior, b);
   const KeptSamples kept(src, out.holdout.held);
   std::vector<float> kd(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
-  resample_grid(SampleTree(kept, o.local.mapping), kept, o.local, kd, gaps);
+  brdf::resample_grid(brdf::SampleTree(kept, o.local.mapping), kept, o.local, kd, gaps);
   out.holdout.held = {};
   const std::size_t m = r.ladder.size();
   const std::vector<double> err = held_out_errors(parts[1], fitted, kd, gaps, b, r, o.local.max_gap, out.epsilon);

@@ -14,7 +14,7 @@
 
 #include "specula/acquire/prior.h"
 #include "specula/acquire/prior_resample.h"
-#include "specula/acquire/resample.h"
+#include "specula/core/brdf_resample.h"
 
 namespace specula::acquire {
 
@@ -46,7 +46,7 @@ struct ReachHoldout {
 /// sample in sample order. With a retro ladder and an unseen band of R > 0 theta_d rows, every sample of the rows
 /// [R, min(2R, 90)) is held out too (label 2): the band's extrapolation rehearsed one band higher. UsageError for bad
 /// options, InputError when no valid cell holds two samples.
-ReachHoldout reach_holdout(const SampleSource& src, const ReachOptions& o);
+ReachHoldout reach_holdout(const brdf::SampleSource& src, const ReachOptions& o);
 
 /// One candidate reach and its mean log-domain error over the held-out cells.
 struct ReachRow {
@@ -81,11 +81,12 @@ struct ReachChoice {
 /// eps the prior's times min(1, the kept cell means' median cos-weighted band mean / the prior's median reference at
 /// the same cells), target the held-out samples' mean; on all threads, the same for any thread count. UsageError for
 /// bad options or o.residuals (the residuals form is not a blend); errors of reach_holdout and fit_prior.
-ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
-                                    const ReachOptions& r);
-/// choose_confidence_reach with the prior's components from `components` block by block (fit_prior).
-ReachChoice choose_confidence_reach(const SampleSource& src, const BrdfPrior& prior, const ComponentSource& components,
+ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPrior& prior,
                                     const PriorResampleOptions& o, const ReachOptions& r);
+/// choose_confidence_reach with the prior's components from `components` block by block (fit_prior).
+ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPrior& prior,
+                                    const ComponentSource& components, const PriorResampleOptions& o,
+                                    const ReachOptions& r);
 
 /// Per theta_h row the reach of its group (PriorResampleOptions::reach_by_theta_h).
 std::vector<double> reach_by_theta_h(const ReachChoice& c);

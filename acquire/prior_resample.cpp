@@ -68,7 +68,7 @@ void valid_slots(std::span<const double> angles, std::span<std::int32_t> out) {
       4096);
 }
 
-std::vector<PriorObservations> cell_means(const SampleSource& src, bool use_variance,
+std::vector<PriorObservations> cell_means(const brdf::SampleSource& src, bool use_variance,
                                           std::span<const std::uint8_t> part, std::size_t parts) {
   const std::size_t b = src.bands(), n = src.size(), block = src.block_rows();
   if (parts == 0 || !(part.empty() || part.size() == n))
@@ -127,16 +127,17 @@ std::vector<PriorObservations> cell_means(const SampleSource& src, bool use_vari
   return out;
 }
 
-PriorObservations cell_means(const SampleSource& src, bool use_variance) {
+PriorObservations cell_means(const brdf::SampleSource& src, bool use_variance) {
   return std::move(cell_means(src, use_variance, {}, 1)[0]);
 }
 
-PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
-                                       std::span<float> grid, std::span<float> confidence) {
+PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const BrdfPrior& prior,
+                                       const PriorResampleOptions& o, std::span<float> grid,
+                                       std::span<float> confidence) {
   return resample_with_prior(src, prior, memory_components(prior), o, grid, confidence);
 }
 
-PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior,
+PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const BrdfPrior& prior,
                                        const ComponentSource& components, const PriorResampleOptions& o,
                                        std::span<float> grid, std::span<float> confidence) {
   const std::size_t b = src.bands();
@@ -176,7 +177,7 @@ PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior&
     return st;
   }
   std::vector<float> gaps(brdf::kMerlCells, -1.0f);
-  st.local = resample_grid(SampleTree(src, o.local.mapping), src, o.local, grid, gaps);
+  st.local = brdf::resample_grid(brdf::SampleTree(src, o.local.mapping), src, o.local, grid, gaps);
   std::fill(confidence.begin(), confidence.end(), -1.0f);
   parallel_for(
       cells.size(),

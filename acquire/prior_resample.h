@@ -1,7 +1,7 @@
 #pragma once
 // Resampling scattered samples with a learned prior (acquire/prior.h): the samples averaged per MERL cell are
 // the observations the prior is fitted to (weighted by their count and their scatter, PriorWeights), the kd-tree
-// estimate of acquire/resample.h is kept where samples are near, and the two are blended by a per-cell
+// estimate of core/brdf_resample.h is kept where samples are near, and the two are blended by a per-cell
 // confidence c = max(0, 1 - (g / (r max_gap))^2) of the distance g from the cell centre to its nearest sample
 // (config_distance, as the kd-tree's support test); every valid cell gets data. Or (residuals) the kd-tree
 // estimate of the samples' residuals against the fit is added to it, scaled by c (acquire/base_resample.h).
@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "specula/acquire/prior.h"
-#include "specula/acquire/resample.h"
+#include "specula/core/brdf_resample.h"
 
 namespace specula::acquire {
 
@@ -21,7 +21,7 @@ namespace specula::acquire {
 inline constexpr double kPriorConfidenceReach = 0.1;
 
 struct PriorResampleOptions {
-  ResampleOptions local;  ///< the kd-tree estimate
+  brdf::ResampleOptions local;  ///< the kd-tree estimate
   PriorFitOptions fit;
   /// r: confidence falls to 0 at r * local.max_gap from the nearest sample (0 < r <= 1)
   double confidence_reach = kPriorConfidenceReach;
@@ -42,7 +42,7 @@ struct PriorResampleOptions {
 
 /// What one reconstruction with a prior did.
 struct PriorResampleStats {
-  GridStats local;                 ///< the kd-tree pass
+  brdf::GridStats local;           ///< the kd-tree pass
   std::size_t observed_cells = 0;  ///< valid cells holding at least one sample (the prior's observations)
   std::size_t filled_cells = 0;    ///< valid cells with data in the result (all of them)
   double fit_seconds = 0;
@@ -52,21 +52,22 @@ struct PriorResampleStats {
 /// confidence, kMerlCells values, -1 below the horizon), the result as o.residuals says. UsageError on
 /// sizes or bands that differ from the prior's; InputError when no sample falls in a valid cell.
 /// The prior's components come from `components` block by block (fit_prior).
-PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior,
+PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const BrdfPrior& prior,
                                        const ComponentSource& components, const PriorResampleOptions& o,
                                        std::span<float> grid, std::span<float> confidence);
 /// resample_with_prior with the components of prior (in memory).
-PriorResampleStats resample_with_prior(const SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
-                                       std::span<float> grid, std::span<float> confidence);
+PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const BrdfPrior& prior,
+                                       const PriorResampleOptions& o, std::span<float> grid,
+                                       std::span<float> confidence);
 
 /// The samples of src averaged per valid cell (values), their counts as weights and as spread their scatter (the
 /// unbiased variance per band, 0 for one sample) or, when src carries variances and use_variance, the mean of the
 /// samples' own variances (spread_is_noise): the observations of prior.h.
-PriorObservations cell_means(const SampleSource& src, bool use_variance = true);
+PriorObservations cell_means(const brdf::SampleSource& src, bool use_variance = true);
 /// cell_means of the samples of each part: observations q average the samples s with part[s] == q (samples with a
 /// label of parts or more are left out; part empty: every sample is in part 0). UsageError for parts 0 or a part
 /// list that is neither empty nor one label per sample.
-std::vector<PriorObservations> cell_means(const SampleSource& src, bool use_variance,
+std::vector<PriorObservations> cell_means(const brdf::SampleSource& src, bool use_variance,
                                           std::span<const std::uint8_t> part, std::size_t parts);
 /// Per sample (angles n x 4, radians) its valid cell's position in valid_cells(), or -1 (a direction below the
 /// horizon or not finite) into out (n values); on all threads.

@@ -7,10 +7,11 @@
 #include <numbers>
 
 #include "specula/acquire/base_resample.h"
-#include "specula/acquire/mapping.h"
 #include "specula/acquire/prior_output.h"
 #include "specula/acquire/prior_resample.h"
+#include "specula/acquire/store_samples.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/brdf_mapping.h"
 #include "specula/core/error.h"
 #include "specula/store/object_spec.h"
 
@@ -52,8 +53,9 @@ ChosenK choice_of(const BandwidthChoice& c, const BandwidthOptions& b) {
 ChosenK given_k(std::size_t k) { return {k, nullptr, fmt::format("k={}", k)}; }
 
 // The common words of every provenance: the mapping, k and the weights.
-std::string local_words(const ResampleOptions& o, const ChosenK& k) {
-  return fmt::format("mapping={} {} weights={}", mapping_name(o.mapping), k.provenance, weights_name(o.weights));
+std::string local_words(const brdf::ResampleOptions& o, const ChosenK& k) {
+  return fmt::format("mapping={} {} weights={}", brdf::mapping_name(o.mapping), k.provenance,
+                     brdf::weights_name(o.weights));
 }
 
 void add_k_auto(Json& j, const ChosenK& k) {
@@ -63,21 +65,21 @@ void add_k_auto(Json& j, const ChosenK& k) {
 ResampleOutcome plain(const ResampleJob& job, const store::Store& s, const store::SamplesInfo& info) {
   const auto t0 = std::chrono::steady_clock::now();
   const StoreSamples src(s, job.samples);
-  const SampleTree tree(src, job.local.mapping);
+  const brdf::SampleTree tree(src, job.local.mapping);
   const double tree_seconds = elapsed_seconds(t0);
-  ResampleOptions o = job.local;
+  brdf::ResampleOptions o = job.local;
   ChosenK k = given_k(o.k);
   if (job.k_auto) {
-    ResampleOptions at_most = o;
+    brdf::ResampleOptions at_most = o;
     at_most.k = job.k_auto->ladder.empty() ? o.k : job.k_auto->ladder.back();
     k = choice_of(choose_bandwidth(tree, src, at_most, *job.k_auto), *job.k_auto);
     o.k = k.k;
   }
   ResampleOutcome out{.grid = empty_grid(info, job)};
-  GridStats stats = resample_grid(tree, src, o, out.grid.brdf);
+  brdf::GridStats stats = brdf::resample_grid(tree, src, o, out.grid.brdf);
   stats.tree_seconds = tree_seconds;
   // Only Shepard's weights have a power, so the provenance names it only for them.
-  const std::string power = o.weights == Weights::shepard ? fmt::format(" power={}", o.power) : "";
+  const std::string power = o.weights == brdf::Weights::shepard ? fmt::format(" power={}", o.power) : "";
   out.grid.provenance.importer =
       fmt::format("resample {}{} max_gap_deg={:.6g}", local_words(o, k), power, o.max_gap * 180 / std::numbers::pi);
   const double seconds = elapsed_seconds(t0);
@@ -87,15 +89,15 @@ ResampleOutcome plain(const ResampleJob& job, const store::Store& s, const store
   out.report["query_seconds"] = stats.query_seconds;
   out.report["average_seconds"] = stats.average_seconds;
   out.report["passes"] = stats.passes;
-  out.report["mapping"] = mapping_name(o.mapping);
+  out.report["mapping"] = brdf::mapping_name(o.mapping);
   out.report["k"] = k.k;
   add_k_auto(out.report, k);
-  out.report["weights"] = weights_name(o.weights);
+  out.report["weights"] = brdf::weights_name(o.weights);
   out.report["power"] = o.power;
   out.summary =
       fmt::format("resampled {} samples of {} onto {} of {} cells ({} mapping, k = {}{}, {} weights) in {:.2f} s",
-                  info.size, job.samples, stats.valid_cells, brdf::kMerlCells, mapping_name(o.mapping), k.k,
-                  k.report.is_null() ? "" : " chosen by leave-one-out", weights_name(o.weights), seconds);
+                  info.size, job.samples, stats.valid_cells, brdf::kMerlCells, brdf::mapping_name(o.mapping), k.k,
+                  k.report.is_null() ? "" : " chosen by leave-one-out", brdf::weights_name(o.weights), seconds);
   return out;
 }
 

@@ -12,7 +12,7 @@
 #include "specula/acquire/prior.h"
 #include "specula/acquire/prior_reach.h"
 #include "specula/acquire/prior_resample.h"
-#include "specula/acquire/resample.h"
+#include "specula/core/brdf_resample.h"
 #include "specula/store/store.h"
 
 namespace specula::acquire {
@@ -40,7 +40,7 @@ struct ModelMethod {
 struct ResampleJob {
   std::string store;    ///< the store holding the samples
   std::string samples;  ///< their name
-  ResampleOptions local;
+  brdf::ResampleOptions local;
   std::optional<BandwidthOptions> k_auto;  ///< given: local.k is chosen by leave-one-out over this ladder
   std::variant<PlainMethod, PriorMethod, ModelMethod> method;
 };

@@ -16,7 +16,7 @@ namespace {
 using std::numbers::pi;
 
 // The isotropic configuration a pixel shows: its normal, the light and the viewer.
-bool pixel_angles(const Eigen::Vector3d& n, const Eigen::Vector3d& l, IsoAngles& a) {
+bool pixel_angles(const Eigen::Vector3d& n, const Eigen::Vector3d& l, brdf::IsoAngles& a) {
   const Eigen::Vector3d v(0, 0, 1);
   const double ci = n.dot(l), co = n.dot(v);
   if (ci <= 0 || co <= 0) return false;
@@ -52,14 +52,14 @@ SphereRender render_sphere(std::size_t size, const Eigen::Vector3d& light, const
   out.covered.assign(size * size, 0);
   for_each_pixel(size, [&](std::size_t p, const Eigen::Vector3d& n) {
     out.covered[p] = 1;
-    IsoAngles a;
+    brdf::IsoAngles a;
     double v = 0;
     if (pixel_angles(n, l, a) && f(a, v)) out.value[p] = pi * v * std::cos(a.theta_i);
   });
   return out;
 }
 
-std::size_t merl_lookup_cell(const IsoAngles& a) {
+std::size_t merl_lookup_cell(const brdf::IsoAngles& a) {
   return brdf::merl_index(brdf::merl_cell(brdf::StdAngles{a.theta_i, 0.0, a.theta_o, a.phi_d}));
 }
 
@@ -77,20 +77,20 @@ StudyOutput resampling_study(const brdf::SpectralModel& model, std::size_t band,
     return f[band];
   };
   StudyOutput out;
-  out.truth = render_sphere(o.render_size, o.light, [&](const IsoAngles& a, double& v) {
+  out.truth = render_sphere(o.render_size, o.light, [&](const brdf::IsoAngles& a, double& v) {
     v = truth({a.theta_i, 0.0, a.theta_o, a.phi_d});
     return true;
   });
   // The cells the render reads.
   std::vector<std::size_t> cells;
   for_each_pixel(o.render_size, [&](std::size_t, const Eigen::Vector3d& n) {
-    IsoAngles a;
+    brdf::IsoAngles a;
     if (pixel_angles(n, o.light.normalized(), a)) cells.push_back(merl_lookup_cell(a));
   });
   std::sort(cells.begin(), cells.end());
   cells.erase(std::unique(cells.begin(), cells.end()), cells.end());
   auto render_cells = [&](const std::vector<double>& cell_value) {
-    return render_sphere(o.render_size, o.light, [&](const IsoAngles& a, double& v) {
+    return render_sphere(o.render_size, o.light, [&](const brdf::IsoAngles& a, double& v) {
       const auto at = std::lower_bound(cells.begin(), cells.end(), merl_lookup_cell(a)) - cells.begin();
       v = cell_value[std::size_t(at)];
       return !std::isnan(v);
@@ -119,14 +119,15 @@ StudyOutput resampling_study(const brdf::SpectralModel& model, std::size_t band,
   const std::size_t n = angles.size() / 4;
   std::vector<float> column(n);
   for (std::size_t i = 0; i < n; ++i) column[i] = values[i * bands + band];
-  const MemorySamples src(angles, column, 1);
-  for (const Mapping m : {Mapping::halfdiff, Mapping::marschner, Mapping::standard}) {
-    const auto tree = std::make_shared<const SampleTree>(src, m);
+  const brdf::MemorySamples src(angles, column, 1);
+  for (const brdf::Mapping m : {brdf::Mapping::halfdiff, brdf::Mapping::marschner, brdf::Mapping::standard}) {
+    const auto tree = std::make_shared<const brdf::SampleTree>(src, m);
     for (const std::size_t k : o.ks)
-      for (const Weights w : {Weights::mean, Weights::shepard}) {
-        if (k == 1 && w == Weights::shepard) continue;
+      for (const brdf::Weights w : {brdf::Weights::mean, brdf::Weights::shepard}) {
+        if (k == 1 && w == brdf::Weights::shepard) continue;
         check_interrupt();
-        const Resampler r(tree, column, 1, {.mapping = m, .k = k, .weights = w, .power = 1, .max_gap = o.max_gap});
+        const brdf::Resampler r(tree, column, 1,
+                                {.mapping = m, .k = k, .weights = w, .power = 1, .max_gap = o.max_gap});
         std::vector<double> v(cells.size());
         parallel_for(
             cells.size(),
@@ -142,7 +143,7 @@ StudyOutput resampling_study(const brdf::SpectralModel& model, std::size_t band,
         compare(render, row);
         for (std::size_t p = 0; p < render.value.size(); ++p) {
           if (!render.covered[p]) continue;
-          IsoAngles a;
+          brdf::IsoAngles a;
           const double x = (double(p % o.render_size) + 0.5) / double(o.render_size) * 2 - 1;
           const double y = 1 - (double(p / o.render_size) + 0.5) / double(o.render_size) * 2;
           const Eigen::Vector3d nrm(x, y, std::sqrt(std::max(0.0, 1 - x * x - y * y)));

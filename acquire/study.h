@@ -10,8 +10,8 @@
 #include <span>
 #include <vector>
 
-#include "specula/acquire/resample.h"
 #include "specula/core/brdf_models.h"
+#include "specula/core/brdf_resample.h"
 
 namespace specula::acquire {
 
@@ -24,7 +24,7 @@ struct SphereRender {
 };
 
 /// BRDF value of an isotropic configuration; false when there is none (the pixel is drawn as 0).
-using IsoBrdf = std::function<bool(const IsoAngles& at, double& f)>;
+using IsoBrdf = std::function<bool(const brdf::IsoAngles& at, double& f)>;
 
 /// Renders f on a size x size sphere: pixel centre (x, y) in [-1, 1]^2 inside the disc has normal
 /// (x, y, sqrt(1 - x^2 - y^2)), the viewer is at +z, a directional light of irradiance pi comes from `light`;
@@ -32,16 +32,16 @@ using IsoBrdf = std::function<bool(const IsoAngles& at, double& f)>;
 SphereRender render_sphere(std::size_t size, const Eigen::Vector3d& light, const IsoBrdf& f);
 
 /// The MERL cell the grid lookup reads for configuration a (as BRDFRead.cpp).
-std::size_t merl_lookup_cell(const IsoAngles& a);
+std::size_t merl_lookup_cell(const brdf::IsoAngles& a);
 
 /// One reconstruction of the study.
 struct StudyResult {
-  Mapping mapping = Mapping::standard;
+  brdf::Mapping mapping = brdf::Mapping::standard;
   std::size_t k = 1;
-  Weights weights = Weights::mean;      ///< irrelevant when k = 1
-  double l1 = 0;                        ///< mean |reconstruction - truth| over the sphere's pixels
-  double max_error = 0;                 ///< largest per-pixel difference
-  std::size_t pixels_without_data = 0;  ///< sphere pixels whose cell has no support
+  brdf::Weights weights = brdf::Weights::mean;  ///< irrelevant when k = 1
+  double l1 = 0;                                ///< mean |reconstruction - truth| over the sphere's pixels
+  double max_error = 0;                         ///< largest per-pixel difference
+  std::size_t pixels_without_data = 0;          ///< sphere pixels whose cell has no support
 };
 
 struct StudyOptions {

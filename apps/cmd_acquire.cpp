@@ -19,16 +19,17 @@
 #include "specula/acquire/hdr.h"
 #include "specula/acquire/holdout.h"
 #include "specula/acquire/incidence.h"
-#include "specula/acquire/mapping.h"
 #include "specula/acquire/pipeline.h"
 #include "specula/acquire/plane_plot.h"
-#include "specula/acquire/resample.h"
 #include "specula/acquire/scan.h"
 #include "specula/acquire/simulate.h"
+#include "specula/acquire/store_samples.h"
 #include "specula/acquire/truth.h"
 #include "specula/codec/suite.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/brdf_mapping.h"
 #include "specula/core/brdf_materials.h"
+#include "specula/core/brdf_resample.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/progress.h"
@@ -214,9 +215,9 @@ SuiteCheck suite_against_truth(const store::Store& s, const std::string& name, c
   truth.brdf.resize(info.bands * brdf::kMerlCells);
   brdf::evaluate_grid(model, truth.brdf);
   grid.brdf.resize(info.bands * brdf::kMerlCells);
-  const acquire::ResampleOptions ro{.k = o.grid_k, .max_gap = o.grid_max_gap_deg * std::numbers::pi / 180};
-  acquire::check_options(ro);
-  acquire::resample_grid(acquire::StoreSamples(s, name), ro, grid.brdf);
+  const brdf::ResampleOptions ro{.k = o.grid_k, .max_gap = o.grid_max_gap_deg * std::numbers::pi / 180};
+  brdf::check_options(ro);
+  brdf::resample_grid(acquire::StoreSamples(s, name), ro, grid.brdf);
   const codec::LightingSuite suite(info.wavelengths);
   SuiteCheck c{codec::suite_diff(truth, grid, suite), "", Json()};
   c.worst = suite.conditions()[c.diff.worst].name;

@@ -40,12 +40,12 @@ void run_eval_resample(const EvalResampleOptions& o) {
   }
   const std::size_t held = cv.held_out;
   auto weights = [](const acquire::CrossValidationRow& r) {
-    return r.k == 1 ? std::string("nearest") : std::string(acquire::weights_name(r.weights));
+    return r.k == 1 ? std::string("nearest") : std::string(brdf::weights_name(r.weights));
   };
   if (o.json) {
     Json list = Json::array();
     for (const auto& r : cv.rows)
-      list.push_back({{"mapping", std::string(acquire::mapping_name(r.mapping))},
+      list.push_back({{"mapping", std::string(brdf::mapping_name(r.mapping))},
                       {"k", r.k},
                       {"weights", weights(r)},
                       {"rel_rms", r.rel_rms},
@@ -63,7 +63,7 @@ void run_eval_resample(const EvalResampleOptions& o) {
              info.size, held, o.seed);
   fmt::print("| mapping | k | weights | relative RMS | median relative error |\n|---|---|---|---|---|\n");
   for (const auto& r : cv.rows)
-    fmt::print("| {} | {} | {} | {:.4f} | {:.4f} |\n", acquire::mapping_name(r.mapping), r.k, weights(r), r.rel_rms,
+    fmt::print("| {} | {} | {} | {:.4f} | {:.4f} |\n", brdf::mapping_name(r.mapping), r.k, weights(r), r.rel_rms,
                r.median_rel);
 }
 

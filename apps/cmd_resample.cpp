@@ -112,8 +112,8 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
   if (o.lobes < 1 || o.lobes > 2) throw UsageError("--lobes: give 1 or 2");
   acquire::ResampleJob job{.store = o.store,
                            .samples = o.samples,
-                           .local = {.mapping = acquire::parse_mapping(o.mapping),
-                                     .weights = acquire::parse_weights(o.weights),
+                           .local = {.mapping = brdf::parse_mapping(o.mapping),
+                                     .weights = brdf::parse_weights(o.weights),
                                      .power = o.power,
                                      .max_gap = o.max_gap_deg * std::numbers::pi / 180}};
   const auto criterion = acquire::parse_bandwidth_criterion(o.k_criterion);
@@ -151,7 +151,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     if (o.confidence_reach) m.confidence_reach = reach_of(*o.confidence_reach);
     job.method = m;
   }
-  acquire::check_options(job.local);
+  brdf::check_options(job.local);
   return job;
 }
 

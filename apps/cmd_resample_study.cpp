@@ -16,12 +16,12 @@
 #include "apps/common.h"
 #include "apps/gnuplot.h"
 #include "specula/acquire/plane_plot.h"
-#include "specula/acquire/resample.h"
 #include "specula/acquire/scan.h"
 #include "specula/acquire/study.h"
 #include "specula/codec/suite.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_materials.h"
+#include "specula/core/brdf_resample.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/store/io/png_stack.h"
@@ -46,11 +46,9 @@ struct ResampleStudyOptions {
 };
 
 std::string row_label(const acquire::StudyResult& r) {
-  const char* m = r.mapping == acquire::Mapping::standard    ? "M_s"
-                  : r.mapping == acquire::Mapping::marschner ? "M_m"
-                                                             : "M_h";
+  const char* m = r.mapping == brdf::Mapping::standard ? "M_s" : r.mapping == brdf::Mapping::marschner ? "M_m" : "M_h";
   return r.k == 1 ? std::string(m)
-                  : fmt::format("{}, {}", m, r.weights == acquire::Weights::mean ? "Avg." : "Weighted Avg.");
+                  : fmt::format("{}, {}", m, r.weights == brdf::Weights::mean ? "Avg." : "Weighted Avg.");
 }
 
 // Figure 5.17: samples within 2 degrees of theta_i = 45 degrees and of the incidence plane (cube root of the BRDF
@@ -62,7 +60,7 @@ void incidence_plot(const std::filesystem::path& path, const std::string& materi
   if (gnuplot.empty())
     throw UsageError("resample-study: --out draws the incidence-plane plot with gnuplot; install it");
   const double ti = pi / 4, eps = 2 * pi / 180;
-  const acquire::Resampler r(angles, values, 1, {.k = k, .weights = acquire::Weights::shepard, .max_gap = max_gap});
+  const brdf::Resampler r(angles, values, 1, {.k = k, .weights = brdf::Weights::shepard, .max_gap = max_gap});
   std::string script = "$S << EOD\n" +
                        acquire::plane_points_table(acquire::incidence_plane_points(angles, values, 1, ti, eps, 0)) +
                        "EOD\n$R << EOD\n" + acquire::grid_plane_table(r, model, ti) + "EOD\n";
@@ -82,7 +80,7 @@ void incidence_plot(const std::filesystem::path& path, const std::string& materi
 
 // One mapping's whole grid, resampled from the scan at suite_k (Shepard), against the material under the suite.
 struct SuiteRow {
-  acquire::Mapping mapping;
+  brdf::Mapping mapping;
   codec::SuiteDiff diff;
   std::string worst;
 };
@@ -101,15 +99,15 @@ std::vector<SuiteRow> suite_rows(const std::string& name, const std::vector<doub
   truth.brdf.resize(b * brdf::kMerlCells);
   brdf::evaluate_grid(*model, truth.brdf);
   const codec::LightingSuite suite(bands);
-  const acquire::MemorySamples samples(angles, values, b);
+  const brdf::MemorySamples samples(angles, values, b);
   std::vector<SuiteRow> rows;
-  for (const auto mapping : {acquire::Mapping::standard, acquire::Mapping::marschner, acquire::Mapping::halfdiff}) {
+  for (const auto mapping : {brdf::Mapping::standard, brdf::Mapping::marschner, brdf::Mapping::halfdiff}) {
     check_interrupt();
     store::Grid grid;
     grid.wavelengths = bands;
     grid.brdf.resize(b * brdf::kMerlCells);
-    const acquire::ResampleOptions ro{.mapping = mapping, .k = o.suite_k, .max_gap = o.max_gap_deg * pi / 180};
-    acquire::resample_grid(samples, ro, grid.brdf);
+    const brdf::ResampleOptions ro{.mapping = mapping, .k = o.suite_k, .max_gap = o.max_gap_deg * pi / 180};
+    brdf::resample_grid(samples, ro, grid.brdf);
     SuiteRow r{mapping, codec::suite_diff(truth, grid, suite), ""};
     r.worst = suite.conditions()[r.diff.worst].name;
     rows.push_back(std::move(r));
@@ -120,7 +118,7 @@ std::vector<SuiteRow> suite_rows(const std::string& name, const std::vector<doub
 Json suite_rows_json(const std::vector<SuiteRow>& rows, std::size_t k) {
   Json j = Json::array();
   for (const auto& r : rows)
-    j.push_back({{"mapping", std::string(acquire::mapping_name(r.mapping))},
+    j.push_back({{"mapping", std::string(brdf::mapping_name(r.mapping))},
                  {"k", k},
                  {"weights", "shepard"},
                  {"de00_mean", r.diff.de00_mean},
@@ -139,7 +137,7 @@ void print_suite_rows(const std::string& name, const std::vector<SuiteRow>& rows
       "(mean) | cells without data |\n|---|---|---|---|---|---|\n",
       name, k);
   for (const auto& r : rows)
-    fmt::print("| {} | {:.3f} | {:.3f} | {:.3f} | {} ({:.3f}) | {} of {} |\n", acquire::mapping_name(r.mapping),
+    fmt::print("| {} | {:.3f} | {:.3f} | {:.3f} | {} ({:.3f}) | {} of {} |\n", brdf::mapping_name(r.mapping),
                r.diff.de00_mean, r.diff.de00_p95, r.diff.de00_max, r.worst, r.diff.conditions[r.diff.worst].de00_mean,
                r.diff.hole_cells, r.diff.cells);
   fmt::print("\n");
@@ -186,9 +184,9 @@ void run_resample_study(const ResampleStudyOptions& o) {
     if (o.json) {
       Json rows = Json::array();
       for (const auto& r : s.rows)
-        rows.push_back({{"mapping", std::string(acquire::mapping_name(r.mapping))},
+        rows.push_back({{"mapping", std::string(brdf::mapping_name(r.mapping))},
                         {"k", r.k},
-                        {"weights", r.k == 1 ? std::string("nearest") : std::string(acquire::weights_name(r.weights))},
+                        {"weights", r.k == 1 ? std::string("nearest") : std::string(brdf::weights_name(r.weights))},
                         {"l1", r.l1},
                         {"max_error", r.max_error},
                         {"pixels_without_data", r.pixels_without_data}});

@@ -103,9 +103,9 @@ const std::vector<std::size_t> kLadder = {2, 4, 8, 16, 32, 64, 128};
 
 TEST(Bandwidth, TheChosenKIsTheBruteForceLeaveOneOutMinimum) {
   const Noisy s = noisy_samples(700, 11);
-  const MemorySamples src(s.angles, s.values, 2);
-  const ResampleOptions o{.k = 128, .weights = Weights::wendland};
-  const SampleTree tree(src, o.mapping);
+  const brdf::MemorySamples src(s.angles, s.values, 2);
+  const brdf::ResampleOptions o{.k = 128, .weights = brdf::Weights::wendland};
+  const brdf::SampleTree tree(src, o.mapping);
   const BandwidthOptions b{.ladder = kLadder, .held_out = 5000, .criterion = BandwidthCriterion::median};
   const BandwidthChoice c = choose_bandwidth(tree, src, o, b);
   const Brute bf = brute_force(s, kLadder, b.theta_h_edges);
@@ -138,9 +138,9 @@ TEST(Bandwidth, TheChosenKIsTheBruteForceLeaveOneOutMinimum) {
 }
 
 // Values served a few rows at a time, as a store serves them in chunks.
-class SmallBlocks final : public SampleSource {
+class SmallBlocks final : public brdf::SampleSource {
  public:
-  explicit SmallBlocks(const MemorySamples& m) : m_(m) {}
+  explicit SmallBlocks(const brdf::MemorySamples& m) : m_(m) {}
   std::size_t size() const override { return m_.size(); }
   std::size_t bands() const override { return m_.bands(); }
   void read_angles(std::size_t first, std::size_t count, std::span<double> out) const override {
@@ -152,7 +152,7 @@ class SmallBlocks final : public SampleSource {
   std::size_t block_rows() const override { return 37; }
 
  private:
-  const MemorySamples& m_;
+  const brdf::MemorySamples& m_;
 };
 
 void expect_same(const BandwidthChoice& a, const BandwidthChoice& b) {
@@ -170,11 +170,11 @@ void expect_same(const BandwidthChoice& a, const BandwidthChoice& b) {
 
 TEST(Bandwidth, TheSameChoiceOnAnyThreadCountAndBlocking) {
   const Noisy s = noisy_samples(3000, 12);
-  const MemorySamples src(s.angles, s.values, 2);
+  const brdf::MemorySamples src(s.angles, s.values, 2);
   const SmallBlocks blocks(src);
-  for (const Weights w : {Weights::shepard, Weights::loess}) {
-    const ResampleOptions o{.weights = w};
-    const SampleTree tree(src, o.mapping);
+  for (const brdf::Weights w : {brdf::Weights::shepard, brdf::Weights::loess}) {
+    const brdf::ResampleOptions o{.weights = w};
+    const brdf::SampleTree tree(src, o.mapping);
     const BandwidthOptions b{.ladder = {4, 16, 64}, .held_out = 400, .seed = 3};
     const int saved = omp_get_max_threads();
     omp_set_num_threads(1);
@@ -192,18 +192,19 @@ TEST(Bandwidth, TheSameChoiceOnAnyThreadCountAndBlocking) {
 
 TEST(Bandwidth, RefusesBadOptions) {
   const Noisy s = noisy_samples(50, 13);
-  const MemorySamples src(s.angles, s.values, 2);
-  const ResampleOptions o{.weights = Weights::wendland};
-  const SampleTree tree(src, o.mapping);
+  const brdf::MemorySamples src(s.angles, s.values, 2);
+  const brdf::ResampleOptions o{.weights = brdf::Weights::wendland};
+  const brdf::SampleTree tree(src, o.mapping);
   EXPECT_THROW(choose_bandwidth(tree, src, o, {.ladder = {}}), UsageError);
   EXPECT_THROW(choose_bandwidth(tree, src, o, {.ladder = {8, 4}}), UsageError);
   EXPECT_THROW(choose_bandwidth(tree, src, o, {.ladder = {0, 4}}), UsageError);
   EXPECT_THROW(choose_bandwidth(tree, src, o, {.held_out = 0}), UsageError);
   EXPECT_THROW(choose_bandwidth(tree, src, o, {.theta_h_edges = {30, 10}}), UsageError);
-  EXPECT_THROW(choose_bandwidth(tree, src, {.mapping = Mapping::halfdiff}, {}), UsageError);
+  EXPECT_THROW(choose_bandwidth(tree, src, {.mapping = brdf::Mapping::halfdiff}, {}), UsageError);
   EXPECT_THROW(parse_bandwidth_criterion("mean"), UsageError);
-  const MemorySamples one(std::span<const double>(s.angles).first(4), std::span<const float>(s.values).first(2), 2);
-  const SampleTree tree1(one, o.mapping);
+  const brdf::MemorySamples one(std::span<const double>(s.angles).first(4), std::span<const float>(s.values).first(2),
+                                2);
+  const brdf::SampleTree tree1(one, o.mapping);
   EXPECT_THROW(choose_bandwidth(tree1, one, o, {}), InputError);
 }
 

@@ -9,8 +9,8 @@
 #include <random>
 #include <vector>
 
-#include "specula/acquire/mapping.h"
 #include "specula/acquire/synth_samples.h"
+#include "specula/core/brdf_mapping.h"
 #include "specula/core/brdf_materials.h"
 #include "specula/core/error.h"
 
@@ -35,7 +35,7 @@ Samples ward_samples(std::size_t n) {
 }
 
 // The row of `mapping`, k and weights, or fails.
-const CrossValidationRow& row(const CrossValidation& cv, Mapping m, std::size_t k, Weights w) {
+const CrossValidationRow& row(const CrossValidation& cv, brdf::Mapping m, std::size_t k, brdf::Weights w) {
   for (const auto& r : cv.rows)
     if (r.mapping == m && r.k == k && r.weights == w) return r;
   ADD_FAILURE() << "no row for k " << k;
@@ -49,15 +49,15 @@ TEST(CrossValidate, OneRowPerMappingKAndWeightingInOrder) {
   EXPECT_EQ(cv.held_out, 40u);
   ASSERT_EQ(cv.rows.size(), 3u * 6u);  // per mapping: k = 1 once, k = 8 mean, Shepard, Renka, Wendland, LOESS
   std::size_t i = 0;
-  for (const Mapping m : {Mapping::standard, Mapping::marschner, Mapping::halfdiff}) {
+  for (const brdf::Mapping m : {brdf::Mapping::standard, brdf::Mapping::marschner, brdf::Mapping::halfdiff}) {
     EXPECT_EQ(cv.rows[i].mapping, m);
     EXPECT_EQ(cv.rows[i].k, 1u);
-    EXPECT_EQ(cv.rows[i].weights, Weights::mean);
-    EXPECT_EQ(cv.rows[i + 1].weights, Weights::mean);
-    EXPECT_EQ(cv.rows[i + 2].weights, Weights::shepard);
-    EXPECT_EQ(cv.rows[i + 3].weights, Weights::renka);
-    EXPECT_EQ(cv.rows[i + 4].weights, Weights::wendland);
-    EXPECT_EQ(cv.rows[i + 5].weights, Weights::loess);
+    EXPECT_EQ(cv.rows[i].weights, brdf::Weights::mean);
+    EXPECT_EQ(cv.rows[i + 1].weights, brdf::Weights::mean);
+    EXPECT_EQ(cv.rows[i + 2].weights, brdf::Weights::shepard);
+    EXPECT_EQ(cv.rows[i + 3].weights, brdf::Weights::renka);
+    EXPECT_EQ(cv.rows[i + 4].weights, brdf::Weights::wendland);
+    EXPECT_EQ(cv.rows[i + 5].weights, brdf::Weights::loess);
     for (std::size_t j = i; j < i + 6; ++j) EXPECT_EQ(cv.rows[j].predicted, 40u);  // no support limit
     i += 6;
   }
@@ -90,15 +90,15 @@ TEST(CrossValidate, MeanPredictionsMatchABruteForceNearestNeighbourSearch) {
   auto at = [&](std::size_t i) {
     return brdf::StdAngles{s.angles[4 * i], s.angles[4 * i + 1], s.angles[4 * i + 2], s.angles[4 * i + 3]};
   };
-  for (const Mapping m : {Mapping::standard, Mapping::marschner, Mapping::halfdiff})
+  for (const brdf::Mapping m : {brdf::Mapping::standard, brdf::Mapping::marschner, brdf::Mapping::halfdiff})
     for (const std::size_t k : o.ks) {
       double err = 0, ref = 0;
       std::vector<double> rel;
       for (std::size_t j = 0; j < held; ++j) {
-        const Eigen::Vector3f q = map_angles(m, at(order[j])).cast<float>();
+        const Eigen::Vector3f q = brdf::map_angles(m, at(order[j])).cast<float>();
         std::vector<std::pair<float, std::size_t>> d;
         for (std::size_t t = held; t < n; ++t)
-          d.push_back({(map_angles(m, at(order[t])).cast<float>() - q).squaredNorm(), order[t]});
+          d.push_back({(brdf::map_angles(m, at(order[t])).cast<float>() - q).squaredNorm(), order[t]});
         std::partial_sort(d.begin(), d.begin() + std::ptrdiff_t(k), d.end());
         double se = 0, st = 0;
         for (std::size_t c = 0; c < b; ++c) {
@@ -114,10 +114,10 @@ TEST(CrossValidate, MeanPredictionsMatchABruteForceNearestNeighbourSearch) {
         if (st > 0) rel.push_back(std::sqrt(se / st));
       }
       std::nth_element(rel.begin(), rel.begin() + std::ptrdiff_t(rel.size() / 2), rel.end());
-      const CrossValidationRow& r = row(cv, m, k, Weights::mean);
+      const CrossValidationRow& r = row(cv, m, k, brdf::Weights::mean);
       EXPECT_EQ(r.predicted, held);
-      EXPECT_NEAR(r.rel_rms, std::sqrt(err / ref), 1e-5 * std::sqrt(err / ref)) << mapping_name(m) << " k " << k;
-      EXPECT_NEAR(r.median_rel, rel[rel.size() / 2], 1e-5 * rel[rel.size() / 2]) << mapping_name(m) << " k " << k;
+      EXPECT_NEAR(r.rel_rms, std::sqrt(err / ref), 1e-5 * std::sqrt(err / ref)) << brdf::mapping_name(m) << " k " << k;
+      EXPECT_NEAR(r.median_rel, rel[rel.size() / 2], 1e-5 * rel[rel.size() / 2]) << brdf::mapping_name(m) << " k " << k;
     }
 }
 

@@ -3,7 +3,7 @@
 
 #include <numbers>
 
-#include "specula/acquire/mapping.h"
+#include "specula/core/brdf_mapping.h"
 
 using namespace specula;
 using std::numbers::pi;
@@ -11,7 +11,7 @@ using std::numbers::pi;
 namespace {
 constexpr double deg = pi / 180;
 std::optional<double> at(double ti, double pi_, double to, double po, double theta_i = 45 * deg, double eps = 2 * deg) {
-  return acquire::incidence_plane_angle(acquire::iso_angles({ti, pi_, to, po}), theta_i, eps);
+  return brdf::incidence_plane_angle(brdf::iso_angles({ti, pi_, to, po}), theta_i, eps);
 }
 }  // namespace
 

@@ -215,8 +215,8 @@ TEST(ModelResample, SharpensRedPlasticsPeakFarBeyondShepard) {
   const brdf::TorranceSparrow truth_model(kBands, Eigen::VectorXd::Constant(5, 0.12), eta, rd);
   std::vector<float> model(5 * brdf::kMerlCells), conf(brdf::kMerlCells);
   const Scan s = red_plastic_scan(truth_model);
-  const MemorySamples src(s.angles, s.values, 5);
-  const Resampler shepard(s.angles, s.values, 5, {.k = 32});
+  const brdf::MemorySamples src(s.angles, s.values, 5);
+  const brdf::Resampler shepard(s.angles, s.values, 5, {.k = 32});
   // k = 8 for the residuals keeps the test's one whole-grid pass short; `specula resample` uses -k (32) for both.
   const ModelResampleOptions mo{.local = {.k = 8},
                                 .fit = {.kind = {.distribution = Distribution::beckmann,
@@ -255,7 +255,7 @@ TEST(ModelResample, ABaseEqualToTheTruthComesBackUnchanged) {
   }
   std::vector<float> values(angles.size() / 4 * 5);
   brdf::evaluate_at(truth_model, angles, values);
-  const MemorySamples src(angles, values, 5);
+  const brdf::MemorySamples src(angles, values, 5);
   std::copy(truth.begin(), truth.end(), grid.begin());
   resample_on_base(src, {.k = 4}, 1.0, base_from_grid(truth, 5), grid, conf);
   std::size_t near = 0;

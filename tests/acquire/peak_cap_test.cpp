@@ -63,7 +63,7 @@ TEST(PeakCap, ThePriorInTheUnseenCapBringsASharpPeakBack) {
   std::mt19937 rng(11);
   std::normal_distribution<double> noise(0, 0.02);
   for (float& v : values) v = float(v * (1 + noise(rng)));
-  const MemorySamples src(angles, values, 5);
+  const brdf::MemorySamples src(angles, values, 5);
 
   const UnseenCap cap = unseen_cap(cell_means(src));
   for (int j = 10; j <= 60; ++j) {  // the rig's lights are 4 degrees apart: every other theta_d row is unobserved

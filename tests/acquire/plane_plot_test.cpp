@@ -67,7 +67,7 @@ TEST(PlanePlot, ALambertianModelAndAConstantResamplingAlongThePlane) {
   for (int i = 0; i < 4000; ++i)
     for (double a : {std::acos(u(rng)), 2 * pi * u(rng), std::acos(u(rng)), 2 * pi * u(rng)}) angles.push_back(a);
   const std::vector<float> values(angles.size() / 4, 0.125f);
-  const acquire::Resampler r(angles, values, 1, {.k = 4, .weights = acquire::Weights::shepard, .max_gap = pi});
+  const brdf::Resampler r(angles, values, 1, {.k = 4, .weights = brdf::Weights::shepard, .max_gap = pi});
   const auto g = rows_of(acquire::grid_plane_table(r, model, 40 * deg));
   ASSERT_EQ(g.size(), 359u);
   for (const auto& row : g) {

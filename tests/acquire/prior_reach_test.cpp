@@ -107,7 +107,7 @@ double judge_eps(const acquire::PriorObservations& obs, const acquire::BrdfPrior
 TEST(PriorReach, ALargeReachWhereThePriorCannotFollowTheMaterialAndTheSamplesAreClean) {
   // A ripple no Ward of the family has: the fit smooths it, the kd-tree estimate of dense clean samples follows it.
   const Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 120000, 0.0, 0.6, 1);
-  const acquire::MemorySamples src(s.angles, s.values, 5);
+  const brdf::MemorySamples src(s.angles, s.values, 5);
   const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), {}, {});
   EXPECT_GE(c.reach, 0.3);
   EXPECT_LT(c.rows.back().error, 0.5 * c.rows.front().error) << "the kd-tree clearly better than the prior alone";
@@ -119,7 +119,7 @@ TEST(PriorReach, ADarkMaterialIsJudgedAtItsOwnScale) {
   // kd-tree that follows the ripple is still chosen.
   Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 120000, 0.0, 0.6, 1);
   for (float& v : s.values) v *= 1e-3f;
-  const acquire::MemorySamples src(s.angles, s.values, 5);
+  const brdf::MemorySamples src(s.angles, s.values, 5);
   const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), {}, {});
   EXPECT_LT(c.epsilon, 2e-3 * family_prior().epsilon);
   EXPECT_GE(c.reach, 0.3);
@@ -145,7 +145,7 @@ TEST(PriorReach, TheRetroBandsWeightIsChosenByTheBandOneHigher) {
   // kd-tree flattens it, so the prior gets the weight. A material without it: the prior still adds the bump it always
   // saw, the kd-tree's continuation of the flat samples is right.
   const Scan with = band_scan(true), without = band_scan(false);
-  const acquire::MemorySamples with_src(with.angles, with.values, 5), without_src(without.angles, without.values, 5);
+  const brdf::MemorySamples with_src(with.angles, with.values, 5), without_src(without.angles, without.values, 5);
   const acquire::ReachHoldout h = acquire::reach_holdout(with_src, {});
   EXPECT_EQ(h.retro_rows, 5);
   EXPECT_EQ(h.band_first, 5);
@@ -177,7 +177,7 @@ TEST(PriorReach, TheRetroBandsWeightIsChosenByTheBandOneHigher) {
 
 TEST(PriorReach, EachThetaHRowTakesItsOwnReach) {
   const Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 40000, 0.02, 0.3, 5);
-  const acquire::MemorySamples src(s.angles, s.values, 5);
+  const brdf::MemorySamples src(s.angles, s.values, 5);
   acquire::PriorResampleOptions near{.local = {.k = 8}, .confidence_reach = 0.01}, far = near, mixed = near;
   far.confidence_reach = 1;
   mixed.reach_by_theta_h.assign(90, 1.0);
@@ -203,7 +203,7 @@ TEST(PriorReach, EachThetaHRowTakesItsOwnReach) {
 TEST(PriorReach, ASmallReachWhereThePriorHoldsTheMaterialAndTheSamplesAreNoisy) {
   // A training material under 30 % noise, a kd-tree of 4 neighbours: the fit over all cells averages the noise away.
   const Scan s = scan_of(ward(kFamily[2][0], kFamily[2][1], kFamily[2][2], kFamily[2][3]), 120000, 0.3, 0.0, 2);
-  const acquire::MemorySamples src(s.angles, s.values, 5);
+  const brdf::MemorySamples src(s.angles, s.values, 5);
   acquire::PriorResampleOptions o;
   o.local.k = 4;
   const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), o, {});
@@ -214,7 +214,7 @@ TEST(PriorReach, ASmallReachWhereThePriorHoldsTheMaterialAndTheSamplesAreNoisy) 
 
 TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
   const Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 60000, 0.05, 0.3, 3);
-  const acquire::MemorySamples src(s.angles, s.values, 5);
+  const brdf::MemorySamples src(s.angles, s.values, 5);
   acquire::PriorResampleOptions o;
   o.local.k = 8;
   o.fit.weights = acquire::PriorWeights::count;
@@ -262,7 +262,7 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
   EXPECT_GT(held_cells, 100u);
   std::vector<float> fitted(5 * brdf::kMerlCells, -1.0f);
   acquire::fit_prior(family_prior(), kept_obs, o.fit, fitted);
-  const acquire::Resampler kd(kept_angles, kept_values, 5, o.local);
+  const brdf::Resampler kd(kept_angles, kept_values, 5, o.local);
 
   // At each held-out cell, for every reach, the log-domain error of the blend against the held-out samples' mean.
   const std::size_t m = r.ladder.size();
@@ -284,7 +284,7 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
     std::size_t q = 0;
     while (brdf::merl_cell(index).theta_h >= bounds[q + 1]) ++q;
     ++group_cells[q];
-    acquire::Neighbours nb;
+    brdf::Neighbours nb;
     kd.neighbours(centre, nb);
     for (std::size_t l = 0; l < m; ++l) {
       const double g = nb.gap / (r.ladder[l] * o.local.max_gap);

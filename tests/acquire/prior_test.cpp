@@ -163,7 +163,7 @@ TEST(Prior, ConfidenceIsZeroWhereNoSampleFallsAndEveryValidCellGetsData) {
   }
   std::vector<float> values(angles.size() / 4 * 5);
   brdf::evaluate_at(m, angles, values);
-  const acquire::MemorySamples src(angles, values, 5);
+  const brdf::MemorySamples src(angles, values, 5);
   std::vector<float> grid(5 * brdf::kMerlCells), conf(brdf::kMerlCells);
   const acquire::PriorResampleStats st = acquire::resample_with_prior(src, f.prior, {}, grid, conf);
   EXPECT_EQ(st.filled_cells, acquire::valid_cells().size());
@@ -207,7 +207,7 @@ TEST(Prior, NoiseWeightsBeatCountWeightsWhenHalfTheCellsAreTenTimesNoisier) {
       for (std::size_t k = 0; k < 5; ++k) values.push_back(float(truth.brdf[k * brdf::kMerlCells + cells[i]] * e));
     }
   }
-  const acquire::PriorObservations obs = acquire::cell_means(acquire::MemorySamples(angles, values, 5));
+  const acquire::PriorObservations obs = acquire::cell_means(brdf::MemorySamples(angles, values, 5));
   ASSERT_GT(obs.cell.size(), 1900u);
   ASSERT_EQ(obs.spread.size(), obs.values.size());
   std::vector<float> by_noise(truth.brdf.size(), -1.0f), by_count(truth.brdf.size(), -1.0f);
@@ -261,8 +261,8 @@ TEST(Prior, SamplesOwnVariancesWeighCellsOfOneSampleWhereScatterCannot) {
       variance.push_back(float(v * v * sigma * sigma));
     }
   }
-  const acquire::PriorObservations with = acquire::cell_means(acquire::MemorySamples(angles, values, 5, variance));
-  const acquire::PriorObservations without = acquire::cell_means(acquire::MemorySamples(angles, values, 5));
+  const acquire::PriorObservations with = acquire::cell_means(brdf::MemorySamples(angles, values, 5, variance));
+  const acquire::PriorObservations without = acquire::cell_means(brdf::MemorySamples(angles, values, 5));
   ASSERT_TRUE(with.spread_is_noise);
   ASSERT_FALSE(without.spread_is_noise);
   ASSERT_EQ(with.spread, variance) << "one sample a cell: its own variance";
@@ -311,7 +311,7 @@ TEST(Prior, ResidualsModeAddsTheShepardEstimateOfTheResidualsAgainstTheFitScaled
   }
   std::vector<float> values(angles.size() / 4 * 5);
   brdf::evaluate_at(m, angles, values);
-  const acquire::MemorySamples src(angles, values, 5);
+  const brdf::MemorySamples src(angles, values, 5);
   acquire::PriorResampleOptions o;
   o.local.k = 8;
   o.residuals = true;
@@ -328,8 +328,8 @@ TEST(Prior, ResidualsModeAddsTheShepardEstimateOfTheResidualsAgainstTheFitScaled
     const std::size_t cell = brdf::merl_index(brdf::merl_cell(a));
     for (std::size_t k = 0; k < 5; ++k) residuals[s * 5 + k] = values[s * 5 + k] - fitted[k * brdf::kMerlCells + cell];
   }
-  const acquire::Resampler shepard(angles, residuals, 5, o.local);
-  acquire::Neighbours nb;
+  const brdf::Resampler shepard(angles, residuals, 5, o.local);
+  brdf::Neighbours nb;
   std::vector<float> r(5);
   std::size_t corrected = 0, checked = 0;
   const auto& cells = acquire::valid_cells();

@@ -8,6 +8,7 @@
 #include <numbers>
 #include <random>
 
+#include "specula/acquire/store_samples.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "test_support.h"
@@ -44,15 +45,15 @@ TEST(ResampleRun, AutoKResamplesWithTheChoiceAsTheSeparateStepsDo) {
   const BandwidthOptions b{.ladder = {4, 8, 16}, .held_out = 300};
   const ResampleJob job{.store = path.string(),
                         .samples = "scan",
-                        .local = {.weights = Weights::wendland, .max_gap = kGapDeg * pi / 180},
+                        .local = {.weights = brdf::Weights::wendland, .max_gap = kGapDeg * pi / 180},
                         .k_auto = b};
   const ResampleOutcome r = run_resample(job);
   const store::Store s = store::Store::open(path);
   const BandwidthChoice c = choose_bandwidth(s, "scan", job.local, b);
-  ResampleOptions chosen = job.local;
+  brdf::ResampleOptions chosen = job.local;
   chosen.k = c.k;
   std::vector<float> grid(2 * brdf::kMerlCells);
-  resample_grid(StoreSamples(s, "scan"), chosen, grid);
+  brdf::resample_grid(StoreSamples(s, "scan"), chosen, grid);
   EXPECT_TRUE(r.grid.brdf == grid);
   EXPECT_FALSE(r.confidence);
   EXPECT_EQ(r.report["k"], c.k);

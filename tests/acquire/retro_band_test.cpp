@@ -1,7 +1,7 @@
 // The unseen band round retro-reflection (acquire/retro_band.h) in resampling with a prior: a rig whose lights stand
 // at least 10 degrees from the camera leaves theta_d below 5 degrees without samples; there the blend takes
-// w kd + (1 - w) fit where the kd-tree has support (kd: a separately built Resampler at the cell centres; fit: the
-// prior's fit alone), the fit where it has none, and every cell outside the band is as without a band weight.
+// w kd + (1 - w) fit where the kd-tree has support (kd: a separately built brdf::Resampler at the cell centres; fit:
+// the prior's fit alone), the fit where it has none, and every cell outside the band is as without a band weight.
 #include "specula/acquire/retro_band.h"
 
 #include <gtest/gtest.h>
@@ -44,7 +44,7 @@ TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
   std::mt19937 rng(5);
   std::normal_distribution<double> noise(0, 0.02);
   for (float& v : values) v = float(v * (1 + noise(rng)));
-  const MemorySamples src(angles, values, 5);
+  const brdf::MemorySamples src(angles, values, 5);
 
   // The band's depth: the lowest theta_d row of any sample above the horizon, by the test's own lookup.
   int lowest = brdf::kMerlThetaD;
@@ -63,7 +63,7 @@ TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
   resample_with_prior(src, prior, blend, without, conf_without);
   std::vector<float> fitted(5 * brdf::kMerlCells, -1.0f);
   fit_prior(prior, cell_means(src), blend.fit, fitted);
-  const Resampler kd(angles, values, 5, blend.local);
+  const brdf::Resampler kd(angles, values, 5, blend.local);
   const UnseenCap cap = unseen_cap(cell_means(src));
   std::size_t supported = 0, unsupported = 0;
   std::vector<float> local(5);

@@ -11,7 +11,8 @@
 
 #include "small_rig.h"
 #include "specula/acquire/pipeline.h"
-#include "specula/acquire/resample.h"
+#include "specula/acquire/store_samples.h"
+#include "specula/core/brdf_resample.h"
 #include "specula/store/store.h"
 #include "test_support.h"
 

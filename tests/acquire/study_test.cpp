@@ -17,7 +17,7 @@ using std::numbers::pi;
 
 TEST(Study, ALambertianSphereIsAlbedoTimesCosine) {
   const Eigen::Vector3d l = Eigen::Vector3d(0.3, -0.4, 0.8).normalized();
-  const SphereRender r = render_sphere(64, l, [](const IsoAngles&, double& f) {
+  const SphereRender r = render_sphere(64, l, [](const brdf::IsoAngles&, double& f) {
     f = 0.7 / pi;
     return true;
   });
@@ -39,7 +39,7 @@ TEST(Study, LookupCellIsMerlsCell) {
   std::mt19937_64 rng(1);
   std::uniform_real_distribution<double> t(0, pi / 2 - 0.01), p(0, pi);
   for (int i = 0; i < 200; ++i) {
-    const IsoAngles a{t(rng), t(rng), p(rng)};
+    const brdf::IsoAngles a{t(rng), t(rng), p(rng)};
     EXPECT_EQ(
         merl_lookup_cell(a),
         brdf::merl_index(brdf::merl_cell(brdf::half_diff(brdf::StdAngles{a.theta_i, 1.0, a.theta_o, 1.0 + a.phi_d}))));
@@ -69,15 +69,15 @@ TEST(Study, AConstantBrdfIsReconstructedExactlyAndAGlossyOneIsNot) {
   const StudyOutput flat = resampling_study(lambert, 0, angles, values, o);
   ASSERT_EQ(flat.rows.size(), 3u * 3u);
   EXPECT_LT(flat.grid_l1, 1e-12);
-  for (const auto& r : flat.rows) EXPECT_LT(r.max_error, 1e-6) << mapping_name(r.mapping) << " k " << r.k;
+  for (const auto& r : flat.rows) EXPECT_LT(r.max_error, 1e-6) << brdf::mapping_name(r.mapping) << " k " << r.k;
   const brdf::Ward ward(g, Eigen::VectorXd::Constant(1, 0.1), Eigen::VectorXd::Constant(1, 0.3),
                         Eigen::VectorXd::Constant(1, 0.1));
   brdf::evaluate_at(ward, angles, values);
   const StudyOutput glossy = resampling_study(ward, 0, angles, values, o);
   EXPECT_GT(glossy.grid_l1, 0);
   for (const auto& r : glossy.rows) {
-    EXPECT_GT(r.l1, glossy.grid_l1 * 0.5) << mapping_name(r.mapping) << " k " << r.k;
-    EXPECT_LT(r.l1, 0.2) << mapping_name(r.mapping) << " k " << r.k;
+    EXPECT_GT(r.l1, glossy.grid_l1 * 0.5) << brdf::mapping_name(r.mapping) << " k " << r.k;
+    EXPECT_LT(r.l1, 0.2) << brdf::mapping_name(r.mapping) << " k " << r.k;
   }
   EXPECT_THROW(resampling_study(ward, 1, angles, values, o), UsageError);
 }

@@ -1,4 +1,4 @@
-// The approximating weightings of acquire/resample.h (wendland, loess) against independent answers: the kernel in
+// The approximating weightings of core/brdf_resample.h (wendland, loess) against independent answers: the kernel in
 // closed form, exact reproduction of linear functions by the local linear fit, and both against a brute-force
 // estimate written here (every sample's distance, the fit solved per band by QR, no code shared with the library).
 #include <gtest/gtest.h>
@@ -9,10 +9,10 @@
 #include <numbers>
 #include <random>
 
-#include "specula/acquire/resample.h"
+#include "specula/core/brdf_resample.h"
 #include "specula/core/error.h"
 
-namespace specula::acquire {
+namespace specula::brdf {
 namespace {
 
 using std::numbers::pi;
@@ -23,12 +23,12 @@ struct Samples {
   std::vector<Eigen::Vector3d> mapped;  // M_s: (theta_i, theta_o, phi_d)
 };
 
-brdf::StdAngles random_angles(std::mt19937_64& rng) {
+StdAngles random_angles(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> t(0, pi / 2 - 0.01), p(-pi, pi);
   return {t(rng), p(rng), t(rng), p(rng)};
 }
 
-Eigen::Vector3d standard_point(const brdf::StdAngles& a) {
+Eigen::Vector3d standard_point(const StdAngles& a) {
   double pd = std::abs(a.phi_o - a.phi_i);
   pd = std::fmod(pd, 2 * pi);
   if (pd > pi) pd = 2 * pi - pd;
@@ -40,7 +40,7 @@ Samples samples(std::size_t n, std::uint64_t seed) {
   std::mt19937_64 rng(seed);
   Samples s;
   for (std::size_t i = 0; i < n; ++i) {
-    const brdf::StdAngles a = random_angles(rng);
+    const StdAngles a = random_angles(rng);
     const Eigen::Vector3d p = standard_point(a);
     s.angles.insert(s.angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
     s.values.push_back(float(2 + 0.5 * p[0] - 0.75 * p[1] + 0.25 * p[2]));
@@ -98,7 +98,7 @@ TEST(SmoothingWeights, LoessReproducesALinearFunctionWhereTheMeanCannot) {
   std::vector<float> out(2);
   double worst_loess = 0, worst_wendland = 0;
   for (int i = 0; i < 200; ++i) {
-    const brdf::StdAngles at = random_angles(rng);
+    const StdAngles at = random_angles(rng);
     const Eigen::Vector3d p = standard_point(at);
     const double truth = 2 + 0.5 * p[0] - 0.75 * p[1] + 0.25 * p[2];
     ASSERT_TRUE(loess.predict(at, out));
@@ -118,7 +118,7 @@ TEST(SmoothingWeights, PredictEqualsABruteForceEstimateAndTheGrid) {
   for (const Weights w : {Weights::wendland, Weights::loess}) {
     const Resampler r(s.angles, s.values, 2, {.k = k, .weights = w, .max_gap = 10});
     for (int i = 0; i < 40; ++i) {
-      const brdf::StdAngles at = random_angles(rng);
+      const StdAngles at = random_angles(rng);
       ASSERT_TRUE(r.predict(at, out));
       for (std::size_t q = 0; q < 2; ++q) {
         const double b = std::max(0.0, brute(s, standard_point(at), k, q, w == Weights::loess));
@@ -127,17 +127,17 @@ TEST(SmoothingWeights, PredictEqualsABruteForceEstimateAndTheGrid) {
     }
     if (w != Weights::loess) continue;
     // The streamed grid holds what predict gives at the cell centres, negative fits clamped to 0 in both.
-    std::vector<float> grid(2 * brdf::kMerlCells);
+    std::vector<float> grid(2 * kMerlCells);
     r.fill_grid(grid);
-    for (std::size_t c = 0; c < brdf::kMerlCells; c += 4099) {
+    for (std::size_t c = 0; c < kMerlCells; c += 4099) {
       const brdf::MerlCell cell = brdf::merl_cell(c);
       if (!brdf::merl_cell_valid(cell)) continue;
       ASSERT_TRUE(r.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), out));
       ASSERT_EQ(grid[c], out[0]) << c;
-      ASSERT_EQ(grid[brdf::kMerlCells + c], out[1]) << c;
+      ASSERT_EQ(grid[kMerlCells + c], out[1]) << c;
     }
   }
 }
 
 }  // namespace
-}  // namespace specula::acquire
+}  // namespace specula::brdf

@@ -1,4 +1,4 @@
-#include "specula/acquire/resample.h"
+#include "specula/core/brdf_resample.h"
 
 #include <gtest/gtest.h>
 #include <omp.h>
@@ -10,17 +10,16 @@
 
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
-#include "specula/store/store.h"
 #include "test_support.h"
 
-namespace specula::acquire {
+namespace specula::brdf {
 namespace {
 
 using std::numbers::pi;
 
 constexpr Mapping kAll[] = {Mapping::standard, Mapping::marschner, Mapping::halfdiff};
 
-brdf::StdAngles random_angles(std::mt19937_64& rng) {
+StdAngles random_angles(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> t(0, pi / 2 - 0.01), p(-pi, pi);
   return {t(rng), p(rng), t(rng), p(rng)};
 }
@@ -29,9 +28,7 @@ struct Samples {
   std::vector<double> angles;
   std::vector<float> values;
   std::size_t size() const { return angles.size() / 4; }
-  brdf::StdAngles at(std::size_t i) const {
-    return {angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]};
-  }
+  StdAngles at(std::size_t i) const { return {angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]}; }
 };
 
 // n random samples with `bands` values that vary smoothly with the configuration.
@@ -95,7 +92,7 @@ TEST(Resampler, NeighboursOfManySamplesInSlabsEqualABruteForceSearch) {
   std::vector<float> d2(n);
   for (int q = 0; q < 60; ++q) {
     // Queries along the widest axis (phi_d) from end to end, so that many lie near a cut between slabs.
-    const brdf::StdAngles at{0.3 + 0.01 * q, 0.0, 1.1 - 0.012 * q, pi * (q + 0.5) / 60};
+    const StdAngles at{0.3 + 0.01 * q, 0.0, 1.1 - 0.012 * q, pi * (q + 0.5) / 60};
     r.neighbours(at, nb);
     const Eigen::Vector3f p = map_angles(Mapping::standard, at).cast<float>();
     for (std::size_t i = 0; i < n; ++i) d2[i] = (points[i] - p).squaredNorm();
@@ -157,7 +154,7 @@ TEST(Resampler, RenkaEqualsABruteForceModifiedShepardAndIsContinuous) {
   const std::size_t k = 8;
   std::vector<Eigen::Vector3d> points;
   for (std::size_t i = 0; i < s.size(); ++i) points.push_back(map_angles(Mapping::standard, iso_angles(s.at(i))));
-  auto brute = [&](const brdf::StdAngles& at) {
+  auto brute = [&](const StdAngles& at) {
     const Eigen::Vector3d p = map_angles(Mapping::standard, iso_angles(at));
     std::vector<std::pair<double, std::size_t>> d;
     for (std::size_t i = 0; i < points.size(); ++i) d.emplace_back((points[i] - p).norm(), i);
@@ -177,7 +174,7 @@ TEST(Resampler, RenkaEqualsABruteForceModifiedShepardAndIsContinuous) {
   double prev_r = 0, prev_s = 0, jump_r = 0, jump_s = 0;
   const int steps = 20000;
   for (int i = 0; i <= steps; ++i) {
-    const brdf::StdAngles at{0.3 + 0.9 * i / steps, 0.0, 0.7, 2.0 - 1.2 * i / steps};
+    const StdAngles at{0.3 + 0.9 * i / steps, 0.0, 0.7, 2.0 - 1.2 * i / steps};
     ASSERT_TRUE(renka.predict(at, out));
     const double r = out[0];
     if (i % 500 == 0) {
@@ -196,9 +193,9 @@ TEST(Resampler, RenkaEqualsABruteForceModifiedShepardAndIsContinuous) {
   EXPECT_LT(jump_r, 2e-3);
   EXPECT_GT(jump_s, 5 * jump_r);
   // The streamed grid keeps k entries per cell while Renka's search finds k + 1: still predict at the centres.
-  std::vector<float> grid(brdf::kMerlCells);
+  std::vector<float> grid(kMerlCells);
   renka.fill_grid(grid);
-  for (std::size_t c = 0; c < brdf::kMerlCells; c += 4099) {
+  for (std::size_t c = 0; c < kMerlCells; c += 4099) {
     const brdf::MerlCell cell = brdf::merl_cell(c);
     if (!brdf::merl_cell_valid(cell)) continue;
     ASSERT_TRUE(renka.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), out));
@@ -209,10 +206,10 @@ TEST(Resampler, RenkaEqualsABruteForceModifiedShepardAndIsContinuous) {
 TEST(Resampler, SamplesAtCellCentresAreReproducedExactlyWithOneNeighbour) {
   Samples s;
   std::vector<std::size_t> cells;
-  for (std::size_t c = 0; c < brdf::kMerlCells; c += 97) {
+  for (std::size_t c = 0; c < kMerlCells; c += 97) {
     const brdf::MerlCell cell = brdf::merl_cell(c);
     if (!brdf::merl_cell_valid(cell)) continue;
-    const brdf::StdAngles a = brdf::std_angles(brdf::merl_cell_centre(cell));
+    const StdAngles a = brdf::std_angles(brdf::merl_cell_centre(cell));
     s.angles.insert(s.angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
     s.values.push_back(float(c) * 0.5f + 0.1f);
     s.values.push_back(float(c) * 0.25f + 0.3f);
@@ -220,24 +217,24 @@ TEST(Resampler, SamplesAtCellCentresAreReproducedExactlyWithOneNeighbour) {
   }
   for (const Weights w : {Weights::mean, Weights::shepard, Weights::renka}) {
     const Resampler r(s.angles, s.values, 2, {.mapping = Mapping::standard, .k = 1, .weights = w, .max_gap = 10});
-    std::vector<float> grid(2 * brdf::kMerlCells);
+    std::vector<float> grid(2 * kMerlCells);
     r.fill_grid(grid);
     for (std::size_t j = 0; j < cells.size(); ++j) {
       ASSERT_EQ(grid[cells[j]], s.values[2 * j]) << cells[j];
-      ASSERT_EQ(grid[brdf::kMerlCells + cells[j]], s.values[2 * j + 1]) << cells[j];
+      ASSERT_EQ(grid[kMerlCells + cells[j]], s.values[2 * j + 1]) << cells[j];
     }
   }
   // M_m and M_h send reciprocal configurations to one point, and some cell centres are (nearly) reciprocal to
   // others: there the cell gets the value of a sample whose mapped point is the same in float precision.
   for (const Mapping m : {Mapping::marschner, Mapping::halfdiff}) {
     const Resampler r(s.angles, s.values, 2, {.mapping = m, .k = 1, .max_gap = 10});
-    std::vector<float> grid(2 * brdf::kMerlCells);
+    std::vector<float> grid(2 * kMerlCells);
     r.fill_grid(grid);
     std::size_t own = 0;
     for (std::size_t j = 0; j < cells.size(); ++j) {
       if (grid[cells[j]] == s.values[2 * j]) {
         ++own;
-        ASSERT_EQ(grid[brdf::kMerlCells + cells[j]], s.values[2 * j + 1]);
+        ASSERT_EQ(grid[kMerlCells + cells[j]], s.values[2 * j + 1]);
         continue;
       }
       const auto other =
@@ -274,7 +271,7 @@ TEST(Resampler, ShepardReproducesConstantsAndLinearFieldsToInterpolationAccuracy
     std::uniform_real_distribution<double> t(0.2, 1.2), p(0.3, 2.8);
     double worst = 0, mean_err = 0;
     for (int q = 0; q < 300; ++q) {
-      const brdf::StdAngles at{t(rng), 0.0, t(rng), p(rng)};
+      const StdAngles at{t(rng), 0.0, t(rng), p(rng)};
       ASSERT_TRUE(r.predict(at, out)) << mapping_name(m);
       EXPECT_NEAR(out[0], 2.5f, 2e-6);
       r.neighbours(at, nb);
@@ -295,12 +292,12 @@ TEST(Resampler, GridIsPredictAtEveryCellCentreForAnyPassCountAndThreadCount) {
   for (const Mapping m : kAll) {
     const ResampleOptions o{.mapping = m, .k = 6, .weights = Weights::shepard, .max_gap = 0.12};
     const Resampler r(s.angles, s.values, 3, o);
-    std::vector<float> one(3 * brdf::kMerlCells);
+    std::vector<float> one(3 * kMerlCells);
     const std::size_t valid = r.fill_grid(one);
     EXPECT_GT(valid, 100000u);
     // The streaming grid in many passes over the values (small blocks, few entries per pass) and on one thread.
     const MemorySamples src(s.angles, s.values, 3);
-    std::vector<float> many(3 * brdf::kMerlCells);
+    std::vector<float> many(3 * kMerlCells);
     ResampleOptions small = o;
     small.max_entries = 100003;
     const int threads = omp_get_max_threads();
@@ -313,41 +310,16 @@ TEST(Resampler, GridIsPredictAtEveryCellCentreForAnyPassCountAndThreadCount) {
     // Spot checks against predict at cell centres.
     std::vector<float> out(3);
     std::size_t checked = 0;
-    for (std::size_t c = 0; c < brdf::kMerlCells; c += 1013) {
+    for (std::size_t c = 0; c < kMerlCells; c += 1013) {
       const brdf::MerlCell cell = brdf::merl_cell(c);
       const bool has = brdf::merl_cell_valid(cell) && r.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), out);
       ASSERT_EQ(one[c] >= 0, has) << c;
       if (!has) continue;
       ++checked;
-      for (std::size_t q = 0; q < 3; ++q) ASSERT_EQ(one[q * brdf::kMerlCells + c], out[q]) << c;
+      for (std::size_t q = 0; q < 3; ++q) ASSERT_EQ(one[q * kMerlCells + c], out[q]) << c;
     }
     EXPECT_GT(checked, 100u);
   }
-}
-
-TEST(Resampler, StoreSamplesGiveTheSameGridAsMemory) {
-  test::ScratchDir dir;
-  const Samples s = random_samples(50000, 4, 8);
-  {
-    store::StoreWriter w(dir / "s.h5", {});
-    w.create_samples("scan", WavelengthGrid::parse("400:700:100"), "1/sr", {});
-    // Appended in uneven batches, as a capture would.
-    w.append_samples("scan", std::span(s.angles).subspan(0, 4 * 12345), std::span(s.values).subspan(0, 4 * 12345));
-    w.append_samples("scan", std::span(s.angles).subspan(4 * 12345), std::span(s.values).subspan(4 * 12345));
-    w.commit();
-  }
-  const store::Store st = store::Store::open(dir / "s.h5");
-  const StoreSamples src(st, "scan");
-  EXPECT_EQ(src.size(), 50000u);
-  EXPECT_EQ(src.bands(), 4u);
-  EXPECT_EQ(src.block_rows() % st.samples_info("scan").chunk_rows, 0u);
-  const ResampleOptions o{.k = 12};
-  std::vector<float> a(4 * brdf::kMerlCells), b(4 * brdf::kMerlCells);
-  const GridStats stats = resample_grid(src, o, a);
-  EXPECT_EQ(stats.samples, 50000u);
-  Resampler(s.angles, s.values, 4, o).fill_grid(b);
-  EXPECT_TRUE(a == b);
-  EXPECT_THROW(StoreSamples(st, "missing"), InputError);
 }
 
 TEST(Resampler, CellsFarFromEverySampleHaveNoData) {
@@ -359,10 +331,10 @@ TEST(Resampler, CellsFarFromEverySampleHaveNoData) {
   const IsoAngles sample{0.5, 0.3, pi};
   for (const Mapping m : kAll) {
     const Resampler r(angles, values, 1, {.mapping = m, .k = 1, .max_gap = 0.1});
-    std::vector<float> grid(brdf::kMerlCells);
+    std::vector<float> grid(kMerlCells);
     const std::size_t valid = r.fill_grid(grid);
     std::size_t expect = 0, swapped = 0;
-    for (std::size_t c = 0; c < brdf::kMerlCells; ++c) {
+    for (std::size_t c = 0; c < kMerlCells; ++c) {
       const brdf::MerlCell cell = brdf::merl_cell(c);
       bool ok = false;
       if (brdf::merl_cell_valid(cell)) {
@@ -378,14 +350,14 @@ TEST(Resampler, CellsFarFromEverySampleHaveNoData) {
     EXPECT_EQ(valid, expect);
     EXPECT_GT(swapped, 0u);
     EXPECT_GT(valid, 100u);
-    EXPECT_EQ(std::count(grid.begin(), grid.end(), -1.0f), std::ptrdiff_t(brdf::kMerlCells - valid));
+    EXPECT_EQ(std::count(grid.begin(), grid.end(), -1.0f), std::ptrdiff_t(kMerlCells - valid));
   }
 }
 
 TEST(Resampler, AnInterruptStopsTheGrid) {
   const Samples s = random_samples(5000, 2, 11);
   const MemorySamples src(s.angles, s.values, 2);
-  std::vector<float> grid(2 * brdf::kMerlCells);
+  std::vector<float> grid(2 * kMerlCells);
   request_interrupt();
   EXPECT_THROW(resample_grid(src, {}, grid), Interrupted);
   clear_interrupt();
@@ -409,5 +381,27 @@ TEST(Resampler, BadOptionsAreRefused) {
   EXPECT_THROW(r.fill_grid(small), UsageError);
 }
 
+TEST(ResampleRule, ReadsWhatItWritesAndNamesABadEntry) {
+  const ResampleOptions o{
+      .mapping = Mapping::halfdiff, .k = 9, .weights = Weights::wendland, .power = 2.5, .max_gap = 0.2};
+  const ResampleOptions back = parse_rule(rule_string(o));
+  EXPECT_EQ(back.mapping, o.mapping);
+  EXPECT_EQ(back.k, o.k);
+  EXPECT_EQ(back.weights, o.weights);
+  EXPECT_EQ(back.power, o.power);
+  EXPECT_EQ(back.max_gap, o.max_gap);
+  EXPECT_EQ(rule_string(parse_rule("weights=renka")), rule_string({.weights = Weights::renka}));  // defaults kept
+  EXPECT_EQ(parse_rule("k=auto").k, 0u);
+  EXPECT_THROW(check_options(parse_rule("k=auto")), UsageError);
+  for (const char* bad : {"k=9x", "k=", "weights=gauss", "size=3", "k=3,k=4", "k", "power=abc"}) {
+    try {
+      parse_rule(bad);
+      ADD_FAILURE() << bad;
+    } catch (const UsageError& e) {
+      EXPECT_NE(std::string(e.what()).find("entry"), std::string::npos) << e.what();
+    }
+  }
+}
+
 }  // namespace
-}  // namespace specula::acquire
+}  // namespace specula::brdf

@@ -1,6 +1,6 @@
 #pragma once
 // Scattered BRDF samples onto the MERL grid (reference §5.3, algorithm 3D_BRDF_Resample): the samples'
-// configurations mapped into 3D (acquire/mapping.h), a kd-tree over them (nanoflann), and at every query (a
+// configurations mapped into 3D (core/brdf_mapping.h), a kd-tree over them (nanoflann), and at every query (a
 // grid cell's centre, or any configuration) the k nearest samples combined with one set of weights for every
 // band: their mean, Shepard's inverse distances to the power p (eqs 5.9-5.10), Franke-Little's (Renka's
 // modified Shepard) weights, which fall to 0 at the (k+1)-th nearest sample so that the estimate is continuous
@@ -21,15 +21,10 @@
 #include <string_view>
 #include <vector>
 
-#include "specula/acquire/mapping.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/brdf_mapping.h"
 
-namespace specula::store {
-class Store;
-class BlockReader;
-}  // namespace specula::store
-
-namespace specula::acquire {
+namespace specula::brdf {
 
 enum class Weights { mean, shepard, renka, wendland, loess };
 
@@ -53,6 +48,13 @@ struct ResampleOptions {
   /// passes over the sample values.
   std::size_t max_entries = std::size_t(64) << 20;
 };
+
+/// The rule of o, every field, as parse_rule reads it: "mapping=M,weights=W,k=K,power=P,max_gap=G".
+std::string rule_string(const ResampleOptions& o);
+/// Options from comma-separated key=value entries (mapping, weights, k, power, max_gap; each at most once) over
+/// the defaults; "k=auto" leaves k = 0 for the caller to choose (check_options refuses it). UsageError naming the
+/// entry otherwise.
+ResampleOptions parse_rule(std::string_view text);
 
 /// UsageError stating the rule when k is not 1 to 100000, power not finite and >= 0, max_gap not positive or
 /// max_entries 0.
@@ -93,29 +95,6 @@ class MemorySamples final : public SampleSource {
   std::span<const double> angles_;
   std::span<const float> values_, variance_;
   std::size_t bands_;
-};
-
-/// Samples `name` of a store, read in blocks of whole storage chunks (about 32 MiB of values); the chunks of a
-/// block are decompressed on all threads (store/block_reader.h).
-class StoreSamples final : public SampleSource {
- public:
-  /// InputError (listing the samples) when the store has no samples `name`.
-  StoreSamples(const store::Store& store, std::string name);
-  ~StoreSamples() override;
-  std::size_t size() const override { return size_; }
-  std::size_t bands() const override { return bands_; }
-  void read_angles(std::size_t first, std::size_t count, std::span<double> out) const override;
-  void read_values(std::size_t first, std::size_t count, std::span<float> out) const override;
-  std::size_t block_rows() const override { return block_rows_; }
-  bool has_variance() const override { return variance_; }
-  void read_variance(std::size_t first, std::size_t count, std::span<float> out) const override;
-
- private:
-  std::unique_ptr<store::Store> store_;
-  std::unique_ptr<store::BlockReader> reader_;
-  std::string name_;
-  std::size_t size_ = 0, bands_ = 0, block_rows_ = 0, reader_rows_ = 0;
-  bool variance_ = false;
 };
 
 /// The k nearest samples of a query and how far the nearest one is.
@@ -189,11 +168,11 @@ class Resampler {
   const ResampleOptions& options() const { return o_; }
   /// The reconstruction at `at` into out (bands values), exactly as resample_grid computes a cell; false (out
   /// untouched) without support.
-  bool predict(const brdf::StdAngles& at, std::span<float> out) const;
+  bool predict(const StdAngles& at, std::span<float> out) const;
   /// predict at an isotropic configuration.
   bool predict(const IsoAngles& at, std::span<float> out) const;
   /// The k nearest samples of `at`.
-  void neighbours(const brdf::StdAngles& at, Neighbours& out) const;
+  void neighbours(const StdAngles& at, Neighbours& out) const;
   /// resample_grid over these samples; returns the number of cells with data.
   std::size_t fill_grid(std::span<float> grid) const;
 
@@ -204,4 +183,4 @@ class Resampler {
   ResampleOptions o_;
 };
 
-}  // namespace specula::acquire
+}  // namespace specula::brdf

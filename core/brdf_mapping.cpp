@@ -1,4 +1,4 @@
-#include "specula/acquire/mapping.h"
+#include "specula/core/brdf_mapping.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 
 #include "specula/core/error.h"
 
-namespace specula::acquire {
+namespace specula::brdf {
 
 using std::numbers::pi;
 
@@ -39,7 +39,7 @@ double phi_difference(double phi_i, double phi_o) {
   return d > pi ? 2 * pi - d : d;
 }
 
-IsoAngles iso_angles(const brdf::StdAngles& a) { return {a.theta_i, a.theta_o, phi_difference(a.phi_i, a.phi_o)}; }
+IsoAngles iso_angles(const StdAngles& a) { return {a.theta_i, a.theta_o, phi_difference(a.phi_i, a.phi_o)}; }
 
 std::optional<double> incidence_plane_angle(const IsoAngles& a, double theta_i, double eps) {
   if (std::abs(a.theta_i - theta_i) > eps || (a.phi_d > eps && a.phi_d < pi - eps)) return std::nullopt;
@@ -53,7 +53,7 @@ Eigen::Vector3d map_angles(Mapping m, const IsoAngles& a) {
     case Mapping::marschner:
       return {std::sin(a.theta_i) * std::sin(a.theta_o), a.phi_d / pi, std::cos(a.theta_i) * std::cos(a.theta_o)};
     case Mapping::halfdiff: {
-      const brdf::HalfDiff h = brdf::half_diff(brdf::StdAngles{a.theta_i, 0.0, a.theta_o, a.phi_d});
+      const HalfDiff h = half_diff(StdAngles{a.theta_i, 0.0, a.theta_o, a.phi_d});
       // phi_d of the half-vector frame: mirroring (isotropy) negates it, reciprocity adds pi; [0, pi/2] is
       // what both leave.
       const double d = phi_difference(0.0, h.phi_d);
@@ -63,7 +63,7 @@ Eigen::Vector3d map_angles(Mapping m, const IsoAngles& a) {
   return {};
 }
 
-Eigen::Vector3d map_angles(Mapping m, const brdf::StdAngles& a) { return map_angles(m, iso_angles(a)); }
+Eigen::Vector3d map_angles(Mapping m, const StdAngles& a) { return map_angles(m, iso_angles(a)); }
 
 IsoAngles unmap(Mapping m, const Eigen::Vector3d& p) {
   switch (m) {
@@ -76,7 +76,7 @@ IsoAngles unmap(Mapping m, const Eigen::Vector3d& p) {
       return {0.5 * (sum + diff), 0.5 * (sum - diff), std::clamp(p[1], 0.0, 1.0) * pi};
     }
     case Mapping::halfdiff: {
-      const brdf::StdAngles a = brdf::std_angles(brdf::HalfDiff{p[0], 0.0, p[1], p[2]});
+      const StdAngles a = std_angles(HalfDiff{p[0], 0.0, p[1], p[2]});
       return iso_angles(a);
     }
   }
@@ -96,15 +96,15 @@ double turned_distance(const Eigen::Vector3d& ai, const Eigen::Vector3d& ao, con
 }  // namespace
 
 double config_distance(const IsoAngles& a, const IsoAngles& b, bool reciprocal) {
-  const Eigen::Vector3d ai = brdf::direction(a.theta_i, 0), ao = brdf::direction(a.theta_o, a.phi_d);
+  const Eigen::Vector3d ai = direction(a.theta_i, 0), ao = direction(a.theta_o, a.phi_d);
   double best = std::numeric_limits<double>::infinity();
   for (const bool swap : {false, true}) {
     if (swap && !reciprocal) break;
     const double ti = swap ? b.theta_o : b.theta_i, to = swap ? b.theta_i : b.theta_o;
     for (const double sign : {1.0, -1.0})
-      best = std::min(best, turned_distance(ai, ao, brdf::direction(ti, 0), brdf::direction(to, sign * b.phi_d)));
+      best = std::min(best, turned_distance(ai, ao, direction(ti, 0), direction(to, sign * b.phi_d)));
   }
   return best;
 }
 
-}  // namespace specula::acquire
+}  // namespace specula::brdf

@@ -1,6 +1,5 @@
-#include "specula/acquire/resample.h"
+#include "specula/core/brdf_resample.h"
 
-#include <omp.h>
 #include <Eigen/Cholesky>
 #include <nanoflann.hpp>
 
@@ -10,15 +9,15 @@
 #include <exception>
 #include <limits>
 #include <numeric>
+#include <sstream>
+#include <string>
 
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/parallel.h"
 #include "specula/core/progress.h"
-#include "specula/store/block_reader.h"
-#include "specula/store/store.h"
 
-namespace specula::acquire {
+namespace specula::brdf {
 namespace {
 
 // Mapped points, three floats each, for nanoflann: while a slab's tree is built it sees only that slab;
@@ -108,8 +107,8 @@ float estimate(Weights w, double sum) { return float(w == Weights::loess ? std::
 
 std::vector<std::uint32_t> physical_cells() {
   std::vector<std::uint32_t> cells;
-  for (std::size_t c = 0; c < brdf::kMerlCells; ++c)
-    if (brdf::merl_cell_valid(brdf::merl_cell(c))) cells.push_back(std::uint32_t(c));
+  for (std::size_t c = 0; c < kMerlCells; ++c)
+    if (merl_cell_valid(merl_cell(c))) cells.push_back(std::uint32_t(c));
   return cells;
 }
 
@@ -120,9 +119,9 @@ using ValueReader = std::function<void(std::size_t first, std::size_t count, std
 GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const ValueReader& read,
                std::size_t block_rows, const ResampleOptions& o, std::span<float> grid, std::span<float> gaps = {}) {
   check_options(o);
-  if (!gaps.empty() && gaps.size() != brdf::kMerlCells) throw UsageError("resample: gaps must hold one value per cell");
+  if (!gaps.empty() && gaps.size() != kMerlCells) throw UsageError("resample: gaps must hold one value per cell");
   if (o.mapping != tree.mapping()) throw UsageError("resample: the options' mapping differs from the tree's");
-  if (bands == 0 || grid.size() != bands * brdf::kMerlCells)
+  if (bands == 0 || grid.size() != bands * kMerlCells)
     throw UsageError("resample: the grid must hold bands x 90 x 90 x 180 values");
   GridStats stats;
   stats.samples = n;
@@ -151,8 +150,7 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
             b1 - b0, [] { return WeightedNeighbours(); },
             [&](std::size_t i, WeightedNeighbours& wn) {
               const std::size_t c = b0 + i;
-              const brdf::StdAngles centre =
-                  brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(cells[first + c])));
+              const StdAngles centre = std_angles(merl_cell_centre(merl_cell(cells[first + c])));
               const bool supported = wn.find(tree, iso_angles(centre), o);
               if (!gaps.empty()) gaps[cells[first + c]] = float(wn.nb.gap);
               if (!supported) return;
@@ -198,7 +196,7 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
       if (count[c] == 0) continue;
       ++stats.valid_cells;
       for (std::size_t q = 0; q < bands; ++q)
-        grid[q * brdf::kMerlCells + cells[first + c]] = estimate(o.weights, acc[c * bands + q]);
+        grid[q * kMerlCells + cells[first + c]] = estimate(o.weights, acc[c * bands + q]);
     }
     stats.average_seconds += seconds_since(t0);
   }
@@ -232,6 +230,60 @@ std::string_view weights_name(Weights w) {
       return "loess";
   }
   return "?";
+}
+
+std::string rule_string(const ResampleOptions& o) {
+  std::ostringstream out;
+  out.precision(17);
+  out << "mapping=" << mapping_name(o.mapping) << ",weights=" << weights_name(o.weights) << ",k=" << o.k
+      << ",power=" << o.power << ",max_gap=" << o.max_gap;
+  return out.str();
+}
+
+ResampleOptions parse_rule(std::string_view text) {
+  ResampleOptions o;
+  std::vector<std::string_view> seen;
+  for (std::size_t at = 0; at <= text.size();) {
+    const std::size_t end = std::min(text.find(',', at), text.size());
+    const std::string_view entry = text.substr(at, end - at);
+    at = end + 1;
+    const std::size_t eq = entry.find('=');
+    const std::string_view key = entry.substr(0, eq), value = eq == entry.npos ? "" : entry.substr(eq + 1);
+    const auto bad = [&](const char* why) {
+      return UsageError("resampling rule '" + std::string(text) + "': entry '" + std::string(entry) + "' " + why +
+                        " (give mapping=, weights=, k= (a count or auto), power=, max_gap=, comma-separated)");
+    };
+    if (eq == entry.npos || value.empty()) throw bad("is not key=value");
+    if (std::find(seen.begin(), seen.end(), key) != seen.end()) throw bad("repeats its key");
+    seen.push_back(key);
+    const std::string v(value);
+    std::size_t used = 0;
+    try {
+      if (key == "mapping") {
+        o.mapping = parse_mapping(v), used = v.size();
+      } else if (key == "weights") {
+        o.weights = parse_weights(v), used = v.size();
+      } else if (key == "k") {
+        o.k = v == "auto" ? 0 : std::stoul(v, &used);
+        if (v == "auto")
+          used = v.size();
+        else if (o.k == 0)
+          throw bad("asks for no neighbours (give 1 or more, or auto)");
+      } else if (key == "power") {
+        o.power = std::stod(v, &used);
+      } else if (key == "max_gap") {
+        o.max_gap = std::stod(v, &used);
+      } else {
+        throw bad("has an unknown key");
+      }
+    } catch (const UsageError& e) {
+      throw bad(e.what());
+    } catch (const std::logic_error&) {
+      throw bad("has a value that is not a number");
+    }
+    if (used != v.size()) throw bad("has a value that is not a number");
+  }
+  return o;
 }
 
 bool weights_have_reach(Weights w) { return w == Weights::renka || w == Weights::wendland || w == Weights::loess; }
@@ -273,46 +325,6 @@ void MemorySamples::read_variance(std::size_t first, std::size_t count, std::spa
   if (first + count > size() || out.size() != bands_ * count)
     throw UsageError("MemorySamples::read_variance: bad range");
   std::copy_n(variance_.begin() + std::ptrdiff_t(bands_ * first), bands_ * count, out.begin());
-}
-
-StoreSamples::StoreSamples(const store::Store& store, std::string name)
-    : store_(std::make_unique<store::Store>(store)), name_(std::move(name)) {
-  const store::SamplesInfo info = store_->samples_info(name_);
-  size_ = info.size;
-  bands_ = info.bands;
-  variance_ = info.variance;
-  // One reader block per storage chunk (a contiguous dataset is read through HDF5 in blocks of 2^16 rows).
-  reader_rows_ = info.chunk_rows ? info.chunk_rows : std::size_t(1) << 16;
-  if (info.chunk_rows)
-    reader_ = std::make_unique<store::BlockReader>(*store_, store::Selection{.samples = name_}, info.chunk_rows);
-  block_rows_ = std::max<std::size_t>(1, (std::size_t(32) << 20) / (4 * bands_ * reader_rows_)) * reader_rows_;
-}
-
-StoreSamples::~StoreSamples() = default;
-
-void StoreSamples::read_angles(std::size_t first, std::size_t count, std::span<double> out) const {
-  store_->read_samples(name_, first, count, out, {});
-}
-
-void StoreSamples::read_variance(std::size_t first, std::size_t count, std::span<float> out) const {
-  store_->read_samples(name_, first, count, {}, {}, out);
-}
-
-void StoreSamples::read_values(std::size_t first, std::size_t count, std::span<float> out) const {
-  if (first > size_ || count > size_ - first || out.size() != count * bands_)
-    throw UsageError("StoreSamples::read_values: bad range");
-  if (!reader_ || first % reader_rows_ != 0 || (count % reader_rows_ != 0 && first + count != size_)) {
-    store_->read_samples(name_, first, count, {}, out);
-    return;
-  }
-  // Whole reader blocks: decoded on every thread at once.
-  const std::size_t b0 = first / reader_rows_, nb = (count + reader_rows_ - 1) / reader_rows_;
-  parallel_for(
-      nb, [] { return store::BlockReader::RawBlock(); },
-      [&](std::size_t i, store::BlockReader::RawBlock& raw) {
-        reader_->read_raw(b0 + i, raw);
-        std::copy(raw.values.begin(), raw.values.end(), out.begin() + std::ptrdiff_t(i * reader_rows_ * bands_));
-      });
 }
 
 // ------------------------------------------------------------------ tree
@@ -525,7 +537,7 @@ GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const R
 
 GridStats resample_grid(const SampleSource& src, const ResampleOptions& o, std::span<float> grid) {
   check_options(o);
-  if (grid.size() != src.bands() * brdf::kMerlCells)
+  if (grid.size() != src.bands() * kMerlCells)
     throw UsageError("resample: the grid must hold bands x 90 x 90 x 180 values");
   const auto t0 = std::chrono::steady_clock::now();
   const SampleTree tree(src, o.mapping);
@@ -566,11 +578,9 @@ bool Resampler::predict(const IsoAngles& at, std::span<float> out) const {
   return true;
 }
 
-bool Resampler::predict(const brdf::StdAngles& at, std::span<float> out) const { return predict(iso_angles(at), out); }
+bool Resampler::predict(const StdAngles& at, std::span<float> out) const { return predict(iso_angles(at), out); }
 
-void Resampler::neighbours(const brdf::StdAngles& at, Neighbours& out) const {
-  tree_->nearest(iso_angles(at), o_.k, out);
-}
+void Resampler::neighbours(const StdAngles& at, Neighbours& out) const { tree_->nearest(iso_angles(at), o_.k, out); }
 
 std::size_t Resampler::fill_grid(std::span<float> grid) const {
   const std::size_t b = bands_;
@@ -584,4 +594,4 @@ std::size_t Resampler::fill_grid(std::span<float> grid) const {
       .valid_cells;
 }
 
-}  // namespace specula::acquire
+}  // namespace specula::brdf

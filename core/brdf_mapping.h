@@ -9,7 +9,7 @@
 
 #include "specula/core/brdf_geometry.h"
 
-namespace specula::acquire {
+namespace specula::brdf {
 
 enum class Mapping { standard, marschner, halfdiff };
 
@@ -26,7 +26,7 @@ struct IsoAngles {
 };
 
 /// The isotropic configuration of standard angles.
-IsoAngles iso_angles(const brdf::StdAngles& a);
+IsoAngles iso_angles(const StdAngles& a);
 /// Where a configuration lies on the incidence plane at theta_i (figures 5.5-5.7, 5.17): its signed outgoing angle in
 /// radians (negative on the light's side, positive towards the mirror direction) when its theta_i and its phi_d
 /// (0 or pi) are both within eps of the plane's, else nullopt.
@@ -38,7 +38,7 @@ double phi_difference(double phi_i, double phi_o);
 /// cos theta_i cos theta_o); M_h (theta_h, theta_d, phi_d of the half-vector frame folded into [0, pi/2]).
 Eigen::Vector3d map_angles(Mapping m, const IsoAngles& a);
 /// map_angles of the isotropic configuration of `a`.
-Eigen::Vector3d map_angles(Mapping m, const brdf::StdAngles& a);
+Eigen::Vector3d map_angles(Mapping m, const StdAngles& a);
 /// A configuration that m sends to p (for a reciprocal mapping, one of the two, with theta_i >= theta_o for
 /// M_m); p must be a point of the mapping's image (up to rounding).
 IsoAngles unmap(Mapping m, const Eigen::Vector3d& p);
@@ -47,4 +47,4 @@ IsoAngles unmap(Mapping m, const Eigen::Vector3d& p);
 /// `reciprocal`, over swapping b's directions. About the angle (radians) by which the directions must move.
 double config_distance(const IsoAngles& a, const IsoAngles& b, bool reciprocal);
 
-}  // namespace specula::acquire
+}  // namespace specula::brdf

@@ -1,4 +1,4 @@
-#include "specula/acquire/mapping.h"
+#include "specula/core/brdf_mapping.h"
 
 #include <gtest/gtest.h>
 
@@ -8,12 +8,12 @@
 
 #include "specula/core/error.h"
 
-namespace specula::acquire {
+namespace specula::brdf {
 namespace {
 
 using std::numbers::pi;
 
-brdf::StdAngles random_angles(std::mt19937_64& rng) {
+StdAngles random_angles(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> t(0, pi / 2 - 0.01), p(-pi, pi);
   return {t(rng), p(rng), t(rng), p(rng)};
 }
@@ -23,10 +23,10 @@ constexpr Mapping kAll[] = {Mapping::standard, Mapping::marschner, Mapping::half
 TEST(Mapping, IsotropyTurningAndMirroringBothAzimuthsChangesNothing) {
   std::mt19937_64 rng(1);
   for (int i = 0; i < 300; ++i) {
-    const brdf::StdAngles a = random_angles(rng);
+    const StdAngles a = random_angles(rng);
     const double turn = 0.37 * i - 40;
-    const brdf::StdAngles turned{a.theta_i, a.phi_i + turn, a.theta_o, a.phi_o + turn};
-    const brdf::StdAngles mirrored{a.theta_i, -a.phi_i, a.theta_o, -a.phi_o};
+    const StdAngles turned{a.theta_i, a.phi_i + turn, a.theta_o, a.phi_o + turn};
+    const StdAngles mirrored{a.theta_i, -a.phi_i, a.theta_o, -a.phi_o};
     for (const Mapping m : kAll) {
       EXPECT_LT((map_angles(m, turned) - map_angles(m, a)).norm(), 1e-9) << mapping_name(m);
       EXPECT_LT((map_angles(m, mirrored) - map_angles(m, a)).norm(), 1e-9) << mapping_name(m);
@@ -42,8 +42,8 @@ TEST(Mapping, IsotropyTurningAndMirroringBothAzimuthsChangesNothing) {
 TEST(Mapping, MarschnerAndHalfDiffIdentifyReciprocalConfigurationsAndStandardDoesNot) {
   std::mt19937_64 rng(2);
   for (int i = 0; i < 300; ++i) {
-    const brdf::StdAngles a = random_angles(rng);
-    const brdf::StdAngles swapped{a.theta_o, a.phi_o, a.theta_i, a.phi_i};  // eq 5.7
+    const StdAngles a = random_angles(rng);
+    const StdAngles swapped{a.theta_o, a.phi_o, a.theta_i, a.phi_i};  // eq 5.7
     // Eq 5.8 written out independently.
     const double pd = std::acos(std::cos(a.phi_o - a.phi_i));
     const Eigen::Vector3d mm(std::sin(a.theta_i) * std::sin(a.theta_o), pd / pi,
@@ -63,7 +63,7 @@ TEST(Mapping, MarschnerAndHalfDiffIdentifyReciprocalConfigurationsAndStandardDoe
 TEST(Mapping, HalfDiffPointIsTheMerlHalfAngleAndDifferenceAngle) {
   std::mt19937_64 rng(3);
   for (int i = 0; i < 100; ++i) {
-    const brdf::StdAngles a = random_angles(rng);
+    const StdAngles a = random_angles(rng);
     const brdf::HalfDiff h = brdf::half_diff(a);
     const Eigen::Vector3d p = map_angles(Mapping::halfdiff, a);
     EXPECT_NEAR(p[0], h.theta_h, 1e-9);
@@ -119,4 +119,4 @@ TEST(Mapping, ConfigDistanceIsTheLeastDistanceOverTurnsMirrorsAndSwaps) {
 }
 
 }  // namespace
-}  // namespace specula::acquire
+}  // namespace specula::brdf
