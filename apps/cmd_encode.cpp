@@ -8,11 +8,13 @@
 
 #include "apps/commands.h"
 #include "apps/common.h"
+#include "specula/acquire/bandwidth.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/report_json.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spc_target.h"
 #include "specula/codec/suite.h"
+#include "specula/core/brdf_resample.h"
 #include "specula/core/error.h"
 #include "specula/store/object_spec.h"
 #include "specula/store/store.h"
@@ -34,6 +36,7 @@ struct EncodeOptions {
   double magnitude_scale = 0;
   double grazing_factor = codec::SpcTransformOptions{}.grazing_factor;
   int level = 9;
+  std::string samples_rule;
   std::string output;
   bool json = false;
 };
@@ -64,59 +67,120 @@ BasisFamily basis_family(const EncodeOptions& o, const store::Grid& grid) {
           max_k};
 }
 
-void run_encode(const EncodeOptions& o) {
-  if (std::filesystem::path(o.output).extension() != ".spc")
-    throw UsageError("encode: -o must name a .spc file, not '" + o.output + "'");
-  const auto t0 = std::chrono::steady_clock::now();
+// What an encoding made and measured, for the report.
+struct Encoded {
+  std::vector<std::uint8_t> bytes;
+  codec::SpcBasis basis;
+  codec::SpcReport report;
+  codec::SpcTargetReport target_report;
+  codec::SpcKReport k_report;
+  std::size_t max_k = 0;
+  bool transform = true;
+};
+
+codec::SpcTarget target_of(const EncodeOptions& o) {
+  return {.de00_mean = o.target_de00.value_or(0),
+          .de00_p95 = o.target_p95.value_or(codec::default_p95_target(o.target_de00.value_or(0))),
+          .condition_mean = codec::condition_mean_target(o.target_de00.value_or(0)),
+          .max_trials = o.trials};
+}
+
+codec::LightingSuite suite_of(const EncodeOptions& o, const WavelengthGrid& wavelengths) {
+  return o.env == "default" ? codec::LightingSuite(wavelengths)
+                            : codec::LightingSuite(codec::read_environment(o.env, wavelengths), {});
+}
+
+Encoded encode_grid(const EncodeOptions& o) {
   const store::Grid grid = load_grid(o.input, "encode");
-  if (o.step && o.target_de00) throw UsageError("encode: give --step or --target-de00, not both");
   if (!o.k && !o.target_de00)
     throw UsageError("encode: give -k with --step or --max-error (only --target-de00 chooses k itself)");
   const BasisFamily family = basis_family(o, grid);
-  codec::SpcBasis basis = o.k ? family.of_k(o.k) : codec::SpcBasis{};
-  if (o.target_p95 && !o.target_de00) throw UsageError("encode: --target-p95 goes with --target-de00");
+  Encoded e;
+  e.max_k = family.max_k;
+  e.basis = o.k ? family.of_k(o.k) : codec::SpcBasis{};
   const codec::SpcBoundedOptions bounded{
       .max_error = o.max_error, .magnitude_scale = o.magnitude_scale, .zstd_level = o.level};
   codec::SpcTransformOptions options{.grazing_factor = o.grazing_factor, .magnitude_scale = o.magnitude_scale};
   if (o.step) options.step = *o.step;
-  const bool transform = o.step || o.target_de00;
-  const double p95 = o.target_p95.value_or(codec::default_p95_target(o.target_de00.value_or(0)));
-  codec::SpcReport rep;
-  codec::SpcTargetReport target_report;
-  codec::SpcKReport k_report;
-  std::vector<std::uint8_t> bytes;
-  const codec::SpcTarget target{.de00_mean = o.target_de00.value_or(0),
-                                .de00_p95 = p95,
-                                .condition_mean = codec::condition_mean_target(o.target_de00.value_or(0)),
-                                .max_trials = o.trials};
+  e.transform = o.step || o.target_de00;
   if (o.target_de00) {
-    const codec::LightingSuite suite = o.env == "default"
-                                           ? codec::LightingSuite(grid.wavelengths)
-                                           : codec::LightingSuite(codec::read_environment(o.env, grid.wavelengths), {});
-    bytes = o.k ? codec::encode_spc_to_target(grid, basis, options, target, suite, target_report, &rep, o.input)
-                : codec::encode_spc_choosing_k(grid, family.of_k, family.max_k, options, target, suite, target_report,
-                                               k_report, &basis, &rep, o.input);
-  } else if (transform) {
-    bytes = codec::encode_spc(grid, basis, options, &rep, o.input);
+    const codec::LightingSuite suite = suite_of(o, grid.wavelengths);
+    e.bytes = o.k ? codec::encode_spc_to_target(grid, e.basis, options, target_of(o), suite, e.target_report, &e.report,
+                                                o.input)
+                  : codec::encode_spc_choosing_k(grid, family.of_k, family.max_k, options, target_of(o), suite,
+                                                 e.target_report, e.k_report, &e.basis, &e.report, o.input);
+  } else if (e.transform) {
+    e.bytes = codec::encode_spc(grid, e.basis, options, &e.report, o.input);
   } else {
-    bytes = codec::encode_spc(grid, basis, bounded, &rep, o.input);
+    e.bytes = codec::encode_spc(grid, e.basis, bounded, &e.report, o.input);
   }
-  codec::write_spc_file(o.output, bytes);
+  return e;
+}
+
+// Format 4: the samples STORE.h5:SAMPLES and the resampling rule (k chosen by leave-one-out for k=auto).
+Encoded encode_samples(const EncodeOptions& o) {
+  const auto spec = store::parse_object_spec(o.input);
+  if (!spec || spec->name.empty())
+    throw UsageError("encode: with --samples-rule the input is STORE.h5:SAMPLES, not '" + o.input + "'");
+  if (!o.target_de00 && !(o.k && o.step))
+    throw UsageError("encode: with --samples-rule give --target-de00, or -k with --step");
+  const store::Store st = store::Store::open(spec->file);
+  const store::SamplesInfo info = st.samples_info(spec->name);
+  codec::SpcSamplesOptions options{.rule = brdf::parse_rule(o.samples_rule), .magnitude_scale = o.magnitude_scale};
+  if (options.rule.k == 0) options.rule.k = acquire::choose_bandwidth(st, spec->name, options.rule, {}).k;
+  if (o.step) options.step = *o.step;
+  std::vector<double> angles(4 * info.size);
+  std::vector<float> values(info.bands * info.size);
+  st.read_samples(spec->name, 0, info.size, angles, values);
+  const codec::SpcSampleSet samples{info.wavelengths, angles, values, info.units, 1};
+  const store::Grid reference = codec::resample_samples(samples, options.rule);
+  // A self basis from the samples themselves, each counted once (a grid counts each by the cells it fills).
+  const BasisFamily family =
+      o.basis == "self" && !o.extra
+          ? BasisFamily{[&samples](std::size_t k) { return codec::self_basis(samples, k); }, info.bands}
+          : basis_family(o, reference);
+  Encoded e;
+  e.max_k = family.max_k;
+  e.basis = o.k ? family.of_k(o.k) : codec::SpcBasis{};
+  if (o.target_de00) {
+    const codec::SpcBasisOfK of_k = o.k ? codec::SpcBasisOfK([&e](std::size_t) { return e.basis; }) : family.of_k;
+    e.bytes = codec::encode_spc_samples_choosing_k(samples, reference, of_k, o.k ? 1 : family.max_k, options,
+                                                   target_of(o), suite_of(o, info.wavelengths), e.target_report,
+                                                   e.k_report, &e.basis, &e.report, o.input);
+    if (o.k) e.k_report.k = o.k;
+  } else {
+    e.bytes = codec::encode_spc(samples, e.basis, options, &e.report, o.input);
+  }
+  return e;
+}
+
+void run_encode(const EncodeOptions& o) {
+  if (std::filesystem::path(o.output).extension() != ".spc")
+    throw UsageError("encode: -o must name a .spc file, not '" + o.output + "'");
+  const auto t0 = std::chrono::steady_clock::now();
+  if (o.step && o.target_de00) throw UsageError("encode: give --step or --target-de00, not both");
+  if (o.target_p95 && !o.target_de00) throw UsageError("encode: --target-p95 goes with --target-de00");
+  const Encoded e = o.samples_rule.empty() ? encode_grid(o) : encode_samples(o);
+  codec::write_spc_file(o.output, e.bytes);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const codec::SpcTarget target = target_of(o);
+  const codec::SpcBoundedOptions bounded{.max_error = o.max_error};
   if (o.json) {
     Json j = {{"input", o.input}, {"output", o.output}};
-    j.update(codec::spc_encode_json(rep, basis, transform ? nullptr : &bounded, o.target_de00 ? &target : nullptr,
-                                    &target_report, codec::spc_format_version(bytes, o.output), seconds));
-    if (!o.k) j["k_search"] = codec::spc_k_search_json(k_report);
+    j.update(codec::spc_encode_json(e.report, e.basis, e.transform ? nullptr : &bounded,
+                                    o.target_de00 ? &target : nullptr, &e.target_report,
+                                    codec::spc_format_version(e.bytes, o.output), seconds));
+    if (!o.k) j["k_search"] = codec::spc_k_search_json(e.k_report);
     print_json(j);
     return;
   }
+  const codec::SpcReport& rep = e.report;
   const double ratio = double(rep.input_bytes) / double(rep.output_bytes);
   fmt::print("encoded {} ({} valid cells) on {} with k = {}: {} bytes, {:.1f}x smaller than float64, in {:.2f} s\n",
-             o.input, rep.valid_cells, basis.reference, basis.k(), rep.output_bytes, ratio, seconds);
+             o.input, rep.valid_cells, e.basis.reference, e.basis.k(), rep.output_bytes, ratio, seconds);
   if (!o.k) {
-    fmt::print("k = {} chosen of 1 to {}, the smallest file meeting the target; tried:", k_report.k, family.max_k);
-    for (const codec::SpcKCandidate& c : k_report.candidates)
+    fmt::print("k = {} chosen of 1 to {}, the smallest file meeting the target; tried:", e.k_report.k, e.max_k);
+    for (const codec::SpcKCandidate& c : e.k_report.candidates)
       fmt::print(" k = {} {};", c.k,
                  !c.searched ? (c.floor_met ? "meets it at the finest step" : "cannot meet it")
                  : c.reached ? fmt::format("{} bytes", c.bytes)
@@ -127,10 +191,10 @@ void run_encode(const EncodeOptions& o) {
     fmt::print(
         "{}: step {:.4g} after {} trial codings; under the lighting suite CIEDE2000 mean {:.3f}, 95th "
         "percentile {:.3f}, worst condition {} mean {:.3f} (target {}, {} and {} per condition)\n",
-        target_report.reached ? "target met" : "target NOT met (finest step tried)", target_report.step,
-        target_report.trials, target_report.de00_mean, target_report.de00_p95, target_report.worst_condition,
-        target_report.worst_mean, *o.target_de00, p95, 2 * *o.target_de00);
-  if (transform)
+        e.target_report.reached ? "target met" : "target NOT met (finest step tried)", e.target_report.step,
+        e.target_report.trials, e.target_report.de00_mean, e.target_report.de00_p95, e.target_report.worst_condition,
+        e.target_report.worst_mean, *o.target_de00, target.de00_p95, 2 * *o.target_de00);
+  if (e.transform)
     fmt::print(
         "error: RMS {:.4g} 1/sr, max {:.4g} 1/sr; shape: basis residual up to {:.4g}, quantisation up to {:.4g}\n",
         rep.rms_error, rep.max_abs_error, rep.max_shape_residual, rep.max_quantisation_error);
@@ -146,7 +210,12 @@ void run_encode(const EncodeOptions& o) {
 void setup_encode(CLI::App& app) {
   auto o = std::make_shared<EncodeOptions>();
   auto* cmd = app.add_subcommand("encode", "Code a spectral BRDF grid onto a spectral basis (.spc)");
-  cmd->add_option("brdf", o->input, "Spectral grid: STORE.h5:GRID or a .spgrid file")->required();
+  cmd->add_option("brdf", o->input,
+                  "Spectral grid: STORE.h5:GRID or a .spgrid file (STORE.h5:SAMPLES with --samples-rule)")
+      ->required();
+  cmd->add_option("--samples-rule", o->samples_rule,
+                  "Code scattered samples (format 4) with the rule that resamples them, e.g. "
+                  "'weights=wendland,k=auto' (keys mapping, weights, k, power, max_gap; resample's defaults)");
   cmd->add_option("--basis", o->basis, "STORE.h5:BASIS (PCA or NMF) or 'self' (fitted to the grid)")->required();
   cmd->add_option(
          "-k", o->k,

@@ -42,7 +42,7 @@ Json spc_encode_json(const SpcReport& report, const SpcBasis& basis, const SpcBo
                      double seconds) {
   const bool transform = bounded == nullptr;
   Json j;
-  j["method"] = transform ? "transform" : "bounded";
+  j["method"] = format_version == 4 ? "samples" : transform ? "transform" : "bounded";
   j["format_version"] = format_version;
   if (target && target_report)
     j["target"] = {{"de00_mean", target->de00_mean},

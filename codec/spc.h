@@ -5,6 +5,8 @@
 // database, or fitted to the grid itself). Both are quantised uniformly with steps derived from one error
 // target, predicted from their neighbours along phi_d and theta_d (integers, so prediction loses nothing),
 // and entropy-coded with zstd. The container is self-describing and ends with a CRC-32 over every byte.
+// Format 4 codes scattered measurements instead of a grid: the samples (angles and the same magnitude and shape
+// split) and the rule that resamples them (core/brdf_resample.h); decoding resamples them onto the grid.
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
@@ -12,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "specula/core/brdf_resample.h"
 #include "specula/store/basis.h"
 #include "specula/store/grid.h"
 
@@ -20,8 +23,19 @@ namespace specula::codec {
 /// Magic bytes that open a .spc file.
 inline constexpr char kSpcMagic[8] = {'S', 'P', 'E', 'C', 'U', 'S', 'P', 'C'};
 /// Newest .spc format version this specula reads: 1 (bounded error, predictive), 2 and 3 (transform; 3 adds a step
-/// profile over theta_d) are written.
-inline constexpr std::uint32_t kSpcVersion = 3;
+/// profile over theta_d) and 4 (scattered samples and their resampling rule) are written.
+inline constexpr std::uint32_t kSpcVersion = 4;
+
+/// Scattered measurements held by the caller: n samples, angles n x 4 (theta_i, phi_i, theta_o, phi_o, radians)
+/// and values n x bands (sample-major) in `units`, value x scale being 1/sr.
+struct SpcSampleSet {
+  WavelengthGrid wavelengths;
+  std::span<const double> angles;
+  std::span<const float> values;
+  std::string units = "1/sr";
+  double scale = 1;
+  std::size_t size() const { return angles.size() / 4; }
+};
 
 /// k orthonormal spectra (rows) on a wavelength grid, and where they came from.
 struct SpcBasis {
@@ -42,6 +56,10 @@ SpcBasis augment_basis(const SpcBasis& basis, const store::Grid& grid, std::size
 /// The top k eigenvectors of the uncentred second moment of the grid's shapes r = x / mean(x) over valid
 /// cells with a non-zero magnitude. Throws UsageError unless 1 <= k <= bands, InputError if no cell qualifies.
 SpcBasis self_basis(const store::Grid& grid, std::size_t k);
+
+/// self_basis of scattered samples: every sample of positive mean counts once (a grid weights each by the cells it
+/// fills). UsageError unless 1 <= k <= bands, InputError if no sample qualifies.
+SpcBasis self_basis(const SpcSampleSet& samples, std::size_t k);
 
 /// Settings of the bounded method (format 1): every value kept within a stated error of the original.
 struct SpcBoundedOptions {
@@ -75,6 +93,21 @@ struct SpcTransformOptions {
   double magnitude_scale = 0;
 };
 
+/// Settings of the samples method (format 4): every sample's magnitude and shape quantised as in format 2, its
+/// angles to a fixed step, and `rule`, with which decoding resamples them onto the grid.
+struct SpcSamplesOptions {
+  brdf::ResampleOptions rule;
+  /// Quantisation step of log(1 + m / s) (in (0, 10]); the shape coefficients' step is shape_step_ratio times it.
+  double step = 0.01;
+  double shape_step_ratio = 2;
+  double angle_step = 1e-6;    ///< radians, in [1e-7, 0.01]
+  double magnitude_scale = 0;  ///< s in stored units; 0: a tenth of the median positive sample magnitude
+};
+
+/// The grid `samples` resample to under `rule` (cells without support or below the horizon -1): what a format-4
+/// file of them decodes to, up to its quantisation. UsageError for bad sizes or options, InputError for no samples.
+store::Grid resample_samples(const SpcSampleSet& samples, const brdf::ResampleOptions& rule);
+
 /// What encoding measured.
 struct SpcReport {
   std::uint64_t input_bytes = 0;  ///< the grid as float64 (bands x 1,458,000 x 8), as MERL stores RGB
@@ -94,6 +127,11 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
 /// As above in format 2 (the transform method) at options.step.
 std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& basis, const SpcTransformOptions& options,
                                      SpcReport* report = nullptr, const std::string& source = "");
+/// Encodes scattered samples on `basis` (same wavelengths, else InputError) into .spc bytes of format 4; the
+/// report's errors are against resample_samples of the exact samples. UsageError for a bad option.
+std::vector<std::uint8_t> encode_spc(const SpcSampleSet& samples, const SpcBasis& basis,
+                                     const SpcSamplesOptions& options, SpcReport* report = nullptr,
+                                     const std::string& source = "");
 /// A decoded .spc held as its coefficients rather than its bands: per cell the k values a = m' c' (the magnitude
 /// folded into the shape coefficients), so the decoded spectrum is x'_b = max(0, sum_j a_j V_jb) in stored units.
 struct SpcCoefficients {
@@ -114,7 +152,7 @@ SpcCoefficients decode_spc_coefficients(std::span<const std::uint8_t> bytes, con
 store::Grid expand_spc(const SpcCoefficients& coefficients);
 /// Decodes .spc bytes to a grid: expand_spc(decode_spc_coefficients(bytes, label)).
 store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& label);
-/// The format version of .spc bytes (1, 2 or 3; magic, version and CRC checked as decode_spc does).
+/// The format version of .spc bytes (1 to 4; magic, version and CRC checked as decode_spc does).
 std::uint32_t spc_format_version(std::span<const std::uint8_t> bytes, const std::string& label);
 /// The basis a .spc file was coded with (checked as decode_spc does).
 SpcBasis spc_basis(std::span<const std::uint8_t> bytes, const std::string& label);

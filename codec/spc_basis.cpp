@@ -90,6 +90,27 @@ SpcBasis self_basis(const store::Grid& grid, std::size_t k) {
   return {grid.wavelengths, top_rows(g, k), "self"};
 }
 
+SpcBasis self_basis(const SpcSampleSet& samples, std::size_t k) {
+  const std::size_t b = samples.wavelengths.size(), n = samples.size();
+  if (k < 1 || k > b)
+    throw UsageError("k = " + std::to_string(k) + ": give 1 to " + std::to_string(b) + " for a self basis");
+  if (samples.values.size() != n * b) throw UsageError("basis fit: sample values do not match samples x bands");
+  Eigen::MatrixXd g = Eigen::MatrixXd::Zero(Eigen::Index(b), Eigen::Index(b));
+  Eigen::VectorXd r(static_cast<Eigen::Index>(b));
+  std::size_t used = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    double m = 0;
+    for (std::size_t j = 0; j < b; ++j) m += (r[Eigen::Index(j)] = samples.values[i * b + j]);
+    if (!(m > 0) || !std::isfinite(m)) continue;
+    r *= double(b) / m;
+    g.selfadjointView<Eigen::Lower>().rankUpdate(r);
+    ++used;
+  }
+  if (used == 0) throw InputError("the samples have no spectrum of positive mean to fit a basis to");
+  g.triangularView<Eigen::StrictlyUpper>() = g.transpose();
+  return {samples.wavelengths, top_rows(g, k), "self"};
+}
+
 SpcBasis augment_basis(const SpcBasis& basis, const store::Grid& grid, std::size_t extra) {
   const std::size_t b = grid.bands();
   if (basis.rows.cols() != Eigen::Index(b) || !basis.wavelengths.approx_equal(grid.wavelengths))

@@ -10,6 +10,30 @@
 #include "specula/core/parallel.h"
 
 namespace specula::codec::detail {
+
+std::vector<std::uint8_t> zstd_compress(const std::vector<std::uint8_t>& raw, int level) {
+  std::vector<std::uint8_t> out(ZSTD_compressBound(raw.size()));
+  const std::size_t n = ZSTD_compress(out.data(), out.size(), raw.data(), raw.size(), level);
+  if (ZSTD_isError(n)) throw LibraryError(std::string("zstd: ") + ZSTD_getErrorName(n));
+  out.resize(n);
+  return out;
+}
+
+void zstd_decompress(const std::uint8_t* src, std::size_t size, std::vector<std::uint8_t>& out,
+                     const std::string& label, const char* what) {
+  const unsigned long long content = ZSTD_getFrameContentSize(src, size);
+  if (content != out.size())
+    throw InputError(label + ": .spc section " + what + " is corrupt: its zstd frame holds " +
+                     (content == ZSTD_CONTENTSIZE_ERROR || content == ZSTD_CONTENTSIZE_UNKNOWN
+                          ? std::string("an unknown size")
+                          : std::to_string(content)) +
+                     " bytes, the header says " + std::to_string(out.size()));
+  const std::size_t n = ZSTD_decompress(out.data(), out.size(), src, size);
+  if (ZSTD_isError(n) || n != out.size())
+    throw InputError(label + ": .spc section " + what +
+                     " is corrupt: " + (ZSTD_isError(n) ? std::string(ZSTD_getErrorName(n)) : "short frame"));
+}
+
 namespace {
 
 // Predicted code of cell (d, p) of one theta_h slab from its already-coded neighbours along phi_d and
@@ -35,29 +59,6 @@ struct Coding {
 inline void coefficients(const Coding& cd, std::int64_t qm, const std::int32_t* qc, std::size_t stride, float* a) {
   const double m = cd.s * std::expm1(double(qm) * cd.step_m);
   for (std::size_t j = 0; j < cd.k; ++j) a[j] = float(m * (double(qc[j * stride]) * cd.step_c));
-}
-
-std::vector<std::uint8_t> zstd_compress(const std::vector<std::uint8_t>& raw, int level) {
-  std::vector<std::uint8_t> out(ZSTD_compressBound(raw.size()));
-  const std::size_t n = ZSTD_compress(out.data(), out.size(), raw.data(), raw.size(), level);
-  if (ZSTD_isError(n)) throw LibraryError(std::string("zstd: ") + ZSTD_getErrorName(n));
-  out.resize(n);
-  return out;
-}
-
-void zstd_decompress(const std::uint8_t* src, std::size_t size, std::vector<std::uint8_t>& out,
-                     const std::string& label, const char* what) {
-  const unsigned long long content = ZSTD_getFrameContentSize(src, size);
-  if (content != out.size())
-    throw InputError(label + ": .spc section " + what + " is corrupt: its zstd frame holds " +
-                     (content == ZSTD_CONTENTSIZE_ERROR || content == ZSTD_CONTENTSIZE_UNKNOWN
-                          ? std::string("an unknown size")
-                          : std::to_string(content)) +
-                     " bytes, the header says " + std::to_string(out.size()));
-  const std::size_t n = ZSTD_decompress(out.data(), out.size(), src, size);
-  if (ZSTD_isError(n) || n != out.size())
-    throw InputError(label + ": .spc section " + what +
-                     " is corrupt: " + (ZSTD_isError(n) ? std::string(ZSTD_getErrorName(n)) : "short frame"));
 }
 
 // Residuals of one channel as 1 (int8), 2 (int16) or 4 (int32) bytes, split into byte planes so zstd sees the

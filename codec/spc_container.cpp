@@ -1,5 +1,5 @@
 // The .spc container: magic, version, CRC, the helpers both formats share, and the public entry points that
-// dispatch to format 1 (spc_bounded.cpp) or format 2 (spc_transform.cpp).
+// dispatch to format 1 (spc_bounded.cpp), formats 2 and 3 (spc_transform.cpp) or format 4 (spc_samples.cpp).
 #include <zlib.h>
 
 #include <algorithm>
@@ -106,13 +106,17 @@ std::uint32_t spc_format_version(std::span<const std::uint8_t> bytes, const std:
 }
 
 SpcBasis spc_basis(std::span<const std::uint8_t> bytes, const std::string& label) {
-  const SpcCoefficients c = detail::check_container(bytes, label) >= 2 ? detail::decode_transform(bytes, label, true)
-                                                                       : detail::decode_bounded(bytes, label, true);
+  const std::uint32_t version = detail::check_container(bytes, label);
+  const SpcCoefficients c = version == 4   ? detail::decode_samples(bytes, label, true)
+                            : version >= 2 ? detail::decode_transform(bytes, label, true)
+                                           : detail::decode_bounded(bytes, label, true);
   return {c.wavelengths, c.basis, c.reference};
 }
 
 SpcCoefficients decode_spc_coefficients(std::span<const std::uint8_t> bytes, const std::string& label) {
-  if (detail::check_container(bytes, label) >= 2) return detail::decode_transform(bytes, label, false);
+  const std::uint32_t version = detail::check_container(bytes, label);
+  if (version == 4) return detail::decode_samples(bytes, label, false);
+  if (version >= 2) return detail::decode_transform(bytes, label, false);
   return detail::decode_bounded(bytes, label, false);
 }
 

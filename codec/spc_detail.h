@@ -107,6 +107,12 @@ WavelengthGrid checked_wavelengths(std::vector<double> wl, const std::string& la
 std::uint64_t magnitudes(const store::Grid& grid, std::vector<float>& mag, std::vector<std::uint8_t>& valid);
 /// s of the magnitude mapping: `given`, or when 0 a tenth of the median positive magnitude (1 if there is none).
 double magnitude_scale(const std::vector<float>& mag, const std::vector<std::uint8_t>& valid, double given);
+/// raw compressed as one zstd frame at `level` (LibraryError on failure).
+std::vector<std::uint8_t> zstd_compress(const std::vector<std::uint8_t>& raw, int level);
+/// A zstd frame of `size` bytes decompressed into out, whose size the caller has set to what the header promises;
+/// InputError naming `label` and section `what` when the frame does not hold exactly that.
+void zstd_decompress(const std::uint8_t* src, std::size_t size, std::vector<std::uint8_t>& out,
+                     const std::string& label, const char* what);
 /// The CRC-32 (zlib) of bytes.
 std::uint32_t crc32_of(std::span<const std::uint8_t> bytes);
 
@@ -120,22 +126,55 @@ std::vector<std::uint8_t> encode_transform(const store::Grid& grid, const SpcBas
                                            SpcReport* report, const std::string& source);
 SpcCoefficients decode_transform(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only);
 
+/// A coding quantised at any step, whose decoding a target search (spc_target.cpp) judges step by step.
+class StepCoder {
+ public:
+  virtual ~StepCoder() = default;
+  /// The finest step the codes allow.
+  virtual double finest_step() const = 0;
+  /// The grid a file coded at `step` decodes to.
+  virtual store::Grid decoded(double step) const = 0;
+  /// The file at `step`, with what it measures when asked.
+  virtual std::vector<std::uint8_t> code(double step, SpcReport* report, const std::string& source) const = 0;
+};
+
 /// A grid transformed once for format 2 and then quantised at any step: what a step search trials.
-class TransformModel {
+class TransformModel final : public StepCoder {
  public:
   /// Checks the options (UsageError) and the basis (InputError) and transforms the grid's channels.
   TransformModel(const store::Grid& grid, const SpcBasis& basis, const SpcTransformOptions& options);
-  ~TransformModel();
+  ~TransformModel() override;
   /// The finest step (of the options' ratios) whose codes all stay below 2^27.
-  double finest_step() const;
-  /// The grid a file coded at `step` decodes to.
-  store::Grid decoded(double step) const;
+  double finest_step() const override;
+  store::Grid decoded(double step) const override;
   /// The file at `step`, with what it measures against the grid when asked.
-  std::vector<std::uint8_t> code(double step, SpcReport* report, const std::string& source) const;
+  std::vector<std::uint8_t> code(double step, SpcReport* report, const std::string& source) const override;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// Format 4: the samples quantised at any step (their magnitude and shape split once), judged against `reference`
+/// (resample_samples of the exact samples; the caller keeps samples, basis and reference alive).
+class SamplesModel final : public StepCoder {
+ public:
+  /// Checks the options (UsageError) and the basis and samples (InputError) and splits every sample.
+  SamplesModel(const SpcSampleSet& samples, const SpcBasis& basis, const SpcSamplesOptions& options,
+               const store::Grid& reference);
+  ~SamplesModel() override;
+  /// The finest step whose codes all stay below 2^27.
+  double finest_step() const override;
+  store::Grid decoded(double step) const override;
+  /// The file at `step`, with its errors against the reference when asked.
+  std::vector<std::uint8_t> code(double step, SpcReport* report, const std::string& source) const override;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Format 4: decodes a checked container (header only: basis and strings, values empty).
+SpcCoefficients decode_samples(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only);
 
 }  // namespace specula::codec::detail

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <optional>
 
@@ -52,7 +53,7 @@ std::optional<double> next_step(const std::optional<Trial>& good, const std::opt
 }
 
 // One trial coding at `step`, judged by the suite against the reference's renders.
-Trial run_trial(const detail::TransformModel& model, const SuiteRenders& reference, const LightingSuite& suite,
+Trial run_trial(const detail::StepCoder& model, const SuiteRenders& reference, const LightingSuite& suite,
                 const SpcTarget& target, double step) {
   Trial t{step, 0, suite.compare(reference, suite.render(model.decoded(step)))};
   t.excess = std::max({t.diff.de00_mean / target.de00_mean, t.diff.de00_p95 / target.de00_p95,
@@ -68,7 +69,7 @@ struct Search {
   int trials = 0;
 };
 
-Search search_step(const detail::TransformModel& model, const SuiteRenders& reference, const LightingSuite& suite,
+Search search_step(const detail::StepCoder& model, const SuiteRenders& reference, const LightingSuite& suite,
                    const SpcTarget& target, double first_step) {
   std::optional<Trial> good, bad;
   const double finest = std::max(1e-6, model.finest_step());
@@ -94,18 +95,20 @@ void fill_report(const Search& s, const LightingSuite& suite, SpcTargetReport& t
   tr.worst_condition = suite.conditions()[s.chosen.diff.worst].name;
 }
 
-// A basis of the family and its transformed grid (the model refers to the basis, so both live here).
+// A basis of the family and its coder (the model refers to the basis, so both live here).
 struct Coder {
   std::unique_ptr<SpcBasis> basis;
-  std::unique_ptr<detail::TransformModel> model;
+  std::unique_ptr<detail::StepCoder> model;
 };
 
-Coder make_coder(const store::Grid& grid, const SpcBasisOfK& basis_of_k, std::size_t k, const SpcTransformOptions& o) {
-  Coder c;
-  c.basis = std::make_unique<SpcBasis>(basis_of_k(k));
-  c.model = std::make_unique<detail::TransformModel>(grid, *c.basis, o);
-  return c;
-}
+// The coder of a basis, for each k a search over k tries.
+using CoderOfK = std::function<Coder(std::size_t k)>;
+
+// The k search of encode_spc_choosing_k over any coder family, judged against `reference`'s renders.
+std::vector<std::uint8_t> choose_k(const SuiteRenders& reference, const CoderOfK& coder_of_k, std::size_t k_max,
+                                   const SpcTarget& target, const LightingSuite& suite, SpcTargetReport& tr,
+                                   SpcKReport& kr, SpcBasis* chosen_basis, SpcReport* report,
+                                   const std::string& source);
 
 }  // namespace
 
@@ -126,13 +129,43 @@ std::vector<std::uint8_t> encode_spc_choosing_k(const store::Grid& grid, const S
                                                 SpcTargetReport& tr, SpcKReport& kr, SpcBasis* chosen_basis,
                                                 SpcReport* report, const std::string& source) {
   check_target(target);
+  const CoderOfK coder_of_k = [&](std::size_t k) {
+    Coder c;
+    c.basis = std::make_unique<SpcBasis>(basis_of_k(k));
+    c.model = std::make_unique<detail::TransformModel>(grid, *c.basis, o);
+    return c;
+  };
+  return choose_k(suite.render(grid), coder_of_k, k_max, target, suite, tr, kr, chosen_basis, report, source);
+}
+
+std::vector<std::uint8_t> encode_spc_samples_choosing_k(const SpcSampleSet& samples, const store::Grid& reference,
+                                                        const SpcBasisOfK& basis_of_k, std::size_t k_max,
+                                                        const SpcSamplesOptions& o, const SpcTarget& target,
+                                                        const LightingSuite& suite, SpcTargetReport& tr, SpcKReport& kr,
+                                                        SpcBasis* chosen_basis, SpcReport* report,
+                                                        const std::string& source) {
+  check_target(target);
+  const CoderOfK coder_of_k = [&](std::size_t k) {
+    Coder c;
+    c.basis = std::make_unique<SpcBasis>(basis_of_k(k));
+    c.model = std::make_unique<detail::SamplesModel>(samples, *c.basis, o, reference);
+    return c;
+  };
+  return choose_k(suite.render(reference), coder_of_k, k_max, target, suite, tr, kr, chosen_basis, report, source);
+}
+
+namespace {
+
+std::vector<std::uint8_t> choose_k(const SuiteRenders& reference, const CoderOfK& coder_of_k, std::size_t k_max,
+                                   const SpcTarget& target, const LightingSuite& suite, SpcTargetReport& tr,
+                                   SpcKReport& kr, SpcBasis* chosen_basis, SpcReport* report,
+                                   const std::string& source) {
   if (k_max < 1) throw UsageError("k search: the largest k must be at least 1");
-  const SuiteRenders reference = suite.render(grid);
   kr = {};
   // Floors, by bisection: hi ends as the smallest k meeting the target at the finest step, or k_max (its coder kept).
   Coder kept;
   auto floor_met = [&](std::size_t k) {
-    Coder c = make_coder(grid, basis_of_k, k, o);
+    Coder c = coder_of_k(k);
     const bool met = run_trial(*c.model, reference, suite, target, std::max(1e-6, c.model->finest_step())).excess <= 1;
     kr.candidates.push_back({.k = k, .floor_met = met});
     if (met) kept = std::move(c);
@@ -153,7 +186,7 @@ std::vector<std::uint8_t> encode_spc_choosing_k(const store::Grid& grid, const S
   std::unique_ptr<SpcBasis> best_basis;
   double first = target.first_step;
   for (std::size_t k = hi, misses = 0; k <= k_max && misses < 2; ++k) {
-    Coder c = kept.model ? std::move(kept) : make_coder(grid, basis_of_k, k, o);
+    Coder c = kept.model ? std::move(kept) : coder_of_k(k);
     const Search s = search_step(*c.model, reference, suite, target, first);
     SpcReport rep;
     auto bytes = c.model->code(s.chosen.step, &rep, source);
@@ -179,5 +212,7 @@ std::vector<std::uint8_t> encode_spc_choosing_k(const store::Grid& grid, const S
   if (chosen_basis) *chosen_basis = *best_basis;
   return best;
 }
+
+}  // namespace
 
 }  // namespace specula::codec

@@ -76,4 +76,14 @@ std::vector<std::uint8_t> encode_spc_choosing_k(const store::Grid& grid, const S
                                                 SpcBasis* chosen_basis = nullptr, SpcReport* report = nullptr,
                                                 const std::string& source = "");
 
+/// encode_spc_choosing_k for scattered samples (format 4, options.step ignored): judged against `reference`, the grid
+/// they resample to exactly (resample_samples(samples, options.rule)); basis_of_k must return bases on the samples'
+/// wavelengths.
+std::vector<std::uint8_t> encode_spc_samples_choosing_k(const SpcSampleSet& samples, const store::Grid& reference,
+                                                        const SpcBasisOfK& basis_of_k, std::size_t k_max,
+                                                        const SpcSamplesOptions& options, const SpcTarget& target,
+                                                        const LightingSuite& suite, SpcTargetReport& target_report,
+                                                        SpcKReport& k_report, SpcBasis* chosen_basis = nullptr,
+                                                        SpcReport* report = nullptr, const std::string& source = "");
+
 }  // namespace specula::codec

@@ -171,6 +171,10 @@ tif("float32-wavelengths-deflate-tiled.tif", gdal.GDT_Float32, ["COMPRESS=DEFLAT
 #   specula synth-brdf red-plastic --wavelengths 400:700:50 -o rp.spgrid
 #   specula encode rp.spgrid --basis self -k 3 --step 0.05 -o rp-k3-v2.spc    # before format 3 existed
 #   specula encode rp.spgrid --basis self -k 3 --step 0.05 -o rp-k3-v3.spc    # grazing factor 2 (the default)
+# and a format-4 one (samples and their rule) from the Cornell acryl_blue measurement:
+#   specula import ../shared/data/brdf/cornell/acryl_blue.brdf -o ab.h5
+#   specula encode ab.h5:acryl_blue --samples-rule weights=wendland,k=4 --basis self -k 2 --step 0.2 \
+#     -o acryl-blue-k2-v4.spc
 # (kept as checked in: the encoder's bytes are not this script's to reproduce).
 with open(os.path.join(os.path.dirname(HERE), "..", "codec", "data", "green-matte-7band-v1.spc"), "rb") as f:
     put("spc", "green-matte-7band-v1.spc", f.read())
