@@ -16,14 +16,15 @@ namespace specula::codec {
 namespace detail {
 namespace {
 
-constexpr std::int64_t kMaxCode = std::int64_t(1) << 27;
+constexpr std::int64_t kMaxSampleCode = std::int64_t(1) << 27;
 constexpr std::uint32_t kMaxSamples = std::uint32_t(1) << 24;
 constexpr int kZstdLevel = 19;
 constexpr double kMaxAngle = 4 * 3.141592653589793;
 
 void check_samples_options(const SpcSamplesOptions& o) {
   brdf::check_options(o.rule);
-  if (!(std::isfinite(o.step) && o.step > 0 && o.step <= 10)) throw UsageError("samples coding: step must be in (0, 10]");
+  if (!(std::isfinite(o.step) && o.step > 0 && o.step <= 10))
+    throw UsageError("samples coding: step must be in (0, 10]");
   if (!(std::isfinite(o.shape_step_ratio) && o.shape_step_ratio > 0 && o.shape_step_ratio <= 100))
     throw UsageError("samples coding: shape_step_ratio must be in (0, 100]");
   if (!(std::isfinite(o.angle_step) && o.angle_step >= 1e-7 && o.angle_step <= 0.01))
@@ -97,7 +98,8 @@ std::vector<std::int64_t> get_varints(const std::vector<std::uint8_t>& in, std::
 }
 
 // The n x 4 angle codes of a stream of put_angle_column's columns.
-std::vector<std::int64_t> get_angle_columns(const std::vector<std::uint8_t>& in, std::size_t n, const std::string& label) {
+std::vector<std::int64_t> get_angle_columns(const std::vector<std::uint8_t>& in, std::size_t n,
+                                            const std::string& label) {
   std::vector<std::int64_t> codes(4 * n);
   std::size_t at = 0;
   for (std::size_t a = 0; a < 4; ++a) {
@@ -109,7 +111,7 @@ std::vector<std::int64_t> get_angle_columns(const std::vector<std::uint8_t>& in,
     for (std::size_t d = 1; d < distinct.size(); ++d) {
       if (distinct[d] <= 0) throw InputError(label + ": .spc angle column's values are not ascending");
       distinct[d] += distinct[d - 1];
-      if (std::abs(distinct[d]) >= kMaxCode) throw InputError(label + ": .spc holds a code beyond +-2^27");
+      if (std::abs(distinct[d]) >= kMaxSampleCode) throw InputError(label + ": .spc holds a code beyond +-2^27");
     }
     const std::vector<std::int64_t> index = get_varints_at(in, n, at, label, "angles");
     for (std::size_t i = 0; i < n; ++i) {
@@ -134,12 +136,11 @@ void put_angle_column(std::vector<std::uint8_t>& out, const std::vector<std::int
   distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
   put_varint(out, std::int64_t(distinct.size()));
   for (std::size_t d = 0; d < distinct.size(); ++d) put_varint(out, distinct[d] - (d ? distinct[d - 1] : 0));
-  for (const auto v : col)
-    put_varint(out, std::lower_bound(distinct.begin(), distinct.end(), v) - distinct.begin());
+  for (const auto v : col) put_varint(out, std::lower_bound(distinct.begin(), distinct.end(), v) - distinct.begin());
 }
 
 // The integer codes of a sample set at one step, and everything decoding needs besides.
-struct Codes {
+struct SampleCodes {
   std::size_t n = 0, k = 0, bands = 0;
   double s = 1, step_m = 1, step_c = 1, angle_step = 1e-4;
   std::vector<std::int64_t> angles;  // n x 4
@@ -148,7 +149,7 @@ struct Codes {
 };
 
 // What decoding a coded sample set gives: the coefficient form on the grid under `rule`.
-SpcCoefficients resample_codes(const Codes& cd, const Eigen::MatrixXd& basis, const brdf::ResampleOptions& rule) {
+SpcCoefficients resample_codes(const SampleCodes& cd, const Eigen::MatrixXd& basis, const brdf::ResampleOptions& rule) {
   const std::size_t n = cd.n, k = cd.k, ch = k + 1;
   std::vector<double> angles(4 * n);
   for (std::size_t i = 0; i < 4 * n; ++i) angles[i] = double(cd.angles[i]) * cd.angle_step;
@@ -189,8 +190,9 @@ struct SamplesModel::Impl {
   double max_y = 0, max_c = 0;
   Eigen::MatrixXd rows;  // the basis as the file stores it (float)
 
-  Codes codes(double step) const {
-    Codes cd{.n = samples->size(), .k = basis->k(), .bands = basis->rows.cols() > 0 ? std::size_t(basis->rows.cols()) : 0};
+  SampleCodes codes(double step) const {
+    SampleCodes cd{
+        .n = samples->size(), .k = basis->k(), .bands = basis->rows.cols() > 0 ? std::size_t(basis->rows.cols()) : 0};
     cd.s = s;
     cd.step_m = step;
     cd.step_c = step * options.shape_step_ratio;
@@ -250,7 +252,8 @@ SamplesModel::~SamplesModel() = default;
 
 double SamplesModel::finest_step() const {
   const Impl& m = *impl_;
-  return std::max({1e-6, m.max_y / double(kMaxCode - 1), m.max_c / (m.options.shape_step_ratio * double(kMaxCode - 1))});
+  return std::max({1e-6, m.max_y / double(kMaxSampleCode - 1),
+                   m.max_c / (m.options.shape_step_ratio * double(kMaxSampleCode - 1))});
 }
 
 store::Grid SamplesModel::decoded(double step) const {
@@ -264,7 +267,7 @@ store::Grid SamplesModel::decoded(double step) const {
 
 std::vector<std::uint8_t> SamplesModel::code(double step, SpcReport* report, const std::string& source) const {
   const Impl& m = *impl_;
-  const Codes cd = m.codes(step);
+  const SampleCodes cd = m.codes(step);
   std::vector<std::uint8_t> angles, mags, shapes;
   for (std::size_t a = 0; a < 4; ++a) put_angle_column(angles, cd.angles, a);
   for (const auto v : cd.mag) put_varint(mags, v);
@@ -360,7 +363,7 @@ SpcCoefficients decode_samples(std::span<const std::uint8_t> bytes, const std::s
   } catch (const UsageError& e) {
     throw InputError(label + ": .spc resampling rule is invalid: " + e.what());
   }
-  Codes cd{.n = r.get<std::uint32_t>("samples"), .k = k, .bands = bands};
+  SampleCodes cd{.n = r.get<std::uint32_t>("samples"), .k = k, .bands = bands};
   cd.s = s;
   cd.angle_step = r.get<double>("angle step");
   cd.step_m = r.get<double>("magnitude step");
@@ -390,7 +393,7 @@ SpcCoefficients decode_samples(std::span<const std::uint8_t> bytes, const std::s
     for (std::size_t i = 0; i < cd.n; ++i) cd.shape[i * k + j] = shapes[j * cd.n + i];
   for (const auto* v : {&cd.angles, &cd.mag, &cd.shape})
     for (const auto x : *v)
-      if (x <= -kMaxCode || x >= kMaxCode) throw InputError(label + ": .spc holds a code beyond +-2^27");
+      if (x <= -kMaxSampleCode || x >= kMaxSampleCode) throw InputError(label + ": .spc holds a code beyond +-2^27");
   for (const auto q : cd.mag)
     if (double(q) * cd.step_m > 700) throw InputError(label + ": .spc holds a magnitude beyond a double's range");
   for (const auto q : cd.angles)
