@@ -84,7 +84,7 @@ struct AcquireOptions {
   std::vector<double> plot_theta = {30, 45, 60};
   double plot_band_nm = 0;
   std::size_t grid_k = 32;  // the suite check's resampling, as `specula resample`'s -k and --max-gap
-  double grid_max_gap_deg = 8.6;
+  double grid_max_gap_deg = brdf::kDefaultMaxGapDegrees;
   bool suite = true;
   std::string basis;  // filter captures: STORE.h5:BASIS
   double ridge = 1e-3;

@@ -29,7 +29,7 @@ struct ResampleCliOptions {
   std::size_t k_held_out = 2000;
   std::string weights = "shepard";
   double power = 1;
-  double max_gap_deg = 8.6;
+  double max_gap_deg = brdf::kDefaultMaxGapDegrees;
   bool replace = false;
   bool json = false;
   std::string prior;  // STORE.h5:PRIOR

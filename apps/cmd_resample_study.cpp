@@ -37,7 +37,7 @@ struct ResampleStudyOptions {
   std::vector<std::size_t> ks = {1, 16, 64, 256};
   std::size_t render_size = 200;
   std::vector<double> light = {45, 135};
-  double max_gap_deg = 8.6;
+  double max_gap_deg = brdf::kDefaultMaxGapDegrees;
   std::size_t plot_k = 32;
   std::size_t suite_k = 32;
   bool suite = true;

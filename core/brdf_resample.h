@@ -16,6 +16,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <numbers>
 #include <span>
 #include <string>
 #include <string_view>
@@ -36,6 +37,9 @@ std::string_view weights_name(Weights w);
 /// True for the weightings whose weights fall to 0 at the (k+1)-th nearest sample, the reach (renka, wendland, loess).
 bool weights_have_reach(Weights w);
 
+/// The default largest gap, in degrees: what `specula resample --max-gap` offers, and ResampleOptions' default.
+inline constexpr double kDefaultMaxGapDegrees = 8.6;
+
 struct ResampleOptions {
   Mapping mapping = Mapping::standard;
   std::size_t k = 32;
@@ -43,7 +47,7 @@ struct ResampleOptions {
   double power = 1;  ///< Shepard's p; the other weightings have none
   /// A query has no support (a cell is left without data) when its nearest sample is farther than this in
   /// config_distance (about radians; reciprocal as the mapping).
-  double max_gap = 0.15;
+  double max_gap = kDefaultMaxGapDegrees * std::numbers::pi / 180;
   /// Neighbour entries (cells x k, 8 bytes each) held at once while filling a grid; more cells take further
   /// passes over the sample values.
   std::size_t max_entries = std::size_t(64) << 20;
