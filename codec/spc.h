@@ -5,8 +5,8 @@
 // database, or fitted to the grid itself). Both are quantised uniformly with steps derived from one error
 // target, predicted from their neighbours along phi_d and theta_d (integers, so prediction loses nothing),
 // and entropy-coded with zstd. The container is self-describing and ends with a CRC-32 over every byte.
-// Format 4 codes scattered measurements instead of a grid: the samples (angles and the same magnitude and shape
-// split) and the rule that resamples them (core/brdf_resample.h); decoding resamples them onto the grid.
+// Format 4 codes scattered measurements instead of a grid: the samples (their exact angles and the same magnitude
+// and shape split) and the rule that resamples them (core/brdf_resample.h); decoding resamples them onto the grid.
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
@@ -94,13 +94,12 @@ struct SpcTransformOptions {
 };
 
 /// Settings of the samples method (format 4): every sample's magnitude and shape quantised as in format 2, its
-/// angles to a fixed step, and `rule`, with which decoding resamples them onto the grid.
+/// angles kept exactly, and `rule`, with which decoding resamples them onto the grid.
 struct SpcSamplesOptions {
   brdf::ResampleOptions rule;
   /// Quantisation step of log(1 + m / s) (in (0, 10]); the shape coefficients' step is shape_step_ratio times it.
   double step = 0.01;
   double shape_step_ratio = 2;
-  double angle_step = 1e-6;    ///< radians, in [1e-7, 0.01]
   double magnitude_scale = 0;  ///< s in stored units; 0: a tenth of the median positive sample magnitude
 };
 

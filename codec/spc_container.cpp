@@ -64,6 +64,15 @@ std::pair<std::uint32_t, std::uint32_t> read_shape(Reader& r, const std::string&
   return {bands, k};
 }
 
+std::pair<double, double> read_scales(Reader& r, const std::string& label) {
+  const double scale = r.get<double>("scale"), s = r.get<double>("magnitude scale");
+  for (const auto& [v, what] : {std::pair{scale, "scale"}, std::pair{s, "magnitude scale"}})
+    if (!(std::isfinite(v) && v > 0))
+      throw InputError(label + ": .spc header field '" + what + "' is " + std::to_string(v) +
+                       "; it must be finite and positive");
+  return {scale, s};
+}
+
 WavelengthGrid checked_wavelengths(std::vector<double> wl, const std::string& label) {
   try {
     return WavelengthGrid(std::move(wl));

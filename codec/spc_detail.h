@@ -100,6 +100,8 @@ inline Eigen::MatrixXd read_basis(Reader& r, std::size_t k, std::size_t bands, c
 std::uint32_t check_container(std::span<const std::uint8_t> bytes, const std::string& label);
 /// The header's band count and k, checked (both formats).
 std::pair<std::uint32_t, std::uint32_t> read_shape(Reader& r, const std::string& label);
+/// The header's scale and magnitude scale s, each finite and positive (InputError naming the field otherwise).
+std::pair<double, double> read_scales(Reader& r, const std::string& label);
 /// The wavelengths of a header, InputError naming `label` when they are not a valid grid.
 WavelengthGrid checked_wavelengths(std::vector<double> wl, const std::string& label);
 /// Per cell whether it has data (every band >= 0) and its magnitude, the band mean (0 without data); InputError on

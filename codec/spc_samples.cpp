@@ -1,14 +1,17 @@
 // .spc format 4, the samples method: scattered measurements coded with the rule that resamples them. Every sample's
-// spectrum is split into a magnitude and a shape as the grid formats do, its angles quantised to a fixed step, the
-// integer codes written as zigzag varints (angles as differences from the previous sample) in three zstd streams.
-// Decoding resamples the samples' coefficient vectors (a = m' c', one channel per basis spectrum, and a constant
-// channel that marks the cells with support) onto the grid: resampling is linear in the values, so this is the
-// resample of the decoded spectra on the basis.
+// spectrum is split into a magnitude and a shape as the grid formats do; its angles are kept exactly, as indices into
+// each column's distinct values (a goniometer repeats a few positions); the integer codes are range coded
+// (codec/sample_coder.h). Decoding resamples the samples' coefficient vectors (a = m' c', one channel per basis
+// spectrum, and a constant channel that marks the cells with support) onto the grid: resampling is linear in the
+// values, so this is the resample of the decoded spectra on the basis, at exactly the measured configurations.
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numeric>
 
+#include "specula/codec/sample_coder.h"
 #include "specula/codec/spc_detail.h"
 #include "specula/core/parallel.h"
 
@@ -16,9 +19,7 @@ namespace specula::codec {
 namespace detail {
 namespace {
 
-constexpr std::int64_t kMaxSampleCode = std::int64_t(1) << 27;
 constexpr std::uint32_t kMaxSamples = std::uint32_t(1) << 24;
-constexpr int kZstdLevel = 19;
 constexpr double kMaxAngle = 4 * 3.141592653589793;
 
 void check_samples_options(const SpcSamplesOptions& o) {
@@ -27,8 +28,6 @@ void check_samples_options(const SpcSamplesOptions& o) {
     throw UsageError("samples coding: step must be in (0, 10]");
   if (!(std::isfinite(o.shape_step_ratio) && o.shape_step_ratio > 0 && o.shape_step_ratio <= 100))
     throw UsageError("samples coding: shape_step_ratio must be in (0, 100]");
-  if (!(std::isfinite(o.angle_step) && o.angle_step >= 1e-7 && o.angle_step <= 0.01))
-    throw UsageError("samples coding: angle_step must be in [1e-7, 0.01] radians");
   if (!(std::isfinite(o.magnitude_scale) && o.magnitude_scale >= 0))
     throw UsageError("samples coding: magnitude_scale must be finite and >= 0");
 }
@@ -58,105 +57,40 @@ double median_scale(std::vector<float> mag) {
   return 0.1 * double(mag[mag.size() / 2]);
 }
 
-std::uint64_t zigzag(std::int64_t v) { return (std::uint64_t(v) << 1) ^ std::uint64_t(v >> 63); }
-std::int64_t unzigzag(std::uint64_t u) { return std::int64_t(u >> 1) ^ -std::int64_t(u & 1); }
-
-void put_varint(std::vector<std::uint8_t>& out, std::int64_t v) {
-  std::uint64_t u = zigzag(v);
-  while (u >= 0x80) {
-    out.push_back(std::uint8_t(u | 0x80));
-    u >>= 7;
-  }
-  out.push_back(std::uint8_t(u));
-}
-
-// `count` varints of `in` from byte `at` on (advanced past them).
-std::vector<std::int64_t> get_varints_at(const std::vector<std::uint8_t>& in, std::size_t count, std::size_t& at,
-                                         const std::string& label, const char* what) {
-  std::vector<std::int64_t> out(count);
-  for (std::size_t i = 0; i < count; ++i) {
-    std::uint64_t u = 0;
-    for (int shift = 0;; shift += 7) {
-      if (at >= in.size() || shift > 35)
-        throw InputError(label + ": .spc " + what + " stream ends or overflows at code " + std::to_string(i));
-      const std::uint8_t b = in[at++];
-      u |= std::uint64_t(b & 0x7f) << shift;
-      if (!(b & 0x80)) break;
-    }
-    out[i] = unzigzag(u);
-  }
-  return out;
-}
-
-// Reads `count` varints of a decompressed stream; InputError naming the stream when they are not exactly that.
-std::vector<std::int64_t> get_varints(const std::vector<std::uint8_t>& in, std::size_t count, const std::string& label,
-                                      const char* what) {
-  std::size_t at = 0;
-  std::vector<std::int64_t> out = get_varints_at(in, count, at, label, what);
-  if (at != in.size()) throw InputError(label + ": .spc " + what + " stream has bytes after its codes");
-  return out;
-}
-
-// The n x 4 angle codes of a stream of put_angle_column's columns.
-std::vector<std::int64_t> get_angle_columns(const std::vector<std::uint8_t>& in, std::size_t n,
-                                            const std::string& label) {
-  std::vector<std::int64_t> codes(4 * n);
-  std::size_t at = 0;
+// Each angle column's distinct values, ascending, and every sample's index among them.
+void palettes(std::span<const double> angles, std::array<std::vector<double>, 4>& palette,
+              std::vector<std::uint32_t>& index) {
+  const std::size_t n = angles.size() / 4;
+  index.resize(4 * n);
   for (std::size_t a = 0; a < 4; ++a) {
-    const std::int64_t count = get_varints_at(in, 1, at, label, "angles")[0];
-    if (count < 1 || std::size_t(count) > n)
-      throw InputError(label + ": .spc angle column " + std::to_string(a) + " claims " + std::to_string(count) +
-                       " distinct values for " + std::to_string(n) + " samples");
-    std::vector<std::int64_t> distinct = get_varints_at(in, std::size_t(count), at, label, "angles");
-    for (std::size_t d = 1; d < distinct.size(); ++d) {
-      if (distinct[d] <= 0) throw InputError(label + ": .spc angle column's values are not ascending");
-      distinct[d] += distinct[d - 1];
-      if (std::abs(distinct[d]) >= kMaxSampleCode) throw InputError(label + ": .spc holds a code beyond +-2^27");
-    }
-    const std::vector<std::int64_t> index = get_varints_at(in, n, at, label, "angles");
-    for (std::size_t i = 0; i < n; ++i) {
-      if (index[i] < 0 || index[i] >= count)
-        throw InputError(label + ": .spc angle index " + std::to_string(index[i]) + " is not below " +
-                         std::to_string(count));
-      codes[4 * i + a] = distinct[std::size_t(index[i])];
-    }
+    std::vector<double>& p = palette[a];
+    p.resize(n);
+    for (std::size_t i = 0; i < n; ++i) p[i] = angles[4 * i + a];
+    std::sort(p.begin(), p.end());
+    p.erase(std::unique(p.begin(), p.end()), p.end());
+    for (std::size_t i = 0; i < n; ++i)
+      index[4 * i + a] = std::uint32_t(std::lower_bound(p.begin(), p.end(), angles[4 * i + a]) - p.begin());
   }
-  if (at != in.size()) throw InputError(label + ": .spc angles stream has bytes after its codes");
-  return codes;
-}
-
-// One column of the n x 4 angle codes: its distinct codes ascending (the first, then differences) and each sample's
-// index among them. Measured samples repeat a few positions of a goniometer, so the indices are small and zstd
-// finds their patterns.
-void put_angle_column(std::vector<std::uint8_t>& out, const std::vector<std::int64_t>& codes, std::size_t column) {
-  std::vector<std::int64_t> col(codes.size() / 4);
-  for (std::size_t i = 0; i < col.size(); ++i) col[i] = codes[4 * i + column];
-  std::vector<std::int64_t> distinct = col;
-  std::sort(distinct.begin(), distinct.end());
-  distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
-  put_varint(out, std::int64_t(distinct.size()));
-  for (std::size_t d = 0; d < distinct.size(); ++d) put_varint(out, distinct[d] - (d ? distinct[d - 1] : 0));
-  for (const auto v : col) put_varint(out, std::lower_bound(distinct.begin(), distinct.end(), v) - distinct.begin());
 }
 
 // The integer codes of a sample set at one step, and everything decoding needs besides.
 struct SampleCodes {
-  std::size_t n = 0, k = 0, bands = 0;
-  double s = 1, step_m = 1, step_c = 1, angle_step = 1e-4;
-  std::vector<std::int64_t> angles;  // n x 4
-  std::vector<std::int64_t> mag;     // n
-  std::vector<std::int64_t> shape;   // n x k
+  std::size_t bands = 0;
+  double s = 1, step_m = 1, step_c = 1;
+  std::array<std::vector<double>, 4> palette;
+  SampleCodeStreams streams;
 };
 
 // What decoding a coded sample set gives: the coefficient form on the grid under `rule`.
 SpcCoefficients resample_codes(const SampleCodes& cd, const Eigen::MatrixXd& basis, const brdf::ResampleOptions& rule) {
-  const std::size_t n = cd.n, k = cd.k, ch = k + 1;
+  const SampleCodeStreams& st = cd.streams;
+  const std::size_t n = st.n, k = st.k, ch = k + 1;
   std::vector<double> angles(4 * n);
-  for (std::size_t i = 0; i < 4 * n; ++i) angles[i] = double(cd.angles[i]) * cd.angle_step;
+  for (std::size_t i = 0; i < 4 * n; ++i) angles[i] = cd.palette[i % 4][st.index[i]];
   std::vector<float> values(ch * n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double m = cd.s * std::expm1(double(cd.mag[i]) * cd.step_m);
-    for (std::size_t j = 0; j < k; ++j) values[i * ch + j] = float(m * (double(cd.shape[i * k + j]) * cd.step_c));
+    const double m = cd.s * std::expm1(double(st.mag[i]) * cd.step_m);
+    for (std::size_t j = 0; j < k; ++j) values[i * ch + j] = float(m * (double(st.shape[i * k + j]) * cd.step_c));
     values[i * ch + k] = 1.0f;  // resamples to 1 where a cell has support, -1 where it has none
   }
   std::vector<float> grid(ch * kMerlCells);
@@ -186,22 +120,29 @@ struct SamplesModel::Impl {
   double s = 1;
   std::vector<double> y;  // log(1 + m / s) per sample
   std::vector<double> c;  // n x k shape coefficients
-  std::vector<std::int64_t> angles;
+  std::array<std::vector<double>, 4> palette;
+  std::vector<std::uint32_t> index;
   double max_y = 0, max_c = 0;
   Eigen::MatrixXd rows;  // the basis as the file stores it (float)
 
   SampleCodes codes(double step) const {
-    SampleCodes cd{
-        .n = samples->size(), .k = basis->k(), .bands = basis->rows.cols() > 0 ? std::size_t(basis->rows.cols()) : 0};
-    cd.s = s;
-    cd.step_m = step;
-    cd.step_c = step * options.shape_step_ratio;
-    cd.angle_step = options.angle_step;
-    cd.angles = angles;
-    cd.mag.resize(cd.n);
-    cd.shape.resize(cd.n * cd.k);
-    for (std::size_t i = 0; i < cd.n; ++i) cd.mag[i] = std::llround(y[i] / cd.step_m);
-    for (std::size_t i = 0; i < cd.n * cd.k; ++i) cd.shape[i] = std::llround(c[i] / cd.step_c);
+    SampleCodes cd{.bands = samples->wavelengths.size(),
+                   .s = s,
+                   .step_m = step,
+                   .step_c = step * options.shape_step_ratio,
+                   .palette = palette};
+    SampleCodeStreams& st = cd.streams;
+    st.n = samples->size();
+    st.k = basis->k();
+    for (std::size_t a = 0; a < 4; ++a) st.palette_size[a] = std::uint32_t(palette[a].size());
+    st.index = index;
+    st.mag.resize(st.n);
+    st.shape.resize(st.n * st.k);
+    for (std::size_t i = 0; i < st.n; ++i) st.mag[i] = std::llround(y[i] / cd.step_m);
+    for (std::size_t i = 0; i < st.n * st.k; ++i) st.shape[i] = std::llround(c[i] / cd.step_c);
+    st.delta.resize(st.k + 1);
+    st.delta[0] = prefer_differences(st.mag, 1, 0, st.n);
+    for (std::size_t j = 0; j < st.k; ++j) st.delta[j + 1] = prefer_differences(st.shape, st.k, j, st.n);
     return cd;
   }
 };
@@ -242,10 +183,7 @@ SamplesModel::SamplesModel(const SpcSampleSet& samples, const SpcBasis& basis, c
       m.max_c = std::max(m.max_c, std::abs(ci[Eigen::Index(j)]));
     }
   }
-  m.angles.resize(4 * n);
-  for (std::size_t i = 0; i < 4 * n; ++i) {
-    m.angles[i] = std::llround(samples.angles[i] / o.angle_step);
-  }
+  palettes(samples.angles, m.palette, m.index);
 }
 
 SamplesModel::~SamplesModel() = default;
@@ -265,89 +203,65 @@ store::Grid SamplesModel::decoded(double step) const {
   return expand_spc(c);
 }
 
-std::vector<std::uint8_t> SamplesModel::code(double step, SpcReport* report, const std::string& source) const {
-  const Impl& m = *impl_;
-  const SampleCodes cd = m.codes(step);
-  std::vector<std::uint8_t> angles, mags, shapes;
-  for (std::size_t a = 0; a < 4; ++a) put_angle_column(angles, cd.angles, a);
-  for (const auto v : cd.mag) put_varint(mags, v);
-  for (std::size_t j = 0; j < cd.k; ++j)
-    for (std::size_t i = 0; i < cd.n; ++i) put_varint(shapes, cd.shape[i * cd.k + j]);
+namespace {
+
+// The container of docs/codec-format.md (format 4) around a coding.
+std::vector<std::uint8_t> pack(const SampleCodes& cd, const SpcSampleSet& samples, const SpcBasis& basis,
+                               const brdf::ResampleOptions& rule, const std::string& source) {
+  const SampleCodeStreams& st = cd.streams;
   std::vector<std::uint8_t> out;
   put_bytes(out, kSpcMagic, sizeof kSpcMagic);
   put(out, std::uint32_t(4));
   put(out, std::uint32_t(cd.bands));
-  put(out, std::uint32_t(cd.k));
-  put(out, m.samples->scale);
+  put(out, std::uint32_t(st.k));
+  put(out, samples.scale);
   put(out, cd.s);
-  for (const double w : m.samples->wavelengths.values()) put(out, w);
-  for (std::size_t j = 0; j < cd.k; ++j)
-    for (std::size_t b = 0; b < cd.bands; ++b) put(out, float(m.basis->rows(Eigen::Index(j), Eigen::Index(b))));
-  put_string(out, m.samples->units);
+  for (const double w : samples.wavelengths.values()) put(out, w);
+  for (std::size_t j = 0; j < st.k; ++j)
+    for (std::size_t b = 0; b < cd.bands; ++b) put(out, float(basis.rows(Eigen::Index(j), Eigen::Index(b))));
+  put_string(out, samples.units);
   put_string(out, source);
-  put_string(out, m.basis->reference);
-  const brdf::ResampleOptions& rule = m.options.rule;
+  put_string(out, basis.reference);
   put(out, std::uint8_t(rule.mapping));
   put(out, std::uint8_t(rule.weights));
   put(out, std::uint32_t(rule.k));
   put(out, rule.power);
   put(out, rule.max_gap);
-  put(out, std::uint32_t(cd.n));
-  put(out, cd.angle_step);
+  put(out, std::uint32_t(st.n));
   put(out, cd.step_m);
   put(out, cd.step_c);
-  for (const auto* raw : {&angles, &mags, &shapes}) {
-    const auto z = zstd_compress(*raw, kZstdLevel);
-    put(out, std::uint32_t(raw->size()));
-    put(out, std::uint32_t(z.size()));
-    put_bytes(out, z.data(), z.size());
+  for (const auto& p : cd.palette) {
+    put(out, std::uint32_t(p.size()));
+    for (const double v : p) put(out, v);
   }
+  put_bytes(out, st.delta.data(), st.delta.size());
+  const std::vector<std::uint8_t> coded = encode_sample_codes(st);
+  put(out, std::uint32_t(coded.size()));
+  put_bytes(out, coded.data(), coded.size());
   put(out, crc32_of(out));
-  if (report) {
-    const store::Grid g = decoded(step);
-    const store::Grid& ref = *m.reference;
-    *report = {};
-    report->input_bytes = std::uint64_t(cd.bands) * kMerlCells * 8;
-    report->output_bytes = out.size();
-    report->magnitude_scale = cd.s * m.samples->scale;
-    report->magnitude_step = cd.step_m;
-    report->shape_step = cd.step_c;
-    double sum2 = 0;
-    std::uint64_t count = 0;
-    for (std::size_t cell = 0; cell < kMerlCells; ++cell) {
-      if (g.brdf[cell] < 0 || ref.brdf[cell] < 0) continue;
-      ++report->valid_cells;
-      for (std::size_t b = 0; b < cd.bands; ++b) {
-        const double d = (double(g.brdf[b * kMerlCells + cell]) - double(ref.brdf[b * kMerlCells + cell])) * ref.scale;
-        report->max_abs_error = std::max(report->max_abs_error, std::abs(d));
-        sum2 += d * d;
-        ++count;
-      }
-    }
-    report->rms_error = count ? std::sqrt(sum2 / double(count)) : 0.0;
-  }
   return out;
 }
 
-SpcCoefficients decode_samples(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only) {
-  Reader r(bytes.first(bytes.size() - 4), label);
-  r.take(sizeof kSpcMagic + 4, "magic and version");
-  const auto [bands, k] = read_shape(r, label);
-  SpcCoefficients c;
-  c.scale = r.get<double>("scale");
-  const double s = r.get<double>("magnitude scale");
-  for (const auto& [v, what] : {std::pair{c.scale, "scale"}, std::pair{s, "magnitude scale"}})
-    if (!(std::isfinite(v) && v > 0))
-      throw InputError(label + ": .spc header field '" + what + "' is " + std::to_string(v) +
-                       "; it must be finite and positive");
-  std::vector<double> wl(bands);
-  std::memcpy(wl.data(), r.take(8 * std::size_t(bands), "wavelengths"), 8 * std::size_t(bands));
-  c.wavelengths = checked_wavelengths(std::move(wl), label);
-  c.basis = read_basis<float>(r, k, bands, label);
-  c.units = r.string("units");
-  c.source = r.string("source");
-  c.reference = r.string("basis reference");
-  if (header_only) return c;
+// RMS and largest difference of g from ref over the cells valid in both (1/sr).
+void measure(const store::Grid& g, const store::Grid& ref, SpcReport& report) {
+  const std::size_t bands = ref.bands();
+  double sum2 = 0;
+  std::uint64_t count = 0;
+  for (std::size_t cell = 0; cell < kMerlCells; ++cell) {
+    if (g.brdf[cell] < 0 || ref.brdf[cell] < 0) continue;
+    ++report.valid_cells;
+    for (std::size_t b = 0; b < bands; ++b) {
+      const double d = (double(g.brdf[b * kMerlCells + cell]) - double(ref.brdf[b * kMerlCells + cell])) * ref.scale;
+      report.max_abs_error = std::max(report.max_abs_error, std::abs(d));
+      sum2 += d * d;
+      ++count;
+    }
+  }
+  report.rms_error = count ? std::sqrt(sum2 / double(count)) : 0.0;
+}
+
+// The resampling rule of a format-4 header, checked.
+brdf::ResampleOptions read_rule(Reader& r, const std::string& label) {
   brdf::ResampleOptions rule;
   const auto mapping = r.get<std::uint8_t>("mapping"), weights = r.get<std::uint8_t>("weights");
   if (mapping > std::uint8_t(brdf::Mapping::halfdiff) || weights > std::uint8_t(brdf::Weights::loess))
@@ -363,42 +277,83 @@ SpcCoefficients decode_samples(std::span<const std::uint8_t> bytes, const std::s
   } catch (const UsageError& e) {
     throw InputError(label + ": .spc resampling rule is invalid: " + e.what());
   }
-  SampleCodes cd{.n = r.get<std::uint32_t>("samples"), .k = k, .bands = bands};
-  cd.s = s;
-  cd.angle_step = r.get<double>("angle step");
+  return rule;
+}
+
+// The four angle palettes of a format-4 file, each 1 to n values, finite, within +-4 pi and strictly ascending.
+void read_palettes(Reader& r, std::size_t n, SampleCodes& cd, const std::string& label) {
+  for (std::size_t a = 0; a < 4; ++a) {
+    const auto count = r.get<std::uint32_t>("palette size");
+    if (count < 1 || count > n)
+      throw InputError(label + ": .spc angle column " + std::to_string(a) + " has " + std::to_string(count) +
+                       " distinct values for " + std::to_string(n) + " samples");
+    std::vector<double>& p = cd.palette[a];
+    p.resize(count);
+    std::memcpy(p.data(), r.take(8 * std::size_t(count), "palette"), 8 * std::size_t(count));
+    for (std::size_t i = 0; i < count; ++i)
+      if (!(std::abs(p[i]) <= kMaxAngle) || (i > 0 && !(p[i] > p[i - 1])))
+        throw InputError(label + ": .spc angle column " + std::to_string(a) +
+                         " is not an ascending list of angles within +-4 pi");
+    cd.streams.palette_size[a] = count;
+  }
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> SamplesModel::code(double step, SpcReport* report, const std::string& source) const {
+  const Impl& m = *impl_;
+  const SampleCodes cd = m.codes(step);
+  std::vector<std::uint8_t> out = pack(cd, *m.samples, *m.basis, m.options.rule, source);
+  if (report) {
+    *report = {};
+    report->input_bytes = std::uint64_t(cd.bands) * kMerlCells * 8;
+    report->output_bytes = out.size();
+    report->magnitude_scale = cd.s * m.samples->scale;
+    report->magnitude_step = cd.step_m;
+    report->shape_step = cd.step_c;
+    measure(decoded(step), *m.reference, *report);
+  }
+  return out;
+}
+
+SpcCoefficients decode_samples(std::span<const std::uint8_t> bytes, const std::string& label, bool header_only) {
+  Reader r(bytes.first(bytes.size() - 4), label);
+  r.take(sizeof kSpcMagic + 4, "magic and version");
+  const auto [bands, k] = read_shape(r, label);
+  SpcCoefficients c;
+  const auto [scale, magnitude_scale] = read_scales(r, label);
+  c.scale = scale;
+  SampleCodes cd{.bands = bands, .s = magnitude_scale};
+  std::vector<double> wl(bands);
+  std::memcpy(wl.data(), r.take(8 * std::size_t(bands), "wavelengths"), 8 * std::size_t(bands));
+  c.wavelengths = checked_wavelengths(std::move(wl), label);
+  c.basis = read_basis<float>(r, k, bands, label);
+  c.units = r.string("units");
+  c.source = r.string("source");
+  c.reference = r.string("basis reference");
+  if (header_only) return c;
+  const brdf::ResampleOptions rule = read_rule(r, label);
+  SampleCodeStreams& st = cd.streams;
+  st.n = r.get<std::uint32_t>("samples");
+  st.k = k;
+  if (st.n == 0 || st.n > kMaxSamples)
+    throw InputError(label + ": .spc holds " + std::to_string(st.n) + " samples; 1 to 2^24 are valid");
   cd.step_m = r.get<double>("magnitude step");
   cd.step_c = r.get<double>("shape step");
-  if (cd.n == 0 || cd.n > kMaxSamples)
-    throw InputError(label + ": .spc holds " + std::to_string(cd.n) + " samples; 1 to 2^24 are valid");
-  for (const auto& [v, what] : {std::pair{cd.angle_step, "angle step"}, std::pair{cd.step_m, "magnitude step"},
-                                std::pair{cd.step_c, "shape step"}})
+  for (const auto& [v, what] : {std::pair{cd.step_m, "magnitude step"}, std::pair{cd.step_c, "shape step"}})
     if (!(std::isfinite(v) && v > 0 && v <= 1e3))
       throw InputError(label + ": .spc field '" + what + "' is " + std::to_string(v) + "; it must be in (0, 1000]");
-  const char* names[3] = {"angles", "magnitudes", "shapes"};
-  std::vector<std::uint8_t> raw[3];
-  for (int i = 0; i < 3; ++i) {
-    const auto raw_size = r.get<std::uint32_t>(names[i]), z = r.get<std::uint32_t>(names[i]);
-    const std::size_t least = i == 0 ? 4 * std::size_t(cd.n) : i == 1 ? cd.n : std::size_t(cd.n) * k;
-    if (raw_size < least || raw_size > 10 * (least + 8 * std::size_t(cd.n) + 64))
-      throw InputError(label + ": .spc " + names[i] + " stream claims " + std::to_string(raw_size) + " bytes for " +
-                       std::to_string(cd.n) + " samples");
-    raw[i].resize(raw_size);
-    zstd_decompress(r.take(z, names[i]), z, raw[i], label, names[i]);
-  }
-  cd.angles = get_angle_columns(raw[0], cd.n, label);
-  cd.mag = get_varints(raw[1], cd.n, label, names[1]);
-  const std::vector<std::int64_t> shapes = get_varints(raw[2], std::size_t(cd.n) * k, label, names[2]);
-  cd.shape.resize(shapes.size());
-  for (std::size_t j = 0; j < k; ++j)
-    for (std::size_t i = 0; i < cd.n; ++i) cd.shape[i * k + j] = shapes[j * cd.n + i];
-  for (const auto* v : {&cd.angles, &cd.mag, &cd.shape})
-    for (const auto x : *v)
-      if (x <= -kMaxSampleCode || x >= kMaxSampleCode) throw InputError(label + ": .spc holds a code beyond +-2^27");
-  for (const auto q : cd.mag)
+  read_palettes(r, st.n, cd, label);
+  const std::uint8_t* delta = r.take(k + 1, "difference flags");
+  st.delta.assign(delta, delta + k + 1);
+  for (const auto f : st.delta)
+    if (f > 1) throw InputError(label + ": .spc difference flag " + std::to_string(f) + " is neither 0 nor 1");
+  const auto size = r.get<std::uint32_t>("stream length");
+  if (!decode_sample_codes({r.take(size, "stream"), size}, st))
+    throw InputError(label + ": .spc sample stream is truncated or corrupt");
+  for (const auto q : st.mag)
     if (double(q) * cd.step_m > 700) throw InputError(label + ": .spc holds a magnitude beyond a double's range");
-  for (const auto q : cd.angles)
-    if (!(std::abs(double(q) * cd.angle_step) <= kMaxAngle))
-      throw InputError(label + ": .spc holds an angle beyond +-4 pi");
+  if (r.at() != bytes.size() - 4) throw InputError(label + ": .spc has bytes after its sample stream");
   SpcCoefficients out = resample_codes(cd, c.basis, rule);
   out.wavelengths = std::move(c.wavelengths);
   out.scale = c.scale;

@@ -423,12 +423,8 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
   const auto version = r.get<std::uint32_t>("version");
   const auto [bands, k] = read_shape(r, label);
   SpcCoefficients c;
-  c.scale = r.get<double>("scale");
-  const double s = r.get<double>("magnitude scale");
-  for (const auto& [v, what] : {std::pair{c.scale, "scale"}, std::pair{s, "magnitude scale"}})
-    if (!(std::isfinite(v) && v > 0))
-      throw InputError(label + ": .spc header field '" + what + "' is " + std::to_string(v) +
-                       "; it must be finite and positive");
+  const auto [scale, s] = read_scales(r, label);
+  c.scale = scale;
   const auto wl_kind = r.get<std::uint8_t>("wavelength kind");
   std::vector<double> wl(bands);
   if (wl_kind == 0) {
