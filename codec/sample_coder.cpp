@@ -61,7 +61,8 @@ struct Traversal {
     std::uint64_t rest = 0;
     if (e > 0) {
       const unsigned lead = bit(c.lead[std::size_t(e)], unsigned(rest_in >> (e - 1)) & 1u);
-      rest = (std::uint64_t(lead) << (e - 1)) | direct(std::uint32_t(rest_in & ((std::uint64_t(1) << (e - 1)) - 1)), e - 1);
+      rest = (std::uint64_t(lead) << (e - 1)) |
+             direct(std::uint32_t(rest_in & ((std::uint64_t(1) << (e - 1)) - 1)), e - 1);
     }
     return std::int64_t((std::uint64_t(1) << e) + rest - 1);
   }
@@ -107,8 +108,7 @@ int eg_length(std::int64_t v) { return v == 0 ? 1 : 3 + 2 * (std::bit_width(std:
 
 }  // namespace
 
-bool prefer_differences(std::span<const std::int64_t> channel, std::size_t stride, std::size_t offset,
-                        std::size_t n) {
+bool prefer_differences(std::span<const std::int64_t> channel, std::size_t stride, std::size_t offset, std::size_t n) {
   std::int64_t values = 0, differences = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const std::int64_t v = channel[i * stride + offset];

@@ -32,7 +32,6 @@ bool decode_sample_codes(std::span<const std::uint8_t> bytes, SampleCodeStreams&
 
 /// Whether coding a channel's differences from the previous sample costs fewer bits than its values, by the
 /// Exp-Golomb length of each.
-bool prefer_differences(std::span<const std::int64_t> channel, std::size_t stride, std::size_t offset,
-                        std::size_t n);
+bool prefer_differences(std::span<const std::int64_t> channel, std::size_t stride, std::size_t offset, std::size_t n);
 
 }  // namespace specula::codec
