@@ -38,22 +38,8 @@ struct Traversal {
   Contexts ctx{};
   std::vector<std::uint8_t> sig;
 
-  unsigned bit(rc::Bit& b, unsigned v) {
-    if constexpr (kDecode) {
-      return rc.decode(b);
-    } else {
-      rc.encode(b, v);
-      return v;
-    }
-  }
-  std::uint32_t direct(std::uint32_t v, int n) {
-    if constexpr (kDecode) {
-      return rc.decode_direct(n);
-    } else {
-      rc.encode_direct(v, n);
-      return v;
-    }
-  }
+  unsigned bit(rc::Bit& b, unsigned v) { return rc::code_bit(rc, b, v); }
+  std::uint32_t direct(std::uint32_t v, int n) { return rc::code_direct(rc, v, n); }
   // Exp-Golomb of v >= 0: the exponent e = floor(log2(v + 1)) in unary with adaptive bits, then e direct bits.
   std::uint32_t exp_golomb(std::uint32_t v, rc::Bit* exponent) {
     const int e_in = kDecode ? 0 : std::bit_width(v + 1) - 1;

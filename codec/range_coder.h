@@ -4,6 +4,7 @@
 // truncated stream decodes to wrong values, never out of bounds.
 #include <cstdint>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 namespace specula::codec::rc {
@@ -112,5 +113,28 @@ class Decoder {
   std::uint32_t code_ = 0;
   std::uint32_t range_ = 0xFFFFFFFFu;
 };
+
+/// One adaptive bit in either direction: an Encoder codes `v` and returns it, a Decoder returns the bit it reads, so
+/// one traversal of a format serves both and their contexts cannot disagree.
+template <class Coder>
+unsigned code_bit(Coder& coder, Bit& c, unsigned v) {
+  if constexpr (std::is_same_v<Coder, Decoder>) {
+    return coder.decode(c);
+  } else {
+    coder.encode(c, v);
+    return v;
+  }
+}
+
+/// The `n` low bits of `v` with probability 1/2 each, in either direction as code_bit.
+template <class Coder>
+std::uint32_t code_direct(Coder& coder, std::uint32_t v, int n) {
+  if constexpr (std::is_same_v<Coder, Decoder>) {
+    return coder.decode_direct(n);
+  } else {
+    coder.encode_direct(v, n);
+    return v;
+  }
+}
 
 }  // namespace specula::codec::rc

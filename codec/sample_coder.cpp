@@ -26,22 +26,8 @@ struct Traversal {
   Coder& rc;
   bool in_range = true;
 
-  unsigned bit(rc::Bit& b, unsigned v) {
-    if constexpr (kDecode) {
-      return rc.decode(b);
-    } else {
-      rc.encode(b, v);
-      return v;
-    }
-  }
-  std::uint32_t direct(std::uint32_t v, int n) {
-    if constexpr (kDecode) {
-      return n ? rc.decode_direct(n) : 0;
-    } else {
-      if (n) rc.encode_direct(v, n);
-      return v;
-    }
-  }
+  unsigned bit(rc::Bit& b, unsigned v) { return rc::code_bit(rc, b, v); }
+  std::uint32_t direct(std::uint32_t v, int n) { return rc::code_direct(rc, v, n); }
   // v in [0, 2^bits), most significant bit first, each bit in the context of the bits above it (LZMA's bit tree).
   std::uint32_t tree(std::uint32_t v, int bits, std::vector<rc::Bit>& ctx) {
     std::uint32_t m = 1;
