@@ -7,6 +7,7 @@
 #include <cmath>
 #include <exception>
 #include <limits>
+#include <numeric>
 #include <sstream>
 #include <string>
 
@@ -24,8 +25,8 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 // Wendland's C2 kernel, (1 - r)^4 (4 r + 1) for r = d / R < 1, else 0.
 double wendland(double d2, double reach2) {
-  const double r = std::sqrt(d2 / reach2);
-  return r >= 1 ? 0.0 : std::pow(1 - r, 4) * (4 * r + 1);
+  const double r = std::sqrt(d2 / reach2), t = (1 - r) * (1 - r);
+  return r >= 1 ? 0.0 : t * t * (4 * r + 1);
 }
 
 // The local linear fit's equivalent weights: the fit of values y_j by a + b . x_j (x_j = offset_j / R) minimising
@@ -47,34 +48,83 @@ void local_linear(std::span<const double> kernel, std::span<const float> offsets
     l[j] = kernel[j] * (b[0] + inv_r * (b[1] * offsets[3 * j] + b[2] * offsets[3 * j + 1] + b[3] * offsets[3 * j + 2]));
 }
 
-// Neighbours of a query, their weights, reordered by sample index so that every band is accumulated in the same
+// How many neighbours a query needs: Renka's and the smoothing weights also need the (k+1)-th nearest sample's
+// distance, the reach.
+std::size_t wanted(const ResampleOptions& o) { return weights_have_reach(o.weights) ? o.k + 1 : o.k; }
+
+// The weights of a query's neighbours, reordered by sample index so that every band is accumulated in the same
 // order wherever the values come from (memory or blocks of a file).
 struct WeightedNeighbours {
-  Neighbours nb;
   std::vector<float> w;
   std::vector<std::pair<std::uint32_t, float>> by_sample;
 
-  // False when the query has no support. Renka's weights need the (k+1)-th nearest sample's distance, the reach;
-  // that sample itself has weight 0 and is dropped.
-  bool find(const SampleTree& tree, const IsoAngles& at, const ResampleOptions& o) {
-    const bool reach = weights_have_reach(o.weights);
-    tree.nearest(at, reach ? o.k + 1 : o.k, nb, o.weights == Weights::loess);
+  // nb: the query's wanted(o) nearest, in any order; left in ascending sample index. False when the query has no
+  // support. With a reach, the farthest neighbour (by distance, then sample index: the (k+1)-th nearest) gives it
+  // and is dropped.
+  bool weigh(Neighbours& nb, const ResampleOptions& o) {
     if (nb.index.empty() || !(nb.gap <= o.max_gap)) return false;
+    order_by_sample(nb);
     double reach2 = std::numeric_limits<double>::infinity();
-    if (reach && nb.index.size() > o.k) {
-      reach2 = nb.dist2.back();
-      nb.index.pop_back();
-      nb.dist2.pop_back();
-      nb.offset.resize(std::min(nb.offset.size(), 3 * nb.index.size()));
+    if (weights_have_reach(o.weights) && nb.index.size() > o.k) {
+      std::size_t far = 0;
+      for (std::size_t j = 1; j < nb.index.size(); ++j)
+        if (nb.dist2[j] >= nb.dist2[far]) far = j;
+      reach2 = nb.dist2[far];
+      nb.index.erase(nb.index.begin() + std::ptrdiff_t(far));
+      nb.dist2.erase(nb.dist2.begin() + std::ptrdiff_t(far));
+      if (!nb.offset.empty())
+        nb.offset.erase(nb.offset.begin() + std::ptrdiff_t(3 * far), nb.offset.begin() + std::ptrdiff_t(3 * far + 3));
     }
     w.resize(nb.index.size());
     neighbour_weights(o.weights, o.power, nb.dist2, w, reach2, nb.offset);
     by_sample.resize(nb.index.size());
     for (std::size_t j = 0; j < nb.index.size(); ++j) by_sample[j] = {nb.index[j], w[j]};
-    std::sort(by_sample.begin(), by_sample.end());
     return true;
   }
+
+ private:
+  std::vector<std::size_t> order;
+  Neighbours sorted;
+
+  void order_by_sample(Neighbours& nb) {
+    if (std::is_sorted(nb.index.begin(), nb.index.end())) return;
+    order.resize(nb.index.size());
+    std::iota(order.begin(), order.end(), std::size_t(0));
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return nb.index[a] < nb.index[b]; });
+    sorted.index.resize(order.size());
+    sorted.dist2.resize(order.size());
+    sorted.offset.resize(nb.offset.size());
+    for (std::size_t j = 0; j < order.size(); ++j) {
+      sorted.index[j] = nb.index[order[j]];
+      sorted.dist2[j] = nb.dist2[order[j]];
+      if (!nb.offset.empty())
+        std::copy_n(nb.offset.begin() + std::ptrdiff_t(3 * order[j]), 3, sorted.offset.begin() + std::ptrdiff_t(3 * j));
+    }
+    std::swap(nb.index, sorted.index);
+    std::swap(nb.dist2, sorted.dist2);
+    std::swap(nb.offset, sorted.offset);
+  }
 };
+
+// A row of grid cells (neighbours along phi_d) with their queries and neighbours, per thread.
+struct CellRow {
+  std::vector<IsoAngles> at;
+  std::vector<Neighbours> nb;
+  WeightedNeighbours wn;
+};
+
+// Cells per row searched together (SampleTree::nearest_each): consecutive cells of one (theta_h, theta_d).
+constexpr std::size_t kRowCells = 16;
+
+// Starts of the rows of cells[first, first + m), then m.
+std::vector<std::size_t> cell_rows(std::span<const std::uint32_t> cells, std::size_t first, std::size_t m) {
+  std::vector<std::size_t> starts;
+  for (std::size_t c = 0; c < m; ++c)
+    if (starts.empty() || c - starts.back() == kRowCells || cells[first + c] / 180 != cells[first + c - 1] / 180)
+      starts.push_back(c);
+  starts.push_back(m);
+  return starts;
+}
 
 // A cell's value from its accumulated sum: LOESS's weights may be negative, and a BRDF is not.
 float estimate(Weights w, double sum) { return float(w == Weights::loess ? std::max(0.0, sum) : sum); }
@@ -88,8 +138,129 @@ std::vector<std::uint32_t> physical_cells() {
 
 using ValueReader = std::function<void(std::size_t first, std::size_t count, std::span<float> out)>;
 
-// The second half of resample_grid: neighbours of every cell in passes of at most max_entries entries, values
-// streamed once per pass.
+// What filling a grid reads and writes.
+struct GridFill {
+  const SampleTree& tree;
+  const ResampleOptions& o;
+  std::size_t n, bands;
+  std::span<float> grid, gaps;
+  std::vector<std::uint32_t> cells = physical_cells();
+
+  // Finds and weighs the neighbours of cells[first, first + m), row by row on all threads, and calls
+  // visit(c, by_sample) for each cell c (from first) with support; the gaps are written when asked for.
+  template <class Visit>
+  void weigh_cells(std::size_t first, std::size_t m, const Visit& visit) const {
+    Progress progress("finding neighbours", m);
+    const std::vector<std::size_t> rows = cell_rows(cells, first, m);
+    const std::size_t batch = 1 << 11;
+    for (std::size_t r0 = 0; r0 + 1 < rows.size(); r0 += batch) {
+      check_interrupt();
+      const std::size_t r1 = std::min(rows.size() - 1, r0 + batch);
+      parallel_for(
+          r1 - r0, [] { return CellRow(); },
+          [&](std::size_t r, CellRow& row) {
+            const std::size_t c0 = rows[r0 + r], c1 = rows[r0 + r + 1];
+            row.at.resize(c1 - c0);
+            row.nb.resize(c1 - c0);
+            for (std::size_t c = c0; c < c1; ++c)
+              row.at[c - c0] = iso_angles(std_angles(merl_cell_centre(merl_cell(cells[first + c]))));
+            tree.nearest_each(row.at, wanted(o), row.nb, o.weights == Weights::loess);
+            for (std::size_t c = c0; c < c1; ++c) {
+              Neighbours& nb = row.nb[c - c0];
+              if (!gaps.empty()) gaps[cells[first + c]] = float(nb.gap);
+              if (row.wn.weigh(nb, o)) visit(c, std::span<const std::pair<std::uint32_t, float>>(row.wn.by_sample));
+            }
+          },
+          8);
+      progress.advance(rows[r1] - rows[r0]);
+    }
+  }
+
+  void store(std::size_t cell, const double* acc) const {
+    for (std::size_t q = 0; q < bands; ++q) grid[q * kMerlCells + cell] = estimate(o.weights, acc[q]);
+  }
+};
+
+void add_weighted(double* acc, const float* v, double w, std::size_t bands) {
+  for (std::size_t q = 0; q < bands; ++q) acc[q] += w * double(v[q]);
+}
+
+// Every cell summed as soon as its weights are known, from values read whole.
+GridStats fill_from_memory(const GridFill& f, std::span<const float> values) {
+  GridStats stats;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<std::uint8_t> valid(f.cells.size(), 0);
+  thread_local std::vector<double> acc;
+  f.weigh_cells(0, f.cells.size(), [&](std::size_t c, std::span<const std::pair<std::uint32_t, float>> by_sample) {
+    acc.assign(f.bands, 0.0);
+    for (const auto& [s, w] : by_sample) add_weighted(acc.data(), values.data() + std::size_t(s) * f.bands, w, f.bands);
+    f.store(f.cells[c], acc.data());
+    valid[c] = 1;
+  });
+  stats.passes = 1;
+  stats.valid_cells = std::size_t(std::count(valid.begin(), valid.end(), 1));
+  stats.query_seconds = seconds_since(t0);
+  return stats;
+}
+
+// Neighbour lists of at most max_entries entries at a time, the values streamed past them once per pass.
+GridStats fill_streaming(const GridFill& f, const ValueReader& read, std::size_t block_rows) {
+  GridStats stats;
+  const std::size_t k = std::min(f.o.k, f.n), bands = f.bands;
+  const std::size_t per_pass = std::max<std::size_t>(1, f.o.max_entries / k);
+  std::vector<std::uint32_t> count, cursor, sample;
+  std::vector<float> weight, block;
+  std::vector<double> acc;
+  for (std::size_t first = 0; first < f.cells.size(); first += per_pass) {
+    const std::size_t m = std::min(per_pass, f.cells.size() - first);
+    ++stats.passes;
+    count.assign(m, 0);
+    sample.resize(m * k);
+    weight.resize(m * k);
+    auto t0 = std::chrono::steady_clock::now();
+    f.weigh_cells(first, m, [&](std::size_t c, std::span<const std::pair<std::uint32_t, float>> by_sample) {
+      count[c] = std::uint32_t(by_sample.size());
+      for (std::size_t j = 0; j < by_sample.size(); ++j) {
+        sample[c * k + j] = by_sample[j].first;
+        weight[c * k + j] = by_sample[j].second;
+      }
+    });
+    stats.query_seconds += seconds_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    acc.assign(m * bands, 0.0);
+    cursor.assign(m, 0);
+    Progress progress("averaging", f.n);
+    for (std::size_t s0 = 0; s0 < f.n; s0 += block_rows) {
+      check_interrupt();
+      const std::size_t rows = std::min(block_rows, f.n - s0);
+      block.resize(rows * bands);
+      read(s0, rows, block);
+      const auto s1 = std::uint32_t(s0 + rows);
+      parallel_for(
+          m,
+          [&](std::size_t c) {
+            std::uint32_t j = cursor[c];
+            for (; j < count[c] && sample[c * k + j] < s1; ++j)
+              add_weighted(acc.data() + c * bands, block.data() + (sample[c * k + j] - s0) * bands, weight[c * k + j],
+                           bands);
+            cursor[c] = j;
+          },
+          4096);
+      progress.advance(rows);
+    }
+    for (std::size_t c = 0; c < m; ++c) {
+      if (count[c] == 0) continue;
+      ++stats.valid_cells;
+      f.store(f.cells[first + c], acc.data() + c * bands);
+    }
+    stats.average_seconds += seconds_since(t0);
+  }
+  return stats;
+}
+
+// The second half of resample_grid. Each cell's value is the weighted sum of its neighbours', band by band in
+// ascending sample index, whichever way the values arrive: read whole when they take no more memory than a pass's
+// neighbour lists would (max_entries entries of 8 bytes), else streamed past the lists.
 GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const ValueReader& read,
                std::size_t block_rows, const ResampleOptions& o, std::span<float> grid, std::span<float> gaps = {}) {
   check_options(o);
@@ -97,83 +268,21 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
   if (o.mapping != tree.mapping()) throw UsageError("resample: the options' mapping differs from the tree's");
   if (bands == 0 || grid.size() != bands * kMerlCells)
     throw UsageError("resample: the grid must hold bands x 90 x 90 x 180 values");
-  GridStats stats;
-  stats.samples = n;
   std::fill(grid.begin(), grid.end(), -1.0f);
-  const std::vector<std::uint32_t> cells = physical_cells();
-  const std::size_t k = std::min(o.k, n);
-  const std::size_t per_pass = std::max<std::size_t>(1, o.max_entries / k);
+  const GridFill f{.tree = tree, .o = o, .n = n, .bands = bands, .grid = grid, .gaps = gaps};
   block_rows = std::max<std::size_t>(1, block_rows);
-  std::vector<std::uint32_t> count, cursor, sample;
-  std::vector<float> weight, block;
-  std::vector<double> acc;
-  for (std::size_t first = 0; first < cells.size(); first += per_pass) {
-    const std::size_t m = std::min(per_pass, cells.size() - first);
-    ++stats.passes;
-    count.assign(m, 0);
-    sample.resize(m * k);
-    weight.resize(m * k);
-    auto t0 = std::chrono::steady_clock::now();
-    {
-      Progress progress("finding neighbours", m);
-      const std::size_t batch = 1 << 15;
-      for (std::size_t b0 = 0; b0 < m; b0 += batch) {
-        check_interrupt();
-        const std::size_t b1 = std::min(m, b0 + batch);
-        parallel_for(
-            b1 - b0, [] { return WeightedNeighbours(); },
-            [&](std::size_t i, WeightedNeighbours& wn) {
-              const std::size_t c = b0 + i;
-              const StdAngles centre = std_angles(merl_cell_centre(merl_cell(cells[first + c])));
-              const bool supported = wn.find(tree, iso_angles(centre), o);
-              if (!gaps.empty()) gaps[cells[first + c]] = float(wn.nb.gap);
-              if (!supported) return;
-              count[c] = std::uint32_t(wn.by_sample.size());
-              for (std::size_t j = 0; j < wn.by_sample.size(); ++j) {
-                sample[c * k + j] = wn.by_sample[j].first;
-                weight[c * k + j] = wn.by_sample[j].second;
-              }
-            },
-            256);
-        progress.advance(b1 - b0);
-      }
+  GridStats stats;
+  if (n * bands * sizeof(float) <= o.max_entries * 8) {
+    std::vector<float> values(n * bands);
+    for (std::size_t s0 = 0; s0 < n; s0 += block_rows) {
+      const std::size_t rows = std::min(block_rows, n - s0);
+      read(s0, rows, std::span<float>(values).subspan(s0 * bands, rows * bands));
     }
-    stats.query_seconds += seconds_since(t0);
-    t0 = std::chrono::steady_clock::now();
-    acc.assign(m * bands, 0.0);
-    cursor.assign(m, 0);
-    {
-      Progress progress("averaging", n);
-      for (std::size_t s0 = 0; s0 < n; s0 += block_rows) {
-        check_interrupt();
-        const std::size_t rows = std::min(block_rows, n - s0);
-        block.resize(rows * bands);
-        read(s0, rows, block);
-        const auto s1 = std::uint32_t(s0 + rows);
-        parallel_for(
-            m,
-            [&](std::size_t c) {
-              std::uint32_t j = cursor[c];
-              double* a = acc.data() + c * bands;
-              for (; j < count[c] && sample[c * k + j] < s1; ++j) {
-                const float* v = block.data() + (sample[c * k + j] - s0) * bands;
-                const double w = weight[c * k + j];
-                for (std::size_t q = 0; q < bands; ++q) a[q] += w * double(v[q]);
-              }
-              cursor[c] = j;
-            },
-            4096);
-        progress.advance(rows);
-      }
-    }
-    for (std::size_t c = 0; c < m; ++c) {
-      if (count[c] == 0) continue;
-      ++stats.valid_cells;
-      for (std::size_t q = 0; q < bands; ++q)
-        grid[q * kMerlCells + cells[first + c]] = estimate(o.weights, acc[c * bands + q]);
-    }
-    stats.average_seconds += seconds_since(t0);
+    stats = fill_from_memory(f, values);
+  } else {
+    stats = fill_streaming(f, read, block_rows);
   }
+  stats.samples = n;
   return stats;
 }
 
@@ -331,7 +440,7 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
   } else if (w == Weights::renka || (smoothing && at_zero < n)) {
     // Renka: ((R - d) / (R d))^2 = (1/d - 1/R)^2; with no reach (R infinite) 1/d^2.
     const double inv_r = std::isfinite(reach2) ? 1 / std::sqrt(reach2) : 0.0;
-    if (smoothing && !std::isfinite(reach2)) reach2 = 2.25 * double(dist2.back());
+    if (smoothing && !std::isfinite(reach2)) reach2 = 2.25 * double(*std::max_element(dist2.begin(), dist2.end()));
     bool any = false;
     for (std::size_t j = 0; j < n; ++j) {
       const double t = std::max(0.0, 1 / std::sqrt(double(dist2[j])) - inv_r);
@@ -340,7 +449,8 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
     }
     // Every neighbour as far as the reach (ties): the nearest share the weight, as the limit from inside does.
     if (!any)
-      for (std::size_t j = 0; j < n; ++j) raw[j] = dist2[j] == dist2[0] ? 1.0 : 0.0;
+      for (std::size_t j = 0; j < n; ++j)
+        raw[j] = dist2[j] == *std::min_element(dist2.begin(), dist2.end()) ? 1.0 : 0.0;
     else if (w == Weights::loess) {
       kernel.assign(raw.begin(), raw.end());
       local_linear(kernel, offsets, reach2, raw);
@@ -391,9 +501,11 @@ Resampler::Resampler(std::shared_ptr<const SampleTree> tree, std::span<const flo
 
 bool Resampler::predict(const IsoAngles& at, std::span<float> out) const {
   if (out.size() != bands_) throw UsageError("Resampler::predict: out must hold one value per band");
+  thread_local Neighbours nb;
   thread_local WeightedNeighbours wn;
   thread_local std::vector<double> acc;
-  if (!wn.find(*tree_, at, o_)) return false;
+  tree_->nearest(at, wanted(o_), nb, o_.weights == Weights::loess);
+  if (!wn.weigh(nb, o_)) return false;
   acc.assign(bands_, 0.0);
   for (const auto& [s, w] : wn.by_sample) {
     const float* v = values_.data() + std::size_t(s) * bands_;

@@ -8,10 +8,16 @@
 // Wendland's C2 kernel, and a local linear (LOESS) fit weighted by it, whose equivalent weights reproduce any
 // linear function of the mapped coordinates exactly.
 //
+// A grid's cells are searched a row at a time (consecutive phi_d of one theta_h, theta_d): the row shares one
+// search of the tree for candidates, among which each cell picks its own k nearest, exactly those a search for the
+// cell alone finds (ties go to the lower sample index everywhere).
+//
 // Out of core: a grid is filled in two streams over the samples. The angles are read in blocks and mapped
 // into the tree (16 bytes per sample); the neighbours and weights of the cells are found; then the values are
 // read in blocks and each cell accumulates its neighbours' values as their block passes. Only the mapped
-// points, the neighbour lists and the grid are held, never the sample values as a whole.
+// points, the neighbour lists and the grid are held. When the values take no more memory than those lists would
+// (o.max_entries x 8 bytes), they are read whole instead and each cell is summed as soon as it is weighed, with
+// the same sums in the same order.
 #include <cstdint>
 #include <functional>
 #include <limits>
@@ -120,18 +126,31 @@ class SampleTree {
 
   Mapping mapping() const { return mapping_; }
   std::size_t size() const { return n_; }
-  /// The min(k, size()) nearest samples of `at` into out (ties in an order fixed by the tree); their offsets
+  /// The min(k, size()) nearest samples of `at` into out, nearest first (ties: lower sample index first); their offsets
   /// only when `offsets` (else out.offset is emptied).
   void nearest(const IsoAngles& at, std::size_t k, Neighbours& out, bool offsets = false) const;
+  /// For each query the neighbours nearest(at[i], k, out[i], offsets) finds, though not always nearest first, found
+  /// together: queries that lie close (a row of grid cells) share one search of the tree. UsageError when out and
+  /// at differ in size.
+  void nearest_each(std::span<const IsoAngles> at, std::size_t k, std::span<Neighbours> out,
+                    bool offsets = false) const;
 
  private:
+  template <class Set>
+  void search(const float* q, Set& result) const;
+  void finish(const IsoAngles& at, const float* q, std::uint32_t nearest, Neighbours& out, bool offsets) const;
+  void nearest_row(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k, std::span<Neighbours> out,
+                   bool offsets) const;
+  void pick_nearest(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,
+                    std::span<const std::uint32_t> candidates, std::span<Neighbours> out, bool offsets) const;
+
   struct Index;
   Mapping mapping_;
   std::size_t n_ = 0;
   std::unique_ptr<Index> index_;
 };
 
-/// Normalised weights (summing to 1) of neighbours at squared mapped distances dist2 (ascending) into out:
+/// Normalised weights (summing to 1) of neighbours at squared mapped distances dist2 (any order) into out:
 /// equal for mean; for Shepard d^-p (eq 5.10); for renka ((R - d)+ / (R d))^2 with R^2 = reach2 (the (k+1)-th
 /// nearest sample's; infinite when there is none: 1/d^2); for wendland (1 - d/R)^4 (4 d/R + 1) and for loess the
 /// local linear fit's equivalent weights with that kernel (offsets: 3 per neighbour, mapped; they may be
@@ -148,8 +167,8 @@ struct GridStats {
 };
 
 /// Every physically valid MERL cell's centre reconstructed from src into grid (bands x 90 x 90 x 180, band
-/// slowest); cells below the horizon or without support get -1. Streams src twice (angles, then values once per
-/// pass of at most o.max_entries neighbour entries); OpenMP over cells, the same grid for any thread count;
+/// slowest); cells below the horizon or without support get -1. Streams src twice (angles, then values whole or
+/// once per pass of at most o.max_entries neighbour entries); OpenMP over cells, the same grid for any thread count;
 /// progress shown, Interrupted between blocks. UsageError for a grid of the wrong size or bad options.
 GridStats resample_grid(const SampleSource& src, const ResampleOptions& o, std::span<float> grid);
 /// resample_grid with a tree already built over src (o.mapping must be the tree's); when gaps is given

@@ -3,8 +3,12 @@
 #include <nanoflann.hpp>
 
 #include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numeric>
+#include <stdexcept>
 #include <string>
 
 #include "specula/core/error.h"
@@ -31,12 +35,77 @@ struct Cloud {
 
 using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Cloud, float, std::uint32_t>,
                                                    Cloud, 3, std::uint32_t>;
-using KnnResult = nanoflann::KNNResultSet<float, std::uint32_t>;
+
+// The k nearest points by (squared distance, sample index), nearest first. Ties at the k-th distance go to the
+// lower sample index, not to whichever point the tree visits first, so that every search of the same samples
+// (one query at a time or a row of them) finds the same neighbours.
+class NearestSet {
+ public:
+  NearestSet(std::size_t k, const std::uint32_t* sample, std::uint32_t* pos, float* d2)
+      : k_(k), sample_(sample), pos_(pos), d2_(d2) {}
+  std::size_t size() const { return count_; }
+  bool full() const { return count_ == k_; }
+  // Just above the k-th distance, so that a tie with it is still offered to addPoint.
+  float worstDist() const {
+    return full() ? std::nextafter(d2_[k_ - 1], std::numeric_limits<float>::infinity())
+                  : std::numeric_limits<float>::max();
+  }
+  bool addPoint(float d, std::uint32_t p) {
+    const std::uint32_t s = sample_[p];
+    const auto ahead = [&](std::size_t j) { return d2_[j] < d || (d2_[j] == d && sample_[pos_[j]] < s); };
+    if (full() && ahead(k_ - 1)) return true;
+    std::size_t i = full() ? k_ - 1 : count_++;
+    for (; i > 0 && !ahead(i - 1); --i) {
+      d2_[i] = d2_[i - 1];
+      pos_[i] = pos_[i - 1];
+    }
+    d2_[i] = d;
+    pos_[i] = p;
+    return true;
+  }
+
+ private:
+  std::size_t k_, count_ = 0;
+  const std::uint32_t* sample_;
+  std::uint32_t* pos_;
+  float* d2_;
+};
+
+// Every point nearer than sqrt(radius2), in no order.
+class WithinSet {
+ public:
+  WithinSet(float radius2, std::vector<std::uint32_t>& pos) : radius2_(radius2), pos_(pos) {}
+  std::size_t size() const { return pos_.size(); }
+  bool full() const { return true; }
+  float worstDist() const { return radius2_; }
+  bool addPoint(float d, std::uint32_t p) {
+    if (d < radius2_) pos_.push_back(p);
+    return true;
+  }
+
+ private:
+  float radius2_;
+  std::vector<std::uint32_t>& pos_;
+};
+
+// Squared distance as the trees measure it (nanoflann's L2_Simple_Adaptor, in float, axis by axis).
+float distance2(const float* q, const float* p) {
+  float s = 0;
+  for (std::size_t d = 0; d < 3; ++d) {
+    const float t = q[d] - p[d];
+    s += t * t;
+  }
+  return s;
+}
 
 // The points are cut into slabs along one axis and every slab gets its own tree, so that the trees are built on
 // all threads. The number of slabs depends on the number of points only: the same trees, neighbours and ties
 // for any thread count.
 std::size_t slab_count(std::size_t n) { return std::clamp<std::size_t>(n >> 20, 1, 8); }
+
+// A row of queries is searched as one while its spread is at most this fraction of the k-th neighbour's distance
+// from its centre: the candidates then fill a ball at most (1 + kRowSpread)^3 = 3.4 times the neighbours' volume.
+constexpr float kRowSpread = 0.5f;
 
 Eigen::Vector3f mapped(Mapping m, const IsoAngles& a) { return map_angles(m, a).cast<float>(); }
 
@@ -149,21 +218,16 @@ SampleTree::SampleTree(const SampleSource& src, Mapping m)
 
 SampleTree::~SampleTree() = default;
 
-void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out, bool offsets) const {
+template <class Set>
+void SampleTree::search(const float* q, Set& result) const {
   const Index& ix = *index_;
-  const Eigen::Vector3f q = mapped(mapping_, at);
-  k = std::min(k, n_);
-  out.index.resize(k);
-  out.dist2.resize(k);
-  KnnResult result(k);
-  result.init(out.index.data(), out.dist2.data());
   // The query's own slab first, then the others outwards while they can still hold a nearer point.
   const auto slabs = static_cast<std::ptrdiff_t>(ix.slabs.size());
   const float x = q[ix.axis];
   const std::ptrdiff_t own = std::upper_bound(ix.cuts.begin(), ix.cuts.end(), x) - ix.cuts.begin();
   auto search = [&](std::ptrdiff_t s) {
     const auto& slab = *ix.slabs[std::size_t(s)];
-    if (slab.tree) slab.tree->findNeighbors(result, q.data(), nanoflann::SearchParams());
+    if (slab.tree) slab.tree->findNeighbors(result, q, nanoflann::SearchParams());
   };
   search(own);
   for (std::ptrdiff_t left = own - 1, right = own + 1; left >= 0 || right < slabs;) {
@@ -171,22 +235,141 @@ void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out, bo
     const float gr = right < slabs ? ix.slabs[std::size_t(right)]->low - x : std::numeric_limits<float>::infinity();
     const bool go_left = gl <= gr;
     const float gap = go_left ? gl : gr;
-    if (result.full() && gap * gap > result.worstDist()) break;
+    if (gap * gap > result.worstDist()) break;
     search(go_left ? left-- : right++);
   }
-  const std::size_t found = result.size();
-  out.index.resize(found);
-  out.dist2.resize(found);
+}
+
+void SampleTree::finish(const IsoAngles& at, const float* q, std::uint32_t nearest, Neighbours& out,
+                        bool offsets) const {
+  const Index& ix = *index_;
+  const std::size_t found = out.index.size();
   out.offset.resize(offsets ? 3 * found : 0);
   out.gap = std::numeric_limits<double>::infinity();
   if (found == 0) return;
   if (offsets)
     for (std::size_t j = 0; j < found; ++j)
-      for (std::size_t d = 0; d < 3; ++d)
-        out.offset[3 * j + d] = ix.xyz[3 * std::size_t(out.index[j]) + d] - q[Eigen::Index(d)];
-  const float* p = ix.xyz.data() + 3 * std::size_t(out.index[0]);
+      for (std::size_t d = 0; d < 3; ++d) out.offset[3 * j + d] = ix.xyz[3 * std::size_t(out.index[j]) + d] - q[d];
+  const float* p = ix.xyz.data() + 3 * std::size_t(nearest);
   out.gap = config_distance(at, unmap(mapping_, Eigen::Vector3d(p[0], p[1], p[2])), mapping_is_reciprocal(mapping_));
   for (auto& i : out.index) i = ix.sample[i];
+}
+
+void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out, bool offsets) const {
+  const Eigen::Vector3f q = mapped(mapping_, at);
+  k = std::min(k, n_);
+  out.index.resize(k);
+  out.dist2.resize(k);
+  NearestSet result(k, index_->sample.data(), out.index.data(), out.dist2.data());
+  search(q.data(), result);
+  out.index.resize(result.size());
+  out.dist2.resize(result.size());
+  finish(at, q.data(), out.index.empty() ? 0 : out.index[0], out, offsets);
+}
+
+void SampleTree::nearest_each(std::span<const IsoAngles> at, std::size_t k, std::span<Neighbours> out,
+                              bool offsets) const {
+  if (out.size() != at.size()) throw UsageError("SampleTree::nearest_each: out must hold one entry per query");
+  k = std::min(k, n_);
+  thread_local std::vector<float> q;
+  q.resize(3 * at.size());
+  for (std::size_t i = 0; i < at.size(); ++i) {
+    const Eigen::Vector3f p = mapped(mapping_, at[i]);
+    std::copy_n(p.data(), 3, q.data() + 3 * i);
+  }
+  nearest_row(at, q, k, out, offsets);
+}
+
+// Queries [0, at.size()) as one search when they lie close together, else in shorter rows: the k nearest of the row's
+// centre c give R = d_k(c) + 2 r (r: the largest distance of a query from c), and every query's k nearest lie
+// within R of c, since d_k(q) <= d_k(c) + r. Among the points within R each query's nearest are found by
+// distance and sample index, as NearestSet orders them.
+void SampleTree::nearest_row(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,
+                             std::span<Neighbours> out, bool offsets) const {
+  const std::size_t m = at.size();
+  if (m == 0 || k == 0) {
+    for (std::size_t i = 0; i < m; ++i) {
+      out[i].index.clear();
+      out[i].dist2.clear();
+      finish(at[i], q.data() + 3 * i, 0, out[i], offsets);
+    }
+    return;
+  }
+  float c[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < m; ++i)
+    for (std::size_t d = 0; d < 3; ++d) c[d] += q[3 * i + d] / float(m);
+  float r2 = 0;
+  for (std::size_t i = 0; i < m; ++i) r2 = std::max(r2, distance2(c, q.data() + 3 * i));
+  thread_local std::vector<std::uint32_t> pos;
+  thread_local std::vector<float> d2;
+  pos.resize(k);
+  d2.resize(k);
+  NearestSet centre(k, index_->sample.data(), pos.data(), d2.data());
+  search(c, centre);
+  const float dk = std::sqrt(d2[centre.size() - 1]), r = std::sqrt(r2);
+  if (2 * r > kRowSpread * dk) {  // shorter rows, as long as the spread allows; one query at a time below 2
+    const auto len = std::size_t(float(m) * kRowSpread * dk / (2 * r));
+    for (std::size_t i = 0; i < m; i += std::max<std::size_t>(len, 1)) {
+      const std::size_t l = std::min(std::max<std::size_t>(len, 1), m - i);
+      if (len < 2)
+        nearest(at[i], k, out[i], offsets);
+      else
+        nearest_row(at.subspan(i, l), q.subspan(3 * i, 3 * l), k, out.subspan(i, l), offsets);
+    }
+    return;
+  }
+  const float reach = (dk + 2 * r) * (1 + 1e-5f);
+  pos.clear();
+  WithinSet within(reach * reach + std::numeric_limits<float>::min(), pos);  // > 0 when the row sits on a sample
+  search(c, within);
+  if (pos.size() < k) throw std::logic_error("SampleTree::nearest_each: fewer candidates than neighbours");
+  pick_nearest(at, q, k, pos, out, offsets);
+}
+// Each query's k nearest among the candidate positions (which hold them all), in ascending sample index; keys of
+// squared distance and rank by sample index, so that ties fall as NearestSet lets them.
+void SampleTree::pick_nearest(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,
+                              std::span<const std::uint32_t> candidates, std::span<Neighbours> out,
+                              bool offsets) const {
+  const Index& ix = *index_;
+  thread_local std::vector<std::pair<std::uint32_t, std::uint32_t>> by_sample;
+  thread_local std::vector<float> xyz, dist;
+  thread_local std::vector<std::uint64_t> pick;
+  by_sample.resize(candidates.size());
+  for (std::size_t j = 0; j < candidates.size(); ++j) by_sample[j] = {ix.sample[candidates[j]], candidates[j]};
+  std::sort(by_sample.begin(), by_sample.end());
+  xyz.resize(3 * by_sample.size());
+  for (std::size_t j = 0; j < by_sample.size(); ++j)
+    std::copy_n(ix.xyz.data() + 3 * std::size_t(by_sample[j].second), 3, xyz.data() + 3 * j);
+  dist.resize(by_sample.size());
+  // The k-th distance of the previous query, a little enlarged: along a row it picks the few candidates to select
+  // from without looking at the rest.
+  float guess = std::numeric_limits<float>::infinity();
+  const auto key = [&](std::size_t j) { return std::uint64_t(std::bit_cast<std::uint32_t>(dist[j])) << 32 | j; };
+  for (std::size_t i = 0; i < at.size(); ++i) {
+    const float* qi = q.data() + 3 * i;
+    for (std::size_t j = 0; j < dist.size(); ++j) dist[j] = distance2(qi, xyz.data() + 3 * j);
+    pick.clear();
+    for (std::size_t j = 0; j < dist.size(); ++j)
+      if (dist[j] <= guess) pick.push_back(key(j));
+    if (pick.size() < k) {
+      pick.resize(dist.size());
+      for (std::size_t j = 0; j < dist.size(); ++j) pick[j] = key(j);
+    }
+    std::nth_element(pick.begin(), pick.begin() + std::ptrdiff_t(k - 1), pick.end());
+    const std::uint64_t kth = pick[k - 1];
+    guess = std::bit_cast<float>(std::uint32_t(kth >> 32)) * 1.1f;
+    Neighbours& o = out[i];
+    o.index.clear();
+    o.dist2.clear();
+    std::size_t nearest = 0;
+    for (std::size_t j = 0; j < dist.size(); ++j) {
+      if (key(j) > kth) continue;
+      if (key(j) < key(nearest)) nearest = j;
+      o.index.push_back(by_sample[j].second);
+      o.dist2.push_back(dist[j]);
+    }
+    finish(at[i], qi, by_sample[nearest].second, o, offsets);
+  }
 }
 
 }  // namespace specula::brdf

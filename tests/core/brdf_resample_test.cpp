@@ -287,6 +287,52 @@ TEST(Resampler, ShepardReproducesConstantsAndLinearFieldsToInterpolationAccuracy
   }
 }
 
+// Samples on a lattice of step 1/16 rad and queries between its points: squared distances are exact in float and
+// tie often, also at the k-th neighbour. Every search takes the k smallest by (distance, sample index).
+TEST(Resampler, NeighboursTieToTheLowerSampleIndexOneQueryAtATimeOrARowAtATime) {
+  std::vector<double> angles;
+  std::vector<Eigen::Vector3f> points;
+  for (int a = 1; a <= 24; ++a)
+    for (int b = 1; b <= 24; ++b)
+      for (int c = 0; c <= 50; ++c) {
+        angles.insert(angles.end(), {a / 16.0, 0.0, b / 16.0, c / 16.0});
+        points.push_back(Eigen::Vector3f(float(a) / 16, float(b) / 16, float(c) / 16));
+      }
+  const std::vector<float> values(points.size(), 0.0f);
+  const MemorySamples src(angles, values, 1);
+  const SampleTree tree(src, Mapping::standard);
+  std::size_t ties = 0;
+  for (const std::size_t k : {1, 9, 10, 27}) {
+    for (int row = 0; row < 12; ++row) {
+      // Sixteen queries along phi_d, half a step off the lattice in theta_i and theta_o.
+      std::vector<IsoAngles> at;
+      for (int t = 0; t < 16; ++t)
+        at.push_back({(2 * row + 3) / 32.0, (4 * row + 5) / 32.0, (2 * (3 * row + t) + 1 + (t % 2)) / 32.0});
+      std::vector<Neighbours> each(at.size());
+      tree.nearest_each(at, k, each);
+      for (std::size_t i = 0; i < at.size(); ++i) {
+        const Eigen::Vector3f q(float(at[i].theta_i), float(at[i].theta_o), float(at[i].phi_d));
+        std::vector<std::pair<float, std::uint32_t>> brute;
+        for (std::size_t j = 0; j < points.size(); ++j)
+          brute.push_back({(points[j] - q).squaredNorm(), std::uint32_t(j)});
+        std::sort(brute.begin(), brute.end());
+        ties += brute[k].first == brute[k - 1].first;
+        std::vector<std::pair<float, std::uint32_t>> want(brute.begin(), brute.begin() + std::ptrdiff_t(k));
+        Neighbours one;
+        tree.nearest(at[i], k, one);
+        std::vector<std::pair<float, std::uint32_t>> got_one, got_each;
+        for (std::size_t j = 0; j < one.index.size(); ++j) got_one.push_back({one.dist2[j], one.index[j]});
+        for (std::size_t j = 0; j < each[i].index.size(); ++j) got_each.push_back({each[i].dist2[j], each[i].index[j]});
+        EXPECT_EQ(got_one, want) << "k " << k << " query " << i;  // nearest first already
+        std::sort(got_each.begin(), got_each.end());
+        EXPECT_EQ(got_each, want) << "k " << k << " query " << i;
+        EXPECT_EQ(each[i].gap, one.gap);
+      }
+    }
+  }
+  EXPECT_GT(ties, 50u);  // the k-th distance tied with the (k+1)-th this often: the tie rule was exercised
+}
+
 TEST(Resampler, GridIsPredictAtEveryCellCentreForAnyPassCountAndThreadCount) {
   const Samples s = random_samples(30000, 3, 7);
   for (const Mapping m : kAll) {
@@ -299,7 +345,7 @@ TEST(Resampler, GridIsPredictAtEveryCellCentreForAnyPassCountAndThreadCount) {
     const MemorySamples src(s.angles, s.values, 3);
     std::vector<float> many(3 * kMerlCells);
     ResampleOptions small = o;
-    small.max_entries = 100003;
+    small.max_entries = 40009;  // the values (360 KB) no longer fit in a pass's neighbour lists (320 KB)
     const int threads = omp_get_max_threads();
     omp_set_num_threads(1);
     const GridStats st = resample_grid(src, small, many);
