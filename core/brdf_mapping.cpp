@@ -101,8 +101,8 @@ double config_distance(const IsoAngles& a, const IsoAngles& b, bool reciprocal) 
   for (const bool swap : {false, true}) {
     if (swap && !reciprocal) break;
     const double ti = swap ? b.theta_o : b.theta_i, to = swap ? b.theta_i : b.theta_o;
-    for (const double sign : {1.0, -1.0})
-      best = std::min(best, turned_distance(ai, ao, direction(ti, 0), direction(to, sign * b.phi_d)));
+    const Eigen::Vector3d bi = direction(ti, 0), bo = direction(to, b.phi_d);
+    best = std::min({best, turned_distance(ai, ao, bi, bo), turned_distance(ai, ao, bi, {bo.x(), -bo.y(), bo.z()})});
   }
   return best;
 }

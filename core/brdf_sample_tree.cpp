@@ -51,8 +51,8 @@ class NearestSet {
                   : std::numeric_limits<float>::max();
   }
   bool addPoint(float d, std::uint32_t p) {
-    const std::uint32_t s = sample_[p];
-    const auto ahead = [&](std::size_t j) { return d2_[j] < d || (d2_[j] == d && sample_[pos_[j]] < s); };
+    // Sample indices are looked up only for ties: they lie far apart in memory.
+    const auto ahead = [&](std::size_t j) { return d2_[j] < d || (d2_[j] == d && sample_[pos_[j]] < sample_[p]); };
     if (full() && ahead(k_ - 1)) return true;
     std::size_t i = full() ? k_ - 1 : count_++;
     for (; i > 0 && !ahead(i - 1); --i) {
@@ -71,20 +71,22 @@ class NearestSet {
   float* d2_;
 };
 
-// Every point nearer than sqrt(radius2), in no order.
+// Every point nearer than sqrt(radius2), in no order; the search stops once more than `limit` are found.
 class WithinSet {
  public:
-  WithinSet(float radius2, std::vector<std::uint32_t>& pos) : radius2_(radius2), pos_(pos) {}
+  WithinSet(float radius2, std::size_t limit, std::vector<std::uint32_t>& pos)
+      : radius2_(radius2), limit_(limit), pos_(pos) {}
   std::size_t size() const { return pos_.size(); }
   bool full() const { return true; }
   float worstDist() const { return radius2_; }
   bool addPoint(float d, std::uint32_t p) {
     if (d < radius2_) pos_.push_back(p);
-    return true;
+    return pos_.size() <= limit_;
   }
 
  private:
   float radius2_;
+  std::size_t limit_;
   std::vector<std::uint32_t>& pos_;
 };
 
@@ -106,6 +108,9 @@ std::size_t slab_count(std::size_t n) { return std::clamp<std::size_t>(n >> 20, 
 // A row of queries is searched as one while its spread is at most this fraction of the k-th neighbour's distance
 // from its centre: the candidates then fill a ball at most (1 + kRowSpread)^3 = 3.4 times the neighbours' volume.
 constexpr float kRowSpread = 0.5f;
+// Where density changes fast (an empty region beside a dense one) the ball may hold far more; a row is cut in
+// halves when it holds over this many candidates per neighbour.
+constexpr std::size_t kRowCandidates = 6;
 
 Eigen::Vector3f mapped(Mapping m, const IsoAngles& a) { return map_angles(m, a).cast<float>(); }
 
@@ -320,8 +325,19 @@ void SampleTree::nearest_row(std::span<const IsoAngles> at, std::span<const floa
   }
   const float reach = (dk + 2 * r) * (1 + 1e-5f);
   pos.clear();
-  WithinSet within(reach * reach + std::numeric_limits<float>::min(), pos);  // > 0 when the row sits on a sample
+  // > 0 when the row sits on a sample
+  WithinSet within(reach * reach + std::numeric_limits<float>::min(), kRowCandidates * k, pos);
   search(c, within);
+  if (pos.size() > kRowCandidates * k) {  // an empty region beside a dense one: halves, down to single queries
+    for (const std::size_t h : {std::size_t(0), m / 2}) {
+      const std::size_t l = h == 0 ? m / 2 : m - m / 2;
+      if (l == 1)
+        nearest(at[h], k, out[h], offsets);
+      else
+        nearest_row(at.subspan(h, l), q.subspan(3 * h, 3 * l), k, out.subspan(h, l), offsets);
+    }
+    return;
+  }
   if (pos.size() < k) throw std::logic_error("SampleTree::nearest_each: fewer candidates than neighbours");
   pick_nearest(at, q, k, pos, out, offsets);
 }

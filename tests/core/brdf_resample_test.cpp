@@ -333,6 +333,36 @@ TEST(Resampler, NeighboursTieToTheLowerSampleIndexOneQueryAtATimeOrARowAtATime) 
   EXPECT_GT(ties, 50u);  // the k-th distance tied with the (k+1)-th this often: the tie rule was exercised
 }
 
+// A row over an empty region beside a dense one: its ball of candidates would hold thousands, so the row is cut
+// down, and every query still gets what searching it alone gives.
+TEST(Resampler, ARowBesideADenseClusterFindsWhatOneQueryAtATimeFinds) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> dense(0.05, 0.25), sparse(0.05, 1.5), phi(0, pi);
+  std::vector<double> angles;
+  for (int i = 0; i < 20000; ++i) angles.insert(angles.end(), {dense(rng), 0.0, dense(rng), phi(rng)});
+  for (int i = 0; i < 60; ++i) angles.insert(angles.end(), {sparse(rng), 0.0, sparse(rng), phi(rng)});
+  const std::vector<float> values(angles.size() / 4, 0.0f);
+  const SampleTree tree(MemorySamples(angles, values, 1), Mapping::standard);
+  for (const std::size_t k : {8, 33}) {
+    for (int row = 0; row < 20; ++row) {
+      std::vector<IsoAngles> at;
+      for (int t = 0; t < 16; ++t) at.push_back({0.3 + 0.05 * row, 0.35 + 0.04 * row, pi * (t + 0.5) / 16});
+      std::vector<Neighbours> each(at.size());
+      tree.nearest_each(at, k, each);
+      for (std::size_t i = 0; i < at.size(); ++i) {
+        Neighbours one;
+        tree.nearest(at[i], k, one);
+        std::vector<std::pair<float, std::uint32_t>> a, b;
+        for (std::size_t j = 0; j < one.index.size(); ++j) a.push_back({one.dist2[j], one.index[j]});
+        for (std::size_t j = 0; j < each[i].index.size(); ++j) b.push_back({each[i].dist2[j], each[i].index[j]});
+        std::sort(b.begin(), b.end());
+        ASSERT_EQ(a, b) << "k " << k << " row " << row << " query " << i;
+        EXPECT_EQ(one.gap, each[i].gap);
+      }
+    }
+  }
+}
+
 TEST(Resampler, GridIsPredictAtEveryCellCentreForAnyPassCountAndThreadCount) {
   const Samples s = random_samples(30000, 3, 7);
   for (const Mapping m : kAll) {
