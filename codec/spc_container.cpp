@@ -73,6 +73,25 @@ std::pair<double, double> read_scales(Reader& r, const std::string& label) {
   return {scale, s};
 }
 
+void put_head(std::vector<std::uint8_t>& out, std::uint32_t version, std::size_t bands, std::size_t k, double scale,
+              double s) {
+  put_bytes(out, kSpcMagic, sizeof kSpcMagic);
+  put(out, version);
+  put(out, std::uint32_t(bands));
+  put(out, std::uint32_t(k));
+  put(out, scale);
+  put(out, s);
+}
+
+void put_basis_and_labels(std::vector<std::uint8_t>& out, const SpcBasis& basis, std::size_t k, std::size_t bands,
+                          const std::string& units, const std::string& source) {
+  for (std::size_t j = 0; j < k; ++j)
+    for (std::size_t b = 0; b < bands; ++b) put(out, float(basis.rows(Eigen::Index(j), Eigen::Index(b))));
+  put_string(out, units);
+  put_string(out, source);
+  put_string(out, basis.reference);
+}
+
 WavelengthGrid checked_wavelengths(std::vector<double> wl, const std::string& label) {
   try {
     return WavelengthGrid(std::move(wl));

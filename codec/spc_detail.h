@@ -102,6 +102,14 @@ std::uint32_t check_container(std::span<const std::uint8_t> bytes, const std::st
 std::pair<std::uint32_t, std::uint32_t> read_shape(Reader& r, const std::string& label);
 /// The header's scale and magnitude scale s, each finite and positive (InputError naming the field otherwise).
 std::pair<double, double> read_scales(Reader& r, const std::string& label);
+/// What formats 2 to 4 write first, as check_container, read_shape and read_scales read it: magic, version, bands,
+/// k, scale and magnitude scale s.
+void put_head(std::vector<std::uint8_t>& out, std::uint32_t version, std::size_t bands, std::size_t k, double scale,
+              double s);
+/// What they write after the wavelengths: the basis's first k rows (float32, k x bands), then the units, the
+/// source and the basis's reference.
+void put_basis_and_labels(std::vector<std::uint8_t>& out, const SpcBasis& basis, std::size_t k, std::size_t bands,
+                          const std::string& units, const std::string& source);
 /// The wavelengths of a header, InputError naming `label` when they are not a valid grid.
 WavelengthGrid checked_wavelengths(std::vector<double> wl, const std::string& label);
 /// Per cell whether it has data (every band >= 0) and its magnitude, the band mean (0 without data); InputError on

@@ -210,18 +210,9 @@ std::vector<std::uint8_t> pack(const SampleCodes& cd, const SpcSampleSet& sample
                                const brdf::ResampleOptions& rule, const std::string& source) {
   const SampleCodeStreams& st = cd.streams;
   std::vector<std::uint8_t> out;
-  put_bytes(out, kSpcMagic, sizeof kSpcMagic);
-  put(out, std::uint32_t(4));
-  put(out, std::uint32_t(cd.bands));
-  put(out, std::uint32_t(st.k));
-  put(out, samples.scale);
-  put(out, cd.s);
+  put_head(out, 4, cd.bands, st.k, samples.scale, cd.s);
   for (const double w : samples.wavelengths.values()) put(out, w);
-  for (std::size_t j = 0; j < st.k; ++j)
-    for (std::size_t b = 0; b < cd.bands; ++b) put(out, float(basis.rows(Eigen::Index(j), Eigen::Index(b))));
-  put_string(out, samples.units);
-  put_string(out, source);
-  put_string(out, basis.reference);
+  put_basis_and_labels(out, basis, st.k, cd.bands, samples.units, source);
   put(out, std::uint8_t(rule.mapping));
   put(out, std::uint8_t(rule.weights));
   put(out, std::uint32_t(rule.k));

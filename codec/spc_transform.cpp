@@ -249,12 +249,7 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
   for (const auto& st : streams) total += 4 + st.size();
   std::vector<std::uint8_t> out;
   out.reserve(total);
-  put_bytes(out, kSpcMagic, sizeof kSpcMagic);
-  put(out, t.version());
-  put(out, std::uint32_t(md.bands));
-  put(out, std::uint32_t(md.k));
-  put(out, md.scale);
-  put(out, md.s);
+  put_head(out, t.version(), md.bands, md.k, md.scale, md.s);
   const auto& wl = grid.wavelengths;
   const bool uniform = wl.uniform() && wl.size() > 1;
   put(out, std::uint8_t(uniform ? 0 : 1));
@@ -264,11 +259,7 @@ std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const 
   } else {
     for (const double w : wl.values()) put(out, w);
   }
-  for (std::size_t j = 0; j < md.k; ++j)
-    for (std::size_t b = 0; b < md.bands; ++b) put(out, float(basis.rows(Eigen::Index(j), Eigen::Index(b))));
-  put_string(out, grid.units);
-  put_string(out, source);
-  put_string(out, basis.reference);
+  put_basis_and_labels(out, basis, md.k, md.bands, grid.units, source);
   put(out, std::uint64_t(md.n_valid));
   put(out, std::uint8_t(md.validity));
   if (md.validity == Validity::coded) {
