@@ -141,6 +141,8 @@ class SampleTree {
   void finish(const IsoAngles& at, const float* q, std::uint32_t nearest, Neighbours& out, bool offsets) const;
   void nearest_row(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k, std::span<Neighbours> out,
                    bool offsets) const;
+  void split_row(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k, std::span<Neighbours> out,
+                 bool offsets, std::size_t len) const;
   void pick_nearest(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,
                     std::span<const std::uint32_t> candidates, std::span<Neighbours> out, bool offsets) const;
 

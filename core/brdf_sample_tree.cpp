@@ -285,6 +285,19 @@ void SampleTree::nearest_each(std::span<const IsoAngles> at, std::size_t k, std:
   nearest_row(at, q, k, out, offsets);
 }
 
+// The row in pieces of `len` queries searched as rows, or one query at a time when len < 2.
+void SampleTree::split_row(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,
+                           std::span<Neighbours> out, bool offsets, std::size_t len) const {
+  for (std::size_t i = 0; i < at.size(); i += std::max<std::size_t>(len, 1)) {
+    if (len < 2) {
+      nearest(at[i], k, out[i], offsets);
+      continue;
+    }
+    const std::size_t l = std::min(len, at.size() - i);
+    nearest_row(at.subspan(i, l), q.subspan(3 * i, 3 * l), k, out.subspan(i, l), offsets);
+  }
+}
+
 // Queries [0, at.size()) as one search when they lie close together, else in shorter rows: the k nearest of the row's
 // centre c give R = d_k(c) + 2 r (r: the largest distance of a query from c), and every query's k nearest lie
 // within R of c, since d_k(q) <= d_k(c) + r. Among the points within R each query's nearest are found by
@@ -312,32 +325,15 @@ void SampleTree::nearest_row(std::span<const IsoAngles> at, std::span<const floa
   NearestSet centre(k, index_->sample.data(), pos.data(), d2.data());
   search(c, centre);
   const float dk = std::sqrt(d2[centre.size() - 1]), r = std::sqrt(r2);
-  if (2 * r > kRowSpread * dk) {  // shorter rows, as long as the spread allows; one query at a time below 2
-    const auto len = std::size_t(float(m) * kRowSpread * dk / (2 * r));
-    for (std::size_t i = 0; i < m; i += std::max<std::size_t>(len, 1)) {
-      const std::size_t l = std::min(std::max<std::size_t>(len, 1), m - i);
-      if (len < 2)
-        nearest(at[i], k, out[i], offsets);
-      else
-        nearest_row(at.subspan(i, l), q.subspan(3 * i, 3 * l), k, out.subspan(i, l), offsets);
-    }
-    return;
-  }
+  if (2 * r > kRowSpread * dk)  // shorter rows, as long as the spread allows
+    return split_row(at, q, k, out, offsets, std::size_t(float(m) * kRowSpread * dk / (2 * r)));
   const float reach = (dk + 2 * r) * (1 + 1e-5f);
   pos.clear();
   // > 0 when the row sits on a sample
   WithinSet within(reach * reach + std::numeric_limits<float>::min(), kRowCandidates * k, pos);
   search(c, within);
-  if (pos.size() > kRowCandidates * k) {  // an empty region beside a dense one: halves, down to single queries
-    for (const std::size_t h : {std::size_t(0), m / 2}) {
-      const std::size_t l = h == 0 ? m / 2 : m - m / 2;
-      if (l == 1)
-        nearest(at[h], k, out[h], offsets);
-      else
-        nearest_row(at.subspan(h, l), q.subspan(3 * h, 3 * l), k, out.subspan(h, l), offsets);
-    }
-    return;
-  }
+  if (pos.size() > kRowCandidates * k)  // an empty region beside a dense one: halves
+    return split_row(at, q, k, out, offsets, (m + 1) / 2);
   if (pos.size() < k) throw std::logic_error("SampleTree::nearest_each: fewer candidates than neighbours");
   pick_nearest(at, q, k, pos, out, offsets);
 }
