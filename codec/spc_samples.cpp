@@ -84,29 +84,19 @@ struct SampleCodes {
 // What decoding a coded sample set gives: the coefficient form on the grid under `rule`.
 SpcCoefficients resample_codes(const SampleCodes& cd, const Eigen::MatrixXd& basis, const brdf::ResampleOptions& rule) {
   const SampleCodeStreams& st = cd.streams;
-  const std::size_t n = st.n, k = st.k, ch = k + 1;
+  const std::size_t n = st.n, k = st.k;
   std::vector<double> angles(4 * n);
   for (std::size_t i = 0; i < 4 * n; ++i) angles[i] = cd.palette[i % 4][st.index[i]];
-  std::vector<float> values(ch * n);
+  std::vector<float> values(k * n);
   for (std::size_t i = 0; i < n; ++i) {
     const double m = cd.s * std::expm1(double(st.mag[i]) * cd.step_m);
-    for (std::size_t j = 0; j < k; ++j) values[i * ch + j] = float(m * (double(st.shape[i * k + j]) * cd.step_c));
-    values[i * ch + k] = 1.0f;  // resamples to 1 where a cell has support, -1 where it has none
+    for (std::size_t j = 0; j < k; ++j) values[i * k + j] = float(m * (double(st.shape[i * k + j]) * cd.step_c));
   }
-  std::vector<float> grid(ch * kMerlCells);
-  brdf::Resampler(angles, values, ch, rule).fill_grid(grid);
   SpcCoefficients c;
   c.basis = basis;
   c.values.assign(kMerlCells * k, 0.0f);
   c.valid.assign(kMerlCells, 0);
-  parallel_for(
-      kMerlCells,
-      [&](std::size_t cell) {
-        if (!(grid[k * kMerlCells + cell] > 0)) return;
-        c.valid[cell] = 1;
-        for (std::size_t j = 0; j < k; ++j) c.values[cell * k + j] = grid[j * kMerlCells + cell];
-      },
-      kSlab);
+  brdf::Resampler(angles, values, k, rule).fill_cells(c.values, c.valid);
   return c;
 }
 

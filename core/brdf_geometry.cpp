@@ -10,10 +10,13 @@ namespace {
 
 using std::numbers::pi;
 
-// Right-handed rotation of v by `angle` about the unit axis (Rodrigues), as BRDFRead.cpp's rotate_vector.
-Eigen::Vector3d rotate(const Eigen::Vector3d& v, const Eigen::Vector3d& axis, double angle) {
-  const double c = std::cos(angle), s = std::sin(angle);
+// Right-handed rotation of v about the unit axis by the angle of cosine c and sine s (Rodrigues), as BRDFRead.cpp's
+// rotate_vector.
+Eigen::Vector3d rotate(const Eigen::Vector3d& v, const Eigen::Vector3d& axis, double c, double s) {
   return v * c + axis * (axis.dot(v) * (1 - c)) + axis.cross(v) * s;
+}
+Eigen::Vector3d rotate(const Eigen::Vector3d& v, const Eigen::Vector3d& axis, double angle) {
+  return rotate(v, axis, std::cos(angle), std::sin(angle));
 }
 
 const Eigen::Vector3d kNormal(0, 0, 1);
@@ -47,18 +50,34 @@ HalfDiff half_diff(const StdAngles& a) {
   return half_diff(direction(a.theta_i, a.phi_i), direction(a.theta_o, a.phi_o));
 }
 
-void directions(const HalfDiff& h, Eigen::Vector3d& wi, Eigen::Vector3d& wo) {
-  const Eigen::Vector3d d = direction(h.theta_d, h.phi_d);
+namespace {
+// directions() from the difference vector d, the cosine and sine of theta_h, and phi_h. A turn by phi_h = 0 is left
+// out: it changes nothing but the sign of a zero coordinate, which no angle here depends on.
+void turn_difference(const Eigen::Vector3d& d, double cos_h, double sin_h, double phi_h, Eigen::Vector3d& wi,
+                     Eigen::Vector3d& wo) {
   const Eigen::Vector3d d_out(-d.x(), -d.y(), d.z());
-  wi = rotate(rotate(d, kBinormal, h.theta_h), kNormal, h.phi_h);
-  wo = rotate(rotate(d_out, kBinormal, h.theta_h), kNormal, h.phi_h);
+  wi = rotate(d, kBinormal, cos_h, sin_h);
+  wo = rotate(d_out, kBinormal, cos_h, sin_h);
+  if (phi_h == 0) return;
+  const double c = std::cos(phi_h), s = std::sin(phi_h);
+  wi = rotate(wi, kNormal, c, s);
+  wo = rotate(wo, kNormal, c, s);
+}
+
+StdAngles std_angles_of(const Eigen::Vector3d& wi, const Eigen::Vector3d& wo) {
+  const Eigen::Vector2d i = spherical(wi), o = spherical(wo);
+  return {i[0], i[1], o[0], o[1]};
+}
+}  // namespace
+
+void directions(const HalfDiff& h, Eigen::Vector3d& wi, Eigen::Vector3d& wo) {
+  turn_difference(direction(h.theta_d, h.phi_d), std::cos(h.theta_h), std::sin(h.theta_h), h.phi_h, wi, wo);
 }
 
 StdAngles std_angles(const HalfDiff& h) {
   Eigen::Vector3d wi, wo;
   directions(h, wi, wo);
-  const Eigen::Vector2d i = spherical(wi), o = spherical(wo);
-  return {i[0], i[1], o[0], o[1]};
+  return std_angles_of(wi, wo);
 }
 
 namespace {
@@ -98,6 +117,25 @@ bool merl_cell_valid(const MerlCell& c) {
   Eigen::Vector3d wi, wo;
   directions(merl_cell_centre(c), wi, wo);
   return wi.z() > 0 && wo.z() > 0;
+}
+
+MerlCentres::MerlCentres(int theta_h, int theta_d)
+    : centre_(merl_cell_centre({theta_h, theta_d, 0})),
+      cos_h_(std::cos(centre_.theta_h)),
+      sin_h_(std::sin(centre_.theta_h)),
+      cos_d_(std::cos(centre_.theta_d)),
+      sin_d_(std::sin(centre_.theta_d)) {}
+
+void MerlCentres::directions(int phi_d, Eigen::Vector3d& wi, Eigen::Vector3d& wo) const {
+  const double phi = merl_cell_centre({0, 0, phi_d}).phi_d;
+  // direction(theta_d, phi) with theta_d's sine and cosine known
+  turn_difference({sin_d_ * std::cos(phi), sin_d_ * std::sin(phi), cos_d_}, cos_h_, sin_h_, 0.0, wi, wo);
+}
+
+StdAngles MerlCentres::std_angles(int phi_d) const {
+  Eigen::Vector3d wi, wo;
+  directions(phi_d, wi, wo);
+  return std_angles_of(wi, wo);
 }
 
 }  // namespace specula::brdf

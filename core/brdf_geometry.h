@@ -71,4 +71,19 @@ HalfDiff merl_cell_centre(const MerlCell& c);
 /// True when both directions of the cell centre lie above the horizon (theta_i, theta_o < pi/2).
 bool merl_cell_valid(const MerlCell& c);
 
+/// The cell centres of one (theta_h, theta_d) of the MERL grid with the trigonometry they share computed once:
+/// what directions and std_angles of merl_cell_centre({theta_h, theta_d, phi_d}) give, bit for bit.
+class MerlCentres {
+ public:
+  MerlCentres(int theta_h, int theta_d);
+  /// directions(merl_cell_centre({theta_h, theta_d, phi_d}), wi, wo).
+  void directions(int phi_d, Eigen::Vector3d& wi, Eigen::Vector3d& wo) const;
+  /// std_angles(merl_cell_centre({theta_h, theta_d, phi_d})).
+  StdAngles std_angles(int phi_d) const;
+
+ private:
+  HalfDiff centre_;
+  double cos_h_, sin_h_, cos_d_, sin_d_;
+};
+
 }  // namespace specula::brdf

@@ -107,4 +107,20 @@ double config_distance(const IsoAngles& a, const IsoAngles& b, bool reciprocal) 
   return best;
 }
 
+// M_s: wi moves by at most |d theta_i| (both at phi = 0), wo by at most sqrt(d theta_o^2 + d phi_d^2) (the sphere's
+// metric d theta^2 + sin^2 theta d phi^2). M_h: with phi_h = 0 each of wi = Ry(theta_h) d(theta_d, phi_d) and wo moves
+// by at most |d theta_h| + sqrt(d theta_d^2 + d phi_d^2) <= sqrt(2) |dp|, so both together by 2 |dp|; the folds of
+// phi_d are mirrorings and swaps, over which config_distance minimises.
+double config_distance_bound(Mapping m) {
+  switch (m) {
+    case Mapping::standard:
+      return 1;
+    case Mapping::halfdiff:
+      return 2;
+    case Mapping::marschner:
+      break;
+  }
+  return std::numeric_limits<double>::infinity();
+}
+
 }  // namespace specula::brdf

@@ -46,5 +46,8 @@ IsoAngles unmap(Mapping m, const Eigen::Vector3d& p);
 /// over unit direction vectors, minimised over turning and mirroring b about the normal (isotropy) and, with
 /// `reciprocal`, over swapping b's directions. About the angle (radians) by which the directions must move.
 double config_distance(const IsoAngles& a, const IsoAngles& b, bool reciprocal);
+/// A constant c with config_distance(a, b, mapping_is_reciprocal(m)) <= c |map_angles(m, a) - map_angles(m, b)| for
+/// every a, b: 1 for M_s, 2 for M_h; infinity for M_m, which has none (its map is flat at the pole).
+double config_distance_bound(Mapping m);
 
 }  // namespace specula::brdf

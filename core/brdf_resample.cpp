@@ -131,19 +131,35 @@ float estimate(Weights w, double sum) { return float(w == Weights::loess ? std::
 
 std::vector<std::uint32_t> physical_cells() {
   std::vector<std::uint32_t> cells;
-  for (std::size_t c = 0; c < kMerlCells; ++c)
-    if (merl_cell_valid(merl_cell(c))) cells.push_back(std::uint32_t(c));
+  Eigen::Vector3d wi, wo;
+  for (int th = 0; th < kMerlThetaH; ++th)
+    for (int td = 0; td < kMerlThetaD; ++td) {
+      const MerlCentres row(th, td);
+      for (int pd = 0; pd < kMerlPhiD; ++pd) {
+        row.directions(pd, wi, wo);  // merl_cell_valid
+        if (wi.z() > 0 && wo.z() > 0) cells.push_back(std::uint32_t(merl_index({th, td, pd})));
+      }
+    }
   return cells;
 }
 
 using ValueReader = std::function<void(std::size_t first, std::size_t count, std::span<float> out)>;
+
+// Where a fill writes: band-major (bands x cells, -1 where a cell has no data) or cell-major (cells x bands and a
+// flag per cell, both untouched where a cell has no data); gaps when asked for.
+struct GridOut {
+  std::span<float> grid;
+  bool cell_major = false;
+  std::span<std::uint8_t> valid = {};
+  std::span<float> gaps = {};
+};
 
 // What filling a grid reads and writes.
 struct GridFill {
   const SampleTree& tree;
   const ResampleOptions& o;
   std::size_t n, bands;
-  std::span<float> grid, gaps;
+  GridOut out;
   std::vector<std::uint32_t> cells = physical_cells();
 
   // Finds and weighs the neighbours of cells[first, first + m), row by row on all threads, and calls
@@ -162,12 +178,15 @@ struct GridFill {
             const std::size_t c0 = rows[r0 + r], c1 = rows[r0 + r + 1];
             row.at.resize(c1 - c0);
             row.nb.resize(c1 - c0);
+            const MerlCell head = merl_cell(cells[first + c0]);
+            const MerlCentres centres(head.theta_h, head.theta_d);
             for (std::size_t c = c0; c < c1; ++c)
-              row.at[c - c0] = iso_angles(std_angles(merl_cell_centre(merl_cell(cells[first + c]))));
-            tree.nearest_each(row.at, wanted(o), row.nb, o.weights == Weights::loess);
+              row.at[c - c0] = iso_angles(centres.std_angles(merl_cell(cells[first + c]).phi_d));
+            // Only whether a gap exceeds max_gap matters, unless the gaps are written.
+            tree.nearest_each(row.at, wanted(o), row.nb, o.weights == Weights::loess, out.gaps.empty() ? o.max_gap : 0);
             for (std::size_t c = c0; c < c1; ++c) {
               Neighbours& nb = row.nb[c - c0];
-              if (!gaps.empty()) gaps[cells[first + c]] = float(nb.gap);
+              if (!out.gaps.empty()) out.gaps[cells[first + c]] = float(nb.gap);
               if (row.wn.weigh(nb, o)) visit(c, std::span<const std::pair<std::uint32_t, float>>(row.wn.by_sample));
             }
           },
@@ -177,7 +196,12 @@ struct GridFill {
   }
 
   void store(std::size_t cell, const double* acc) const {
-    for (std::size_t q = 0; q < bands; ++q) grid[q * kMerlCells + cell] = estimate(o.weights, acc[q]);
+    if (!out.cell_major) {
+      for (std::size_t q = 0; q < bands; ++q) out.grid[q * kMerlCells + cell] = estimate(o.weights, acc[q]);
+      return;
+    }
+    for (std::size_t q = 0; q < bands; ++q) out.grid[cell * bands + q] = estimate(o.weights, acc[q]);
+    out.valid[cell] = 1;
   }
 };
 
@@ -262,14 +286,16 @@ GridStats fill_streaming(const GridFill& f, const ValueReader& read, std::size_t
 // ascending sample index, whichever way the values arrive: read whole when they take no more memory than a pass's
 // neighbour lists would (max_entries entries of 8 bytes), else streamed past the lists.
 GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const ValueReader& read,
-               std::size_t block_rows, const ResampleOptions& o, std::span<float> grid, std::span<float> gaps = {}) {
+               std::size_t block_rows, const ResampleOptions& o, const GridOut& out) {
   check_options(o);
-  if (!gaps.empty() && gaps.size() != kMerlCells) throw UsageError("resample: gaps must hold one value per cell");
+  if (!out.gaps.empty() && out.gaps.size() != kMerlCells)
+    throw UsageError("resample: gaps must hold one value per cell");
   if (o.mapping != tree.mapping()) throw UsageError("resample: the options' mapping differs from the tree's");
-  if (bands == 0 || grid.size() != bands * kMerlCells)
+  if (bands == 0 || out.grid.size() != bands * kMerlCells)
     throw UsageError("resample: the grid must hold bands x 90 x 90 x 180 values");
-  std::fill(grid.begin(), grid.end(), -1.0f);
-  const GridFill f{.tree = tree, .o = o, .n = n, .bands = bands, .grid = grid, .gaps = gaps};
+  if (out.cell_major && out.valid.size() != kMerlCells) throw UsageError("resample: valid must hold one flag per cell");
+  if (!out.cell_major) std::fill(out.grid.begin(), out.grid.end(), -1.0f);
+  const GridFill f{.tree = tree, .o = o, .n = n, .bands = bands, .out = out};
   block_rows = std::max<std::size_t>(1, block_rows);
   GridStats stats;
   if (n * bands * sizeof(float) <= o.max_entries * 8) {
@@ -467,7 +493,7 @@ GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const R
   return fill(
       tree, src.size(), src.bands(),
       [&src](std::size_t first, std::size_t count, std::span<float> out) { src.read_values(first, count, out); },
-      src.block_rows(), o, grid, gaps);
+      src.block_rows(), o, {.grid = grid, .gaps = gaps});
 }
 
 GridStats resample_grid(const SampleSource& src, const ResampleOptions& o, std::span<float> grid) {
@@ -519,16 +545,21 @@ bool Resampler::predict(const StdAngles& at, std::span<float> out) const { retur
 
 void Resampler::neighbours(const StdAngles& at, Neighbours& out) const { tree_->nearest(iso_angles(at), o_.k, out); }
 
-std::size_t Resampler::fill_grid(std::span<float> grid) const {
+std::size_t Resampler::fill(std::span<float> grid, bool cell_major, std::span<std::uint8_t> valid) const {
   const std::size_t b = bands_;
   const auto values = values_;
-  return fill(
-             *tree_, tree_->size(), b,
-             [values, b](std::size_t first, std::size_t count, std::span<float> out) {
-               std::copy_n(values.begin() + std::ptrdiff_t(first * b), count * b, out.begin());
-             },
-             std::size_t(1) << 16, o_, grid)
+  return brdf::fill(*tree_, tree_->size(), b,
+                    [values, b](std::size_t first, std::size_t count, std::span<float> out) {
+                      std::copy_n(values.begin() + std::ptrdiff_t(first * b), count * b, out.begin());
+                    },
+                    std::size_t(1) << 16, o_, {.grid = grid, .cell_major = cell_major, .valid = valid})
       .valid_cells;
+}
+
+std::size_t Resampler::fill_grid(std::span<float> grid) const { return fill(grid, false, {}); }
+
+std::size_t Resampler::fill_cells(std::span<float> values, std::span<std::uint8_t> valid) const {
+  return fill(values, true, valid);
 }
 
 }  // namespace specula::brdf

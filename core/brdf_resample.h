@@ -112,7 +112,9 @@ struct Neighbours {
   std::vector<std::uint32_t> index;  ///< sample indices, nearest first
   std::vector<float> dist2;          ///< squared distances in the mapped space
   std::vector<float> offset;         ///< 3 per neighbour: its mapped point minus the query's (when asked for)
-  double gap = 0;  ///< config_distance from the query to the nearest sample (reciprocal as the mapping)
+  /// config_distance from the query to the nearest sample (reciprocal as the mapping); a search given a gap_cap may
+  /// hold instead an upper bound of it no larger than gap_cap (so gap <= gap_cap exactly when the distance is).
+  double gap = 0;
 };
 
 /// A kd-tree (nanoflann) over the mapped configurations of a source's samples: 16 bytes per sample.
@@ -130,21 +132,23 @@ class SampleTree {
   /// only when `offsets` (else out.offset is emptied).
   void nearest(const IsoAngles& at, std::size_t k, Neighbours& out, bool offsets = false) const;
   /// For each query the neighbours nearest(at[i], k, out[i], offsets) finds, though not always nearest first, found
-  /// together: queries that lie close (a row of grid cells) share one search of the tree. UsageError when out and
-  /// at differ in size.
-  void nearest_each(std::span<const IsoAngles> at, std::size_t k, std::span<Neighbours> out,
-                    bool offsets = false) const;
+  /// together: queries that lie close (a row of grid cells) share one search of the tree; gaps within gap_cap may
+  /// be bounds (Neighbours::gap). UsageError when out and at differ in size.
+  void nearest_each(std::span<const IsoAngles> at, std::size_t k, std::span<Neighbours> out, bool offsets = false,
+                    double gap_cap = 0) const;
 
  private:
   template <class Set>
   void search(const float* q, Set& result) const;
-  void finish(const IsoAngles& at, const float* q, std::uint32_t nearest, Neighbours& out, bool offsets) const;
+  void finish(const IsoAngles& at, const float* q, std::uint32_t nearest, Neighbours& out, bool offsets,
+              double gap_cap) const;
   void nearest_row(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k, std::span<Neighbours> out,
-                   bool offsets) const;
+                   bool offsets, double gap_cap) const;
   void split_row(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k, std::span<Neighbours> out,
-                 bool offsets, std::size_t len) const;
+                 bool offsets, double gap_cap, std::size_t len) const;
   void pick_nearest(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,
-                    std::span<const std::uint32_t> candidates, std::span<Neighbours> out, bool offsets) const;
+                    std::span<const std::uint32_t> candidates, std::span<Neighbours> out, bool offsets,
+                    double gap_cap) const;
 
   struct Index;
   Mapping mapping_;
@@ -200,8 +204,13 @@ class Resampler {
   void neighbours(const StdAngles& at, Neighbours& out) const;
   /// resample_grid over these samples; returns the number of cells with data.
   std::size_t fill_grid(std::span<float> grid) const;
+  /// fill_grid cell by cell: a cell's bands together in values (90 x 90 x 180 x bands) and valid[cell] = 1, both
+  /// left untouched where a cell has no data; returns the number of cells with data. UsageError for wrong sizes.
+  std::size_t fill_cells(std::span<float> values, std::span<std::uint8_t> valid) const;
 
  private:
+  std::size_t fill(std::span<float> grid, bool cell_major, std::span<std::uint8_t> valid) const;
+
   std::shared_ptr<const SampleTree> tree_;
   std::span<const float> values_;
   std::size_t bands_;

@@ -245,8 +245,8 @@ void SampleTree::search(const float* q, Set& result) const {
   }
 }
 
-void SampleTree::finish(const IsoAngles& at, const float* q, std::uint32_t nearest, Neighbours& out,
-                        bool offsets) const {
+void SampleTree::finish(const IsoAngles& at, const float* q, std::uint32_t nearest, Neighbours& out, bool offsets,
+                        double gap_cap) const {
   const Index& ix = *index_;
   const std::size_t found = out.index.size();
   out.offset.resize(offsets ? 3 * found : 0);
@@ -255,25 +255,23 @@ void SampleTree::finish(const IsoAngles& at, const float* q, std::uint32_t neare
   if (offsets)
     for (std::size_t j = 0; j < found; ++j)
       for (std::size_t d = 0; d < 3; ++d) out.offset[3 * j + d] = ix.xyz[3 * std::size_t(out.index[j]) + d] - q[d];
-  const float* p = ix.xyz.data() + 3 * std::size_t(nearest);
-  out.gap = config_distance(at, unmap(mapping_, Eigen::Vector3d(p[0], p[1], p[2])), mapping_is_reciprocal(mapping_));
   for (auto& i : out.index) i = ix.sample[i];
+  const float* p = ix.xyz.data() + 3 * std::size_t(nearest);
+  // The mapping's bound on the mapped distance, widened for q and p in float (at most 4.2e-7 from the exact points,
+  // distances a few float roundings off), spares the trigonometry wherever it already settles gap <= gap_cap.
+  const double bound = config_distance_bound(mapping_) * (std::sqrt(double(distance2(q, p))) * (1 + 1e-5) + 1e-5);
+  out.gap = bound <= gap_cap ? bound
+                             : config_distance(at, unmap(mapping_, Eigen::Vector3d(p[0], p[1], p[2])),
+                                               mapping_is_reciprocal(mapping_));
 }
 
 void SampleTree::nearest(const IsoAngles& at, std::size_t k, Neighbours& out, bool offsets) const {
   const Eigen::Vector3f q = mapped(mapping_, at);
-  k = std::min(k, n_);
-  out.index.resize(k);
-  out.dist2.resize(k);
-  NearestSet result(k, index_->sample.data(), out.index.data(), out.dist2.data());
-  search(q.data(), result);
-  out.index.resize(result.size());
-  out.dist2.resize(result.size());
-  finish(at, q.data(), out.index.empty() ? 0 : out.index[0], out, offsets);
+  nearest_row({&at, 1}, {q.data(), 3}, std::min(k, n_), {&out, 1}, offsets, 0);
 }
 
-void SampleTree::nearest_each(std::span<const IsoAngles> at, std::size_t k, std::span<Neighbours> out,
-                              bool offsets) const {
+void SampleTree::nearest_each(std::span<const IsoAngles> at, std::size_t k, std::span<Neighbours> out, bool offsets,
+                              double gap_cap) const {
   if (out.size() != at.size()) throw UsageError("SampleTree::nearest_each: out must hold one entry per query");
   k = std::min(k, n_);
   thread_local std::vector<float> q;
@@ -282,19 +280,19 @@ void SampleTree::nearest_each(std::span<const IsoAngles> at, std::size_t k, std:
     const Eigen::Vector3f p = mapped(mapping_, at[i]);
     std::copy_n(p.data(), 3, q.data() + 3 * i);
   }
-  nearest_row(at, q, k, out, offsets);
+  nearest_row(at, q, k, out, offsets, gap_cap);
 }
 
 // The row in pieces of `len` queries searched as rows, or one query at a time when len < 2.
 void SampleTree::split_row(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,
-                           std::span<Neighbours> out, bool offsets, std::size_t len) const {
+                           std::span<Neighbours> out, bool offsets, double gap_cap, std::size_t len) const {
   for (std::size_t i = 0; i < at.size(); i += std::max<std::size_t>(len, 1)) {
     if (len < 2) {
-      nearest(at[i], k, out[i], offsets);
+      nearest_row(at.subspan(i, 1), q.subspan(3 * i, 3), k, out.subspan(i, 1), offsets, gap_cap);
       continue;
     }
     const std::size_t l = std::min(len, at.size() - i);
-    nearest_row(at.subspan(i, l), q.subspan(3 * i, 3 * l), k, out.subspan(i, l), offsets);
+    nearest_row(at.subspan(i, l), q.subspan(3 * i, 3 * l), k, out.subspan(i, l), offsets, gap_cap);
   }
 }
 
@@ -303,14 +301,25 @@ void SampleTree::split_row(std::span<const IsoAngles> at, std::span<const float>
 // within R of c, since d_k(q) <= d_k(c) + r. Among the points within R each query's nearest are found by
 // distance and sample index, as NearestSet orders them.
 void SampleTree::nearest_row(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,
-                             std::span<Neighbours> out, bool offsets) const {
+                             std::span<Neighbours> out, bool offsets, double gap_cap) const {
   const std::size_t m = at.size();
   if (m == 0 || k == 0) {
     for (std::size_t i = 0; i < m; ++i) {
       out[i].index.clear();
       out[i].dist2.clear();
-      finish(at[i], q.data() + 3 * i, 0, out[i], offsets);
+      finish(at[i], q.data() + 3 * i, 0, out[i], offsets, gap_cap);
     }
+    return;
+  }
+  if (m == 1) {  // one query: its own search, nearest first
+    Neighbours& o = out[0];
+    o.index.resize(k);
+    o.dist2.resize(k);
+    NearestSet result(k, index_->sample.data(), o.index.data(), o.dist2.data());
+    search(q.data(), result);
+    o.index.resize(result.size());
+    o.dist2.resize(result.size());
+    finish(at[0], q.data(), o.index[0], o, offsets, gap_cap);
     return;
   }
   float c[3] = {0, 0, 0};
@@ -326,22 +335,22 @@ void SampleTree::nearest_row(std::span<const IsoAngles> at, std::span<const floa
   search(c, centre);
   const float dk = std::sqrt(d2[centre.size() - 1]), r = std::sqrt(r2);
   if (2 * r > kRowSpread * dk)  // shorter rows, as long as the spread allows
-    return split_row(at, q, k, out, offsets, std::size_t(float(m) * kRowSpread * dk / (2 * r)));
+    return split_row(at, q, k, out, offsets, gap_cap, std::size_t(float(m) * kRowSpread * dk / (2 * r)));
   const float reach = (dk + 2 * r) * (1 + 1e-5f);
   pos.clear();
   // > 0 when the row sits on a sample
   WithinSet within(reach * reach + std::numeric_limits<float>::min(), kRowCandidates * k, pos);
   search(c, within);
   if (pos.size() > kRowCandidates * k)  // an empty region beside a dense one: halves
-    return split_row(at, q, k, out, offsets, (m + 1) / 2);
+    return split_row(at, q, k, out, offsets, gap_cap, (m + 1) / 2);
   if (pos.size() < k) throw std::logic_error("SampleTree::nearest_each: fewer candidates than neighbours");
-  pick_nearest(at, q, k, pos, out, offsets);
+  pick_nearest(at, q, k, pos, out, offsets, gap_cap);
 }
 // Each query's k nearest among the candidate positions (which hold them all), in ascending sample index; keys of
 // squared distance and rank by sample index, so that ties fall as NearestSet lets them.
 void SampleTree::pick_nearest(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,
-                              std::span<const std::uint32_t> candidates, std::span<Neighbours> out,
-                              bool offsets) const {
+                              std::span<const std::uint32_t> candidates, std::span<Neighbours> out, bool offsets,
+                              double gap_cap) const {
   const Index& ix = *index_;
   thread_local std::vector<std::pair<std::uint32_t, std::uint32_t>> by_sample;
   thread_local std::vector<float> xyz, dist;
@@ -380,7 +389,7 @@ void SampleTree::pick_nearest(std::span<const IsoAngles> at, std::span<const flo
       o.index.push_back(by_sample[j].second);
       o.dist2.push_back(dist[j]);
     }
-    finish(at[i], qi, by_sample[nearest].second, o, offsets);
+    finish(at[i], qi, by_sample[nearest].second, o, offsets, gap_cap);
   }
 }
 

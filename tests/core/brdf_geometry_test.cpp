@@ -194,5 +194,29 @@ TEST(BrdfGeometry, ValidCellsMatchTheClosedForm) {
   EXPECT_FALSE(merl_cell_valid({89, 89, 0}));
 }
 
+// Written apart from MerlCentres: wi = Ry(theta_h) d and wo = Ry(theta_h) d' with d' = d turned by pi about z.
+TEST(BrdfGeometry, MerlCentresEqualEachCellsOwnCentreBitForBit) {
+  for (int th = 0; th < kMerlThetaH; ++th)
+    for (int td = 0; td < kMerlThetaD; ++td) {
+      const MerlCentres row(th, td);
+      for (int pd = 0; pd < kMerlPhiD; ++pd) {
+        const MerlCell c{th, td, pd};
+        const StdAngles a = std_angles(merl_cell_centre(c)), b = row.std_angles(pd);
+        ASSERT_TRUE(a.theta_i == b.theta_i && a.phi_i == b.phi_i && a.theta_o == b.theta_o && a.phi_o == b.phi_o)
+            << th << " " << td << " " << pd;
+        Eigen::Vector3d wi, wo;
+        row.directions(pd, wi, wo);
+        const HalfDiff h = merl_cell_centre(c);
+        const double ch = std::cos(h.theta_h), sh = std::sin(h.theta_h);
+        const Eigen::Vector3d d(std::sin(h.theta_d) * std::cos(h.phi_d), std::sin(h.theta_d) * std::sin(h.phi_d),
+                                std::cos(h.theta_d));
+        const Eigen::Vector3d ei(ch * d.x() + sh * d.z(), d.y(), -sh * d.x() + ch * d.z());
+        const Eigen::Vector3d eo(-ch * d.x() + sh * d.z(), -d.y(), sh * d.x() + ch * d.z());
+        ASSERT_LT((wi - ei).norm() + (wo - eo).norm(), 1e-14) << th << " " << td << " " << pd;
+        ASSERT_EQ(merl_cell_valid(c), wi.z() > 0 && wo.z() > 0);
+      }
+    }
+}
+
 }  // namespace
 }  // namespace specula::brdf

@@ -2,7 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <random>
 
@@ -116,6 +119,39 @@ TEST(Mapping, ConfigDistanceIsTheLeastDistanceOverTurnsMirrorsAndSwaps) {
   EXPECT_NEAR(config_distance({0.0, 0.7, 0.3}, {0.0, 0.7, 2.9}, false), 0, 1e-7);
   EXPECT_GT(config_distance({0.2, 0.7, 1.0}, {0.7, 0.2, 1.0}, false), 0.4);
   EXPECT_NEAR(config_distance({0.2, 0.7, 1.0}, {0.7, 0.2, 1.0}, true), 0, 1e-7);
+}
+
+// The bound against config_distance itself, on far pairs, near pairs (where a bound is tightest) and pairs beside
+// the folds of phi_d (0, pi/2, pi) and the pole; and M_m's lack of one: a pair near the pole far apart in config
+// space but close under M_m.
+TEST(Mapping, ConfigDistanceIsBoundedByTheMappedDistance) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0, 1);
+  double tightest[2] = {0, 0};
+  for (int i = 0; i < 20000; ++i) {
+    IsoAngles a = iso_angles(random_angles(rng)), b = a;
+    const double scale = i % 3 == 0 ? 1.0 : i % 3 == 1 ? 1e-2 : 1e-5;
+    b.theta_i = std::clamp(a.theta_i + scale * (u(rng) - 0.5), 0.0, pi / 2);
+    b.theta_o = std::clamp(a.theta_o + scale * (u(rng) - 0.5), 0.0, pi / 2);
+    b.phi_d = std::clamp(a.phi_d + scale * (u(rng) - 0.5), 0.0, pi);
+    if (i % 7 == 0) a.phi_d = b.phi_d = std::array{0.0, pi / 2, pi}[std::size_t(i / 7 % 3)];
+    if (i % 11 == 0) a.theta_i = 1e-4 * u(rng);
+    for (const Mapping m : {Mapping::standard, Mapping::halfdiff}) {
+      const double c = config_distance_bound(m), mapped = (map_angles(m, a) - map_angles(m, b)).norm();
+      const double d = config_distance(a, b, mapping_is_reciprocal(m));
+      // config_distance computes sqrt(4 - 2 (...)): about 1e-8 of rounding near 0 (finish allows 1e-5)
+      ASSERT_LE(d, c * mapped * (1 + 1e-9) + 1e-7) << mapping_name(m) << " " << i;
+      if (mapped > 1e-3)
+        tightest[m == Mapping::halfdiff] = std::max(tightest[m == Mapping::halfdiff], d / (c * mapped));
+    }
+  }
+  EXPECT_GT(tightest[0], 0.9);  // the bound is not loose where it is claimed
+  EXPECT_GT(tightest[1], 0.3);
+  EXPECT_EQ(config_distance_bound(Mapping::marschner), std::numeric_limits<double>::infinity());
+  // (e, e, 0) and (0, 2 e, 0): about e^2 apart under M_m, about e in config space.
+  const IsoAngles p{1e-3, 1e-3, 0.0}, q{0.0, 2e-3, 0.0};
+  const double marschner = (map_angles(Mapping::marschner, p) - map_angles(Mapping::marschner, q)).norm();
+  EXPECT_GT(config_distance(p, q, true), 500 * marschner);
 }
 
 }  // namespace

@@ -301,7 +301,7 @@ TEST(Resampler, NeighboursTieToTheLowerSampleIndexOneQueryAtATimeOrARowAtATime) 
   const std::vector<float> values(points.size(), 0.0f);
   const MemorySamples src(angles, values, 1);
   const SampleTree tree(src, Mapping::standard);
-  std::size_t ties = 0;
+  std::size_t ties = 0, bounded = 0;
   for (const std::size_t k : {1, 9, 10, 27}) {
     for (int row = 0; row < 12; ++row) {
       // Sixteen queries along phi_d, half a step off the lattice in theta_i and theta_o.
@@ -327,10 +327,18 @@ TEST(Resampler, NeighboursTieToTheLowerSampleIndexOneQueryAtATimeOrARowAtATime) 
         std::sort(got_each.begin(), got_each.end());
         EXPECT_EQ(got_each, want) << "k " << k << " query " << i;
         EXPECT_EQ(each[i].gap, one.gap);
+        // With a cap the gap may be a bound, but it falls on the same side of the cap as the exact one.
+        std::vector<Neighbours> capped(1);
+        tree.nearest_each({&at[i], 1}, k, capped, false, 0.05);
+        EXPECT_GE(capped[0].gap, one.gap - 1e-7);
+        EXPECT_TRUE(capped[0].gap == one.gap || capped[0].gap <= 0.05);
+        EXPECT_EQ(capped[0].gap <= 0.05, one.gap <= 0.05);
+        bounded += capped[0].gap != one.gap;
       }
     }
   }
-  EXPECT_GT(ties, 50u);  // the k-th distance tied with the (k+1)-th this often: the tie rule was exercised
+  EXPECT_GT(ties, 50u);     // the k-th distance tied with the (k+1)-th this often: the tie rule was exercised
+  EXPECT_GT(bounded, 50u);  // and gaps were bounds, not computed
 }
 
 // A row over an empty region beside a dense one: its ball of candidates would hold thousands, so the row is cut
@@ -383,6 +391,15 @@ TEST(Resampler, GridIsPredictAtEveryCellCentreForAnyPassCountAndThreadCount) {
     EXPECT_GT(st.passes, 5u);
     EXPECT_EQ(st.valid_cells, valid);
     ASSERT_TRUE(one == many) << mapping_name(m);
+    // Cell by cell: the same values, a cell's bands together; cells without data left as they were.
+    std::vector<float> cells(3 * kMerlCells, 7.0f);
+    std::vector<std::uint8_t> flags(kMerlCells, 2);
+    EXPECT_EQ(r.fill_cells(cells, flags), valid);
+    for (std::size_t c = 0; c < kMerlCells; ++c) {
+      ASSERT_EQ(flags[c], one[c] >= 0 ? 1 : 2) << c;
+      for (std::size_t q = 0; q < 3; ++q)
+        ASSERT_EQ(cells[3 * c + q], one[c] >= 0 ? one[q * kMerlCells + c] : 7.0f) << c;
+    }
     // Spot checks against predict at cell centres.
     std::vector<float> out(3);
     std::size_t checked = 0;
