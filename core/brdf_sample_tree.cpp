@@ -363,32 +363,39 @@ void SampleTree::pick_nearest(std::span<const IsoAngles> at, std::span<const flo
     std::copy_n(ix.xyz.data() + 3 * std::size_t(by_sample[j].second), 3, xyz.data() + 3 * j);
   dist.resize(by_sample.size());
   // The k-th distance of the previous query, a little enlarged: along a row it picks the few candidates to select
-  // from without looking at the rest.
+  // from without looking at the rest. Both passes over the candidates write every entry and advance only past the
+  // kept ones, without branches.
+  const std::size_t count = by_sample.size();
+  pick.resize(count);
   float guess = std::numeric_limits<float>::infinity();
   const auto key = [&](std::size_t j) { return std::uint64_t(std::bit_cast<std::uint32_t>(dist[j])) << 32 | j; };
   for (std::size_t i = 0; i < at.size(); ++i) {
     const float* qi = q.data() + 3 * i;
-    for (std::size_t j = 0; j < dist.size(); ++j) dist[j] = distance2(qi, xyz.data() + 3 * j);
-    pick.clear();
-    for (std::size_t j = 0; j < dist.size(); ++j)
-      if (dist[j] <= guess) pick.push_back(key(j));
-    if (pick.size() < k) {
-      pick.resize(dist.size());
-      for (std::size_t j = 0; j < dist.size(); ++j) pick[j] = key(j);
+    std::size_t kept = 0;
+    for (std::size_t j = 0; j < count; ++j) {
+      dist[j] = distance2(qi, xyz.data() + 3 * j);
+      pick[kept] = key(j);
+      kept += dist[j] <= guess;
     }
-    std::nth_element(pick.begin(), pick.begin() + std::ptrdiff_t(k - 1), pick.end());
+    if (kept < k) {
+      for (std::size_t j = 0; j < count; ++j) pick[j] = key(j);
+      kept = count;
+    }
+    std::nth_element(pick.begin(), pick.begin() + std::ptrdiff_t(k - 1), pick.begin() + std::ptrdiff_t(kept));
     const std::uint64_t kth = pick[k - 1];
     guess = std::bit_cast<float>(std::uint32_t(kth >> 32)) * 1.1f;
+    const auto nearest = std::uint32_t(*std::min_element(pick.begin(), pick.begin() + std::ptrdiff_t(k)));
     Neighbours& o = out[i];
-    o.index.clear();
-    o.dist2.clear();
-    std::size_t nearest = 0;
-    for (std::size_t j = 0; j < dist.size(); ++j) {
-      if (key(j) > kth) continue;
-      if (key(j) < key(nearest)) nearest = j;
-      o.index.push_back(by_sample[j].second);
-      o.dist2.push_back(dist[j]);
+    o.index.resize(k + 1);
+    o.dist2.resize(k + 1);
+    std::size_t n = 0;
+    for (std::size_t j = 0; j < count; ++j) {
+      o.index[n] = by_sample[j].second;
+      o.dist2[n] = dist[j];
+      n += key(j) <= kth;
     }
+    o.index.resize(k);
+    o.dist2.resize(k);
     finish(at[i], qi, by_sample[nearest].second, o, offsets, gap_cap);
   }
 }
