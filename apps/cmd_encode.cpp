@@ -10,9 +10,7 @@
 #include "apps/common.h"
 #include "specula/acquire/bandwidth.h"
 #include "specula/codec/environment.h"
-#include "specula/codec/report_json.h"
-#include "specula/codec/spc.h"
-#include "specula/codec/spc_target.h"
+#include "specula/codec/spc_coding.h"
 #include "specula/codec/suite.h"
 #include "specula/core/brdf_resample.h"
 #include "specula/core/error.h"
@@ -41,43 +39,6 @@ struct EncodeOptions {
   bool json = false;
 };
 
-// The bases -k picks from (k + --extra spectra each) and the largest k they give.
-struct BasisFamily {
-  codec::SpcBasisOfK of_k;
-  std::size_t max_k = 0;
-};
-
-BasisFamily basis_family(const EncodeOptions& o, const store::Grid& grid) {
-  if (o.basis == "self") {
-    if (o.extra) throw UsageError("encode: --extra extends a learned basis; with --basis self raise -k instead");
-    return {[&grid](std::size_t k) { return codec::self_basis(grid, k); }, grid.bands()};
-  }
-  const auto spec = store::parse_object_spec(o.basis);
-  if (!spec || spec->name.empty())
-    throw UsageError("encode: --basis takes STORE.h5:BASIS (a PCA or NMF basis learned by specula) or 'self', not '" +
-                     o.basis + "'");
-  const store::Store s = store::Store::open(spec->file);
-  auto learned = std::make_shared<const store::Basis>(s.read_basis(spec->name));
-  const std::string reference = s.label() + ":" + spec->name;
-  const std::size_t max_k = std::max<std::size_t>(
-      1, std::min(codec::coding_basis_max_k(*learned), grid.bands() - std::min(grid.bands(), o.extra)));
-  return {[learned, reference, &grid, extra = o.extra](std::size_t k) {
-            return codec::augment_basis(codec::coding_basis(*learned, k, reference), grid, extra);
-          },
-          max_k};
-}
-
-// What an encoding made and measured, for the report.
-struct Encoded {
-  std::vector<std::uint8_t> bytes;
-  codec::SpcBasis basis;
-  codec::SpcReport report;
-  codec::SpcTargetReport target_report;
-  codec::SpcKReport k_report;
-  std::size_t max_k = 0;
-  bool transform = true;
-};
-
 codec::SpcTarget target_of(const EncodeOptions& o) {
   return {.de00_mean = o.target_de00.value_or(0),
           .de00_p95 = o.target_p95.value_or(codec::default_p95_target(o.target_de00.value_or(0))),
@@ -85,40 +46,30 @@ codec::SpcTarget target_of(const EncodeOptions& o) {
           .max_trials = o.trials};
 }
 
-codec::LightingSuite suite_of(const EncodeOptions& o, const WavelengthGrid& wavelengths) {
+std::optional<codec::LightingSuite> suite_of(const EncodeOptions& o, const WavelengthGrid& wavelengths) {
+  if (!o.target_de00) return std::nullopt;
   return o.env == "default" ? codec::LightingSuite(wavelengths)
                             : codec::LightingSuite(codec::read_environment(o.env, wavelengths), {});
 }
 
-Encoded encode_grid(const EncodeOptions& o) {
+codec::SpcCoding encode_grid(const EncodeOptions& o) {
   const store::Grid grid = load_grid(o.input, "encode");
   if (!o.k && !o.target_de00)
     throw UsageError("encode: give -k with --step or --max-error (only --target-de00 chooses k itself)");
-  const BasisFamily family = basis_family(o, grid);
-  Encoded e;
-  e.max_k = family.max_k;
-  e.basis = o.k ? family.of_k(o.k) : codec::SpcBasis{};
-  const codec::SpcBoundedOptions bounded{
-      .max_error = o.max_error, .magnitude_scale = o.magnitude_scale, .zstd_level = o.level};
+  const codec::SpcBasisSource source = codec::read_basis_source(o.basis, o.extra, "encode: --basis");
+  if (!o.step && !o.target_de00)
+    return codec::code_grid(grid, source, o.k,
+                            {.max_error = o.max_error, .magnitude_scale = o.magnitude_scale, .zstd_level = o.level},
+                            o.input);
   codec::SpcTransformOptions options{.grazing_factor = o.grazing_factor, .magnitude_scale = o.magnitude_scale};
   if (o.step) options.step = *o.step;
-  e.transform = o.step || o.target_de00;
-  if (o.target_de00) {
-    const codec::LightingSuite suite = suite_of(o, grid.wavelengths);
-    e.bytes = o.k ? codec::encode_spc_to_target(grid, e.basis, options, target_of(o), suite, e.target_report, &e.report,
-                                                o.input)
-                  : codec::encode_spc_choosing_k(grid, family.of_k, family.max_k, options, target_of(o), suite,
-                                                 e.target_report, e.k_report, &e.basis, &e.report, o.input);
-  } else if (e.transform) {
-    e.bytes = codec::encode_spc(grid, e.basis, options, &e.report, o.input);
-  } else {
-    e.bytes = codec::encode_spc(grid, e.basis, bounded, &e.report, o.input);
-  }
-  return e;
+  const auto suite = suite_of(o, grid.wavelengths);
+  const auto target = suite ? std::optional<codec::SpcTargetSearch>({target_of(o), *suite}) : std::nullopt;
+  return codec::code_grid(grid, source, o.k, options, target ? &*target : nullptr, o.input);
 }
 
 // Format 4: the samples STORE.h5:SAMPLES and the resampling rule (k chosen by leave-one-out for k=auto).
-Encoded encode_samples(const EncodeOptions& o) {
+codec::SpcCoding encode_samples(const EncodeOptions& o) {
   const auto spec = store::parse_object_spec(o.input);
   if (!spec || spec->name.empty())
     throw UsageError("encode: with --samples-rule the input is STORE.h5:SAMPLES, not '" + o.input + "'");
@@ -133,25 +84,10 @@ Encoded encode_samples(const EncodeOptions& o) {
   std::vector<float> values(info.bands * info.size);
   st.read_samples(spec->name, 0, info.size, angles, values);
   const codec::SpcSampleSet samples{info.wavelengths, angles, values, info.units, 1};
-  const store::Grid reference = codec::resample_samples(samples, options.rule);
-  // A self basis from the samples themselves, each counted once (a grid counts each by the cells it fills).
-  const BasisFamily family =
-      o.basis == "self" && !o.extra
-          ? BasisFamily{[&samples](std::size_t k) { return codec::self_basis(samples, k); }, info.bands}
-          : basis_family(o, reference);
-  Encoded e;
-  e.max_k = family.max_k;
-  e.basis = o.k ? family.of_k(o.k) : codec::SpcBasis{};
-  if (o.target_de00) {
-    const codec::SpcBasisOfK of_k = o.k ? codec::SpcBasisOfK([&e](std::size_t) { return e.basis; }) : family.of_k;
-    e.bytes = codec::encode_spc_samples_choosing_k(samples, reference, of_k, o.k ? 1 : family.max_k, options,
-                                                   target_of(o), suite_of(o, info.wavelengths), e.target_report,
-                                                   e.k_report, &e.basis, &e.report, o.input);
-    if (o.k) e.k_report.k = o.k;
-  } else {
-    e.bytes = codec::encode_spc(samples, e.basis, options, &e.report, o.input);
-  }
-  return e;
+  const codec::SpcBasisSource source = codec::read_basis_source(o.basis, o.extra, "encode: --basis");
+  const auto suite = suite_of(o, info.wavelengths);
+  const auto target = suite ? std::optional<codec::SpcTargetSearch>({target_of(o), *suite}) : std::nullopt;
+  return codec::code_samples(samples, source, o.k, options, target ? &*target : nullptr, o.input);
 }
 
 void run_encode(const EncodeOptions& o) {
@@ -160,17 +96,16 @@ void run_encode(const EncodeOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   if (o.step && o.target_de00) throw UsageError("encode: give --step or --target-de00, not both");
   if (o.target_p95 && !o.target_de00) throw UsageError("encode: --target-p95 goes with --target-de00");
-  const Encoded e = o.samples_rule.empty() ? encode_grid(o) : encode_samples(o);
+  const codec::SpcCoding e = o.samples_rule.empty() ? encode_grid(o) : encode_samples(o);
   codec::write_spc_file(o.output, e.bytes);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const codec::SpcTarget target = target_of(o);
   const codec::SpcBoundedOptions bounded{.max_error = o.max_error};
+  const bool transform = o.step || o.target_de00 || !o.samples_rule.empty();
   if (o.json) {
     Json j = {{"input", o.input}, {"output", o.output}};
-    j.update(codec::spc_encode_json(e.report, e.basis, e.transform ? nullptr : &bounded,
-                                    o.target_de00 ? &target : nullptr, &e.target_report,
-                                    codec::spc_format_version(e.bytes, o.output), seconds));
-    if (!o.k) j["k_search"] = codec::spc_k_search_json(e.k_report);
+    j.update(codec::spc_coding_json(e, transform ? nullptr : &bounded, o.target_de00 ? &target : nullptr, seconds,
+                                    o.output));
     print_json(j);
     return;
   }
@@ -178,23 +113,23 @@ void run_encode(const EncodeOptions& o) {
   const double ratio = double(rep.input_bytes) / double(rep.output_bytes);
   fmt::print("encoded {} ({} valid cells) on {} with k = {}: {} bytes, {:.1f}x smaller than float64, in {:.2f} s\n",
              o.input, rep.valid_cells, e.basis.reference, e.basis.k(), rep.output_bytes, ratio, seconds);
-  if (!o.k) {
-    fmt::print("k = {} chosen of 1 to {}, the smallest file meeting the target; tried:", e.k_report.k, e.max_k);
-    for (const codec::SpcKCandidate& c : e.k_report.candidates)
+  if (e.k_search) {
+    fmt::print("k = {} chosen of 1 to {}, the smallest file meeting the target; tried:", e.k_search->k, e.max_k);
+    for (const codec::SpcKCandidate& c : e.k_search->candidates)
       fmt::print(" k = {} {};", c.k,
                  !c.searched ? (c.floor_met ? "meets it at the finest step" : "cannot meet it")
                  : c.reached ? fmt::format("{} bytes", c.bytes)
                              : std::string("not met"));
     fmt::print("\n");
   }
-  if (o.target_de00)
+  if (e.target)
     fmt::print(
         "{}: step {:.4g} after {} trial codings; under the lighting suite CIEDE2000 mean {:.3f}, 95th "
         "percentile {:.3f}, worst condition {} mean {:.3f} (target {}, {} and {} per condition)\n",
-        e.target_report.reached ? "target met" : "target NOT met (finest step tried)", e.target_report.step,
-        e.target_report.trials, e.target_report.de00_mean, e.target_report.de00_p95, e.target_report.worst_condition,
-        e.target_report.worst_mean, *o.target_de00, target.de00_p95, 2 * *o.target_de00);
-  if (e.transform)
+        e.target->reached ? "target met" : "target NOT met (finest step tried)", e.target->step, e.target->trials,
+        e.target->de00_mean, e.target->de00_p95, e.target->worst_condition, e.target->worst_mean, *o.target_de00,
+        target.de00_p95, 2 * *o.target_de00);
+  if (transform)
     fmt::print(
         "error: RMS {:.4g} 1/sr, max {:.4g} 1/sr; shape: basis residual up to {:.4g}, quantisation up to {:.4g}\n",
         rep.rms_error, rep.max_abs_error, rep.max_shape_residual, rep.max_quantisation_error);

@@ -10,9 +10,8 @@
 #include "python/common.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
-#include "specula/codec/report_json.h"
 #include "specula/codec/spc.h"
-#include "specula/codec/spc_target.h"
+#include "specula/codec/spc_coding.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/codec/suite.h"
 #include "specula/core/brdf_geometry.h"
@@ -117,50 +116,33 @@ py::tuple spc_encode(const GridArg& grid_arg, const OptBasis& basis_arg, std::op
   codec::SpcTransformOptions options{.magnitude_scale = magnitude_scale};
   if (step) options.step = *step;
   const bool transform = step || target_de00;
-  const double p95 = target_p95.value_or(codec::default_p95_target(target_de00.value_or(0)));
-  std::optional<codec::LightingSuite> suite;
-  if (target_de00) suite.emplace(environment_from(env_arg, grid.wavelengths), codec::SuiteOptions{});
   const codec::SpcTarget t{.de00_mean = target_de00.value_or(0),
-                           .de00_p95 = p95,
+                           .de00_p95 = target_p95.value_or(codec::default_p95_target(target_de00.value_or(0))),
                            .condition_mean = codec::condition_mean_target(target_de00.value_or(0)),
                            .max_trials = trials};
-  codec::SpcReport rep;
-  codec::SpcTargetReport target;
-  std::vector<std::uint8_t> bytes;
-  codec::SpcBasis b;
-  codec::SpcKReport k_report;
-  const bool choose_k = !k && target_de00;
+  std::optional<codec::LightingSuite> suite;
+  if (target_de00) suite.emplace(environment_from(env_arg, grid.wavelengths), codec::SuiteOptions{});
+  if (!basis && extra) throw UsageError("spc_encode: extra extends a learned basis; with no basis raise k instead");
+  const codec::SpcBasisSource source{
+      .learned = basis ? std::make_shared<const store::Basis>(*basis) : nullptr, .reference = ref, .extra = extra};
+  const std::size_t kk = k ? *k : target_de00 ? 0 : 6;  // no k: the target chooses it, else 6
+  codec::SpcCoding coding;
   const auto t0 = std::chrono::steady_clock::now();
   {
     py::gil_scoped_release release;
-    if (!basis && extra) throw UsageError("spc_encode: extra extends a learned basis; with no basis raise k instead");
-    const codec::SpcBasisOfK basis_of_k = [&](std::size_t kk) {
-      return basis ? codec::augment_basis(codec::coding_basis(*basis, kk, ref), grid, extra)
-                   : codec::self_basis(grid, kk);
-    };
-    if (!choose_k) b = basis_of_k(k.value_or(6));
-    if (target_de00) {
-      if (choose_k) {
-        const std::size_t k_max =
-            basis ? std::max<std::size_t>(
-                        1, std::min(codec::coding_basis_max_k(*basis), grid.bands() - std::min(grid.bands(), extra)))
-                  : grid.bands();
-        bytes = codec::encode_spc_choosing_k(grid, basis_of_k, k_max, options, t, *suite, target, k_report, &b, &rep,
-                                             grid.provenance.source_file);
-      } else {
-        bytes = codec::encode_spc_to_target(grid, b, options, t, *suite, target, &rep, grid.provenance.source_file);
-      }
-    } else if (transform) {
-      bytes = codec::encode_spc(grid, b, options, &rep, grid.provenance.source_file);
+    const std::string& label = grid.provenance.source_file;
+    if (suite) {
+      const codec::SpcTargetSearch search{t, *suite};
+      coding = codec::code_grid(grid, source, kk, options, &search, label);
     } else {
-      bytes = codec::encode_spc(grid, b, bounded, &rep, grid.provenance.source_file);
+      coding = transform ? codec::code_grid(grid, source, kk, options, nullptr, label)
+                         : codec::code_grid(grid, source, kk, bounded, label);
     }
   }
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  auto report = codec::spc_encode_json(rep, b, transform ? nullptr : &bounded, target_de00 ? &t : nullptr, &target,
-                                       codec::spc_format_version(bytes, "spc_encode"), seconds);
-  if (choose_k) report["k_search"] = codec::spc_k_search_json(k_report);
-  return py::make_tuple(py::bytes(reinterpret_cast<const char*>(bytes.data()), bytes.size()),
+  const auto report =
+      codec::spc_coding_json(coding, transform ? nullptr : &bounded, target_de00 ? &t : nullptr, seconds, "spc_encode");
+  return py::make_tuple(py::bytes(reinterpret_cast<const char*>(coding.bytes.data()), coding.bytes.size()),
                         py::module_::import("json").attr("loads")(report.dump()));
 }
 
