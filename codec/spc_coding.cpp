@@ -39,6 +39,25 @@ BasisFamily grid_family(const SpcBasisSource& source, const store::Grid& grid) {
   return {[&grid](std::size_t k) { return self_basis(grid, k); }, grid.bands()};
 }
 
+// What every transform or samples coding does first: the basis at a given k, and without a target the coding at
+// options.step. True when that finished it.
+template <class Input, class Options>
+bool code_at_step(SpcCoding& c, const Input& input, const BasisFamily& family, std::size_t k, const Options& options,
+                  const SpcTargetSearch* target, const std::string& label) {
+  c.max_k = family.max_k;
+  if (k) c.basis = family.of_k(k);
+  if (target) {
+    c.target.emplace();
+    return false;
+  }
+  c.bytes = encode_spc(input, c.basis, options, &c.report, label);
+  return true;
+}
+
+void check_k(std::size_t k, const SpcTargetSearch* target, const char* what) {
+  if (k == 0 && !target) throw UsageError(std::string(what) + ": k 0 (k chosen) needs a target");
+}
+
 }  // namespace
 
 SpcBasisSource read_basis_source(const std::string& spec, std::size_t extra, const std::string& what) {
@@ -64,15 +83,10 @@ SpcCoding code_grid(const store::Grid& grid, const SpcBasisSource& source, std::
 
 SpcCoding code_grid(const store::Grid& grid, const SpcBasisSource& source, std::size_t k,
                     const SpcTransformOptions& options, const SpcTargetSearch* target, const std::string& label) {
-  if (k == 0 && !target) throw UsageError("code_grid: k 0 (k chosen) needs a target");
+  check_k(k, target, "code_grid");
   const BasisFamily family = grid_family(source, grid);
-  SpcCoding c{.max_k = family.max_k};
-  if (k) c.basis = family.of_k(k);
-  if (!target) {
-    c.bytes = encode_spc(grid, c.basis, options, &c.report, label);
-    return c;
-  }
-  c.target.emplace();
+  SpcCoding c;
+  if (code_at_step(c, grid, family, k, options, target, label)) return c;
   if (k) {
     c.bytes = encode_spc_to_target(grid, c.basis, options, target->target, target->suite, *c.target, &c.report, label);
     return c;
@@ -86,7 +100,7 @@ SpcCoding code_grid(const store::Grid& grid, const SpcBasisSource& source, std::
 SpcCoding code_samples(const SpcSampleSet& samples, const SpcBasisSource& source, std::size_t k,
                        const SpcSamplesOptions& options, const SpcTargetSearch* target, const std::string& label) {
   check_own(source);
-  if (k == 0 && !target) throw UsageError("code_samples: k 0 (k chosen) needs a target");
+  check_k(k, target, "code_samples");
   // The grid the samples resample to exactly: what a target is judged against and what extends a learned basis.
   std::optional<store::Grid> reference;
   if (target || source.learned) reference = resample_samples(samples, options.rule);
@@ -94,13 +108,8 @@ SpcCoding code_samples(const SpcSampleSet& samples, const SpcBasisSource& source
       source.learned
           ? learned_family(source, *reference)
           : BasisFamily{[&samples](std::size_t kk) { return self_basis(samples, kk); }, samples.wavelengths.size()};
-  SpcCoding c{.max_k = family.max_k};
-  if (k) c.basis = family.of_k(k);
-  if (!target) {
-    c.bytes = encode_spc(samples, c.basis, options, &c.report, label);
-    return c;
-  }
-  c.target.emplace();
+  SpcCoding c;
+  if (code_at_step(c, samples, family, k, options, target, label)) return c;
   // A given k is a search over that one basis.
   const SpcBasisOfK of_k = k ? SpcBasisOfK([&c](std::size_t) { return c.basis; }) : family.of_k;
   SpcKReport k_report;
