@@ -101,10 +101,10 @@ void run_encode(const EncodeOptions& o) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const codec::SpcTarget target = target_of(o);
   const codec::SpcBoundedOptions bounded{.max_error = o.max_error};
-  const bool transform = o.step || o.target_de00 || !o.samples_rule.empty();
+  const bool bounded_method = codec::spc_format_version(e.bytes, o.output) == 1;
   if (o.json) {
     Json j = {{"input", o.input}, {"output", o.output}};
-    j.update(codec::spc_coding_json(e, transform ? nullptr : &bounded, o.target_de00 ? &target : nullptr, seconds,
+    j.update(codec::spc_coding_json(e, bounded_method ? &bounded : nullptr, o.target_de00 ? &target : nullptr, seconds,
                                     o.output));
     print_json(j);
     return;
@@ -129,7 +129,7 @@ void run_encode(const EncodeOptions& o) {
         e.target->reached ? "target met" : "target NOT met (finest step tried)", e.target->step, e.target->trials,
         e.target->de00_mean, e.target->de00_p95, e.target->worst_condition, e.target->worst_mean, *o.target_de00,
         target.de00_p95, 2 * *o.target_de00);
-  if (transform)
+  if (!bounded_method)
     fmt::print(
         "error: RMS {:.4g} 1/sr, max {:.4g} 1/sr; shape: basis residual up to {:.4g}, quantisation up to {:.4g}\n",
         rep.rms_error, rep.max_abs_error, rep.max_shape_residual, rep.max_quantisation_error);
