@@ -129,17 +129,28 @@ std::vector<std::size_t> cell_rows(std::span<const std::uint32_t> cells, std::si
 // A cell's value from its accumulated sum: LOESS's weights may be negative, and a BRDF is not.
 float estimate(Weights w, double sum) { return float(w == Weights::loess ? std::max(0.0, sum) : sum); }
 
-std::vector<std::uint32_t> physical_cells() {
-  std::vector<std::uint32_t> cells;
-  Eigen::Vector3d wi, wo;
-  for (int th = 0; th < kMerlThetaH; ++th)
-    for (int td = 0; td < kMerlThetaD; ++td) {
-      const MerlCentres row(th, td);
-      for (int pd = 0; pd < kMerlPhiD; ++pd) {
-        row.directions(pd, wi, wo);  // merl_cell_valid
-        if (wi.z() > 0 && wo.z() > 0) cells.push_back(std::uint32_t(merl_index({th, td, pd})));
+// Every cell whose two directions lie above the horizon (merl_cell_valid), in cell order; listed once per process,
+// its theta_h rows on all threads.
+const std::vector<std::uint32_t>& physical_cells() {
+  static const std::vector<std::uint32_t> cells = [] {
+    std::vector<std::vector<std::uint32_t>> rows(kMerlThetaH);
+    parallel_for(rows.size(), [&](std::size_t th) {
+      Eigen::Vector3d wi, wo;
+      for (int td = 0; td < kMerlThetaD; ++td) {
+        const MerlCentres row(int(th), td);
+        for (int pd = 0; pd < kMerlPhiD; ++pd) {
+          row.directions(pd, wi, wo);
+          if (wi.z() > 0 && wo.z() > 0) rows[th].push_back(std::uint32_t(merl_index({int(th), td, pd})));
+        }
       }
-    }
+    });
+    std::size_t total = 0;
+    for (const auto& r : rows) total += r.size();
+    std::vector<std::uint32_t> all;
+    all.reserve(total);
+    for (const auto& r : rows) all.insert(all.end(), r.begin(), r.end());
+    return all;
+  }();
   return cells;
 }
 
@@ -160,7 +171,7 @@ struct GridFill {
   const ResampleOptions& o;
   std::size_t n, bands;
   GridOut out;
-  std::vector<std::uint32_t> cells = physical_cells();
+  const std::vector<std::uint32_t>& cells = physical_cells();
 
   // Finds and weighs the neighbours of cells[first, first + m), row by row on all threads, and calls
   // visit(c, by_sample) for each cell c (from first) with support; the gaps are written when asked for.

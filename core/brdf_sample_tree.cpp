@@ -114,6 +114,26 @@ constexpr std::size_t kRowCandidates = 6;
 
 Eigen::Vector3f mapped(Mapping m, const IsoAngles& a) { return map_angles(m, a).cast<float>(); }
 
+// The k-th smallest of distinct keys, the k smallest left in keys[0, k): a few largest dropped one by one when only
+// a few exceed k (branch-free passes), else nth_element.
+std::uint64_t select_kth(std::span<std::uint64_t> keys, std::size_t k) {
+  std::size_t n = keys.size();
+  if (n - k > 8) {
+    std::nth_element(keys.begin(), keys.begin() + std::ptrdiff_t(k - 1), keys.end());
+    return keys[k - 1];
+  }
+  const auto largest = [&](std::size_t m) {
+    std::uint64_t v = 0;
+    for (std::size_t j = 0; j < m; ++j) v = std::max(v, keys[j]);
+    return v;
+  };
+  for (; n > k; --n) {
+    const std::uint64_t v = largest(n);
+    *std::find(keys.begin(), keys.begin() + std::ptrdiff_t(n), v) = keys[n - 1];
+  }
+  return largest(k);
+}
+
 }  // namespace
 
 struct SampleTree::Index {
@@ -353,27 +373,40 @@ void SampleTree::pick_nearest(std::span<const IsoAngles> at, std::span<const flo
                               double gap_cap) const {
   const Index& ix = *index_;
   thread_local std::vector<std::pair<std::uint32_t, std::uint32_t>> by_sample;
-  thread_local std::vector<float> xyz, dist;
+  thread_local std::vector<float> xs, ys, zs, dist;
   thread_local std::vector<std::uint64_t> pick;
   by_sample.resize(candidates.size());
   for (std::size_t j = 0; j < candidates.size(); ++j) by_sample[j] = {ix.sample[candidates[j]], candidates[j]};
   std::sort(by_sample.begin(), by_sample.end());
-  xyz.resize(3 * by_sample.size());
-  for (std::size_t j = 0; j < by_sample.size(); ++j)
-    std::copy_n(ix.xyz.data() + 3 * std::size_t(by_sample[j].second), 3, xyz.data() + 3 * j);
-  dist.resize(by_sample.size());
-  // The k-th distance of the previous query, a little enlarged: along a row it picks the few candidates to select
-  // from without looking at the rest. Both passes over the candidates write every entry and advance only past the
-  // kept ones, without branches.
   const std::size_t count = by_sample.size();
+  xs.resize(count);
+  ys.resize(count);
+  zs.resize(count);
+  for (std::size_t j = 0; j < count; ++j) {
+    const float* p = ix.xyz.data() + 3 * std::size_t(by_sample[j].second);
+    xs[j] = p[0];
+    ys[j] = p[1];
+    zs[j] = p[2];
+  }
+  dist.resize(count);
+  // The k-th distance of the previous query, a little enlarged: along a row it picks the few candidates to select
+  // from without looking at the rest. The passes over the candidates have no branches: the distances (as
+  // distance2 sums them), the kept keys (written always, advanced past only when kept), and the output.
   pick.resize(count);
   float guess = std::numeric_limits<float>::infinity();
   const auto key = [&](std::size_t j) { return std::uint64_t(std::bit_cast<std::uint32_t>(dist[j])) << 32 | j; };
   for (std::size_t i = 0; i < at.size(); ++i) {
     const float* qi = q.data() + 3 * i;
+    for (std::size_t j = 0; j < count; ++j) {
+      const float tx = qi[0] - xs[j], ty = qi[1] - ys[j], tz = qi[2] - zs[j];
+      float d = 0;
+      d += tx * tx;
+      d += ty * ty;
+      d += tz * tz;
+      dist[j] = d;
+    }
     std::size_t kept = 0;
     for (std::size_t j = 0; j < count; ++j) {
-      dist[j] = distance2(qi, xyz.data() + 3 * j);
       pick[kept] = key(j);
       kept += dist[j] <= guess;
     }
@@ -381,8 +414,7 @@ void SampleTree::pick_nearest(std::span<const IsoAngles> at, std::span<const flo
       for (std::size_t j = 0; j < count; ++j) pick[j] = key(j);
       kept = count;
     }
-    std::nth_element(pick.begin(), pick.begin() + std::ptrdiff_t(k - 1), pick.begin() + std::ptrdiff_t(kept));
-    const std::uint64_t kth = pick[k - 1];
+    const std::uint64_t kth = select_kth(std::span(pick).first(kept), k);
     guess = std::bit_cast<float>(std::uint32_t(kth >> 32)) * 1.1f;
     const auto nearest = std::uint32_t(*std::min_element(pick.begin(), pick.begin() + std::ptrdiff_t(k)));
     Neighbours& o = out[i];
