@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "specula/core/brdf_resample.h"
+#include "specula/core/buffer.h"
 #include "specula/store/basis.h"
 #include "specula/store/grid.h"
 
@@ -138,7 +139,7 @@ struct SpcCoefficients {
   Eigen::MatrixXd basis;  ///< k x B, the rows V
   double scale = 1;       ///< value x scale is 1/sr
   std::string units, source, reference;
-  std::vector<float> values;        ///< kMerlCells x k, cell-major (MERL cell order); 0 in cells without data
+  Buffer<float> values;             ///< kMerlCells x k, cell-major (MERL cell order); 0 in cells without data
   std::vector<std::uint8_t> valid;  ///< kMerlCells; 1 where the cell has data
   std::size_t k() const { return std::size_t(basis.rows()); }
   std::size_t bands() const { return std::size_t(basis.cols()); }

@@ -138,7 +138,7 @@ SpcBrdf::SpcBrdf(SpcCoefficients&& c)
   madvise(values_.get(), values_bytes_, MADV_HUGEPAGE);
 #endif
   std::copy(c.values.begin(), c.values.end(), values_.get());
-  std::vector<float>().swap(c.values);
+  decltype(c.values)().swap(c.values);
   valid_ = std::move(c.valid);
 }
 

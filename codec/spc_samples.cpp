@@ -94,9 +94,16 @@ SpcCoefficients resample_codes(const SampleCodes& cd, const Eigen::MatrixXd& bas
   }
   SpcCoefficients c;
   c.basis = basis;
-  c.values.assign(kMerlCells * k, 0.0f);
+  // Sized unwritten: the fill writes the cells with data and the rest are zeroed after it, both on all threads, so
+  // that the pages are first touched there rather than by one thread zeroing them all.
+  c.values.resize(kMerlCells * k);
   c.valid.assign(kMerlCells, 0);
   brdf::Resampler(angles, values, k, rule).fill_cells(c.values, c.valid);
+  constexpr std::size_t kBlock = 4096;
+  parallel_for((kMerlCells + kBlock - 1) / kBlock, [&](std::size_t b) {
+    for (std::size_t cell = b * kBlock; cell < std::min(kMerlCells, (b + 1) * kBlock); ++cell)
+      if (!c.valid[cell]) std::fill_n(c.values.begin() + std::ptrdiff_t(cell * k), k, 0.0f);
+  });
   return c;
 }
 

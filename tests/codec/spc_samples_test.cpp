@@ -82,6 +82,25 @@ TEST(SpcSamples, AFineCodingDecodesToTheGridTheExactSamplesResampleTo) {
   EXPECT_LT(a.worst, 2e-3);
 }
 
+// The coefficient form is sized unwritten and its cells without data are zeroed after the fill: they must read 0
+// (under AddressSanitizer a fresh allocation's first 4 KB hold 0xbe bytes, so cell 0 would not).
+TEST(SpcSamples, CellsWithoutDataHoldZeroCoefficients) {
+  const Samples s = gonio_samples("red-plastic", 2000, 3);
+  const SpcSampleSet set = s.set();
+  const auto bytes = encode_spc(set, self_basis(set, 3), {.rule = kRule, .step = 0.05});
+  const SpcCoefficients c = decode_spc_coefficients(bytes, "z.spc");
+  const store::Grid grid = expand_spc(c);
+  ASSERT_EQ(c.valid[0], 0);  // theta_h = theta_d = 0 lies farther than max_gap from every sample (theta_i >= 0.17)
+  std::size_t without = 0;
+  for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
+    ASSERT_EQ(c.valid[cell] == 1, grid.brdf[cell] >= 0) << cell;
+    if (c.valid[cell]) continue;
+    ++without;
+    for (std::size_t j = 0; j < c.k(); ++j) ASSERT_EQ(c.values[cell * c.k() + j], 0.0f) << cell;
+  }
+  EXPECT_GT(without, 100000u);
+}
+
 TEST(SpcSamples, TheReportedErrorIsTheDecodedFilesAndTheBytesAreTheSameOnAnyThreadCount) {
   const Samples s = gonio_samples("red-plastic", 2000, 2);
   const SpcSampleSet set = s.set();
