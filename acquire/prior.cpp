@@ -8,6 +8,7 @@
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/merl_cells.h"
 #include "specula/core/parallel.h"
 #include "specula/store/grid_rows.h"
 #include "specula/store/prior.h"
@@ -38,15 +39,7 @@ inline float mapped(float x, float ref, double eps) { return float(std::log((dou
 
 }  // namespace
 
-const std::vector<std::uint32_t>& valid_cells() {
-  static const std::vector<std::uint32_t> cells = [] {
-    std::vector<std::uint32_t> v;
-    for (std::size_t i = 0; i < brdf::kMerlCells; ++i)
-      if (brdf::merl_cell_valid(brdf::merl_cell(i))) v.push_back(std::uint32_t(i));
-    return v;
-  }();
-  return cells;
-}
+const std::vector<std::uint32_t>& valid_cells() { return brdf::merl_valid_cells(); }
 
 const std::vector<float>& valid_cell_cosines() {
   static const std::vector<float> cosines = [] {

@@ -13,6 +13,7 @@
 
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/merl_cells.h"
 #include "specula/core/parallel.h"
 #include "specula/core/progress.h"
 
@@ -129,31 +130,6 @@ std::vector<std::size_t> cell_rows(std::span<const std::uint32_t> cells, std::si
 // A cell's value from its accumulated sum: LOESS's weights may be negative, and a BRDF is not.
 float estimate(Weights w, double sum) { return float(w == Weights::loess ? std::max(0.0, sum) : sum); }
 
-// Every cell whose two directions lie above the horizon (merl_cell_valid), in cell order; listed once per process,
-// its theta_h rows on all threads.
-const std::vector<std::uint32_t>& physical_cells() {
-  static const std::vector<std::uint32_t> cells = [] {
-    std::vector<std::vector<std::uint32_t>> rows(kMerlThetaH);
-    parallel_for(rows.size(), [&](std::size_t th) {
-      Eigen::Vector3d wi, wo;
-      for (int td = 0; td < kMerlThetaD; ++td) {
-        const MerlCentres row(int(th), td);
-        for (int pd = 0; pd < kMerlPhiD; ++pd) {
-          row.directions(pd, wi, wo);
-          if (wi.z() > 0 && wo.z() > 0) rows[th].push_back(std::uint32_t(merl_index({int(th), td, pd})));
-        }
-      }
-    });
-    std::size_t total = 0;
-    for (const auto& r : rows) total += r.size();
-    std::vector<std::uint32_t> all;
-    all.reserve(total);
-    for (const auto& r : rows) all.insert(all.end(), r.begin(), r.end());
-    return all;
-  }();
-  return cells;
-}
-
 using ValueReader = std::function<void(std::size_t first, std::size_t count, std::span<float> out)>;
 
 // Where a fill writes: band-major (bands x cells, -1 where a cell has no data) or cell-major (cells x bands and a
@@ -171,7 +147,7 @@ struct GridFill {
   const ResampleOptions& o;
   std::size_t n, bands;
   GridOut out;
-  const std::vector<std::uint32_t>& cells = physical_cells();
+  const std::vector<std::uint32_t>& cells = merl_valid_cells();
 
   // Finds and weighs the neighbours of cells[first, first + m), row by row on all threads, and calls
   // visit(c, by_sample) for each cell c (from first) with support; the gaps are written when asked for.
