@@ -1,11 +1,7 @@
 #include "specula/codec/spc_eval.h"
 
-#include <sys/mman.h>
-
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
-#include <new>
 #include <numbers>
 #include <string>
 
@@ -129,23 +125,14 @@ SpcBrdf::SpcBrdf(SpcCoefficients&& c)
   for (std::size_t j = 0; j < k_; ++j)
     for (std::size_t b = 0; b < bands_; ++b)
       basis_[j * padded_ + b] = float(c.basis(Eigen::Index(j), Eigen::Index(b)) * c.scale);
-  // The cells are read in random order: on 2 MB pages their table costs a few TLB entries instead of thousands.
-  constexpr std::size_t kHugePage = std::size_t(1) << 21;
-  values_bytes_ = (c.values.size() * sizeof(float) + kHugePage - 1) / kHugePage * kHugePage;
-  values_.reset(static_cast<float*>(std::aligned_alloc(kHugePage, values_bytes_)));
-  if (!values_) throw std::bad_alloc();
-#ifdef MADV_HUGEPAGE
-  madvise(values_.get(), values_bytes_, MADV_HUGEPAGE);
-#endif
-  std::copy(c.values.begin(), c.values.end(), values_.get());
-  decltype(c.values)().swap(c.values);
+  // The cells are read in random order: on 2 MB pages (a Buffer's, core/buffer.h) their table costs a few TLB
+  // entries instead of thousands.
+  values_ = std::move(c.values);
   valid_ = std::move(c.valid);
 }
 
-void SpcBrdf::Free::operator()(float* p) const { std::free(p); }
-
 std::size_t SpcBrdf::memory_bytes() const {
-  return values_bytes_ + valid_.capacity() + basis_.capacity() * sizeof(float);
+  return values_.capacity() * sizeof(float) + valid_.capacity() + basis_.capacity() * sizeof(float);
 }
 
 namespace {
@@ -163,7 +150,7 @@ inline void expand_padded(const float* a, std::size_t k, const float* v, float* 
 }  // namespace
 
 void SpcBrdf::expand(std::size_t cell, float* out) const {
-  const float* a = values_.get() + cell * k_;
+  const float* a = values_.data() + cell * k_;
   const float* v = basis_.data();
   switch (padded_) {
     case 8:
@@ -218,14 +205,14 @@ void SpcBrdf::evaluate(std::span<const float> wi, std::span<const float> wo, std
                  std::uint32_t* next = cells.data() + kBlock;
                  find(begin, now);
                  for (std::size_t i = 0; i < std::min(kBlock, end - begin); ++i)
-                   __builtin_prefetch(values_.get() + now[i] * k_);
+                   __builtin_prefetch(values_.data() + now[i] * k_);
                  for (std::size_t first = begin; first < end; first += kBlock) {
                    const std::size_t m = std::min(kBlock, end - first);
                    const bool more = first + kBlock < end;
                    const std::size_t m_next = more ? std::min(kBlock, end - first - kBlock) : 0;
                    if (more) find(first + kBlock, next);
                    for (std::size_t i = 0; i < m; ++i) {
-                     if (i < m_next) __builtin_prefetch(values_.get() + next[i] * k_);
+                     if (i < m_next) __builtin_prefetch(values_.data() + next[i] * k_);
                      expand(now[i], out.data() + (first + i) * bands_);
                    }
                    std::swap(now, next);

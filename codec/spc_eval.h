@@ -58,11 +58,7 @@ class SpcBrdf {
   WavelengthGrid wavelengths_;
   std::string source_, reference_;
   std::size_t k_ = 0, bands_ = 0, padded_ = 0;
-  struct Free {
-    void operator()(float* p) const;
-  };
-  std::unique_ptr<float[], Free> values_;  // kMerlCells x k, on huge pages where the system gives them
-  std::size_t values_bytes_ = 0;
+  Buffer<float> values_;             // kMerlCells x k, the decoded form's own (on huge pages where offered)
   std::vector<std::uint8_t> valid_;  // kMerlCells
   std::vector<float> basis_;         // k x padded_, the rows V times scale, zero beyond B
 };

@@ -77,7 +77,7 @@ void for_each_coefficient(const CubeLayout& c, const Transform& t, std::size_t c
 // Fills the cells of a 90 x 90 x 180 channel where `known` is 0 so that the channel stays smooth for the transform:
 // along theta_d, then phi_d, then theta_h, each gap between known cells linearly and each end with its nearest
 // known value; cells on lines with nothing known wait for the next axis (and are 0 if no cell is known).
-void fill(std::vector<float>& v, std::vector<std::uint8_t> known) {
+void fill(std::span<float> v, std::vector<std::uint8_t> known) {
   const std::array<std::size_t, 3> n{std::size_t(kMerlThetaH), std::size_t(kMerlThetaD), std::size_t(kMerlPhiD)};
   const std::array<std::size_t, 3> stride{kSlab, std::size_t(kMerlPhiD), 1};
   for (const std::size_t axis : {std::size_t(1), std::size_t(2), std::size_t(0)}) {
@@ -107,7 +107,7 @@ void fill(std::vector<float>& v, std::vector<std::uint8_t> known) {
 
 // A filled channel folded about phi_d = pi/2 into its sum and difference cubes (isotropic reciprocal BRDFs are
 // even there, so the difference is near zero): S = (v(p) + v(179 - p)) / 2, D = (v(p) - v(179 - p)) / 2.
-void fold(const std::vector<float>& v, std::vector<float>& sum, std::vector<float>& diff) {
+void fold(std::span<const float> v, Buffer<float>& sum, Buffer<float>& diff) {
   sum.resize(kCube);
   diff.resize(kCube);
   for (std::size_t hd = 0; hd < std::size_t(kMerlThetaH) * kMerlThetaD; ++hd)
@@ -125,7 +125,7 @@ struct Model {
   std::vector<std::uint8_t> valid;
   std::uint64_t n_valid = 0;
   Validity validity = Validity::coded;
-  std::vector<std::vector<float>> cubes;
+  std::vector<Buffer<float>> cubes;
 };
 
 Model transform_model(const store::Grid& grid, const SpcBasis& basis, const SpcTransformOptions& o) {
@@ -137,7 +137,9 @@ Model transform_model(const store::Grid& grid, const SpcBasis& basis, const SpcT
   std::vector<float> mag;
   md.n_valid = magnitudes(grid, mag, md.valid);
   md.s = magnitude_scale(mag, md.valid, o.magnitude_scale);
-  std::vector<std::vector<float>> ch(k + 1, std::vector<float>(kMerlCells, 0.0f));
+  // Large scratch (Buffer, core/buffer.h): an encode's target search builds a model per k it tries.
+  std::vector<Buffer<float>> ch(k + 1);
+  for (auto& c : ch) c.assign(kMerlCells, 0.0f);
   std::vector<std::uint8_t> shaped(kMerlCells, 0);
   const bool all = md.n_valid == kMerlCells, horizon = md.valid == horizon_mask();
   md.validity = all ? Validity::all : horizon ? Validity::horizon : Validity::coded;
@@ -164,7 +166,7 @@ Model transform_model(const store::Grid& grid, const SpcBasis& basis, const SpcT
       [&](std::size_t j) {
         fill(ch[j], j == 0 ? md.valid : shaped);
         fold(ch[j], md.cubes[2 * j], md.cubes[2 * j + 1]);
-        std::vector<float>().swap(ch[j]);
+        Buffer<float>().swap(ch[j]);
         wavelet::forward_cube(md.cubes[2 * j], layout);
         wavelet::forward_cube(md.cubes[2 * j + 1], layout);
       },
@@ -172,13 +174,14 @@ Model transform_model(const store::Grid& grid, const SpcBasis& basis, const SpcT
   return md;
 }
 
-std::vector<std::vector<std::int32_t>> quantise(const Model& md, const Transform& t) {
-  std::vector<std::vector<std::int32_t>> q(md.cubes.size(), std::vector<std::int32_t>(kCube));
+std::vector<Buffer<std::int32_t>> quantise(const Model& md, const Transform& t) {
+  std::vector<Buffer<std::int32_t>> q(md.cubes.size());
   const CubeLayout layout = cube_layout(t.levels);
   parallel_for(
       md.cubes.size(),
       [&](std::size_t cube) {
-        const std::vector<float>& w = md.cubes[cube];
+        const Buffer<float>& w = md.cubes[cube];
+        q[cube].assign(kCube, 0);
         std::int32_t* out = q[cube].data();
         for_each_coefficient(layout, t, cube / 2, [&](std::size_t i, double step) {
           const double a = std::floor(std::abs(double(w[i])) / step + kRounding);
@@ -193,15 +196,19 @@ std::vector<std::vector<std::int32_t>> quantise(const Model& md, const Transform
 
 // The coefficient form of quantised cubes: dequantised, inverse-transformed, unfolded, and per valid cell
 // a_j = s expm1(max(0, y')) c'_j.
-SpcCoefficients reconstruct(const std::vector<std::vector<std::int32_t>>& q, const Transform& t, std::size_t k,
-                            double s, const std::vector<std::uint8_t>& valid, const std::string& label) {
+SpcCoefficients reconstruct(const std::vector<Buffer<std::int32_t>>& q, const Transform& t, std::size_t k, double s,
+                            const std::vector<std::uint8_t>& valid, const std::string& label) {
   const CubeLayout layout = cube_layout(t.levels);
-  std::vector<std::vector<float>> channel(k + 1, std::vector<float>(kMerlCells));
+  // The channels and the coefficient form are sized unwritten and first written by the threads that fill them: every
+  // cell of a channel is written below, and the form's cells without data are zeroed in its fill.
+  std::vector<Buffer<float>> channel(k + 1);
   parallel_for(
       k + 1,
       [&](std::size_t j) {
-        std::array<std::vector<float>, 2> w{std::vector<float>(kCube), std::vector<float>(kCube)};
+        channel[j].resize(kMerlCells);
+        std::array<Buffer<float>, 2> w;
         for (std::size_t half = 0; half < 2; ++half) {
+          w[half].assign(kCube, 0.0f);
           const std::int32_t* in = q[2 * j + half].data();
           float* out = w[half].data();
           for_each_coefficient(layout, t, j, [&](std::size_t i, double step) {
@@ -220,11 +227,14 @@ SpcCoefficients reconstruct(const std::vector<std::vector<std::int32_t>>& q, con
       },
       1);
   SpcCoefficients out;
-  out.values.assign(k * kMerlCells, 0.0f);
+  out.values.resize(k * kMerlCells);
   parallel_for(
       kMerlCells,
       [&](std::size_t c) {
-        if (!valid[c]) return;
+        if (!valid[c]) {
+          std::fill_n(out.values.begin() + std::ptrdiff_t(c * k), k, 0.0f);
+          return;
+        }
         const double m = s * std::expm1(std::max(0.0, double(channel[0][c])));
         for (std::size_t j = 0; j < k; ++j) {
           const float a = float(m * double(channel[j + 1][c]));
@@ -240,7 +250,7 @@ SpcCoefficients reconstruct(const std::vector<std::vector<std::int32_t>>& q, con
 }
 
 std::vector<std::uint8_t> pack_v2(const Model& md, const SpcBasis& basis, const store::Grid& grid, const Transform& t,
-                                  const std::vector<std::vector<std::int32_t>>& q, const std::string& source) {
+                                  const std::vector<Buffer<std::int32_t>>& q, const std::string& source) {
   std::vector<std::vector<std::uint8_t>> streams(q.size());
   const CubeLayout layout = cube_layout(t.levels);
   parallel_for(
@@ -488,11 +498,16 @@ SpcCoefficients decode_v2(std::span<const std::uint8_t> bytes, const std::string
   if (r.at() != bytes.size() - 4)
     throw InputError(label + ": .spc file has " + std::to_string(bytes.size() - 4 - r.at()) +
                      " unexpected bytes before its CRC");
-  std::vector<std::vector<std::int32_t>> q(cubes, std::vector<std::int32_t>(kCube));
+  std::vector<Buffer<std::int32_t>> q(cubes);
   std::vector<std::uint8_t> ok(cubes, 1);
   const CubeLayout layout = cube_layout(t.levels);
   parallel_for(
-      cubes, [&](std::size_t i) { ok[i] = decode_cube(streams[i], layout, q[i]); }, 1);
+      cubes,
+      [&](std::size_t i) {
+        q[i].assign(kCube, 0);
+        ok[i] = decode_cube(streams[i], layout, q[i]);
+      },
+      1);
   for (std::size_t i = 0; i < cubes; ++i)
     if (!ok[i])
       throw InputError(label + ": .spc stream " + std::to_string(i) + " ends before its cube; the file is corrupt");

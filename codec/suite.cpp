@@ -8,6 +8,7 @@
 
 #include "specula/codec/spc_eval.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/buffer.h"
 #include "specula/core/cie.h"
 #include "specula/core/colour.h"
 #include "specula/core/error.h"
@@ -162,8 +163,10 @@ SuiteRenders LightingSuite::render(const store::Grid& grid) const {
   check_grid(grid, wavelengths_, "grid");
   const std::size_t b = wavelengths_.size(), u = cells_.size();
   constexpr std::size_t kChunk = 4096;
-  // The cells the suite looks up, cell-major and in 1/sr, holes zero.
-  std::vector<float> table(u * b);
+  // The cells the suite looks up, cell-major and in 1/sr, holes zero: every value is written below, by the threads
+  // that first touch its pages (a target search renders a grid per trial).
+  Buffer<float> table;
+  table.resize(u * b);
   SuiteRenders out;
   out.cell_valid.assign(u, 0);
   parallel_for((u + kChunk - 1) / kChunk, [&](std::size_t chunk) {

@@ -1,0 +1,23 @@
+#include "specula/core/buffer.h"
+
+#include <sys/mman.h>
+
+#include <cstdlib>
+
+namespace specula::detail {
+
+void* allocate_large(std::size_t bytes) {
+  constexpr std::size_t kHugePage = std::size_t(1) << 21;
+  if (bytes == 0 || bytes > std::numeric_limits<std::size_t>::max() - kHugePage) throw std::bad_alloc();
+  const std::size_t size = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+  void* p = std::aligned_alloc(kHugePage, size);
+  if (!p) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+  madvise(p, size, MADV_HUGEPAGE);  // advice only: without huge pages the block is ordinary memory
+#endif
+  return p;
+}
+
+void release_large(void* p) noexcept { std::free(p); }
+
+}  // namespace specula::detail
