@@ -150,6 +150,8 @@ struct SpcCoefficients {
 SpcCoefficients decode_spc_coefficients(std::span<const std::uint8_t> bytes, const std::string& label);
 /// The grid of a coefficient form: x'_b = max(0, sum_j a_j V_jb) in valid cells, -1 (no data) elsewhere.
 store::Grid expand_spc(const SpcCoefficients& coefficients);
+/// expand_spc into out, its storage reused when it holds bands x kMerlCells values already (a search's trials).
+void expand_spc(const SpcCoefficients& coefficients, store::Grid& out);
 /// Decodes .spc bytes to a grid: expand_spc(decode_spc_coefficients(bytes, label)).
 store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& label);
 /// The format version of .spc bytes (1 to 4; magic, version and CRC checked as decode_spc does).

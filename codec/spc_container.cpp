@@ -159,23 +159,28 @@ std::vector<std::uint8_t> encode_spc(const store::Grid& grid, const SpcBasis& ba
 }
 
 store::Grid expand_spc(const SpcCoefficients& c) {
+  store::Grid g;
+  expand_spc(c, g);
+  return g;
+}
+
+void expand_spc(const SpcCoefficients& c, store::Grid& g) {
   const std::size_t k = c.k(), bands = c.bands();
   if (c.values.size() != k * kMerlCells || c.valid.size() != kMerlCells)
     throw UsageError("expand_spc: coefficients do not match k x 90 x 90 x 180 cells");
-  store::Grid g;
-  g.wavelengths = c.wavelengths;
-  g.scale = c.scale;
-  g.units = c.units;
+  g = store::Grid{.wavelengths = c.wavelengths, .scale = c.scale, .brdf = std::move(g.brdf), .units = c.units};
   g.provenance.source_file = c.source;
   g.provenance.importer = "decode " + c.reference;
-  g.brdf.assign(bands * kMerlCells, -1.0f);
+  g.brdf.resize(bands * kMerlCells);  // every value is written below
   parallel_for(
       kMerlCells,
       [&](std::size_t cell) {
-        if (c.valid[cell]) detail::expand_cell(c.basis, c.values.data() + cell * k, g.brdf.data() + cell, kMerlCells);
+        if (c.valid[cell])
+          detail::expand_cell(c.basis, c.values.data() + cell * k, g.brdf.data() + cell, kMerlCells);
+        else
+          for (std::size_t b = 0; b < bands; ++b) g.brdf[b * kMerlCells + cell] = -1.0f;
       },
       kSlab);
-  return g;
 }
 
 store::Grid decode_spc(std::span<const std::uint8_t> bytes, const std::string& label) {

@@ -142,8 +142,8 @@ class StepCoder {
   virtual ~StepCoder() = default;
   /// The finest step the codes allow.
   virtual double finest_step() const = 0;
-  /// The grid a file coded at `step` decodes to.
-  virtual store::Grid decoded(double step) const = 0;
+  /// The grid a file coded at `step` decodes to, into out (its storage reused when it has the size already).
+  virtual void decoded(double step, store::Grid& out) const = 0;
   /// The file at `step`, with what it measures when asked.
   virtual std::vector<std::uint8_t> code(double step, SpcReport* report, const std::string& source) const = 0;
 };
@@ -156,7 +156,7 @@ class TransformModel final : public StepCoder {
   ~TransformModel() override;
   /// The finest step (of the options' ratios) whose codes all stay below 2^27.
   double finest_step() const override;
-  store::Grid decoded(double step) const override;
+  void decoded(double step, store::Grid& out) const override;
   /// The file at `step`, with what it measures against the grid when asked.
   std::vector<std::uint8_t> code(double step, SpcReport* report, const std::string& source) const override;
 
@@ -175,7 +175,7 @@ class SamplesModel final : public StepCoder {
   ~SamplesModel() override;
   /// The finest step whose codes all stay below 2^27.
   double finest_step() const override;
-  store::Grid decoded(double step) const override;
+  void decoded(double step, store::Grid& out) const override;
   /// The file at `step`, with its errors against the reference when asked.
   std::vector<std::uint8_t> code(double step, SpcReport* report, const std::string& source) const override;
 

@@ -191,13 +191,13 @@ double SamplesModel::finest_step() const {
                    m.max_c / (m.options.shape_step_ratio * double(kMaxSampleCode - 1))});
 }
 
-store::Grid SamplesModel::decoded(double step) const {
+void SamplesModel::decoded(double step, store::Grid& out) const {
   const Impl& m = *impl_;
   SpcCoefficients c = resample_codes(m.codes(step), m.rows, m.options.rule);
   c.wavelengths = m.samples->wavelengths;
   c.scale = m.samples->scale;
   c.units = m.samples->units;
-  return expand_spc(c);
+  expand_spc(c, out);
 }
 
 namespace {
@@ -299,7 +299,9 @@ std::vector<std::uint8_t> SamplesModel::code(double step, SpcReport* report, con
     report->magnitude_scale = cd.s * m.samples->scale;
     report->magnitude_step = cd.step_m;
     report->shape_step = cd.step_c;
-    measure(decoded(step), *m.reference, *report);
+    store::Grid g;
+    decoded(step, g);
+    measure(g, *m.reference, *report);
   }
   return out;
 }

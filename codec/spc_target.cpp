@@ -52,10 +52,12 @@ std::optional<double> next_step(const std::optional<Trial>& good, const std::opt
   return std::max(finest, bad->step / std::clamp(bad->excess / kAim, 2.0, 16.0));
 }
 
-// One trial coding at `step`, judged by the suite against the reference's renders.
+// One trial coding at `step`, judged by the suite against the reference's renders; decoded into `scratch`, whose
+// storage the trials of a search share (a fresh grid's pages cost as much to fault in as the suite to render).
 Trial run_trial(const detail::StepCoder& model, const SuiteRenders& reference, const LightingSuite& suite,
-                const SpcTarget& target, double step) {
-  Trial t{step, 0, suite.compare(reference, suite.render(model.decoded(step)))};
+                const SpcTarget& target, double step, store::Grid& scratch) {
+  model.decoded(step, scratch);
+  Trial t{step, 0, suite.compare(reference, suite.render(scratch))};
   t.excess = std::max({t.diff.de00_mean / target.de00_mean, t.diff.de00_p95 / target.de00_p95,
                        t.diff.conditions[t.diff.worst].de00_mean / target.condition_mean});
   return t;
@@ -70,13 +72,13 @@ struct Search {
 };
 
 Search search_step(const detail::StepCoder& model, const SuiteRenders& reference, const LightingSuite& suite,
-                   const SpcTarget& target, double first_step) {
+                   const SpcTarget& target, double first_step, store::Grid& scratch) {
   std::optional<Trial> good, bad;
   const double finest = std::max(1e-6, model.finest_step());
   std::optional<double> step = std::max(first_step, finest);
   int trials = 0;
   while (step && trials < target.max_trials) {
-    Trial t = run_trial(model, reference, suite, target, *step);
+    Trial t = run_trial(model, reference, suite, target, *step, scratch);
     ++trials;
     (t.excess <= 1 ? good : bad) = std::move(t);
     step = next_step(good, bad, finest);
@@ -118,7 +120,8 @@ std::vector<std::uint8_t> encode_spc_to_target(const store::Grid& grid, const Sp
                                                const std::string& source) {
   check_target(target);
   const detail::TransformModel model(grid, basis, o);
-  const Search s = search_step(model, suite.render(grid), suite, target, target.first_step);
+  store::Grid scratch;
+  const Search s = search_step(model, suite.render(grid), suite, target, target.first_step, scratch);
   fill_report(s, suite, tr);
   return model.code(s.chosen.step, report, source);
 }
@@ -164,9 +167,11 @@ std::vector<std::uint8_t> choose_k(const SuiteRenders& reference, const CoderOfK
   kr = {};
   // Floors, by bisection: hi ends as the smallest k meeting the target at the finest step, or k_max (its coder kept).
   Coder kept;
+  store::Grid scratch;
   auto floor_met = [&](std::size_t k) {
     Coder c = coder_of_k(k);
-    const bool met = run_trial(*c.model, reference, suite, target, std::max(1e-6, c.model->finest_step())).excess <= 1;
+    const bool met =
+        run_trial(*c.model, reference, suite, target, std::max(1e-6, c.model->finest_step()), scratch).excess <= 1;
     kr.candidates.push_back({.k = k, .floor_met = met});
     if (met) kept = std::move(c);
     return met;
@@ -187,7 +192,7 @@ std::vector<std::uint8_t> choose_k(const SuiteRenders& reference, const CoderOfK
   double first = target.first_step;
   for (std::size_t k = hi, misses = 0; k <= k_max && misses < 2; ++k) {
     Coder c = kept.model ? std::move(kept) : coder_of_k(k);
-    const Search s = search_step(*c.model, reference, suite, target, first);
+    const Search s = search_step(*c.model, reference, suite, target, first, scratch);
     SpcReport rep;
     auto bytes = c.model->code(s.chosen.step, &rep, source);
     kr.candidates.push_back({.k = k,

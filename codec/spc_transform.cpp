@@ -544,11 +544,11 @@ TransformModel::~TransformModel() = default;
 
 double TransformModel::finest_step() const { return detail::finest_step(impl_->model, impl_->options); }
 
-store::Grid TransformModel::decoded(double step) const {
+void TransformModel::decoded(double step, store::Grid& out) const {
   const Impl& m = *impl_;
   const Transform t = transform_of(m.options, step);
   const auto q = quantise(m.model, t);
-  return expand_spc(with_header(reconstruct(q, t, m.model.k, m.model.s, m.model.valid, "encode"), m.grid, m.basis, ""));
+  expand_spc(with_header(reconstruct(q, t, m.model.k, m.model.s, m.model.valid, "encode"), m.grid, m.basis, ""), out);
 }
 
 std::vector<std::uint8_t> TransformModel::code(double step, SpcReport* report, const std::string& source) const {
