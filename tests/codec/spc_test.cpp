@@ -420,7 +420,9 @@ TEST(SpcTransform, CellsWithoutDataStayWithoutAndHoldZeroCoefficients) {
     }
     EXPECT_EQ(mismatches, 0u);
     EXPECT_EQ(nonzero, 0u);
-    if (g == &holes) EXPECT_EQ(c.valid[0], 0);
+    if (g == &holes) {
+      EXPECT_EQ(c.valid[0], 0);
+    }
   }
 }
 
