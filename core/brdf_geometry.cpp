@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 
@@ -127,9 +128,18 @@ MerlCentres::MerlCentres(int theta_h, int theta_d)
       sin_d_(std::sin(centre_.theta_d)) {}
 
 void MerlCentres::directions(int phi_d, Eigen::Vector3d& wi, Eigen::Vector3d& wo) const {
-  const double phi = merl_cell_centre({0, 0, phi_d}).phi_d;
+  // The cosine and sine of every phi_d centre, once per process.
+  static const auto turns = [] {
+    std::array<std::array<double, 2>, kMerlPhiD> t{};
+    for (int p = 0; p < kMerlPhiD; ++p) {
+      const double phi = merl_cell_centre({0, 0, p}).phi_d;
+      t[std::size_t(p)] = {std::cos(phi), std::sin(phi)};
+    }
+    return t;
+  }();
+  const auto& [c, s] = turns.at(std::size_t(phi_d));
   // direction(theta_d, phi) with theta_d's sine and cosine known
-  turn_difference({sin_d_ * std::cos(phi), sin_d_ * std::sin(phi), cos_d_}, cos_h_, sin_h_, 0.0, wi, wo);
+  turn_difference({sin_d_ * c, sin_d_ * s, cos_d_}, cos_h_, sin_h_, 0.0, wi, wo);
 }
 
 StdAngles MerlCentres::std_angles(int phi_d) const {

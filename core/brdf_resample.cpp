@@ -441,15 +441,15 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
   if ((w == Weights::shepard || w == Weights::renka) && at_zero) {
     for (std::size_t j = 0; j < n; ++j) raw[j] = dist2[j] == 0 ? 1.0 : 0.0;
   } else if (w == Weights::shepard) {
-    for (std::size_t j = 0; j < n; ++j) {
-      const double d2 = dist2[j];
-      if (power == 1)
-        raw[j] = 1 / std::sqrt(d2);
-      else if (power == 2)
-        raw[j] = 1 / d2;
-      else
-        raw[j] = std::pow(d2, -0.5 * power);
-    }
+    // Eigen's packets give the same correctly rounded square roots and quotients as one at a time.
+    Eigen::Map<Eigen::ArrayXd> r(raw.data(), Eigen::Index(n));
+    const auto d2 = Eigen::Map<const Eigen::ArrayXf>(dist2.data(), Eigen::Index(n)).cast<double>();
+    if (power == 1)
+      r = d2.sqrt().inverse();
+    else if (power == 2)
+      r = d2.inverse();
+    else
+      for (std::size_t j = 0; j < n; ++j) raw[j] = std::pow(double(dist2[j]), -0.5 * power);
   } else if (w == Weights::renka || (smoothing && at_zero < n)) {
     // Renka: ((R - d) / (R d))^2 = (1/d - 1/R)^2; with no reach (R infinite) 1/d^2.
     const double inv_r = std::isfinite(reach2) ? 1 / std::sqrt(reach2) : 0.0;

@@ -3,6 +3,7 @@
 #include <nanoflann.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -100,6 +101,24 @@ float distance2(const float* q, const float* p) {
   return s;
 }
 
+// The k-th smallest squared distance from c to the points at positions pos of xyz (n points; scratch: d2).
+float kth_distance2(const float* c, std::span<const std::uint32_t> pos, std::size_t k, std::span<const float> xyz,
+                    std::vector<float>& d2) {
+  d2.resize(pos.size());
+  for (std::size_t j = 0; j < pos.size(); ++j) {
+    if (3 * std::size_t(pos[j]) >= xyz.size())
+      throw std::logic_error("SampleTree: a row bounded by another tree's candidates");
+    d2[j] = distance2(c, xyz.data() + 3 * std::size_t(pos[j]));
+  }
+  std::nth_element(d2.begin(), d2.begin() + std::ptrdiff_t(k - 1), d2.end());
+  return d2[k - 1];
+}
+
+std::uint64_t next_serial() {
+  static std::atomic<std::uint64_t> count{0};
+  return ++count;
+}
+
 // The points are cut into slabs along one axis and every slab gets its own tree, so that the trees are built on
 // all threads. The number of slabs depends on the number of points only: the same trees, neighbours and ties
 // for any thread count.
@@ -134,6 +153,16 @@ std::uint64_t select_kth(std::span<std::uint64_t> keys, std::size_t k) {
   return largest(k);
 }
 
+// The candidates of the row a thread searched last, as positions in the tree numbered `tree`: any k of them bound
+// the k-th neighbour's distance of the next row's centre from above, which spares that row its own k-nearest search.
+// Only the speed depends on it; the neighbours found do not.
+struct LastRow {
+  std::uint64_t tree = 0;
+  std::vector<std::uint32_t> pos;
+  std::vector<float> d2;
+};
+thread_local LastRow last_row;
+
 }  // namespace
 
 struct SampleTree::Index {
@@ -147,6 +176,7 @@ struct SampleTree::Index {
   int axis = 0;
   std::vector<float> cuts;  // slab s holds cuts[s - 1] <= x[axis] < cuts[s]
   std::vector<std::unique_ptr<Slab>> slabs;
+  std::uint64_t serial = next_serial();  // tells this tree's positions from another's in a thread's LastRow
 };
 
 SampleTree::SampleTree(const SampleSource& src, Mapping m)
@@ -316,10 +346,11 @@ void SampleTree::split_row(std::span<const IsoAngles> at, std::span<const float>
   }
 }
 
-// Queries [0, at.size()) as one search when they lie close together, else in shorter rows: the k nearest of the row's
-// centre c give R = d_k(c) + 2 r (r: the largest distance of a query from c), and every query's k nearest lie
-// within R of c, since d_k(q) <= d_k(c) + r. Among the points within R each query's nearest are found by
-// distance and sample index, as NearestSet orders them.
+// Queries [0, at.size()) as one search when they lie close together, else in shorter rows: any bound B >= d_k(c) of
+// the row's centre c gives R = B + 2 r (r: the largest distance of a query from c), and every query's k nearest lie
+// within R of c, since d_k(q) <= d_k(c) + r. B is the k-th distance from c to the previous row's candidates (any k
+// points bound d_k(c)), or d_k(c) itself, searched for, when there are none or they hold too many within R. Among the
+// points within R each query's nearest are found by distance and sample index, as NearestSet orders them.
 void SampleTree::nearest_row(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,
                              std::span<Neighbours> out, bool offsets, double gap_cap) const {
   const std::size_t m = at.size();
@@ -347,25 +378,39 @@ void SampleTree::nearest_row(std::span<const IsoAngles> at, std::span<const floa
     for (std::size_t d = 0; d < 3; ++d) c[d] += q[3 * i + d] / float(m);
   float r2 = 0;
   for (std::size_t i = 0; i < m; ++i) r2 = std::max(r2, distance2(c, q.data() + 3 * i));
+  const float r = std::sqrt(r2);
   thread_local std::vector<std::uint32_t> pos;
-  thread_local std::vector<float> d2;
-  pos.resize(k);
-  d2.resize(k);
-  NearestSet centre(k, index_->sample.data(), pos.data(), d2.data());
-  search(c, centre);
-  const float dk = std::sqrt(d2[centre.size() - 1]), r = std::sqrt(r2);
-  if (2 * r > kRowSpread * dk)  // shorter rows, as long as the spread allows
-    return split_row(at, q, k, out, offsets, gap_cap, std::size_t(float(m) * kRowSpread * dk / (2 * r)));
-  const float reach = (dk + 2 * r) * (1 + 1e-5f);
-  pos.clear();
-  // > 0 when the row sits on a sample
-  WithinSet within(reach * reach + std::numeric_limits<float>::min(), kRowCandidates * k, pos);
-  search(c, within);
-  if (pos.size() > kRowCandidates * k)  // an empty region beside a dense one: halves
-    return split_row(at, q, k, out, offsets, gap_cap, (m + 1) / 2);
-  if (pos.size() < k) throw std::logic_error("SampleTree::nearest_each: fewer candidates than neighbours");
-  pick_nearest(at, q, k, pos, out, offsets, gap_cap);
+  for (const bool bounded : {true, false}) {
+    float dk = 0;
+    if (bounded) {
+      if (last_row.tree != index_->serial || last_row.pos.size() < k) continue;
+      dk = std::sqrt(kth_distance2(c, last_row.pos, k, index_->xyz, last_row.d2));
+    } else {
+      pos.resize(k);
+      last_row.d2.resize(k);
+      NearestSet centre(k, index_->sample.data(), pos.data(), last_row.d2.data());
+      search(c, centre);
+      dk = std::sqrt(last_row.d2[centre.size() - 1]);
+    }
+    if (2 * r > kRowSpread * dk)  // shorter rows, as long as the spread allows
+      return split_row(at, q, k, out, offsets, gap_cap, std::size_t(float(m) * kRowSpread * dk / (2 * r)));
+    const float reach = (dk + 2 * r) * (1 + 1e-5f);
+    pos.clear();
+    // > 0 when the row sits on a sample
+    WithinSet within(reach * reach + std::numeric_limits<float>::min(), kRowCandidates * k, pos);
+    search(c, within);
+    if (pos.size() > kRowCandidates * k) {
+      if (bounded) continue;                                           // the bound was loose: the exact d_k(c)
+      return split_row(at, q, k, out, offsets, gap_cap, (m + 1) / 2);  // an empty region beside a dense one: halves
+    }
+    if (pos.size() < k) throw std::logic_error("SampleTree::nearest_each: fewer candidates than neighbours");
+    last_row.tree = index_->serial;
+    last_row.pos.assign(pos.begin(), pos.end());
+    pick_nearest(at, q, k, pos, out, offsets, gap_cap);
+    return;
+  }
 }
+
 // Each query's k nearest among the candidate positions (which hold them all), in ascending sample index; keys of
 // squared distance and rank by sample index, so that ties fall as NearestSet lets them.
 void SampleTree::pick_nearest(std::span<const IsoAngles> at, std::span<const float> q, std::size_t k,

@@ -341,6 +341,38 @@ TEST(Resampler, NeighboursTieToTheLowerSampleIndexOneQueryAtATimeOrARowAtATime) 
   EXPECT_GT(bounded, 50u);  // and gaps were bounds, not computed
 }
 
+// A thread's rows bound the next row's search by the candidates of the row before, held as positions in a tree: a
+// row searched in a smaller tree right after one in a larger tree must not read the larger tree's positions.
+TEST(Resampler, ARowAfterARowOfAnotherTreeFindsWhatOneQueryAtATimeFinds) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> theta(0.05, 1.5), phi(0, pi);
+  const auto samples = [&](int n) {
+    std::vector<double> angles;
+    for (int i = 0; i < n; ++i) angles.insert(angles.end(), {theta(rng), 0.0, theta(rng), phi(rng)});
+    return angles;
+  };
+  const std::vector<double> large = samples(50000), small = samples(300);
+  const std::vector<float> values(large.size() / 4, 0.0f);
+  const SampleTree big(MemorySamples(large, values, 1), Mapping::standard);
+  const SampleTree few(MemorySamples(small, std::span(values).first(small.size() / 4), 1), Mapping::standard);
+  for (int row = 0; row < 6; ++row) {
+    std::vector<IsoAngles> at;
+    for (int t = 0; t < 16; ++t) at.push_back({0.4 + 0.1 * row, 0.5 + 0.1 * row, 1.0 + 0.01 * t});
+    std::vector<Neighbours> each(at.size());
+    big.nearest_each(at, 40, each);  // leaves the big tree's candidates as the thread's last row
+    few.nearest_each(at, 40, each);
+    for (std::size_t i = 0; i < at.size(); ++i) {
+      Neighbours one;
+      few.nearest(at[i], 40, one);
+      std::vector<std::pair<float, std::uint32_t>> a, b;
+      for (std::size_t j = 0; j < one.index.size(); ++j) a.push_back({one.dist2[j], one.index[j]});
+      for (std::size_t j = 0; j < each[i].index.size(); ++j) b.push_back({each[i].dist2[j], each[i].index[j]});
+      std::sort(b.begin(), b.end());
+      ASSERT_EQ(a, b) << "row " << row << " query " << i;
+    }
+  }
+}
+
 // A row over an empty region beside a dense one: its ball of candidates would hold thousands, so the row is cut
 // down, and every query still gets what searching it alone gives.
 TEST(Resampler, ARowBesideADenseClusterFindsWhatOneQueryAtATimeFinds) {
