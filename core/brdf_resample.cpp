@@ -10,6 +10,7 @@
 #include <numeric>
 #include <sstream>
 #include <string>
+#include <utility>
 
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
@@ -196,15 +197,40 @@ void add_weighted(double* acc, const float* v, double w, std::size_t bands) {
   for (std::size_t q = 0; q < bands; ++q) acc[q] += w * double(v[q]);
 }
 
-// Every cell summed as soon as its weights are known, from values read whole.
+// Values read whole are held with each sample's bands padded with zeros to a whole number of lanes of four doubles.
+std::size_t padded_bands(std::size_t bands) { return (bands + 3) / 4 * 4; }
+
+// acc[0, P) = the sum of w v over the neighbours in order (values: P floats a sample), in registers: a sum through
+// memory waits on its own store at every neighbour. Each band's sum is add_weighted's.
+template <std::size_t P>
+void weighted_sum(std::span<const std::pair<std::uint32_t, float>> by_sample, const float* values, double* acc) {
+  using Lanes = Eigen::Array<double, Eigen::Index(P), 1>;
+  Lanes a = Lanes::Zero();
+  for (const auto& [s, w] : by_sample)
+    a += double(w) *
+         Eigen::Map<const Eigen::Array<float, Eigen::Index(P), 1>>(values + std::size_t(s) * P).template cast<double>();
+  Eigen::Map<Lanes> out(acc);
+  out = a;
+}
+
+template <std::size_t... P>
+void weighted_sum(std::span<const std::pair<std::uint32_t, float>> by_sample, const float* values, std::size_t stride,
+                  double* acc, std::index_sequence<P...>) {
+  if (((stride == 4 * (P + 1) ? (weighted_sum<4 * (P + 1)>(by_sample, values, acc), true) : false) || ...)) return;
+  std::fill_n(acc, stride, 0.0);
+  for (const auto& [s, w] : by_sample) add_weighted(acc, values + std::size_t(s) * stride, w, stride);
+}
+
+// Every cell summed as soon as its weights are known, from values read whole (padded_bands(f.bands) a sample).
 GridStats fill_from_memory(const GridFill& f, std::span<const float> values) {
   GridStats stats;
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<std::uint8_t> valid(f.cells.size(), 0);
+  const std::size_t stride = padded_bands(f.bands);
   thread_local std::vector<double> acc;
   f.weigh_cells(0, f.cells.size(), [&](std::size_t c, std::span<const std::pair<std::uint32_t, float>> by_sample) {
-    acc.assign(f.bands, 0.0);
-    for (const auto& [s, w] : by_sample) add_weighted(acc.data(), values.data() + std::size_t(s) * f.bands, w, f.bands);
+    acc.resize(stride);
+    weighted_sum(by_sample, values.data(), stride, acc.data(), std::make_index_sequence<16>());
     f.store(f.cells[c], acc.data());
     valid[c] = 1;
   });
@@ -285,11 +311,16 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
   const GridFill f{.tree = tree, .o = o, .n = n, .bands = bands, .out = out};
   block_rows = std::max<std::size_t>(1, block_rows);
   GridStats stats;
-  if (n * bands * sizeof(float) <= o.max_entries * 8) {
-    std::vector<float> values(n * bands);
+  const std::size_t stride = padded_bands(bands);
+  if (n * stride * sizeof(float) <= o.max_entries * 8) {
+    std::vector<float> values(n * stride, 0.0f), block;
     for (std::size_t s0 = 0; s0 < n; s0 += block_rows) {
       const std::size_t rows = std::min(block_rows, n - s0);
-      read(s0, rows, std::span<float>(values).subspan(s0 * bands, rows * bands));
+      block.resize(rows * bands);
+      read(s0, rows, block);
+      for (std::size_t i = 0; i < rows; ++i)
+        std::copy_n(block.begin() + std::ptrdiff_t(i * bands), bands,
+                    values.begin() + std::ptrdiff_t((s0 + i) * stride));
     }
     stats = fill_from_memory(f, values);
   } else {

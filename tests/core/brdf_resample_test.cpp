@@ -404,47 +404,50 @@ TEST(Resampler, ARowBesideADenseClusterFindsWhatOneQueryAtATimeFinds) {
 }
 
 TEST(Resampler, GridIsPredictAtEveryCellCentreForAnyPassCountAndThreadCount) {
-  const Samples s = random_samples(30000, 3, 7);
-  for (const Mapping m : kAll) {
-    const ResampleOptions o{.mapping = m, .k = 6, .weights = Weights::shepard, .max_gap = 0.12};
-    const Resampler r(s.angles, s.values, 3, o);
-    std::vector<float> one(3 * kMerlCells);
-    const std::size_t valid = r.fill_grid(one);
-    EXPECT_GT(valid, 100000u);
-    // The streaming grid in many passes over the values (small blocks, few entries per pass) and on one thread.
-    const MemorySamples src(s.angles, s.values, 3);
-    std::vector<float> many(3 * kMerlCells);
-    ResampleOptions small = o;
-    small.max_entries = 40009;  // the values (360 KB) no longer fit in a pass's neighbour lists (320 KB)
-    const int threads = omp_get_max_threads();
-    omp_set_num_threads(1);
-    const GridStats st = resample_grid(src, small, many);
-    omp_set_num_threads(threads);
-    EXPECT_GT(st.passes, 5u);
-    EXPECT_EQ(st.valid_cells, valid);
-    ASSERT_TRUE(one == many) << mapping_name(m);
-    // Cell by cell: the same values, a cell's bands together; cells without data left as they were.
-    std::vector<float> cells(3 * kMerlCells, 7.0f);
-    std::vector<std::uint8_t> flags(kMerlCells, 2);
-    EXPECT_EQ(r.fill_cells(cells, flags), valid);
-    for (std::size_t c = 0; c < kMerlCells; ++c) {
-      ASSERT_EQ(flags[c], one[c] >= 0 ? 1 : 2) << c;
-      for (std::size_t q = 0; q < 3; ++q)
-        ASSERT_EQ(cells[3 * c + q], one[c] >= 0 ? one[q * kMerlCells + c] : 7.0f) << c;
+  // 3 bands under every mapping; 18 (other widths of the sums in registers) under the standard one.
+  for (const std::size_t bands : {std::size_t(3), std::size_t(18)})
+    for (const Mapping m : kAll) {
+      if (bands != 3 && m != Mapping::standard) continue;
+      const Samples s = random_samples(30000, bands, 7);
+      const ResampleOptions o{.mapping = m, .k = 6, .weights = Weights::shepard, .max_gap = 0.12};
+      const Resampler r(s.angles, s.values, bands, o);
+      std::vector<float> one(bands * kMerlCells);
+      const std::size_t valid = r.fill_grid(one);
+      EXPECT_GT(valid, 100000u);
+      // The streaming grid in many passes over the values (small blocks, few entries per pass) and on one thread.
+      const MemorySamples src(s.angles, s.values, bands);
+      std::vector<float> many(bands * kMerlCells);
+      ResampleOptions small = o;
+      small.max_entries = 40009;  // the values (360 KB or more) no longer fit in a pass's neighbour lists (320 KB)
+      const int threads = omp_get_max_threads();
+      omp_set_num_threads(1);
+      const GridStats st = resample_grid(src, small, many);
+      omp_set_num_threads(threads);
+      EXPECT_GT(st.passes, 5u);
+      EXPECT_EQ(st.valid_cells, valid);
+      ASSERT_TRUE(one == many) << mapping_name(m);
+      // Cell by cell: the same values, a cell's bands together; cells without data left as they were.
+      std::vector<float> cells(bands * kMerlCells, 7.0f);
+      std::vector<std::uint8_t> flags(kMerlCells, 2);
+      EXPECT_EQ(r.fill_cells(cells, flags), valid);
+      for (std::size_t c = 0; c < kMerlCells; ++c) {
+        ASSERT_EQ(flags[c], one[c] >= 0 ? 1 : 2) << c;
+        for (std::size_t q = 0; q < bands; ++q)
+          ASSERT_EQ(cells[bands * c + q], one[c] >= 0 ? one[q * kMerlCells + c] : 7.0f) << c;
+      }
+      // Spot checks against predict at cell centres.
+      std::vector<float> out(bands);
+      std::size_t checked = 0;
+      for (std::size_t c = 0; c < kMerlCells; c += 1013) {
+        const brdf::MerlCell cell = brdf::merl_cell(c);
+        const bool has = brdf::merl_cell_valid(cell) && r.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), out);
+        ASSERT_EQ(one[c] >= 0, has) << c;
+        if (!has) continue;
+        ++checked;
+        for (std::size_t q = 0; q < bands; ++q) ASSERT_EQ(one[q * kMerlCells + c], out[q]) << c;
+      }
+      EXPECT_GT(checked, 100u);
     }
-    // Spot checks against predict at cell centres.
-    std::vector<float> out(3);
-    std::size_t checked = 0;
-    for (std::size_t c = 0; c < kMerlCells; c += 1013) {
-      const brdf::MerlCell cell = brdf::merl_cell(c);
-      const bool has = brdf::merl_cell_valid(cell) && r.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), out);
-      ASSERT_EQ(one[c] >= 0, has) << c;
-      if (!has) continue;
-      ++checked;
-      for (std::size_t q = 0; q < 3; ++q) ASSERT_EQ(one[q * kMerlCells + c], out[q]) << c;
-    }
-    EXPECT_GT(checked, 100u);
-  }
 }
 
 TEST(Resampler, CellsFarFromEverySampleHaveNoData) {
