@@ -147,6 +147,27 @@ inline void expand_padded(const float* a, std::size_t k, const float* v, float* 
   for (std::size_t b = 0; b < bands; ++b) out[b] = std::max(0.0f, acc[b]);
 }
 
+// expand_padded of two cells at once: their sums are independent chains the core runs side by side; each is
+// summed as expand_padded sums it.
+template <std::size_t P>
+inline void expand_two(const float* a0, const float* a1, std::size_t k, const float* v, float* out0, float* out1,
+                       std::size_t bands) {
+  float acc0[P], acc1[P];
+  for (std::size_t b = 0; b < P; ++b) {
+    acc0[b] = a0[0] * v[b];
+    acc1[b] = a1[0] * v[b];
+  }
+  for (std::size_t j = 1; j < k; ++j)
+    for (std::size_t b = 0; b < P; ++b) {
+      acc0[b] += a0[j] * v[j * P + b];
+      acc1[b] += a1[j] * v[j * P + b];
+    }
+  for (std::size_t b = 0; b < bands; ++b) {
+    out0[b] = std::max(0.0f, acc0[b]);
+    out1[b] = std::max(0.0f, acc1[b]);
+  }
+}
+
 }  // namespace
 
 void SpcBrdf::expand(std::size_t cell, float* out) const {
@@ -194,6 +215,18 @@ void SpcBrdf::evaluate(std::span<const float> wi, std::span<const float> wo, std
   // Chunks of kChunkBlocks blocks; within a chunk the next block's cells are found first and each of them is
   // prefetched while one pair of the current block is expanded, so the table's misses overlap the arithmetic.
   constexpr std::size_t kChunkBlocks = 16, kChunk = kChunkBlocks * kBlock;
+  // Two pairs expanded together where the padded width has a kernel.
+  const bool two = padded_ == 16 || padded_ == 32;
+  const auto expand_pair = [&](std::uint32_t c0, std::uint32_t c1, float* o) {
+    const float *a0 = values_.data() + std::size_t(c0) * k_, *a1 = values_.data() + std::size_t(c1) * k_;
+    if (padded_ == 16) return expand_two<16>(a0, a1, k_, basis_.data(), o, o + bands_, bands_);
+    expand_two<32>(a0, a1, k_, basis_.data(), o, o + bands_, bands_);
+  };
+  // A cell's first and last coefficient: more than 16 floats a cell span two cache lines.
+  const auto prefetch = [&](std::uint32_t cell) {
+    __builtin_prefetch(values_.data() + std::size_t(cell) * k_);
+    __builtin_prefetch(values_.data() + std::size_t(cell) * k_ + k_ - 1);
+  };
   parallel_for((n + kChunk - 1) / kChunk, [] { return std::vector<std::uint32_t>(2 * kBlock); },
                [&](std::size_t chunk, std::vector<std::uint32_t>& cells) {
                  const std::size_t begin = chunk * kChunk, end = std::min(n, begin + kChunk);
@@ -204,15 +237,20 @@ void SpcBrdf::evaluate(std::span<const float> wi, std::span<const float> wo, std
                  std::uint32_t* now = cells.data();
                  std::uint32_t* next = cells.data() + kBlock;
                  find(begin, now);
-                 for (std::size_t i = 0; i < std::min(kBlock, end - begin); ++i)
-                   __builtin_prefetch(values_.data() + now[i] * k_);
+                 for (std::size_t i = 0; i < std::min(kBlock, end - begin); ++i) prefetch(now[i]);
                  for (std::size_t first = begin; first < end; first += kBlock) {
                    const std::size_t m = std::min(kBlock, end - first);
                    const bool more = first + kBlock < end;
                    const std::size_t m_next = more ? std::min(kBlock, end - first - kBlock) : 0;
                    if (more) find(first + kBlock, next);
-                   for (std::size_t i = 0; i < m; ++i) {
-                     if (i < m_next) __builtin_prefetch(values_.data() + next[i] * k_);
+                   std::size_t i = 0;
+                   for (; two && i + 1 < m; i += 2) {
+                     if (i < m_next) prefetch(next[i]);
+                     if (i + 1 < m_next) prefetch(next[i + 1]);
+                     expand_pair(now[i], now[i + 1], out.data() + (first + i) * bands_);
+                   }
+                   for (; i < m; ++i) {
+                     if (i < m_next) prefetch(next[i]);
                      expand(now[i], out.data() + (first + i) * bands_);
                    }
                    std::swap(now, next);
