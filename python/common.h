@@ -166,10 +166,10 @@ py::array_t<T> adopt(std::unique_ptr<Owner> owner, const T* data, std::vector<py
   return py::array_t<T>(std::move(shape), data, base);
 }
 
-/// A numpy array of `shape` taking over the vector's storage (no copy).
-template <class T>
-py::array_t<T> adopt(std::vector<T>&& v, std::vector<py::ssize_t> shape) {
-  auto owner = std::make_unique<std::vector<T>>(std::move(v));
+/// A numpy array of `shape` taking over the vector's storage (no copy); also a Buffer's (core/buffer.h).
+template <class T, class Allocator>
+py::array_t<T> adopt(std::vector<T, Allocator>&& v, std::vector<py::ssize_t> shape) {
+  auto owner = std::make_unique<std::vector<T, Allocator>>(std::move(v));
   const T* data = owner->data();
   return adopt<T>(std::move(owner), data, std::move(shape));
 }

@@ -12,6 +12,7 @@
 #include "specula/codec/spc.h"
 #include "specula/codec/spc_eval.h"
 #include "specula/codec/spectral_grid.h"
+#include "specula/core/buffer.h"
 #include "specula/core/colour.h"
 #include "specula/core/illuminant.h"
 #include "specula/core/preview.h"
@@ -151,7 +152,9 @@ void init_render(py::module_& m) {
             const FloatArray wi = directions(wi_arg, "wi", lead), wo = directions(wo_arg, "wo", lead_o);
             if (lead != lead_o) throw UsageError("SpcBrdf.evaluate: wi and wo must have the same shape");
             const std::size_t n = std::size_t(wi.size() / 3);
-            std::vector<float> out(n * b.bands());
+            // Sized unwritten and on 2 MB pages when large: the evaluating threads write every value, and a fresh
+            // 4 KB page costs more than the evaluations written to it.
+            Buffer<float> out(n * b.bands());
             {
               py::gil_scoped_release release;
               b.evaluate(std::span(wi.data(), n * 3), std::span(wo.data(), n * 3), out);
