@@ -1,8 +1,8 @@
 #include "specula/core/buffer.h"
 
-#include <sys/mman.h>
-
 #include <cstdlib>
+
+#include "specula/core/huge_pages.h"
 
 namespace specula::detail {
 
@@ -12,9 +12,7 @@ void* allocate_large(std::size_t bytes) {
   const std::size_t size = (bytes + kHugePage - 1) / kHugePage * kHugePage;
   void* p = std::aligned_alloc(kHugePage, size);
   if (!p) throw std::bad_alloc();
-#ifdef MADV_HUGEPAGE
-  madvise(p, size, MADV_HUGEPAGE);  // advice only: without huge pages the block is ordinary memory
-#endif
+  advise_huge_pages(p, size);
   return p;
 }
 
