@@ -147,25 +147,18 @@ inline void expand_padded(const float* a, std::size_t k, const float* v, float* 
   for (std::size_t b = 0; b < bands; ++b) out[b] = std::max(0.0f, acc[b]);
 }
 
-// expand_padded of two cells at once: their sums are independent chains the core runs side by side; each is
-// summed as expand_padded sums it.
-template <std::size_t P>
-inline void expand_two(const float* a0, const float* a1, std::size_t k, const float* v, float* out0, float* out1,
-                       std::size_t bands) {
-  float acc0[P], acc1[P];
-  for (std::size_t b = 0; b < P; ++b) {
-    acc0[b] = a0[0] * v[b];
-    acc1[b] = a1[0] * v[b];
-  }
+// expand_padded of C cells at once (a: their coefficients; out: C x bands): their sums are independent chains the
+// core runs side by side; each is summed as expand_padded sums it.
+template <std::size_t P, std::size_t C>
+inline void expand_cells(const float* const* a, std::size_t k, const float* v, float* out, std::size_t bands) {
+  float acc[C][P];
+  for (std::size_t c = 0; c < C; ++c)
+    for (std::size_t b = 0; b < P; ++b) acc[c][b] = a[c][0] * v[b];
   for (std::size_t j = 1; j < k; ++j)
-    for (std::size_t b = 0; b < P; ++b) {
-      acc0[b] += a0[j] * v[j * P + b];
-      acc1[b] += a1[j] * v[j * P + b];
-    }
-  for (std::size_t b = 0; b < bands; ++b) {
-    out0[b] = std::max(0.0f, acc0[b]);
-    out1[b] = std::max(0.0f, acc1[b]);
-  }
+    for (std::size_t c = 0; c < C; ++c)
+      for (std::size_t b = 0; b < P; ++b) acc[c][b] += a[c][j] * v[j * P + b];
+  for (std::size_t c = 0; c < C; ++c)
+    for (std::size_t b = 0; b < bands; ++b) out[c * bands + b] = std::max(0.0f, acc[c][b]);
 }
 
 }  // namespace
@@ -215,12 +208,18 @@ void SpcBrdf::evaluate(std::span<const float> wi, std::span<const float> wo, std
   // Chunks of kChunkBlocks blocks; within a chunk the next block's cells are found first and each of them is
   // prefetched while one pair of the current block is expanded, so the table's misses overlap the arithmetic.
   constexpr std::size_t kChunkBlocks = 16, kChunk = kChunkBlocks * kBlock;
-  // Two pairs expanded together where the padded width has a kernel.
-  const bool two = padded_ == 16 || padded_ == 32;
+  // Four pairs (then two) expanded together where the padded width has a kernel.
+  const bool together = padded_ == 16 || padded_ == 32;
   const auto expand_pair = [&](std::uint32_t c0, std::uint32_t c1, float* o) {
-    const float *a0 = values_.data() + std::size_t(c0) * k_, *a1 = values_.data() + std::size_t(c1) * k_;
-    if (padded_ == 16) return expand_two<16>(a0, a1, k_, basis_.data(), o, o + bands_, bands_);
-    expand_two<32>(a0, a1, k_, basis_.data(), o, o + bands_, bands_);
+    const float* a[2] = {values_.data() + std::size_t(c0) * k_, values_.data() + std::size_t(c1) * k_};
+    if (padded_ == 16) return expand_cells<16, 2>(a, k_, basis_.data(), o, bands_);
+    expand_cells<32, 2>(a, k_, basis_.data(), o, bands_);
+  };
+  const auto expand_four = [&](const std::uint32_t* c, float* o) {
+    const float* a[4] = {values_.data() + std::size_t(c[0]) * k_, values_.data() + std::size_t(c[1]) * k_,
+                         values_.data() + std::size_t(c[2]) * k_, values_.data() + std::size_t(c[3]) * k_};
+    if (padded_ == 16) return expand_cells<16, 4>(a, k_, basis_.data(), o, bands_);
+    expand_cells<32, 4>(a, k_, basis_.data(), o, bands_);
   };
   // A cell's first and last coefficient: more than 16 floats a cell span two cache lines.
   const auto prefetch = [&](std::uint32_t cell) {
@@ -244,7 +243,12 @@ void SpcBrdf::evaluate(std::span<const float> wi, std::span<const float> wo, std
                    const std::size_t m_next = more ? std::min(kBlock, end - first - kBlock) : 0;
                    if (more) find(first + kBlock, next);
                    std::size_t i = 0;
-                   for (; two && i + 1 < m; i += 2) {
+                   for (; together && i + 3 < m; i += 4) {
+                     for (std::size_t q = i; q < i + 4; ++q)
+                       if (q < m_next) prefetch(next[q]);
+                     expand_four(now + i, out.data() + (first + i) * bands_);
+                   }
+                   for (; together && i + 1 < m; i += 2) {
                      if (i < m_next) prefetch(next[i]);
                      if (i + 1 < m_next) prefetch(next[i + 1]);
                      expand_pair(now[i], now[i + 1], out.data() + (first + i) * bands_);

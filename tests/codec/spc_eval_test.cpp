@@ -171,6 +171,23 @@ TEST(SpcEval, CellsWithoutDataGiveZeroAndFalse) {
   for (float v : out) EXPECT_EQ(v, 0.0f);
 }
 
+// Pairs are expanded four, two or one at a time, by the block's remainder: every way gives what one call a pair gives.
+TEST(SpcEval, TheArrayCallEqualsOneCallAPairForAnyNumberOfPairs) {
+  const SpcBrdf f(SpcCoefficients(coded(6).coefficients));
+  const std::size_t b = f.bands();
+  std::vector<float> wi, wo;
+  direction_pairs(263, 5, wi, wo);  // a block of 256, then 4 + 2 + 1
+  for (const std::size_t n : {1, 2, 3, 5, 7, 263}) {
+    std::vector<float> out(n * b), one(b);
+    f.evaluate(std::span(wi).first(3 * n), std::span(wo).first(3 * n), out);
+    for (std::size_t i = 0; i < n; ++i) {
+      f.evaluate(Eigen::Vector3d(wi[3 * i], wi[3 * i + 1], wi[3 * i + 2]),
+                 Eigen::Vector3d(wo[3 * i], wo[3 * i + 1], wo[3 * i + 2]), one);
+      for (std::size_t band = 0; band < b; ++band) ASSERT_EQ(one[band], out[i * b + band]) << n << " pairs, pair " << i;
+    }
+  }
+}
+
 TEST(SpcEval, ResultsDoNotDependOnTheThreadCount) {
   const SpcBrdf f(SpcCoefficients(coded(6).coefficients));
   std::vector<float> wi, wo;
