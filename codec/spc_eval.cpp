@@ -161,6 +161,16 @@ inline void expand_cells(const float* const* a, std::size_t k, const float* v, f
     for (std::size_t b = 0; b < bands; ++b) out[c * bands + b] = std::max(0.0f, acc[c][b]);
 }
 
+// expand_cells of cells[0, C) of the table (k floats a cell) on a basis padded to 16 or 32 floats a coefficient.
+template <std::size_t C>
+inline void expand_together(const float* table, std::size_t k, const float* basis, std::size_t padded,
+                            const std::uint32_t* cells, float* out, std::size_t bands) {
+  const float* a[C];
+  for (std::size_t c = 0; c < C; ++c) a[c] = table + std::size_t(cells[c]) * k;
+  if (padded == 16) return expand_cells<16, C>(a, k, basis, out, bands);
+  expand_cells<32, C>(a, k, basis, out, bands);
+}
+
 }  // namespace
 
 void SpcBrdf::expand(std::size_t cell, float* out) const {
@@ -206,21 +216,10 @@ void SpcBrdf::evaluate(std::span<const float> wi, std::span<const float> wo, std
     throw UsageError("SpcBrdf::evaluate: " + std::to_string(out.size()) + " output values for " + std::to_string(n) +
                      " direction pairs; give n x " + std::to_string(bands_));
   // Chunks of kChunkBlocks blocks; within a chunk the next block's cells are found first and each of them is
-  // prefetched while one pair of the current block is expanded, so the table's misses overlap the arithmetic.
+  // prefetched while the current block's pairs are expanded, so the table's misses overlap the arithmetic.
   constexpr std::size_t kChunkBlocks = 16, kChunk = kChunkBlocks * kBlock;
   // Four pairs (then two) expanded together where the padded width has a kernel.
   const bool together = padded_ == 16 || padded_ == 32;
-  const auto expand_pair = [&](std::uint32_t c0, std::uint32_t c1, float* o) {
-    const float* a[2] = {values_.data() + std::size_t(c0) * k_, values_.data() + std::size_t(c1) * k_};
-    if (padded_ == 16) return expand_cells<16, 2>(a, k_, basis_.data(), o, bands_);
-    expand_cells<32, 2>(a, k_, basis_.data(), o, bands_);
-  };
-  const auto expand_four = [&](const std::uint32_t* c, float* o) {
-    const float* a[4] = {values_.data() + std::size_t(c[0]) * k_, values_.data() + std::size_t(c[1]) * k_,
-                         values_.data() + std::size_t(c[2]) * k_, values_.data() + std::size_t(c[3]) * k_};
-    if (padded_ == 16) return expand_cells<16, 4>(a, k_, basis_.data(), o, bands_);
-    expand_cells<32, 4>(a, k_, basis_.data(), o, bands_);
-  };
   // A cell's first and last coefficient: more than 16 floats a cell span two cache lines.
   const auto prefetch = [&](std::uint32_t cell) {
     __builtin_prefetch(values_.data() + std::size_t(cell) * k_);
@@ -246,12 +245,14 @@ void SpcBrdf::evaluate(std::span<const float> wi, std::span<const float> wo, std
                    for (; together && i + 3 < m; i += 4) {
                      for (std::size_t q = i; q < i + 4; ++q)
                        if (q < m_next) prefetch(next[q]);
-                     expand_four(now + i, out.data() + (first + i) * bands_);
+                     expand_together<4>(values_.data(), k_, basis_.data(), padded_, now + i,
+                                        out.data() + (first + i) * bands_, bands_);
                    }
                    for (; together && i + 1 < m; i += 2) {
                      if (i < m_next) prefetch(next[i]);
                      if (i + 1 < m_next) prefetch(next[i + 1]);
-                     expand_pair(now[i], now[i + 1], out.data() + (first + i) * bands_);
+                     expand_together<2>(values_.data(), k_, basis_.data(), padded_, now + i,
+                                        out.data() + (first + i) * bands_, bands_);
                    }
                    for (; i < m; ++i) {
                      if (i < m_next) prefetch(next[i]);

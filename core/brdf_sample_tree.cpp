@@ -101,7 +101,7 @@ float distance2(const float* q, const float* p) {
   return s;
 }
 
-// The k-th smallest squared distance from c to the points at positions pos of xyz (n points; scratch: d2).
+// The k-th smallest squared distance from c to the points at positions pos of xyz (three floats a point; scratch: d2).
 float kth_distance2(const float* c, std::span<const std::uint32_t> pos, std::size_t k, std::span<const float> xyz,
                     std::vector<float>& d2) {
   d2.resize(pos.size());
