@@ -464,7 +464,9 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
     throw UsageError("neighbour_weights: loess needs 3 offsets per neighbour");
   if (n == 0) return;
   // Raw weights in double, written to out only once normalised.
-  thread_local std::vector<double> raw, kernel;
+  // raw on Eigen's widest alignment, so that its packet loops below need no scalar head.
+  thread_local std::vector<double, Eigen::aligned_allocator<double>> raw;
+  thread_local std::vector<double> kernel;
   raw.assign(n, 1.0);
   std::size_t at_zero = 0;
   for (const float d : dist2) at_zero += d == 0;
@@ -473,12 +475,14 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
     for (std::size_t j = 0; j < n; ++j) raw[j] = dist2[j] == 0 ? 1.0 : 0.0;
   } else if (w == Weights::shepard) {
     // Eigen's packets give the same correctly rounded square roots and quotients as one at a time.
-    Eigen::Map<Eigen::ArrayXd> r(raw.data(), Eigen::Index(n));
-    const auto d2 = Eigen::Map<const Eigen::ArrayXf>(dist2.data(), Eigen::Index(n)).cast<double>();
+    // The squares widened first: over the float map's cast Eigen falls back to one scalar sqrt and division at a
+    // time.
+    Eigen::Map<Eigen::ArrayXd, Eigen::AlignedMax> r(raw.data(), Eigen::Index(n));
+    r = Eigen::Map<const Eigen::ArrayXf>(dist2.data(), Eigen::Index(n)).cast<double>();
     if (power == 1)
-      r = d2.sqrt().inverse();
+      r = r.sqrt().inverse();
     else if (power == 2)
-      r = d2.inverse();
+      r = r.inverse();
     else
       for (std::size_t j = 0; j < n; ++j) raw[j] = std::pow(double(dist2[j]), -0.5 * power);
   } else if (w == Weights::renka || (smoothing && at_zero < n)) {
