@@ -2,6 +2,10 @@
 
 #include <nanoflann.hpp>
 
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
+
 #include <algorithm>
 #include <atomic>
 #include <bit>
@@ -151,6 +155,35 @@ std::uint64_t select_kth(std::span<std::uint64_t> keys, std::size_t k) {
     *std::find(keys.begin(), keys.begin() + std::ptrdiff_t(n), v) = keys[n - 1];
   }
   return largest(k);
+}
+
+// The keys (bits of dist[j] << 32 | j) of the j < count with dist[j] <= limit, in ascending j, into keys (which
+// has room for count + kKeepSlack); returns how many. Branch-free: each key is written, and passed only when kept.
+constexpr std::size_t kKeepSlack = 16;
+std::size_t keep_within(const float* dist, std::size_t count, float limit, std::uint64_t* keys) {
+  std::size_t kept = 0, j = 0;
+#if defined(__AVX512F__)
+  const __m512 bound = _mm512_set1_ps(limit);
+  const __m512i lanes = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  for (; j + 16 <= count; j += 16) {
+    const __m512 d = _mm512_loadu_ps(dist + j);
+    const __mmask16 in = _mm512_cmp_ps_mask(d, bound, _CMP_LE_OQ);
+    const __m512i bits = _mm512_castps_si512(d), at = _mm512_add_epi32(lanes, _mm512_set1_epi32(int(j)));
+    for (int half = 0; half < 2; ++half) {
+      const __m256i b = half ? _mm512_extracti64x4_epi64(bits, 1) : _mm512_castsi512_si256(bits);
+      const __m256i a = half ? _mm512_extracti64x4_epi64(at, 1) : _mm512_castsi512_si256(at);
+      const __m512i key = _mm512_or_si512(_mm512_slli_epi64(_mm512_cvtepu32_epi64(b), 32), _mm512_cvtepu32_epi64(a));
+      const auto m = __mmask8(half ? in >> 8 : in);
+      _mm512_storeu_si512(keys + kept, _mm512_maskz_compress_epi64(m, key));
+      kept += std::size_t(std::popcount(unsigned(m)));
+    }
+  }
+#endif
+  for (; j < count; ++j) {
+    keys[kept] = std::uint64_t(std::bit_cast<std::uint32_t>(dist[j])) << 32 | j;
+    kept += dist[j] <= limit;
+  }
+  return kept;
 }
 
 // The candidates of the row a thread searched last, as positions in the tree numbered `tree`: any k of them bound
@@ -417,18 +450,21 @@ void SampleTree::pick_nearest(std::span<const IsoAngles> at, std::span<const flo
                               std::span<const std::uint32_t> candidates, std::span<Neighbours> out, bool offsets,
                               double gap_cap) const {
   const Index& ix = *index_;
-  thread_local std::vector<std::pair<std::uint32_t, std::uint32_t>> by_sample;
+  // (sample index << 32 | position): sorted, the candidates in ascending sample index.
+  thread_local std::vector<std::uint64_t> by_sample;
   thread_local std::vector<float> xs, ys, zs, dist;
-  thread_local std::vector<std::uint64_t> pick;
+  thread_local std::vector<std::uint64_t> pick, chosen;
   by_sample.resize(candidates.size());
-  for (std::size_t j = 0; j < candidates.size(); ++j) by_sample[j] = {ix.sample[candidates[j]], candidates[j]};
+  for (std::size_t j = 0; j < candidates.size(); ++j)
+    by_sample[j] = std::uint64_t(ix.sample[candidates[j]]) << 32 | candidates[j];
   std::sort(by_sample.begin(), by_sample.end());
   const std::size_t count = by_sample.size();
+  const auto position = [&](std::size_t j) { return std::uint32_t(by_sample[j]); };
   xs.resize(count);
   ys.resize(count);
   zs.resize(count);
   for (std::size_t j = 0; j < count; ++j) {
-    const float* p = ix.xyz.data() + 3 * std::size_t(by_sample[j].second);
+    const float* p = ix.xyz.data() + 3 * std::size_t(position(j));
     xs[j] = p[0];
     ys[j] = p[1];
     zs[j] = p[2];
@@ -436,8 +472,10 @@ void SampleTree::pick_nearest(std::span<const IsoAngles> at, std::span<const flo
   dist.resize(count);
   // The k-th distance of the previous query, a little enlarged: along a row it picks the few candidates to select
   // from without looking at the rest. The passes over the candidates have no branches: the distances (as
-  // distance2 sums them), the kept keys (written always, advanced past only when kept), and the output.
-  pick.resize(count);
+  // distance2 sums them), the kept keys (written always, advanced past only when kept), and the output, from the
+  // kept keys, which stay in ascending rank while a copy of them is selected from.
+  pick.resize(count + kKeepSlack);
+  chosen.resize(count);
   float guess = std::numeric_limits<float>::infinity();
   const auto key = [&](std::size_t j) { return std::uint64_t(std::bit_cast<std::uint32_t>(dist[j])) << 32 | j; };
   for (std::size_t i = 0; i < at.size(); ++i) {
@@ -450,30 +488,29 @@ void SampleTree::pick_nearest(std::span<const IsoAngles> at, std::span<const flo
       d += tz * tz;
       dist[j] = d;
     }
-    std::size_t kept = 0;
-    for (std::size_t j = 0; j < count; ++j) {
-      pick[kept] = key(j);
-      kept += dist[j] <= guess;
-    }
+    std::size_t kept = keep_within(dist.data(), count, guess, pick.data());
     if (kept < k) {
       for (std::size_t j = 0; j < count; ++j) pick[j] = key(j);
       kept = count;
     }
-    const std::uint64_t kth = select_kth(std::span(pick).first(kept), k);
+    std::copy_n(pick.begin(), kept, chosen.begin());
+    const std::uint64_t kth = select_kth(std::span(chosen).first(kept), k);
     guess = std::bit_cast<float>(std::uint32_t(kth >> 32)) * 1.1f;
-    const auto nearest = std::uint32_t(*std::min_element(pick.begin(), pick.begin() + std::ptrdiff_t(k)));
+    const auto nearest = std::uint32_t(*std::min_element(chosen.begin(), chosen.begin() + std::ptrdiff_t(k)));
     Neighbours& o = out[i];
     o.index.resize(k + 1);
     o.dist2.resize(k + 1);
     std::size_t n = 0;
-    for (std::size_t j = 0; j < count; ++j) {
-      o.index[n] = by_sample[j].second;
+    for (std::size_t e = 0; e < kept; ++e) {
+      const std::uint64_t kj = pick[e];
+      const auto j = std::uint32_t(kj);
+      o.index[n] = position(j);
       o.dist2[n] = dist[j];
-      n += key(j) <= kth;
+      n += kj <= kth;
     }
     o.index.resize(k);
     o.dist2.resize(k);
-    finish(at[i], qi, by_sample[nearest].second, o, offsets, gap_cap);
+    finish(at[i], qi, position(nearest), o, offsets, gap_cap);
   }
 }
 
