@@ -156,6 +156,7 @@ SPECULA_PY_ARG(StoreArg)
 SPECULA_PY_ARG(BasisResult)
 SPECULA_PY_ARG(ProjectResult)
 SPECULA_PY_ARG(OptArrayResult)
+SPECULA_PY_ARG(Float32Result)
 #undef SPECULA_PY_ARG
 
 /// A numpy array of `shape` that takes ownership of `owner` (a heap object holding the data at `data`).
@@ -284,4 +285,5 @@ SPECULA_PY_ARG_NAME(StoreArg, "str | os.PathLike[str] | Store")
 SPECULA_PY_ARG_NAME(BasisResult, "Basis")
 SPECULA_PY_ARG_NAME(ProjectResult, "dict[str, Any] | dict[int, dict[str, Any]]")
 SPECULA_PY_ARG_NAME(OptArrayResult, "numpy.ndarray | None")
+SPECULA_PY_ARG_NAME(Float32Result, "numpy.typing.NDArray[numpy.float32]")
 #undef SPECULA_PY_ARG_NAME

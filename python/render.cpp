@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <numbers>
+#include <string>
+#include <vector>
 
 #include "python/common.h"
 #include "specula/codec/environment.h"
@@ -120,6 +122,27 @@ FloatArray directions(const py::object& a, const char* name, std::vector<py::ssi
   return arr;
 }
 
+// `out=` of SpcBrdf.evaluate: a writable, C-contiguous float32 array of exactly `shape`, as numpy's out= wants.
+py::array output_array(const py::object& out, const std::vector<py::ssize_t>& shape) {
+  const auto want = [&] {
+    std::string s = "(";
+    for (std::size_t i = 0; i < shape.size(); ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
+    return s + (shape.size() == 1 ? ",)" : ")");
+  };
+  if (!py::isinstance<py::array>(out))
+    throw UsageError("SpcBrdf.evaluate: out must be a numpy array of float32 " + want() + ", or None");
+  auto arr = py::reinterpret_borrow<py::array>(out);
+  if (!arr.dtype().equal(py::dtype::of<float>()))
+    throw UsageError("SpcBrdf.evaluate: out has dtype " + std::string(py::str(arr.dtype())) +
+                     "; give a float32 array " + want());
+  if (std::vector<py::ssize_t>(arr.shape(), arr.shape() + arr.ndim()) != shape)
+    throw UsageError("SpcBrdf.evaluate: out has shape " + std::string(py::str(py::tuple(out.attr("shape")))) +
+                     "; give " + want() + " (the directions' shape with bands last)");
+  if (!(arr.flags() & py::array::c_style) || !arr.writeable())
+    throw UsageError("SpcBrdf.evaluate: out must be writable and C-contiguous (numpy.empty(shape, numpy.float32))");
+  return arr;
+}
+
 }  // namespace
 
 codec::Environment environment_from(const py::handle& env, const WavelengthGrid& grid) {
@@ -147,11 +170,28 @@ void init_render(py::module_& m) {
       .def_property_readonly("memory_bytes", &codec::SpcBrdf::memory_bytes)
       .def(
           "evaluate",
-          [](const codec::SpcBrdf& b, const ArrayLike& wi_arg, const ArrayLike& wo_arg) {
+          [](const codec::SpcBrdf& b, const ArrayLike& wi_arg, const ArrayLike& wo_arg,
+             const OptArray& out_arg) -> Float32Result {
             std::vector<py::ssize_t> lead, lead_o;
             const FloatArray wi = directions(wi_arg, "wi", lead), wo = directions(wo_arg, "wo", lead_o);
             if (lead != lead_o) throw UsageError("SpcBrdf.evaluate: wi and wo must have the same shape");
             const std::size_t n = std::size_t(wi.size() / 3);
+            lead.push_back(py::ssize_t(b.bands()));
+            if (!out_arg.is_none()) {
+              py::array out = output_array(out_arg, lead);
+              const auto* first = static_cast<const char*>(out.data());
+              for (const FloatArray* in : {&wi, &wo}) {
+                const auto* p = reinterpret_cast<const char*>(in->data());
+                if (p < first + out.nbytes() && first < p + in->nbytes())
+                  throw UsageError("SpcBrdf.evaluate: out shares memory with wi or wo; give a separate array");
+              }
+              {
+                py::gil_scoped_release release;
+                b.evaluate(std::span(wi.data(), n * 3), std::span(wo.data(), n * 3),
+                           std::span(static_cast<float*>(out.mutable_data()), n * b.bands()));
+              }
+              return Float32Result(std::move(out));
+            }
             // Sized unwritten and on 2 MB pages when large: the evaluating threads write every value, and a fresh
             // 4 KB page costs more than the evaluations written to it.
             Buffer<float> out(n * b.bands());
@@ -159,12 +199,12 @@ void init_render(py::module_& m) {
               py::gil_scoped_release release;
               b.evaluate(std::span(wi.data(), n * 3), std::span(wo.data(), n * 3), out);
             }
-            lead.push_back(py::ssize_t(b.bands()));
-            return adopt(std::move(out), lead);
+            return Float32Result(adopt(std::move(out), lead));
           },
-          py::arg("wi"), py::arg("wo"),
+          py::arg("wi"), py::arg("wo"), py::arg("out") = py::none(),
           "The BRDF (1/sr) at direction pairs wi, wo (..., 3) (local frame, z the normal, any length): float32 "
-          "(..., bands), 0 where the cell holds no data.")
+          "(..., bands), 0 where the cell holds no data. With out (a writable, C-contiguous float32 array of that "
+          "shape) the values are written there and out is returned, so repeated calls allocate nothing.")
       .def("__repr__", [](const codec::SpcBrdf& b) {
         return fmt::format("<specula.SpcBrdf k={} {} reference='{}'>", b.k(), b.wavelengths().describe(),
                            b.reference());

@@ -73,6 +73,31 @@ def test_spc_brdf_evaluates_what_decoding_and_lookup_give(spgrid):
         coded.evaluate(wi[:, :2], wo[:, :2])
 
 
+def test_spc_brdf_evaluates_into_out_as_numpy_does(spgrid):
+    coded = specula.SpcBrdf(specula.spc_encode(specula.read_spgrid(spgrid), k=3)[0])
+    rng = np.random.default_rng(3)
+    wi, wo = (rng.normal(size=(6, 50, 3)).astype(np.float32) for _ in range(2))
+    wi[..., 2], wo[..., 2] = np.abs(wi[..., 2]), np.abs(wo[..., 2])
+    want = coded.evaluate(wi, wo)
+    out = np.full((6, 50, 4), np.nan, np.float32)
+    assert coded.evaluate(wi, wo, out=out) is out
+    np.testing.assert_array_equal(out, want)
+    out[:] = np.nan
+    coded.evaluate(wi, wo, out)  # positional, as numpy's ufuncs take it
+    np.testing.assert_array_equal(out, want)
+    for bad, match in [(np.empty((6, 50, 4)), "dtype float64"), (np.empty((6, 50, 3), np.float32), r"shape \(6, 50, 3\)"),
+                       (np.empty((6, 50, 8), np.float32)[..., ::2], "C-contiguous"), ([0.0] * 1200, "numpy array")]:
+        with pytest.raises(specula.UsageError, match=match):
+            coded.evaluate(wi, wo, out=bad)
+    frozen = np.empty((6, 50, 4), np.float32)
+    frozen.flags.writeable = False
+    with pytest.raises(specula.UsageError, match="writable"):
+        coded.evaluate(wi, wo, out=frozen)
+    shared = np.zeros(300 * 4, np.float32)  # wi in the first 900 floats of out's 1200
+    with pytest.raises(specula.UsageError, match="shares memory"):
+        coded.evaluate(shared[:900].reshape(300, 3), wo.reshape(300, 3), out=shared.reshape(300, 4))
+
+
 def test_target_encoding_matches_the_cli_and_compare_grids(spgrid, tmp_path):
     g = specula.read_spgrid(spgrid)
     data, report = specula.spc_encode(g, k=3, target_de00=1.0, trials=3)
