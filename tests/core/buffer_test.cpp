@@ -52,11 +52,13 @@ TEST(Buffer, AssignAndValueResizeWriteEveryElement) {
   EXPECT_EQ(std::count(v.end() - 10, v.end(), 7.0f), 10);
 }
 
+#if defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__)
 long minor_faults() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
   return usage.ru_minflt;
 }
+#endif
 
 // A large output freed and asked for again, as a caller evaluating in a loop does, gets memory whose pages are
 // already there: first touching 24 MB of fresh pages costs thousands of faults (12 on 2 MB pages), and a hole the
