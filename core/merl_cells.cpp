@@ -29,7 +29,6 @@ const std::vector<std::uint32_t>& merl_valid_cells() {
     parallel_for(rows.size(), [&](std::size_t th) {
       Eigen::Vector3d wi, wo;
       for (int td = 0; td < kMerlThetaD; ++td) {
-        const MerlCentres row(int(th), td);
         const HalfDiff centre = merl_cell_centre({int(th), td, 0});
         const double level = std::cos(centre.theta_h) * std::cos(centre.theta_d);
         const double tilt = std::sin(centre.theta_h) * std::sin(centre.theta_d);
@@ -37,7 +36,7 @@ const std::vector<std::uint32_t>& merl_valid_cells() {
           const double lowest = level - tilt * turn[std::size_t(pd)];  // the lower of the two heights
           bool valid = lowest > kHorizonMargin;
           if (std::abs(lowest) <= kHorizonMargin) {
-            row.directions(pd, wi, wo);
+            MerlCentres(int(th), td).directions(pd, wi, wo);
             valid = wi.z() > 0 && wo.z() > 0;
           }
           if (valid) rows[th].push_back(std::uint32_t(merl_index({int(th), td, pd})));
