@@ -8,7 +8,7 @@
 namespace specula::detail {
 
 namespace {
-constexpr std::size_t kHugePage = std::size_t(1) << 21;
+constexpr std::size_t kHugePage = kHugePageBytes;
 // The block handed out starts at the first 2 MB boundary after a slot holding malloc's pointer.
 constexpr std::size_t kSlack = kHugePage + sizeof(void*);
 }  // namespace

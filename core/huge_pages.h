@@ -6,7 +6,10 @@
 
 namespace specula {
 
-/// The 2 MB pages lying wholly within [p, p + bytes) advised as huge pages; advice only (nothing where the system
+/// The size of a huge page (x86-64's 2 MB transparent huge pages).
+inline constexpr std::size_t kHugePageBytes = std::size_t(1) << 21;
+
+/// The huge pages lying wholly within [p, p + bytes) advised as huge pages; advice only (nothing where the system
 /// has no huge pages, and memory already touched keeps its pages).
 void advise_huge_pages(void* p, std::size_t bytes) noexcept;
 
