@@ -135,13 +135,15 @@ void map_block(Eigen::MatrixXf& x, std::size_t i0, std::span<const float> refere
   });
 }
 
-// Per cell of x (cells [i0, i0 + n)): the median over observations as reference, the mean mapped value.
+// Per cell of x (cells [i0, i0 + n)): the median over observations as reference, the mean mapped value, the
+// largest observation as ceiling.
 void reference_and_mean(const Eigen::MatrixXf& x, std::size_t i0, double eps, BrdfPrior& p) {
   const std::size_t n = std::size_t(x.rows()), m = std::size_t(x.cols());
   parallel_for((n + kBlock - 1) / kBlock, [&](std::size_t blk) {
     std::vector<float> row(m);
     for (std::size_t i = blk * kBlock; i < std::min(n, (blk + 1) * kBlock); ++i) {
       for (std::size_t j = 0; j < m; ++j) row[j] = x(Eigen::Index(i), Eigen::Index(j));
+      p.ceiling[i0 + i] = *std::ranges::max_element(row);
       std::nth_element(row.begin(), row.begin() + std::ptrdiff_t(m / 2), row.end());
       const float ref = row[m / 2];
       double sum = 0;
@@ -182,6 +184,7 @@ Eigen::MatrixXd first_pass(const Training& t, BrdfPrior& p) {
   const std::size_t d = valid_cells().size();
   p.reference.resize(d);
   p.mean.resize(d);
+  p.ceiling.resize(d);
   Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(Eigen::Index(t.m), Eigen::Index(t.m));
   std::vector<std::size_t> holes(t.grids.size(), 0);
   Eigen::MatrixXf x;

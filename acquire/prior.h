@@ -36,8 +36,11 @@ struct BrdfPrior {
   WavelengthGrid wavelengths;  ///< the training grids' bands
   std::vector<double> knots;   ///< channel knot wavelengths (nm), ascending, first and last at the ends
   double epsilon = 1e-3;
-  std::vector<float> reference;       ///< per valid cell: the median cos-weighted channel value (1/sr)
-  std::vector<float> mean;            ///< per valid cell: mean mapped value
+  std::vector<float> reference;  ///< per valid cell: the median cos-weighted channel value (1/sr)
+  std::vector<float> mean;       ///< per valid cell: mean mapped value
+  /// per valid cell: the largest cos-weighted channel value of any training material (1/sr); empty for a prior
+  /// written before it was kept (store version 1)
+  std::vector<float> ceiling;
   std::vector<float> components;      ///< k x valid cells, row-major, orthonormal rows
   std::vector<double> variances;      ///< k: variance of the observations along each component
   std::vector<std::string> training;  ///< the training grids, one name per material

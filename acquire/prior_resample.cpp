@@ -127,6 +127,34 @@ std::vector<PriorObservations> cell_means(const brdf::SampleSource& src, bool us
   return out;
 }
 
+std::size_t bound_by_ceiling(const BrdfPrior& prior, std::span<const std::uint8_t> unseen, std::span<float> grid) {
+  if (unseen.size() != brdf::kMerlCells || grid.empty() || grid.size() % brdf::kMerlCells != 0)
+    throw UsageError("prior: the unseen flags or the grid are not of the MERL grid's cells");
+  if (prior.ceiling.empty()) return 0;
+  const auto& cells = valid_cells();
+  const auto& cosines = valid_cell_cosines();
+  if (prior.ceiling.size() != cells.size())
+    throw UsageError("prior: malformed prior (its ceiling is not one per cell)");
+  const std::size_t b = grid.size() / brdf::kMerlCells;
+  std::vector<std::uint8_t> scaled(cells.size(), 0);
+  parallel_for(
+      cells.size(),
+      [&](std::size_t i) {
+        const std::size_t cell = cells[i];
+        if (!unseen[cell]) return;
+        float top = 0;
+        for (std::size_t k = 0; k < b; ++k) top = std::max(top, grid[k * brdf::kMerlCells + cell]);
+        const double limit = double(prior.ceiling[i]) / std::max(double(cosines[i]), 1e-6);
+        if (!(top > limit)) return;
+        const double scale = limit / top;
+        for (std::size_t k = 0; k < b; ++k)
+          grid[k * brdf::kMerlCells + cell] = float(grid[k * brdf::kMerlCells + cell] * scale);
+        scaled[i] = 1;
+      },
+      4096);
+  return std::size_t(std::ranges::count(scaled, std::uint8_t(1)));
+}
+
 PriorObservations cell_means(const brdf::SampleSource& src, bool use_variance) {
   return std::move(cell_means(src, use_variance, {}, 1)[0]);
 }
@@ -166,8 +194,15 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
     st.observed_cells = obs.cell.size();
     fit_prior(prior, components, obs, o.fit, fitted);
     cap = unseen_cap(obs);
-    retro_rows = o.retro_weight ? unseen_retro_rows(obs) : 0;
+    retro_rows = unseen_retro_rows(obs);
   }
+  if (o.ceiling && !o.residuals) {
+    std::vector<std::uint8_t> unseen(brdf::kMerlCells, 0);
+    for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell)
+      unseen[cell] = in_unseen_cap(cap, cell) || in_unseen_retro(retro_rows, cell);
+    st.bounded_cells = bound_by_ceiling(prior, unseen, fitted);
+  }
+  if (!o.retro_weight) retro_rows = 0;  // the band blends as elsewhere
   st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto& cells = valid_cells();
   if (o.residuals) {

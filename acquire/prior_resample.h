@@ -38,6 +38,10 @@ struct PriorResampleOptions {
   /// kd-tree has support (confidence w), the prior where not (chosen by prior_reach.h); empty: the blend as
   /// elsewhere. The cap wins where both hold. The residuals form ignores it.
   std::optional<double> retro_weight;
+  /// true: in the cells no sample constrains (the unseen cap and retro-reflection band) the fit is bounded by the
+  /// prior's ceiling (bound_by_ceiling); false, or a prior without a ceiling: not bounded. The residuals form
+  /// ignores it.
+  bool ceiling = true;
 };
 
 /// What one reconstruction with a prior did.
@@ -45,6 +49,7 @@ struct PriorResampleStats {
   brdf::GridStats local;           ///< the kd-tree pass
   std::size_t observed_cells = 0;  ///< valid cells holding at least one sample (the prior's observations)
   std::size_t filled_cells = 0;    ///< valid cells with data in the result (all of them)
+  std::size_t bounded_cells = 0;   ///< unseen cells whose fit the prior's ceiling scaled down (bound_by_ceiling)
   double fit_seconds = 0;
 };
 
@@ -59,6 +64,12 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
 PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const BrdfPrior& prior,
                                        const PriorResampleOptions& o, std::span<float> grid,
                                        std::span<float> confidence);
+
+/// Scales the spectrum in grid (bands x kMerlCells) of every valid cell with unseen[cell] != 0 (kMerlCells flags)
+/// down, where needed, so that no band exceeds prior.ceiling / (cos theta_i cos theta_o) at the cell centre: the
+/// largest value any training material has there; returns the cells scaled. Nothing for a prior without a ceiling.
+/// UsageError on sizes.
+std::size_t bound_by_ceiling(const BrdfPrior& prior, std::span<const std::uint8_t> unseen, std::span<float> grid);
 
 /// The samples of src averaged per valid cell (values), their counts as weights and as spread their scatter (the
 /// unbiased variance per band, 0 for one sample) or, when src carries variances and use_variance, the mean of the

@@ -13,6 +13,7 @@ store::PriorTables tables_of(const BrdfPrior& p) {
           .epsilon = p.epsilon,
           .reference = p.reference,
           .mean = p.mean,
+          .ceiling = p.ceiling,
           .components = p.components,
           .training = p.training};
 }
@@ -25,6 +26,7 @@ BrdfPrior prior_of(store::PriorTables t) {
   p.epsilon = t.epsilon;
   p.reference = std::move(t.reference);
   p.mean = std::move(t.mean);
+  p.ceiling = std::move(t.ceiling);
   p.components = std::move(t.components);
   p.training = std::move(t.training);
   return p;

@@ -119,7 +119,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
                           .fit = m.fit,
                           .confidence_reach = m.confidence_reach,
                           .residuals = m.residuals,
-                          .prior_in_cap = m.prior_in_cap};
+                          .prior_in_cap = m.prior_in_cap,
+                          .ceiling = m.ceiling};
   po.local.k = k.k;
   const StoreSamples src(s, job.samples);
   const ComponentSource components = store_components(prior_store, spec->name);
@@ -136,13 +137,18 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(
-      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={} {}", m.prior, m.fit.lambda,
+      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={} ceiling={} {}", m.prior, m.fit.lambda,
       prior_weights_name(m.fit.weights),
       reach ? reach_provenance(*reach, *m.reach_auto) : fmt::format("confidence_reach={}", m.confidence_reach),
-      m.prior_in_cap, local_words(po.local, k));
+      m.prior_in_cap,
+      !m.ceiling              ? "off"
+      : prior.ceiling.empty() ? "none"
+                              : "on",
+      local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
   out.report["observed_cells"] = st.observed_cells;
+  out.report["bounded_cells"] = st.bounded_cells;
   out.report["seconds"] = seconds;
   out.report["fit_seconds"] = st.fit_seconds;
   out.report["prior"] = m.prior;

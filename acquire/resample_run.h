@@ -29,6 +29,7 @@ struct PriorMethod {
   std::optional<ReachOptions> reach_auto = ReachOptions{};
   bool residuals = false;
   bool prior_in_cap = true;
+  bool ceiling = true;  ///< the fit in the unseen cells bounded by the prior's ceiling (PriorResampleOptions)
 };
 
 /// A Lambertian plus microfacet lobes fitted as the base, the kd-tree estimate of the residuals added near samples.

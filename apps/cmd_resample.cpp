@@ -42,6 +42,7 @@ struct ResampleCliOptions {
   bool prior_residuals = false;
   bool kd_tree_in_cap = false;
   bool blend_in_retro = false;
+  bool no_ceiling = false;
   std::string prior_weights = "noise";
   std::size_t prior_block_mb = 256;
 };
@@ -135,7 +136,8 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
                                    .weights = acquire::parse_prior_weights(o.prior_weights),
                                    .block_bytes = o.prior_block_mb << 20},
                            .residuals = o.prior_residuals,
-                           .prior_in_cap = !o.kd_tree_in_cap};
+                           .prior_in_cap = !o.kd_tree_in_cap,
+                           .ceiling = !o.no_ceiling};
     if (o.confidence_reach == "auto" && o.prior_residuals)
       throw UsageError("--confidence-reach auto: chosen for the blend, not with --prior-residuals");
     if (o.confidence_reach ? *o.confidence_reach != "auto" : o.prior_residuals) m.reach_auto.reset();
@@ -251,6 +253,9 @@ void setup_resample(CLI::App& app) {
                 "--prior: blend the prior and the kd-tree estimate by confidence in the theta_d rows below the lowest "
                 "sampled one (the unseen band round retro-reflection) as elsewhere, instead of the kd-tree weight "
                 "chosen there with --confidence-reach auto (docs/prior.md)");
+  cmd->add_flag("--no-ceiling", o->no_ceiling,
+                "--prior: leave the fit unbounded in the unseen cap and retro-reflection band, instead of no higher "
+                "than any training material at each cell (the prior's ceiling; docs/prior.md)");
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
   cmd->callback([o, power, k_criterion, k_held_out] {

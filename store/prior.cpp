@@ -12,7 +12,8 @@
 namespace specula::store {
 namespace {
 
-constexpr long long kPriorVersion = 1;
+// 2: `ceiling` added (a prior without it is written, and read, as version 1).
+constexpr long long kPriorVersion = 2;
 
 // A rows x cols float32 dataset, chunked by rows of at most 2^18 values and deflated.
 void write_f32(hid_t loc, const std::string& name, std::span<const float> v, hsize_t rows, const std::string& ctx) {
@@ -122,11 +123,12 @@ h5::Id open_prior(const Store& s, const std::string& name, const std::string& ct
 void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   const std::string path = "/priors/" + name, ctx = label() + ": " + path;
   const std::size_t k = p.variances.size(), cells = p.mean.size();
-  if (p.reference.size() != cells ||
+  if (p.reference.size() != cells || !(p.ceiling.empty() || p.ceiling.size() == cells) ||
       (p.components.empty() ? k && !p.component_blocks : p.components.size() != k * cells))
-    throw UsageError(ctx + ": reference, mean and components (k x cells, or made by component_blocks) disagree");
+    throw UsageError(ctx +
+                     ": reference, mean, ceiling and components (k x cells, or made by component_blocks) disagree");
   h5::Id g = make_group(begin("priors", name, "prior"), path, ctx);
-  h5::write_attr(g, "prior_version", kPriorVersion, ctx);
+  h5::write_attr(g, "prior_version", p.ceiling.empty() ? 1 : kPriorVersion, ctx);
   h5::write_attr(g, "mapping", std::string_view("log-relative-cos"), ctx);
   h5::write_attr(g, "epsilon", p.epsilon, ctx);
   h5::write_vector(g, "wavelengths", p.wavelengths, ctx);
@@ -134,6 +136,7 @@ void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   h5::write_vector(g, "variances", p.variances, ctx);
   write_f32(g, "reference", p.reference, 1, ctx);
   write_f32(g, "mean", p.mean, 1, ctx);
+  if (!p.ceiling.empty()) write_f32(g, "ceiling", p.ceiling, 1, ctx);
   const hsize_t dims[2] = {k, cells};
   h5::Id space(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
   h5::Id dcpl(h5::check(H5Pcreate(H5P_DATASET_CREATE), ctx, "H5Pcreate"));
@@ -179,6 +182,7 @@ PriorTables Store::read_prior(const std::string& name, std::size_t cells, bool c
   p.epsilon = read_double_attr(g, "epsilon", ctx);
   p.reference = read_f32(g, "reference", 1, cells, ctx);
   p.mean = read_f32(g, "mean", 1, cells, ctx);
+  if (h5::read_int_attr(g, "prior_version", ctx) >= 2) p.ceiling = read_f32(g, "ceiling", 1, cells, ctx);
   if (components)
     p.components = read_f32(g, "components", p.variances.size(), cells, ctx);
   else
@@ -190,8 +194,9 @@ PriorTables Store::read_prior(const std::string& name, std::size_t cells, bool c
     at = nl + 1;
   }
   if (p.knots.size() < 2 || !(p.epsilon > 0) ||
-      std::any_of(p.variances.begin(), p.variances.end(), [](double v) { return !(v > 0); }))
-    throw InputError(ctx + ": malformed prior (knots, epsilon or variances)");
+      std::any_of(p.variances.begin(), p.variances.end(), [](double v) { return !(v > 0); }) ||
+      std::any_of(p.ceiling.begin(), p.ceiling.end(), [](float c) { return c < 0; }))
+    throw InputError(ctx + ": malformed prior (knots, epsilon, variances or a negative ceiling)");
   return p;
 }
 

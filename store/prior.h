@@ -16,8 +16,10 @@ struct PriorTables {
   std::vector<double> knots;        ///< channel knot wavelengths (nm)
   std::vector<double> variances;    ///< k
   double epsilon = 0;
-  std::vector<float> reference;   ///< one value per cell
-  std::vector<float> mean;        ///< one value per cell
+  std::vector<float> reference;  ///< one value per cell
+  std::vector<float> mean;       ///< one value per cell
+  /// one value per cell, or empty: a prior of version 1, written before the ceiling was kept
+  std::vector<float> ceiling;
   std::vector<float> components;  ///< k x cells, row-major; or empty, and component_blocks makes them
   /// When components is empty: fills out with the k x count components of cells [first, first + count), row-major;
   /// add_prior calls it for consecutive blocks of kPriorBlockCells cells (the last may be shorter), in order.

@@ -144,6 +144,8 @@ TEST(Prior, RoundTripsThroughTheStore) {
   EXPECT_EQ(p.components, f.prior.components);
   EXPECT_EQ(p.mean, f.prior.mean);
   EXPECT_EQ(p.reference, f.prior.reference);
+  EXPECT_EQ(p.ceiling, f.prior.ceiling);
+  EXPECT_EQ(p.ceiling.size(), p.cells());
   EXPECT_EQ(p.variances, f.prior.variances);
   EXPECT_EQ(p.knots, f.prior.knots);
   const std::string m = test::error_of([&] { acquire::read_prior(s, "q"); });
@@ -368,6 +370,7 @@ TEST(Prior, StreamedThroughAStoreEqualsABruteForcePca) {
   EXPECT_EQ(p.components, f.prior.components);
   EXPECT_EQ(p.variances, f.prior.variances);
   EXPECT_EQ(p.mean, f.prior.mean);
+  EXPECT_EQ(p.ceiling, f.prior.ceiling);
   // Brute force: the mapped, centred observations in double, their SVD.
   const auto& cells = acquire::valid_cells();
   const std::size_t d = cells.size(), c = 3, m = f.grids.size() * c;

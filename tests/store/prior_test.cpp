@@ -50,3 +50,36 @@ TEST(StorePrior, ComponentsReadBackRangeByRangeAcrossChunks) {
   EXPECT_NE(m.find("db.h5: no prior 'q' (priors: p"), std::string::npos) << m;
   EXPECT_THROW(s.read_prior("p", cells + 1, false), InputError);  // the components' shape is checked
 }
+
+TEST(StorePrior, CeilingRoundTripsAndAPriorWithoutOneReadsWithout) {
+  constexpr std::size_t cells = 1000;
+  PriorTables t{.wavelengths = {400, 700}, .knots = {400, 700}, .variances = {2, 1}, .epsilon = 1e-3};
+  t.reference.assign(cells, 0.5f);
+  t.mean.assign(cells, -0.25f);
+  for (std::size_t i = 0; i < cells; ++i) t.ceiling.push_back(float(i) * 0.5f);
+  t.components.assign(2 * cells, 0.125f);
+  t.training = {"a", "b"};
+  PriorTables old = t;  // the layout of version 1: no ceiling
+  old.ceiling.clear();
+  PriorTables negative = t;
+  negative.ceiling[17] = -1.0f;
+  test::ScratchDir dir;
+  {
+    StoreWriter w(dir / "db.h5", {});
+    w.add_prior("p", t);
+    w.add_prior("old", old);
+    w.add_prior("negative", negative);
+    w.commit();
+  }
+  const Store s = Store::open(dir / "db.h5");
+  EXPECT_EQ(s.read_prior("p", cells, false).ceiling, t.ceiling);
+  EXPECT_TRUE(s.read_prior("old", cells).ceiling.empty());
+  EXPECT_EQ(s.read_prior("old", cells).mean, t.mean);
+  const std::string m = test::error_of([&] { s.read_prior("negative", cells); });
+  EXPECT_NE(m.find("/priors/negative: malformed prior (knots, epsilon, variances or a negative ceiling)"),
+            std::string::npos)
+      << m;
+  t.ceiling.pop_back();
+  StoreWriter w(dir / "db2.h5", {});
+  EXPECT_THROW(w.add_prior("p", t), UsageError);
+}
