@@ -11,6 +11,7 @@
 #include "specula/acquire/bandwidth.h"
 #include "specula/acquire/base_resample.h"
 #include "specula/acquire/retro_band.h"
+#include "specula/acquire/scan_holdout.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
@@ -32,78 +33,6 @@ void check_reach_options(const ReachOptions& o) {
   for (std::size_t l = 0; l < o.retro_ladder.size(); ++l)
     if (!(o.retro_ladder[l] >= 0 && o.retro_ladder[l] <= 1) || (l > 0 && o.retro_ladder[l] <= o.retro_ladder[l - 1]))
       throw UsageError("confidence reach: the retro band's ladder of weights must ascend strictly within [0, 1]");
-}
-
-// The samples of a source whose role is kept, in their order (the source outlives it).
-class KeptSamples final : public brdf::SampleSource {
- public:
-  KeptSamples(const brdf::SampleSource& src, std::span<const std::uint8_t> held) : src_(src) {
-    for (std::size_t s = 0; s < held.size(); ++s)
-      if (!held[s]) kept_.push_back(std::uint32_t(s));
-  }
-  std::size_t size() const override { return kept_.size(); }
-  std::size_t bands() const override { return src_.bands(); }
-  std::size_t block_rows() const override { return src_.block_rows(); }
-  bool has_variance() const override { return src_.has_variance(); }
-  void read_angles(std::size_t first, std::size_t count, std::span<double> out) const override {
-    gather<double>(first, count, 4, out,
-                   [&](std::size_t a, std::size_t n, std::span<double> to) { src_.read_angles(a, n, to); });
-  }
-  void read_values(std::size_t first, std::size_t count, std::span<float> out) const override {
-    gather<float>(first, count, bands(), out,
-                  [&](std::size_t a, std::size_t n, std::span<float> to) { src_.read_values(a, n, to); });
-  }
-  void read_variance(std::size_t first, std::size_t count, std::span<float> out) const override {
-    gather<float>(first, count, bands(), out,
-                  [&](std::size_t a, std::size_t n, std::span<float> to) { src_.read_variance(a, n, to); });
-  }
-
- private:
-  // Rows [first, first + count) of the kept samples, width values each, from the source's range that spans them.
-  template <class T, class Read>
-  void gather(std::size_t first, std::size_t count, std::size_t width, std::span<T> out, const Read& read) const {
-    if (count == 0) return;
-    if (first + count > kept_.size() || out.size() != count * width)
-      throw UsageError("confidence reach: kept samples out of range");
-    const std::size_t lo = kept_[first], hi = std::size_t(kept_[first + count - 1]) + 1;
-    std::vector<T> buf((hi - lo) * width);
-    read(lo, hi - lo, buf);
-    for (std::size_t i = 0; i < count; ++i)
-      std::copy_n(buf.begin() + std::ptrdiff_t((kept_[first + i] - lo) * width), width,
-                  out.begin() + std::ptrdiff_t(i * width));
-  }
-
-  const brdf::SampleSource& src_;
-  std::vector<std::uint32_t> kept_;
-};
-
-// Each sample's valid-cell position (or -1), its angles read in the source's blocks.
-std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src) {
-  const std::size_t n = src.size(), block = std::max<std::size_t>(1, src.block_rows());
-  std::vector<std::int32_t> slots(n);
-  std::vector<double> angles;
-  for (std::size_t first = 0; first < n; first += block) {
-    check_interrupt();
-    const std::size_t count = std::min(block, n - first);
-    angles.resize(4 * count);
-    src.read_angles(first, count, angles);
-    valid_slots(angles, std::span(slots).subspan(first, count));
-  }
-  return slots;
-}
-
-// The mean over bands of (ln((blend cc + eps) / (target cc + eps)))^2 at observation o (MERL cell `cell`), blend
-// c kd + (1 - c) fitted, target the observation's values.
-double blend_error(const PriorObservations& obs, std::size_t o, std::size_t cell, double cc, double c,
-                   std::span<const float> fitted, std::span<const float> kd, std::size_t b, double eps) {
-  double sum = 0;
-  for (std::size_t k = 0; k < b; ++k) {
-    const std::size_t at = k * brdf::kMerlCells + cell;
-    const double blend = c * (c > 0 ? kd[at] : 0.0f) + (1 - c) * fitted[at];
-    const double d = std::log((blend * cc + eps) / (double(obs.values[o * b + k]) * cc + eps));
-    sum += d * d;
-  }
-  return sum / double(b);
 }
 
 // Per held-out cell of obs and ladder entry, its error (cells x ladder, row-major).
@@ -129,45 +58,6 @@ std::vector<double> held_out_errors(const PriorObservations& obs, std::span<cons
   return err;
 }
 
-// The judge's eps: the prior's, scaled down by how much darker the kept observations are than the prior's reference
-// (the ratio of their medians over the observed cells, at most 1), so that a dark material's body, all below the
-// prior's eps, still weighs in the choice as a renderer's exposure would show it.
-double judge_epsilon(const PriorObservations& obs, const BrdfPrior& prior, std::size_t b) {
-  const auto& cosines = valid_cell_cosines();
-  std::vector<double> value(obs.cell.size()), reference(obs.cell.size());
-  for (std::size_t o = 0; o < obs.cell.size(); ++o) {
-    double sum = 0;
-    for (std::size_t k = 0; k < b; ++k) sum += obs.values[o * b + k];
-    value[o] = sum / double(b) * cosines[obs.cell[o]];
-    reference[o] = prior.reference[obs.cell[o]];
-  }
-  const auto median = [](std::vector<double>& v) {
-    std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(v.size() / 2), v.end());
-    return v[v.size() / 2];
-  };
-  if (value.empty()) return prior.epsilon;
-  const double ref = median(reference);
-  return ref > 0 ? prior.epsilon * std::clamp(median(value) / ref, 1e-6, 1.0) : prior.epsilon;
-}
-
-// Per weight w of the retro ladder, the mean over the band's held cells (obs) of the error of w kd + (1 - w) fit
-// (the fit alone where the kd-tree has no support), summed in cell order.
-std::vector<double> band_errors(const PriorObservations& obs, std::span<const float> fitted, std::span<const float> kd,
-                                std::size_t b, std::span<const double> ladder, double eps) {
-  const auto& cells = valid_cells();
-  const auto& cosines = valid_cell_cosines();
-  std::vector<double> mean(ladder.size(), 0.0);
-  for (std::size_t o = 0; o < obs.cell.size(); ++o) {
-    const std::size_t cell = cells[obs.cell[o]];
-    const double cc = cosines[obs.cell[o]];
-    const bool local = kd[cell] >= 0;
-    for (std::size_t l = 0; l < ladder.size(); ++l)
-      mean[l] += blend_error(obs, o, cell, cc, local ? ladder[l] : 0.0, fitted, kd, b, eps);
-  }
-  for (double& x : mean) x = obs.cell.empty() ? 0.0 : x / double(obs.cell.size());
-  return mean;
-}
-
 // Per ladder entry the mean of err (cells x ladder) over the held-out cells o with keep(o), summed in their order;
 // the count of such cells into n.
 template <class Keep>
@@ -181,11 +71,6 @@ std::vector<double> mean_errors(const std::vector<double>& err, std::size_t m, c
   }
   for (double& x : mean) x = n ? x / double(n) : 0.0;
   return mean;
-}
-
-// The index of the least entry (the first on a tie).
-std::size_t least(const std::vector<double>& v) {
-  return std::size_t(std::min_element(v.begin(), v.end()) - v.begin());
 }
 
 }  // namespace
@@ -295,7 +180,7 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
     out.groups.push_back(std::move(g));
   }
   if (!parts[2].cell.empty()) {
-    const std::vector<double> band = band_errors(parts[2], fitted, kd, b, r.retro_ladder, out.epsilon);
+    const std::vector<double> band = weight_errors(parts[2], fitted, kd, b, r.retro_ladder, out.epsilon);
     for (std::size_t l = 0; l < band.size(); ++l)
       out.retro_rows.push_back({.reach = r.retro_ladder[l], .error = band[l]});
     out.retro_weight = r.retro_ladder[least(band)];

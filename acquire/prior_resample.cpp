@@ -180,6 +180,8 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
       (o.reach_by_theta_h.size() != std::size_t(brdf::kMerlThetaH) ||
        !std::all_of(o.reach_by_theta_h.begin(), o.reach_by_theta_h.end(), [](double r) { return r > 0 && r <= 1; })))
     throw UsageError("prior: reach_by_theta_h needs one reach in (0, 1] per theta_h row (90)");
+  if (o.cap_weight && !(*o.cap_weight >= 0 && *o.cap_weight <= 1))
+    throw UsageError("prior: cap_weight (the kd-tree's weight in the unseen cap) must be in [0, 1]");
   if (o.retro_weight && !(*o.retro_weight >= 0 && *o.retro_weight <= 1))
     throw UsageError(
         "prior: retro_weight (the kd-tree's weight in the unseen retro-reflection band) must be in [0, 1]");
@@ -218,8 +220,9 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
       cells.size(),
       [&](std::size_t i) {
         const std::size_t cell = cells[i];
-        const bool local = grid[cell] >= 0 && !(o.prior_in_cap && in_unseen_cap(cap, cell));
-        const double c = !local ? 0.0
+        const bool local = grid[cell] >= 0;
+        const double c = !local                                       ? 0.0
+                         : o.prior_in_cap && in_unseen_cap(cap, cell) ? o.cap_weight.value_or(0.0)
                          : in_unseen_retro(retro_rows, cell)
                              ? *o.retro_weight
                              : support_confidence(gaps[cell], o.local.max_gap, reach_of(o, cell));

@@ -31,13 +31,16 @@ struct PriorResampleOptions {
   /// false: c * local + (1 - c) * prior; true: max(0, prior + c * local estimate of the residuals against the
   /// prior fit) (acquire/base_resample.h, as --model)
   bool residuals = false;
-  /// true: cells of the unseen cap round the specular peak (acquire/peak_cap.h) take the prior alone (confidence 0)
-  /// in the blend; false: the kd-tree estimate as elsewhere. The residuals form ignores it.
+  /// true: cells of the unseen cap round the specular peak (acquire/peak_cap.h) take the prior alone (confidence 0),
+  /// or as cap_weight says, in the blend; false: the kd-tree estimate as elsewhere. The residuals form ignores it.
   bool prior_in_cap = true;
   /// given: cells of the unseen retro-reflection band (acquire/retro_band.h) take w kd + (1 - w) prior where the
   /// kd-tree has support (confidence w), the prior where not (chosen by prior_reach.h); empty: the blend as
   /// elsewhere. The cap wins where both hold. The residuals form ignores it.
   std::optional<double> retro_weight;
+  /// given (with prior_in_cap): cells of the unseen cap take w kd + (1 - w) prior where the kd-tree has support
+  /// (confidence w), the prior where not (chosen by acquire/cap_weight.h); empty: the prior alone there.
+  std::optional<double> cap_weight;
   /// true: in the cells no sample constrains (the unseen cap and retro-reflection band) the fit is bounded by the
   /// prior's ceiling (bound_by_ceiling); false, or a prior without a ceiling: not bounded. The residuals form
   /// ignores it.

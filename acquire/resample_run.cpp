@@ -131,16 +131,21 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
     po.reach_by_theta_h = reach_by_theta_h(*reach);
     po.retro_weight = reach->retro_weight;
   }
+  std::optional<CapWeightChoice> cap;
+  if (m.cap_auto && m.prior_in_cap && !m.residuals) {
+    cap = choose_cap_weight(src, prior, components, po, *m.cap_auto);
+    po.cap_weight = cap->weight;
+  }
   ResampleOutcome out{.grid = empty_grid(info, job)};
   std::vector<float> confidence(brdf::kMerlCells);
   const PriorResampleStats st = resample_with_prior(src, prior, components, po, out.grid.brdf, confidence);
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(
-      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={} ceiling={} {}", m.prior, m.fit.lambda,
+      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={}{} ceiling={} {}", m.prior, m.fit.lambda,
       prior_weights_name(m.fit.weights),
       reach ? reach_provenance(*reach, *m.reach_auto) : fmt::format("confidence_reach={}", m.confidence_reach),
-      m.prior_in_cap,
+      m.prior_in_cap, cap ? fmt::format(" cap_weight={}", cap->weight) : std::string(),
       !m.ceiling              ? "off"
       : prior.ceiling.empty() ? "none"
                               : "on",
@@ -154,6 +159,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.report["prior"] = m.prior;
   out.report["confidence_reach"] = po.confidence_reach;
   if (reach) out.report["confidence_reach_auto"] = reach_choice_json(*reach, *m.reach_auto);
+  if (cap) out.report["cap_weight_auto"] = cap_weight_json(*cap);
   add_k_auto(out.report, k);
   out.summary = fmt::format(
       "resampled {} samples of {} with prior {} onto all {} valid cells ({} observed; kd-tree reach {}{}) in {:.2f} s",

@@ -8,6 +8,7 @@
 #include <variant>
 
 #include "specula/acquire/bandwidth.h"
+#include "specula/acquire/cap_weight.h"
 #include "specula/acquire/model_fit.h"
 #include "specula/acquire/prior.h"
 #include "specula/acquire/prior_reach.h"
@@ -29,6 +30,9 @@ struct PriorMethod {
   std::optional<ReachOptions> reach_auto = ReachOptions{};
   bool residuals = false;
   bool prior_in_cap = true;
+  /// given (the default) with prior_in_cap and not residuals: the kd-tree's weight in the unseen cap is chosen by
+  /// rehearsal (acquire/cap_weight.h); empty: the prior alone there
+  std::optional<CapWeightOptions> cap_auto = CapWeightOptions{};
   bool ceiling = true;  ///< the fit in the unseen cells bounded by the prior's ceiling (PriorResampleOptions)
 };
 

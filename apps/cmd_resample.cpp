@@ -43,6 +43,7 @@ struct ResampleCliOptions {
   bool kd_tree_in_cap = false;
   bool blend_in_retro = false;
   bool no_ceiling = false;
+  bool prior_alone_in_cap = false;
   std::string prior_weights = "noise";
   std::size_t prior_block_mb = 256;
 };
@@ -143,6 +144,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     if (o.confidence_reach ? *o.confidence_reach != "auto" : o.prior_residuals) m.reach_auto.reset();
     if (o.confidence_reach && *o.confidence_reach != "auto") m.confidence_reach = reach_of(*o.confidence_reach);
     if (o.blend_in_retro && m.reach_auto) m.reach_auto->retro_ladder.clear();
+    if (o.prior_alone_in_cap) m.cap_auto.reset();
     job.method = m;
   } else if (!o.model.empty()) {
     acquire::ModelMethod m{.fit = {.kind = {.distribution = acquire::parse_distribution(o.model),
@@ -253,6 +255,9 @@ void setup_resample(CLI::App& app) {
                 "--prior: blend the prior and the kd-tree estimate by confidence in the theta_d rows below the lowest "
                 "sampled one (the unseen band round retro-reflection) as elsewhere, instead of the kd-tree weight "
                 "chosen there with --confidence-reach auto (docs/prior.md)");
+  cmd->add_flag("--prior-alone-in-cap", o->prior_alone_in_cap,
+                "--prior: the prior alone in the unseen cap round the specular peak, instead of the kd-tree's weight "
+                "there chosen by rehearsing the cap one cap higher (docs/prior.md)");
   cmd->add_flag("--no-ceiling", o->no_ceiling,
                 "--prior: leave the fit unbounded in the unseen cap and retro-reflection band, instead of no higher "
                 "than any training material at each cell (the prior's ceiling; docs/prior.md)");
