@@ -84,6 +84,15 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
                   ":rb' --blend-in-retro --json");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("\"weight\":null"), std::string::npos) << r.output;
+  // The cap's weight is chosen by default and reported, with the cells the ceiling bounded; --prior-alone-in-cap
+  // chooses none.
+  EXPECT_NE(r.output.find("\"cap_weight_auto\":{\"weight\":"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\"bounded_cells\":"), std::string::npos) << r.output;
+  r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
+                  ":ra' --prior-alone-in-cap --no-ceiling --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output.find("cap_weight_auto"), std::string::npos) << r.output;
+  EXPECT_EQ(test::json_number(r.output, "bounded_cells"), 0) << r.output;
 
   // Exchange files: the grid and its confidence beside it, and no temporary left.
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "x.spgrid").string() + "'");
