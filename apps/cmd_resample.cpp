@@ -248,9 +248,11 @@ void setup_resample(CLI::App& app) {
   cmd->add_flag("--prior-residuals", o->prior_residuals,
                 "--prior: add the kd-tree estimate of the residuals against the prior fit (as --model) instead of "
                 "blending the two");
-  cmd->add_flag("--kd-tree-in-cap", o->kd_tree_in_cap,
-                "--prior: keep the kd-tree estimate in the theta_h rows below the lowest sampled one (the unseen cap "
-                "round the specular peak) instead of the prior alone there (docs/prior.md)");
+  cmd->add_flag(
+      "--kd-tree-in-cap", o->kd_tree_in_cap,
+      "--prior: keep the kd-tree estimate in the theta_h rows below the lowest sampled one (the unseen cap "
+      "round the specular peak), blended by confidence as elsewhere, instead of the prior with the kd-tree's weight "
+      "chosen there (docs/prior.md)");
   cmd->add_flag("--blend-in-retro", o->blend_in_retro,
                 "--prior: blend the prior and the kd-tree estimate by confidence in the theta_d rows below the lowest "
                 "sampled one (the unseen band round retro-reflection) as elsewhere, instead of the kd-tree weight "

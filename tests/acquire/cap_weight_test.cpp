@@ -10,6 +10,7 @@
 #include <numbers>
 
 #include "codec/grid_fixture.h"
+#include "small_scan.h"
 #include "specula/acquire/peak_cap.h"
 #include "specula/acquire/retro_band.h"
 #include "specula/acquire/scan.h"
@@ -38,30 +39,14 @@ const BrdfPrior& glossy_prior() {
   return p;
 }
 
-struct Scan {
-  std::vector<double> angles;
-  std::vector<float> values;
-};
-
-// The material seen by a small rig (100-pixel sphere, 40 lights 4 degrees apart), noiseless.
-Scan scan_of(const brdf::SpectralModel& m) {
-  const ScanRig rig{.sphere_px = 100, .light_step_deg = 4, .lights = 40};
-  const auto pixels = scan_pixels(rig);
-  Scan s;
-  for (std::size_t j = 0; j < rig.lights; ++j) scan_light(rig, pixels, j, s.angles);
-  s.values.resize(s.angles.size() / 4 * 5);
-  brdf::evaluate_at(m, s.angles, s.values);
-  return s;
-}
-
 const PriorResampleOptions kOptions{.local = {.k = 8}};
 
 TEST(CapWeight, TheKdTreeForAFlatMaterialThePriorForASharpPeak) {
-  const Scan flat = scan_of(test::ward(0.5, 0.2, 0.0, 0.05));  // Lambertian: no lobe at all
+  const test::SmallScan flat = test::small_rig_scan(test::ward(0.5, 0.2, 0.0, 0.05));  // Lambertian: no lobe at all
   const brdf::MemorySamples flat_src(flat.angles, flat.values, 5);
   const CapWeightChoice f =
       choose_cap_weight(flat_src, glossy_prior(), memory_components(glossy_prior()), kOptions, {});
-  const Scan sharp = scan_of(test::ward(0.45, 0.3, 0.07, 0.02));
+  const test::SmallScan sharp = test::small_rig_scan(test::ward(0.45, 0.3, 0.07, 0.02));
   const brdf::MemorySamples sharp_src(sharp.angles, sharp.values, 5);
   const CapWeightChoice s =
       choose_cap_weight(sharp_src, glossy_prior(), memory_components(glossy_prior()), kOptions, {});
@@ -73,7 +58,7 @@ TEST(CapWeight, TheKdTreeForAFlatMaterialThePriorForASharpPeak) {
 }
 
 TEST(CapWeight, HoldsOutExactlyTheRowsOneCapHigher) {
-  const Scan sharp = scan_of(test::ward(0.45, 0.3, 0.07, 0.02));
+  const test::SmallScan sharp = test::small_rig_scan(test::ward(0.45, 0.3, 0.07, 0.02));
   const brdf::MemorySamples src(sharp.angles, sharp.values, 5);
   const CapWeightChoice c = choose_cap_weight(src, glossy_prior(), memory_components(glossy_prior()), kOptions, {});
   const UnseenCap cap = unseen_cap(cell_means(src));
@@ -92,7 +77,7 @@ TEST(CapWeight, HoldsOutExactlyTheRowsOneCapHigher) {
 }
 
 TEST(CapWeight, AGivenWeightBlendsTheKdTreeAndTheBoundedFitInTheCap) {
-  const Scan flat = scan_of(test::ward(0.5, 0.2, 0.0, 0.05));
+  const test::SmallScan flat = test::small_rig_scan(test::ward(0.5, 0.2, 0.0, 0.05));
   const brdf::MemorySamples src(flat.angles, flat.values, 5);
   const BrdfPrior& prior = glossy_prior();
   PriorResampleOptions o = kOptions;

@@ -13,6 +13,7 @@
 #include <numbers>
 #include <random>
 
+#include "small_scan.h"
 #include "specula/acquire/base_resample.h"
 #include "specula/acquire/prior_resample.h"
 #include "specula/acquire/scan.h"
@@ -189,24 +190,8 @@ double rel_rms_cos(const brdf::SpectralModel& truth, const std::function<void(st
   return std::sqrt(s / r);
 }
 
-struct Scan {
-  std::vector<double> angles;
-  std::vector<float> values;
-};
-
-// red-plastic-like Torrance-Sparrow on a small scan (100-pixel sphere, 40 lights 4 degrees apart), 2 % noise.
-Scan red_plastic_scan(const brdf::SpectralModel& m) {
-  const ScanRig rig{.sphere_px = 100, .light_step_deg = 4, .lights = 40};
-  const auto pixels = scan_pixels(rig);
-  Scan s;
-  for (std::size_t j = 0; j < rig.lights; ++j) scan_light(rig, pixels, j, s.angles);
-  s.values.resize(s.angles.size() / 4 * m.bands());
-  brdf::evaluate_at(m, s.angles, s.values);
-  std::mt19937 rng(7);
-  std::normal_distribution<double> noise(0, 0.02);
-  for (float& v : s.values) v = float(v * (1 + noise(rng)));
-  return s;
-}
+// red-plastic-like Torrance-Sparrow on the small rig's scan, 2 % noise.
+test::SmallScan red_plastic_scan(const brdf::SpectralModel& m) { return test::small_rig_scan(m, 0.02, 7); }
 
 TEST(ModelResample, SharpensRedPlasticsPeakFarBeyondShepard) {
   Eigen::VectorXd rd(5), eta(5);
@@ -214,7 +199,7 @@ TEST(ModelResample, SharpensRedPlasticsPeakFarBeyondShepard) {
   eta << 1.53, 1.52, 1.51, 1.50, 1.49;
   const brdf::TorranceSparrow truth_model(kBands, Eigen::VectorXd::Constant(5, 0.12), eta, rd);
   std::vector<float> model(5 * brdf::kMerlCells), conf(brdf::kMerlCells);
-  const Scan s = red_plastic_scan(truth_model);
+  const test::SmallScan s = red_plastic_scan(truth_model);
   const brdf::MemorySamples src(s.angles, s.values, 5);
   const brdf::Resampler shepard(s.angles, s.values, 5, {.k = 32});
   // k = 8 for the residuals keeps the test's one whole-grid pass short; `specula resample` uses -k (32) for both.

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "codec/grid_fixture.h"
+#include "small_scan.h"
 #include "specula/acquire/prior_resample.h"
 #include "specula/acquire/scan.h"
 #include "specula/core/brdf_models.h"
@@ -54,16 +55,8 @@ TEST(PeakCap, ThePriorInTheUnseenCapBringsASharpPeakBack) {
   const BrdfPrior prior = build_prior(grids.size(), [&](std::size_t i) { return grids[i]; }, names, {.channels = 3});
   const brdf::Ward held_out = ward(0.45, 0.07, 0.02);
   const store::Grid truth = grid_of(held_out);
-  const ScanRig rig{.sphere_px = 100, .light_step_deg = 4, .lights = 40};
-  const auto pixels = scan_pixels(rig);
-  std::vector<double> angles;
-  for (std::size_t j = 0; j < rig.lights; ++j) scan_light(rig, pixels, j, angles);
-  std::vector<float> values(angles.size() / 4 * 5);
-  brdf::evaluate_at(held_out, angles, values);
-  std::mt19937 rng(11);
-  std::normal_distribution<double> noise(0, 0.02);
-  for (float& v : values) v = float(v * (1 + noise(rng)));
-  const brdf::MemorySamples src(angles, values, 5);
+  const test::SmallScan scan = test::small_rig_scan(held_out, 0.02, 11);
+  const brdf::MemorySamples src(scan.angles, scan.values, 5);
 
   const UnseenCap cap = unseen_cap(cell_means(src));
   for (int j = 10; j <= 60; ++j) {  // the rig's lights are 4 degrees apart: every other theta_d row is unobserved

@@ -12,6 +12,7 @@
 #include <random>
 
 #include "codec/grid_fixture.h"
+#include "small_scan.h"
 #include "specula/acquire/peak_cap.h"
 #include "specula/acquire/prior.h"
 #include "specula/acquire/prior_resample.h"
@@ -120,13 +121,8 @@ TEST(PriorCeiling, BoundsTheUnseenCellsOfAResampleAndNoOther) {
   const Family& f = family();
   // Brighter than every training material (specular albedo 0.4): the fit follows its shoulder up into the cap.
   const brdf::Ward held_out = test::ward(0.45, 0.2, 0.4, 0.02);
-  const ScanRig rig{.sphere_px = 100, .light_step_deg = 4, .lights = 40};
-  const auto pixels = scan_pixels(rig);
-  std::vector<double> angles;
-  for (std::size_t j = 0; j < rig.lights; ++j) scan_light(rig, pixels, j, angles);
-  std::vector<float> values(angles.size() / 4 * 5);
-  brdf::evaluate_at(held_out, angles, values);
-  const brdf::MemorySamples src(angles, values, 5);
+  const test::SmallScan scan = test::small_rig_scan(held_out);
+  const brdf::MemorySamples src(scan.angles, scan.values, 5);
   const PriorObservations obs = cell_means(src);
   const UnseenCap cap = unseen_cap(obs);
   const int retro = unseen_retro_rows(obs);
