@@ -4,11 +4,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
 
 #include "specula/acquire/peak_cap.h"
 #include "specula/acquire/scan_holdout.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/brdf_mapping.h"
 #include "specula/core/error.h"
+#include "specula/core/parallel.h"
 
 namespace specula::acquire {
 namespace {
@@ -25,6 +28,48 @@ bool in_rehearsal(const UnseenCap& cap, std::size_t cell) {
   const brdf::MerlCell m = brdf::merl_cell(cell);
   const int c = cap[std::size_t(m.theta_d)];
   return c > 0 && c < brdf::kMerlThetaH && m.theta_h >= c && m.theta_h < std::min(2 * c, brdf::kMerlThetaH);
+}
+
+// The kd-tree's estimate over `kept` at the centres of the cells of `at` (positions in valid_cells()) into kd
+// (bands x kMerlCells, left as it is where it has no support), as resample_grid computes a cell; only the
+// neighbours' values are read.
+void kd_at(const brdf::SampleSource& kept, const brdf::ResampleOptions& local, std::span<const std::uint32_t> at,
+           std::span<float> kd) {
+  const auto tree = std::make_shared<const brdf::SampleTree>(kept, local.mapping);
+  const auto& cells = valid_cells();
+  const std::size_t b = kept.bands(), n = at.size();
+  std::vector<brdf::IsoAngles> query(n);
+  for (std::size_t i = 0; i < n; ++i)
+    query[i] = brdf::iso_angles(brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(std::size_t(cells[at[i]])))));
+  std::vector<brdf::Neighbours> nb(n);
+  tree->nearest_each(query, local.k + 1, nb);  // k + 1 covers the reach of the weightings that have one
+  std::vector<std::uint8_t> needed(kept.size(), 0);
+  for (const brdf::Neighbours& x : nb)
+    for (const std::uint32_t s : x.index) needed[s] = 1;
+  nb = {};
+  std::vector<float> values(kept.size() * b, 0.0f), block;
+  const std::size_t rows = std::max<std::size_t>(1, kept.block_rows());
+  for (std::size_t first = 0; first < kept.size(); first += rows) {
+    const std::size_t count = std::min(rows, kept.size() - first);
+    if (std::none_of(needed.begin() + std::ptrdiff_t(first), needed.begin() + std::ptrdiff_t(first + count),
+                     [](std::uint8_t x) { return x != 0; }))
+      continue;
+    block.resize(count * b);
+    kept.read_values(first, count, block);
+    for (std::size_t s = 0; s < count; ++s)
+      if (needed[first + s])
+        std::copy_n(block.begin() + std::ptrdiff_t(s * b), b, values.begin() + std::ptrdiff_t((first + s) * b));
+  }
+  const brdf::Resampler r(tree, values, b, local);
+  parallel_for(
+      n,
+      [&](std::size_t i) {
+        thread_local std::vector<float> out;
+        out.resize(b);
+        if (!r.predict(query[i], out)) return;
+        for (std::size_t k = 0; k < b; ++k) kd[k * brdf::kMerlCells + cells[at[i]]] = out[k];
+      },
+      64);
 }
 
 }  // namespace
@@ -70,8 +115,8 @@ CapWeightChoice choose_cap_weight(const brdf::SampleSource& src, const BrdfPrior
   }
   out.epsilon = judge_epsilon(parts[0], prior, b);
   const KeptSamples kept(src, held);
-  std::vector<float> kd(b * brdf::kMerlCells);
-  brdf::resample_grid(brdf::SampleTree(kept, o.local.mapping), kept, o.local, kd);
+  std::vector<float> kd(b * brdf::kMerlCells, -1.0f);
+  kd_at(kept, o.local, parts[1].cell, kd);
   const std::vector<double> err = weight_errors(parts[1], fitted, kd, b, c.ladder, out.epsilon);
   for (std::size_t l = 0; l < c.ladder.size(); ++l) out.rows.push_back({.weight = c.ladder[l], .error = err[l]});
   out.weight = c.ladder[least(err)];
