@@ -145,14 +145,6 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
   const std::size_t b = src.bands();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
   fit_prior(prior, components, parts[0], o.fit, fitted);
-  if (o.ceiling && out.holdout.band_end > out.holdout.band_first) {  // the rehearsal band's fit, bounded as the band's
-    std::vector<std::uint8_t> band(brdf::kMerlCells, 0);
-    for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
-      const int row = brdf::merl_cell(cell).theta_d;
-      band[cell] = row >= out.holdout.band_first && row < out.holdout.band_end;
-    }
-    bound_by_ceiling(prior, band, fitted);
-  }
   out.epsilon = judge_epsilon(parts[0], prior, b);
   const KeptSamples kept(src, out.holdout.held);
   std::vector<float> kd(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);

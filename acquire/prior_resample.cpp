@@ -200,8 +200,7 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
   }
   if (o.ceiling && !o.residuals) {
     std::vector<std::uint8_t> unseen(brdf::kMerlCells, 0);
-    for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell)
-      unseen[cell] = in_unseen_cap(cap, cell) || in_unseen_retro(retro_rows, cell);
+    for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) unseen[cell] = in_unseen_cap(cap, cell);
     st.bounded_cells = bound_by_ceiling(prior, unseen, fitted);
   }
   if (!o.retro_weight) retro_rows = 0;  // the band blends as elsewhere

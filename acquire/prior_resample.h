@@ -41,9 +41,8 @@ struct PriorResampleOptions {
   /// given (with prior_in_cap): cells of the unseen cap take w kd + (1 - w) prior where the kd-tree has support
   /// (confidence w), the prior where not (chosen by acquire/cap_weight.h); empty: the prior alone there.
   std::optional<double> cap_weight;
-  /// true: in the cells no sample constrains (the unseen cap and retro-reflection band) the fit is bounded by the
-  /// prior's ceiling (bound_by_ceiling); false, or a prior without a ceiling: not bounded. The residuals form
-  /// ignores it.
+  /// true: in the unseen cap, where no sample constrains it, the fit is bounded by the prior's ceiling
+  /// (bound_by_ceiling); false, or a prior without a ceiling: not bounded. The residuals form ignores it.
   bool ceiling = true;
 };
 
@@ -52,7 +51,7 @@ struct PriorResampleStats {
   brdf::GridStats local;           ///< the kd-tree pass
   std::size_t observed_cells = 0;  ///< valid cells holding at least one sample (the prior's observations)
   std::size_t filled_cells = 0;    ///< valid cells with data in the result (all of them)
-  std::size_t bounded_cells = 0;   ///< unseen cells whose fit the prior's ceiling scaled down (bound_by_ceiling)
+  std::size_t bounded_cells = 0;   ///< cap cells whose fit the prior's ceiling scaled down (bound_by_ceiling)
   double fit_seconds = 0;
 };
 

@@ -261,8 +261,8 @@ void setup_resample(CLI::App& app) {
                 "--prior: the prior alone in the unseen cap round the specular peak, instead of the kd-tree's weight "
                 "there chosen by rehearsing the cap one cap higher (docs/prior.md)");
   cmd->add_flag("--no-ceiling", o->no_ceiling,
-                "--prior: leave the fit unbounded in the unseen cap and retro-reflection band, instead of no higher "
-                "than any training material at each cell (the prior's ceiling; docs/prior.md)");
+                "--prior: leave the fit unbounded in the unseen cap, instead of no higher than any training material "
+                "at each cell (the prior's ceiling; docs/prior.md)");
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
   cmd->callback([o, power, k_criterion, k_held_out] {

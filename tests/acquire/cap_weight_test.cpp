@@ -12,7 +12,6 @@
 #include "codec/grid_fixture.h"
 #include "small_scan.h"
 #include "specula/acquire/peak_cap.h"
-#include "specula/acquire/retro_band.h"
 #include "specula/acquire/scan.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_models.h"
@@ -87,15 +86,13 @@ TEST(CapWeight, AGivenWeightBlendsTheKdTreeAndTheBoundedFitInTheCap) {
   o.cap_weight.reset();
   std::vector<float> conf_alone(brdf::kMerlCells);
   resample_with_prior(src, prior, o, alone, conf_alone);
-  // The parts written out: the fit, bounded in the cap and band; the kd-tree's estimate over every sample.
+  // The parts written out: the fit, bounded in the cap; the kd-tree's estimate over every sample.
   const PriorObservations obs = cell_means(src);
   const UnseenCap cap = unseen_cap(obs);
-  const int retro = unseen_retro_rows(obs);
   std::vector<float> fitted(got.size(), -1.0f), kd(got.size());
   fit_prior(prior, obs, o.fit, fitted);
   std::vector<std::uint8_t> unseen(brdf::kMerlCells, 0);
-  for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell)
-    unseen[cell] = in_unseen_cap(cap, cell) || in_unseen_retro(retro, cell);
+  for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) unseen[cell] = in_unseen_cap(cap, cell);
   bound_by_ceiling(prior, unseen, fitted);
   brdf::resample_grid(src, o.local, kd);
   std::size_t blended = 0;
