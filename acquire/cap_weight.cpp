@@ -117,7 +117,7 @@ CapWeightChoice choose_cap_weight(const brdf::SampleSource& src, const BrdfPrior
   const KeptSamples kept(src, held);
   std::vector<float> kd(b * brdf::kMerlCells, -1.0f);
   kd_at(kept, o.local, parts[1].cell, kd);
-  const std::vector<double> err = weight_errors(parts[1], fitted, kd, b, c.ladder, out.epsilon);
+  const std::vector<double> err = weight_errors(parts[1], fitted, kd, b, c.ladder, out.epsilon, o.log_blend);
   for (std::size_t l = 0; l < c.ladder.size(); ++l) out.rows.push_back({.weight = c.ladder[l], .error = err[l]});
   out.weight = c.ladder[least(err)];
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

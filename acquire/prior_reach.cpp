@@ -172,7 +172,7 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
     out.groups.push_back(std::move(g));
   }
   if (!parts[2].cell.empty()) {
-    const std::vector<double> band = weight_errors(parts[2], fitted, kd, b, r.retro_ladder, out.epsilon);
+    const std::vector<double> band = weight_errors(parts[2], fitted, kd, b, r.retro_ladder, out.epsilon, o.log_blend);
     for (std::size_t l = 0; l < band.size(); ++l)
       out.retro_rows.push_back({.reach = r.retro_ladder[l], .error = band[l]});
     out.retro_weight = r.retro_ladder[least(band)];

@@ -155,6 +155,12 @@ std::size_t bound_by_ceiling(const BrdfPrior& prior, std::span<const std::uint8_
   return std::size_t(std::ranges::count(scaled, std::uint8_t(1)));
 }
 
+double mix_estimates(double kd, double fit, double c, double cc, double eps, bool log) {
+  if (c <= 0) return fit;
+  if (!log || c >= 1) return c * kd + (1 - c) * fit;
+  return (std::exp(c * std::log(kd * cc + eps) + (1 - c) * std::log(fit * cc + eps)) - eps) / cc;
+}
+
 PriorObservations cell_means(const brdf::SampleSource& src, bool use_variance) {
   return std::move(cell_means(src, use_variance, {}, 1)[0]);
 }
@@ -185,6 +191,8 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
   if (o.retro_weight && !(*o.retro_weight >= 0 && *o.retro_weight <= 1))
     throw UsageError(
         "prior: retro_weight (the kd-tree's weight in the unseen retro-reflection band) must be in [0, 1]");
+  if (o.log_blend && !(o.blend_epsilon > 0 && std::isfinite(o.blend_epsilon)))
+    throw UsageError("prior: blend_epsilon (eps of the log blend) must be positive and finite");
   PriorResampleStats st;
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
@@ -215,20 +223,23 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
   std::vector<float> gaps(brdf::kMerlCells, -1.0f);
   st.local = brdf::resample_grid(brdf::SampleTree(src, o.local.mapping), src, o.local, grid, gaps);
   std::fill(confidence.begin(), confidence.end(), -1.0f);
+  const auto& cosines = valid_cell_cosines();
   parallel_for(
       cells.size(),
       [&](std::size_t i) {
         const std::size_t cell = cells[i];
         const bool local = grid[cell] >= 0;
-        const double c = !local                                       ? 0.0
-                         : o.prior_in_cap && in_unseen_cap(cap, cell) ? o.cap_weight.value_or(0.0)
-                         : in_unseen_retro(retro_rows, cell)
-                             ? *o.retro_weight
-                             : support_confidence(gaps[cell], o.local.max_gap, reach_of(o, cell));
+        const bool in_cap = o.prior_in_cap && in_unseen_cap(cap, cell);
+        const bool fixed = in_cap || in_unseen_retro(retro_rows, cell);
+        const double c = !local   ? 0.0
+                         : in_cap ? o.cap_weight.value_or(0.0)
+                         : fixed  ? *o.retro_weight
+                                  : support_confidence(gaps[cell], o.local.max_gap, reach_of(o, cell));
         confidence[cell] = float(c);
+        const bool log = fixed && o.log_blend;
         for (std::size_t k = 0; k < b; ++k) {
           const std::size_t at = k * brdf::kMerlCells + cell;
-          grid[at] = float(c * (local ? grid[at] : 0.0f) + (1 - c) * fitted[at]);
+          grid[at] = float(mix_estimates(local ? grid[at] : 0.0f, fitted[at], c, cosines[i], o.blend_epsilon, log));
         }
       },
       4096);

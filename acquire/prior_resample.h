@@ -41,6 +41,12 @@ struct PriorResampleOptions {
   /// given (with prior_in_cap): cells of the unseen cap take w kd + (1 - w) prior where the kd-tree has support
   /// (confidence w), the prior where not (chosen by acquire/cap_weight.h); empty: the prior alone there.
   std::optional<double> cap_weight;
+  /// true: where retro_weight or cap_weight sets the weight w (strictly between 0 and 1), kd and prior are mixed in
+  /// the choice's error domain ln(v cos theta_i cos theta_o + blend_epsilon), a weighted geometric mean
+  /// (acquire/scan_holdout.h mix), as the choice judged them; false: linearly
+  bool log_blend = true;
+  /// eps of the log blend, 1/sr (the choice's, judge_epsilon; must be positive when log_blend is used)
+  double blend_epsilon = 1e-3;
   /// true: in the unseen cap, where no sample constrains it, the fit is bounded by the prior's ceiling
   /// (bound_by_ceiling); false, or a prior without a ceiling: not bounded. The residuals form ignores it.
   bool ceiling = true;
@@ -66,6 +72,11 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
 PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const BrdfPrior& prior,
                                        const PriorResampleOptions& o, std::span<float> grid,
                                        std::span<float> confidence);
+
+/// How the kd-tree estimate kd and the fit are mixed with the kd-tree's weight c at a cell of cos theta_i cos theta_o
+/// cc: linearly, c kd + (1 - c) fit, or (log) in the judge's domain, (exp(c ln(kd cc + eps) + (1 - c) ln(fit cc +
+/// eps)) - eps) / cc, so a mix stays between the two in ratio. kd is ignored when c is 0.
+double mix_estimates(double kd, double fit, double c, double cc, double eps, bool log);
 
 /// Scales the spectrum in grid (bands x kMerlCells) of every valid cell with unseen[cell] != 0 (kMerlCells flags)
 /// down, where needed, so that no band exceeds prior.ceiling / (cos theta_i cos theta_o) at the cell centre: the

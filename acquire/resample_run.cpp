@@ -120,6 +120,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
                           .confidence_reach = m.confidence_reach,
                           .residuals = m.residuals,
                           .prior_in_cap = m.prior_in_cap,
+                          .log_blend = m.log_blend,
+                          .blend_epsilon = prior.epsilon,
                           .ceiling = m.ceiling};
   po.local.k = k.k;
   const StoreSamples src(s, job.samples);
@@ -130,11 +132,13 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
     po.confidence_reach = reach->reach;
     po.reach_by_theta_h = reach_by_theta_h(*reach);
     po.retro_weight = reach->retro_weight;
+    po.blend_epsilon = reach->epsilon;
   }
   std::optional<CapWeightChoice> cap;
   if (m.cap_auto && m.prior_in_cap && !m.residuals) {
     cap = choose_cap_weight(src, prior, components, po, *m.cap_auto);
     po.cap_weight = cap->weight;
+    if (!reach) po.blend_epsilon = cap->epsilon;
   }
   ResampleOutcome out{.grid = empty_grid(info, job)};
   std::vector<float> confidence(brdf::kMerlCells);
@@ -142,14 +146,14 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(
-      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={}{} ceiling={} {}", m.prior, m.fit.lambda,
+      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={}{} ceiling={} blend={} {}", m.prior, m.fit.lambda,
       prior_weights_name(m.fit.weights),
       reach ? reach_provenance(*reach, *m.reach_auto) : fmt::format("confidence_reach={}", m.confidence_reach),
       m.prior_in_cap, cap ? fmt::format(" cap_weight={}", cap->weight) : std::string(),
       !m.ceiling              ? "off"
       : prior.ceiling.empty() ? "none"
                               : "on",
-      local_words(po.local, k));
+      m.log_blend ? fmt::format("log eps={:.3g}", po.blend_epsilon) : std::string("linear"), local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
   out.report["observed_cells"] = st.observed_cells;
@@ -158,6 +162,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.report["fit_seconds"] = st.fit_seconds;
   out.report["prior"] = m.prior;
   out.report["confidence_reach"] = po.confidence_reach;
+  out.report["blend"] = m.log_blend ? "log" : "linear";
+  out.report["blend_epsilon"] = po.blend_epsilon;
   if (reach) out.report["confidence_reach_auto"] = reach_choice_json(*reach, *m.reach_auto);
   if (cap) out.report["cap_weight_auto"] = cap_weight_json(*cap);
   add_k_auto(out.report, k);

@@ -33,7 +33,8 @@ struct PriorMethod {
   /// given (the default) with prior_in_cap and not residuals: the kd-tree's weight in the unseen cap is chosen by
   /// rehearsal (acquire/cap_weight.h); empty: the prior alone there
   std::optional<CapWeightOptions> cap_auto = CapWeightOptions{};
-  bool ceiling = true;  ///< the fit in the unseen cells bounded by the prior's ceiling (PriorResampleOptions)
+  bool ceiling = true;    ///< the fit in the unseen cells bounded by the prior's ceiling (PriorResampleOptions)
+  bool log_blend = true;  ///< the chosen weights of the cap and the retro band mix in the log domain (ditto)
 };
 
 /// A Lambertian plus microfacet lobes fitted as the base, the kd-tree estimate of the residuals added near samples.

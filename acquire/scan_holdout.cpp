@@ -60,11 +60,11 @@ std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src) {
 }
 
 double blend_error(const PriorObservations& obs, std::size_t o, std::size_t cell, double cc, double c,
-                   std::span<const float> fitted, std::span<const float> kd, std::size_t b, double eps) {
+                   std::span<const float> fitted, std::span<const float> kd, std::size_t b, double eps, bool log) {
   double sum = 0;
   for (std::size_t k = 0; k < b; ++k) {
     const std::size_t at = k * brdf::kMerlCells + cell;
-    const double blend = c * (c > 0 ? kd[at] : 0.0f) + (1 - c) * fitted[at];
+    const double blend = mix_estimates(kd[at], fitted[at], c, cc, eps, log);
     const double d = std::log((blend * cc + eps) / (double(obs.values[o * b + k]) * cc + eps));
     sum += d * d;
   }
@@ -90,8 +90,8 @@ double judge_epsilon(const PriorObservations& obs, const BrdfPrior& prior, std::
 }
 
 std::vector<double> weight_errors(const PriorObservations& obs, std::span<const float> fitted,
-                                  std::span<const float> kd, std::size_t b, std::span<const double> ladder,
-                                  double eps) {
+                                  std::span<const float> kd, std::size_t b, std::span<const double> ladder, double eps,
+                                  bool log) {
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
   std::vector<double> mean(ladder.size(), 0.0);
@@ -100,7 +100,7 @@ std::vector<double> weight_errors(const PriorObservations& obs, std::span<const 
     const double cc = cosines[obs.cell[o]];
     const bool local = kd[cell] >= 0;
     for (std::size_t l = 0; l < ladder.size(); ++l)
-      mean[l] += blend_error(obs, o, cell, cc, local ? ladder[l] : 0.0, fitted, kd, b, eps);
+      mean[l] += blend_error(obs, o, cell, cc, local ? ladder[l] : 0.0, fitted, kd, b, eps, log);
   }
   for (double& x : mean) x = obs.cell.empty() ? 0.0 : x / double(obs.cell.size());
   return mean;

@@ -36,19 +36,21 @@ class KeptSamples final : public brdf::SampleSource {
 std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src);
 
 /// The mean over bands of (ln((blend cc + eps) / (target cc + eps)))^2 at observation o of obs (MERL cell `cell`),
-/// blend = c kd + (1 - c) fitted (kd ignored when c is 0), target the observation's values, cc the cell's
-/// cos theta_i cos theta_o; grids bands x kMerlCells.
+/// blend = mix_estimates(kd, fitted, c, cc, eps, log) (prior_resample.h), target the observation's values, cc the
+/// cell's cos theta_i cos theta_o; grids bands x kMerlCells.
 double blend_error(const PriorObservations& obs, std::size_t o, std::size_t cell, double cc, double c,
-                   std::span<const float> fitted, std::span<const float> kd, std::size_t b, double eps);
+                   std::span<const float> fitted, std::span<const float> kd, std::size_t b, double eps,
+                   bool log = false);
 
 /// The error's eps: the prior's times min(1, the median over obs's cells of the band-mean cos-weighted value / the
 /// median of the prior's reference at the same cells), floored at 1e-6 of it; the prior's when obs is empty.
 double judge_epsilon(const PriorObservations& obs, const BrdfPrior& prior, std::size_t b);
 
-/// Per weight w of ladder, the mean over the observations of obs of blend_error of w kd + (1 - w) fitted (fitted
-/// alone where kd has no support), summed in observation order; zeros when obs is empty.
+/// Per weight w of ladder, the mean over the observations of obs of blend_error of mix_estimates(kd, fitted, w, ...,
+/// log) (fitted alone where kd has no support), summed in observation order; zeros when obs is empty.
 std::vector<double> weight_errors(const PriorObservations& obs, std::span<const float> fitted,
-                                  std::span<const float> kd, std::size_t b, std::span<const double> ladder, double eps);
+                                  std::span<const float> kd, std::size_t b, std::span<const double> ladder, double eps,
+                                  bool log);
 
 /// The index of the least entry (the first on a tie).
 std::size_t least(const std::vector<double>& v);

@@ -44,6 +44,7 @@ struct ResampleCliOptions {
   bool blend_in_retro = false;
   bool no_ceiling = false;
   bool prior_alone_in_cap = false;
+  bool linear_blend = false;
   std::string prior_weights = "noise";
   std::size_t prior_block_mb = 256;
 };
@@ -138,7 +139,8 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
                                    .block_bytes = o.prior_block_mb << 20},
                            .residuals = o.prior_residuals,
                            .prior_in_cap = !o.kd_tree_in_cap,
-                           .ceiling = !o.no_ceiling};
+                           .ceiling = !o.no_ceiling,
+                           .log_blend = !o.linear_blend};
     if (o.confidence_reach == "auto" && o.prior_residuals)
       throw UsageError("--confidence-reach auto: chosen for the blend, not with --prior-residuals");
     if (o.confidence_reach ? *o.confidence_reach != "auto" : o.prior_residuals) m.reach_auto.reset();
@@ -260,6 +262,9 @@ void setup_resample(CLI::App& app) {
   cmd->add_flag("--prior-alone-in-cap", o->prior_alone_in_cap,
                 "--prior: the prior alone in the unseen cap round the specular peak, instead of the kd-tree's weight "
                 "there chosen by rehearsing the cap one cap higher (docs/prior.md)");
+  cmd->add_flag("--linear-blend", o->linear_blend,
+                "--prior: mix the kd-tree estimate and the prior linearly with the weights chosen for the unseen cap "
+                "and retro band, instead of in the log domain the choice judges them in (docs/prior.md)");
   cmd->add_flag("--no-ceiling", o->no_ceiling,
                 "--prior: leave the fit unbounded in the unseen cap, instead of no higher than any training material "
                 "at each cell (the prior's ceiling; docs/prior.md)");

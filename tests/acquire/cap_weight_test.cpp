@@ -75,12 +75,19 @@ TEST(CapWeight, HoldsOutExactlyTheRowsOneCapHigher) {
   EXPECT_EQ(c.held_samples, held);
 }
 
-TEST(CapWeight, AGivenWeightBlendsTheKdTreeAndTheBoundedFitInTheCap) {
+// With w = 0.5 given: linearly 0.5 kd + 0.5 fit, or (log) the geometric mean sqrt((kd cc + eps)(fit cc + eps)) less
+// eps, over cc (cc = cos theta_i cos theta_o at the cell centre), where the kd-tree has support.
+class CapWeightGiven : public ::testing::TestWithParam<bool> {};
+
+TEST_P(CapWeightGiven, BlendsTheKdTreeAndTheBoundedFitInTheCap) {
+  const bool log = GetParam();
   const test::SmallScan flat = test::small_rig_scan(test::ward(0.5, 0.2, 0.0, 0.05));
   const brdf::MemorySamples src(flat.angles, flat.values, 5);
   const BrdfPrior& prior = glossy_prior();
   PriorResampleOptions o = kOptions;
   o.cap_weight = 0.5;
+  o.log_blend = log;
+  o.blend_epsilon = 0.005;
   std::vector<float> got(5 * brdf::kMerlCells), alone(got.size()), conf(brdf::kMerlCells);
   resample_with_prior(src, prior, o, got, conf);
   o.cap_weight.reset();
@@ -106,15 +113,21 @@ TEST(CapWeight, AGivenWeightBlendsTheKdTreeAndTheBoundedFitInTheCap) {
     ASSERT_EQ(conf[c], support ? 0.5f : 0.0f) << c;
     ASSERT_EQ(conf_alone[c], 0.0f) << c;
     blended += support;
+    const brdf::StdAngles centre = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(c)));
+    const double cc = std::cos(centre.theta_i) * std::cos(centre.theta_o), eps = o.blend_epsilon;
     for (std::size_t k = 0; k < 5; ++k) {
       const std::size_t at = k * brdf::kMerlCells + c;
-      const double want = support ? 0.5 * kd[at] + 0.5 * fitted[at] : fitted[at];
+      const double want = !support ? fitted[at]
+                          : log    ? (std::sqrt((kd[at] * cc + eps) * (fitted[at] * cc + eps)) - eps) / cc
+                                   : 0.5 * kd[at] + 0.5 * fitted[at];
       ASSERT_NEAR(got[at], want, 1e-5 * (1 + want)) << c << " band " << k;
       ASSERT_NEAR(alone[at], fitted[at], 1e-5 * (1 + fitted[at])) << c << " band " << k;
     }
   }
   EXPECT_GT(blended, 10000u);
 }
+
+INSTANTIATE_TEST_SUITE_P(LinearAndLog, CapWeightGiven, ::testing::Bool());
 
 }  // namespace
 }  // namespace specula::acquire

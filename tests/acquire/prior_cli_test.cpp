@@ -88,9 +88,12 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   // chooses none.
   EXPECT_NE(r.output.find("\"cap_weight_auto\":{\"weight\":"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("\"bounded_cells\":"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\"blend\":\"log\""), std::string::npos) << r.output;
+  EXPECT_GT(test::json_number(r.output, "blend_epsilon"), 0) << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
-                  ":ra' --prior-alone-in-cap --no-ceiling --json");
+                  ":ra' --prior-alone-in-cap --no-ceiling --linear-blend --json");
   ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("\"blend\":\"linear\""), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("cap_weight_auto"), std::string::npos) << r.output;
   EXPECT_EQ(test::json_number(r.output, "bounded_cells"), 0) << r.output;
 

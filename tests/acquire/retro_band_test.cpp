@@ -1,13 +1,17 @@
 // The unseen band round retro-reflection (acquire/retro_band.h) in resampling with a prior: a rig whose lights stand
 // at least 10 degrees from the camera leaves theta_d below 5 degrees without samples; there the blend takes
-// w kd + (1 - w) fit where the kd-tree has support (kd: a separately built brdf::Resampler at the cell centres; fit:
-// the prior's fit alone), the fit where it has none, and every cell outside the band is as without a band weight.
+// w kd + (1 - w) fit (linear) or the weighted geometric mean (kd cc + eps)^w (fit cc + eps)^(1 - w) less eps, over cc
+// (log) where the kd-tree has support (kd: a separately built brdf::Resampler at the cell centres; fit: the prior's
+// fit alone; cc = cos theta_i cos theta_o at the centre), the fit where it has none, and every cell outside the band
+// is as without a band weight.
 #include "specula/acquire/retro_band.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
+#include <utility>
 
 #include "specula/acquire/peak_cap.h"
 #include "specula/acquire/prior_resample.h"
@@ -58,7 +62,7 @@ TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
   EXPECT_GE(rows, 4);  // the first light 10 degrees from the camera: theta_d of at least about 5 degrees
   EXPECT_LE(rows, 6);
 
-  const PriorResampleOptions blend{.local = {.k = 8}, .confidence_reach = 0.1};
+  const PriorResampleOptions blend{.local = {.k = 8}, .confidence_reach = 0.1, .blend_epsilon = 0.005};
   std::vector<float> without(5 * brdf::kMerlCells), conf_without(brdf::kMerlCells);
   resample_with_prior(src, prior, blend, without, conf_without);
   std::vector<float> fitted(5 * brdf::kMerlCells, -1.0f);
@@ -67,9 +71,10 @@ TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
   const UnseenCap cap = unseen_cap(cell_means(src));
   std::size_t supported = 0, unsupported = 0;
   std::vector<float> local(5);
-  for (const double w : {0.0, 0.5, 1.0}) {
+  for (const auto& [w, log] : {std::pair{0.0, true}, {0.5, false}, {0.5, true}, {0.75, true}, {1.0, true}}) {
     PriorResampleOptions o = blend;
     o.retro_weight = w;
+    o.log_blend = log;
     std::vector<float> with(5 * brdf::kMerlCells), conf(brdf::kMerlCells);
     resample_with_prior(src, prior, o, with, conf);
     supported = unsupported = 0;
@@ -81,11 +86,16 @@ TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
           ASSERT_EQ(with[k * brdf::kMerlCells + c], without[k * brdf::kMerlCells + c]);
         continue;
       }
-      const bool has = kd.predict(brdf::std_angles(brdf::merl_cell_centre(cell)), local);
+      const brdf::StdAngles centre = brdf::std_angles(brdf::merl_cell_centre(cell));
+      const bool has = kd.predict(centre, local);
       ++(has ? supported : unsupported);
       ASSERT_EQ(conf[c], has ? float(w) : 0.0f);
+      const double cc = std::cos(centre.theta_i) * std::cos(centre.theta_o), eps = blend.blend_epsilon;
       for (std::size_t k = 0; k < 5; ++k) {
-        const double fit = fitted[k * brdf::kMerlCells + c], want = has ? w * local[k] + (1 - w) * fit : fit;
+        const double fit = fitted[k * brdf::kMerlCells + c];
+        const double want = !has  ? fit
+                            : log ? (std::pow(local[k] * cc + eps, w) * std::pow(fit * cc + eps, 1 - w) - eps) / cc
+                                  : w * local[k] + (1 - w) * fit;
         ASSERT_NEAR(with[k * brdf::kMerlCells + c], want, 1e-5 * want + 1e-9) << "w " << w << " cell " << c;
       }
     }
