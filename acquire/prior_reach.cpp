@@ -176,6 +176,17 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
     for (std::size_t l = 0; l < band.size(); ++l)
       out.retro_rows.push_back({.reach = r.retro_ladder[l], .error = band[l]});
     out.retro_weight = r.retro_ladder[least(band)];
+    if (r.retro_continued) {
+      const int rows = out.holdout.band_end - out.holdout.band_first;
+      continue_retro(kd, b, out.holdout.band_first, rows, kd);  // the held band from the rows just above it
+      const std::vector<double> cont = weight_errors(parts[2], fitted, kd, b, r.retro_ladder, out.epsilon, o.log_blend);
+      for (std::size_t l = 0; l < cont.size(); ++l)
+        out.retro_continued_rows.push_back({.reach = r.retro_ladder[l], .error = cont[l]});
+      if (cont[least(cont)] < band[least(band)]) {
+        out.retro_continued = true;
+        out.retro_weight = r.retro_ladder[least(cont)];
+      }
+    }
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
@@ -205,7 +216,9 @@ nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOption
   j["retro_band"] = {{"unseen_rows", c.holdout.retro_rows},
                      {"held_rows", {c.holdout.band_first, c.holdout.band_end}},
                      {"weight", c.retro_weight ? nlohmann::ordered_json(*c.retro_weight) : nlohmann::ordered_json()},
-                     {"rows", rows_json(c.retro_rows, "weight")}};
+                     {"rows", rows_json(c.retro_rows, "weight")},
+                     {"continued", c.retro_continued},
+                     {"continued_rows", rows_json(c.retro_continued_rows, "weight")}};
   return j;
 }
 
@@ -222,9 +235,9 @@ std::string reach_provenance(const ReachChoice& c, const ReachOptions& r) {
     groups += fmt::format("{}{}-{}:{}", groups.empty() ? "" : ",", g.first, g.end, g.reach);
   return fmt::format("confidence_reach={} reach_by_theta_h={} reach_auto=holdout held_out={} seed={}{}", c.reach,
                      groups, r.held_out, r.seed,
-                     c.retro_weight
-                         ? fmt::format(" retro_weight={} retro_rows={}", *c.retro_weight, c.holdout.retro_rows)
-                         : std::string());
+                     c.retro_weight ? fmt::format(" retro_weight={} retro_rows={}{}", *c.retro_weight,
+                                                  c.holdout.retro_rows, c.retro_continued ? " retro=continued" : "")
+                                    : std::string());
 }
 
 }  // namespace specula::acquire

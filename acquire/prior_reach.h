@@ -25,6 +25,9 @@ struct ReachOptions {
   /// the kd-tree's weights tried in the unseen retro-reflection band (acquire/retro_band.h), ascending in [0, 1];
   /// empty: the band is not chosen for (and not held out)
   std::vector<double> retro_ladder = {0, 0.25, 0.5, 0.75, 1};
+  /// true: the ladder is tried a second time with the kd-tree's estimate in the band replaced by the material's trend
+  /// continued down in theta_d (continue_retro of acquire/retro_band.h), and the better of the two kept
+  bool retro_continued = true;
   /// theta_h row boundaries of the groups that each choose their reach (ascending from 0 to kMerlThetaH); {0, 90}:
   /// one reach for all
   std::vector<int> theta_h_groups = {0, 10, 20, 30, 45, 90};
@@ -69,9 +72,12 @@ struct ReachChoice {
   /// the retro ladder's weight of least error at the held band's cells (the smaller on a tie); empty without a band
   std::optional<double> retro_weight;
   std::vector<ReachRow> retro_rows;  ///< one per retro ladder entry: its weight (as reach) and error
-  ReachHoldout holdout;              ///< without its per-sample flags
-  std::vector<ReachRow> rows;        ///< one per ladder entry
-  double epsilon = 0;  ///< eps of the error: the prior's times min(1, kept cell means' median / reference's)
+  /// with the estimate continued in theta_d in place of the kd-tree's (empty unless retro_continued and a band)
+  std::vector<ReachRow> retro_continued_rows;
+  bool retro_continued = false;  ///< the band's weight is of the continued estimate (its least error is lower)
+  ReachHoldout holdout;          ///< without its per-sample flags
+  std::vector<ReachRow> rows;    ///< one per ladder entry
+  double epsilon = 0;            ///< eps of the error: the prior's times min(1, kept cell means' median / reference's)
   double seconds = 0;
 };
 
@@ -95,7 +101,7 @@ std::vector<double> reach_by_theta_h(const ReachChoice& c);
 nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOptions& r);
 
 /// "confidence_reach=R reach_by_theta_h=0-10:R0,... reach_auto=holdout held_out=S seed=N[ retro_weight=W
-/// retro_rows=B]": how the grid's provenance names the chosen reaches (and band weight).
+/// retro_rows=B[ retro=continued]]": how the grid's provenance names the chosen reaches (and band weight).
 std::string reach_provenance(const ReachChoice& c, const ReachOptions& r);
 
 }  // namespace specula::acquire

@@ -222,6 +222,7 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
   }
   std::vector<float> gaps(brdf::kMerlCells, -1.0f);
   st.local = brdf::resample_grid(brdf::SampleTree(src, o.local.mapping), src, o.local, grid, gaps);
+  if (retro_rows > 0 && o.retro_continued) continue_retro(grid, b, 0, retro_rows, grid);
   std::fill(confidence.begin(), confidence.end(), -1.0f);
   const auto& cosines = valid_cell_cosines();
   parallel_for(

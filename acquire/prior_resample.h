@@ -38,6 +38,9 @@ struct PriorResampleOptions {
   /// kd-tree has support (confidence w), the prior where not (chosen by prior_reach.h); empty: the blend as
   /// elsewhere. The cap wins where both hold. The residuals form ignores it.
   std::optional<double> retro_weight;
+  /// true (with retro_weight): the band's kd-tree estimate is replaced, where it can be, by the material's trend
+  /// continued down from the rows just above the band (continue_retro, acquire/retro_band.h)
+  bool retro_continued = false;
   /// given (with prior_in_cap): cells of the unseen cap take w kd + (1 - w) prior where the kd-tree has support
   /// (confidence w), the prior where not (chosen by acquire/cap_weight.h); empty: the prior alone there.
   std::optional<double> cap_weight;

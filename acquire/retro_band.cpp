@@ -1,8 +1,11 @@
 #include "specula/acquire/retro_band.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/error.h"
+#include "specula/core/parallel.h"
 
 namespace specula::acquire {
 
@@ -14,5 +17,38 @@ int unseen_retro_rows(std::span<const std::uint32_t> observed) {
 }
 
 bool in_unseen_retro(int rows, std::size_t cell) { return brdf::merl_cell(cell).theta_d < rows; }
+
+void continue_retro(std::span<const float> grid, std::size_t bands, int first, int count, std::span<float> out) {
+  if (grid.size() != bands * brdf::kMerlCells || out.size() != grid.size())
+    throw UsageError("retro band: grids of bands x MERL cells needed");
+  if (first < 0 || count < 1) throw UsageError("retro band: rows to continue must be a positive count from row 0 up");
+  const int known = first + count, end = first + 2 * count;
+  const double mid = known + (count - 1) / 2.0;
+  double sxx = 0;
+  for (int r = known; r < end; ++r) sxx += (r - mid) * (r - mid);
+  const auto at = [](int h, int d, int p) { return brdf::merl_index({.theta_h = h, .theta_d = d, .phi_d = p}); };
+  parallel_for(
+      std::size_t(brdf::kMerlThetaH) * brdf::kMerlPhiD,
+      [&](std::size_t column) {
+        const int h = int(column / brdf::kMerlPhiD), p = int(column % brdf::kMerlPhiD);
+        bool ok = end <= brdf::kMerlThetaD;
+        for (int r = known; ok && r < end; ++r)
+          for (std::size_t k = 0; ok && k < bands; ++k) ok = grid[k * brdf::kMerlCells + at(h, r, p)] > 0;
+        if (!ok) return;
+        for (std::size_t k = 0; k < bands; ++k) {
+          double sum = 0, sxy = 0;
+          for (int r = known; r < end; ++r) {
+            const double y = std::log(double(grid[k * brdf::kMerlCells + at(h, r, p)]));
+            sum += y;
+            sxy += (r - mid) * y;
+          }
+          const double mean = sum / count, slope = count > 1 ? sxy / sxx : 0.0;
+          for (int r = first; r < known; ++r)
+            if (brdf::merl_cell_valid({.theta_h = h, .theta_d = r, .phi_d = p}))
+              out[k * brdf::kMerlCells + at(h, r, p)] = float(std::exp(mean + slope * (r - mid)));
+        }
+      },
+      256);
+}
 
 }  // namespace specula::acquire

@@ -80,6 +80,8 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_EQ(test::json_number(r.output, "unseen_rows"), 5) << r.output;
   const double w = test::json_number(r.output, "weight");
   EXPECT_TRUE(w == 0 || w == 0.25 || w == 0.5 || w == 0.75 || w == 1) << r.output;
+  EXPECT_NE(r.output.find("\"continued\":"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("\"continued_rows\":[]"), std::string::npos) << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
                   ":rb' --blend-in-retro --json");
   ASSERT_EQ(r.status, 0) << r.output;
@@ -91,8 +93,9 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(r.output.find("\"blend\":\"log\""), std::string::npos) << r.output;
   EXPECT_GT(test::json_number(r.output, "blend_epsilon"), 0) << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
-                  ":ra' --prior-alone-in-cap --no-ceiling --linear-blend --json");
+                  ":ra' --prior-alone-in-cap --no-ceiling --linear-blend --no-retro-continuation --json");
   ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("\"continued\":false,\"continued_rows\":[]"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("\"blend\":\"linear\""), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("cap_weight_auto"), std::string::npos) << r.output;
   EXPECT_EQ(test::json_number(r.output, "bounded_cells"), 0) << r.output;

@@ -17,6 +17,7 @@
 #include "specula/acquire/prior_resample.h"
 #include "specula/acquire/scan.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/error.h"
 #include "ward_family.h"
 
 namespace specula::acquire {
@@ -101,6 +102,48 @@ TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
     }
   }
   EXPECT_GT(supported, 10000u) << unsupported << " cells of the band without support";
+}
+
+// continue_retro on a grid whose every column is exactly log-linear in theta_d above the band, with its own
+// intercept and slope per band: the band's rows come back as the same exponential (the least-squares line of exact
+// points is the line); a column with a zero among the known rows, the other rows and the cells below the horizon are
+// left as they were.
+TEST(RetroBand, TheTrendContinuedIsTheLogLinearColumnExtended) {
+  const int first = 0, count = 5;
+  std::vector<float> grid(2 * brdf::kMerlCells, -1.0f);
+  const auto value = [](std::size_t k, const brdf::MerlCell& m) {
+    return std::exp(-3.0 + 0.5 * double(k) - 0.01 * m.theta_h + (0.02 + 0.0001 * m.phi_d) * m.theta_d);
+  };
+  for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
+    const brdf::MerlCell m = brdf::merl_cell(cell);
+    if (!brdf::merl_cell_valid(m)) continue;
+    for (std::size_t k = 0; k < 2; ++k)
+      grid[k * brdf::kMerlCells + cell] = float(m.theta_d < count ? 7.0 : value(k, m));
+  }
+  const brdf::MerlCell dark{.theta_h = 30, .theta_d = 7, .phi_d = 40};
+  grid[brdf::kMerlCells + brdf::merl_index(dark)] = 0;  // band 1 of one column has no positive value
+  std::vector<float> out = grid;
+  continue_retro(grid, 2, first, count, out);
+  std::size_t continued = 0;
+  for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
+    const brdf::MerlCell m = brdf::merl_cell(cell);
+    const bool dark_column = m.theta_h == dark.theta_h && m.phi_d == dark.phi_d;
+    bool known = true;  // the column has data at every row it is continued from
+    for (int r = count; r < 2 * count; ++r)
+      known = known && brdf::merl_cell_valid({.theta_h = m.theta_h, .theta_d = r, .phi_d = m.phi_d});
+    for (std::size_t k = 0; k < 2; ++k) {
+      const std::size_t at = k * brdf::kMerlCells + cell;
+      if (!brdf::merl_cell_valid(m) || m.theta_d >= count || dark_column || !known) {
+        ASSERT_EQ(out[at], grid[at]) << "cell " << cell << " band " << k;
+        continue;
+      }
+      ASSERT_NEAR(out[at], value(k, m), 1e-4 * value(k, m)) << "cell " << cell << " band " << k;
+      continued += k == 0;
+    }
+  }
+  EXPECT_GT(continued, 50000u);
+  EXPECT_THROW(continue_retro(grid, 3, first, count, out), UsageError);
+  EXPECT_THROW(continue_retro(grid, 2, first, 0, out), UsageError);
 }
 
 }  // namespace
