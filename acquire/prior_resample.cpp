@@ -158,7 +158,8 @@ std::size_t bound_by_ceiling(const BrdfPrior& prior, std::span<const std::uint8_
 double mix_estimates(double kd, double fit, double c, double cc, double eps, bool log) {
   if (c <= 0) return fit;
   if (!log || c >= 1) return c * kd + (1 - c) * fit;
-  return (std::exp(c * std::log(kd * cc + eps) + (1 - c) * std::log(fit * cc + eps)) - eps) / cc;
+  // never below 0: where kd or fit is 0, exp(...) - eps can round a hair under it
+  return std::max(0.0, (std::exp(c * std::log(kd * cc + eps) + (1 - c) * std::log(fit * cc + eps)) - eps) / cc);
 }
 
 PriorObservations cell_means(const brdf::SampleSource& src, bool use_variance) {

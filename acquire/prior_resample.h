@@ -46,7 +46,7 @@ struct PriorResampleOptions {
   std::optional<double> cap_weight;
   /// true: where retro_weight or cap_weight sets the weight w (strictly between 0 and 1), kd and prior are mixed in
   /// the choice's error domain ln(v cos theta_i cos theta_o + blend_epsilon), a weighted geometric mean
-  /// (acquire/scan_holdout.h mix), as the choice judged them; false: linearly
+  /// (mix_estimates below), as the choice judged them; false: linearly
   bool log_blend = true;
   /// eps of the log blend, 1/sr (the choice's, judge_epsilon; must be positive when log_blend is used)
   double blend_epsilon = 1e-3;

@@ -8,6 +8,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/SVD>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -407,4 +408,35 @@ TEST(Prior, StreamedThroughAStoreEqualsABruteForcePca) {
     const Eigen::Map<const Eigen::VectorXf> ours(&p.components[q * d], Eigen::Index(d));
     EXPECT_NEAR(std::abs(ours.cast<double>().dot(svd.matrixU().col(Eigen::Index(q)))), 1.0, 1e-4) << q;
   }
+}
+
+// The log mix of acquire/prior_resample.h is a weighted geometric mean of kd cc + eps and fit cc + eps, less eps, over
+// cc: it lies between the two estimates, equals the fit at c = 0 and the kd-tree's at c = 1, and is never below 0,
+// also where both are 0 and exp(ln eps) rounds a hair under eps (the ε of a resample is a computed value, swept here).
+TEST(MixEstimates, TheLogMixLiesBetweenItsEstimatesAndNeverBelowZero) {
+  const double values[] = {0, 1e-12, 1e-7, 3e-5, 1e-3, 0.2, 40};
+  std::size_t n = 0;
+  for (int i = 1; i < 400; ++i) {
+    const double eps = 1e-3 * i / 97.0;
+    for (const double c : {0.0, 0.25, 0.5, 0.75, 1.0})
+      for (const double cc : {0.05, 0.3, 0.9})
+        for (const double kd : values)
+          for (const double fit : values) {
+            const double v = acquire::mix_estimates(kd, fit, c, cc, eps, true);
+            ASSERT_GE(v, 0.0) << "kd " << kd << " fit " << fit << " c " << c << " cc " << cc << " eps " << eps;
+            ASSERT_GE(v, std::min(kd, fit) * (1 - 1e-12) - 1e-15);
+            ASSERT_LE(v, std::max(kd, fit) * (1 + 1e-12) + 1e-15);
+            if (c == 0) {
+              ASSERT_EQ(v, fit);
+            }
+            if (c == 1) {
+              ASSERT_EQ(v, kd);
+            }
+            const double geometric = (std::pow(kd * cc + eps, c) * std::pow(fit * cc + eps, 1 - c) - eps) / cc;
+            ASSERT_NEAR(v, std::max(0.0, geometric), 1e-12 * (1 + geometric));
+            ++n;
+          }
+  }
+  EXPECT_EQ(n, 399u * 5 * 3 * 7 * 7);
+  EXPECT_EQ(acquire::mix_estimates(2.0, 4.0, 0.5, 1, 1e-3, false), 3.0);
 }
