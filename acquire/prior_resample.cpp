@@ -192,7 +192,8 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
   if (o.retro_weight && !(*o.retro_weight >= 0 && *o.retro_weight <= 1))
     throw UsageError(
         "prior: retro_weight (the kd-tree's weight in the unseen retro-reflection band) must be in [0, 1]");
-  if (o.log_blend && !(o.blend_epsilon > 0 && std::isfinite(o.blend_epsilon)))
+  const double eps = o.blend_epsilon.value_or(prior.epsilon);
+  if (o.log_blend && !(eps > 0 && std::isfinite(eps)))
     throw UsageError("prior: blend_epsilon (eps of the log blend) must be positive and finite");
   PriorResampleStats st;
   const auto t0 = std::chrono::steady_clock::now();
@@ -241,7 +242,7 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
         const bool log = fixed && o.log_blend;
         for (std::size_t k = 0; k < b; ++k) {
           const std::size_t at = k * brdf::kMerlCells + cell;
-          grid[at] = float(mix_estimates(local ? grid[at] : 0.0f, fitted[at], c, cosines[i], o.blend_epsilon, log));
+          grid[at] = float(mix_estimates(local ? grid[at] : 0.0f, fitted[at], c, cosines[i], eps, log));
         }
       },
       4096);

@@ -48,8 +48,8 @@ struct PriorResampleOptions {
   /// the choice's error domain ln(v cos theta_i cos theta_o + blend_epsilon), a weighted geometric mean
   /// (mix_estimates below), as the choice judged them; false: linearly
   bool log_blend = true;
-  /// eps of the log blend, 1/sr (the choice's, judge_epsilon; must be positive when log_blend is used)
-  double blend_epsilon = 1e-3;
+  /// eps of the log blend, 1/sr (the choice's, judge_epsilon; positive and finite); empty: the prior's epsilon
+  std::optional<double> blend_epsilon;
   /// true: in the unseen cap, where no sample constrains it, the fit is bounded by the prior's ceiling
   /// (bound_by_ceiling); false, or a prior without a ceiling: not bounded. The residuals form ignores it.
   bool ceiling = true;

@@ -121,7 +121,6 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
                           .residuals = m.residuals,
                           .prior_in_cap = m.prior_in_cap,
                           .log_blend = m.log_blend,
-                          .blend_epsilon = prior.epsilon,
                           .ceiling = m.ceiling};
   po.local.k = k.k;
   const StoreSamples src(s, job.samples);
@@ -154,7 +153,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
       !m.ceiling              ? "off"
       : prior.ceiling.empty() ? "none"
                               : "on",
-      m.log_blend ? fmt::format("log eps={:.3g}", po.blend_epsilon) : std::string("linear"), local_words(po.local, k));
+      m.log_blend ? fmt::format("log eps={:.3g}", po.blend_epsilon.value_or(prior.epsilon)) : std::string("linear"),
+      local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
   out.report["observed_cells"] = st.observed_cells;
@@ -164,7 +164,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.report["prior"] = m.prior;
   out.report["confidence_reach"] = po.confidence_reach;
   out.report["blend"] = m.log_blend ? "log" : "linear";
-  out.report["blend_epsilon"] = po.blend_epsilon;
+  out.report["blend_epsilon"] = po.blend_epsilon.value_or(prior.epsilon);
   if (reach) out.report["confidence_reach_auto"] = reach_choice_json(*reach, *m.reach_auto);
   if (cap) out.report["cap_weight_auto"] = cap_weight_json(*cap);
   add_k_auto(out.report, k);

@@ -42,7 +42,16 @@ void continue_retro(std::span<const float> grid, std::size_t bands, int first, i
             sum += y;
             sxy += (r - mid) * y;
           }
-          const double mean = sum / count, slope = count > 1 ? sxy / sxx : 0.0;
+          const double mean = sum / count;
+          double slope = count > 1 ? sxy / sxx : 0.0;
+          if (count > 2 && slope != 0) {  // shrunk by its squared standard error: a trend lost in noise stays flat
+            double rss = 0;
+            for (int r = known; r < end; ++r) {
+              const double e = std::log(double(grid[k * brdf::kMerlCells + at(h, r, p)])) - mean - slope * (r - mid);
+              rss += e * e;
+            }
+            slope *= std::max(0.0, 1.0 - rss / ((count - 2) * sxx) / (slope * slope));
+          }
           for (int r = first; r < known; ++r)
             if (brdf::merl_cell_valid({.theta_h = h, .theta_d = r, .phi_d = p}))
               out[k * brdf::kMerlCells + at(h, r, p)] = float(std::exp(mean + slope * (r - mid)));

@@ -114,7 +114,7 @@ TEST_P(CapWeightGiven, BlendsTheKdTreeAndTheBoundedFitInTheCap) {
     ASSERT_EQ(conf_alone[c], 0.0f) << c;
     blended += support;
     const brdf::StdAngles centre = brdf::std_angles(brdf::merl_cell_centre(brdf::merl_cell(c)));
-    const double cc = std::cos(centre.theta_i) * std::cos(centre.theta_o), eps = o.blend_epsilon;
+    const double cc = std::cos(centre.theta_i) * std::cos(centre.theta_o), eps = *o.blend_epsilon;
     for (std::size_t k = 0; k < 5; ++k) {
       const std::size_t at = k * brdf::kMerlCells + c;
       const double want = !support ? fitted[at]

@@ -91,7 +91,7 @@ TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
       const bool has = kd.predict(centre, local);
       ++(has ? supported : unsupported);
       ASSERT_EQ(conf[c], has ? float(w) : 0.0f);
-      const double cc = std::cos(centre.theta_i) * std::cos(centre.theta_o), eps = blend.blend_epsilon;
+      const double cc = std::cos(centre.theta_i) * std::cos(centre.theta_o), eps = *blend.blend_epsilon;
       for (std::size_t k = 0; k < 5; ++k) {
         const double fit = fitted[k * brdf::kMerlCells + c];
         const double want = !has  ? fit
@@ -144,6 +144,39 @@ TEST(RetroBand, TheTrendContinuedIsTheLogLinearColumnExtended) {
   EXPECT_GT(continued, 50000u);
   EXPECT_THROW(continue_retro(grid, 3, first, count, out), UsageError);
   EXPECT_THROW(continue_retro(grid, 2, first, 0, out), UsageError);
+}
+
+// Known rows whose ln v is a line plus residuals (d, -d, 0, -d, d), orthogonal to the line: the least-squares slope is
+// s, the residual sum of squares 4 d^2, its squared standard error 4 d^2 / (3 x 10); the band takes the slope shrunk by
+// max(0, 1 - se^2 / s^2): band 0 (s = 0.05, d = 0.01) keeps 99.5 % of it, band 1 (s = 0.005, d = 0.05) is flat.
+TEST(RetroBand, ATrendLostInTheNoiseIsContinuedFlat) {
+  const int count = 5;
+  const double slope[2] = {0.05, 0.005}, d[2] = {0.01, 0.05}, e[count] = {1, -1, 0, -1, 1};
+  std::vector<float> grid(2 * brdf::kMerlCells, -1.0f);
+  for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
+    const brdf::MerlCell m = brdf::merl_cell(cell);
+    if (!brdf::merl_cell_valid(m) || m.theta_d >= 2 * count) continue;
+    for (std::size_t k = 0; k < 2; ++k)
+      grid[k * brdf::kMerlCells + cell] =
+          m.theta_d < count ? 7.0f : float(std::exp(-3.0 + slope[k] * m.theta_d + d[k] * e[m.theta_d - count]));
+  }
+  std::vector<float> out = grid;
+  continue_retro(grid, 2, 0, count, out);
+  std::size_t checked = 0;
+  for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
+    const brdf::MerlCell m = brdf::merl_cell(cell);
+    bool known = brdf::merl_cell_valid(m) && m.theta_d < count;
+    for (int r = count; r < 2 * count; ++r)
+      known = known && brdf::merl_cell_valid({.theta_h = m.theta_h, .theta_d = r, .phi_d = m.phi_d});
+    if (!known) continue;
+    for (std::size_t k = 0; k < 2; ++k) {
+      const double shrink = std::max(0.0, 1.0 - 4 * d[k] * d[k] / 30.0 / (slope[k] * slope[k]));
+      const double mid = 7.0, want = std::exp(-3.0 + slope[k] * mid + slope[k] * shrink * (m.theta_d - mid));
+      ASSERT_NEAR(out[k * brdf::kMerlCells + cell], want, 1e-5 * want) << "cell " << cell << " band " << k;
+    }
+    ++checked;
+  }
+  EXPECT_GT(checked, 50000u);
 }
 
 }  // namespace
