@@ -73,6 +73,71 @@ std::vector<double> mean_errors(const std::vector<double>& err, std::size_t m, c
   return mean;
 }
 
+// The band's choice on one ladder's errors err (held band cells x ladder, group_of: each cell's theta_h group).
+struct BandPick {
+  std::vector<double> mean;  // per ladder entry, over all the held band cells
+  std::size_t overall = 0;   // the ladder index of least mean
+  std::vector<std::size_t> group, group_cells;
+  std::vector<std::vector<double>> group_mean;
+  double error = 0;  // the mean over the held band cells, each at its group's weight
+};
+
+BandPick pick_band(const std::vector<double>& err, std::size_t m, const std::vector<std::size_t>& group_of,
+                   const ReachOptions& r) {
+  BandPick p;
+  std::size_t n = 0;
+  p.mean = mean_errors(
+      err, m, [](std::size_t) { return true; }, n);
+  p.overall = least(p.mean);
+  for (std::size_t q = 0; q + 1 < r.theta_h_groups.size(); ++q) {
+    std::size_t cells = 0;
+    p.group_mean.push_back(mean_errors(
+        err, m, [&](std::size_t o) { return group_of[o] == q; }, cells));
+    p.group_cells.push_back(cells);
+    p.group.push_back(r.retro_by_group && cells >= r.min_group_cells ? least(p.group_mean.back()) : p.overall);
+  }
+  for (std::size_t o = 0; o < n; ++o) p.error += err[o * m + p.group[group_of[o]]];
+  p.error = n ? p.error / double(n) : 0.0;
+  return p;
+}
+
+std::vector<ReachRow> ladder_rows(std::span<const double> ladder, const std::vector<double>& mean) {
+  std::vector<ReachRow> rows;
+  for (std::size_t l = 0; l < mean.size(); ++l) rows.push_back({.reach = ladder[l], .error = mean[l]});
+  return rows;
+}
+
+// The band's weights from its held cells `band` (the kd-tree's estimate kd, continued in place when tried), into out
+// (its groups already made).
+void choose_band(const PriorObservations& band, std::span<const float> fitted, std::span<float> kd, std::size_t b,
+                 bool log, const ReachOptions& r, ReachChoice& out) {
+  const auto& cells = valid_cells();
+  std::vector<std::size_t> group_of(band.cell.size(), 0);
+  for (std::size_t o = 0; o < band.cell.size(); ++o) {
+    const int row = brdf::merl_cell(std::size_t(cells[band.cell[o]])).theta_h;
+    while (group_of[o] + 2 < r.theta_h_groups.size() && row >= r.theta_h_groups[group_of[o] + 1]) ++group_of[o];
+  }
+  const std::size_t m = r.retro_ladder.size();
+  BandPick pick = pick_band(weight_error_table(band, fitted, kd, b, r.retro_ladder, out.epsilon, log), m, group_of, r);
+  out.retro_rows = ladder_rows(r.retro_ladder, pick.mean);
+  if (r.retro_continued) {
+    continue_retro(kd, b, out.holdout.band_first, out.holdout.band_end - out.holdout.band_first, kd);
+    BandPick cont =
+        pick_band(weight_error_table(band, fitted, kd, b, r.retro_ladder, out.epsilon, log), m, group_of, r);
+    out.retro_continued_rows = ladder_rows(r.retro_ladder, cont.mean);
+    if (cont.error < pick.error) {
+      out.retro_continued = true;
+      pick = std::move(cont);
+    }
+  }
+  out.retro_weight = r.retro_ladder[pick.overall];
+  for (std::size_t q = 0; q < out.groups.size(); ++q) {
+    out.groups[q].retro_cells = pick.group_cells[q];
+    out.groups[q].retro_weight = r.retro_ladder[pick.group[q]];
+    out.groups[q].retro_rows = ladder_rows(r.retro_ladder, pick.group_mean[q]);
+  }
+}
+
 }  // namespace
 
 ReachHoldout reach_holdout(const brdf::SampleSource& src, const ReachOptions& o) {
@@ -171,23 +236,7 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
     g.reach = g.cells >= r.min_group_cells ? r.ladder[least(gm)] : out.reach;
     out.groups.push_back(std::move(g));
   }
-  if (!parts[2].cell.empty()) {
-    const std::vector<double> band = weight_errors(parts[2], fitted, kd, b, r.retro_ladder, out.epsilon, o.log_blend);
-    for (std::size_t l = 0; l < band.size(); ++l)
-      out.retro_rows.push_back({.reach = r.retro_ladder[l], .error = band[l]});
-    out.retro_weight = r.retro_ladder[least(band)];
-    if (r.retro_continued) {
-      const int rows = out.holdout.band_end - out.holdout.band_first;
-      continue_retro(kd, b, out.holdout.band_first, rows, kd);  // the held band from the rows just above it
-      const std::vector<double> cont = weight_errors(parts[2], fitted, kd, b, r.retro_ladder, out.epsilon, o.log_blend);
-      for (std::size_t l = 0; l < cont.size(); ++l)
-        out.retro_continued_rows.push_back({.reach = r.retro_ladder[l], .error = cont[l]});
-      if (cont[least(cont)] < band[least(band)]) {
-        out.retro_continued = true;
-        out.retro_weight = r.retro_ladder[least(cont)];
-      }
-    }
-  }
+  if (!parts[2].cell.empty()) choose_band(parts[2], fitted, kd, b, o.log_blend, r, out);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
@@ -208,10 +257,14 @@ nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOption
                               {"rows", rows_json(c.rows, "reach")}};
   nlohmann::ordered_json groups = nlohmann::ordered_json::array();
   for (const ReachGroup& g : c.groups)
-    groups.push_back({{"theta_h_rows", {g.first, g.end}},
-                      {"held_cells", g.cells},
-                      {"reach", g.reach},
-                      {"rows", rows_json(g.rows, "reach")}});
+    groups.push_back(
+        {{"theta_h_rows", {g.first, g.end}},
+         {"held_cells", g.cells},
+         {"reach", g.reach},
+         {"rows", rows_json(g.rows, "reach")},
+         {"retro_cells", g.retro_cells},
+         {"retro_weight", g.retro_weight ? nlohmann::ordered_json(*g.retro_weight) : nlohmann::ordered_json()},
+         {"retro_rows", rows_json(g.retro_rows, "weight")}});
   j["theta_h_groups"] = groups;
   j["retro_band"] = {{"unseen_rows", c.holdout.retro_rows},
                      {"held_rows", {c.holdout.band_first, c.holdout.band_end}},
@@ -229,15 +282,28 @@ std::vector<double> reach_by_theta_h(const ReachChoice& c) {
   return out;
 }
 
-std::string reach_provenance(const ReachChoice& c, const ReachOptions& r) {
-  std::string groups;
+std::vector<double> retro_weight_by_theta_h(const ReachChoice& c) {
+  if (!c.retro_weight) return {};
+  std::vector<double> out(std::size_t(brdf::kMerlThetaH), *c.retro_weight);
   for (const ReachGroup& g : c.groups)
+    for (int row = g.first; row < g.end; ++row) out[std::size_t(row)] = g.retro_weight.value_or(*c.retro_weight);
+  return out;
+}
+
+std::string reach_provenance(const ReachChoice& c, const ReachOptions& r) {
+  std::string groups, band;
+  for (const ReachGroup& g : c.groups) {
     groups += fmt::format("{}{}-{}:{}", groups.empty() ? "" : ",", g.first, g.end, g.reach);
+    if (c.retro_weight)
+      band +=
+          fmt::format("{}{}-{}:{}", band.empty() ? "" : ",", g.first, g.end, g.retro_weight.value_or(*c.retro_weight));
+  }
   return fmt::format("confidence_reach={} reach_by_theta_h={} reach_auto=holdout held_out={} seed={}{}", c.reach,
                      groups, r.held_out, r.seed,
-                     c.retro_weight ? fmt::format(" retro_weight={} retro_rows={}{}", *c.retro_weight,
-                                                  c.holdout.retro_rows, c.retro_continued ? " retro=continued" : "")
-                                    : std::string());
+                     c.retro_weight
+                         ? fmt::format(" retro_weight={} retro_by_theta_h={} retro_rows={}{}", *c.retro_weight, band,
+                                       c.holdout.retro_rows, c.retro_continued ? " retro=continued" : "")
+                         : std::string());
 }
 
 }  // namespace specula::acquire

@@ -28,10 +28,14 @@ struct ReachOptions {
   /// true: the ladder is tried a second time with the kd-tree's estimate in the band replaced by the material's trend
   /// continued down in theta_d (continue_retro of acquire/retro_band.h), and the better of the two kept
   bool retro_continued = true;
+  /// true: each theta_h group below chooses the band's weight from its own held band cells (the overall weight where
+  /// it has fewer than min_group_cells of them); false: one weight for the whole band
+  bool retro_by_group = true;
   /// theta_h row boundaries of the groups that each choose their reach (ascending from 0 to kMerlThetaH); {0, 90}:
   /// one reach for all
   std::vector<int> theta_h_groups = {0, 10, 20, 30, 45, 90};
-  std::size_t min_group_cells = 200;  ///< a group with fewer held-out cells takes the reach chosen over all of them
+  /// a group with fewer held-out cells (or held band cells) takes the reach (band weight) chosen over all of them
+  std::size_t min_group_cells = 200;
 };
 
 /// Which samples the validation holds out.
@@ -64,20 +68,27 @@ struct ReachGroup {
   std::size_t cells = 0;   ///< held-out cells in it
   double reach = 0;        ///< its r of least error, or the overall one when cells < min_group_cells
   std::vector<ReachRow> rows;
+  std::size_t retro_cells = 0;  ///< held band cells in it
+  /// its band weight (of the chosen ladder, plain or continued): of least error over its retro_cells, or the overall
+  /// one when retro_cells < min_group_cells or the choice is not by group; empty without a band
+  std::optional<double> retro_weight;
+  std::vector<ReachRow> retro_rows;  ///< the chosen ladder's errors over its retro_cells
 };
 
 struct ReachChoice {
   double reach = 0;                ///< the ladder's r of least error over all held-out cells (the smaller on a tie)
   std::vector<ReachGroup> groups;  ///< one per theta_h group
-  /// the retro ladder's weight of least error at the held band's cells (the smaller on a tie); empty without a band
+  /// the chosen retro ladder's weight of least error at all the held band's cells (the smaller on a tie); empty without
+  /// a band. The groups may each take their own (ReachGroup::retro_weight).
   std::optional<double> retro_weight;
   std::vector<ReachRow> retro_rows;  ///< one per retro ladder entry: its weight (as reach) and error
   /// with the estimate continued in theta_d in place of the kd-tree's (empty unless retro_continued and a band)
   std::vector<ReachRow> retro_continued_rows;
-  bool retro_continued = false;  ///< the band's weight is of the continued estimate (its least error is lower)
-  ReachHoldout holdout;          ///< without its per-sample flags
-  std::vector<ReachRow> rows;    ///< one per ladder entry
-  double epsilon = 0;            ///< eps of the error: the prior's times min(1, kept cell means' median / reference's)
+  /// the band's weights are of the continued estimate: with the groups' weights its error over the held band is lower
+  bool retro_continued = false;
+  ReachHoldout holdout;        ///< without its per-sample flags
+  std::vector<ReachRow> rows;  ///< one per ladder entry
+  double epsilon = 0;          ///< eps of the error: the prior's times min(1, kept cell means' median / reference's)
   double seconds = 0;
 };
 
@@ -96,12 +107,15 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
 
 /// Per theta_h row the reach of its group (PriorResampleOptions::reach_by_theta_h).
 std::vector<double> reach_by_theta_h(const ReachChoice& c);
+/// Per theta_h row the band weight of its group (PriorResampleOptions::retro_weight_by_theta_h); empty without a band.
+std::vector<double> retro_weight_by_theta_h(const ReachChoice& c);
 
 /// The choice and every row, as `resample --json` reports it under "confidence_reach_auto".
 nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOptions& r);
 
 /// "confidence_reach=R reach_by_theta_h=0-10:R0,... reach_auto=holdout held_out=S seed=N[ retro_weight=W
-/// retro_rows=B[ retro=continued]]": how the grid's provenance names the chosen reaches (and band weight).
+/// retro_by_theta_h=0-10:W0,... retro_rows=B[ retro=continued]]": how the grid's provenance names the chosen reaches
+/// (and band weights).
 std::string reach_provenance(const ReachChoice& c, const ReachOptions& r);
 
 }  // namespace specula::acquire

@@ -52,6 +52,42 @@ double reach_of(const PriorResampleOptions& o, std::size_t cell) {
                                     : o.reach_by_theta_h[std::size_t(brdf::merl_cell(cell).theta_h)];
 }
 
+// The band's weight of MERL cell `cell`: its theta_h row's when given per row.
+double retro_weight_of(const PriorResampleOptions& o, std::size_t cell) {
+  return o.retro_weight_by_theta_h.empty() ? *o.retro_weight
+                                           : o.retro_weight_by_theta_h[std::size_t(brdf::merl_cell(cell).theta_h)];
+}
+
+// UsageError for options, sizes or bands resample_with_prior cannot take.
+void check_prior_resample(const brdf::SampleSource& src, const BrdfPrior& prior, const PriorResampleOptions& o,
+                          std::size_t grid_size, std::size_t confidence_size) {
+  const std::size_t b = src.bands();
+  if (b != prior.wavelengths.size())
+    throw UsageError("prior: the samples have " + std::to_string(b) + " bands, the prior " +
+                     std::to_string(prior.wavelengths.size()) + "; build the prior on the samples' bands");
+  if (grid_size != b * brdf::kMerlCells || confidence_size != brdf::kMerlCells)
+    throw UsageError("prior: grid or confidence of the wrong size");
+  if (!(o.confidence_reach > 0 && o.confidence_reach <= 1))
+    throw UsageError("prior: confidence_reach (the reach of the confidence, a fraction of max_gap) must be in (0, 1]");
+  if (!o.reach_by_theta_h.empty() &&
+      (o.reach_by_theta_h.size() != std::size_t(brdf::kMerlThetaH) ||
+       !std::all_of(o.reach_by_theta_h.begin(), o.reach_by_theta_h.end(), [](double r) { return r > 0 && r <= 1; })))
+    throw UsageError("prior: reach_by_theta_h needs one reach in (0, 1] per theta_h row (90)");
+  if (o.cap_weight && !(*o.cap_weight >= 0 && *o.cap_weight <= 1))
+    throw UsageError("prior: cap_weight (the kd-tree's weight in the unseen cap) must be in [0, 1]");
+  if (o.retro_weight && !(*o.retro_weight >= 0 && *o.retro_weight <= 1))
+    throw UsageError(
+        "prior: retro_weight (the kd-tree's weight in the unseen retro-reflection band) must be in [0, 1]");
+  const double eps = o.blend_epsilon.value_or(prior.epsilon);
+  if (!o.retro_weight_by_theta_h.empty() &&
+      (!o.retro_weight || o.retro_weight_by_theta_h.size() != std::size_t(brdf::kMerlThetaH) ||
+       !std::all_of(o.retro_weight_by_theta_h.begin(), o.retro_weight_by_theta_h.end(),
+                    [](double w) { return w >= 0 && w <= 1; })))
+    throw UsageError("prior: retro_weight_by_theta_h needs retro_weight and one weight in [0, 1] per theta_h row (90)");
+  if (o.log_blend && !(eps > 0 && std::isfinite(eps)))
+    throw UsageError("prior: blend_epsilon (eps of the log blend) must be positive and finite");
+}
+
 }  // namespace
 
 void valid_slots(std::span<const double> angles, std::span<std::int32_t> out) {
@@ -176,25 +212,8 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
                                        const ComponentSource& components, const PriorResampleOptions& o,
                                        std::span<float> grid, std::span<float> confidence) {
   const std::size_t b = src.bands();
-  if (b != prior.wavelengths.size())
-    throw UsageError("prior: the samples have " + std::to_string(b) + " bands, the prior " +
-                     std::to_string(prior.wavelengths.size()) + "; build the prior on the samples' bands");
-  if (grid.size() != b * brdf::kMerlCells || confidence.size() != brdf::kMerlCells)
-    throw UsageError("prior: grid or confidence of the wrong size");
-  if (!(o.confidence_reach > 0 && o.confidence_reach <= 1))
-    throw UsageError("prior: confidence_reach (the reach of the confidence, a fraction of max_gap) must be in (0, 1]");
-  if (!o.reach_by_theta_h.empty() &&
-      (o.reach_by_theta_h.size() != std::size_t(brdf::kMerlThetaH) ||
-       !std::all_of(o.reach_by_theta_h.begin(), o.reach_by_theta_h.end(), [](double r) { return r > 0 && r <= 1; })))
-    throw UsageError("prior: reach_by_theta_h needs one reach in (0, 1] per theta_h row (90)");
-  if (o.cap_weight && !(*o.cap_weight >= 0 && *o.cap_weight <= 1))
-    throw UsageError("prior: cap_weight (the kd-tree's weight in the unseen cap) must be in [0, 1]");
-  if (o.retro_weight && !(*o.retro_weight >= 0 && *o.retro_weight <= 1))
-    throw UsageError(
-        "prior: retro_weight (the kd-tree's weight in the unseen retro-reflection band) must be in [0, 1]");
+  check_prior_resample(src, prior, o, grid.size(), confidence.size());
   const double eps = o.blend_epsilon.value_or(prior.epsilon);
-  if (o.log_blend && !(eps > 0 && std::isfinite(eps)))
-    throw UsageError("prior: blend_epsilon (eps of the log blend) must be positive and finite");
   PriorResampleStats st;
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
@@ -236,7 +255,7 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
         const bool fixed = in_cap || in_unseen_retro(retro_rows, cell);
         const double c = !local   ? 0.0
                          : in_cap ? o.cap_weight.value_or(0.0)
-                         : fixed  ? *o.retro_weight
+                         : fixed  ? retro_weight_of(o, cell)
                                   : support_confidence(gaps[cell], o.local.max_gap, reach_of(o, cell));
         confidence[cell] = float(c);
         const bool log = fixed && o.log_blend;

@@ -38,6 +38,9 @@ struct PriorResampleOptions {
   /// kd-tree has support (confidence w), the prior where not (chosen by prior_reach.h); empty: the blend as
   /// elsewhere. The cap wins where both hold. The residuals form ignores it.
   std::optional<double> retro_weight;
+  /// given (with retro_weight; kMerlThetaH values, each in [0, 1]): the band's weight of the cells of each theta_h row
+  /// instead of retro_weight (chosen per group of rows by prior_reach.h)
+  std::vector<double> retro_weight_by_theta_h;
   /// true (with retro_weight): the band's kd-tree estimate is replaced, where it can be, by the material's trend
   /// continued down from the rows just above the band (continue_retro, acquire/retro_band.h)
   bool retro_continued = false;

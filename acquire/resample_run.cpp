@@ -131,6 +131,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
     po.confidence_reach = reach->reach;
     po.reach_by_theta_h = reach_by_theta_h(*reach);
     po.retro_weight = reach->retro_weight;
+    po.retro_weight_by_theta_h = retro_weight_by_theta_h(*reach);
     po.retro_continued = reach->retro_continued;
     po.blend_epsilon = reach->epsilon;
   }

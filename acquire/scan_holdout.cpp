@@ -7,6 +7,7 @@
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/parallel.h"
 
 namespace specula::acquire {
 
@@ -89,19 +90,34 @@ double judge_epsilon(const PriorObservations& obs, const BrdfPrior& prior, std::
   return ref > 0 ? prior.epsilon * std::clamp(median(value) / ref, 1e-6, 1.0) : prior.epsilon;
 }
 
+std::vector<double> weight_error_table(const PriorObservations& obs, std::span<const float> fitted,
+                                       std::span<const float> kd, std::size_t b, std::span<const double> ladder,
+                                       double eps, bool log) {
+  const auto& cells = valid_cells();
+  const auto& cosines = valid_cell_cosines();
+  const std::size_t m = ladder.size();
+  std::vector<double> err(obs.cell.size() * m, 0.0);
+  parallel_for(
+      obs.cell.size(),
+      [&](std::size_t o) {
+        const std::size_t cell = cells[obs.cell[o]];
+        const double cc = cosines[obs.cell[o]];
+        const bool local = kd[cell] >= 0;
+        for (std::size_t l = 0; l < m; ++l)
+          err[o * m + l] = blend_error(obs, o, cell, cc, local ? ladder[l] : 0.0, fitted, kd, b, eps, log);
+      },
+      1024);
+  return err;
+}
+
 std::vector<double> weight_errors(const PriorObservations& obs, std::span<const float> fitted,
                                   std::span<const float> kd, std::size_t b, std::span<const double> ladder, double eps,
                                   bool log) {
-  const auto& cells = valid_cells();
-  const auto& cosines = valid_cell_cosines();
-  std::vector<double> mean(ladder.size(), 0.0);
-  for (std::size_t o = 0; o < obs.cell.size(); ++o) {
-    const std::size_t cell = cells[obs.cell[o]];
-    const double cc = cosines[obs.cell[o]];
-    const bool local = kd[cell] >= 0;
-    for (std::size_t l = 0; l < ladder.size(); ++l)
-      mean[l] += blend_error(obs, o, cell, cc, local ? ladder[l] : 0.0, fitted, kd, b, eps, log);
-  }
+  const std::vector<double> err = weight_error_table(obs, fitted, kd, b, ladder, eps, log);
+  const std::size_t m = ladder.size();
+  std::vector<double> mean(m, 0.0);
+  for (std::size_t o = 0; o < obs.cell.size(); ++o)
+    for (std::size_t l = 0; l < m; ++l) mean[l] += err[o * m + l];
   for (double& x : mean) x = obs.cell.empty() ? 0.0 : x / double(obs.cell.size());
   return mean;
 }

@@ -46,8 +46,14 @@ double blend_error(const PriorObservations& obs, std::size_t o, std::size_t cell
 /// median of the prior's reference at the same cells), floored at 1e-6 of it; the prior's when obs is empty.
 double judge_epsilon(const PriorObservations& obs, const BrdfPrior& prior, std::size_t b);
 
-/// Per weight w of ladder, the mean over the observations of obs of blend_error of mix_estimates(kd, fitted, w, ...,
-/// log) (fitted alone where kd has no support), summed in observation order; zeros when obs is empty.
+/// Per observation o of obs and weight w of ladder (row-major, obs x ladder), blend_error of mix_estimates(kd, fitted,
+/// w, ..., log) (fitted alone where kd has no support).
+std::vector<double> weight_error_table(const PriorObservations& obs, std::span<const float> fitted,
+                                       std::span<const float> kd, std::size_t b, std::span<const double> ladder,
+                                       double eps, bool log);
+
+/// Per weight w of ladder, the mean over the observations of obs of weight_error_table, summed in observation order;
+/// zeros when obs is empty.
 std::vector<double> weight_errors(const PriorObservations& obs, std::span<const float> fitted,
                                   std::span<const float> kd, std::size_t b, std::span<const double> ladder, double eps,
                                   bool log);

@@ -46,6 +46,7 @@ struct ResampleCliOptions {
   bool prior_alone_in_cap = false;
   bool linear_blend = false;
   bool no_retro_continuation = false;
+  bool retro_weight_overall = false;
   std::string prior_weights = "noise";
   std::size_t prior_block_mb = 256;
 };
@@ -148,6 +149,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     if (o.confidence_reach && *o.confidence_reach != "auto") m.confidence_reach = reach_of(*o.confidence_reach);
     if (o.blend_in_retro && m.reach_auto) m.reach_auto->retro_ladder.clear();
     if (o.no_retro_continuation && m.reach_auto) m.reach_auto->retro_continued = false;
+    if (o.retro_weight_overall && m.reach_auto) m.reach_auto->retro_by_group = false;
     if (o.prior_alone_in_cap) m.cap_auto.reset();
     job.method = m;
   } else if (!o.model.empty()) {
@@ -267,6 +269,9 @@ void setup_resample(CLI::App& app) {
   cmd->add_flag("--no-retro-continuation", o->no_retro_continuation,
                 "--prior: in the unseen retro band, weigh only the kd-tree's estimate against the prior, not also the "
                 "material's trend continued down in theta_d (docs/prior.md)");
+  cmd->add_flag("--retro-weight-overall", o->retro_weight_overall,
+                "--prior: one kd-tree weight for the whole unseen retro band, instead of one per theta_h group chosen "
+                "from that group's rehearsal cells (docs/prior.md)");
   cmd->add_flag("--linear-blend", o->linear_blend,
                 "--prior: mix the kd-tree estimate and the prior linearly with the weights chosen for the unseen cap "
                 "and retro band, instead of in the log domain the choice judges them in (docs/prior.md)");

@@ -78,8 +78,9 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() + ":r' --json");
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(test::json_number(r.output, "unseen_rows"), 5) << r.output;
-  const double w = test::json_number(r.output, "weight");
+  const double w = test::json_number(r.output.substr(r.output.find("\"retro_band\"")), "weight");
   EXPECT_TRUE(w == 0 || w == 0.25 || w == 0.5 || w == 0.75 || w == 1) << r.output;
+  EXPECT_NE(r.output.find("\"retro_cells\":"), std::string::npos) << r.output;  // each theta_h group's band weight
   EXPECT_NE(r.output.find("\"continued\":"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("\"continued_rows\":[]"), std::string::npos) << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
@@ -93,8 +94,13 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(r.output.find("\"blend\":\"log\""), std::string::npos) << r.output;
   EXPECT_GT(test::json_number(r.output, "blend_epsilon"), 0) << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
-                  ":ra' --prior-alone-in-cap --no-ceiling --linear-blend --no-retro-continuation --json");
+                  ":ra' --prior-alone-in-cap --no-ceiling --linear-blend --no-retro-continuation "
+                  "--retro-weight-overall --json");
   ASSERT_EQ(r.status, 0) << r.output;
+  const double overall = test::json_number(r.output.substr(r.output.find("\"retro_band\"")), "weight");
+  for (std::size_t at = r.output.find("\"retro_weight\":"); at != std::string::npos;
+       at = r.output.find("\"retro_weight\":", at + 1))
+    EXPECT_EQ(test::json_number(r.output.substr(at), "retro_weight"), overall) << r.output;
   EXPECT_NE(r.output.find("\"continued\":false,\"continued_rows\":[]"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("\"blend\":\"linear\""), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("cap_weight_auto"), std::string::npos) << r.output;

@@ -126,20 +126,26 @@ TEST(PriorReach, ADarkMaterialIsJudgedAtItsOwnScale) {
   EXPECT_LT(c.rows.back().error, 0.5 * c.rows.front().error);
 }
 
-// The scan of scan_of without its samples of theta_d below 5 degrees, as no light reaches them; with the bump or not.
-// A Ward material times factor(theta_d), scanned everywhere but theta_d < 5 degrees (the rig's unseen band).
+// A Ward material times factor(half and difference angles), scanned everywhere but theta_d < 5 degrees (the rig's
+// unseen band).
 template <class Factor>
-Scan band_scan(const Factor& factor) {
+Scan band_scan_hd(const Factor& factor) {
   const Scan all = scan_of(ward(0.45, 0.25, 0.07, 0.12), 150000, 0.02, 0.0, 4);
   Scan s;
   for (std::size_t i = 0; i < all.angles.size() / 4; ++i) {
     const brdf::StdAngles a{all.angles[4 * i], all.angles[4 * i + 1], all.angles[4 * i + 2], all.angles[4 * i + 3]};
-    const double td = brdf::half_diff(a).theta_d;
-    if (td < 5 * std::numbers::pi / 180) continue;
+    const brdf::HalfDiff hd = brdf::half_diff(a);
+    if (hd.theta_d < 5 * std::numbers::pi / 180) continue;
     s.angles.insert(s.angles.end(), &all.angles[4 * i], &all.angles[4 * i + 4]);
-    for (std::size_t k = 0; k < 5; ++k) s.values.push_back(float(all.values[i * 5 + k] * factor(td)));
+    for (std::size_t k = 0; k < 5; ++k) s.values.push_back(float(all.values[i * 5 + k] * factor(hd)));
   }
   return s;
+}
+
+// band_scan_hd of a factor of theta_d alone.
+template <class Factor>
+Scan band_scan(const Factor& factor) {
+  return band_scan_hd([&](const brdf::HalfDiff& hd) { return factor(hd.theta_d); });
 }
 
 Scan band_scan(bool bumped) {
@@ -183,6 +189,48 @@ TEST(PriorReach, TheRetroBandsWeightIsChosenByTheBandOneHigher) {
   const acquire::ReachChoice cp = acquire::choose_confidence_reach(with_src, bumped_prior(), {}, plain);
   EXPECT_FALSE(cp.retro_weight);
   EXPECT_EQ(cp.holdout.band_end, cp.holdout.band_first);
+}
+
+TEST(PriorReach, EachThetaHGroupTakesItsOwnWeightInTheBand) {
+  // The retro bump the prior always has, but only where theta_h >= 22.5 degrees (rows 45-89, the last group): there the
+  // prior is right, below it the kd-tree's flat estimate; by group each takes its side, as one weight neither can.
+  const Scan s = band_scan_hd(
+      [](const brdf::HalfDiff& hd) { return hd.theta_h >= std::numbers::pi / 8 ? bump(hd.theta_d) : 1.0; });
+  const brdf::MemorySamples src(s.angles, s.values, 5);
+  acquire::ReachOptions r;
+  r.retro_continued = false;
+  const acquire::ReachChoice c = acquire::choose_confidence_reach(src, bumped_prior(), {}, r);
+  ASSERT_TRUE(c.retro_weight);
+  ASSERT_EQ(c.groups.size(), 5u);
+  const acquire::ReachGroup &mid = c.groups[3], &top = c.groups[4];
+  ASSERT_GE(mid.retro_cells, r.min_group_cells);
+  ASSERT_GE(top.retro_cells, r.min_group_cells);
+  EXPECT_GE(*mid.retro_weight, 0.75);
+  EXPECT_LE(*top.retro_weight, 0.25);
+  EXPECT_LT(mid.retro_rows.back().error, mid.retro_rows.front().error);
+  EXPECT_GT(top.retro_rows.back().error, top.retro_rows.front().error);
+  r.retro_by_group = false;
+  const acquire::ReachChoice one = acquire::choose_confidence_reach(src, bumped_prior(), {}, r);
+  for (const acquire::ReachGroup& g : one.groups) EXPECT_EQ(g.retro_weight, one.retro_weight);
+
+  // The result's band takes each row's group weight as its confidence where the kd-tree has support (away from the
+  // cap round the peak, which keeps its own).
+  acquire::PriorResampleOptions o{.local = {.k = 8}, .confidence_reach = 0.1};
+  o.retro_weight = *c.retro_weight;
+  o.retro_weight_by_theta_h = acquire::retro_weight_by_theta_h(c);
+  std::vector<float> grid(5 * brdf::kMerlCells), conf(brdf::kMerlCells);
+  acquire::resample_with_prior(src, bumped_prior(), o, grid, conf);
+  std::size_t checked = 0;
+  for (const std::uint32_t cell : acquire::valid_cells()) {
+    const brdf::MerlCell m = brdf::merl_cell(std::size_t(cell));
+    if (m.theta_d >= 5 || m.theta_h < mid.first || conf[cell] == 0) continue;
+    const acquire::ReachGroup& g = m.theta_h >= top.first ? top : mid;
+    ASSERT_FLOAT_EQ(conf[cell], float(*g.retro_weight)) << "theta_h row " << m.theta_h;
+    ++checked;
+  }
+  EXPECT_GT(checked, 1000u);
+  o.retro_weight_by_theta_h.assign(89, 0.5);
+  EXPECT_THROW(acquire::resample_with_prior(src, bumped_prior(), o, grid, conf), UsageError);
 }
 
 TEST(PriorReach, AMaterialsOwnTrendInThetaDIsContinuedIntoTheBand) {
