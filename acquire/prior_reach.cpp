@@ -15,7 +15,6 @@
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
-#include "specula/core/parallel.h"
 
 namespace specula::acquire {
 namespace {
@@ -39,23 +38,9 @@ void check_reach_options(const ReachOptions& o) {
 std::vector<double> held_out_errors(const PriorObservations& obs, std::span<const float> fitted,
                                     std::span<const float> kd, std::span<const float> gaps, std::size_t b,
                                     const ReachOptions& r, double max_gap, double eps) {
-  const auto& cells = valid_cells();
-  const auto& cosines = valid_cell_cosines();
-  const std::size_t m = r.ladder.size();
-  std::vector<double> err(obs.cell.size() * m, 0.0);
-  parallel_for(
-      obs.cell.size(),
-      [&](std::size_t o) {
-        const std::size_t cell = cells[obs.cell[o]];
-        const double cc = cosines[obs.cell[o]];
-        const bool local = kd[cell] >= 0;
-        for (std::size_t l = 0; l < m; ++l) {
-          const double c = local ? support_confidence(gaps[cell], max_gap, r.ladder[l]) : 0.0;
-          err[o * m + l] = blend_error(obs, o, cell, cc, c, fitted, kd, b, eps);
-        }
-      },
-      1024);
-  return err;
+  return blend_error_table(obs, fitted, kd, b, r.ladder.size(), eps, false, [&](std::size_t cell, std::size_t l) {
+    return support_confidence(gaps[cell], max_gap, r.ladder[l]);
+  });
 }
 
 // Per ladder entry the mean of err (cells x ladder) over the held-out cells o with keep(o), summed in their order;

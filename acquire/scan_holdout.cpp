@@ -90,12 +90,11 @@ double judge_epsilon(const PriorObservations& obs, const BrdfPrior& prior, std::
   return ref > 0 ? prior.epsilon * std::clamp(median(value) / ref, 1e-6, 1.0) : prior.epsilon;
 }
 
-std::vector<double> weight_error_table(const PriorObservations& obs, std::span<const float> fitted,
-                                       std::span<const float> kd, std::size_t b, std::span<const double> ladder,
-                                       double eps, bool log) {
+std::vector<double> blend_error_table(const PriorObservations& obs, std::span<const float> fitted,
+                                      std::span<const float> kd, std::size_t b, std::size_t m, double eps, bool log,
+                                      const std::function<double(std::size_t cell, std::size_t l)>& weight) {
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
-  const std::size_t m = ladder.size();
   std::vector<double> err(obs.cell.size() * m, 0.0);
   parallel_for(
       obs.cell.size(),
@@ -104,10 +103,17 @@ std::vector<double> weight_error_table(const PriorObservations& obs, std::span<c
         const double cc = cosines[obs.cell[o]];
         const bool local = kd[cell] >= 0;
         for (std::size_t l = 0; l < m; ++l)
-          err[o * m + l] = blend_error(obs, o, cell, cc, local ? ladder[l] : 0.0, fitted, kd, b, eps, log);
+          err[o * m + l] = blend_error(obs, o, cell, cc, local ? weight(cell, l) : 0.0, fitted, kd, b, eps, log);
       },
       1024);
   return err;
+}
+
+std::vector<double> weight_error_table(const PriorObservations& obs, std::span<const float> fitted,
+                                       std::span<const float> kd, std::size_t b, std::span<const double> ladder,
+                                       double eps, bool log) {
+  return blend_error_table(obs, fitted, kd, b, ladder.size(), eps, log,
+                           [&](std::size_t, std::size_t l) { return ladder[l]; });
 }
 
 std::vector<double> weight_errors(const PriorObservations& obs, std::span<const float> fitted,

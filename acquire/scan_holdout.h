@@ -3,6 +3,7 @@
 // the samples a holdout keeps, each sample's cell, the log-domain error of a blend against held-out cell means, and
 // that error's eps scaled to a dark material.
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -46,8 +47,14 @@ double blend_error(const PriorObservations& obs, std::size_t o, std::size_t cell
 /// median of the prior's reference at the same cells), floored at 1e-6 of it; the prior's when obs is empty.
 double judge_epsilon(const PriorObservations& obs, const BrdfPrior& prior, std::size_t b);
 
-/// Per observation o of obs and weight w of ladder (row-major, obs x ladder), blend_error of mix_estimates(kd, fitted,
-/// w, ..., log) (fitted alone where kd has no support).
+/// Per observation o of obs and entry l < m (row-major, obs x m), blend_error at the kd-tree's weight weight(cell, l),
+/// cell the observation's MERL cell (the fit alone where kd has no support); on all threads.
+std::vector<double> blend_error_table(const PriorObservations& obs, std::span<const float> fitted,
+                                      std::span<const float> kd, std::size_t b, std::size_t m, double eps, bool log,
+                                      const std::function<double(std::size_t cell, std::size_t l)>& weight);
+
+/// blend_error_table at the weights of ladder: per observation and w, the error of mix_estimates(kd, fitted, w, ...,
+/// log) (fitted alone where kd has no support).
 std::vector<double> weight_error_table(const PriorObservations& obs, std::span<const float> fitted,
                                        std::span<const float> kd, std::size_t b, std::span<const double> ladder,
                                        double eps, bool log);
