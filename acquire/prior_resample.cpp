@@ -78,12 +78,12 @@ void check_prior_resample(const brdf::SampleSource& src, const BrdfPrior& prior,
   if (o.retro_weight && !(*o.retro_weight >= 0 && *o.retro_weight <= 1))
     throw UsageError(
         "prior: retro_weight (the kd-tree's weight in the unseen retro-reflection band) must be in [0, 1]");
-  const double eps = o.blend_epsilon.value_or(prior.epsilon);
   if (!o.retro_weight_by_theta_h.empty() &&
       (!o.retro_weight || o.retro_weight_by_theta_h.size() != std::size_t(brdf::kMerlThetaH) ||
        !std::all_of(o.retro_weight_by_theta_h.begin(), o.retro_weight_by_theta_h.end(),
                     [](double w) { return w >= 0 && w <= 1; })))
     throw UsageError("prior: retro_weight_by_theta_h needs retro_weight and one weight in [0, 1] per theta_h row (90)");
+  const double eps = o.blend_epsilon.value_or(prior.epsilon);
   if (o.log_blend && !(eps > 0 && std::isfinite(eps)))
     throw UsageError("prior: blend_epsilon (eps of the log blend) must be positive and finite");
 }

@@ -8,6 +8,32 @@
 #include "specula/core/parallel.h"
 
 namespace specula::acquire {
+namespace {
+
+struct Line {
+  double mean = 0, slope = 0;
+};
+
+// The least-squares line through y[i] at i - (n - 1) / 2, its slope s shrunk to s max(0, 1 - se^2 / s^2) (se its
+// standard error; n > 2): a trend lost in the noise stays flat.
+Line shrunk_line(std::span<const double> y) {
+  const double n = double(y.size()), mid = (n - 1) / 2;
+  double sum = 0, sxy = 0, sxx = 0;
+  for (std::size_t i = 0; i < y.size(); ++i) {
+    sum += y[i];
+    sxy += (double(i) - mid) * y[i];
+    sxx += (double(i) - mid) * (double(i) - mid);
+  }
+  Line l{.mean = sum / n, .slope = sxx > 0 ? sxy / sxx : 0.0};
+  if (y.size() > 2 && l.slope != 0) {
+    double rss = 0;
+    for (std::size_t i = 0; i < y.size(); ++i) rss += std::pow(y[i] - l.mean - l.slope * (double(i) - mid), 2);
+    l.slope *= std::max(0.0, 1.0 - rss / ((n - 2) * sxx) / (l.slope * l.slope));
+  }
+  return l;
+}
+
+}  // namespace
 
 int unseen_retro_rows(std::span<const std::uint32_t> observed) {
   int rows = brdf::kMerlThetaD;
@@ -24,8 +50,6 @@ void continue_retro(std::span<const float> grid, std::size_t bands, int first, i
   if (first < 0 || count < 1) throw UsageError("retro band: rows to continue must be a positive count from row 0 up");
   const int known = first + count, end = first + 2 * count;
   const double mid = known + (count - 1) / 2.0;
-  double sxx = 0;
-  for (int r = known; r < end; ++r) sxx += (r - mid) * (r - mid);
   const auto at = [](int h, int d, int p) { return brdf::merl_index({.theta_h = h, .theta_d = d, .phi_d = p}); };
   parallel_for(
       std::size_t(brdf::kMerlThetaH) * brdf::kMerlPhiD,
@@ -35,26 +59,13 @@ void continue_retro(std::span<const float> grid, std::size_t bands, int first, i
         for (int r = known; ok && r < end; ++r)
           for (std::size_t k = 0; ok && k < bands; ++k) ok = grid[k * brdf::kMerlCells + at(h, r, p)] > 0;
         if (!ok) return;
+        double y[brdf::kMerlThetaD];  // count <= 45: end <= kMerlThetaD
         for (std::size_t k = 0; k < bands; ++k) {
-          double sum = 0, sxy = 0;
-          for (int r = known; r < end; ++r) {
-            const double y = std::log(double(grid[k * brdf::kMerlCells + at(h, r, p)]));
-            sum += y;
-            sxy += (r - mid) * y;
-          }
-          const double mean = sum / count;
-          double slope = count > 1 ? sxy / sxx : 0.0;
-          if (count > 2 && slope != 0) {  // shrunk by its squared standard error: a trend lost in noise stays flat
-            double rss = 0;
-            for (int r = known; r < end; ++r) {
-              const double e = std::log(double(grid[k * brdf::kMerlCells + at(h, r, p)])) - mean - slope * (r - mid);
-              rss += e * e;
-            }
-            slope *= std::max(0.0, 1.0 - rss / ((count - 2) * sxx) / (slope * slope));
-          }
+          for (int r = known; r < end; ++r) y[r - known] = std::log(double(grid[k * brdf::kMerlCells + at(h, r, p)]));
+          const Line l = shrunk_line({y, std::size_t(count)});
           for (int r = first; r < known; ++r)
             if (brdf::merl_cell_valid({.theta_h = h, .theta_d = r, .phi_d = p}))
-              out[k * brdf::kMerlCells + at(h, r, p)] = float(std::exp(mean + slope * (r - mid)));
+              out[k * brdf::kMerlCells + at(h, r, p)] = float(std::exp(l.mean + l.slope * (r - mid)));
         }
       },
       256);
