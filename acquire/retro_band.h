@@ -23,7 +23,8 @@ inline int unseen_retro_rows(const PriorObservations& obs) { return unseen_retro
 bool in_unseen_retro(int rows, std::size_t cell);
 
 /// The material's own trend continued down in theta_d: for every valid (theta_h, phi_d) column of grid (bands x
-/// kMerlCells), each band's least-squares line in ln v through the column's values at theta_d rows
+/// kMerlCells), each band's least-squares line of ln v against theta_d^2 (the rows' centres, degrees; reciprocity
+/// makes a BRDF even in theta_d at retro-reflection) through the column's values at theta_d rows
 /// [first + count, first + 2 count), its slope s shrunk to s max(0, 1 - se^2 / s^2) (se: its standard error, with
 /// count > 2 rows), evaluated at rows [first, first + count) and written into out at those rows' valid cells (bands
 /// x kMerlCells; nothing else written, so out may be grid itself). A column with a value <= 0 (or no data) among its

@@ -104,15 +104,16 @@ TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
   EXPECT_GT(supported, 10000u) << unsupported << " cells of the band without support";
 }
 
-// continue_retro on a grid whose every column is exactly log-linear in theta_d above the band, with its own
-// intercept and slope per band: the band's rows come back as the same exponential (the least-squares line of exact
-// points is the line); a column with a zero among the known rows, the other rows and the cells below the horizon are
-// left as they were.
-TEST(RetroBand, TheTrendContinuedIsTheLogLinearColumnExtended) {
+// continue_retro on a grid whose every column's ln v is exactly a line in theta_d^2 (theta_d the row's centre,
+// degrees) above the band, with its own intercept and slope per band: the band's rows come back as the same function
+// (the least-squares line of exact points is the line); a column with a zero among the known rows, the other rows and
+// the cells below the horizon are left as they were.
+TEST(RetroBand, TheTrendContinuedIsTheColumnsLineInThetaDSquaredExtended) {
   const int first = 0, count = 5;
   std::vector<float> grid(2 * brdf::kMerlCells, -1.0f);
   const auto value = [](std::size_t k, const brdf::MerlCell& m) {
-    return std::exp(-3.0 + 0.5 * double(k) - 0.01 * m.theta_h + (0.02 + 0.0001 * m.phi_d) * m.theta_d);
+    const double td = m.theta_d + 0.5;
+    return std::exp(-3.0 + 0.5 * double(k) - 0.01 * m.theta_h + (0.0005 + 0.000005 * m.phi_d) * td * td);
   };
   for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
     const brdf::MerlCell m = brdf::merl_cell(cell);
@@ -146,19 +147,31 @@ TEST(RetroBand, TheTrendContinuedIsTheLogLinearColumnExtended) {
   EXPECT_THROW(continue_retro(grid, 2, first, 0, out), UsageError);
 }
 
-// Known rows whose ln v is a line plus residuals (d, -d, 0, -d, d), orthogonal to the line: the least-squares slope is
-// s, the residual sum of squares 4 d^2, its squared standard error 4 d^2 / (3 x 10); the band takes the slope shrunk by
-// max(0, 1 - se^2 / s^2): band 0 (s = 0.05, d = 0.01) keeps 99.5 % of it, band 1 (s = 0.005, d = 0.05) is flat.
+// Known rows (5 to 9) whose ln v is a line in x = theta_d^2 plus d times residuals e, e = (1, -1, 0, -1, 1) less its
+// projection on x's deviations from their mean (so orthogonal to the line): the least-squares slope is s, the residual
+// sum of squares d^2 |e|^2, its squared standard error d^2 |e|^2 / (3 Sxx); the band takes the slope shrunk by
+// max(0, 1 - se^2 / s^2): band 0 (s = 0.003, d = 0.01) keeps 99 % of it, band 1 (s = 0.0003, d = 0.05) is flat.
 TEST(RetroBand, ATrendLostInTheNoiseIsContinuedFlat) {
   const int count = 5;
-  const double slope[2] = {0.05, 0.005}, d[2] = {0.01, 0.05}, e[count] = {1, -1, 0, -1, 1};
+  const double slope[2] = {0.003, 0.0003}, d[2] = {0.01, 0.05};
+  const auto x = [](int row) { return (row + 0.5) * (row + 0.5); };
+  double x_mean = 0, sxx = 0, ex = 0, e[count] = {1, -1, 0, -1, 1}, ee = 0;
+  for (int r = count; r < 2 * count; ++r) x_mean += x(r) / count;
+  for (int r = count; r < 2 * count; ++r) {
+    sxx += (x(r) - x_mean) * (x(r) - x_mean);
+    ex += e[r - count] * (x(r) - x_mean);
+  }
+  for (int r = count; r < 2 * count; ++r) {
+    e[r - count] -= ex / sxx * (x(r) - x_mean);
+    ee += e[r - count] * e[r - count];
+  }
   std::vector<float> grid(2 * brdf::kMerlCells, -1.0f);
   for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
     const brdf::MerlCell m = brdf::merl_cell(cell);
     if (!brdf::merl_cell_valid(m) || m.theta_d >= 2 * count) continue;
     for (std::size_t k = 0; k < 2; ++k)
       grid[k * brdf::kMerlCells + cell] =
-          m.theta_d < count ? 7.0f : float(std::exp(-3.0 + slope[k] * m.theta_d + d[k] * e[m.theta_d - count]));
+          m.theta_d < count ? 7.0f : float(std::exp(-3.0 + slope[k] * x(m.theta_d) + d[k] * e[m.theta_d - count]));
   }
   std::vector<float> out = grid;
   continue_retro(grid, 2, 0, count, out);
@@ -170,8 +183,9 @@ TEST(RetroBand, ATrendLostInTheNoiseIsContinuedFlat) {
       known = known && brdf::merl_cell_valid({.theta_h = m.theta_h, .theta_d = r, .phi_d = m.phi_d});
     if (!known) continue;
     for (std::size_t k = 0; k < 2; ++k) {
-      const double shrink = std::max(0.0, 1.0 - 4 * d[k] * d[k] / 30.0 / (slope[k] * slope[k]));
-      const double mid = 7.0, want = std::exp(-3.0 + slope[k] * mid + slope[k] * shrink * (m.theta_d - mid));
+      const double shrink = std::max(0.0, 1.0 - d[k] * d[k] * ee / (3 * sxx) / (slope[k] * slope[k]));
+      const double want = std::exp(-3.0 + slope[k] * x_mean + slope[k] * shrink * (x(m.theta_d) - x_mean));
+      EXPECT_TRUE(k == 0 ? shrink > 0.99 : shrink == 0.0) << "band " << k << " shrink " << shrink;
       ASSERT_NEAR(out[k * brdf::kMerlCells + cell], want, 1e-5 * want) << "cell " << cell << " band " << k;
     }
     ++checked;
