@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "specula/acquire/retro_trend.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
@@ -88,9 +89,29 @@ struct Training {
   Eigen::MatrixXd proj;
 };
 
+// Adds theta_h rows [first, h0 + rows) of grid g's block buf (bands x rows x kRow, rows from h0) to tally, as channel
+// values (the projection of each cell's spectrum) at the theta_d rows it reads.
+void tally_rows(const Training& t, const TrainingGrid& grid, std::span<const float> buf, std::size_t h0,
+                std::size_t rows, std::size_t first, RetroExponentTally& tally) {
+  if (first >= h0 + rows) return;
+  const std::size_t b = grid.wavelengths.size(), n = h0 + rows - first, near = 2 * kRetroLearnedRows * brdf::kMerlPhiD;
+  std::vector<float> ch(t.c * n * kRow, 0.0f);
+  parallel_for(n, [&](std::size_t i) {
+    Eigen::VectorXd s(static_cast<Eigen::Index>(b));
+    for (std::size_t at = 0; at < near; ++at) {
+      for (std::size_t k = 0; k < b; ++k) s[Eigen::Index(k)] = double(buf[(k * rows + first - h0 + i) * kRow + at]);
+      const Eigen::VectorXd c = t.proj * s * grid.scale;
+      for (std::size_t j = 0; j < t.c; ++j) ch[(j * n + i) * kRow + at] = float(c[Eigen::Index(j)]);
+    }
+  });
+  tally.add(ch, t.c, first, n);
+}
+
 // Cos-weighted channel values of cells [i0, i0 + n) of every grid into x (n x m, column g * c + j); counts each
-// grid's cells without data into holes.
-void read_block(const Training& t, std::size_t i0, std::size_t n, Eigen::MatrixXf& x, std::vector<std::size_t>& holes) {
+// grid's cells without data into holes. With a tally, the theta_h rows from *tallied on are added to it (and
+// *tallied moved past the block's rows).
+void read_block(const Training& t, std::size_t i0, std::size_t n, Eigen::MatrixXf& x, std::vector<std::size_t>& holes,
+                RetroExponentTally* tally = nullptr, std::size_t* tallied = nullptr) {
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
   const std::size_t h0 = cells[i0] / kRow, rows = cells[i0 + n - 1] / kRow - h0 + 1;
@@ -119,7 +140,9 @@ void read_block(const Training& t, std::size_t i0, std::size_t n, Eigen::MatrixX
       }
     });
     for (const std::size_t h : missing) holes[g] += h;
+    if (tally) tally_rows(t, grid, buf, h0, rows, *tallied, *tally);
   }
+  if (tallied) *tallied = h0 + rows;
 }
 
 // Maps x (cells [i0, i0 + n)) log-relatively to reference and centres it on mean.
@@ -179,7 +202,7 @@ Training check_training(std::span<const TrainingGrid> grids, const PriorOptions&
 }
 
 // Pass 1: reference, mean and the Gram matrix of the centred observations, summed over kBlock cells in cell order
-// (the same sums for any thread count and block size).
+// (the same sums for any thread count and block size); the retro band's exponents.
 Eigen::MatrixXd first_pass(const Training& t, BrdfPrior& p) {
   const std::size_t d = valid_cells().size();
   p.reference.resize(d);
@@ -188,10 +211,12 @@ Eigen::MatrixXd first_pass(const Training& t, BrdfPrior& p) {
   Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(Eigen::Index(t.m), Eigen::Index(t.m));
   std::vector<std::size_t> holes(t.grids.size(), 0);
   Eigen::MatrixXf x;
+  RetroExponentTally tally;
+  std::size_t tallied = 0;
   for (std::size_t i0 = 0; i0 < d; i0 += t.block) {
     check_interrupt();
     const std::size_t n = std::min(t.block, d - i0);
-    read_block(t, i0, n, x, holes);
+    read_block(t, i0, n, x, holes, &tally, &tallied);
     reference_and_mean(x, i0, p.epsilon, p);
     map_block(x, i0, p.reference, p.mean, p.epsilon);
     std::vector<Eigen::MatrixXd> partial((n + kBlock - 1) / kBlock);
@@ -207,6 +232,7 @@ Eigen::MatrixXd first_pass(const Training& t, BrdfPrior& p) {
       throw InputError("prior: grid '" + t.grids[g].name + "' has no data (or a non-finite value) at " +
                        std::to_string(holes[g]) + " of the " + std::to_string(d) +
                        " valid cells; a prior learns from complete grids");
+  p.retro_exponents = tally.exponents();
   return gram;
 }
 

@@ -44,6 +44,10 @@ struct BrdfPrior {
   std::vector<float> components;      ///< k x valid cells, row-major, orthonormal rows
   std::vector<double> variances;      ///< k: variance of the observations along each component
   std::vector<std::string> training;  ///< the training grids, one name per material
+  /// per width B = 1, 2, ... of the unseen retro band (theta_d rows) the exponent p its continuation fits ln v against
+  /// theta_d^p with (acquire/retro_trend.h), learned from the training grids; empty for a prior written before it was
+  /// learned (store version <= 2), which continues with p = 2
+  std::vector<double> retro_exponents;
 
   std::size_t cells() const { return mean.size(); }
   std::size_t k() const { return variances.size(); }
@@ -78,11 +82,12 @@ TrainingGrid memory_training_grid(std::shared_ptr<const store::Grid> grid, const
 using ComponentSource = std::function<void(std::size_t first, std::size_t count, std::span<float> out)>;
 
 /// Learns a prior from grids, all on the same wavelengths, each with data at every valid cell, in two passes over
-/// blocks of cells (each reading the block's rows of every grid): the per-cell reference and mean and the Gram
-/// matrix of the observations; then, as sink asks for them, the components. sink gets the prior without its
-/// components and their source (valid during the call). Memory: options.block_bytes plus one grid's rows of a
-/// block. The result does not depend on the thread count or block_bytes. InputError naming the grid for other
-/// bands or holes; UsageError for bad options or fewer than 2 grids. Returns the prior without its components.
+/// blocks of cells (each reading the block's rows of every grid): the per-cell reference and mean, the Gram matrix of
+/// the observations and the retro band's exponents (RetroExponentTally over the grids' channels); then, as sink asks
+/// for them, the components. sink gets the prior without its components and their source (valid during the call).
+/// Memory: options.block_bytes plus one grid's rows of a block. The result does not depend on the thread count or
+/// block_bytes. InputError naming the grid for other bands or holes; UsageError for bad options or fewer than 2 grids.
+/// Returns the prior without its components.
 BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& options,
                       const std::function<void(const BrdfPrior&, ComponentSource)>& sink);
 /// build_prior into memory (the whole prior, components included).

@@ -11,6 +11,7 @@
 #include "specula/acquire/bandwidth.h"
 #include "specula/acquire/base_resample.h"
 #include "specula/acquire/retro_band.h"
+#include "specula/acquire/retro_trend.h"
 #include "specula/acquire/scan_holdout.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
@@ -92,8 +93,8 @@ std::vector<ReachRow> ladder_rows(std::span<const double> ladder, const std::vec
   return rows;
 }
 
-// The band's weights from its held cells `band` (the kd-tree's estimate kd, continued in place when tried), into out
-// (its groups already made).
+// The band's weights from its held cells `band` (the kd-tree's estimate kd, continued in place with out's
+// retro_exponent when tried), into out (its groups already made).
 void choose_band(const PriorObservations& band, std::span<const float> fitted, std::span<float> kd, std::size_t b,
                  bool log, const ReachOptions& r, ReachChoice& out) {
   const auto& cells = valid_cells();
@@ -106,7 +107,8 @@ void choose_band(const PriorObservations& band, std::span<const float> fitted, s
   BandPick pick = pick_band(weight_error_table(band, fitted, kd, b, r.retro_ladder, out.epsilon, log), m, group_of, r);
   out.retro_rows = ladder_rows(r.retro_ladder, pick.mean);
   if (r.retro_continued) {
-    continue_retro(kd, b, out.holdout.band_first, out.holdout.band_end - out.holdout.band_first, kd);
+    continue_retro(kd, b, out.holdout.band_first, out.holdout.band_end - out.holdout.band_first, out.retro_exponent,
+                   kd);
     BandPick cont =
         pick_band(weight_error_table(band, fitted, kd, b, r.retro_ladder, out.epsilon, log), m, group_of, r);
     out.retro_continued_rows = ladder_rows(r.retro_ladder, cont.mean);
@@ -221,6 +223,7 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
     g.reach = g.cells >= r.min_group_cells ? r.ladder[least(gm)] : out.reach;
     out.groups.push_back(std::move(g));
   }
+  out.retro_exponent = retro_exponent(prior.retro_exponents, out.holdout.retro_rows);
   if (!parts[2].cell.empty()) choose_band(parts[2], fitted, kd, b, o.log_blend, r, out);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
@@ -256,7 +259,8 @@ nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOption
                      {"weight", c.retro_weight ? nlohmann::ordered_json(*c.retro_weight) : nlohmann::ordered_json()},
                      {"rows", rows_json(c.retro_rows, "weight")},
                      {"continued", c.retro_continued},
-                     {"continued_rows", rows_json(c.retro_continued_rows, "weight")}};
+                     {"continued_rows", rows_json(c.retro_continued_rows, "weight")},
+                     {"exponent", c.retro_exponent}};
   return j;
 }
 
@@ -283,12 +287,14 @@ std::string reach_provenance(const ReachChoice& c, const ReachOptions& r) {
       band +=
           fmt::format("{}{}-{}:{}", band.empty() ? "" : ",", g.first, g.end, g.retro_weight.value_or(*c.retro_weight));
   }
-  return fmt::format("confidence_reach={} reach_by_theta_h={} reach_auto=holdout held_out={} seed={}{}", c.reach,
-                     groups, r.held_out, r.seed,
-                     c.retro_weight
-                         ? fmt::format(" retro_weight={} retro_by_theta_h={} retro_rows={}{}", *c.retro_weight, band,
-                                       c.holdout.retro_rows, c.retro_continued ? " retro=continued" : "")
-                         : std::string());
+  return fmt::format(
+      "confidence_reach={} reach_by_theta_h={} reach_auto=holdout held_out={} seed={}{}", c.reach, groups, r.held_out,
+      r.seed,
+      c.retro_weight
+          ? fmt::format(" retro_weight={} retro_by_theta_h={} retro_rows={}{}", *c.retro_weight, band,
+                        c.holdout.retro_rows,
+                        c.retro_continued ? fmt::format(" retro=continued retro_exponent={}", c.retro_exponent) : "")
+          : std::string());
 }
 
 }  // namespace specula::acquire

@@ -86,6 +86,9 @@ struct ReachChoice {
   std::vector<ReachRow> retro_continued_rows;
   /// the band's weights are of the continued estimate: with the groups' weights its error over the held band is lower
   bool retro_continued = false;
+  /// the exponent the band is continued with: the prior's for the band's width (retro_exponent of
+  /// acquire/retro_trend.h)
+  double retro_exponent = 2;
   ReachHoldout holdout;        ///< without its per-sample flags
   std::vector<ReachRow> rows;  ///< one per ladder entry
   double epsilon = 0;          ///< eps of the error: the prior's times min(1, kept cell means' median / reference's)
@@ -114,8 +117,8 @@ std::vector<double> retro_weight_by_theta_h(const ReachChoice& c);
 nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOptions& r);
 
 /// "confidence_reach=R reach_by_theta_h=0-10:R0,... reach_auto=holdout held_out=S seed=N[ retro_weight=W
-/// retro_by_theta_h=0-10:W0,... retro_rows=B[ retro=continued]]": how the grid's provenance names the chosen reaches
-/// (and band weights).
+/// retro_by_theta_h=0-10:W0,... retro_rows=B[ retro=continued retro_exponent=P]]": how the grid's provenance names the
+/// chosen reaches (and band weights).
 std::string reach_provenance(const ReachChoice& c, const ReachOptions& r);
 
 }  // namespace specula::acquire

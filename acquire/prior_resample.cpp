@@ -8,6 +8,7 @@
 #include "specula/acquire/base_resample.h"
 #include "specula/acquire/peak_cap.h"
 #include "specula/acquire/retro_band.h"
+#include "specula/acquire/retro_trend.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/parallel.h"
@@ -243,7 +244,8 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
   }
   std::vector<float> gaps(brdf::kMerlCells, -1.0f);
   st.local = brdf::resample_grid(brdf::SampleTree(src, o.local.mapping), src, o.local, grid, gaps);
-  if (retro_rows > 0 && o.retro_continued) continue_retro(grid, b, 0, retro_rows, grid);
+  if (retro_rows > 0 && o.retro_continued)
+    continue_retro(grid, b, 0, retro_rows, retro_exponent(prior.retro_exponents, retro_rows), grid);
   std::fill(confidence.begin(), confidence.end(), -1.0f);
   const auto& cosines = valid_cell_cosines();
   parallel_for(

@@ -15,7 +15,8 @@ store::PriorTables tables_of(const BrdfPrior& p) {
           .mean = p.mean,
           .ceiling = p.ceiling,
           .components = p.components,
-          .training = p.training};
+          .training = p.training,
+          .retro_exponents = p.retro_exponents};
 }
 
 BrdfPrior prior_of(store::PriorTables t) {
@@ -29,6 +30,7 @@ BrdfPrior prior_of(store::PriorTables t) {
   p.ceiling = std::move(t.ceiling);
   p.components = std::move(t.components);
   p.training = std::move(t.training);
+  p.retro_exponents = std::move(t.retro_exponents);
   return p;
 }
 

@@ -23,12 +23,12 @@ inline int unseen_retro_rows(const PriorObservations& obs) { return unseen_retro
 bool in_unseen_retro(int rows, std::size_t cell);
 
 /// The material's own trend continued down in theta_d: for every valid (theta_h, phi_d) column of grid (bands x
-/// kMerlCells), each band's least-squares line of ln v against theta_d^2 (the rows' centres, degrees; reciprocity
-/// makes a BRDF even in theta_d at retro-reflection) through the column's values at theta_d rows
-/// [first + count, first + 2 count), its slope s shrunk to s max(0, 1 - se^2 / s^2) (se: its standard error, with
-/// count > 2 rows), evaluated at rows [first, first + count) and written into out at those rows' valid cells (bands
-/// x kMerlCells; nothing else written, so out may be grid itself). A column with a value <= 0 (or no data) among its
-/// known rows, or whose rows leave the grid, is left as it is. UsageError on sizes or rows.
-void continue_retro(std::span<const float> grid, std::size_t bands, int first, int count, std::span<float> out);
+/// kMerlCells), each band's shrunk_line (acquire/retro_trend.h) of ln v against retro_abscissa(row, exponent) through
+/// the column's values at theta_d rows [first + count, first + 2 count), evaluated at rows [first, first + count) and
+/// written into out at those rows' valid cells (bands x kMerlCells; nothing else written, so out may be grid itself).
+/// A column with a value <= 0 (or no data) among its known rows, or whose rows leave the grid, is left as it is.
+/// UsageError on sizes, rows or an exponent <= 0.
+void continue_retro(std::span<const float> grid, std::size_t bands, int first, int count, double exponent,
+                    std::span<float> out);
 
 }  // namespace specula::acquire

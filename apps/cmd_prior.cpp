@@ -1,5 +1,6 @@
 // specula prior build: a learned BRDF prior (acquire/prior.h, docs/prior.md) from grids, into a store.
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <chrono>
@@ -86,8 +87,11 @@ void run_prior_build(const PriorBuildOptions& o) {
   const acquire::BrdfPrior prior = acquire::build_prior(grids, po, writer, o.name);
   writer.commit();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  fmt::print("prior {} of {}: {} components over {} cells, {} channels ({}), from {} grids in {:.1f} s\n", o.name,
-             o.output, prior.k(), prior.cells(), prior.channels(), prior.wavelengths.describe(), specs.size(), seconds);
+  fmt::print(
+      "prior {} of {}: {} components over {} cells, {} channels ({}), from {} grids in {:.1f} s; the retro "
+      "band continued in theta_d^p, p by band width 1-{} rows: {}\n",
+      o.name, o.output, prior.k(), prior.cells(), prior.channels(), prior.wavelengths.describe(), specs.size(), seconds,
+      prior.retro_exponents.size(), fmt::join(prior.retro_exponents, ","));
 }
 
 }  // namespace

@@ -12,8 +12,9 @@
 namespace specula::store {
 namespace {
 
-// 2: `ceiling` added (a prior without it is written, and read, as version 1).
-constexpr long long kPriorVersion = 2;
+// 2: `ceiling` added (a prior without it is written, and read, as version 1). 3: `retro_exponents` added (a prior
+// with a ceiling but without them is written, and read, as version 2).
+constexpr long long kPriorVersion = 3;
 
 // A rows x cols float32 dataset, chunked by rows of at most 2^18 values and deflated.
 void write_f32(hid_t loc, const std::string& name, std::span<const float> v, hsize_t rows, const std::string& ctx) {
@@ -128,7 +129,9 @@ void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
     throw UsageError(ctx +
                      ": reference, mean, ceiling and components (k x cells, or made by component_blocks) disagree");
   h5::Id g = make_group(begin("priors", name, "prior"), path, ctx);
-  h5::write_attr(g, "prior_version", p.ceiling.empty() ? 1 : kPriorVersion, ctx);
+  if (p.ceiling.empty() && !p.retro_exponents.empty())
+    throw UsageError(ctx + ": a prior with retro exponents needs its ceiling (version 3 keeps both)");
+  h5::write_attr(g, "prior_version", p.ceiling.empty() ? 1 : p.retro_exponents.empty() ? 2 : kPriorVersion, ctx);
   h5::write_attr(g, "mapping", std::string_view("log-relative-cos"), ctx);
   h5::write_attr(g, "epsilon", p.epsilon, ctx);
   h5::write_vector(g, "wavelengths", p.wavelengths, ctx);
@@ -137,6 +140,7 @@ void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   write_f32(g, "reference", p.reference, 1, ctx);
   write_f32(g, "mean", p.mean, 1, ctx);
   if (!p.ceiling.empty()) write_f32(g, "ceiling", p.ceiling, 1, ctx);
+  if (!p.retro_exponents.empty()) h5::write_vector(g, "retro_exponents", p.retro_exponents, ctx);
   const hsize_t dims[2] = {k, cells};
   h5::Id space(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
   h5::Id dcpl(h5::check(H5Pcreate(H5P_DATASET_CREATE), ctx, "H5Pcreate"));
@@ -182,7 +186,9 @@ PriorTables Store::read_prior(const std::string& name, std::size_t cells, bool c
   p.epsilon = read_double_attr(g, "epsilon", ctx);
   p.reference = read_f32(g, "reference", 1, cells, ctx);
   p.mean = read_f32(g, "mean", 1, cells, ctx);
-  if (h5::read_int_attr(g, "prior_version", ctx) >= 2) p.ceiling = read_f32(g, "ceiling", 1, cells, ctx);
+  const long long version = h5::read_int_attr(g, "prior_version", ctx);
+  if (version >= 2) p.ceiling = read_f32(g, "ceiling", 1, cells, ctx);
+  if (version >= 3) p.retro_exponents = h5::read_vector(g, "retro_exponents", ctx);
   if (components)
     p.components = read_f32(g, "components", p.variances.size(), cells, ctx);
   else
@@ -195,8 +201,11 @@ PriorTables Store::read_prior(const std::string& name, std::size_t cells, bool c
   }
   if (p.knots.size() < 2 || !(p.epsilon > 0) ||
       std::any_of(p.variances.begin(), p.variances.end(), [](double v) { return !(v > 0); }) ||
-      std::any_of(p.ceiling.begin(), p.ceiling.end(), [](float c) { return c < 0; }))
-    throw InputError(ctx + ": malformed prior (knots, epsilon, variances or a negative ceiling)");
+      std::any_of(p.ceiling.begin(), p.ceiling.end(), [](float c) { return c < 0; }) ||
+      (version >= 3 && p.retro_exponents.empty()) ||
+      std::any_of(p.retro_exponents.begin(), p.retro_exponents.end(),
+                  [](double e) { return !(e > 0) || !std::isfinite(e); }))
+    throw InputError(ctx + ": malformed prior (knots, epsilon, variances, a negative ceiling or retro exponents)");
   return p;
 }
 

@@ -25,6 +25,9 @@ struct PriorTables {
   /// add_prior calls it for consecutive blocks of kPriorBlockCells cells (the last may be shorter), in order.
   std::function<void(std::size_t first, std::size_t count, std::span<float> out)> component_blocks;
   std::vector<std::string> training;  ///< the training grids, one name per material
+  /// the retro band's exponent per band width 1, 2, ... (> 0), or empty: a prior of version <= 2, written before it
+  /// was learned
+  std::vector<double> retro_exponents;
 };
 
 /// Cells per block of a prior's components: add_prior writes (and asks component_blocks for) this many at a time.

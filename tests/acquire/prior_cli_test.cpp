@@ -9,6 +9,7 @@
 
 #include "specula/acquire/prior.h"
 #include "specula/acquire/prior_reach.h"
+#include "specula/acquire/retro_trend.h"
 #include "specula/store/store.h"
 #include "test_support.h"
 
@@ -26,6 +27,8 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   ASSERT_EQ(r.status, 0) << r.output;
   const acquire::BrdfPrior p = acquire::read_prior(store::Store::open(db), "p");
   EXPECT_EQ(p.training.size(), 4u);
+  EXPECT_EQ(p.retro_exponents.size(), std::size_t(acquire::kRetroLearnedRows));
+  EXPECT_NE(r.output.find("p by band width 1-8 rows: "), std::string::npos) << r.output;
   for (const auto& t : p.training) EXPECT_EQ(t.find("cyan-gloss"), std::string::npos) << t;
 
   r = run_specula("synth-samples cyan-gloss --geometry random -n 40000" + wl + " -o '" + db + ":scan'");

@@ -13,6 +13,7 @@
 #include <random>
 
 #include "specula/acquire/prior_resample.h"
+#include "specula/acquire/retro_trend.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_models.h"
 #include "test_support.h"
@@ -151,6 +152,37 @@ TEST(Prior, RoundTripsThroughTheStore) {
   EXPECT_EQ(p.knots, f.prior.knots);
   const std::string m = test::error_of([&] { acquire::read_prior(s, "q"); });
   EXPECT_NE(m.find("db.h5: no prior 'q' (priors: p"), std::string::npos) << m;
+}
+
+// Grids whose every valid cell is a positive spectrum times exp(-0.01 theta_h + s(phi_d) theta_d^1.6) (theta_d the
+// row's centre, degrees): each channel's ln value is a line in theta_d^1.6 in every column, so the prior learns 1.6
+// for every band width of two rows or more (one row gives a flat line, a tie: 2), and the store keeps the table.
+TEST(Prior, LearnsTheRetroBandsExponentFromItsTrainingGridsAndKeepsIt) {
+  const WavelengthGrid bands({450, 550, 650});
+  std::vector<store::Grid> grids(3);
+  for (std::size_t g = 0; g < grids.size(); ++g) {
+    grids[g].wavelengths = bands;
+    grids[g].brdf.assign(3 * brdf::kMerlCells, -1.0f);
+    for (const std::uint32_t cell : acquire::valid_cells()) {
+      const brdf::MerlCell m = brdf::merl_cell(cell);
+      const double f = std::exp(-0.01 * m.theta_h + (0.001 + 0.0002 * (m.phi_d % 5)) * std::pow(m.theta_d + 0.5, 1.6));
+      for (std::size_t k = 0; k < 3; ++k)
+        grids[g].brdf[k * brdf::kMerlCells + cell] = float((0.1 + 0.2 * double(g) + 0.05 * double(k)) * f);
+    }
+  }
+  const std::vector<std::string> names = {"a", "b", "c"};
+  const acquire::BrdfPrior prior = acquire::build_prior(grids.size(), [&](std::size_t i) { return grids[i]; }, names,
+                                                        {.channels = 2, .components = 0, .epsilon = 1e-3});
+  std::vector<double> want(acquire::kRetroLearnedRows, 1.6);
+  want[0] = 2.0;
+  EXPECT_EQ(prior.retro_exponents, want);
+  test::ScratchDir dir;
+  {
+    store::StoreWriter w(dir / "db.h5", {});
+    acquire::write_prior(w, "p", prior);
+    w.commit();
+  }
+  EXPECT_EQ(acquire::read_prior_tables(store::Store::open(dir / "db.h5"), "p").retro_exponents, want);
 }
 
 TEST(Prior, ConfidenceIsZeroWhereNoSampleFallsAndEveryValidCellGetsData) {

@@ -104,16 +104,16 @@ TEST(RetroBand, TheKdTreesWeightInTheBandNoLightReaches) {
   EXPECT_GT(supported, 10000u) << unsupported << " cells of the band without support";
 }
 
-// continue_retro on a grid whose every column's ln v is exactly a line in theta_d^2 (theta_d the row's centre,
-// degrees) above the band, with its own intercept and slope per band: the band's rows come back as the same function
-// (the least-squares line of exact points is the line); a column with a zero among the known rows, the other rows and
-// the cells below the horizon are left as they were.
-TEST(RetroBand, TheTrendContinuedIsTheColumnsLineInThetaDSquaredExtended) {
+// continue_retro on a grid whose every column's ln v is exactly a line in theta_d^p (theta_d the row's centre,
+// degrees) above the band, with its own intercept and slope per band, continued with that exponent p (2, the smooth
+// case, and 1.3): the band's rows come back as the same function (the least-squares line of exact points is the line);
+// a column with a zero among the known rows, the other rows and the cells below the horizon are left as they were.
+void expect_line_continued(double p) {
   const int first = 0, count = 5;
   std::vector<float> grid(2 * brdf::kMerlCells, -1.0f);
-  const auto value = [](std::size_t k, const brdf::MerlCell& m) {
-    const double td = m.theta_d + 0.5;
-    return std::exp(-3.0 + 0.5 * double(k) - 0.01 * m.theta_h + (0.0005 + 0.000005 * m.phi_d) * td * td);
+  const auto value = [p](std::size_t k, const brdf::MerlCell& m) {
+    const double x = std::pow(m.theta_d + 0.5, p);
+    return std::exp(-3.0 + 0.5 * double(k) - 0.01 * m.theta_h + (0.0005 + 0.000005 * m.phi_d) * x);
   };
   for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
     const brdf::MerlCell m = brdf::merl_cell(cell);
@@ -124,7 +124,7 @@ TEST(RetroBand, TheTrendContinuedIsTheColumnsLineInThetaDSquaredExtended) {
   const brdf::MerlCell dark{.theta_h = 30, .theta_d = 7, .phi_d = 40};
   grid[brdf::kMerlCells + brdf::merl_index(dark)] = 0;  // band 1 of one column has no positive value
   std::vector<float> out = grid;
-  continue_retro(grid, 2, first, count, out);
+  continue_retro(grid, 2, first, count, p, out);
   std::size_t continued = 0;
   for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
     const brdf::MerlCell m = brdf::merl_cell(cell);
@@ -138,13 +138,19 @@ TEST(RetroBand, TheTrendContinuedIsTheColumnsLineInThetaDSquaredExtended) {
         ASSERT_EQ(out[at], grid[at]) << "cell " << cell << " band " << k;
         continue;
       }
-      ASSERT_NEAR(out[at], value(k, m), 1e-4 * value(k, m)) << "cell " << cell << " band " << k;
+      ASSERT_NEAR(out[at], value(k, m), 1e-4 * value(k, m)) << "p " << p << " cell " << cell << " band " << k;
       continued += k == 0;
     }
   }
-  EXPECT_GT(continued, 50000u);
-  EXPECT_THROW(continue_retro(grid, 3, first, count, out), UsageError);
-  EXPECT_THROW(continue_retro(grid, 2, first, 0, out), UsageError);
+  EXPECT_GT(continued, 50000u) << "p " << p;
+}
+
+TEST(RetroBand, TheTrendContinuedIsTheColumnsLineInThetaDToItsExponentExtended) {
+  for (const double p : {2.0, 1.3}) expect_line_continued(p);
+  std::vector<float> grid(2 * brdf::kMerlCells, 1.0f), out = grid;
+  EXPECT_THROW(continue_retro(grid, 3, 0, 5, 2.0, out), UsageError);
+  EXPECT_THROW(continue_retro(grid, 2, 0, 0, 2.0, out), UsageError);
+  EXPECT_THROW(continue_retro(grid, 2, 0, 5, 0.0, out), UsageError);
 }
 
 // Known rows (5 to 9) whose ln v is a line in x = theta_d^2 plus d times residuals e, e = (1, -1, 0, -1, 1) less its
@@ -174,7 +180,7 @@ TEST(RetroBand, ATrendLostInTheNoiseIsContinuedFlat) {
           m.theta_d < count ? 7.0f : float(std::exp(-3.0 + slope[k] * x(m.theta_d) + d[k] * e[m.theta_d - count]));
   }
   std::vector<float> out = grid;
-  continue_retro(grid, 2, 0, count, out);
+  continue_retro(grid, 2, 0, count, 2.0, out);
   std::size_t checked = 0;
   for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
     const brdf::MerlCell m = brdf::merl_cell(cell);

@@ -51,7 +51,7 @@ TEST(StorePrior, ComponentsReadBackRangeByRangeAcrossChunks) {
   EXPECT_THROW(s.read_prior("p", cells + 1, false), InputError);  // the components' shape is checked
 }
 
-TEST(StorePrior, CeilingRoundTripsAndAPriorWithoutOneReadsWithout) {
+TEST(StorePrior, CeilingAndRetroExponentsRoundTripAndOlderPriorsReadWithout) {
   constexpr std::size_t cells = 1000;
   PriorTables t{.wavelengths = {400, 700}, .knots = {400, 700}, .variances = {2, 1}, .epsilon = 1e-3};
   t.reference.assign(cells, 0.5f);
@@ -61,6 +61,10 @@ TEST(StorePrior, CeilingRoundTripsAndAPriorWithoutOneReadsWithout) {
   t.training = {"a", "b"};
   PriorTables old = t;  // the layout of version 1: no ceiling
   old.ceiling.clear();
+  PriorTables learned = t;  // version 3: the retro band's exponents
+  learned.retro_exponents = {2.0, 1.5, 1.4};
+  PriorTables bad_exponent = learned;
+  bad_exponent.retro_exponents[1] = 0;
   PriorTables negative = t;
   negative.ceiling[17] = -1.0f;
   test::ScratchDir dir;
@@ -69,17 +73,27 @@ TEST(StorePrior, CeilingRoundTripsAndAPriorWithoutOneReadsWithout) {
     w.add_prior("p", t);
     w.add_prior("old", old);
     w.add_prior("negative", negative);
+    w.add_prior("learned", learned);
+    w.add_prior("bad_exponent", bad_exponent);
     w.commit();
   }
   const Store s = Store::open(dir / "db.h5");
   EXPECT_EQ(s.read_prior("p", cells, false).ceiling, t.ceiling);
   EXPECT_TRUE(s.read_prior("old", cells).ceiling.empty());
   EXPECT_EQ(s.read_prior("old", cells).mean, t.mean);
-  const std::string m = test::error_of([&] { s.read_prior("negative", cells); });
-  EXPECT_NE(m.find("/priors/negative: malformed prior (knots, epsilon, variances or a negative ceiling)"),
-            std::string::npos)
-      << m;
-  t.ceiling.pop_back();
+  EXPECT_TRUE(s.read_prior("p", cells, false).retro_exponents.empty());  // version 2: none learned
+  EXPECT_EQ(s.read_prior("learned", cells, false).retro_exponents, learned.retro_exponents);
+  EXPECT_EQ(s.read_prior("learned", cells, false).ceiling, t.ceiling);
+  for (const char* name : {"negative", "bad_exponent"}) {
+    const std::string m = test::error_of([&] { s.read_prior(name, cells); });
+    EXPECT_NE(m.find(std::string("/priors/") + name +
+                     ": malformed prior (knots, epsilon, variances, a negative ceiling or retro exponents)"),
+              std::string::npos)
+        << m;
+  }
+  old.retro_exponents = {2.0};  // exponents without a ceiling: no version holds that
   StoreWriter w(dir / "db2.h5", {});
+  EXPECT_THROW(w.add_prior("old", old), UsageError);
+  t.ceiling.pop_back();
   EXPECT_THROW(w.add_prior("p", t), UsageError);
 }
