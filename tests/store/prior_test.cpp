@@ -6,7 +6,10 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include "specula/core/error.h"
+#include "specula/store/h5.h"
 #include "specula/store/store.h"
 #include "test_support.h"
 
@@ -91,6 +94,16 @@ TEST(StorePrior, CeilingAndRetroExponentsRoundTripAndOlderPriorsReadWithout) {
               std::string::npos)
         << m;
   }
+  {                              // a version-3 prior whose table was removed by hand
+    std::filesystem::path data;  // the prior's immutable data file (docs/store-format.md)
+    for (const auto& e : std::filesystem::directory_iterator(dir / "db.h5.d" / "objects" / "priors"))
+      if (e.path().filename().string().starts_with("learned@")) data = e.path();
+    hid_t f = H5Fopen(data.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    ASSERT_GE(H5Ldelete(f, "/priors/learned/retro_exponents", H5P_DEFAULT), 0);
+    H5Fclose(f);
+  }
+  const std::string gone = test::error_of([&] { Store::open(dir / "db.h5").read_prior("learned", cells, false); });
+  EXPECT_NE(gone.find("db.h5: /priors/learned: dataset 'retro_exponents' is missing"), std::string::npos) << gone;
   old.retro_exponents = {2.0};  // exponents without a ceiling: no version holds that
   StoreWriter w(dir / "db2.h5", {});
   EXPECT_THROW(w.add_prior("old", old), UsageError);
