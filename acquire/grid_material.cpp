@@ -2,37 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 
 namespace specula::acquire {
 
-using std::numbers::pi;
-
 namespace {
-
-// The continuous MERL index of one coordinate: the cell containing it is floor(x + 1/2), its centre at x = that index.
-struct Axis {
-  int lo = 0, hi = 0;
-  double t = 0;
-};
-
-// Neighbouring cell centres of continuous index x on an axis of n cells: clamped at the ends, or wrapped (phi_d,
-// whose 0 and pi are the same configuration by reciprocity).
-Axis axis_neighbours(double x, int n, bool wrap) {
-  if (!wrap) x = std::clamp(x, 0.0, double(n - 1));
-  const double f = std::floor(x);
-  Axis a{int(f), int(f) + 1, x - f};
-  if (wrap) {
-    a.lo = (a.lo % n + n) % n;
-    a.hi = (a.hi % n + n) % n;
-  } else {
-    a.hi = std::min(a.hi, n - 1);
-  }
-  return a;
-}
 
 class GridMaterial final : public brdf::SpectralModel {
  public:
@@ -81,18 +57,13 @@ class GridMaterial final : public brdf::SpectralModel {
   // Trilinear in MERL index space between the 8 surrounding cell centres; corners without data are left out and
   // the weights of the others renormalised (0 when none has data).
   void trilinear(const brdf::HalfDiff& h, std::span<double> out) const {
-    const double phi_d = h.phi_d < 0 ? h.phi_d + pi : h.phi_d;
-    const Axis ah = axis_neighbours(brdf::kMerlThetaH * std::sqrt(std::max(0.0, h.theta_h) / (pi / 2)) - 0.5,
-                                    brdf::kMerlThetaH, false);
-    const Axis ad = axis_neighbours(brdf::kMerlThetaD * h.theta_d / (pi / 2) - 0.5, brdf::kMerlThetaD, false);
-    const Axis ap = axis_neighbours(brdf::kMerlPhiD * phi_d / pi - 0.5, brdf::kMerlPhiD, true);
+    const brdf::MerlCorners corners = brdf::merl_trilinear(h);
     std::vector<double> weight(out.size(), 0.0);
-    for (int c = 0; c < 8; ++c) {
-      const double w = (c & 1 ? ah.t : 1 - ah.t) * (c & 2 ? ad.t : 1 - ad.t) * (c & 4 ? ap.t : 1 - ap.t);
+    for (std::size_t c = 0; c < 8; ++c) {
+      const double w = corners.weight[c];
       if (w <= 0) continue;
-      const std::size_t cell = brdf::merl_index({c & 1 ? ah.hi : ah.lo, c & 2 ? ad.hi : ad.lo, c & 4 ? ap.hi : ap.lo});
       for (std::size_t k = 0; k < out.size(); ++k) {
-        const double v = value(k, cell, false);
+        const double v = value(k, corners.cell[c], false);
         if (v < 0) continue;
         out[k] += w * v;
         weight[k] += w;

@@ -144,17 +144,22 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   ResampleOutcome out{.grid = empty_grid(info, job)};
   std::vector<float> confidence(brdf::kMerlCells);
   const PriorResampleStats st = resample_with_prior(src, prior, components, po, out.grid.brdf, confidence);
+  const double eps = po.blend_epsilon.value_or(prior.epsilon);
+  std::optional<LogResidualStats> corrected;
+  if (m.log_residuals && !m.residuals) corrected = correct_by_log_residuals(src, *m.log_residuals, eps, out.grid.brdf);
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(
-      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={}{} ceiling={} blend={} {}", m.prior, m.fit.lambda,
-      prior_weights_name(m.fit.weights),
+      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={}{} ceiling={} blend={} log_residuals={} {}",
+      m.prior, m.fit.lambda, prior_weights_name(m.fit.weights),
       reach ? reach_provenance(*reach, *m.reach_auto) : fmt::format("confidence_reach={}", m.confidence_reach),
       m.prior_in_cap, cap ? fmt::format(" cap_weight={}", cap->weight) : std::string(),
       !m.ceiling              ? "off"
       : prior.ceiling.empty() ? "none"
                               : "on",
-      m.log_blend ? fmt::format("log eps={:.3g}", po.blend_epsilon.value_or(prior.epsilon)) : std::string("linear"),
+      m.log_blend ? fmt::format("log eps={:.3g}", eps) : std::string("linear"),
+      corrected ? fmt::format("on radius={} passes={}", m.log_residuals->radius, m.log_residuals->passes)
+                : std::string("off"),
       local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
@@ -165,7 +170,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.report["prior"] = m.prior;
   out.report["confidence_reach"] = po.confidence_reach;
   out.report["blend"] = m.log_blend ? "log" : "linear";
-  out.report["blend_epsilon"] = po.blend_epsilon.value_or(prior.epsilon);
+  out.report["blend_epsilon"] = eps;
+  if (corrected) out.report["log_residuals"] = log_residuals_json(*corrected, *m.log_residuals);
   if (reach) out.report["confidence_reach_auto"] = reach_choice_json(*reach, *m.reach_auto);
   if (cap) out.report["cap_weight_auto"] = cap_weight_json(*cap);
   add_k_auto(out.report, k);

@@ -9,6 +9,7 @@
 
 #include "specula/acquire/bandwidth.h"
 #include "specula/acquire/cap_weight.h"
+#include "specula/acquire/log_residual.h"
 #include "specula/acquire/model_fit.h"
 #include "specula/acquire/prior.h"
 #include "specula/acquire/prior_reach.h"
@@ -35,6 +36,9 @@ struct PriorMethod {
   std::optional<CapWeightOptions> cap_auto = CapWeightOptions{};
   bool ceiling = true;    ///< the fit in the unseen cells bounded by the prior's ceiling (PriorResampleOptions)
   bool log_blend = true;  ///< the chosen weights of the cap and the retro band mix in the log domain (ditto)
+  /// given (the default) without residuals: the blend corrected by the samples' log residuals against it
+  /// (acquire/log_residual.h), in the domain of the blend's epsilon; empty: the blend as it is
+  std::optional<LogResidualOptions> log_residuals = LogResidualOptions{};
 };
 
 /// A Lambertian plus microfacet lobes fitted as the base, the kd-tree estimate of the residuals added near samples.

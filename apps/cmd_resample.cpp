@@ -45,6 +45,8 @@ struct ResampleCliOptions {
   bool no_ceiling = false;
   bool prior_alone_in_cap = false;
   bool linear_blend = false;
+  bool no_log_residuals = false;
+  acquire::LogResidualOptions log_residuals;
   bool no_retro_continuation = false;
   bool retro_weight_overall = false;
   std::string prior_weights = "noise";
@@ -151,6 +153,8 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     if (o.no_retro_continuation && m.reach_auto) m.reach_auto->retro_continued = false;
     if (o.retro_weight_overall && m.reach_auto) m.reach_auto->retro_by_group = false;
     if (o.prior_alone_in_cap) m.cap_auto.reset();
+    m.log_residuals = o.log_residuals;
+    if (o.no_log_residuals) m.log_residuals.reset();
     job.method = m;
   } else if (!o.model.empty()) {
     acquire::ModelMethod m{.fit = {.kind = {.distribution = acquire::parse_distribution(o.model),
@@ -278,6 +282,17 @@ void setup_resample(CLI::App& app) {
   cmd->add_flag("--no-ceiling", o->no_ceiling,
                 "--prior: leave the fit unbounded in the unseen cap, instead of no higher than any training material "
                 "at each cell (the prior's ceiling; docs/prior.md)");
+  cmd->add_flag("--no-log-residuals", o->no_log_residuals,
+                "--prior: leave the blend as it is, instead of correcting each cell near samples by the mean of their "
+                "log residuals against it over the cells around it (docs/prior.md)");
+  cmd->add_option("--log-residual-radius", o->log_residuals.radius,
+                  "--prior: the log residuals are averaged over the cells within this many on each index axis")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 10));
+  cmd->add_option("--log-residual-passes", o->log_residuals.passes,
+                  "--prior: corrections by the log residuals in turn, each against the grid the one before left")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 10));
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
   cmd->callback([o, power, k_criterion, k_held_out] {

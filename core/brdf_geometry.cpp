@@ -120,6 +120,44 @@ bool merl_cell_valid(const MerlCell& c) {
   return wi.z() > 0 && wo.z() > 0;
 }
 
+namespace {
+
+// The neighbouring centres lo, hi = lo + 1 of continuous index x on an axis of n cells and x's share t of hi: clamped
+// at the ends, or wrapped.
+struct Axis {
+  int lo = 0, hi = 0;
+  double t = 0;
+};
+
+Axis axis_neighbours(double x, int n, bool wrap) {
+  if (!wrap) x = std::clamp(x, 0.0, double(n - 1));
+  const double f = std::floor(x);
+  Axis a{int(f), int(f) + 1, x - f};
+  if (wrap) {
+    a.lo = (a.lo % n + n) % n;
+    a.hi = (a.hi % n + n) % n;
+  } else {
+    a.hi = std::min(a.hi, n - 1);
+  }
+  return a;
+}
+
+}  // namespace
+
+MerlCorners merl_trilinear(const HalfDiff& h) {
+  const double phi_d = h.phi_d < 0 ? h.phi_d + pi : h.phi_d;
+  const Axis ah =
+      axis_neighbours(kMerlThetaH * std::sqrt(std::max(0.0, h.theta_h) / (pi / 2)) - 0.5, kMerlThetaH, false);
+  const Axis ad = axis_neighbours(kMerlThetaD * h.theta_d / (pi / 2) - 0.5, kMerlThetaD, false);
+  const Axis ap = axis_neighbours(kMerlPhiD * phi_d / pi - 0.5, kMerlPhiD, true);
+  MerlCorners out;
+  for (std::size_t c = 0; c < 8; ++c) {
+    out.weight[c] = (c & 1 ? ah.t : 1 - ah.t) * (c & 2 ? ad.t : 1 - ad.t) * (c & 4 ? ap.t : 1 - ap.t);
+    out.cell[c] = merl_index({c & 1 ? ah.hi : ah.lo, c & 2 ? ad.hi : ad.lo, c & 4 ? ap.hi : ap.lo});
+  }
+  return out;
+}
+
 MerlCentres::MerlCentres(int theta_h, int theta_d)
     : centre_(merl_cell_centre({theta_h, theta_d, 0})),
       cos_h_(std::cos(centre_.theta_h)),

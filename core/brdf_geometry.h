@@ -4,6 +4,7 @@
 // as MERL's reference BRDFRead.cpp does. Angles are radians; z is the surface normal; both directions
 // point away from the surface.
 #include <Eigen/Core>
+#include <array>
 #include <cstddef>
 
 namespace specula::brdf {
@@ -70,6 +71,15 @@ constexpr MerlCell merl_cell(std::size_t index) {
 HalfDiff merl_cell_centre(const MerlCell& c);
 /// True when both directions of the cell centre lie above the horizon (theta_i, theta_o < pi/2).
 bool merl_cell_valid(const MerlCell& c);
+
+/// The 8 cell centres around a configuration in MERL index space and their trilinear weights.
+struct MerlCorners {
+  std::array<std::size_t, 8> cell{};  ///< linear indices (merl_index); a corner may repeat at a clamped end
+  std::array<double, 8> weight{};     ///< summing to 1
+};
+/// The corners of h in index space (90 sqrt(theta_h / (pi/2)), 90 theta_d / (pi/2), 180 phi_d / pi, each less 1/2,
+/// a cell's centre at its index): clamped at the ends of theta_h and theta_d, phi_d wrapping at pi (reciprocity).
+MerlCorners merl_trilinear(const HalfDiff& h);
 
 /// The cell centres of one (theta_h, theta_d) of the MERL grid with the trigonometry they share computed once:
 /// what directions and std_angles of merl_cell_centre({theta_h, theta_d, phi_d}) give, bit for bit.

@@ -96,9 +96,18 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(r.output.find("\"bounded_cells\":"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("\"blend\":\"log\""), std::string::npos) << r.output;
   EXPECT_GT(test::json_number(r.output, "blend_epsilon"), 0) << r.output;
+  // The samples' log residuals correct the blend by default, one pass over 3 x 3 x 3 cells; the settings are given
+  // on the command line; --no-log-residuals leaves the blend.
+  const std::string lr = r.output.substr(r.output.find("\"log_residuals\":{\"radius\":1,\"passes\":1,"));
+  EXPECT_GT(test::json_number(lr, "corrected_cells"), 1000) << r.output;
+  EXPECT_LT(test::json_number(lr, "rms_after"), test::json_number(lr, "rms_before")) << r.output;
+  r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
+                  ":rl' --log-residual-radius 2 --log-residual-passes 2 --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("\"log_residuals\":{\"radius\":2,\"passes\":2,"), std::string::npos) << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
                   ":ra' --prior-alone-in-cap --no-ceiling --linear-blend --no-retro-continuation "
-                  "--retro-weight-overall --json");
+                  "--retro-weight-overall --no-log-residuals --json");
   ASSERT_EQ(r.status, 0) << r.output;
   const double overall = test::json_number(r.output.substr(r.output.find("\"retro_band\"")), "weight");
   for (std::size_t at = r.output.find("\"retro_weight\":"); at != std::string::npos;
@@ -108,6 +117,7 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(r.output.find("\"blend\":\"linear\""), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("cap_weight_auto"), std::string::npos) << r.output;
   EXPECT_EQ(test::json_number(r.output, "bounded_cells"), 0) << r.output;
+  EXPECT_EQ(r.output.find("log_residuals"), std::string::npos) << r.output;
 
   // Exchange files: the grid and its confidence beside it, and no temporary left.
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "x.spgrid").string() + "'");

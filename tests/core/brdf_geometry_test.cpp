@@ -218,5 +218,42 @@ TEST(BrdfGeometry, MerlCentresEqualEachCellsOwnCentreBitForBit) {
     }
 }
 
+// The trilinear corners: a cell centre is its own cell with weight 1; halfway between two phi_d centres each gets
+// 1/2, across the wrap at pi too; theta_h and theta_d clamp at their ends; a linear function of the index
+// coordinates is reproduced exactly from the corners' own coordinates.
+TEST(BrdfGeometry, TrilinearCornersOfCentresMidpointsAndEnds) {
+  const auto weight_of = [](const MerlCorners& m, std::size_t cell) {
+    double w = 0;
+    for (std::size_t c = 0; c < 8; ++c) w += m.cell[c] == cell ? m.weight[c] : 0.0;
+    return w;
+  };
+  for (const MerlCell c : {MerlCell{3, 40, 17}, MerlCell{0, 0, 0}, MerlCell{89, 89, 179}, MerlCell{45, 12, 90}})
+    EXPECT_NEAR(weight_of(merl_trilinear(merl_cell_centre(c)), merl_index(c)), 1.0, 1e-12);
+  HalfDiff h = merl_cell_centre({10, 20, 179});
+  h.phi_d += 0.5 * pi / kMerlPhiD;  // halfway to phi_d cell 0, across the wrap
+  const MerlCorners w = merl_trilinear(h);
+  EXPECT_NEAR(weight_of(w, merl_index({10, 20, 179})), 0.5, 1e-9);
+  EXPECT_NEAR(weight_of(w, merl_index({10, 20, 0})), 0.5, 1e-9);
+  h = merl_cell_centre({10, 20, 5});
+  h.theta_d = 0;  // below theta_d row 0's centre: clamped to it
+  EXPECT_NEAR(weight_of(merl_trilinear(h), merl_index({10, 0, 5})), 1.0, 1e-12);
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int i = 0; i < 200; ++i) {
+    const HalfDiff q{u(rng) * 1.5, 0.0, u(rng) * 1.5, u(rng) * 3.0 + 0.02};
+    const MerlCorners m = merl_trilinear(q);
+    double sum = 0, f = 0;
+    for (std::size_t c = 0; c < 8; ++c) {
+      const MerlCell k = merl_cell(m.cell[c]);
+      sum += m.weight[c];
+      f += m.weight[c] * (2.0 * k.theta_h - 3.0 * k.theta_d + 0.5 * k.phi_d);
+    }
+    const double x = 90 * std::sqrt(q.theta_h / (pi / 2)) - 0.5, y = 90 * q.theta_d / (pi / 2) - 0.5,
+                 z = 180 * q.phi_d / pi - 0.5;
+    ASSERT_NEAR(sum, 1.0, 1e-12);
+    if (x > 0 && x < 89 && y > 0 && y < 89 && z > 0 && z < 179) ASSERT_NEAR(f, 2.0 * x - 3.0 * y + 0.5 * z, 1e-9) << i;
+  }
+}
+
 }  // namespace
 }  // namespace specula::brdf

@@ -1,0 +1,178 @@
+#include "specula/acquire/log_residual.h"
+
+#include <algorithm>
+#include <nlohmann/json.hpp>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+#include "specula/acquire/prior.h"
+#include "specula/core/brdf_geometry.h"
+#include "specula/core/error.h"
+#include "specula/core/parallel.h"
+
+namespace specula::acquire {
+namespace {
+
+constexpr std::size_t kCells = brdf::kMerlCells;
+
+// A sample's residual per band against the grid looked up where it lies, and the cell it falls in; false when it
+// is left out (below the horizon, a value < 0 or not finite, a band without data around it).
+bool sample_residual(const double* angles, const float* values, std::span<const float> grid, std::size_t bands,
+                     double eps, float* residual, std::size_t& cell) {
+  const brdf::StdAngles a{angles[0], angles[1], angles[2], angles[3]};
+  if (!(std::isfinite(a.theta_i) && std::isfinite(a.theta_o) && a.theta_i >= 0 && a.theta_o >= 0 &&
+        a.theta_i < std::numbers::pi / 2 && a.theta_o < std::numbers::pi / 2))
+    return false;
+  const brdf::HalfDiff h = brdf::half_diff(a);
+  const brdf::MerlCorners corners = brdf::merl_trilinear(h);
+  const double cc = std::cos(a.theta_i) * std::cos(a.theta_o);
+  for (std::size_t k = 0; k < bands; ++k) {
+    const double s = values[k];
+    if (!std::isfinite(s) || s < 0) return false;
+    double sum = 0, weight = 0;
+    for (std::size_t c = 0; c < 8; ++c) {
+      const float v = grid[k * kCells + corners.cell[c]];
+      if (corners.weight[c] <= 0 || v < 0) continue;
+      sum += corners.weight[c] * v;
+      weight += corners.weight[c];
+    }
+    if (weight <= 0) return false;
+    residual[k] = float(std::log((s * cc + eps) / (sum / weight * cc + eps)));
+  }
+  cell = brdf::merl_index(brdf::merl_cell(h));
+  return true;
+}
+
+// Each plane of `planes` x kCells replaced by its box sums of half-width radius along one index axis (n cells apart
+// by stride; zero beyond the ends, or wrapped), line by line.
+void box_sums(std::vector<float>& a, std::size_t planes, std::size_t n, std::size_t stride, bool wrap, int radius) {
+  const std::size_t lines = planes * kCells / n;
+  parallel_for(
+      lines, [] { return std::vector<float>(); },
+      [&](std::size_t line, std::vector<float>& tmp) {
+        const std::size_t plane = line / (kCells / n), rest = line % (kCells / n);
+        const std::size_t first = plane * kCells + rest / stride * stride * n + rest % stride;
+        tmp.resize(n);
+        for (std::size_t i = 0; i < n; ++i) tmp[i] = a[first + i * stride];
+        for (std::size_t i = 0; i < n; ++i) {
+          float sum = 0;
+          for (int d = -radius; d <= radius; ++d) {
+            const long j = long(i) + d;
+            if (wrap) sum += tmp[std::size_t((j % long(n) + long(n)) % long(n))];
+            else if (j >= 0 && j < long(n)) sum += tmp[std::size_t(j)];
+          }
+          a[first + i * stride] = sum;
+        }
+      },
+      64);
+}
+
+// The RMS of every usable sample's residuals, counted into samples; with sums, each sample's residuals (planes
+// 0 .. bands-1) and a count (plane bands) added at its cell, in sample order.
+double add_residuals(const brdf::SampleSource& src, std::span<const float> grid, double eps, std::vector<float>* sums,
+                     std::size_t& samples) {
+  const std::size_t b = src.bands(), n = src.size(), block = src.block_rows();
+  std::vector<double> angles;
+  std::vector<float> values, residual;
+  std::vector<std::int64_t> cell_of;
+  double squares = 0;
+  samples = 0;
+  for (std::size_t first = 0; first < n; first += block) {
+    const std::size_t count = std::min(block, n - first);
+    angles.resize(count * 4);
+    values.resize(count * b);
+    residual.resize(count * b);
+    cell_of.resize(count);
+    src.read_angles(first, count, angles);
+    src.read_values(first, count, values);
+    parallel_for(
+        count,
+        [&](std::size_t s) {
+          std::size_t cell = 0;
+          const bool ok = sample_residual(&angles[4 * s], &values[s * b], grid, b, eps, &residual[s * b], cell);
+          cell_of[s] = ok ? std::int64_t(cell) : -1;
+        },
+        4096);
+    for (std::size_t s = 0; s < count; ++s) {  // in sample order: the sums do not depend on the thread count
+      if (cell_of[s] < 0) continue;
+      const std::size_t cell = std::size_t(cell_of[s]);
+      for (std::size_t k = 0; k < b; ++k) {
+        if (sums) (*sums)[k * kCells + cell] += residual[s * b + k];
+        squares += double(residual[s * b + k]) * residual[s * b + k];
+      }
+      if (sums) (*sums)[b * kCells + cell] += 1;
+      ++samples;
+    }
+  }
+  return samples ? std::sqrt(squares / double(samples * b)) : 0.0;
+}
+
+// One pass: the box means of the residuals multiplied into every valid cell with data they reach; the cells
+// corrected.
+std::size_t correct_once(const brdf::SampleSource& src, int radius, double eps, std::span<float> grid,
+                         std::vector<float>& sums, double& rms, std::size_t& samples) {
+  const std::size_t b = src.bands();
+  std::fill(sums.begin(), sums.end(), 0.0f);
+  rms = add_residuals(src, grid, eps, &sums, samples);
+  box_sums(sums, b + 1, brdf::kMerlPhiD, 1, true, radius);
+  box_sums(sums, b + 1, brdf::kMerlThetaD, brdf::kMerlPhiD, false, radius);
+  box_sums(sums, b + 1, brdf::kMerlThetaH, std::size_t(brdf::kMerlPhiD) * brdf::kMerlThetaD, false, radius);
+  const auto& cells = valid_cells();
+  const auto& cosines = valid_cell_cosines();
+  std::vector<std::uint8_t> corrected(cells.size(), 0);
+  parallel_for(
+      cells.size(),
+      [&](std::size_t i) {
+        const std::size_t cell = cells[i];
+        const float count = sums[b * kCells + cell];
+        if (count <= 0 || grid[cell] < 0) return;
+        const double cc = cosines[i];
+        for (std::size_t k = 0; k < b; ++k) {
+          float& v = grid[k * kCells + cell];
+          if (v < 0) continue;
+          const double m = double(sums[k * kCells + cell]) / count;
+          v = float(std::max(0.0, (std::exp(m) * (v * cc + eps) - eps) / cc));
+        }
+        corrected[i] = 1;
+      },
+      4096);
+  return std::size_t(std::count(corrected.begin(), corrected.end(), std::uint8_t(1)));
+}
+
+}  // namespace
+
+LogResidualStats correct_by_log_residuals(const brdf::SampleSource& src, const LogResidualOptions& o, double eps,
+                                          std::span<float> grid) {
+  const std::size_t b = src.bands();
+  if (b == 0 || grid.size() != b * kCells)
+    throw UsageError("log residuals: the grid must hold bands x 1458000 values for the samples' bands");
+  if (o.radius < 0 || o.radius > 10) throw UsageError("log residuals: radius must lie in [0, 10] cells");
+  if (o.passes < 1 || o.passes > 10) throw UsageError("log residuals: passes must lie in [1, 10]");
+  if (!(eps > 0) || !std::isfinite(eps)) throw UsageError("log residuals: epsilon must be positive");
+  const auto t0 = std::chrono::steady_clock::now();
+  LogResidualStats st;
+  std::vector<float> sums((b + 1) * kCells);
+  for (int pass = 0; pass < o.passes; ++pass) {
+    double rms = 0;
+    st.corrected_cells = correct_once(src, o.radius, eps, grid, sums, rms, st.samples);
+    if (pass == 0) st.rms_before = rms;
+  }
+  std::vector<float>().swap(sums);
+  st.rms_after = add_residuals(src, grid, eps, nullptr, st.samples);
+  st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return st;
+}
+
+nlohmann::ordered_json log_residuals_json(const LogResidualStats& st, const LogResidualOptions& o) {
+  return {{"radius", o.radius},
+          {"passes", o.passes},
+          {"samples", st.samples},
+          {"corrected_cells", st.corrected_cells},
+          {"rms_before", st.rms_before},
+          {"rms_after", st.rms_after},
+          {"seconds", st.seconds}};
+}
+
+}  // namespace specula::acquire
