@@ -1,9 +1,9 @@
 #include "specula/acquire/log_residual.h"
 
 #include <algorithm>
-#include <nlohmann/json.hpp>
 #include <chrono>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <numbers>
 #include <vector>
 
@@ -60,8 +60,10 @@ void box_sums(std::vector<float>& a, std::size_t planes, std::size_t n, std::siz
           float sum = 0;
           for (int d = -radius; d <= radius; ++d) {
             const long j = long(i) + d;
-            if (wrap) sum += tmp[std::size_t((j % long(n) + long(n)) % long(n))];
-            else if (j >= 0 && j < long(n)) sum += tmp[std::size_t(j)];
+            if (wrap)
+              sum += tmp[std::size_t((j % long(n) + long(n)) % long(n))];
+            else if (j >= 0 && j < long(n))
+              sum += tmp[std::size_t(j)];
           }
           a[first + i * stride] = sum;
         }
@@ -69,16 +71,18 @@ void box_sums(std::vector<float>& a, std::size_t planes, std::size_t n, std::siz
       64);
 }
 
-// The RMS of every usable sample's residuals, counted into samples; with sums, each sample's residuals (planes
-// 0 .. bands-1) and a count (plane bands) added at its cell, in sample order.
+// The RMS of every usable sample's residuals, counted into samples, the lowest theta_d row of their cells into
+// lowest; with sums, each sample's residuals (planes 0 .. bands-1) and a count (plane bands) added at its cell, in
+// sample order.
 double add_residuals(const brdf::SampleSource& src, std::span<const float> grid, double eps, std::vector<float>* sums,
-                     std::size_t& samples) {
+                     std::size_t& samples, int& lowest) {
   const std::size_t b = src.bands(), n = src.size(), block = src.block_rows();
   std::vector<double> angles;
   std::vector<float> values, residual;
   std::vector<std::int64_t> cell_of;
   double squares = 0;
   samples = 0;
+  lowest = brdf::kMerlThetaD;
   for (std::size_t first = 0; first < n; first += block) {
     const std::size_t count = std::min(block, n - first);
     angles.resize(count * 4);
@@ -103,22 +107,38 @@ double add_residuals(const brdf::SampleSource& src, std::span<const float> grid,
         squares += double(residual[s * b + k]) * residual[s * b + k];
       }
       if (sums) (*sums)[b * kCells + cell] += 1;
+      lowest = std::min(lowest, brdf::merl_cell(cell).theta_d);
       ++samples;
     }
   }
   return samples ? std::sqrt(squares / double(samples * b)) : 0.0;
 }
 
-// One pass: the box means of the residuals multiplied into every valid cell with data they reach; the cells
-// corrected.
-std::size_t correct_once(const brdf::SampleSource& src, int radius, double eps, std::span<float> grid,
-                         std::vector<float>& sums, double& rms, std::size_t& samples) {
+// Every plane's values at theta_d row `from` copied into the rows below it, column by column.
+void carry_down(std::vector<float>& a, std::size_t planes, int from) {
+  constexpr std::size_t row = brdf::kMerlPhiD, column = std::size_t(brdf::kMerlThetaD) * row;
+  parallel_for(
+      planes * brdf::kMerlThetaH,
+      [&](std::size_t ph) {
+        float* first = &a[ph * column];
+        for (int d = 0; d < from; ++d) std::copy_n(first + std::size_t(from) * row, row, first + std::size_t(d) * row);
+      },
+      8);
+}
+
+// One pass: the box means of the residuals (carried into the retro band when asked) multiplied into every valid
+// cell with data they reach; the cells corrected.
+std::size_t correct_once(const brdf::SampleSource& src, const LogResidualOptions& o, double eps, std::span<float> grid,
+                         std::vector<float>& sums, double& rms, LogResidualStats& st) {
   const std::size_t b = src.bands();
   std::fill(sums.begin(), sums.end(), 0.0f);
-  rms = add_residuals(src, grid, eps, &sums, samples);
-  box_sums(sums, b + 1, brdf::kMerlPhiD, 1, true, radius);
-  box_sums(sums, b + 1, brdf::kMerlThetaD, brdf::kMerlPhiD, false, radius);
-  box_sums(sums, b + 1, brdf::kMerlThetaH, std::size_t(brdf::kMerlPhiD) * brdf::kMerlThetaD, false, radius);
+  int lowest = 0;
+  rms = add_residuals(src, grid, eps, &sums, st.samples, lowest);
+  box_sums(sums, b + 1, brdf::kMerlPhiD, 1, true, o.radius);
+  box_sums(sums, b + 1, brdf::kMerlThetaD, brdf::kMerlPhiD, false, o.radius);
+  box_sums(sums, b + 1, brdf::kMerlThetaH, std::size_t(brdf::kMerlPhiD) * brdf::kMerlThetaD, false, o.radius);
+  st.carried_rows = o.into_retro_band && lowest < brdf::kMerlThetaD ? std::max(0, lowest - o.radius) : 0;
+  if (st.carried_rows > 0) carry_down(sums, b + 1, st.carried_rows);
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
   std::vector<std::uint8_t> corrected(cells.size(), 0);
@@ -156,11 +176,12 @@ LogResidualStats correct_by_log_residuals(const brdf::SampleSource& src, const L
   std::vector<float> sums((b + 1) * kCells);
   for (int pass = 0; pass < o.passes; ++pass) {
     double rms = 0;
-    st.corrected_cells = correct_once(src, o.radius, eps, grid, sums, rms, st.samples);
+    st.corrected_cells = correct_once(src, o, eps, grid, sums, rms, st);
     if (pass == 0) st.rms_before = rms;
   }
   std::vector<float>().swap(sums);
-  st.rms_after = add_residuals(src, grid, eps, nullptr, st.samples);
+  int lowest = 0;
+  st.rms_after = add_residuals(src, grid, eps, nullptr, st.samples, lowest);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return st;
 }
@@ -168,6 +189,7 @@ LogResidualStats correct_by_log_residuals(const brdf::SampleSource& src, const L
 nlohmann::ordered_json log_residuals_json(const LogResidualStats& st, const LogResidualOptions& o) {
   return {{"radius", o.radius},
           {"passes", o.passes},
+          {"carried_rows", st.carried_rows},
           {"samples", st.samples},
           {"corrected_cells", st.corrected_cells},
           {"rms_before", st.rms_before},

@@ -13,6 +13,9 @@ namespace specula::acquire {
 struct LogResidualOptions {
   int radius = 1;  ///< the residuals of the cells within radius on each index axis are averaged, in [0, 10]
   int passes = 1;  ///< corrections in turn, each against the grid the one before left, in [1, 10]
+  /// the means at the lowest theta_d row the boxes reach carried down, in each (theta_h, phi_d) column, into the
+  /// unseen retro band below it (the theta_d rows under the samples' lowest less radius)
+  bool into_retro_band = false;
 };
 
 /// What one correction did.
@@ -21,6 +24,7 @@ struct LogResidualStats {
   std::size_t corrected_cells = 0;  ///< valid cells with data and a sample within the box
   double rms_before = 0;            ///< RMS over samples and bands of the residuals against the grid as given
   double rms_after = 0;             ///< the same against the grid as the passes leave it
+  int carried_rows = 0;             ///< theta_d rows of the retro band the means were carried into
   double seconds = 0;
 };
 
@@ -29,13 +33,15 @@ struct LogResidualStats {
 /// theta_o at its centre and m per band the mean over those samples of ln((s cc_s + eps) / (g cc_s + eps)): s the
 /// sample's value, cc_s its cosines, g the grid looked up trilinearly at it (brdf::merl_trilinear; corners without
 /// data left out). Samples below the horizon, with a negative or non-finite value or no grid data around are left
-/// out. o.passes times, each pass's residuals taken against the grid the pass before left. eps > 0 (1/sr). The
-/// same for any thread count. UsageError on sizes or settings.
+/// out. With o.into_retro_band, the cells of the theta_d rows below the lowest one the boxes reach (the samples'
+/// lowest row less radius) take the mean of that row in their (theta_h, phi_d) column. o.passes times, each pass's
+/// residuals taken against the grid the pass before left. eps > 0 (1/sr). The same for any thread count.
+/// UsageError on sizes or settings.
 LogResidualStats correct_by_log_residuals(const brdf::SampleSource& src, const LogResidualOptions& o, double eps,
                                           std::span<float> grid);
 
-/// What `resample --json` reports of a correction: radius, passes, samples, corrected_cells, rms_before, rms_after,
-/// seconds.
+/// What `resample --json` reports of a correction: radius, passes, carried_rows, samples, corrected_cells, rms_before,
+/// rms_after, seconds.
 nlohmann::ordered_json log_residuals_json(const LogResidualStats& st, const LogResidualOptions& o);
 
 }  // namespace specula::acquire

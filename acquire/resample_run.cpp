@@ -158,7 +158,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
       : prior.ceiling.empty() ? "none"
                               : "on",
       m.log_blend ? fmt::format("log eps={:.3g}", eps) : std::string("linear"),
-      corrected ? fmt::format("on radius={} passes={}", m.log_residuals->radius, m.log_residuals->passes)
+      corrected ? fmt::format("on radius={} passes={} carried_rows={}", m.log_residuals->radius,
+                              m.log_residuals->passes, corrected->carried_rows)
                 : std::string("off"),
       local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);

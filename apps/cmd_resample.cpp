@@ -46,6 +46,7 @@ struct ResampleCliOptions {
   bool prior_alone_in_cap = false;
   bool linear_blend = false;
   bool no_log_residuals = false;
+  bool log_residuals_in_retro = false;
   acquire::LogResidualOptions log_residuals;
   bool no_retro_continuation = false;
   bool retro_weight_overall = false;
@@ -154,6 +155,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     if (o.retro_weight_overall && m.reach_auto) m.reach_auto->retro_by_group = false;
     if (o.prior_alone_in_cap) m.cap_auto.reset();
     m.log_residuals = o.log_residuals;
+    m.log_residuals->into_retro_band = o.log_residuals_in_retro;
     if (o.no_log_residuals) m.log_residuals.reset();
     job.method = m;
   } else if (!o.model.empty()) {
@@ -289,6 +291,9 @@ void setup_resample(CLI::App& app) {
                   "--prior: the log residuals are averaged over the cells within this many on each index axis")
       ->capture_default_str()
       ->check(CLI::Range(0, 10));
+  cmd->add_flag("--log-residuals-in-retro", o->log_residuals_in_retro,
+                "--prior: also carry the log residuals' mean at the lowest theta_d row the boxes reach down into the "
+                "unseen retro band (docs/prior.md; measured mixed, so not the default)");
   cmd->add_option("--log-residual-passes", o->log_residuals.passes,
                   "--prior: corrections by the log residuals in turn, each against the grid the one before left")
       ->capture_default_str()

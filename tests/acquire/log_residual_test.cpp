@@ -1,7 +1,8 @@
 // The correction by the samples' log residuals (acquire/log_residual.h): a grid at half a Lambertian material's
 // value comes back to it exactly at the cells the samples reach (found here by dilating the samples' cells by hand)
 // and stays elsewhere; on a random grid every cell equals the box mean of the residuals written out here, each sample
-// looked up trilinearly by the test's own index arithmetic; the result is the same for 1 and 2 threads; a held-out
+// looked up trilinearly by the test's own index arithmetic; below the samples' lowest theta_d row each column takes
+// the correction of the lowest row the boxes reach; the result is the same for 1 and 2 threads; a held-out
 // glossy material's prior resample comes closer to its truth where the samples are; settings are checked.
 #include "specula/acquire/log_residual.h"
 
@@ -71,7 +72,8 @@ TEST(LogResidual, HalfALambertianComesBackExactlyWhereTheSamplesReach) {
     std::vector<float> grid(bands * kCells, -1.0f);
     for (const std::uint32_t c : valid_cells())
       for (std::size_t k = 0; k < bands; ++k) grid[k * kCells + c] = 0.5f * rho[k];
-    const LogResidualStats st = correct_by_log_residuals(src, {.radius = radius}, 1e-12, grid);
+    const LogResidualStats st =
+        correct_by_log_residuals(src, {.radius = radius, .into_retro_band = false}, 1e-12, grid);
     const std::vector<std::uint8_t> reach = dilated(marked, radius);
     std::size_t reached = 0;
     for (const std::uint32_t c : valid_cells()) {
@@ -95,20 +97,23 @@ TEST(LogResidual, HalfALambertianComesBackExactlyWhereTheSamplesReach) {
 // (and likewise theta_d, phi_d over 180), the centres floor(x) and floor(x) + 1 clamped (phi_d wrapped).
 double lookup(const std::vector<float>& grid, std::size_t k, const brdf::HalfDiff& h) {
   const double phi = h.phi_d < 0 ? h.phi_d + pi : h.phi_d;
-  const double x[3] = {90 * std::sqrt(h.theta_h / (pi / 2)) - 0.5, 90 * h.theta_d / (pi / 2) - 0.5, 180 * phi / pi - 0.5};
+  const double x[3] = {90 * std::sqrt(h.theta_h / (pi / 2)) - 0.5, 90 * h.theta_d / (pi / 2) - 0.5,
+                       180 * phi / pi - 0.5};
   int lo[3], hi[3];
   double t[3];
   for (int a = 0; a < 3; ++a) {
     const double v = a < 2 ? std::clamp(x[a], 0.0, 89.0) : x[a];
     lo[a] = int(std::floor(v)), t[a] = v - std::floor(v), hi[a] = lo[a] + 1;
-    if (a < 2) hi[a] = std::min(hi[a], 89);
-    else lo[a] = (lo[a] + 180) % 180, hi[a] = (hi[a] + 180) % 180;
+    if (a < 2)
+      hi[a] = std::min(hi[a], 89);
+    else
+      lo[a] = (lo[a] + 180) % 180, hi[a] = (hi[a] + 180) % 180;
   }
   double sum = 0, weight = 0;
   for (int c = 0; c < 8; ++c) {
     const double w = (c & 1 ? t[0] : 1 - t[0]) * (c & 2 ? t[1] : 1 - t[1]) * (c & 4 ? t[2] : 1 - t[2]);
-    const float v = grid[k * kCells + brdf::merl_index({c & 1 ? hi[0] : lo[0], c & 2 ? hi[1] : lo[1],
-                                                         c & 4 ? hi[2] : lo[2]})];
+    const float v =
+        grid[k * kCells + brdf::merl_index({c & 1 ? hi[0] : lo[0], c & 2 ? hi[1] : lo[1], c & 4 ? hi[2] : lo[2]})];
     if (w > 0 && v >= 0) sum += w * v, weight += w;
   }
   return sum / weight;
@@ -125,7 +130,8 @@ TEST(LogResidual, EachCellIsTheBoxMeanOfTheResidualsWrittenOut) {
   for (const std::uint32_t c : valid_cells())
     for (std::size_t k = 0; k < bands; ++k) grid[k * kCells + c] = float(u(rng));
   const std::vector<float> before = grid;
-  correct_by_log_residuals(brdf::MemorySamples(angles, values, bands), {.radius = 1}, eps, grid);
+  correct_by_log_residuals(brdf::MemorySamples(angles, values, bands), {.radius = 1, .into_retro_band = false}, eps,
+                           grid);
   std::vector<double> residual(n * bands);
   for (std::size_t s = 0; s < n; ++s) {
     const double* a = &angles[4 * s];
@@ -158,6 +164,37 @@ TEST(LogResidual, EachCellIsTheBoxMeanOfTheResidualsWrittenOut) {
   }
   EXPECT_GT(checked, 10000u);
   EXPECT_GT(moved, 30u);
+}
+
+TEST(LogResidual, TheLowestRowsMeansAreCarriedIntoTheRetroBandBelow) {
+  const std::size_t bands = 1;
+  const std::vector<double> all = random_angles(3000, 9);
+  std::vector<double> angles;
+  int lowest = 90;
+  for (std::size_t s = 0; s < all.size() / 4; ++s) {
+    const int row = brdf::merl_cell(cell_of(&all[4 * s])).theta_d;
+    if (row < 10) continue;  // a band of ten theta_d rows no sample reaches
+    angles.insert(angles.end(), &all[4 * s], &all[4 * s] + 4);
+    lowest = std::min(lowest, row);
+  }
+  const std::size_t n = angles.size() / 4;
+  const std::vector<float> values(n, 0.4f);
+  std::vector<std::uint8_t> marked(kCells, 0);
+  for (std::size_t s = 0; s < n; ++s) marked[cell_of(&angles[4 * s])] = 1;
+  const std::vector<std::uint8_t> reach = dilated(marked, 1);
+  std::vector<float> grid(kCells, -1.0f);
+  for (const std::uint32_t c : valid_cells()) grid[c] = 0.2f;
+  const LogResidualStats st =
+      correct_by_log_residuals(brdf::MemorySamples(angles, values, bands), {.into_retro_band = true}, 1e-12, grid);
+  ASSERT_EQ(lowest, 10);
+  EXPECT_EQ(st.carried_rows, 9);
+  std::size_t carried = 0;
+  for (const std::uint32_t c : valid_cells()) {
+    brdf::MerlCell m = brdf::merl_cell(std::size_t(c));
+    if (m.theta_d < 9) m.theta_d = 9, carried += reach[brdf::merl_index(m)];
+    ASSERT_NEAR(grid[c], reach[brdf::merl_index(m)] ? 0.4 : 0.2, 1e-6) << c;
+  }
+  EXPECT_GT(carried, 1000u);
 }
 
 TEST(LogResidual, TheSameForOneAndTwoThreads) {

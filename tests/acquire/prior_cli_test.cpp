@@ -96,15 +96,18 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(r.output.find("\"bounded_cells\":"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("\"blend\":\"log\""), std::string::npos) << r.output;
   EXPECT_GT(test::json_number(r.output, "blend_epsilon"), 0) << r.output;
-  // The samples' log residuals correct the blend by default, one pass over 3 x 3 x 3 cells; the settings are given
-  // on the command line; --no-log-residuals leaves the blend.
+  // The samples' log residuals correct the blend by default, one pass over 3 x 3 x 3 cells, not carried into the
+  // retro band; the settings are given on the command line; --no-log-residuals leaves the blend.
   const std::string lr = r.output.substr(r.output.find("\"log_residuals\":{\"radius\":1,\"passes\":1,"));
+  EXPECT_EQ(test::json_number(lr, "carried_rows"), 0) << r.output;
   EXPECT_GT(test::json_number(lr, "corrected_cells"), 1000) << r.output;
   EXPECT_LT(test::json_number(lr, "rms_after"), test::json_number(lr, "rms_before")) << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
-                  ":rl' --log-residual-radius 2 --log-residual-passes 2 --json");
+                  ":rl' --log-residual-radius 2 --log-residual-passes 2 --log-residuals-in-retro --json");
   ASSERT_EQ(r.status, 0) << r.output;
-  EXPECT_NE(r.output.find("\"log_residuals\":{\"radius\":2,\"passes\":2,"), std::string::npos) << r.output;
+  // the band of five theta_d rows less the radius
+  EXPECT_NE(r.output.find("\"log_residuals\":{\"radius\":2,\"passes\":2,\"carried_rows\":3,"), std::string::npos)
+      << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
                   ":ra' --prior-alone-in-cap --no-ceiling --linear-blend --no-retro-continuation "
                   "--retro-weight-overall --no-log-residuals --json");
