@@ -84,12 +84,15 @@ TEST(LogResidual, HalfALambertianComesBackExactlyWhereTheSamplesReach) {
     EXPECT_EQ(st.corrected_cells, reached);
     EXPECT_EQ(st.samples, n);
     EXPECT_NEAR(st.rms_before, std::log(2.0), 1e-6);
-    if (radius == 0)  // a sample's other trilinear corners lie outside its own cell and stay at half
+    if (radius == 0) {  // a sample's other trilinear corners lie outside its own cell and stay at half
       EXPECT_GT(st.rms_after, 0.05);
-    else
+    } else {
       EXPECT_LT(st.rms_after, 1e-5);
+    }
     for (std::size_t c = 0; c < kCells; ++c)
-      if (!brdf::merl_cell_valid(brdf::merl_cell(c))) ASSERT_EQ(grid[c], -1.0f);
+      if (!brdf::merl_cell_valid(brdf::merl_cell(c))) {
+        ASSERT_EQ(grid[c], -1.0f);
+      }
   }
 }
 

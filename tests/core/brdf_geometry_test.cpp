@@ -251,7 +251,9 @@ TEST(BrdfGeometry, TrilinearCornersOfCentresMidpointsAndEnds) {
     const double x = 90 * std::sqrt(q.theta_h / (pi / 2)) - 0.5, y = 90 * q.theta_d / (pi / 2) - 0.5,
                  z = 180 * q.phi_d / pi - 0.5;
     ASSERT_NEAR(sum, 1.0, 1e-12);
-    if (x > 0 && x < 89 && y > 0 && y < 89 && z > 0 && z < 179) ASSERT_NEAR(f, 2.0 * x - 3.0 * y + 0.5 * z, 1e-9) << i;
+    if (x > 0 && x < 89 && y > 0 && y < 89 && z > 0 && z < 179) {
+      ASSERT_NEAR(f, 2.0 * x - 3.0 * y + 0.5 * z, 1e-9) << i;
+    }
   }
 }
 
