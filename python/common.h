@@ -41,6 +41,7 @@ void init_bsdf(py::module_& m);
 void init_render(py::module_& m);
 void init_fidelity(py::module_& m);
 void init_filters(py::module_& m);
+void init_resample(py::module_& m);
 
 class PyStore;
 
@@ -157,6 +158,9 @@ SPECULA_PY_ARG(BasisResult)
 SPECULA_PY_ARG(ProjectResult)
 SPECULA_PY_ARG(OptArrayResult)
 SPECULA_PY_ARG(Float32Result)
+SPECULA_PY_ARG(CountOrAuto)
+SPECULA_PY_ARG(ReachArg)
+SPECULA_PY_ARG(ResampleResult)
 #undef SPECULA_PY_ARG
 
 /// A numpy array of `shape` that takes ownership of `owner` (a heap object holding the data at `data`).
@@ -286,4 +290,7 @@ SPECULA_PY_ARG_NAME(BasisResult, "Basis")
 SPECULA_PY_ARG_NAME(ProjectResult, "dict[str, Any] | dict[int, dict[str, Any]]")
 SPECULA_PY_ARG_NAME(OptArrayResult, "numpy.ndarray | None")
 SPECULA_PY_ARG_NAME(Float32Result, "numpy.typing.NDArray[numpy.float32]")
+SPECULA_PY_ARG_NAME(CountOrAuto, "int | str")
+SPECULA_PY_ARG_NAME(ReachArg, "float | str | None")
+SPECULA_PY_ARG_NAME(ResampleResult, "tuple[Grid, dict[str, Any]]")
 #undef SPECULA_PY_ARG_NAME

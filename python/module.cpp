@@ -267,4 +267,5 @@ PYBIND11_MODULE(_specula, m) {
   sp::init_render(m);
   sp::init_fidelity(m);
   sp::init_filters(m);
+  sp::init_resample(m);
 }

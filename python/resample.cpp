@@ -1,0 +1,114 @@
+// specula.resample: a store's scattered BRDF samples onto the MERL grid (acquire::run_resample, what `specula
+// resample` runs), plainly, with a learned prior or on a fitted model; the grid as a specula.Grid and the report of
+// `resample --json` as a dict with the per-cell confidence as an array.
+#include <fmt/format.h>
+
+#include <nlohmann/json.hpp>
+
+#include <numbers>
+
+#include "python/common.h"
+#include "specula/acquire/resample_run.h"
+
+namespace specula::python {
+namespace {
+
+// The store's file: a specula.Store's path or an existing path.
+std::string store_path(const StoreArg& store) {
+  if (py::isinstance<PyStore>(store)) return store.cast<PyStore&>().path().string();
+  if (py::isinstance<py::list>(store) || py::isinstance<py::tuple>(store))
+    throw UsageError("resample: give one store (a path or a specula.Store)");
+  return existing_file(store).string();
+}
+
+// `k` as a count, or true in `k_auto` for "auto".
+std::size_t count_or_auto(const CountOrAuto& k, bool& k_auto) {
+  k_auto = py::isinstance<py::str>(k) && k.cast<std::string>() == "auto";
+  if (k_auto) return brdf::ResampleOptions{}.k;
+  if (py::isinstance<py::int_>(k) && !py::isinstance<py::bool_>(k) && k.cast<long long>() > 0)
+    return k.cast<std::size_t>();
+  throw UsageError(
+      fmt::format("resample: k = {}: give a count of neighbours or 'auto'", py::repr(k).cast<std::string>()));
+}
+
+// The reach of a prior's or a model's confidence: a fraction, "auto" (a prior's holdout), or None (the method's
+// default).
+void set_reach(const ReachArg& reach, acquire::PriorMethod* prior, acquire::ModelMethod* model) {
+  if (reach.is_none()) return;
+  const bool auto_reach = py::isinstance<py::str>(reach) && reach.cast<std::string>() == "auto";
+  if (!auto_reach && !(py::isinstance<py::float_>(reach) || py::isinstance<py::int_>(reach)))
+    throw UsageError("resample: confidence_reach: give a fraction of max_gap in (0, 1], 'auto' or None");
+  if (auto_reach && !prior) throw UsageError("resample: confidence_reach='auto' is chosen only with a prior");
+  if (prior && !auto_reach) {
+    prior->reach_auto.reset();
+    prior->confidence_reach = reach.cast<double>();
+  }
+  if (model) model->confidence_reach = reach.cast<double>();
+}
+
+}  // namespace
+
+void init_resample(py::module_& m) {
+  m.def(
+      "resample",
+      [](const StoreArg& store, const std::string& samples, const CountOrAuto& k, const std::string& weights,
+         double power, const std::string& mapping, double max_gap, const OptStr& prior, const OptStr& model, int lobes,
+         double lambda, const ReachArg& confidence_reach, bool log_residuals) -> ResampleResult {
+        if (!prior.is_none() && !model.is_none()) throw UsageError("resample: give prior or model, not both");
+        if (!(max_gap > 0 && max_gap <= 180))
+          throw UsageError(fmt::format("resample: max_gap = {}: give degrees in (0, 180]", max_gap));
+        if (lobes < 1 || lobes > 2) throw UsageError(fmt::format("resample: lobes = {}: give 1 or 2", lobes));
+        if (power != 1.0 && weights != "shepard")
+          throw UsageError("resample: power: only Shepard's weights have a power");
+        bool k_auto = false;
+        acquire::ResampleJob job{.store = store_path(store),
+                                 .samples = samples,
+                                 .local = {.mapping = brdf::parse_mapping(mapping),
+                                           .k = count_or_auto(k, k_auto),
+                                           .weights = brdf::parse_weights(weights),
+                                           .power = power,
+                                           .max_gap = max_gap * std::numbers::pi / 180}};
+        if (k_auto) job.k_auto = acquire::BandwidthOptions{};
+        if (!prior.is_none()) {
+          acquire::PriorMethod pm{.prior = prior.cast<std::string>(), .fit = {.lambda = lambda}};
+          set_reach(confidence_reach, &pm, nullptr);
+          if (!log_residuals) pm.log_residuals.reset();
+          job.method = pm;
+        } else if (!model.is_none()) {
+          acquire::ModelMethod mm{
+              .fit = {.kind = {.distribution = acquire::parse_distribution(model.cast<std::string>())},
+                      .lobes = std::size_t(lobes)}};
+          set_reach(confidence_reach, nullptr, &mm);
+          job.method = mm;
+        } else if (!confidence_reach.is_none()) {
+          throw UsageError("resample: confidence_reach: only with a prior or a model");
+        }
+        brdf::check_options(job.local);
+        acquire::ResampleOutcome r = interruptible([&] { return acquire::run_resample(job); });
+        py::dict report = py::module_::import("json").attr("loads")(r.report.dump());
+        report["summary"] = r.summary;
+        report["confidence"] = py::none();
+        if (r.confidence) {
+          const py::ssize_t dims[3] = {brdf::kMerlThetaH, brdf::kMerlThetaD, brdf::kMerlPhiD};
+          report["confidence"] = adopt(std::move(r.confidence->brdf), {dims[0], dims[1], dims[2]});
+        }
+        r.grid.provenance.command_line = python_command_line("resample");
+        return ResampleResult(py::make_tuple(py::cast(std::move(r.grid)), report));
+      },
+      py::arg("store"), py::arg("samples"), py::kw_only(), py::arg("k") = 32, py::arg("weights") = "shepard",
+      py::arg("power") = 1.0, py::arg("mapping") = "standard", py::arg("max_gap") = brdf::kDefaultMaxGapDegrees,
+      py::arg("prior") = py::none(), py::arg("model") = py::none(), py::arg("lobes") = 1, py::arg("lambda_") = 1e-3,
+      py::arg("confidence_reach") = py::none(), py::arg("log_residuals") = true,
+      "Resamples the scattered BRDF samples `samples` of `store` onto the MERL grid as `specula resample` does "
+      "(docs/resampling.md, docs/prior.md): the kd-tree's k nearest samples (k a count or 'auto'), weighted by "
+      "`weights` (shepard, loess, wendland, renka, mean), cells farther than max_gap degrees from every sample left "
+      "without data; with prior='STORE.h5:NAME' a learned prior fitted and blended (every valid cell filled; lambda_ "
+      "its Tikhonov weight, log_residuals the samples' log residuals multiplied in); with model='ggx' or 'beckmann' a "
+      "Lambertian plus `lobes` microfacet lobes as the base. confidence_reach: the kd-tree's reach as a fraction of "
+      "max_gap, 'auto' (a prior's holdout, its default) or None. Returns (grid, report): a specula.Grid in 1/sr and "
+      "the fields of `specula resample --json` with 'summary' and 'confidence', (90, 90, 180) float32 per cell (-1 "
+      "below the horizon) for a prior or a model, None otherwise. Reads the store's latest committed state; writes "
+      "nothing (Store.write_grid saves the grid).");
+}
+
+}  // namespace specula::python
