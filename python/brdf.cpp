@@ -10,6 +10,7 @@
 #include "python/common.h"
 #include "specula/codec/environment.h"
 #include "specula/codec/merl.h"
+#include "specula/codec/nbrdf.h"
 #include "specula/codec/spc.h"
 #include "specula/codec/spc_coding.h"
 #include "specula/codec/spectral_grid.h"
@@ -224,6 +225,23 @@ void def_merl(py::module_& m) {
       },
       py::arg("path"), py::arg("values"), py::arg("scaled") = false,
       "Writes (3, 90, 90, 180) values as a MERL .binary (stored values, or 1/sr with scaled=True).");
+  m.def(
+      "read_nbrdf",
+      [](const PathArg& p, bool scaled) {
+        const std::filesystem::path path = existing_file(p);
+        codec::MerlBrdf b;
+        {
+          py::gil_scoped_release release;
+          b = codec::nbrdf_to_merl(store::read_nbrdf(path));
+        }
+        if (scaled) b.scale();
+        return adopt(std::move(b.raw), {3, kDims[0], kDims[1], kDims[2]});
+      },
+      py::arg("path"), py::arg("scaled") = false,
+      "A neural BRDF (Sztrajman et al. 2021, Keras HDF5 weights) evaluated at every MERL cell centre as `specula "
+      "import "
+      "X.h5 --format nbrdf -o X.binary` does: (3, 90, 90, 180) float64 as read_merl gives it (negative: below the "
+      "horizon; scaled=True: 1/sr). InputError naming the file for weights of the wrong shapes or not finite.");
 }
 
 // Standard angles to MERL cells and grid values.

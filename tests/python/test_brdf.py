@@ -1,9 +1,14 @@
 """BRDF grids, .spgrid/.spc/.binary files and lookup, against numpy: a MERL reader written from the format's
-description, BRDFRead.cpp's index arithmetic, and the .spc codec's stated error bound."""
+description, BRDFRead.cpp's index arithmetic, the .spc codec's stated error bound, and a neural BRDF against the CLI's
+import and tests/codec/nbrdf_reference.py's numpy network."""
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
-from conftest import cli, cli_error
+from conftest import ROOT, cli, cli_error
 import specula
 
 CELLS = 90 * 90 * 180
@@ -157,3 +162,32 @@ def test_spc_on_a_learned_basis_and_errors(db, spgrid):
     wrong = specula.pca(db, collection="chips")
     with pytest.raises(specula.InputError):
         specula.spc_encode(g, basis=wrong, k=3)
+
+
+NBRDF = os.path.join(os.path.dirname(ROOT), "shared", "data", "brdf", "nbrdf-merl", "gold-metallic-paint2.h5")
+
+
+@pytest.mark.skipif(not os.path.exists(NBRDF), reason="../shared is absent")
+def test_read_nbrdf_is_the_clis_import_and_numpys_network(tmp_path):
+    rgb = specula.read_nbrdf(NBRDF)
+    cli("import", NBRDF, "--format", "nbrdf", "-o", tmp_path / "g.binary")
+    np.testing.assert_array_equal(rgb, specula.read_merl(tmp_path / "g.binary"))
+    scaled = specula.read_nbrdf(NBRDF, scaled=True)
+    cells = [(0, 45, 90), (3, 70, 90), (20, 10, 5), (60, 80, 170), (89, 89, 0)]
+    out = subprocess.run([sys.executable, os.path.join(ROOT, "tests", "codec", "nbrdf_reference.py"), NBRDF,
+                          *(f"{i},{j},{k}" for i, j, k in cells)], capture_output=True, text=True, check=True)
+    lines = out.stdout.splitlines()
+    assert len(lines) == len(cells) and sum(float(line.split()[3]) > 0 for line in lines) >= 3
+    for line in lines:
+        i, j, k, *v = line.split()
+        want = np.array(v, float)
+        got = scaled[:, int(i), int(j), int(k)]
+        if want[0] < 0:
+            assert np.all(got < 0), (i, j, k, got)
+        else:
+            np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-9, err_msg=line)
+    (tmp_path / "bad.h5").write_bytes(b"not hdf5")
+    with pytest.raises(specula.InputError, match="bad.h5"):
+        specula.read_nbrdf(tmp_path / "bad.h5")
+    with pytest.raises(specula.MissingFileError, match="absent.h5"):
+        specula.read_nbrdf(tmp_path / "absent.h5")
