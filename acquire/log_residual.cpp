@@ -10,7 +10,9 @@
 #include "specula/acquire/prior.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
+#include "specula/core/interrupt.h"
 #include "specula/core/parallel.h"
+#include "specula/core/progress.h"
 
 namespace specula::acquire {
 namespace {
@@ -83,7 +85,9 @@ double add_residuals(const brdf::SampleSource& src, std::span<const float> grid,
   double squares = 0;
   samples = 0;
   lowest = brdf::kMerlThetaD;
+  Progress progress("log residuals", n);
   for (std::size_t first = 0; first < n; first += block) {
+    check_interrupt();
     const std::size_t count = std::min(block, n - first);
     angles.resize(count * 4);
     values.resize(count * b);
@@ -110,6 +114,7 @@ double add_residuals(const brdf::SampleSource& src, std::span<const float> grid,
       lowest = std::min(lowest, brdf::merl_cell(cell).theta_d);
       ++samples;
     }
+    progress.advance(count);
   }
   return samples ? std::sqrt(squares / double(samples * b)) : 0.0;
 }

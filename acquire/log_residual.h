@@ -36,7 +36,7 @@ struct LogResidualStats {
 /// out. With o.into_retro_band, the cells of the theta_d rows below the lowest one the boxes reach (the samples'
 /// lowest row less radius) take the mean of that row in their (theta_h, phi_d) column. o.passes times, each pass's
 /// residuals taken against the grid the pass before left. eps > 0 (1/sr). The same for any thread count.
-/// UsageError on sizes or settings.
+/// UsageError on sizes or settings; progress shown, Interrupted between blocks of samples.
 LogResidualStats correct_by_log_residuals(const brdf::SampleSource& src, const LogResidualOptions& o, double eps,
                                           std::span<float> grid);
 

@@ -11,6 +11,7 @@
 #include "specula/core/interrupt.h"
 #include "specula/core/merl_cells.h"
 #include "specula/core/parallel.h"
+#include "specula/core/progress.h"
 #include "specula/store/grid_rows.h"
 #include "specula/store/prior.h"
 
@@ -552,15 +553,18 @@ void fit_prior(const BrdfPrior& p, const ComponentSource& components, const Prio
   Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(Eigen::Index(f.k), Eigen::Index(f.k));
   Eigen::MatrixXd atb = Eigen::MatrixXd::Zero(Eigen::Index(f.k), Eigen::Index(f.c));
   std::size_t next = 0;
+  Progress progress("fitting the prior", 2 * f.d);
   for (std::size_t i0 = 0; i0 < f.d; i0 += block) {
     const std::size_t count = load(i0);  // before q is taken: load resizes it
     add_equations(f, i0, count, q, next, ata, atb);
+    progress.advance(count);
   }
   for (std::size_t j = 0; j < f.k; ++j) ata(Eigen::Index(j), Eigen::Index(j)) += o.lambda / p.variances[j];
   const Eigen::MatrixXd a = ata.ldlt().solve(atb);                  // k x c
   for (std::size_t i0 = (f.d - 1) / block * block;; i0 -= block) {  // backwards: the last block read is reused
     const std::size_t count = load(i0);
     reconstruct(f, a, i0, count, q, grid);
+    progress.advance(count);
     if (i0 == 0) break;
   }
 }

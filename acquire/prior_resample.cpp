@@ -11,7 +11,9 @@
 #include "specula/acquire/retro_trend.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
+#include "specula/core/interrupt.h"
 #include "specula/core/parallel.h"
+#include "specula/core/progress.h"
 
 namespace specula::acquire {
 namespace {
@@ -125,7 +127,9 @@ std::vector<PriorObservations> cell_means(const brdf::SampleSource& src, bool us
   std::vector<double> angles;
   std::vector<float> values, variance;
   std::vector<std::int32_t> cell_of;
+  Progress progress("cell means", n);
   for (std::size_t first = 0; first < n; first += block) {
+    check_interrupt();
     const std::size_t count = std::min(block, n - first);
     angles.resize(count * 4);
     values.resize(count * b);
@@ -159,6 +163,7 @@ std::vector<PriorObservations> cell_means(const brdf::SampleSource& src, bool us
       }
       ++a.counts[o];
     }
+    progress.advance(count);
   }
   for (std::size_t q = 0; q < parts; ++q) finish_means(acc[q].sums, acc[q].squares, acc[q].counts, b, out[q]);
   return out;

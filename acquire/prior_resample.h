@@ -92,7 +92,7 @@ std::size_t bound_by_ceiling(const BrdfPrior& prior, std::span<const std::uint8_
 
 /// The samples of src averaged per valid cell (values), their counts as weights and as spread their scatter (the
 /// unbiased variance per band, 0 for one sample) or, when src carries variances and use_variance, the mean of the
-/// samples' own variances (spread_is_noise): the observations of prior.h.
+/// samples' own variances (spread_is_noise): the observations of prior.h. Progress shown, Interrupted between blocks.
 PriorObservations cell_means(const brdf::SampleSource& src, bool use_variance = true);
 /// cell_means of the samples of each part: observations q average the samples s with part[s] == q (samples with a
 /// label of parts or more are left out; part empty: every sample is in part 0). UsageError for parts 0 or a part

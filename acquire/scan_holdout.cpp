@@ -8,6 +8,7 @@
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/parallel.h"
+#include "specula/core/progress.h"
 
 namespace specula::acquire {
 
@@ -50,12 +51,14 @@ std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src) {
   const std::size_t n = src.size(), block = std::max<std::size_t>(1, src.block_rows());
   std::vector<std::int32_t> slots(n);
   std::vector<double> angles;
+  Progress progress("sample cells", n);
   for (std::size_t first = 0; first < n; first += block) {
     check_interrupt();
     const std::size_t count = std::min(block, n - first);
     angles.resize(4 * count);
     src.read_angles(first, count, angles);
     valid_slots(angles, std::span(slots).subspan(first, count));
+    progress.advance(count);
   }
   return slots;
 }
