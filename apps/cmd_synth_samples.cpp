@@ -5,7 +5,9 @@
 #include <fmt/format.h>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
+#include <optional>
 
 #include "apps/commands.h"
 #include "apps/common.h"
@@ -28,6 +30,7 @@ struct SynthSamplesOptions {
   std::string geometry = "scan";
   std::size_t count = 0;
   acquire::ScanRig rig;
+  std::optional<double> sphere_row;  // the image row of the sphere's centre, pixels
   std::string wavelengths = "420:720:10";
   std::uint64_t seed = 1;
   double noise = 0;
@@ -37,8 +40,12 @@ struct SynthSamplesOptions {
   bool json = false;
 };
 
-void run_synth_samples(const SynthSamplesOptions& o) {
+void run_synth_samples(SynthSamplesOptions o) {
   const auto t0 = std::chrono::steady_clock::now();
+  if (o.sphere_row) {
+    if (!std::isfinite(*o.sphere_row)) throw UsageError("--sphere-row: give a finite image row in pixels");
+    o.rig.off_axis_y = *o.sphere_row * o.rig.distance / o.rig.focal_px;  // its projection focal * y / distance
+  }
   const auto spec = store::parse_object_spec(o.output);
   if (!spec || spec->file.extension() != ".h5")
     throw UsageError("synth-samples: -o " + o.output + ": write the samples as STORE.h5:NAME");
@@ -120,6 +127,10 @@ void setup_synth_samples(CLI::App& app) {
   cmd->add_option("-n", o->count, "random: number of samples; scan: thin evenly to at most this many");
   cmd->add_option("--sphere-px", o->rig.sphere_px, "scan: the sphere's diameter on the image (pixels)")
       ->capture_default_str();
+  cmd->add_option("--sphere-row", o->sphere_row,
+                  fmt::format("scan: the image row of the sphere's centre, pixels from the optical axis (pixel centres "
+                              "at whole numbers + 0.5; default {:g}, a row boundary, which the specular path follows)",
+                              o->rig.off_axis_y * o->rig.focal_px / o->rig.distance));
   cmd->add_option("--lights", o->rig.lights, "scan: light positions on the arc")->capture_default_str();
   cmd->add_option("--light-step", o->rig.light_step_deg, "scan: degrees between light positions")
       ->capture_default_str();

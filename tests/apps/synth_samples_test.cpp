@@ -1,12 +1,15 @@
 // synth-samples with a grid as the material: the samples of an analytic material's grid agree with the samples of
 // the analytic material itself within the grid's discretisation (trilinear closer than the nearest cell); a bad
-// lookup is one line.
+// lookup is one line. The sphere's image row decides how close to the specular peak the rig samples.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <numbers>
 #include <vector>
 
+#include "specula/core/brdf_geometry.h"
 #include "specula/store/store.h"
 #include "test_support.h"
 
@@ -48,6 +51,41 @@ TEST(SynthSamplesCli, AGridMaterialGivesTheAnalyticModelsSamplesWithinItsDiscret
   r = run_specula("synth-samples " + q(dir / "ts.spgrid") + " --lookup cubic" + common + ":bad");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("--lookup 'cubic'"), std::string::npos) << r.output;
+}
+
+// The smallest theta_h (degrees) over samples `name` of db.
+double least_theta_h(const std::filesystem::path& db, const std::string& name) {
+  const auto s = store::Store::open(db);
+  const std::size_t n = s.samples_info(name).size, bands = s.samples_info(name).bands;
+  std::vector<double> angles(4 * n);
+  std::vector<float> values(n * bands);
+  s.read_samples(name, 0, n, angles, values);
+  double least = 90;
+  for (std::size_t i = 0; i < n; ++i) {
+    const brdf::StdAngles a{angles[4 * i], angles[4 * i + 1], angles[4 * i + 2], angles[4 * i + 3]};
+    least = std::min(least, brdf::half_diff(a).theta_h * 180 / std::numbers::pi);
+  }
+  return least;
+}
+
+// The default rig images the sphere's centre on a row boundary (22 px), and the specular path, in the arc's plane,
+// runs along it: every pixel centre lies half a pixel off it, 0.29 degrees of normal on a 200-pixel sphere, so no
+// sample comes nearer the peak (MERL theta_h rows 0-4 stay empty). Moved half a pixel, the path runs through pixel
+// centres and the peak is sampled.
+TEST(SynthSamplesCli, TheSpheresImageRowDecidesHowNearThePeakTheScanSamples) {
+  test::ScratchDir dir;
+  const auto db = dir / "s.h5";
+  const std::string common = " --lights 40 --light-step 4 --wavelengths 500:600:100 -o '" + db.string() + "':";
+  auto r = run_specula("synth-samples green-matte" + common + "default");
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run_specula("synth-samples green-matte --sphere-row 22.5" + common + "centred");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const double half_pixel = 0.5 / 100 * 180 / std::numbers::pi;  // of normal, at the centre of a 200-pixel sphere
+  EXPECT_GT(least_theta_h(db, "default"), 0.9 * half_pixel);
+  EXPECT_LT(least_theta_h(db, "centred"), 0.2 * half_pixel);
+  r = run_specula("synth-samples green-matte --sphere-row nan" + common + "bad");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("--sphere-row"), std::string::npos) << r.output;
 }
 
 }  // namespace
