@@ -245,8 +245,29 @@ ResampleOutcome with_model(const ResampleJob& job, const ModelMethod& m, const s
 
 }  // namespace
 
+void check_job(const ResampleJob& job) {
+  if (!(job.local.max_gap > 0 && job.local.max_gap <= std::numbers::pi))
+    throw UsageError(fmt::format("resample: max_gap = {:g} degrees: give degrees in (0, 180]",
+                                 job.local.max_gap * 180 / std::numbers::pi));
+  try {
+    check_options(job.local);
+  } catch (const UsageError& e) {
+    throw UsageError(std::string("resample: ") + e.what());
+  }
+  const auto reach = [](double r) {
+    if (!(r > 0 && r <= 1))
+      throw UsageError(fmt::format("resample: confidence_reach = {:g}: give a fraction of max_gap in (0, 1]", r));
+  };
+  if (const auto* m = std::get_if<PriorMethod>(&job.method)) reach(m->confidence_reach);
+  if (const auto* m = std::get_if<ModelMethod>(&job.method)) {
+    reach(m->confidence_reach);
+    if (m->fit.lobes < 1 || m->fit.lobes > 2)
+      throw UsageError(fmt::format("resample: lobes = {}: give 1 or 2 microfacet lobes", m->fit.lobes));
+  }
+}
+
 ResampleOutcome run_resample(const ResampleJob& job) {
-  check_options(job.local);
+  check_job(job);
   const store::Store s = store::Store::open(job.store);
   const store::SamplesInfo info = s.samples_info(job.samples);
   ResampleOutcome out;

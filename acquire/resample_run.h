@@ -64,6 +64,10 @@ struct ResampleOutcome {
   std::string summary;
 };
 
+/// UsageError naming the parameter for what no store can make right: the local options (brdf::check_options), a
+/// largest gap above 180 degrees, a confidence reach outside (0, 1] or a model of other than 1 or 2 lobes.
+void check_job(const ResampleJob& job);
+
 /// Resamples job.samples of job.store as job.method says, writing nothing; the plain method with -k auto builds
 /// its k-d tree once for the choice and the grid. UsageError for bad options (before any work), InputError for
 /// missing samples or prior, Interrupted between blocks.

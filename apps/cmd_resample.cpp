@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <numbers>
 #include <optional>
+#include <vector>
 
 #include "apps/commands.h"
 #include "apps/common.h"
@@ -114,10 +115,8 @@ double reach_of(const std::string& text) {
 
 // The job the options describe; UsageError naming the flag for what only the command line can get wrong.
 acquire::ResampleJob job_of(const ResampleCliOptions& o) {
-  if (!(o.max_gap_deg > 0 && o.max_gap_deg <= 180)) throw UsageError("--max-gap: give degrees in (0, 180]");
   if (o.k_held_out < 1) throw UsageError("--k-held-out: give at least 1");
   if (!o.prior.empty() && !o.model.empty()) throw UsageError("resample: give --prior or --model, not both");
-  if (o.lobes < 1 || o.lobes > 2) throw UsageError("--lobes: give 1 or 2");
   acquire::ResampleJob job{.store = o.store,
                            .samples = o.samples,
                            .local = {.mapping = brdf::parse_mapping(o.mapping),
@@ -167,7 +166,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     if (o.confidence_reach) m.confidence_reach = reach_of(*o.confidence_reach);
     job.method = m;
   }
-  brdf::check_options(job.local);
+  acquire::check_job(job);
   return job;
 }
 
@@ -221,8 +220,7 @@ void setup_resample(CLI::App& app) {
                   "smoothing), renka (Franke-Little: ((R - d)+ / (R d))^2; continuous), shepard (eqs 5.9-5.10, the "
                   "reference's) or mean; R the (k+1)-th nearest sample's distance")
       ->capture_default_str();
-  auto* power =
-      cmd->add_option("--power", o->power, "Shepard's power p (--weights shepard only)")->capture_default_str();
+  cmd->add_option("--power", o->power, "Shepard's power p (--weights shepard only)")->capture_default_str();
   cmd->add_option(
          "--max-gap", o->max_gap_deg,
          "Leave a cell without data when its nearest sample is farther than this (degrees in theta_i, theta_o, phi_d)")
@@ -300,10 +298,23 @@ void setup_resample(CLI::App& app) {
       ->check(CLI::Range(1, 10));
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
-  cmd->callback([o, power, k_criterion, k_held_out] {
-    if (power->count() > 0 && o->weights != "shepard") throw UsageError("--power: only Shepard's weights have a power");
+  std::vector<const CLI::Option*> prior_only, model_only;
+  for (const char* name :
+       {"--lambda", "--prior-weights", "--prior-block-mb", "--prior-residuals", "--kd-tree-in-cap", "--blend-in-retro",
+        "--prior-alone-in-cap", "--no-retro-continuation", "--retro-weight-overall", "--linear-blend", "--no-ceiling",
+        "--no-log-residuals", "--log-residual-radius", "--log-residuals-in-retro", "--log-residual-passes"})
+    prior_only.push_back(cmd->get_option(name));
+  for (const char* name : {"--lobes", "--fresnel", "--shadowing"}) model_only.push_back(cmd->get_option(name));
+  const CLI::Option* reach = cmd->get_option("--confidence-reach");
+  cmd->callback([o, k_criterion, k_held_out, prior_only, model_only, reach] {
     if ((k_criterion->count() > 0 || k_held_out->count() > 0) && o->k != "auto")
       throw UsageError("--k-criterion, --k-held-out: only with -k auto");
+    for (const CLI::Option* opt : prior_only)
+      if (opt->count() > 0 && o->prior.empty()) throw UsageError(opt->get_name() + ": only with --prior");
+    for (const CLI::Option* opt : model_only)
+      if (opt->count() > 0 && o->model.empty()) throw UsageError(opt->get_name() + ": only with --model");
+    if (reach->count() > 0 && o->prior.empty() && o->model.empty())
+      throw UsageError("--confidence-reach: only with --prior or --model");
     run_resample(*o);
   });
 }

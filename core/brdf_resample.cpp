@@ -1,5 +1,7 @@
 #include "specula/core/brdf_resample.h"
 
+#include <fmt/format.h>
+
 #include <Eigen/Cholesky>
 
 #include <algorithm>
@@ -418,8 +420,10 @@ bool weights_have_reach(Weights w) { return w == Weights::renka || w == Weights:
 void check_options(const ResampleOptions& o) {
   if (o.k < 1 || o.k > 100000) throw UsageError("k = " + std::to_string(o.k) + ": give 1 to 100000 neighbours");
   if (!(o.power >= 0) || !std::isfinite(o.power))
-    throw UsageError("power " + std::to_string(o.power) + ": Shepard's power must be a finite number >= 0");
-  if (!(o.max_gap > 0)) throw UsageError("max_gap: the largest gap must be positive");
+    throw UsageError(fmt::format("power = {:g}: Shepard's power must be a finite number >= 0", o.power));
+  if (o.power != 1 && o.weights != Weights::shepard)
+    throw UsageError(fmt::format("power = {:g}: only Shepard's weights have a power", o.power));
+  if (!(o.max_gap > 0)) throw UsageError(fmt::format("max_gap = {:g}: the largest gap must be positive", o.max_gap));
   if (o.max_entries == 0) throw UsageError("resample: max_entries must be positive");
 }
 

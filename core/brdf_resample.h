@@ -66,8 +66,8 @@ std::string rule_string(const ResampleOptions& o);
 /// entry otherwise.
 ResampleOptions parse_rule(std::string_view text);
 
-/// UsageError stating the rule when k is not 1 to 100000, power not finite and >= 0, max_gap not positive or
-/// max_entries 0.
+/// UsageError stating the rule when k is not 1 to 100000, power not finite and >= 0 (or not 1 without Shepard's
+/// weights), max_gap not positive or max_entries 0.
 void check_options(const ResampleOptions& o);
 
 /// Scattered samples that can be read in blocks: size() samples of bands() values each.

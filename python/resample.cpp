@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <numbers>
 
 #include "python/common.h"
@@ -53,13 +54,12 @@ void init_resample(py::module_& m) {
       "resample",
       [](const StoreArg& store, const std::string& samples, const CountOrAuto& k, const std::string& weights,
          double power, const std::string& mapping, double max_gap, const OptStr& prior, const OptStr& model, int lobes,
-         double lambda, const ReachArg& confidence_reach, bool log_residuals) -> ResampleResult {
+         std::optional<double> lambda, const ReachArg& confidence_reach,
+         std::optional<bool> log_residuals) -> ResampleResult {
         if (!prior.is_none() && !model.is_none()) throw UsageError("resample: give prior or model, not both");
-        if (!(max_gap > 0 && max_gap <= 180))
-          throw UsageError(fmt::format("resample: max_gap = {}: give degrees in (0, 180]", max_gap));
-        if (lobes < 1 || lobes > 2) throw UsageError(fmt::format("resample: lobes = {}: give 1 or 2", lobes));
-        if (power != 1.0 && weights != "shepard")
-          throw UsageError("resample: power: only Shepard's weights have a power");
+        if (prior.is_none() && (lambda || log_residuals))
+          throw UsageError(fmt::format("resample: {}: only with a prior", lambda ? "lambda_" : "log_residuals"));
+        if (model.is_none() && lobes != 1) throw UsageError("resample: lobes: only with a model");
         bool k_auto = false;
         acquire::ResampleJob job{.store = store_path(store),
                                  .samples = samples,
@@ -70,20 +70,21 @@ void init_resample(py::module_& m) {
                                            .max_gap = max_gap * std::numbers::pi / 180}};
         if (k_auto) job.k_auto = acquire::BandwidthOptions{};
         if (!prior.is_none()) {
-          acquire::PriorMethod pm{.prior = prior.cast<std::string>(), .fit = {.lambda = lambda}};
+          acquire::PriorMethod pm{.prior = prior.cast<std::string>()};
+          if (lambda) pm.fit.lambda = *lambda;
           set_reach(confidence_reach, &pm, nullptr);
-          if (!log_residuals) pm.log_residuals.reset();
+          if (!log_residuals.value_or(true)) pm.log_residuals.reset();
           job.method = pm;
         } else if (!model.is_none()) {
           acquire::ModelMethod mm{
               .fit = {.kind = {.distribution = acquire::parse_distribution(model.cast<std::string>())},
-                      .lobes = std::size_t(lobes)}};
+                      .lobes = std::size_t(std::max(lobes, 0))}};
           set_reach(confidence_reach, nullptr, &mm);
           job.method = mm;
         } else if (!confidence_reach.is_none()) {
           throw UsageError("resample: confidence_reach: only with a prior or a model");
         }
-        brdf::check_options(job.local);
+        acquire::check_job(job);
         acquire::ResampleOutcome r = interruptible([&] { return acquire::run_resample(job); });
         py::dict report = py::module_::import("json").attr("loads")(r.report.dump());
         report["summary"] = r.summary;
@@ -97,13 +98,14 @@ void init_resample(py::module_& m) {
       },
       py::arg("store"), py::arg("samples"), py::kw_only(), py::arg("k") = 32, py::arg("weights") = "shepard",
       py::arg("power") = 1.0, py::arg("mapping") = "standard", py::arg("max_gap") = brdf::kDefaultMaxGapDegrees,
-      py::arg("prior") = py::none(), py::arg("model") = py::none(), py::arg("lobes") = 1, py::arg("lambda_") = 1e-3,
-      py::arg("confidence_reach") = py::none(), py::arg("log_residuals") = true,
+      py::arg("prior") = py::none(), py::arg("model") = py::none(), py::arg("lobes") = 1,
+      py::arg("lambda_") = py::none(), py::arg("confidence_reach") = py::none(), py::arg("log_residuals") = py::none(),
       "Resamples the scattered BRDF samples `samples` of `store` onto the MERL grid as `specula resample` does "
       "(docs/resampling.md, docs/prior.md): the kd-tree's k nearest samples (k a count or 'auto'), weighted by "
       "`weights` (shepard, loess, wendland, renka, mean), cells farther than max_gap degrees from every sample left "
       "without data; with prior='STORE.h5:NAME' a learned prior fitted and blended (every valid cell filled; lambda_ "
-      "its Tikhonov weight, log_residuals the samples' log residuals multiplied in); with model='ggx' or 'beckmann' a "
+      "its Tikhonov weight, 1e-3 when None; log_residuals False leaves out the samples' log residuals multiplied in); "
+      "with model='ggx' or 'beckmann' a "
       "Lambertian plus `lobes` microfacet lobes as the base. confidence_reach: the kd-tree's reach as a fraction of "
       "max_gap, 'auto' (a prior's holdout, its default) or None. Returns (grid, report): a specula.Grid in 1/sr and "
       "the fields of `specula resample --json` with 'summary' and 'confidence', (90, 90, 180) float32 per cell (-1 "

@@ -70,6 +70,15 @@ TEST(ResampleCli, SimulatedScanSamplesResampleIntoAStoreOrAGridFile) {
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_NE(r.output.find("--replace"), std::string::npos) << r.output;
   EXPECT_EQ(test::read_bytes(db), before);
+  // An option of one method without that method names the option and the method it belongs to.
+  for (const auto& [args, message] :
+       {std::pair<std::string, std::string>{"--lambda 0.1", "--lambda: only with --prior"},
+        {"--log-residual-passes 2", "--log-residual-passes: only with --prior"},
+        {"--fresnel dielectric", "--fresnel: only with --model"},
+        {"--max-gap 200", "max_gap = 200 degrees: give degrees in (0, 180]"}}) {
+    const auto r = run_specula("resample '" + db.string() + "' ok -o '" + db.string() + ":g' " + args);
+    EXPECT_NE(r.output.find(message), std::string::npos) << args << ": " << r.output;
+  }
   r = run_specula("resample " + q(db) + " scan -o " + q(db) + ":g --replace --power 2");
   EXPECT_EQ(r.status, 0) << r.output;
   // -k auto: the leave-one-out choice in the JSON (every ladder row) and in the grid's provenance.
@@ -142,6 +151,11 @@ TEST(ResampleCli, BadInputIsOneLineAndLeavesTheStoreAlone) {
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k auto --k-held-out 0",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k 8 --k-held-out 100",
         "resample '" + db.string() + "' missing -o '" + db.string() + ":g'",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --max-gap 200",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --lambda 0.1",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --no-log-residuals",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --lobes 2",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --confidence-reach 0.5",
         "eval-resample '" + db.string() + "' ok --holdout 1.5"}) {
     const auto r = run_specula(args);
     EXPECT_EQ(r.status, 1) << args << ": " << r.output;

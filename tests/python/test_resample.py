@@ -98,11 +98,16 @@ def test_the_grid_saves_and_reads_back(db, tmp_path):
     ({"k": "many"}, "k = 'many': give a count of neighbours or 'auto'"),
     ({"k": 0}, "k = 0: give a count of neighbours or 'auto'"),
     ({"prior": "x.h5:p", "model": "ggx"}, "give prior or model, not both"),
-    ({"max_gap": 0.0}, "max_gap = 0: give degrees in (0, 180]"),
-    ({"model": "ggx", "lobes": 3}, "lobes = 3: give 1 or 2"),
+    ({"max_gap": 0.0}, "max_gap = 0 degrees: give degrees in (0, 180]"),
+    ({"max_gap": 200}, "max_gap = 200 degrees: give degrees in (0, 180]"),
+    ({"model": "ggx", "lobes": 3}, "lobes = 3: give 1 or 2 microfacet lobes"),
+    ({"lobes": 2}, "lobes: only with a model"),
+    ({"lambda_": 0.1}, "lambda_: only with a prior"),
+    ({"log_residuals": False}, "log_residuals: only with a prior"),
+    ({"model": "ggx", "confidence_reach": 1.5}, "confidence_reach = 1.5: give a fraction of max_gap in (0, 1]"),
     ({"model": "ggx", "confidence_reach": "auto"}, "confidence_reach='auto' is chosen only with a prior"),
     ({"confidence_reach": 0.5}, "confidence_reach: only with a prior or a model"),
-    ({"weights": "mean", "power": 2.0}, "power: only Shepard's weights have a power"),
+    ({"weights": "mean", "power": 2.0}, "power = 2: only Shepard's weights have a power"),
 ])
 def test_bad_arguments_are_one_usage_error(db, kwargs, message):
     with pytest.raises(specula.UsageError) as e:
