@@ -15,6 +15,7 @@
 #include "specula/codec/spc_coding.h"
 #include "specula/codec/spectral_grid.h"
 #include "specula/codec/suite.h"
+#include "specula/codec/uplift.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/cie.h"
 #include "specula/core/colour.h"
@@ -242,6 +243,37 @@ void def_merl(py::module_& m) {
       "import "
       "X.h5 --format nbrdf -o X.binary` does: (3, 90, 90, 180) float64 as read_merl gives it (negative: below the "
       "horizon; scaled=True: 1/sr). InputError naming the file for weights of the wrong shapes or not finite.");
+  m.def(
+      "uplift",
+      [](const ArrayLike& values, bool scaled, const WavelengthsArg& wavelengths, const IlluminantArg& ill,
+         double alpha, bool nonnegative) {
+        const auto v = DoubleArray::ensure(values);
+        if (!v || v.size() != py::ssize_t(3 * brdf::kMerlCells))
+          throw UsageError("uplift: values must be (3, 90, 90, 180) as read_merl or read_nbrdf give them");
+        if (!(alpha > 0) || !std::isfinite(alpha))
+          throw UsageError(fmt::format("uplift: alpha = {}: give a positive weight", alpha));
+        const WavelengthGrid grid = grid_from(wavelengths, "uplift wavelengths");
+        const codec::Uplift uplift(codec::rgb_weights(grid, illuminant_from(ill, grid)), alpha);
+        codec::MerlBrdf rgb;
+        rgb.raw.assign(v.data(), v.data() + v.size());
+        if (scaled) rgb.unscale();
+        store::Grid g;
+        {
+          py::gil_scoped_release release;
+          g = codec::uplift_merl(rgb, grid, uplift,
+                                 nonnegative ? codec::UpliftMethod::nonnegative : codec::UpliftMethod::clamp);
+        }
+        g.provenance.importer = nonnegative ? "uplift-nonnegative" : "uplift-clamp";
+        g.provenance.command_line = python_command_line("uplift");
+        return g;
+      },
+      py::arg("values"), py::arg("scaled") = false, py::kw_only(), py::arg("wavelengths") = "400:700:10",
+      py::arg("illuminant") = "D65", py::arg("alpha") = codec::kDefaultUpliftAlpha, py::arg("nonnegative") = false,
+      "An RGB BRDF (3, 90, 90, 180) as read_merl or read_nbrdf give it (stored values, or 1/sr with scaled=True; "
+      "negative: no data) as a "
+      "spectral Grid in 1/sr on `wavelengths`, cell by cell by the regularised least squares of the reference's eq A.3 "
+      "(Appendix A) under `illuminant` with weight `alpha`, then clamped to 0, or with nonnegative=True bounded to "
+      "x >= 0 (what `specula import X.h5 --uplift` does to a neural BRDF): `specula uplift`.");
 }
 
 // Standard angles to MERL cells and grid values.

@@ -191,3 +191,30 @@ def test_read_nbrdf_is_the_clis_import_and_numpys_network(tmp_path):
         specula.read_nbrdf(tmp_path / "bad.h5")
     with pytest.raises(specula.MissingFileError, match="absent.h5"):
         specula.read_nbrdf(tmp_path / "absent.h5")
+
+
+def test_uplift_is_the_clis_uplift_and_import(tmp_path):
+    rgb = specula.read_nbrdf(NBRDF)
+    specula.write_merl(tmp_path / "g.binary", rgb)
+    for flags, kwargs in [([], {}), (["--nonnegative", "--illuminant", "A"], {"nonnegative": True, "illuminant": "A"})]:
+        cli("uplift", tmp_path / "g.binary", "--wavelengths", "400:700:20", *flags, "-o", tmp_path / "u.spgrid")
+        want = specula.read_spgrid(tmp_path / "u.spgrid")
+        got = specula.uplift(rgb, wavelengths="400:700:20", **kwargs)
+        np.testing.assert_array_equal(got.wavelengths, want.wavelengths)
+        np.testing.assert_array_equal(got.values, want.values)
+    # A neural BRDF's import with --uplift is the non-negative uplift under D65; values in 1/sr give the same grid.
+    cli("import", NBRDF, "--uplift", "--wavelengths", "400:700:20", "-o", tmp_path / "s.h5")
+    with specula.Store(tmp_path / "s.h5") as s:
+        imported = s.grid(s.grids[0])
+    mine = specula.uplift(specula.read_nbrdf(NBRDF, scaled=True), True, wavelengths="400:700:20", nonnegative=True)
+    valid = imported.values >= 0
+    np.testing.assert_array_equal(mine.values >= 0, valid)
+    np.testing.assert_allclose(mine.values[valid] * mine.scale, imported.values[valid] * imported.scale, rtol=1e-5)
+    # Uplifted under its own illuminant, a flat white comes back flat.
+    ones = np.where(rgb >= 0, 1 / np.array(specula.MERL_SCALE)[:, None, None, None], rgb)
+    flat = specula.uplift(ones, illuminant=specula.illuminant("D65", "400:700:10"))
+    np.testing.assert_allclose(flat.values[:, 45, 45, 90] * flat.scale, 1, rtol=1e-3)
+    with pytest.raises(specula.UsageError, match=r"\(3, 90, 90, 180\)"):
+        specula.uplift(rgb[:, :10])
+    with pytest.raises(specula.UsageError, match="alpha"):
+        specula.uplift(rgb, alpha=0)
