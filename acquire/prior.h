@@ -109,10 +109,10 @@ BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& o
 /// build_prior of `count` grids that load(i) returns, held in memory while building (names[i] names grid i).
 BrdfPrior build_prior(std::size_t count, const std::function<store::Grid(std::size_t)>& load,
                       std::span<const std::string> names, const PriorOptions& options);
-/// build_prior streamed into prior `name` of the transaction out (components written block by block); returns the
-/// prior's tables without its components.
+/// build_prior streamed into prior `name` of the transaction out (components written block by block), its provenance
+/// naming command_line (empty: the transaction's); returns the prior's tables without its components.
 BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& options, store::StoreWriter& out,
-                      const std::string& name);
+                      const std::string& name, const std::string& command_line = {});
 
 /// Scattered observations of a BRDF on the prior's cells: per observed cell its index into valid_cells(), the
 /// BRDF spectrum there (bands values, 1/sr), the samples it averages and, when known, their noise.
