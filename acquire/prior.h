@@ -15,6 +15,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <variant>
 #include <vector>
 
 #include "specula/core/wavelengths.h"
@@ -75,6 +76,19 @@ struct TrainingGrid {
 TrainingGrid store_training_grid(const store::Store& s, const std::string& name, const std::string& label);
 /// A grid in memory, shared (not copied).
 TrainingGrid memory_training_grid(std::shared_ptr<const store::Grid> grid, const std::string& name);
+/// A grid load() returns, loaded once for its bands and again for each block it is read in (nothing held between).
+TrainingGrid reloaded_training_grid(const std::string& name, const std::function<store::Grid()>& load);
+
+/// What names training grids: a spec (as `prior build GRID` takes it), an open store (all its grids), or a grid made.
+using TrainingSource = std::variant<std::string, store::Store, TrainingGrid>;
+/// The grids sources name, in order, as `specula prior build GRID...` reads them: "STORE.h5:GRID" streams that grid by
+/// rows (each store opened once), a whole "STORE.h5" (no :GRID) or an open store stands for all its grids (named
+/// "STORE.h5:GRID"), a TrainingGrid is kept, any other spec is other(spec); a grid whose name or whole spec is in
+/// exclude is left out. UsageError "COMMAND: give at least 2 training grids (after EXCLUDE_NAME)" before any grid is
+/// read; InputError naming the store for a missing store or grid.
+std::vector<TrainingGrid> training_grids(std::span<const TrainingSource> sources, std::span<const std::string> exclude,
+                                         const std::function<TrainingGrid(const std::string&)>& other,
+                                         std::string_view command, std::string_view exclude_name);
 
 /// Fills out with the k x count components of cells [first, first + count) (row-major). A prior being built makes
 /// them for consecutive blocks of store::kPriorBlockCells cells in cell order; a stored or in-memory prior reads any
@@ -95,10 +109,10 @@ BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& o
 /// build_prior of `count` grids that load(i) returns, held in memory while building (names[i] names grid i).
 BrdfPrior build_prior(std::size_t count, const std::function<store::Grid(std::size_t)>& load,
                       std::span<const std::string> names, const PriorOptions& options);
-/// build_prior streamed into prior `name` of the transaction out (components written block by block); returns the
-/// prior's tables without its components.
+/// build_prior streamed into prior `name` of the transaction out (components written block by block), its provenance
+/// naming command_line (empty: the transaction's); returns the prior's tables without its components.
 BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& options, store::StoreWriter& out,
-                      const std::string& name);
+                      const std::string& name, const std::string& command_line = {});
 
 /// Scattered observations of a BRDF on the prior's cells: per observed cell its index into valid_cells(), the
 /// BRDF spectrum there (bands values, 1/sr), the samples it averages and, when known, their noise.

@@ -42,11 +42,12 @@ void write_prior(store::StoreWriter& out, const std::string& name, const BrdfPri
 }
 
 BrdfPrior build_prior(std::span<const TrainingGrid> grids, const PriorOptions& options, store::StoreWriter& out,
-                      const std::string& name) {
+                      const std::string& name, const std::string& command_line) {
   store::validate_name(name, "prior");
   return build_prior(grids, options, [&](const BrdfPrior& p, const ComponentSource& blocks) {
     store::PriorTables t = tables_of(p);
     t.component_blocks = blocks;
+    t.command_line = command_line;
     out.add_prior(name, t);
   });
 }

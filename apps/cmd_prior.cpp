@@ -2,17 +2,11 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
-#include <algorithm>
 #include <chrono>
-#include <filesystem>
-#include <map>
 
 #include "apps/commands.h"
 #include "apps/common.h"
 #include "specula/acquire/prior.h"
-#include "specula/core/brdf_geometry.h"
-#include "specula/core/error.h"
-#include "specula/store/object_spec.h"
 #include "specula/store/store.h"
 
 namespace specula::app {
@@ -30,55 +24,16 @@ struct PriorBuildOptions {
   bool replace = false;
 };
 
-// Each GRID argument as grid specs: a whole store (.h5 without :NAME) stands for all its grids.
-std::vector<std::string> expand(const PriorBuildOptions& o) {
-  std::vector<std::string> specs;
-  for (const auto& g : o.grids) {
-    const std::filesystem::path p(g);
-    if (p.extension() == ".h5" && !store::parse_object_spec(g)) {
-      for (const auto& name : store::Store::open(p).grids()) specs.push_back(g + ":" + name);
-    } else {
-      specs.push_back(g);
-    }
-  }
-  std::erase_if(specs, [&](const std::string& s) {
-    const auto spec = store::parse_object_spec(s);
-    const std::string name = spec ? spec->name : s;
-    return std::find(o.exclude.begin(), o.exclude.end(), name) != o.exclude.end() ||
-           std::find(o.exclude.begin(), o.exclude.end(), s) != o.exclude.end();
-  });
-  if (specs.size() < 2) throw UsageError("prior build: give at least 2 training grids (after --exclude)");
-  return specs;
-}
-
-// A training grid: a store's grid streams by rows; any other file is loaded whole for each block it is read in.
-acquire::TrainingGrid training_grid(const std::string& spec, std::map<std::string, store::Store>& stores) {
-  const auto object = store::parse_object_spec(spec);
-  if (object && object->file.extension() == ".h5" && !std::filesystem::exists(spec)) {
-    auto at = stores.find(object->file.string());
-    if (at == stores.end()) at = stores.emplace(object->file.string(), store::Store::open(object->file)).first;
-    return acquire::store_training_grid(at->second, object->name, spec);
-  }
-  const store::Grid first = load_grid(spec, "prior build");
-  return {.name = spec,
-          .wavelengths = first.wavelengths,
-          .scale = first.scale,
-          .read_rows = [spec](std::size_t h0, std::size_t rows, std::span<float> out) {
-            const store::Grid g = load_grid(spec, "prior build");
-            const std::size_t row = std::size_t(brdf::kMerlThetaD) * brdf::kMerlPhiD;
-            for (std::size_t k = 0; k < g.bands(); ++k)
-              std::copy_n(g.brdf.begin() + std::ptrdiff_t(k * brdf::kMerlCells + h0 * row), rows * row,
-                          out.begin() + std::ptrdiff_t(k * rows * row));
-          }};
-}
-
 void run_prior_build(const PriorBuildOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
   store::validate_name(o.name, "prior");
-  const std::vector<std::string> specs = expand(o);
-  std::vector<acquire::TrainingGrid> grids;
-  std::map<std::string, store::Store> stores;
-  for (const auto& spec : specs) grids.push_back(training_grid(spec, stores));
+  const std::vector<acquire::TrainingSource> sources(o.grids.begin(), o.grids.end());
+  const std::vector<acquire::TrainingGrid> grids = acquire::training_grids(
+      sources, o.exclude,
+      [](const std::string& spec) {
+        return acquire::reloaded_training_grid(spec, [spec] { return load_grid(spec, "prior build"); });
+      },
+      "prior build", "--exclude");
   const acquire::PriorOptions po{.channels = o.channels,
                                  .components = o.components,
                                  .epsilon = o.epsilon,
@@ -90,7 +45,7 @@ void run_prior_build(const PriorBuildOptions& o) {
   fmt::print(
       "prior {} of {}: {} components over {} cells, {} channels ({}), from {} grids in {:.1f} s; the retro "
       "band continued in theta_d^p, p by band width 1-{} rows: {}\n",
-      o.name, o.output, prior.k(), prior.cells(), prior.channels(), prior.wavelengths.describe(), specs.size(), seconds,
+      o.name, o.output, prior.k(), prior.cells(), prior.channels(), prior.wavelengths.describe(), grids.size(), seconds,
       prior.retro_exponents.size(), fmt::join(prior.retro_exponents, ","));
 }
 

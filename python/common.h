@@ -161,6 +161,8 @@ SPECULA_PY_ARG(Float32Result)
 SPECULA_PY_ARG(CountOrAuto)
 SPECULA_PY_ARG(ReachArg)
 SPECULA_PY_ARG(ResampleResult)
+SPECULA_PY_ARG(TrainingArg)
+SPECULA_PY_ARG(ExcludeArg)
 #undef SPECULA_PY_ARG
 
 /// A numpy array of `shape` that takes ownership of `owner` (a heap object holding the data at `data`).
@@ -293,4 +295,8 @@ SPECULA_PY_ARG_NAME(Float32Result, "numpy.typing.NDArray[numpy.float32]")
 SPECULA_PY_ARG_NAME(CountOrAuto, "int | str")
 SPECULA_PY_ARG_NAME(ReachArg, "float | str | None")
 SPECULA_PY_ARG_NAME(ResampleResult, "tuple[Grid, dict[str, Any]]")
+SPECULA_PY_ARG_NAME(TrainingArg,
+                    "str | os.PathLike[str] | Store | Sequence[str | os.PathLike[str] | Store | tuple[str, Grid]] | "
+                    "Mapping[str, Grid]")
+SPECULA_PY_ARG_NAME(ExcludeArg, "str | Sequence[str]")
 #undef SPECULA_PY_ARG_NAME

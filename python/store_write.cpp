@@ -1,10 +1,13 @@
-// Writing from Python: Store.write_image, write_collection, write_basis, write_grid and remove, each through a
-// StoreWriter transaction (the `with` block's, or one of its own committed at once), provenance naming Python.
+// Writing from Python: Store.write_image, write_collection, write_basis, write_grid, write_prior and remove, each
+// through a StoreWriter transaction (the `with` block's, or one of its own committed at once), provenance naming
+// Python.
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <chrono>
 
 #include "python/common.h"
+#include "specula/acquire/prior.h"
 #include "specula/store/basis.h"
 
 namespace specula::python {
@@ -111,6 +114,122 @@ void write_collection(PyStore& ps, const std::string& name, const ArrayLike& spe
   });
 }
 
+std::string type_name(const py::handle& h) { return py::str(py::type::of(h).attr("__name__")).cast<std::string>(); }
+
+// A grid in memory, named `name`, kept alive by `keep` while the prior is built from it (not copied).
+acquire::TrainingGrid memory_grid(const py::handle& name, const py::handle& grid, const std::string& what,
+                                  std::vector<py::object>& keep) {
+  if (!py::isinstance<py::str>(name))
+    throw py::type_error("write_prior: the name in " + what + " must be a str, not " + type_name(name));
+  store::validate_name(name.cast<std::string>(), "grid");
+  keep.push_back(py::reinterpret_borrow<py::object>(grid));
+  const store::Grid& g = as<store::Grid>(grid, "write_prior", what.c_str(), "Grid");
+  return acquire::memory_training_grid(std::shared_ptr<const store::Grid>(&g, [](const store::Grid*) {}),
+                                       name.cast<std::string>());
+}
+
+// One item of write_prior's grids: a str as the CLI's GRID argument, a path or specula.Store for all the store's
+// grids, or a (name, specula.Grid) pair.
+acquire::TrainingSource training_source(const py::handle& item, const std::string& what,
+                                        std::vector<py::object>& keep) {
+  if (py::isinstance<py::str>(item)) return item.cast<std::string>();
+  if (py::isinstance<PyStore>(item)) return item.cast<PyStore&>().get();
+  if (py::hasattr(item, "__fspath__")) return store::Store::open(existing_file(item));
+  if (py::isinstance<py::tuple>(item) && py::len(item) == 2) {
+    const auto pair = py::reinterpret_borrow<py::tuple>(item);
+    return memory_grid(pair[0], pair[1], what, keep);
+  }
+  throw py::type_error("write_prior: " + what +
+                       " must be a 'STORE.h5:NAME' str, a store (path or specula.Store) or a (name, specula.Grid) "
+                       "pair, not " +
+                       type_name(item));
+}
+
+// write_prior's grids: one item, a sequence of them, or a dict of names to specula.Grids.
+std::vector<acquire::TrainingSource> training_sources(const TrainingArg& grids, std::vector<py::object>& keep) {
+  std::vector<acquire::TrainingSource> sources;
+  if (py::isinstance<py::str>(grids) || py::isinstance<PyStore>(grids) || py::hasattr(grids, "__fspath__")) {
+    sources.push_back(training_source(grids, "grids", keep));
+  } else if (py::isinstance<py::dict>(grids)) {
+    for (const auto& [name, grid] : py::reinterpret_borrow<py::dict>(grids))
+      sources.emplace_back(memory_grid(name, grid, "grids[" + py::repr(name).cast<std::string>() + "]", keep));
+  } else if (py::isinstance<py::sequence>(grids)) {
+    const auto seq = py::reinterpret_borrow<py::sequence>(grids);
+    for (std::size_t i = 0; i < seq.size(); ++i)
+      sources.push_back(training_source(seq[i], fmt::format("grids[{}]", i), keep));
+  } else {
+    throw py::type_error("write_prior: grids must be a sequence of grids or stores, or a dict of specula.Grids, not " +
+                         type_name(grids));
+  }
+  return sources;
+}
+
+// write_prior's exclude: one name or a sequence of them.
+std::vector<std::string> exclude_names(const ExcludeArg& exclude) {
+  if (py::isinstance<py::str>(exclude)) return {exclude.cast<std::string>()};
+  if (!py::isinstance<py::sequence>(exclude))
+    throw py::type_error("write_prior: exclude must be a str or a sequence of str, not " + type_name(exclude));
+  std::vector<std::string> names;
+  const auto seq = py::reinterpret_borrow<py::sequence>(exclude);
+  for (std::size_t i = 0; i < seq.size(); ++i) {
+    if (!py::isinstance<py::str>(seq[i]))
+      throw py::type_error(fmt::format("write_prior: exclude[{}] must be a str, not {}", i, type_name(seq[i])));
+    names.push_back(seq[i].cast<std::string>());
+  }
+  return names;
+}
+
+// The prior's tables as write_prior returns them (what `specula prior build` prints, and more).
+py::dict prior_report(const PyStore& ps, const std::string& name, const acquire::BrdfPrior& p, double seconds) {
+  auto array = [](const std::vector<double>& v) { return py::array_t<double>(py::ssize_t(v.size()), v.data()); };
+  py::dict d;
+  d["name"] = name;
+  d["store"] = ps.path().string();
+  d["k"] = p.k();
+  d["cells"] = p.cells();
+  d["channels"] = p.channels();
+  d["wavelengths"] = wavelengths_array(p.wavelengths);
+  d["knots"] = array(p.knots);
+  d["epsilon"] = p.epsilon;
+  d["variances"] = array(p.variances);
+  d["training"] = p.training;
+  d["retro_exponents"] = array(p.retro_exponents);
+  d["seconds"] = seconds;
+  return d;
+}
+
+py::dict write_prior(PyStore& ps, const std::string& name, const TrainingArg& grids_arg, const ExcludeArg& exclude_arg,
+                     long long channels, long long components, double epsilon, bool replace) {
+  const auto t0 = std::chrono::steady_clock::now();
+  store::validate_name(name, "prior");
+  if (channels < 0) throw UsageError(fmt::format("write_prior: channels = {}: give 2 to 64", channels));
+  if (components < 0) throw UsageError(fmt::format("write_prior: components = {}: give a count (0: all)", components));
+  std::vector<py::object> keep;  // the Grids in memory, alive while the prior is built from them
+  const std::vector<acquire::TrainingSource> sources = training_sources(grids_arg, keep);
+  const std::vector<std::string> exclude = exclude_names(exclude_arg);
+  std::vector<acquire::TrainingGrid> grids;
+  {
+    py::gil_scoped_release release;
+    grids = acquire::training_grids(
+        sources, exclude,
+        [](const std::string& spec) -> acquire::TrainingGrid {
+          throw UsageError("write_prior: '" + spec +
+                           "' is neither 'STORE.h5:NAME' nor a store; read the file (specula.read_spgrid, "
+                           "spc_decode, read_bsdf) and give (name, Grid)");
+        },
+        "write_prior", "exclude");
+  }
+  const acquire::PriorOptions po{
+      .channels = std::size_t(channels), .components = std::size_t(components), .epsilon = epsilon};
+  const std::string command_line = python_command_line("Store.write_prior");
+  acquire::BrdfPrior prior;
+  write(ps, replace, [&](store::StoreWriter& w) {
+    prior = interruptible([&] { return acquire::build_prior(grids, po, w, name, command_line); });
+  });
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return prior_report(ps, name, prior, seconds);
+}
+
 }  // namespace
 
 void init_store_write(py::module_& m) {
@@ -152,6 +271,15 @@ void init_store_write(py::module_& m) {
             });
           },
           py::arg("name"), py::arg("grid"), py::arg("replace") = false, "Writes a specula.Grid as grid `name`.")
+      .def("write_prior", &write_prior, py::arg("name"), py::arg("grids"), py::kw_only(),
+           py::arg("exclude") = py::tuple(), py::arg("channels") = 8, py::arg("components") = 0,
+           py::arg("epsilon") = 1e-3, py::arg("replace") = false,
+           "Learns a BRDF prior from `grids` and writes it as prior `name`, as `specula prior build` does "
+           "(docs/prior.md): each item a 'STORE.h5:NAME' str (streamed by rows), a store (a path or specula.Store: "
+           "all its grids) or a (name, specula.Grid) pair (a dict of them too); `exclude` the grid names left out; "
+           "`channels` knots of the spectral basis, `components` kept (0: all), `epsilon` of the log-relative "
+           "mapping (1/sr). Returns the prior's k, cells, channels, wavelengths, knots, epsilon, variances, "
+           "training names, retro_exponents and seconds. Committed at once outside `with`.")
       .def(
           "remove",
           [](PyStore& ps, const std::string& spec) {

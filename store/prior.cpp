@@ -173,6 +173,7 @@ void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   h5::write_attr(g, "training", std::string_view(list), ctx);
   Provenance prov;
   prov.importer = "prior build";
+  prov.command_line = p.command_line;
   write_provenance(g, prov, options_.command_line, ctx);
 }
 

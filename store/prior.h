@@ -28,6 +28,7 @@ struct PriorTables {
   /// the retro band's exponent per band width 1, 2, ... (> 0), or empty: a prior of version <= 2, written before it
   /// was learned
   std::vector<double> retro_exponents;
+  std::string command_line;  ///< recorded as its provenance; empty: the transaction's
 };
 
 /// Cells per block of a prior's components: add_prior writes (and asks component_blocks for) this many at a time.

@@ -1,7 +1,7 @@
 """Type hints of the specula Python package (docs/python.md)."""
 from os import PathLike
 from types import TracebackType
-from typing import Any, Callable, Iterator, Literal, Sequence, Union, overload
+from typing import Any, Callable, Iterator, Literal, Mapping, Sequence, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -163,6 +163,10 @@ class Store:
                          source: str = "") -> None: ...
     def write_basis(self, name: str, basis: Basis, replace: bool = False) -> None: ...
     def write_grid(self, name: str, grid: Grid, replace: bool = False) -> None: ...
+    def write_prior(self, name: str,
+                    grids: _Path | Store | Sequence[_Path | Store | tuple[str, Grid]] | Mapping[str, Grid], *,
+                    exclude: str | Sequence[str] = (), channels: int = 8, components: int = 0, epsilon: float = 1e-3,
+                    replace: bool = False) -> dict[str, Any]: ...
     def remove(self, name: str) -> None: ...
     def to_xarray(self, name: str, masked: float = ...) -> Any: ...
 

@@ -154,6 +154,56 @@ TEST(Prior, RoundTripsThroughTheStore) {
   EXPECT_NE(m.find("db.h5: no prior 'q' (priors: p"), std::string::npos) << m;
 }
 
+// The grids `prior build` is given: a whole store is all its grids named STORE.h5:GRID (as is an open store), a
+// store's grid streams from it, a grid made is kept, any other spec goes to the caller's loader, and --exclude takes
+// a grid's name or its whole spec; too few grids is refused before any is opened.
+TEST(Prior, TrainingGridsAreNamedAndLeftOutAsPriorBuildTakesThem) {
+  Family f;
+  for (int i = 0; i < 5; ++i) {
+    f.grids.push_back(grid_of(ward(0.1 * i, 0.2, 0.05, 0.1)));
+    f.names.push_back("m" + std::to_string(i));
+  }
+  test::ScratchDir dir;
+  const std::string db = (dir / "db.h5").string();
+  {
+    store::StoreWriter w(db, {});
+    for (std::size_t g = 0; g < 3; ++g) w.add_grid(f.names[g], f.grids[g]);
+    w.commit();
+  }
+  const auto memory = acquire::memory_training_grid(std::make_shared<const store::Grid>(f.grids[3]), f.names[3]);
+  std::vector<std::string> loaded;
+  const auto load = [&](const std::string& spec) {
+    loaded.push_back(spec);
+    return acquire::reloaded_training_grid(spec, [&] { return f.grids[4]; });
+  };
+  const std::vector<acquire::TrainingSource> sources{db, memory, "x.spgrid", db + ":m0", store::Store::open(db)};
+  const std::vector<std::string> exclude{"m1", db + ":m2"};
+  const auto grids = acquire::training_grids(sources, exclude, load, "cmd", "--x");
+  std::vector<std::string> names;
+  for (const auto& g : grids) names.push_back(g.name);
+  EXPECT_EQ(names, (std::vector<std::string>{db + ":m0", "m3", "x.spgrid", db + ":m0", db + ":m0"}));
+  EXPECT_EQ(loaded, std::vector<std::string>{"x.spgrid"});
+  const std::size_t row = std::size_t(brdf::kMerlThetaD) * brdf::kMerlPhiD, bands = kBands.size();
+  std::vector<float> rows(bands * 2 * row), want(rows.size());
+  for (const std::size_t g : {0, 2, 4}) {
+    grids[g].read_rows(7, 2, rows);
+    acquire::memory_training_grid(std::make_shared<const store::Grid>(f.grids[g == 2 ? 4 : 0]), "")
+        .read_rows(7, 2, want);
+    EXPECT_EQ(rows, want) << g;
+  }
+  const std::vector<std::string> most{"m0", "m1", "m2", "m3"};
+  std::string m = test::error_of<UsageError>([&] { acquire::training_grids(sources, most, load, "cmd", "--x"); });
+  EXPECT_EQ(m, "cmd: give at least 2 training grids (after --x)");
+  EXPECT_EQ(loaded.size(), 1u);
+  const std::vector<acquire::TrainingSource> absent{db + ":m0", "nothing.h5:a"};
+  const std::vector<std::string> a{"a"};
+  m = test::error_of<UsageError>([&] { acquire::training_grids(absent, a, load, "cmd", "--x"); });
+  EXPECT_EQ(m, "cmd: give at least 2 training grids (after --x)");
+  const std::vector<acquire::TrainingSource> missing{db + ":m0", db + ":nope"};
+  m = test::error_of([&] { acquire::training_grids(missing, {}, load, "cmd", "--x"); });
+  EXPECT_NE(m.find("db.h5: no grid 'nope'"), std::string::npos) << m;
+}
+
 // Grids whose every valid cell is a positive spectrum times exp(-0.01 theta_h + s(phi_d) theta_d^1.6) (theta_d the
 // row's centre, degrees): each channel's ln value is a line in theta_d^1.6 in every column, so the prior learns 1.6
 // for every band width of two rows or more (one row gives a flat line, a tie: 2), and the store keeps the table.
