@@ -233,10 +233,10 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
     cap = unseen_cap(obs);
     retro_rows = unseen_retro_rows(obs);
   }
-  if (o.ceiling && !o.residuals) {  // the fit no brighter than any training material, but in the unseen retro band
-    std::vector<std::uint8_t> bound(brdf::kMerlCells, 0);
-    for (const std::uint32_t cell : valid_cells()) bound[cell] = !in_unseen_retro(retro_rows, cell);
-    st.bounded_cells = bound_by_ceiling(prior, bound, fitted);
+  if (o.ceiling && !o.residuals) {
+    std::vector<std::uint8_t> unseen(brdf::kMerlCells, 0);
+    for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) unseen[cell] = in_unseen_cap(cap, cell);
+    st.bounded_cells = bound_by_ceiling(prior, unseen, fitted);
   }
   if (!o.retro_weight) retro_rows = 0;  // the band blends as elsewhere
   st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -53,9 +53,8 @@ struct PriorResampleOptions {
   bool log_blend = true;
   /// eps of the log blend, 1/sr (the choice's, judge_epsilon; positive and finite); empty: the prior's epsilon
   std::optional<double> blend_epsilon;
-  /// true: the fit is bounded by the prior's ceiling (bound_by_ceiling) at every cell outside the unseen retro band,
-  /// so that only the samples (the kd-tree's share) can make the result brighter than every training material;
-  /// false, or a prior without a ceiling: not bounded. The residuals form ignores it.
+  /// true: in the unseen cap, where no sample constrains it, the fit is bounded by the prior's ceiling
+  /// (bound_by_ceiling); false, or a prior without a ceiling: not bounded. The residuals form ignores it.
   bool ceiling = true;
 };
 
@@ -64,7 +63,7 @@ struct PriorResampleStats {
   brdf::GridStats local;           ///< the kd-tree pass
   std::size_t observed_cells = 0;  ///< valid cells holding at least one sample (the prior's observations)
   std::size_t filled_cells = 0;    ///< valid cells with data in the result (all of them)
-  std::size_t bounded_cells = 0;   ///< cells whose fit the prior's ceiling scaled down (bound_by_ceiling)
+  std::size_t bounded_cells = 0;   ///< cap cells whose fit the prior's ceiling scaled down (bound_by_ceiling)
   double fit_seconds = 0;
 };
 

@@ -280,8 +280,8 @@ void setup_resample(CLI::App& app) {
                 "--prior: mix the kd-tree estimate and the prior linearly with the weights chosen for the unseen cap "
                 "and retro band, instead of in the log domain the choice judges them in (docs/prior.md)");
   cmd->add_flag("--no-ceiling", o->no_ceiling,
-                "--prior: leave the fit unbounded, instead of no higher than any training material at each cell "
-                "outside the unseen retro band (the prior's ceiling; docs/prior.md)");
+                "--prior: leave the fit unbounded in the unseen cap, instead of no higher than any training material "
+                "at each cell (the prior's ceiling; docs/prior.md)");
   cmd->add_flag("--no-log-residuals", o->no_log_residuals,
                 "--prior: leave the blend as it is, instead of correcting each cell near samples by the mean of their "
                 "log residuals against it over the cells around it (docs/prior.md)");
