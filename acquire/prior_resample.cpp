@@ -238,6 +238,7 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
     for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) unseen[cell] = in_unseen_cap(cap, cell);
     st.bounded_cells = bound_by_ceiling(prior, unseen, fitted);
   }
+  if (o.energy_bound) st.energy_bounded_cells = bound_energy(fitted, b, *o.energy_bound);
   if (!o.retro_weight) retro_rows = 0;  // the band blends as elsewhere
   st.fit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto& cells = valid_cells();

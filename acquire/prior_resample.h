@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "specula/acquire/energy_bound.h"
 #include "specula/acquire/prior.h"
 #include "specula/core/brdf_resample.h"
 
@@ -56,14 +57,18 @@ struct PriorResampleOptions {
   /// true: in the unseen cap, where no sample constrains it, the fit is bounded by the prior's ceiling
   /// (bound_by_ceiling); false, or a prior without a ceiling: not bounded. The residuals form ignores it.
   bool ceiling = true;
+  /// given (the default): the fit is bounded by energy conservation per incident direction (bound_energy,
+  /// acquire/energy_bound.h) after the ceiling, in both forms; empty: not
+  std::optional<EnergyBoundOptions> energy_bound = EnergyBoundOptions{};
 };
 
 /// What one reconstruction with a prior did.
 struct PriorResampleStats {
-  brdf::GridStats local;           ///< the kd-tree pass
-  std::size_t observed_cells = 0;  ///< valid cells holding at least one sample (the prior's observations)
-  std::size_t filled_cells = 0;    ///< valid cells with data in the result (all of them)
-  std::size_t bounded_cells = 0;   ///< cap cells whose fit the prior's ceiling scaled down (bound_by_ceiling)
+  brdf::GridStats local;                 ///< the kd-tree pass
+  std::size_t observed_cells = 0;        ///< valid cells holding at least one sample (the prior's observations)
+  std::size_t filled_cells = 0;          ///< valid cells with data in the result (all of them)
+  std::size_t bounded_cells = 0;         ///< cap cells whose fit the prior's ceiling scaled down (bound_by_ceiling)
+  std::size_t energy_bounded_cells = 0;  ///< cells whose fit the energy bound scaled down (bound_energy)
   double fit_seconds = 0;
 };
 

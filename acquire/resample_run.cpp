@@ -121,7 +121,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
                           .residuals = m.residuals,
                           .prior_in_cap = m.prior_in_cap,
                           .log_blend = m.log_blend,
-                          .ceiling = m.ceiling};
+                          .ceiling = m.ceiling,
+                          .energy_bound = m.energy_bound};
   po.local.k = k.k;
   const StoreSamples src(s, job.samples);
   const ComponentSource components = store_components(prior_store, spec->name);
@@ -150,13 +151,15 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(
-      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={}{} ceiling={} blend={} log_residuals={} {}",
+      "resample prior={} lambda={} prior_weights={} {} prior_in_cap={}{} ceiling={} energy_bound={} blend={} "
+      "log_residuals={} {}",
       m.prior, m.fit.lambda, prior_weights_name(m.fit.weights),
       reach ? reach_provenance(*reach, *m.reach_auto) : fmt::format("confidence_reach={}", m.confidence_reach),
       m.prior_in_cap, cap ? fmt::format(" cap_weight={}", cap->weight) : std::string(),
       !m.ceiling              ? "off"
       : prior.ceiling.empty() ? "none"
                               : "on",
+      m.energy_bound ? fmt::format("kappa={}", m.energy_bound->kappa) : std::string("off"),
       m.log_blend ? fmt::format("log eps={:.3g}", eps) : std::string("linear"),
       corrected ? fmt::format("on radius={} passes={} carried_rows={}", m.log_residuals->radius,
                               m.log_residuals->passes, corrected->carried_rows)
@@ -166,6 +169,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.report = report_head(info, st.filled_cells);
   out.report["observed_cells"] = st.observed_cells;
   out.report["bounded_cells"] = st.bounded_cells;
+  out.report["energy_bounded_cells"] = st.energy_bounded_cells;
   out.report["seconds"] = seconds;
   out.report["fit_seconds"] = st.fit_seconds;
   out.report["prior"] = m.prior;

@@ -34,7 +34,9 @@ struct PriorMethod {
   /// given (the default) with prior_in_cap and not residuals: the kd-tree's weight in the unseen cap is chosen by
   /// rehearsal (acquire/cap_weight.h); empty: the prior alone there
   std::optional<CapWeightOptions> cap_auto = CapWeightOptions{};
-  bool ceiling = true;    ///< the fit in the unseen cells bounded by the prior's ceiling (PriorResampleOptions)
+  bool ceiling = true;  ///< the fit in the unseen cells bounded by the prior's ceiling (PriorResampleOptions)
+  /// given (the default): the fit bounded by energy conservation (PriorResampleOptions)
+  std::optional<EnergyBoundOptions> energy_bound = EnergyBoundOptions{};
   bool log_blend = true;  ///< the chosen weights of the cap and the retro band mix in the log domain (ditto)
   /// given (the default) without residuals: the blend corrected by the samples' log residuals against it
   /// (acquire/log_residual.h), in the domain of the blend's epsilon; empty: the blend as it is

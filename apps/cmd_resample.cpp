@@ -44,6 +44,7 @@ struct ResampleCliOptions {
   bool kd_tree_in_cap = false;
   bool blend_in_retro = false;
   bool no_ceiling = false;
+  bool no_energy_bound = false;
   bool prior_alone_in_cap = false;
   bool linear_blend = false;
   bool no_log_residuals = false;
@@ -153,6 +154,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     if (o.no_retro_continuation && m.reach_auto) m.reach_auto->retro_continued = false;
     if (o.retro_weight_overall && m.reach_auto) m.reach_auto->retro_by_group = false;
     if (o.prior_alone_in_cap) m.cap_auto.reset();
+    if (o.no_energy_bound) m.energy_bound.reset();
     m.log_residuals = o.log_residuals;
     m.log_residuals->into_retro_band = o.log_residuals_in_retro;
     if (o.no_log_residuals) m.log_residuals.reset();
@@ -282,6 +284,9 @@ void setup_resample(CLI::App& app) {
   cmd->add_flag("--no-ceiling", o->no_ceiling,
                 "--prior: leave the fit unbounded in the unseen cap, instead of no higher than any training material "
                 "at each cell (the prior's ceiling; docs/prior.md)");
+  cmd->add_flag("--no-energy-bound", o->no_energy_bound,
+                "--prior: leave the fit's directional albedo unbounded, instead of at most max(1, 2 x the material's "
+                "median albedo) at every incidence (energy conservation; docs/prior.md)");
   cmd->add_flag("--no-log-residuals", o->no_log_residuals,
                 "--prior: leave the blend as it is, instead of correcting each cell near samples by the mean of their "
                 "log residuals against it over the cells around it (docs/prior.md)");
@@ -302,7 +307,8 @@ void setup_resample(CLI::App& app) {
   for (const char* name :
        {"--lambda", "--prior-weights", "--prior-block-mb", "--prior-residuals", "--kd-tree-in-cap", "--blend-in-retro",
         "--prior-alone-in-cap", "--no-retro-continuation", "--retro-weight-overall", "--linear-blend", "--no-ceiling",
-        "--no-log-residuals", "--log-residual-radius", "--log-residuals-in-retro", "--log-residual-passes"})
+        "--no-energy-bound", "--no-log-residuals", "--log-residual-radius", "--log-residuals-in-retro",
+        "--log-residual-passes"})
     prior_only.push_back(cmd->get_option(name));
   for (const char* name : {"--lobes", "--fresnel", "--shadowing"}) model_only.push_back(cmd->get_option(name));
   const CLI::Option* reach = cmd->get_option("--confidence-reach");

@@ -94,6 +94,7 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   // chooses none.
   EXPECT_NE(r.output.find("\"cap_weight_auto\":{\"weight\":"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("\"bounded_cells\":"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\"energy_bounded_cells\":"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("\"blend\":\"log\""), std::string::npos) << r.output;
   EXPECT_GT(test::json_number(r.output, "blend_epsilon"), 0) << r.output;
   // The samples' log residuals correct the blend by default, one pass over 3 x 3 x 3 cells, not carried into the
@@ -110,7 +111,7 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
       << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
                   ":ra' --prior-alone-in-cap --no-ceiling --linear-blend --no-retro-continuation "
-                  "--retro-weight-overall --no-log-residuals --json");
+                  "--retro-weight-overall --no-log-residuals --no-energy-bound --json");
   ASSERT_EQ(r.status, 0) << r.output;
   const double overall = test::json_number(r.output.substr(r.output.find("\"retro_band\"")), "weight");
   for (std::size_t at = r.output.find("\"retro_weight\":"); at != std::string::npos;
@@ -121,6 +122,11 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_EQ(r.output.find("cap_weight_auto"), std::string::npos) << r.output;
   EXPECT_EQ(test::json_number(r.output, "bounded_cells"), 0) << r.output;
   EXPECT_EQ(r.output.find("log_residuals"), std::string::npos) << r.output;
+  // The energy bound is on by default (kappa 2) and off with --no-energy-bound, as the provenance says.
+  const store::Store bounded = store::Store::open(dir / "out.h5");
+  EXPECT_NE(bounded.read_grid("r").provenance.importer.find(" energy_bound=kappa=2 "), std::string::npos);
+  EXPECT_NE(bounded.read_grid("ra").provenance.importer.find(" energy_bound=off "), std::string::npos);
+  EXPECT_EQ(test::json_number(r.output, "energy_bounded_cells"), 0) << r.output;
 
   // Exchange files: the grid and its confidence beside it, and no temporary left.
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "x.spgrid").string() + "'");

@@ -74,6 +74,7 @@ TEST(ResampleCli, SimulatedScanSamplesResampleIntoAStoreOrAGridFile) {
   for (const auto& [args, message] :
        {std::pair<std::string, std::string>{"--lambda 0.1", "--lambda: only with --prior"},
         {"--log-residual-passes 2", "--log-residual-passes: only with --prior"},
+        {"--no-energy-bound", "--no-energy-bound: only with --prior"},
         {"--fresnel dielectric", "--fresnel: only with --model"},
         {"--max-gap 200", "max_gap = 200 degrees: give degrees in (0, 180]"}}) {
     const auto r = run_specula("resample '" + db.string() + "' ok -o '" + db.string() + ":g' " + args);
