@@ -136,15 +136,15 @@ void directional_albedo(std::span<const float> grid, std::size_t bands, std::spa
   check_grid(grid.size(), bands);
   if (out.size() != kAlbedoRows * bands) throw UsageError("energy bound: the albedo needs rows x bands values");
   const AlbedoTable& t = albedo_table();
-  parallel_for(kAlbedoRows, [&](std::size_t r) {
-    row_albedo(t, r, grid, bands, out.subspan(r * bands, bands));
-  });
+  parallel_for(kAlbedoRows, [&](std::size_t r) { row_albedo(t, r, grid, bands, out.subspan(r * bands, bands)); });
 }
 
 std::size_t bound_energy(std::span<float> grid, std::size_t bands, const EnergyBoundOptions& o) {
   check_grid(grid.size(), bands);
-  if (!(o.kappa > 0 && std::isfinite(o.kappa)))
-    throw UsageError("energy bound: kappa (the bound's multiple of the material's median albedo) must be positive");
+  if (!(o.kappa > 0 && std::isfinite(o.kappa) && o.floor > 0 && std::isfinite(o.floor)))
+    throw UsageError(
+        "energy bound: floor (the least albedo bound) and kappa (the bound's multiple of the material's "
+        "median albedo) must be positive");
   std::vector<double> rho(kAlbedoRows * bands);
   directional_albedo(grid, bands, rho);
   std::vector<double> limit(bands);
@@ -153,7 +153,7 @@ std::size_t bound_energy(std::span<float> grid, std::size_t bands, const EnergyB
     std::vector<double> column(below);
     for (std::size_t r = 0; r < below; ++r) column[r] = rho[r * bands + k];
     std::nth_element(column.begin(), column.begin() + below / 2, column.end());
-    limit[k] = std::max(1.0, o.kappa * column[below / 2]);
+    limit[k] = std::max(o.floor, o.kappa * column[below / 2]);
   }
   const AlbedoTable& t = albedo_table();
   std::vector<double> threshold(kAlbedoRows, INFINITY);

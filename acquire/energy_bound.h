@@ -2,10 +2,10 @@
 // Energy conservation as a bound on a fitted BRDF (docs/prior.md, "The energy bound"): where no sample constrains
 // it, a prior's fit can run away (up to 10^4 times the truth at grazing cells of a paint, 10 lights), and the
 // directional albedo rho(theta_i) = integral of f(wi, wo) cos theta_o d wo, at most 1 for a passive material, is
-// where that shows: the runaway's albedo reaches 86 while real materials stay below 1 (every NBRDF material, three
-// of four RGL ones; a saturated orange uplifts to 2.1). The albedo is integrated over the half vector, where the MERL
-// grid resolves a peak (d wo = 4 (wi . h) d wh), on theta_h rows split like the grid's, so a peak of a few cells
-// counts in full.
+// where that shows: the runaway's albedo reaches 86 while real materials stay near or below 1 (the NBRDF materials
+// up to 1.51 at grazing, RGL's up to 2.1 for a saturated orange uplifted past 1). The albedo is integrated over the
+// half vector, where the MERL grid resolves a peak (d wo = 4 (wi . h) d wh), on theta_h rows split like the grid's, so
+// a peak of a few cells counts in full.
 #include <cstddef>
 #include <span>
 #include <vector>
@@ -15,10 +15,12 @@ namespace specula::acquire {
 /// Incidence rows of the albedo: theta_i = (r + 1/2) degrees, r < kAlbedoRows.
 inline constexpr std::size_t kAlbedoRows = 90;
 
-/// The bound rho_k(theta_i) <= max(1, kappa m_k) per band k, m_k the median over theta_i below 60 degrees of the
-/// grid's own albedo: 1 for a passive material in 1/sr, kappa m_k for values in another scale or a material that
+/// The bound rho_k(theta_i) <= max(floor, kappa m_k) per band k, m_k the median over theta_i below 60 degrees of the
+/// grid's own albedo. A passive material in 1/sr stays below 1, but measured ones reach 1.51 at grazing (MERL's
+/// pink-plastic), so the floor leaves room above them; kappa m_k covers values in another scale or a material that
 /// seems brighter (fluorescence, an uplift past 1).
 struct EnergyBoundOptions {
+  double floor = 2;  ///< > 0
   double kappa = 2;  ///< > 0
 };
 
@@ -29,7 +31,7 @@ void directional_albedo(std::span<const float> grid, std::size_t bands, std::spa
 /// Scales the spectrum of every cell whose values push its incidence rows' albedo above the bound down, each by one
 /// factor (its colour kept), the brightest cells first: per row the cells brighter than a threshold are cut to it,
 /// the threshold set so the row meets the bound; a cell in several rows takes its smallest factor. Returns the cells
-/// scaled. UsageError on sizes or kappa.
+/// scaled. UsageError on sizes, floor or kappa.
 std::size_t bound_energy(std::span<float> grid, std::size_t bands, const EnergyBoundOptions& o);
 
 }  // namespace specula::acquire

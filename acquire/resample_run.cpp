@@ -159,7 +159,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
       !m.ceiling              ? "off"
       : prior.ceiling.empty() ? "none"
                               : "on",
-      m.energy_bound ? fmt::format("kappa={}", m.energy_bound->kappa) : std::string("off"),
+      m.energy_bound ? fmt::format("on floor={} kappa={}", m.energy_bound->floor, m.energy_bound->kappa)
+                     : std::string("off"),
       m.log_blend ? fmt::format("log eps={:.3g}", eps) : std::string("linear"),
       corrected ? fmt::format("on radius={} passes={} carried_rows={}", m.log_residuals->radius,
                               m.log_residuals->passes, corrected->carried_rows)

@@ -285,8 +285,8 @@ void setup_resample(CLI::App& app) {
                 "--prior: leave the fit unbounded in the unseen cap, instead of no higher than any training material "
                 "at each cell (the prior's ceiling; docs/prior.md)");
   cmd->add_flag("--no-energy-bound", o->no_energy_bound,
-                "--prior: leave the fit's directional albedo unbounded, instead of at most max(1, 2 x the material's "
-                "median albedo) at every incidence (energy conservation; docs/prior.md)");
+                "--prior: leave the fit's directional albedo unbounded, instead of at most max(2, 2 x the material's "
+                "median albedo) at every incidence, which cuts a runaway fit (docs/prior.md)");
   cmd->add_flag("--no-log-residuals", o->no_log_residuals,
                 "--prior: leave the blend as it is, instead of correcting each cell near samples by the mean of their "
                 "log residuals against it over the cells around it (docs/prior.md)");

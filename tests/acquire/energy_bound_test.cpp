@@ -68,8 +68,8 @@ TEST(DirectionalAlbedo, WardMatchesABruteForceIntegralOverTheOutgoingHemisphere)
 }
 
 TEST(BoundEnergy, LeavesAMaterialWithinTheBoundAsItIs) {
-  for (const std::vector<double>& rho : {std::vector<double>{0.9, 0.4}, std::vector<double>{1.6, 3.0}}) {
-    std::vector<float> g = flat(2, rho);  // the second as if in another scale: its own median bounds it
+  for (const std::vector<double>& rho : {std::vector<double>{1.9, 0.4}, std::vector<double>{1.6, 5.0}}) {
+    std::vector<float> g = flat(2, rho);  // 5.0 as if in another scale: its own median bounds it
     const std::vector<float> before = g;
     EXPECT_EQ(bound_energy(g, 2, {}), 0u);
     EXPECT_EQ(g, before);
@@ -104,15 +104,16 @@ TEST(BoundEnergy, CutsAPlantedRunawayUntilEveryIncidenceMeetsTheBound) {
   }
   EXPECT_EQ(scaled, changed);
   EXPECT_GT(changed, 100u);
-  const std::vector<double> rho = albedo(g, 2);  // the median albedo (0.3) doubled is below 1: the bound is 1
-  for (std::size_t r = 0; r < kAlbedoRows; ++r) EXPECT_LE(rho[r * 2], 1 + 1e-6) << "row " << r;
-  EXPECT_GT(*std::max_element(rho.begin(), rho.end()), 1 - 1e-3);  // cut to the bound, not below it
+  const std::vector<double> rho = albedo(g, 2);  // the median albedo (0.3) doubled is below the floor: the bound is 2
+  for (std::size_t r = 0; r < kAlbedoRows; ++r) EXPECT_LE(rho[r * 2], 2 + 1e-6) << "row " << r;
+  EXPECT_GT(*std::max_element(rho.begin(), rho.end()), 2 - 2e-3);  // cut to the bound, not below it
 }
 
 TEST(BoundEnergy, RefusesBadSizesAndKappa) {
   std::vector<float> g = flat(1, {0.5});
   EXPECT_THROW(bound_energy(std::span<float>(g).first(100), 1, {}), UsageError);
   EXPECT_THROW(bound_energy(g, 1, {.kappa = 0}), UsageError);
+  EXPECT_THROW(bound_energy(g, 1, {.floor = -1}), UsageError);
   std::vector<double> rho(3);
   EXPECT_THROW(directional_albedo(g, 1, rho), UsageError);
 }

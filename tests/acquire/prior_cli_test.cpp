@@ -122,9 +122,9 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_EQ(r.output.find("cap_weight_auto"), std::string::npos) << r.output;
   EXPECT_EQ(test::json_number(r.output, "bounded_cells"), 0) << r.output;
   EXPECT_EQ(r.output.find("log_residuals"), std::string::npos) << r.output;
-  // The energy bound is on by default (kappa 2) and off with --no-energy-bound, as the provenance says.
+  // The energy bound is on by default (floor 2, kappa 2) and off with --no-energy-bound, as the provenance says.
   const store::Store bounded = store::Store::open(dir / "out.h5");
-  EXPECT_NE(bounded.read_grid("r").provenance.importer.find(" energy_bound=kappa=2 "), std::string::npos);
+  EXPECT_NE(bounded.read_grid("r").provenance.importer.find(" energy_bound=on floor=2 kappa=2 "), std::string::npos);
   EXPECT_NE(bounded.read_grid("ra").provenance.importer.find(" energy_bound=off "), std::string::npos);
   EXPECT_EQ(test::json_number(r.output, "energy_bounded_cells"), 0) << r.output;
 
