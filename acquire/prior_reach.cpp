@@ -16,6 +16,7 @@
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/parallel.h"
 
 namespace specula::acquire {
 namespace {
@@ -125,6 +126,36 @@ void choose_band(const PriorObservations& band, std::span<const float> fitted, s
   }
 }
 
+// The blend resample_with_prior makes from the kept samples with the choices of c: the held band's rows at their
+// group's weight of the chosen estimate (kd continued in place when c.retro_continued, plain_kd's as it was before
+// otherwise), the rows above at their group's reach, the fit alone below the band. The cap is blended as elsewhere
+// and neither the ceiling nor the energy bound is applied: the rehearsal judges the band only.
+std::vector<float> rehearsal_blend(std::span<const float> fitted, std::span<const float> kd,
+                                   std::span<const float> plain_kd, std::span<const float> gaps, std::size_t b,
+                                   const ReachChoice& c, double max_gap, bool log) {
+  const std::vector<double> reach = reach_by_theta_h(c), weight = retro_weight_by_theta_h(c);
+  const auto& cells = valid_cells();
+  const auto& cosines = valid_cell_cosines();
+  std::vector<float> out(fitted.begin(), fitted.end());
+  parallel_for(
+      cells.size(),
+      [&](std::size_t i) {
+        const std::size_t cell = cells[i];
+        const brdf::MerlCell m = brdf::merl_cell(cell);
+        if (m.theta_d < c.holdout.band_first || !(kd[cell] >= 0)) return;
+        const bool band = m.theta_d < c.holdout.band_end;
+        const std::span<const float> local = band && !c.retro_continued ? plain_kd : kd;
+        const double w = band ? weight[std::size_t(m.theta_h)]
+                              : support_confidence(gaps[cell], max_gap, reach[std::size_t(m.theta_h)]);
+        for (std::size_t k = 0; k < b; ++k) {
+          const std::size_t at = k * brdf::kMerlCells + cell;
+          out[at] = float(mix_estimates(local[at], fitted[at], w, cosines[i], c.epsilon, band && log));
+        }
+      },
+      4096);
+  return out;
+}
+
 }  // namespace
 
 ReachHoldout reach_holdout(const brdf::SampleSource& src, const ReachOptions& o) {
@@ -224,7 +255,17 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
     out.groups.push_back(std::move(g));
   }
   out.retro_exponent = retro_exponent(prior.retro_exponents, out.holdout.retro_rows);
-  if (!parts[2].cell.empty()) choose_band(parts[2], fitted, kd, b, o.log_blend, r, out);
+  if (!parts[2].cell.empty()) {
+    std::vector<float> plain_kd;  // the band's rows change when the continuation is tried
+    if (r.retro_residuals && r.retro_continued) plain_kd = kd;
+    choose_band(parts[2], fitted, kd, b, o.log_blend, r, out);
+    if (r.retro_residuals) {
+      const std::vector<float> blend =
+          rehearsal_blend(fitted, kd, plain_kd.empty() ? std::span<const float>(kd) : plain_kd, gaps, b, out,
+                          o.local.max_gap, o.log_blend);
+      out.retro_residuals = choose_retro_residuals(kept, parts[2], blend, *r.retro_residuals, out.epsilon);
+    }
+  }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
@@ -254,13 +295,15 @@ nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOption
          {"retro_weight", g.retro_weight ? nlohmann::ordered_json(*g.retro_weight) : nlohmann::ordered_json()},
          {"retro_rows", rows_json(g.retro_rows, "weight")}});
   j["theta_h_groups"] = groups;
-  j["retro_band"] = {{"unseen_rows", c.holdout.retro_rows},
-                     {"held_rows", {c.holdout.band_first, c.holdout.band_end}},
-                     {"weight", c.retro_weight ? nlohmann::ordered_json(*c.retro_weight) : nlohmann::ordered_json()},
-                     {"rows", rows_json(c.retro_rows, "weight")},
-                     {"continued", c.retro_continued},
-                     {"continued_rows", rows_json(c.retro_continued_rows, "weight")},
-                     {"exponent", c.retro_exponent}};
+  j["retro_band"] = {
+      {"unseen_rows", c.holdout.retro_rows},
+      {"held_rows", {c.holdout.band_first, c.holdout.band_end}},
+      {"weight", c.retro_weight ? nlohmann::ordered_json(*c.retro_weight) : nlohmann::ordered_json()},
+      {"rows", rows_json(c.retro_rows, "weight")},
+      {"continued", c.retro_continued},
+      {"continued_rows", rows_json(c.retro_continued_rows, "weight")},
+      {"exponent", c.retro_exponent},
+      {"residual_carry", c.retro_residuals ? retro_residual_json(*c.retro_residuals) : nlohmann::ordered_json()}};
   return j;
 }
 
@@ -291,9 +334,12 @@ std::string reach_provenance(const ReachChoice& c, const ReachOptions& r) {
       "confidence_reach={} reach_by_theta_h={} reach_auto=holdout held_out={} seed={}{}", c.reach, groups, r.held_out,
       r.seed,
       c.retro_weight
-          ? fmt::format(" retro_weight={} retro_by_theta_h={} retro_rows={}{}", *c.retro_weight, band,
+          ? fmt::format(" retro_weight={} retro_by_theta_h={} retro_rows={}{}{}", *c.retro_weight, band,
                         c.holdout.retro_rows,
-                        c.retro_continued ? fmt::format(" retro=continued retro_exponent={}", c.retro_exponent) : "")
+                        c.retro_continued ? fmt::format(" retro=continued retro_exponent={}", c.retro_exponent) : "",
+                        !c.retro_residuals           ? ""
+                        : c.retro_residuals->carried ? " retro_residuals=carried"
+                                                     : " retro_residuals=plain")
           : std::string());
 }
 

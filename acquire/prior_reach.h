@@ -14,6 +14,7 @@
 
 #include "specula/acquire/prior.h"
 #include "specula/acquire/prior_resample.h"
+#include "specula/acquire/retro_residual.h"
 #include "specula/core/brdf_resample.h"
 
 namespace specula::acquire {
@@ -36,6 +37,9 @@ struct ReachOptions {
   std::vector<int> theta_h_groups = {0, 10, 20, 30, 45, 90};
   /// a group with fewer held-out cells (or held band cells) takes the reach (band weight) chosen over all of them
   std::size_t min_group_cells = 200;
+  /// given: whether the samples' log residuals (with these radius and passes) are carried into the band is rehearsed
+  /// on the held band too (acquire/retro_residual.h); empty: not chosen for
+  std::optional<LogResidualOptions> retro_residuals;
 };
 
 /// Which samples the validation holds out.
@@ -89,6 +93,9 @@ struct ReachChoice {
   /// the exponent the band is continued with: the prior's for the band's width (retro_exponent of
   /// acquire/retro_trend.h)
   double retro_exponent = 2;
+  /// the carry of the log residuals into the band rehearsed (ReachOptions::retro_residuals) on the blend the choices
+  /// above make from the kept samples; empty when not asked for or without a held band
+  std::optional<RetroResidualChoice> retro_residuals;
   ReachHoldout holdout;        ///< without its per-sample flags
   std::vector<ReachRow> rows;  ///< one per ladder entry
   double epsilon = 0;          ///< eps of the error: the prior's times min(1, kept cell means' median / reference's)
@@ -100,7 +107,9 @@ struct ReachChoice {
 /// cell, for every ladder r, the mean over bands of (ln((blend cos_i cos_o + eps) / (target cos_i cos_o + eps)))^2,
 /// eps the prior's times min(1, the kept cell means' median cos-weighted band mean / the prior's median reference at
 /// the same cells), target the held-out samples' mean; on all threads, the same for any thread count. UsageError for
-/// bad options or o.residuals (the residuals form is not a blend); errors of reach_holdout and fit_prior.
+/// bad options or o.residuals (the residuals form is not a blend); errors of reach_holdout and fit_prior. With
+/// r.retro_residuals and a held band, the carry of the log residuals into the band is rehearsed on the blend these
+/// choices make from the kept samples (choose_retro_residuals of acquire/retro_residual.h).
 ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPrior& prior,
                                     const PriorResampleOptions& o, const ReachOptions& r);
 /// choose_confidence_reach with the prior's components from `components` block by block (fit_prior).
@@ -117,8 +126,8 @@ std::vector<double> retro_weight_by_theta_h(const ReachChoice& c);
 nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOptions& r);
 
 /// "confidence_reach=R reach_by_theta_h=0-10:R0,... reach_auto=holdout held_out=S seed=N[ retro_weight=W
-/// retro_by_theta_h=0-10:W0,... retro_rows=B[ retro=continued retro_exponent=P]]": how the grid's provenance names the
-/// chosen reaches (and band weights).
+/// retro_by_theta_h=0-10:W0,... retro_rows=B[ retro=continued retro_exponent=P][ retro_residuals=carried|plain]]": how
+/// the grid's provenance names the chosen reaches (and band weights).
 std::string reach_provenance(const ReachChoice& c, const ReachOptions& r);
 
 }  // namespace specula::acquire

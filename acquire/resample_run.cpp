@@ -127,8 +127,12 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   const StoreSamples src(s, job.samples);
   const ComponentSource components = store_components(prior_store, spec->name);
   std::optional<ReachChoice> reach;
+  std::optional<LogResidualOptions> log_residuals = m.residuals ? std::nullopt : m.log_residuals;
   if (m.reach_auto) {
-    reach = choose_confidence_reach(src, prior, components, po, *m.reach_auto);
+    ReachOptions ro = *m.reach_auto;
+    if (m.retro_residuals_auto && log_residuals) ro.retro_residuals = *log_residuals;
+    reach = choose_confidence_reach(src, prior, components, po, ro);
+    if (reach->retro_residuals) log_residuals->into_retro_band = reach->retro_residuals->carried;
     po.confidence_reach = reach->reach;
     po.reach_by_theta_h = reach_by_theta_h(*reach);
     po.retro_weight = reach->retro_weight;
@@ -147,7 +151,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   const PriorResampleStats st = resample_with_prior(src, prior, components, po, out.grid.brdf, confidence);
   const double eps = po.blend_epsilon.value_or(prior.epsilon);
   std::optional<LogResidualStats> corrected;
-  if (m.log_residuals && !m.residuals) corrected = correct_by_log_residuals(src, *m.log_residuals, eps, out.grid.brdf);
+  if (log_residuals) corrected = correct_by_log_residuals(src, *log_residuals, eps, out.grid.brdf);
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(
@@ -162,8 +166,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
       m.energy_bound ? fmt::format("on floor={} kappa={}", m.energy_bound->floor, m.energy_bound->kappa)
                      : std::string("off"),
       m.log_blend ? fmt::format("log eps={:.3g}", eps) : std::string("linear"),
-      corrected ? fmt::format("on radius={} passes={} carried_rows={}", m.log_residuals->radius,
-                              m.log_residuals->passes, corrected->carried_rows)
+      corrected ? fmt::format("on radius={} passes={} carried_rows={}", log_residuals->radius, log_residuals->passes,
+                              corrected->carried_rows)
                 : std::string("off"),
       local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);
@@ -177,7 +181,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.report["confidence_reach"] = po.confidence_reach;
   out.report["blend"] = m.log_blend ? "log" : "linear";
   out.report["blend_epsilon"] = eps;
-  if (corrected) out.report["log_residuals"] = log_residuals_json(*corrected, *m.log_residuals);
+  if (corrected) out.report["log_residuals"] = log_residuals_json(*corrected, *log_residuals);
   if (reach) out.report["confidence_reach_auto"] = reach_choice_json(*reach, *m.reach_auto);
   if (cap) out.report["cap_weight_auto"] = cap_weight_json(*cap);
   add_k_auto(out.report, k);

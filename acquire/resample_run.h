@@ -41,6 +41,9 @@ struct PriorMethod {
   /// given (the default) without residuals: the blend corrected by the samples' log residuals against it
   /// (acquire/log_residual.h), in the domain of the blend's epsilon; empty: the blend as it is
   std::optional<LogResidualOptions> log_residuals = LogResidualOptions{};
+  /// true (the default) with reach_auto and log_residuals: whether the log residuals are carried into the unseen
+  /// retro band is chosen by the reach's rehearsal (acquire/retro_residual.h); false: log_residuals' own setting
+  bool retro_residuals_auto = true;
 };
 
 /// A Lambertian plus microfacet lobes fitted as the base, the kd-tree estimate of the residuals added near samples.

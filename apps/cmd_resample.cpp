@@ -49,6 +49,7 @@ struct ResampleCliOptions {
   bool linear_blend = false;
   bool no_log_residuals = false;
   bool log_residuals_in_retro = false;
+  bool no_log_residuals_in_retro = false;
   acquire::LogResidualOptions log_residuals;
   bool no_retro_continuation = false;
   bool retro_weight_overall = false;
@@ -157,6 +158,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     if (o.no_energy_bound) m.energy_bound.reset();
     m.log_residuals = o.log_residuals;
     m.log_residuals->into_retro_band = o.log_residuals_in_retro;
+    m.retro_residuals_auto = !o.log_residuals_in_retro && !o.no_log_residuals_in_retro;
     if (o.no_log_residuals) m.log_residuals.reset();
     job.method = m;
   } else if (!o.model.empty()) {
@@ -294,9 +296,14 @@ void setup_resample(CLI::App& app) {
                   "--prior: the log residuals are averaged over the cells within this many on each index axis")
       ->capture_default_str()
       ->check(CLI::Range(0, 10));
-  cmd->add_flag("--log-residuals-in-retro", o->log_residuals_in_retro,
-                "--prior: also carry the log residuals' mean at the lowest theta_d row the boxes reach down into the "
-                "unseen retro band (docs/prior.md; measured mixed, so not the default)");
+  auto* in_retro = cmd->add_flag("--log-residuals-in-retro", o->log_residuals_in_retro,
+                                 "--prior: always carry the log residuals' mean at the lowest theta_d row the boxes "
+                                 "reach down into the unseen retro band, instead of as the rehearsal one band higher "
+                                 "chooses (docs/prior.md)");
+  cmd->add_flag("--no-log-residuals-in-retro", o->no_log_residuals_in_retro,
+                "--prior: never carry the log residuals into the unseen retro band, instead of as the rehearsal one "
+                "band higher chooses (docs/prior.md)")
+      ->excludes(in_retro);
   cmd->add_option("--log-residual-passes", o->log_residuals.passes,
                   "--prior: corrections by the log residuals in turn, each against the grid the one before left")
       ->capture_default_str()
@@ -308,7 +315,7 @@ void setup_resample(CLI::App& app) {
        {"--lambda", "--prior-weights", "--prior-block-mb", "--prior-residuals", "--kd-tree-in-cap", "--blend-in-retro",
         "--prior-alone-in-cap", "--no-retro-continuation", "--retro-weight-overall", "--linear-blend", "--no-ceiling",
         "--no-energy-bound", "--no-log-residuals", "--log-residual-radius", "--log-residuals-in-retro",
-        "--log-residual-passes"})
+        "--no-log-residuals-in-retro", "--log-residual-passes"})
     prior_only.push_back(cmd->get_option(name));
   for (const char* name : {"--lobes", "--fresnel", "--shadowing"}) model_only.push_back(cmd->get_option(name));
   const CLI::Option* reach = cmd->get_option("--confidence-reach");

@@ -86,6 +86,7 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(r.output.find("\"retro_cells\":"), std::string::npos) << r.output;  // each theta_h group's band weight
   EXPECT_NE(r.output.find("\"continued\":"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("\"continued_rows\":[]"), std::string::npos) << r.output;
+  const std::string defaults = r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
                   ":rb' --blend-in-retro --json");
   ASSERT_EQ(r.status, 0) << r.output;
@@ -97,10 +98,14 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(r.output.find("\"energy_bounded_cells\":"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("\"blend\":\"log\""), std::string::npos) << r.output;
   EXPECT_GT(test::json_number(r.output, "blend_epsilon"), 0) << r.output;
-  // The samples' log residuals correct the blend by default, one pass over 3 x 3 x 3 cells, not carried into the
-  // retro band; the settings are given on the command line; --no-log-residuals leaves the blend.
-  const std::string lr = r.output.substr(r.output.find("\"log_residuals\":{\"radius\":1,\"passes\":1,"));
-  EXPECT_EQ(test::json_number(lr, "carried_rows"), 0) << r.output;
+  // The samples' log residuals correct the blend by default, one pass over 3 x 3 x 3 cells, carried into the retro
+  // band (its five rows less the radius) when the rehearsal one band higher says so; the settings are given on the
+  // command line; --no-log-residuals leaves the blend.
+  const std::string lr = defaults.substr(defaults.find("\"log_residuals\":{\"radius\":1,\"passes\":1,"));
+  const bool carried = defaults.find("\"residual_carry\":{\"carried\":true,") != std::string::npos;
+  EXPECT_TRUE(carried || defaults.find("\"residual_carry\":{\"carried\":false,") != std::string::npos) << defaults;
+  EXPECT_EQ(test::json_number(lr, "carried_rows"), carried ? 4 : 0) << defaults;
+  EXPECT_NE(r.output.find("\"residual_carry\":null"), std::string::npos) << r.output;  // no band, no rehearsal
   EXPECT_GT(test::json_number(lr, "corrected_cells"), 1000) << r.output;
   EXPECT_LT(test::json_number(lr, "rms_after"), test::json_number(lr, "rms_before")) << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
@@ -122,11 +127,25 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_EQ(r.output.find("cap_weight_auto"), std::string::npos) << r.output;
   EXPECT_EQ(test::json_number(r.output, "bounded_cells"), 0) << r.output;
   EXPECT_EQ(r.output.find("log_residuals"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\"residual_carry\":null"), std::string::npos) << r.output;  // nothing to carry
   // The energy bound is on by default (floor 2, kappa 2) and off with --no-energy-bound, as the provenance says.
   const store::Store bounded = store::Store::open(dir / "out.h5");
   EXPECT_NE(bounded.read_grid("r").provenance.importer.find(" energy_bound=on floor=2 kappa=2 "), std::string::npos);
   EXPECT_NE(bounded.read_grid("ra").provenance.importer.find(" energy_bound=off "), std::string::npos);
+  const std::string said = bounded.read_grid("r").provenance.importer;  // the carry's choice, as the report says
+  EXPECT_NE(said.find(carried ? " retro_residuals=carried " : " retro_residuals=plain "), std::string::npos) << said;
   EXPECT_EQ(test::json_number(r.output, "energy_bounded_cells"), 0) << r.output;
+  for (const char* flag : {"--no-log-residuals-in-retro", "--log-residuals-in-retro"}) {  // forced: not rehearsed
+    r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "forced.h5").string() + ":rn' " +
+                    flag + " --replace --json");
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find("\"residual_carry\":null"), std::string::npos) << r.output;
+    const std::string forced = r.output.substr(r.output.find("\"log_residuals\":{\"radius\":1,"));
+    EXPECT_EQ(test::json_number(forced, "carried_rows"), flag[2] == 'n' ? 0 : 4) << r.output;
+  }
+  r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "forced.h5").string() +
+                  ":rx' --no-log-residuals-in-retro --log-residuals-in-retro");
+  EXPECT_NE(r.status, 0) << r.output;  // the two exclude each other
 
   // Exchange files: the grid and its confidence beside it, and no temporary left.
   r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "x.spgrid").string() + "'");

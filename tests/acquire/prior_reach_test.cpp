@@ -430,3 +430,36 @@ TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {
   omp_set_num_threads(saved);
   for (std::size_t l = 0; l < m; ++l) EXPECT_EQ(one.rows[l].error, c.rows[l].error) << r.ladder[l];
 }
+
+TEST(PriorReach, TheCarryOfTheLogResidualsIsRehearsedOnTheHeldBand) {
+  // A bumped material and a prior without the bump: the fit misses the rise towards the light in and above the band.
+  const Scan s = band_scan(true);
+  const brdf::MemorySamples src(s.angles, s.values, 5);
+  acquire::ReachOptions r;
+  r.retro_residuals = acquire::LogResidualOptions{};
+  const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), {}, r);
+  ASSERT_TRUE(c.retro_residuals);
+  EXPECT_EQ(c.retro_residuals->carried_rows, c.holdout.band_end - 1);  // the kept samples' lowest row less the radius
+  std::vector<std::uint8_t> seen(brdf::kMerlCells, 0);
+  std::size_t cells = 0;  // the band's cells holding a sample, counted here
+  for (std::size_t i = 0; i < s.angles.size() / 4; ++i) {
+    const brdf::StdAngles a{s.angles[4 * i], s.angles[4 * i + 1], s.angles[4 * i + 2], s.angles[4 * i + 3]};
+    if (!(a.theta_i < std::numbers::pi / 2 && a.theta_o < std::numbers::pi / 2)) continue;
+    const std::size_t cell = brdf::merl_index(brdf::merl_cell(a));
+    const int row = brdf::merl_cell(cell).theta_d;
+    if (row >= c.holdout.band_first && row < c.holdout.band_end && !seen[cell]) cells += (seen[cell] = 1);
+  }
+  EXPECT_EQ(c.retro_residuals->cells, cells);
+  // The samples above the band stand above the fit as the band's do: carried, they put it closer.
+  EXPECT_TRUE(c.retro_residuals->carried);
+  EXPECT_LT(c.retro_residuals->error_carried, 0.9 * c.retro_residuals->error_plain);
+  // The other choices are those made without the rehearsal.
+  const acquire::ReachChoice without = acquire::choose_confidence_reach(src, family_prior(), {}, {});
+  EXPECT_FALSE(without.retro_residuals);
+  EXPECT_EQ(without.reach, c.reach);
+  EXPECT_EQ(without.retro_weight, c.retro_weight);
+  EXPECT_EQ(without.retro_continued, c.retro_continued);
+  // Nothing rehearsed without a band.
+  r.retro_ladder.clear();
+  EXPECT_FALSE(acquire::choose_confidence_reach(src, family_prior(), {}, r).retro_residuals);
+}
