@@ -263,6 +263,7 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
       const std::vector<float> blend =
           rehearsal_blend(fitted, kd, plain_kd.empty() ? std::span<const float>(kd) : plain_kd, gaps, b, out,
                           o.local.max_gap, o.log_blend);
+      std::vector<float>().swap(plain_kd);
       out.retro_residuals = choose_retro_residuals(kept, parts[2], blend, *r.retro_residuals, out.epsilon);
     }
   }

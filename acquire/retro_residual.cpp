@@ -12,14 +12,16 @@
 namespace specula::acquire {
 namespace {
 
-// The mean of blend_error of grid over band's cells, in their order.
-double band_error(const PriorObservations& band, std::span<const float> grid, std::size_t b, double eps) {
+// The mean of blend_error over band's cells, in their order, of grid, or of below at theta_d rows under `rows`.
+double band_error(const PriorObservations& band, std::span<const float> grid, std::span<const float> below, int rows,
+                  std::size_t b, double eps) {
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
   double sum = 0;
   for (std::size_t o = 0; o < band.cell.size(); ++o) {
     const std::size_t v = band.cell[o];
-    sum += blend_error(band, o, cells[v], cosines[v], 1.0, grid, grid, b, eps);
+    const std::span<const float> g = brdf::merl_cell(cells[v]).theta_d < rows ? below : grid;
+    sum += blend_error(band, o, cells[v], cosines[v], 1.0, g, g, b, eps);
   }
   return sum / double(band.cell.size());
 }
@@ -39,21 +41,15 @@ RetroResidualChoice choose_retro_residuals(const brdf::SampleSource& kept, const
   without.into_retro_band = false;
   std::vector<float> carried(rehearsal.begin(), rehearsal.end());
   c.carried_rows = correct_by_log_residuals(kept, with, eps, carried).carried_rows;
-  std::vector<float> plain;
-  if (o.passes == 1) {  // one pass takes its residuals against the grid as given: the carry changes its rows only
-    plain = carried;
-    const std::size_t rows = std::size_t(c.carried_rows) * brdf::kMerlPhiD;
-    for (std::size_t column = 0; column < b * brdf::kMerlThetaH; ++column) {
-      const std::size_t first = column * std::size_t(brdf::kMerlThetaD) * brdf::kMerlPhiD;
-      std::copy_n(rehearsal.begin() + std::ptrdiff_t(first), rows, plain.begin() + std::ptrdiff_t(first));
-    }
-  } else {
-    plain.assign(rehearsal.begin(), rehearsal.end());
-    correct_by_log_residuals(kept, without, eps, plain);
-  }
   c.cells = band.cell.size();
-  c.error_carried = band_error(band, carried, b, eps);
-  c.error_plain = band_error(band, plain, b, eps);
+  c.error_carried = band_error(band, carried, carried, 0, b, eps);
+  if (o.passes == 1) {  // one pass takes its residuals against the grid as given: the carry changes its rows only
+    c.error_plain = band_error(band, carried, rehearsal, c.carried_rows, b, eps);
+  } else {
+    std::vector<float> plain(rehearsal.begin(), rehearsal.end());
+    correct_by_log_residuals(kept, without, eps, plain);
+    c.error_plain = band_error(band, plain, plain, 0, b, eps);
+  }
   c.carried = c.error_carried < c.error_plain;
   c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return c;
