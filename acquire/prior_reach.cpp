@@ -264,7 +264,8 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
           rehearsal_blend(fitted, kd, plain_kd.empty() ? std::span<const float>(kd) : plain_kd, gaps, b, out,
                           o.local.max_gap, o.log_blend);
       std::vector<float>().swap(plain_kd);
-      out.retro_residuals = choose_retro_residuals(kept, parts[2], blend, *r.retro_residuals, out.epsilon);
+      out.retro_residuals =
+          choose_retro_residuals(kept, parts[2], blend, out.holdout.band_end, *r.retro_residuals, out.epsilon);
     }
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
