@@ -160,7 +160,8 @@ std::vector<float> rehearsal_blend(std::span<const float> fitted, std::span<cons
 
 ReachHoldout reach_holdout(const brdf::SampleSource& src, const ReachOptions& o) {
   check_reach_options(o);
-  const std::vector<std::int32_t> slots = sample_slots(src);
+  std::vector<std::uint8_t> own_row(src.size());
+  const std::vector<std::int32_t> slots = sample_slots(src, own_row);
   const auto& cells = valid_cells();
   std::vector<std::uint32_t> count(cells.size(), 0);
   for (const std::int32_t v : slots)
@@ -196,12 +197,12 @@ ReachHoldout reach_holdout(const brdf::SampleSource& src, const ReachOptions& o)
   h.held.assign(slots.size(), 0);
   std::vector<std::uint32_t> seen(count.size(), 0);
   for (std::size_t s = 0; s < slots.size(); ++s) {
-    if (slots[s] < 0) continue;
-    const std::size_t v = std::size_t(slots[s]);
-    if (in_band(v))
-      h.held[s] = 2;
-    else if (chosen[v] && seen[v]++ % 2 == 1)
-      h.held[s] = 1;
+    if (own_row[s] < h.band_end && (slots[s] < 0 || own_row[s] >= h.band_first)) {
+      h.held[s] = 2;  // by its own row: a sample whose cell lies below the horizon would feed the kd-tree in the band
+    } else if (slots[s] >= 0) {
+      const std::size_t v = std::size_t(slots[s]);
+      if (chosen[v] && seen[v]++ % 2 == 1) h.held[s] = 1;
+    }
   }
   return h;
 }
@@ -264,8 +265,7 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
           rehearsal_blend(fitted, kd, plain_kd.empty() ? std::span<const float>(kd) : plain_kd, gaps, b, out,
                           o.local.max_gap, o.log_blend);
       std::vector<float>().swap(plain_kd);
-      out.retro_residuals =
-          choose_retro_residuals(kept, parts[2], blend, out.holdout.band_end, *r.retro_residuals, out.epsilon);
+      out.retro_residuals = choose_retro_residuals(kept, parts[2], blend, *r.retro_residuals, out.epsilon);
     }
   }
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -54,9 +54,10 @@ struct ReachHoldout {
 
 /// The held-out cells: round(held_out x the observed valid cells of two or more samples outside the held band) of
 /// those (at least one), by selection sampling seeded by o.seed over them in cell order; each loses its 2nd, 4th, ...
-/// sample in sample order. With a retro ladder and an unseen band of R > 0 theta_d rows, every sample of the rows
-/// [R, min(2R, 90)) is held out too (label 2): the band's extrapolation rehearsed one band higher. UsageError for bad
-/// options, InputError when no valid cell holds two samples.
+/// sample in sample order. With a retro ladder and an unseen band of R > 0 theta_d rows, every sample whose own theta_d
+/// row lies in [R, min(2R, 90)) is held out too (label 2), and every sample below those rows whose cell lies below the
+/// horizon: the band's extrapolation rehearsed one band higher. UsageError for bad options, InputError when no valid
+/// cell holds two samples.
 ReachHoldout reach_holdout(const brdf::SampleSource& src, const ReachOptions& o);
 
 /// One candidate reach and its mean log-domain error over the held-out cells.

@@ -1,16 +1,12 @@
 #include "specula/acquire/retro_residual.h"
 
-#include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <nlohmann/json.hpp>
 #include <vector>
 
 #include "specula/acquire/scan_holdout.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
-#include "specula/core/interrupt.h"
-#include "specula/core/parallel.h"
 
 namespace specula::acquire {
 namespace {
@@ -29,55 +25,28 @@ double band_error(const PriorObservations& band, std::span<const float> grid, st
   return sum / double(band.cell.size());
 }
 
-// Per sample of src, 1 when its own theta_d row is below `rows` (its cell above the horizon or not), else 0.
-std::vector<std::uint8_t> rows_below(const brdf::SampleSource& src, int rows) {
-  const std::size_t n = src.size(), block = std::max<std::size_t>(1, src.block_rows());
-  std::vector<std::uint8_t> low(n, 0);
-  std::vector<double> a;
-  for (std::size_t first = 0; first < n; first += block) {
-    check_interrupt();
-    const std::size_t count = std::min(block, n - first);
-    a.resize(4 * count);
-    src.read_angles(first, count, a);
-    parallel_for(
-        count,
-        [&](std::size_t s) {
-          const brdf::StdAngles at{a[4 * s], a[4 * s + 1], a[4 * s + 2], a[4 * s + 3]};
-          const bool finite = std::isfinite(at.theta_i) && std::isfinite(at.phi_i) && std::isfinite(at.theta_o) &&
-                              std::isfinite(at.phi_o);
-          low[first + s] = finite && brdf::merl_cell(at).theta_d < rows;
-        },
-        4096);
-  }
-  return low;
-}
-
 }  // namespace
 
 RetroResidualChoice choose_retro_residuals(const brdf::SampleSource& kept, const PriorObservations& band,
-                                           std::span<const float> rehearsal, int band_end, const LogResidualOptions& o,
-                                           double eps) {
+                                           std::span<const float> rehearsal, const LogResidualOptions& o, double eps) {
   const std::size_t b = kept.bands();
   if (b == 0 || rehearsal.size() != b * brdf::kMerlCells || band.values.size() != band.cell.size() * b)
     throw UsageError("retro residuals: the rehearsal grid and the held band must be of the samples' bands");
   if (band.cell.empty()) throw InputError("retro residuals: no held band cell to judge the carry at");
-  if (band_end < 1 || band_end > brdf::kMerlThetaD)
-    throw UsageError("retro residuals: band_end (the held band's end row) must lie in [1, 90]");
   const auto t0 = std::chrono::steady_clock::now();
   RetroResidualChoice c;
   LogResidualOptions with = o, without = o;
   with.into_retro_band = true;
   without.into_retro_band = false;
-  const KeptSamples above(kept, rows_below(kept, band_end));  // a sample of a cell below the horizon may lie there
   std::vector<float> carried(rehearsal.begin(), rehearsal.end());
-  c.carried_rows = correct_by_log_residuals(above, with, eps, carried).carried_rows;
+  c.carried_rows = correct_by_log_residuals(kept, with, eps, carried).carried_rows;
   c.cells = band.cell.size();
   c.error_carried = band_error(band, carried, carried, 0, b, eps);
   if (o.passes == 1) {  // one pass takes its residuals against the grid as given: the carry changes its rows only
     c.error_plain = band_error(band, carried, rehearsal, c.carried_rows, b, eps);
   } else {
     std::vector<float> plain(rehearsal.begin(), rehearsal.end());
-    correct_by_log_residuals(above, without, eps, plain);
+    correct_by_log_residuals(kept, without, eps, plain);
     c.error_plain = band_error(band, plain, plain, 0, b, eps);
   }
   c.carried = c.error_carried < c.error_plain;

@@ -23,15 +23,14 @@ struct RetroResidualChoice {
   double seconds = 0;
 };
 
-/// `rehearsal` (bands x kMerlCells) is the blend made without the held band's samples; it is corrected by the log
-/// residuals (o's radius and passes, eps; correct_by_log_residuals) of `kept`'s samples at theta_d rows band_end and
-/// above (their own rows: the holdout keeps a sample whose cell lies below the horizon) once with the carry into the
-/// rows below and once without, and each is judged at the held band's cell means `band` by blend_error
-/// (acquire/scan_holdout.h, the same eps), averaged over band's cells in their order. The same for any thread count.
-/// UsageError on sizes or settings, InputError when band is empty; Interrupted between blocks.
+/// `rehearsal` (bands x kMerlCells) is the blend made from `kept`, the samples without the held band's and those
+/// below it (reach_holdout of acquire/prior_reach.h); it is corrected by their log residuals (o's radius and passes,
+/// eps; correct_by_log_residuals) once with the carry into the rows below them and once without, and each is judged at
+/// the held band's cell means `band` by blend_error (acquire/scan_holdout.h, the same eps), averaged over band's cells
+/// in their order. The same for any thread count. UsageError on sizes or settings, InputError when band is empty;
+/// Interrupted between blocks.
 RetroResidualChoice choose_retro_residuals(const brdf::SampleSource& kept, const PriorObservations& band,
-                                           std::span<const float> rehearsal, int band_end, const LogResidualOptions& o,
-                                           double eps);
+                                           std::span<const float> rehearsal, const LogResidualOptions& o, double eps);
 
 /// What `resample --json` reports of the choice: carried, error_carried, error_plain, cells, carried_rows, seconds.
 nlohmann::ordered_json retro_residual_json(const RetroResidualChoice& c);

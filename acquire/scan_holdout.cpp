@@ -47,8 +47,10 @@ void KeptSamples::gather(std::size_t first, std::size_t count, std::size_t width
                 out.begin() + std::ptrdiff_t(i * width));
 }
 
-std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src) {
+std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src, std::span<std::uint8_t> theta_d_rows) {
   const std::size_t n = src.size(), block = std::max<std::size_t>(1, src.block_rows());
+  if (!theta_d_rows.empty() && theta_d_rows.size() != n)
+    throw UsageError("holdout: give one theta_d row slot per sample, or none");
   std::vector<std::int32_t> slots(n);
   std::vector<double> angles;
   Progress progress("sample cells", n);
@@ -58,6 +60,16 @@ std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src) {
     angles.resize(4 * count);
     src.read_angles(first, count, angles);
     valid_slots(angles, std::span(slots).subspan(first, count));
+    if (!theta_d_rows.empty())
+      parallel_for(
+          count,
+          [&](std::size_t s) {
+            const brdf::StdAngles a{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]};
+            const bool finite = std::isfinite(a.theta_i) && std::isfinite(a.phi_i) && std::isfinite(a.theta_o) &&
+                                std::isfinite(a.phi_o);
+            theta_d_rows[first + s] = std::uint8_t(finite ? brdf::merl_cell(a).theta_d : brdf::kMerlThetaD);
+          },
+          4096);
     progress.advance(count);
   }
   return slots;

@@ -32,9 +32,10 @@ class KeptSamples final : public brdf::SampleSource {
   std::vector<std::uint32_t> kept_;
 };
 
-/// Each sample's position in valid_cells() (or -1), its angles read in the source's blocks; Interrupted between
-/// blocks.
-std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src);
+/// Each sample's position in valid_cells() (or -1), its angles read in the source's blocks; with theta_d_rows (one
+/// per sample) each sample's own theta_d row too, whether its cell lies above the horizon or not (kMerlThetaD for
+/// angles not finite). UsageError on theta_d_rows' size; Interrupted between blocks.
+std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src, std::span<std::uint8_t> theta_d_rows = {});
 
 /// The mean over bands of (ln((blend cc + eps) / (target cc + eps)))^2 at observation o of obs (MERL cell `cell`),
 /// blend = mix_estimates(kd, fitted, c, cc, eps, log) (prior_resample.h), target the observation's values, cc the

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <random>
 
 #include "specula/core/brdf_geometry.h"
@@ -189,6 +190,53 @@ TEST(PriorReach, TheRetroBandsWeightIsChosenByTheBandOneHigher) {
   const acquire::ReachChoice cp = acquire::choose_confidence_reach(with_src, bumped_prior(), {}, plain);
   EXPECT_FALSE(cp.retro_weight);
   EXPECT_EQ(cp.holdout.band_end, cp.holdout.band_first);
+}
+
+TEST(PriorReach, SamplesOfCellsBelowTheHorizonAreHeldOutByTheirOwnRow) {
+  // A sample may lie above the horizon while the centre of its MERL cell does not, so its cell gives it no slot; at
+  // the held band's rows or below them it must still leave the kd-tree, as the band's other samples do. Planted near
+  // grazing at 100 times the material's value, every such sample is held out and the choice is the one made without
+  // them, bit for bit.
+  const Scan base = band_scan(true);
+  Scan s = base;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0, 1);
+  const double deg = std::numbers::pi / 180;
+  std::size_t planted = 0, below_band = 0;
+  std::vector<std::size_t> rows;  // each planted sample's theta_d row, written out here
+  while (planted < 3000) {
+    const brdf::HalfDiff hd{.theta_h = (70 + 20 * u(rng)) * deg,
+                            .phi_h = 0,
+                            .theta_d = 10 * u(rng) * deg,
+                            .phi_d = 2 * std::numbers::pi * u(rng)};
+    Eigen::Vector3d wi, wo;
+    brdf::directions(hd, wi, wo);
+    const brdf::StdAngles a = brdf::std_angles(hd);
+    const brdf::MerlCell cell = brdf::merl_cell(a);
+    if (!(wi.z() > 0 && wo.z() > 0) || brdf::merl_cell_valid(cell)) continue;  // above the horizon, its cell not
+    s.angles.insert(s.angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
+    for (std::size_t k = 0; k < 5; ++k) s.values.push_back(100.0f * s.values[k]);
+    rows.push_back(std::size_t(cell.theta_d));
+    below_band += cell.theta_d < 5;
+    ++planted;
+  }
+  EXPECT_GT(below_band, 500u);
+  const brdf::MemorySamples src(s.angles, s.values, 5), base_src(base.angles, base.values, 5);
+  const acquire::ReachHoldout h = acquire::reach_holdout(src, {});
+  ASSERT_EQ(h.band_end, 10);
+  const std::size_t first = base.angles.size() / 4;
+  for (std::size_t i = 0; i < planted; ++i)
+    ASSERT_EQ(h.held[first + i], 2) << "planted sample " << i << " in theta_d row " << rows[i];
+  acquire::ReachOptions r;
+  r.retro_residuals = acquire::LogResidualOptions{};
+  const acquire::ReachChoice c = acquire::choose_confidence_reach(src, bumped_prior(), {}, r);
+  const acquire::ReachChoice want = acquire::choose_confidence_reach(base_src, bumped_prior(), {}, r);
+  EXPECT_EQ(c.reach, want.reach);
+  ASSERT_EQ(c.retro_rows.size(), want.retro_rows.size());
+  for (std::size_t l = 0; l < c.retro_rows.size(); ++l) EXPECT_EQ(c.retro_rows[l].error, want.retro_rows[l].error);
+  ASSERT_TRUE(c.retro_residuals && want.retro_residuals);
+  EXPECT_EQ(c.retro_residuals->error_carried, want.retro_residuals->error_carried);
+  EXPECT_EQ(c.retro_residuals->error_plain, want.retro_residuals->error_plain);
 }
 
 TEST(PriorReach, EachThetaHGroupTakesItsOwnWeightInTheBand) {

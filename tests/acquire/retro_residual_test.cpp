@@ -2,7 +2,8 @@
 // a rehearsal grid at half a Lambertian material's value everywhere is put right in the held band only by the carry,
 // which is chosen; one right in the band and low above it is spoilt by the carry, which is not chosen; the errors
 // equal the squared log ratio written out here at the cells each version leaves at half or doubles; two passes
-// choose as one; samples below the band's end are left out; 1 and 2 threads give the same numbers; sizes are checked.
+// choose as one; 1 and 2 threads give the same numbers; sizes are checked. That the samples below the band's end are
+// held out of `kept`, whatever their cells, is reach_holdout's (tests/acquire/prior_reach_test.cpp).
 #include "specula/acquire/retro_residual.h"
 
 #include <gtest/gtest.h>
@@ -10,7 +11,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 #include <random>
 #include <vector>
 
@@ -92,7 +92,7 @@ TEST(RetroResidual, TheCarryIsChosenWhereItPutsTheBandRight) {
   ASSERT_GT(band.cell.size(), 2000u);
   const std::vector<float> half = rehearsal([](int) { return 0.5f; }, 0.5f);
   for (const int radius : {0, 1, 2}) {
-    const RetroResidualChoice c = choose_retro_residuals(src, band, half, kBandEnd, {.radius = radius}, kEps);
+    const RetroResidualChoice c = choose_retro_residuals(src, band, half, {.radius = radius}, kEps);
     const int carried = k.lowest - radius;  // rows [0, carried) take the lowest reached row's correction
     EXPECT_EQ(c.carried_rows, carried);
     EXPECT_EQ(c.cells, band.cell.size());
@@ -110,7 +110,7 @@ TEST(RetroResidual, TheCarryIsNotChosenWhereTheBandWasRightAlready) {
   const PriorObservations band = held_band();
   // Right below row 10, half above it: the samples say double, which the carry takes into the band.
   const std::vector<float> g = rehearsal([](int) { return 1.0f; }, 0.5f);
-  const RetroResidualChoice c = choose_retro_residuals(src, band, g, kBandEnd, {.radius = 1}, kEps);
+  const RetroResidualChoice c = choose_retro_residuals(src, band, g, {.radius = 1}, kEps);
   EXPECT_FALSE(c.carried);
   EXPECT_NEAR(c.error_carried, kLn2Sq, 1e-6);  // every band cell doubled
   EXPECT_NEAR(c.error_plain, kLn2Sq * share(band, [](int row) { return row >= kBandEnd - 1; }), 1e-6);
@@ -125,43 +125,19 @@ TEST(RetroResidual, TwoPassesChooseAsOneAndThreadsDoNotMatter) {
   std::vector<float> factor(kBandEnd);
   for (float& f : factor) f = std::uniform_real_distribution<float>(0.3f, 1.5f)(rng);
   const std::vector<float> g = rehearsal([&](int row) { return factor[std::size_t(row)]; }, 0.5f);
-  const RetroResidualChoice one = choose_retro_residuals(src, band, g, kBandEnd, {.radius = 1, .passes = 1}, kEps);
-  const RetroResidualChoice two = choose_retro_residuals(src, band, g, kBandEnd, {.radius = 1, .passes = 2}, kEps);
+  const RetroResidualChoice one = choose_retro_residuals(src, band, g, {.radius = 1, .passes = 1}, kEps);
+  const RetroResidualChoice two = choose_retro_residuals(src, band, g, {.radius = 1, .passes = 2}, kEps);
   EXPECT_EQ(one.carried, two.carried);
   EXPECT_NEAR(one.error_plain, two.error_plain, 1e-6);  // the second pass finds nothing left to correct
   EXPECT_NEAR(one.error_carried, two.error_carried, 1e-6);
   const int threads = omp_get_max_threads();
   omp_set_num_threads(1);
-  const RetroResidualChoice serial = choose_retro_residuals(src, band, g, kBandEnd, {.radius = 1}, kEps);
+  const RetroResidualChoice serial = choose_retro_residuals(src, band, g, {.radius = 1}, kEps);
   omp_set_num_threads(2);
-  const RetroResidualChoice parallel = choose_retro_residuals(src, band, g, kBandEnd, {.radius = 1}, kEps);
+  const RetroResidualChoice parallel = choose_retro_residuals(src, band, g, {.radius = 1}, kEps);
   omp_set_num_threads(threads);
   EXPECT_EQ(serial.error_plain, parallel.error_plain);
   EXPECT_EQ(serial.error_carried, parallel.error_carried);
-}
-
-TEST(RetroResidual, SamplesBelowTheBandsEndAreLeftOut) {
-  // The holdout keeps a sample whose cell lies below the horizon, whatever its row: such samples in the band must not
-  // lower the row the carry starts from. Planted at every 50th band cell, four times too bright, they change nothing.
-  Kept k = kept_samples();
-  for (std::uint32_t c = 0; c < kCells; c += 50) {
-    const brdf::MerlCell m = brdf::merl_cell(c);
-    if (m.theta_d < kBandFirst || m.theta_d >= kBandEnd) continue;
-    const brdf::StdAngles a = brdf::std_angles(brdf::merl_cell_centre(m));
-    if (!(a.theta_i < std::numbers::pi / 2 && a.theta_o < std::numbers::pi / 2)) continue;
-    k.angles.insert(k.angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
-    for (const float r : kRho) k.values.push_back(4 * r);
-  }
-  const Kept clean = kept_samples();
-  ASSERT_GT(k.angles.size(), clean.angles.size() + 4000);
-  const brdf::MemorySamples src(k.angles, k.values, kBands), clean_src(clean.angles, clean.values, kBands);
-  const PriorObservations band = held_band();
-  const std::vector<float> half = rehearsal([](int) { return 0.5f; }, 0.5f);
-  const RetroResidualChoice c = choose_retro_residuals(src, band, half, kBandEnd, {.radius = 1}, kEps);
-  const RetroResidualChoice want = choose_retro_residuals(clean_src, band, half, kBandEnd, {.radius = 1}, kEps);
-  EXPECT_EQ(c.carried_rows, kBandEnd - 1);
-  EXPECT_EQ(c.error_carried, want.error_carried);
-  EXPECT_EQ(c.error_plain, want.error_plain);
 }
 
 TEST(RetroResidual, SizesAndSettingsAreChecked) {
@@ -169,12 +145,10 @@ TEST(RetroResidual, SizesAndSettingsAreChecked) {
   const brdf::MemorySamples src(k.angles, k.values, kBands);
   const PriorObservations band = held_band();
   const std::vector<float> g = rehearsal([](int) { return 1.0f; }, 1.0f);
-  EXPECT_THROW(choose_retro_residuals(src, band, std::span<const float>(g).first(kCells), kBandEnd, {}, kEps),
-               UsageError);
-  EXPECT_THROW(choose_retro_residuals(src, PriorObservations{}, g, kBandEnd, {}, kEps), InputError);
-  EXPECT_THROW(choose_retro_residuals(src, band, g, kBandEnd, {.radius = -1}, kEps), UsageError);
-  EXPECT_THROW(choose_retro_residuals(src, band, g, kBandEnd, {}, 0.0), UsageError);
-  EXPECT_THROW(choose_retro_residuals(src, band, g, 0, {}, kEps), UsageError);
+  EXPECT_THROW(choose_retro_residuals(src, band, std::span<const float>(g).first(kCells), {}, kEps), UsageError);
+  EXPECT_THROW(choose_retro_residuals(src, PriorObservations{}, g, {}, kEps), InputError);
+  EXPECT_THROW(choose_retro_residuals(src, band, g, {.radius = -1}, kEps), UsageError);
+  EXPECT_THROW(choose_retro_residuals(src, band, g, {}, 0.0), UsageError);
 }
 
 }  // namespace
