@@ -126,13 +126,29 @@ void choose_band(const PriorObservations& band, std::span<const float> fitted, s
   }
 }
 
+// Copies the theta_d rows [first, end) of grid (bands x kMerlCells) into rows, or back into grid when `back`.
+void copy_theta_d_rows(std::span<float> grid, std::size_t b, int first, int end, std::vector<float>& rows, bool back) {
+  rows.resize(b * std::size_t(brdf::kMerlThetaH) * std::size_t(end - first) * brdf::kMerlPhiD);
+  std::size_t at = 0;
+  for (std::size_t k = 0; k < b; ++k)
+    for (int h = 0; h < brdf::kMerlThetaH; ++h)
+      for (int d = first; d < end; ++d) {
+        float* row = grid.data() + k * brdf::kMerlCells + brdf::merl_index({h, d, 0});
+        if (back)
+          std::copy_n(rows.data() + at, brdf::kMerlPhiD, row);
+        else
+          std::copy_n(row, brdf::kMerlPhiD, rows.data() + at);
+        at += brdf::kMerlPhiD;
+      }
+}
+
 // The blend resample_with_prior makes from the kept samples with the choices of c: the held band's rows at their
-// group's weight of the chosen estimate (kd continued in place when c.retro_continued, plain_kd's as it was before
-// otherwise), the rows above at their group's reach, the fit alone below the band. The cap is blended as elsewhere
-// and neither the ceiling nor the energy bound is applied: the rehearsal judges the band only.
+// group's weight of the chosen estimate kd (continued or not, as c says), the rows above at their group's reach, the
+// fit alone below the band. The cap is blended as elsewhere and neither the ceiling nor the energy bound is applied:
+// the rehearsal judges the band only.
 std::vector<float> rehearsal_blend(std::span<const float> fitted, std::span<const float> kd,
-                                   std::span<const float> plain_kd, std::span<const float> gaps, std::size_t b,
-                                   const ReachChoice& c, double max_gap, bool log) {
+                                   std::span<const float> gaps, std::size_t b, const ReachChoice& c, double max_gap,
+                                   bool log) {
   const std::vector<double> reach = reach_by_theta_h(c), weight = retro_weight_by_theta_h(c);
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
@@ -144,12 +160,11 @@ std::vector<float> rehearsal_blend(std::span<const float> fitted, std::span<cons
         const brdf::MerlCell m = brdf::merl_cell(cell);
         if (m.theta_d < c.holdout.band_first || !(kd[cell] >= 0)) return;
         const bool band = m.theta_d < c.holdout.band_end;
-        const std::span<const float> local = band && !c.retro_continued ? plain_kd : kd;
         const double w = band ? weight[std::size_t(m.theta_h)]
                               : support_confidence(gaps[cell], max_gap, reach[std::size_t(m.theta_h)]);
         for (std::size_t k = 0; k < b; ++k) {
           const std::size_t at = k * brdf::kMerlCells + cell;
-          out[at] = float(mix_estimates(local[at], fitted[at], w, cosines[i], c.epsilon, band && log));
+          out[at] = float(mix_estimates(kd[at], fitted[at], w, cosines[i], c.epsilon, band && log));
         }
       },
       4096);
@@ -257,14 +272,14 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
   }
   out.retro_exponent = retro_exponent(prior.retro_exponents, out.holdout.retro_rows);
   if (!parts[2].cell.empty()) {
-    std::vector<float> plain_kd;  // the band's rows change when the continuation is tried
-    if (r.retro_residuals && r.retro_continued) plain_kd = kd;
+    const int first = out.holdout.band_first, end = out.holdout.band_end;
+    std::vector<float> plain_rows;  // the kd-tree's band rows, which trying the continuation overwrites
+    if (r.retro_residuals && r.retro_continued) copy_theta_d_rows(kd, b, first, end, plain_rows, false);
     choose_band(parts[2], fitted, kd, b, o.log_blend, r, out);
     if (r.retro_residuals) {
-      const std::vector<float> blend =
-          rehearsal_blend(fitted, kd, plain_kd.empty() ? std::span<const float>(kd) : plain_kd, gaps, b, out,
-                          o.local.max_gap, o.log_blend);
-      std::vector<float>().swap(plain_kd);
+      if (!plain_rows.empty() && !out.retro_continued) copy_theta_d_rows(kd, b, first, end, plain_rows, true);
+      std::vector<float>().swap(plain_rows);
+      const std::vector<float> blend = rehearsal_blend(fitted, kd, gaps, b, out, o.local.max_gap, o.log_blend);
       out.retro_residuals = choose_retro_residuals(kept, parts[2], blend, *r.retro_residuals, out.epsilon);
     }
   }
