@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <numbers>
+#include <vector>
 
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"

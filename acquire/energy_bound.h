@@ -8,7 +8,6 @@
 // a peak of a few cells counts in full.
 #include <cstddef>
 #include <span>
-#include <vector>
 
 namespace specula::acquire {
 
