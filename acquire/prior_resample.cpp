@@ -93,16 +93,22 @@ void check_prior_resample(const brdf::SampleSource& src, const BrdfPrior& prior,
 
 }  // namespace
 
-void valid_slots(std::span<const double> angles, std::span<std::int32_t> out) {
-  if (angles.size() != 4 * out.size()) throw UsageError("prior: angles and slots of different sizes");
+void valid_slots(std::span<const double> angles, std::span<std::int32_t> out, std::span<std::uint8_t> theta_d_rows) {
+  if (angles.size() != 4 * out.size() || !(theta_d_rows.empty() || theta_d_rows.size() == out.size()))
+    throw UsageError("prior: angles, slots and theta_d rows of different sizes");
   const auto& slot = valid_slot();
+  const bool rows = !theta_d_rows.empty();
   parallel_for(
       out.size(),
       [&](std::size_t s) {
         const brdf::StdAngles a{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]};
         const bool ok = std::isfinite(a.theta_i) && std::isfinite(a.theta_o) && a.theta_i < std::numbers::pi / 2 &&
                         a.theta_o < std::numbers::pi / 2;
-        out[s] = ok ? slot[brdf::merl_index(brdf::merl_cell(a))] : -1;
+        const bool finite =
+            std::isfinite(a.theta_i) && std::isfinite(a.phi_i) && std::isfinite(a.theta_o) && std::isfinite(a.phi_o);
+        const brdf::MerlCell c = ok || (rows && finite) ? brdf::merl_cell(a) : brdf::MerlCell{};
+        out[s] = ok ? slot[brdf::merl_index(c)] : -1;
+        if (rows) theta_d_rows[s] = std::uint8_t(finite ? c.theta_d : brdf::kMerlThetaD);
       },
       4096);
 }

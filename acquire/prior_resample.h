@@ -105,7 +105,9 @@ PriorObservations cell_means(const brdf::SampleSource& src, bool use_variance = 
 std::vector<PriorObservations> cell_means(const brdf::SampleSource& src, bool use_variance,
                                           std::span<const std::uint8_t> part, std::size_t parts);
 /// Per sample (angles n x 4, radians) its valid cell's position in valid_cells(), or -1 (a direction below the
-/// horizon or not finite) into out (n values); on all threads.
-void valid_slots(std::span<const double> angles, std::span<std::int32_t> out);
+/// horizon or not finite) into out (n values), and with theta_d_rows (n values) its own theta_d row, whether its cell
+/// lies above the horizon or not (kMerlThetaD for angles not finite); on all threads. UsageError on sizes.
+void valid_slots(std::span<const double> angles, std::span<std::int32_t> out,
+                 std::span<std::uint8_t> theta_d_rows = {});
 
 }  // namespace specula::acquire

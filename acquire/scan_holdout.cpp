@@ -59,17 +59,8 @@ std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src, std::span<
     const std::size_t count = std::min(block, n - first);
     angles.resize(4 * count);
     src.read_angles(first, count, angles);
-    valid_slots(angles, std::span(slots).subspan(first, count));
-    if (!theta_d_rows.empty())
-      parallel_for(
-          count,
-          [&](std::size_t s) {
-            const brdf::StdAngles a{angles[4 * s], angles[4 * s + 1], angles[4 * s + 2], angles[4 * s + 3]};
-            const bool finite = std::isfinite(a.theta_i) && std::isfinite(a.phi_i) && std::isfinite(a.theta_o) &&
-                                std::isfinite(a.phi_o);
-            theta_d_rows[first + s] = std::uint8_t(finite ? brdf::merl_cell(a).theta_d : brdf::kMerlThetaD);
-          },
-          4096);
+    valid_slots(angles, std::span(slots).subspan(first, count),
+                theta_d_rows.empty() ? theta_d_rows : theta_d_rows.subspan(first, count));
     progress.advance(count);
   }
   return slots;
