@@ -238,6 +238,7 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
     fit_prior(prior, components, obs, o.fit, fitted);
     cap = unseen_cap(obs);
     retro_rows = unseen_retro_rows(obs);
+    st.unseen_retro_rows = retro_rows;
   }
   if (o.ceiling && !o.residuals) {
     std::vector<std::uint8_t> unseen(brdf::kMerlCells, 0);

@@ -69,6 +69,7 @@ struct PriorResampleStats {
   std::size_t filled_cells = 0;          ///< valid cells with data in the result (all of them)
   std::size_t bounded_cells = 0;         ///< cap cells whose fit the prior's ceiling scaled down (bound_by_ceiling)
   std::size_t energy_bounded_cells = 0;  ///< cells whose fit the energy bound scaled down (bound_energy)
+  int unseen_retro_rows = 0;             ///< theta_d rows below the lowest observed cell's (unseen_retro_rows)
   double fit_seconds = 0;
 };
 

@@ -44,6 +44,9 @@ struct PriorMethod {
   /// true (the default) with reach_auto and log_residuals: whether the log residuals are carried into the unseen
   /// retro band is chosen by the reach's rehearsal (acquire/retro_residual.h); false: log_residuals' own setting
   bool retro_residuals_auto = true;
+  /// true (the default): the unseen retro band's phi_d dependence settled as reciprocity asks at theta_d = 0
+  /// (settle_retro_pole, acquire/retro_band.h), after everything else
+  bool retro_pole = true;
 };
 
 /// A Lambertian plus microfacet lobes fitted as the base, the kd-tree estimate of the residuals added near samples.

@@ -1,7 +1,11 @@
 #include "specula/acquire/retro_band.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <numbers>
+#include <string>
+#include <vector>
 
 #include "specula/acquire/retro_trend.h"
 #include "specula/core/brdf_geometry.h"
@@ -47,6 +51,41 @@ void continue_retro(std::span<const float> grid, std::size_t bands, int first, i
         }
       },
       256);
+}
+
+std::size_t settle_retro_pole(std::span<float> grid, std::size_t bands, int rows) {
+  if (grid.size() != bands * brdf::kMerlCells) throw UsageError("retro pole: a grid of bands x MERL cells needed");
+  if (rows < 0 || rows >= brdf::kMerlThetaD)
+    throw UsageError("retro pole: rows " + std::to_string(rows) + " must be in [0, " +
+                     std::to_string(brdf::kMerlThetaD) + ")");
+  const auto sin2 = [](int r) { return std::pow(std::sin((r + 0.5) * std::numbers::pi / 180), 2); };
+  std::vector<std::uint32_t> settled(std::size_t(brdf::kMerlThetaH) * std::size_t(rows), 0);
+  parallel_for(
+      settled.size(),
+      [&](std::size_t task) {
+        const int h = int(task / std::size_t(rows)), r = int(task % std::size_t(rows));
+        const double keep = sin2(r) / sin2(rows);
+        const std::size_t first = brdf::merl_index({.theta_h = h, .theta_d = r, .phi_d = 0});
+        std::array<bool, brdf::kMerlPhiD> moved{};
+        for (std::size_t k = 0; k < bands; ++k) {
+          float* row = grid.data() + k * brdf::kMerlCells + first;
+          double sum = 0;
+          int n = 0;
+          for (int p = 0; p < brdf::kMerlPhiD; ++p)
+            if (row[p] > 0) sum += std::log(double(row[p])), ++n;
+          const double mean = n > 0 ? sum / n : 0.0;
+          for (int p = 0; p < brdf::kMerlPhiD; ++p)
+            if (row[p] > 0) {
+              row[p] = float(std::exp(mean + keep * (std::log(double(row[p])) - mean)));
+              moved[std::size_t(p)] = true;
+            }
+        }
+        settled[task] = std::uint32_t(std::ranges::count(moved, true));
+      },
+      8);
+  std::size_t cells = 0;
+  for (const std::uint32_t c : settled) cells += c;
+  return cells;
 }
 
 }  // namespace specula::acquire

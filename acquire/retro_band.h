@@ -31,4 +31,11 @@ bool in_unseen_retro(int rows, std::size_t cell);
 void continue_retro(std::span<const float> grid, std::size_t bands, int first, int count, double exponent,
                     std::span<float> out);
 
+/// Reciprocity at the pole: at theta_d = 0 every phi_d names the same pair of directions, and a BRDF even in the
+/// difference vector leaves it as sin^2 theta_d. In every band and theta_h row of theta_d rows [0, rows), each cell
+/// with a value > 0 has ln v drawn towards the mean of ln v over the row's cells > 0, keeping the share
+/// sin^2(theta_d) / sin^2(theta_d of row `rows`) of its departure (row centres). Cells <= 0 or below the horizon are
+/// left. Returns the cells settled (those > 0 in some band). UsageError on sizes or rows outside [0, kMerlThetaD).
+std::size_t settle_retro_pole(std::span<float> grid, std::size_t bands, int rows);
+
 }  // namespace specula::acquire
