@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <numbers>
+#include <numeric>
 #include <string>
 #include <vector>
 
@@ -58,8 +59,8 @@ std::size_t settle_retro_pole(std::span<float> grid, std::size_t bands, int rows
   if (rows < 0 || rows >= brdf::kMerlThetaD)
     throw UsageError("retro pole: rows " + std::to_string(rows) + " must be in [0, " +
                      std::to_string(brdf::kMerlThetaD) + ")");
-  const auto sin2 = [](int r) { return std::pow(std::sin((r + 0.5) * std::numbers::pi / 180), 2); };
-  std::vector<std::uint32_t> settled(std::size_t(brdf::kMerlThetaH) * std::size_t(rows), 0);
+  const auto sin2 = [](int r) { return std::pow(std::sin(retro_row_centre(r) * std::numbers::pi / 180), 2); };
+  std::vector<std::size_t> settled(std::size_t(brdf::kMerlThetaH) * std::size_t(rows), 0);
   parallel_for(
       settled.size(),
       [&](std::size_t task) {
@@ -80,12 +81,10 @@ std::size_t settle_retro_pole(std::span<float> grid, std::size_t bands, int rows
               moved[std::size_t(p)] = true;
             }
         }
-        settled[task] = std::uint32_t(std::ranges::count(moved, true));
+        settled[task] = std::size_t(std::ranges::count(moved, true));
       },
       8);
-  std::size_t cells = 0;
-  for (const std::uint32_t c : settled) cells += c;
-  return cells;
+  return std::accumulate(settled.begin(), settled.end(), std::size_t(0));
 }
 
 }  // namespace specula::acquire

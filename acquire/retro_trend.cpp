@@ -61,7 +61,7 @@ TrendLine shrunk_line(std::span<const double> x, std::span<const double> y) {
   return l;
 }
 
-double retro_abscissa(int r, double exponent) { return std::pow(r + 0.5, exponent); }
+double retro_abscissa(int r, double exponent) { return std::pow(retro_row_centre(r), exponent); }
 
 double retro_exponent(std::span<const double> exponents, int rows) {
   if (exponents.empty()) return 2.0;

@@ -19,7 +19,10 @@ struct TrendLine {
 /// standard error; more than 2 points): a trend lost in the noise stays flat.
 TrendLine shrunk_line(std::span<const double> x, std::span<const double> y);
 
-/// The abscissa of theta_d row r: its centre (r + 0.5 degrees) to the power `exponent`.
+/// The centre of MERL theta_d row r in degrees: r + 0.5.
+constexpr double retro_row_centre(int r) { return r + 0.5; }
+
+/// The abscissa of theta_d row r: retro_row_centre(r) to the power `exponent`.
 double retro_abscissa(int r, double exponent);
 
 /// The exponent of a band of `rows` theta_d rows in the table `exponents` (one per width 1, 2, ...; wider bands take
