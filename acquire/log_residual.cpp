@@ -5,6 +5,8 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <numbers>
+#include <numeric>
+#include <string>
 #include <vector>
 
 #include "specula/acquire/prior.h"
@@ -119,6 +121,21 @@ double add_residuals(const brdf::SampleSource& src, std::span<const float> grid,
   return samples ? std::sqrt(squares / double(samples * b)) : 0.0;
 }
 
+// In theta_h rows [from[d], rows) of theta_d row d of every plane, each phi_d ring's values replaced by their total.
+void ring_totals(std::vector<float>& a, std::size_t planes, int rows, const std::array<int, brdf::kMerlThetaD>& from) {
+  constexpr std::size_t ring = brdf::kMerlPhiD, row = std::size_t(brdf::kMerlThetaD) * ring;
+  parallel_for(
+      planes * std::size_t(rows) * brdf::kMerlThetaD,
+      [&](std::size_t task) {
+        const std::size_t plane = task / (std::size_t(rows) * brdf::kMerlThetaD),
+                          rest = task % (std::size_t(rows) * brdf::kMerlThetaD);
+        if (int(rest / brdf::kMerlThetaD) < from[rest % brdf::kMerlThetaD]) return;
+        float* first = &a[plane * kCells + rest / brdf::kMerlThetaD * row + rest % brdf::kMerlThetaD * ring];
+        std::fill_n(first, ring, float(std::accumulate(first, first + ring, 0.0)));
+      },
+      256);
+}
+
 // Every plane's values at theta_d row `from` copied into the rows below it, column by column.
 void carry_down(std::vector<float>& a, std::size_t planes, int from) {
   constexpr std::size_t row = brdf::kMerlPhiD, column = std::size_t(brdf::kMerlThetaD) * row;
@@ -142,6 +159,7 @@ std::size_t correct_once(const brdf::SampleSource& src, const LogResidualOptions
   box_sums(sums, b + 1, brdf::kMerlPhiD, 1, true, o.radius);
   box_sums(sums, b + 1, brdf::kMerlThetaD, brdf::kMerlPhiD, false, o.radius);
   box_sums(sums, b + 1, brdf::kMerlThetaH, std::size_t(brdf::kMerlPhiD) * brdf::kMerlThetaD, false, o.radius);
+  if (o.ring_rows > 0) ring_totals(sums, b + 1, o.ring_rows, o.ring_from);
   st.carried_rows = o.into_retro_band && lowest < brdf::kMerlThetaD ? std::max(0, lowest - o.radius) : 0;
   if (st.carried_rows > 0) carry_down(sums, b + 1, st.carried_rows);
   const auto& cells = valid_cells();
@@ -175,6 +193,8 @@ LogResidualStats correct_by_log_residuals(const brdf::SampleSource& src, const L
     throw UsageError("log residuals: the grid must hold bands x 1458000 values for the samples' bands");
   if (o.radius < 0 || o.radius > 10) throw UsageError("log residuals: radius must lie in [0, 10] cells");
   if (o.passes < 1 || o.passes > 10) throw UsageError("log residuals: passes must lie in [1, 10]");
+  if (o.ring_rows < 0 || o.ring_rows >= brdf::kMerlThetaH)
+    throw UsageError("log residuals: ring_rows " + std::to_string(o.ring_rows) + " must lie in [0, 90)");
   if (!(eps > 0) || !std::isfinite(eps)) throw UsageError("log residuals: epsilon must be positive");
   const auto t0 = std::chrono::steady_clock::now();
   LogResidualStats st;
@@ -192,13 +212,10 @@ LogResidualStats correct_by_log_residuals(const brdf::SampleSource& src, const L
 }
 
 nlohmann::ordered_json log_residuals_json(const LogResidualStats& st, const LogResidualOptions& o) {
-  return {{"radius", o.radius},
-          {"passes", o.passes},
-          {"carried_rows", st.carried_rows},
-          {"samples", st.samples},
-          {"corrected_cells", st.corrected_cells},
-          {"rms_before", st.rms_before},
-          {"rms_after", st.rms_after},
+  return {{"radius", o.radius},          {"passes", o.passes},
+          {"ring_rows", o.ring_rows},    {"carried_rows", st.carried_rows},
+          {"samples", st.samples},       {"corrected_cells", st.corrected_cells},
+          {"rms_before", st.rms_before}, {"rms_after", st.rms_after},
           {"seconds", st.seconds}};
 }
 

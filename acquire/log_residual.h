@@ -1,10 +1,12 @@
 #pragma once
 // A resampled grid corrected by its own samples: each sample's residual against the grid looked up where the sample
 // lies, taken in the log domain of the prior's judge, averaged over a small box of cells and multiplied back in.
+#include <array>
 #include <cstddef>
 #include <nlohmann/json_fwd.hpp>
 #include <span>
 
+#include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_resample.h"
 
 namespace specula::acquire {
@@ -16,6 +18,11 @@ struct LogResidualOptions {
   /// the means at the lowest theta_d row the boxes reach carried down, in each (theta_h, phi_d) column, into the
   /// unseen retro band below it (the theta_d rows under the samples' lowest less radius)
   bool into_retro_band = false;
+  /// theta_h rows [ring_from[d], ring_rows) of each theta_d row d take the mean over their whole phi_d ring of the
+  /// boxes (the samples within radius on theta_h and theta_d, any phi_d): round the peak an isotropic BRDF hardly
+  /// varies with phi_d (acquire/peak_rows.h); in [0, kMerlThetaH)
+  int ring_rows = 0;
+  std::array<int, brdf::kMerlThetaD> ring_from{};  ///< per theta_d row, the first theta_h row of the rings
 };
 
 /// What one correction did.
@@ -33,15 +40,16 @@ struct LogResidualStats {
 /// theta_o at its centre and m per band the mean over those samples of ln((s cc_s + eps) / (g cc_s + eps)): s the
 /// sample's value, cc_s its cosines, g the grid looked up trilinearly at it (brdf::merl_trilinear; corners without
 /// data left out). Samples below the horizon, with a negative or non-finite value or no grid data around are left
-/// out. With o.into_retro_band, the cells of the theta_d rows below the lowest one the boxes reach (the samples'
-/// lowest row less radius) take the mean of that row in their (theta_h, phi_d) column. o.passes times, each pass's
-/// residuals taken against the grid the pass before left. eps > 0 (1/sr). The same for any thread count.
-/// UsageError on sizes or settings; progress shown, Interrupted between blocks of samples.
+/// out. In the theta_h rows [o.ring_from[d], o.ring_rows) of theta_d row d the box spans every phi_d. With
+/// o.into_retro_band, the cells of the theta_d rows below the lowest one the boxes reach (the samples' lowest row less
+/// radius) take the mean of that row in their (theta_h, phi_d) column. o.passes times, each pass's residuals taken
+/// against the grid the pass before left. eps > 0 (1/sr). The same for any thread count. UsageError on sizes or
+/// settings; progress shown, Interrupted between blocks of samples.
 LogResidualStats correct_by_log_residuals(const brdf::SampleSource& src, const LogResidualOptions& o, double eps,
                                           std::span<float> grid);
 
-/// What `resample --json` reports of a correction: radius, passes, carried_rows, samples, corrected_cells, rms_before,
-/// rms_after, seconds.
+/// What `resample --json` reports of a correction: radius, passes, ring_rows, carried_rows, samples, corrected_cells,
+/// rms_before, rms_after, seconds.
 nlohmann::ordered_json log_residuals_json(const LogResidualStats& st, const LogResidualOptions& o);
 
 }  // namespace specula::acquire

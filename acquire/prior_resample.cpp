@@ -237,6 +237,7 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
     st.observed_cells = obs.cell.size();
     fit_prior(prior, components, obs, o.fit, fitted);
     cap = unseen_cap(obs);
+    st.unseen_cap = cap;
     retro_rows = unseen_retro_rows(obs);
     st.unseen_retro_rows = retro_rows;
   }

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "specula/acquire/energy_bound.h"
+#include "specula/acquire/peak_cap.h"
 #include "specula/acquire/prior.h"
 #include "specula/core/brdf_resample.h"
 
@@ -70,6 +71,7 @@ struct PriorResampleStats {
   std::size_t bounded_cells = 0;         ///< cap cells whose fit the prior's ceiling scaled down (bound_by_ceiling)
   std::size_t energy_bounded_cells = 0;  ///< cells whose fit the energy bound scaled down (bound_energy)
   int unseen_retro_rows = 0;             ///< theta_d rows below the lowest observed cell's (unseen_retro_rows)
+  UnseenCap unseen_cap{};                ///< the cap round the peak that no observed cell reaches (unseen_cap)
   double fit_seconds = 0;
 };
 

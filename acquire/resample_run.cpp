@@ -152,15 +152,21 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   const PriorResampleStats st = resample_with_prior(src, prior, components, po, out.grid.brdf, confidence);
   const double eps = po.blend_epsilon.value_or(prior.epsilon);
   std::optional<LogResidualStats> corrected;
-  if (log_residuals) corrected = correct_by_log_residuals(src, *log_residuals, eps, out.grid.brdf);
-  std::optional<std::size_t> settled;
+  if (log_residuals) {
+    log_residuals->ring_rows = m.peak_rows;
+    log_residuals->ring_from = st.unseen_cap;
+    corrected = correct_by_log_residuals(src, *log_residuals, eps, out.grid.brdf);
+  }
+  std::optional<std::size_t> peak_settled, settled;
+  if (m.peak_rows > 0)
+    peak_settled = settle_peak_rows(out.grid.brdf, info.wavelengths.size(), st.unseen_cap, m.peak_rows);
   if (m.retro_pole && st.unseen_retro_rows > 0)
     settled = settle_retro_pole(out.grid.brdf, info.wavelengths.size(), st.unseen_retro_rows);
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(
       "resample prior={} lambda={} prior_weights={} {} prior_in_cap={}{} ceiling={} energy_bound={} blend={} "
-      "log_residuals={} retro_pole={} {}",
+      "log_residuals={} peak_rows={} retro_pole={} {}",
       m.prior, m.fit.lambda, prior_weights_name(m.fit.weights),
       reach ? reach_provenance(*reach, *m.reach_auto) : fmt::format("confidence_reach={}", m.confidence_reach),
       m.prior_in_cap, cap ? fmt::format(" cap_weight={}", cap->weight) : std::string(),
@@ -173,6 +179,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
       corrected ? fmt::format("on radius={} passes={} carried_rows={}", log_residuals->radius, log_residuals->passes,
                               corrected->carried_rows)
                 : std::string("off"),
+      peak_settled ? fmt::format("on rows={}", m.peak_rows) : std::string("off"),
       settled ? fmt::format("on rows={}", st.unseen_retro_rows) : std::string("off"), local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
@@ -186,6 +193,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.report["blend"] = m.log_blend ? "log" : "linear";
   out.report["blend_epsilon"] = eps;
   if (corrected) out.report["log_residuals"] = log_residuals_json(*corrected, *log_residuals);
+  if (peak_settled) out.report["peak_rows"] = {{"rows", m.peak_rows}, {"settled_cells", *peak_settled}};
   if (settled) out.report["retro_pole"] = {{"rows", st.unseen_retro_rows}, {"settled_cells", *settled}};
   if (reach) out.report["confidence_reach_auto"] = reach_choice_json(*reach, *m.reach_auto);
   if (cap) out.report["cap_weight_auto"] = cap_weight_json(*cap);

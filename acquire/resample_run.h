@@ -11,6 +11,7 @@
 #include "specula/acquire/cap_weight.h"
 #include "specula/acquire/log_residual.h"
 #include "specula/acquire/model_fit.h"
+#include "specula/acquire/peak_rows.h"
 #include "specula/acquire/prior.h"
 #include "specula/acquire/prior_reach.h"
 #include "specula/acquire/prior_resample.h"
@@ -47,6 +48,10 @@ struct PriorMethod {
   /// true (the default): the unseen retro band's phi_d dependence settled as reciprocity asks at theta_d = 0
   /// (settle_retro_pole, acquire/retro_band.h), after everything else
   bool retro_pole = true;
+  /// theta_h rows round the peak, from the unseen cap up, settled in phi_d as reciprocity asks at theta_h = 0
+  /// (settle_peak_rows, acquire/peak_rows.h), the log residuals' boxes spanning every phi_d there
+  /// (LogResidualOptions::ring_rows); 0 turns it off
+  int peak_rows = kPeakRows;
 };
 
 /// A Lambertian plus microfacet lobes fitted as the base, the kd-tree estimate of the residuals added near samples.

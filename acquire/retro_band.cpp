@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "specula/acquire/phi_d_ring.h"
 #include "specula/acquire/retro_trend.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
@@ -59,27 +60,20 @@ std::size_t settle_retro_pole(std::span<float> grid, std::size_t bands, int rows
   if (rows < 0 || rows >= brdf::kMerlThetaD)
     throw UsageError("retro pole: rows " + std::to_string(rows) + " must be in [0, " +
                      std::to_string(brdf::kMerlThetaD) + ")");
-  const auto sin2 = [](int r) { return std::pow(std::sin(retro_row_centre(r) * std::numbers::pi / 180), 2); };
+  const auto radians = [](int r) { return retro_row_centre(r) * std::numbers::pi / 180; };
   std::vector<std::size_t> settled(std::size_t(brdf::kMerlThetaH) * std::size_t(rows), 0);
   parallel_for(
       settled.size(),
       [&](std::size_t task) {
         const int h = int(task / std::size_t(rows)), r = int(task % std::size_t(rows));
-        const double keep = sin2(r) / sin2(rows);
+        const double keep = sin2_share(radians(r), radians(rows));
         const std::size_t first = brdf::merl_index({.theta_h = h, .theta_d = r, .phi_d = 0});
         std::array<bool, brdf::kMerlPhiD> moved{};
         for (std::size_t k = 0; k < bands; ++k) {
-          float* row = grid.data() + k * brdf::kMerlCells + first;
-          double sum = 0;
-          int n = 0;
+          const std::span<float> ring(grid.data() + k * brdf::kMerlCells + first, brdf::kMerlPhiD);
+          settle_phi_d_ring(ring, keep);
           for (int p = 0; p < brdf::kMerlPhiD; ++p)
-            if (row[p] > 0) sum += std::log(double(row[p])), ++n;
-          const double mean = n > 0 ? sum / n : 0.0;
-          for (int p = 0; p < brdf::kMerlPhiD; ++p)
-            if (row[p] > 0) {
-              row[p] = float(std::exp(mean + keep * (std::log(double(row[p])) - mean)));
-              moved[std::size_t(p)] = true;
-            }
+            moved[std::size_t(p)] = moved[std::size_t(p)] || ring[std::size_t(p)] > 0;
         }
         settled[task] = std::size_t(std::ranges::count(moved, true));
       },

@@ -169,6 +169,63 @@ TEST(LogResidual, EachCellIsTheBoxMeanOfTheResidualsWrittenOut) {
   EXPECT_GT(moved, 30u);
 }
 
+// Round the peak (theta_h rows [ring_from[d], ring_rows)) a cell's box spans every phi_d: each cell there is the
+// mean of the residuals of the samples within one theta_h and theta_d row of it, anywhere on the ring, written out
+// here; every other cell (a theta_d row whose rings start higher, the rows above) keeps the box of one cell.
+TEST(LogResidual, RoundThePeakEachCellIsTheMeanOverItsWholeRing) {
+  const std::size_t bands = 1, n = 4000;
+  const double eps = 0.01;
+  const std::vector<double> angles = random_angles(n, 11);
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> u(0.5, 2.0);
+  std::vector<float> values(n * bands), grid(bands * kCells, -1.0f);
+  for (float& v : values) v = float(u(rng));
+  for (const std::uint32_t c : valid_cells()) grid[c] = float(u(rng));
+  const std::vector<float> before = grid;
+  LogResidualOptions o{.radius = 1, .ring_rows = 30};
+  o.ring_from.fill(3);
+  o.ring_from[40] = 30;  // no rings in theta_d row 40
+  correct_by_log_residuals(brdf::MemorySamples(angles, values, bands), o, eps, grid);
+  std::vector<double> residual(n);
+  std::vector<brdf::MerlCell> at(n);
+  for (std::size_t s = 0; s < n; ++s) {
+    const double* a = &angles[4 * s];
+    const double cc = std::cos(a[0]) * std::cos(a[2]);
+    const brdf::HalfDiff h = brdf::half_diff(brdf::StdAngles{a[0], a[1], a[2], a[3]});
+    residual[s] = std::log((values[s] * cc + eps) / (lookup(before, 0, h) * cc + eps));
+    at[s] = brdf::merl_cell(cell_of(a));
+  }
+  const auto& cells = valid_cells();
+  const auto& cosines = valid_cell_cosines();
+  std::size_t in_ring = 0, moved_in_ring = 0, outside = 0;
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    const brdf::MerlCell m = brdf::merl_cell(std::size_t(cells[i]));
+    if (m.theta_h >= 32 || (m.theta_d != 40 && m.theta_d % 7 != 0)) continue;
+    const bool ring = m.theta_h >= o.ring_from[std::size_t(m.theta_d)] && m.theta_h < o.ring_rows;
+    double sum = 0;
+    std::size_t count = 0;
+    for (std::size_t s = 0; s < n; ++s) {
+      const int dp = std::abs(at[s].phi_d - m.phi_d);
+      if (std::abs(at[s].theta_h - m.theta_h) > 1 || std::abs(at[s].theta_d - m.theta_d) > 1 ||
+          (!ring && std::min(dp, 180 - dp) > 1))
+        continue;
+      ++count, sum += residual[s];
+    }
+    const double v = before[cells[i]], cc = cosines[i];
+    const double want = count ? std::max(0.0, (std::exp(sum / double(count)) * (v * cc + eps) - eps) / cc) : v;
+    ASSERT_NEAR(grid[cells[i]], want, 1e-4 * want) << "h " << m.theta_h << " d " << m.theta_d << " p " << m.phi_d;
+    if (ring)
+      ++in_ring, moved_in_ring += count > 0;
+    else
+      ++outside;
+  }
+  EXPECT_GT(moved_in_ring, 2000u);
+  EXPECT_GT(in_ring, moved_in_ring);
+  EXPECT_GT(outside, 5000u);
+  LogResidualOptions bad{.ring_rows = 90};
+  EXPECT_THROW(correct_by_log_residuals(brdf::MemorySamples(angles, values, bands), bad, eps, grid), UsageError);
+}
+
 TEST(LogResidual, TheLowestRowsMeansAreCarriedIntoTheRetroBandBelow) {
   const std::size_t bands = 1;
   const std::vector<double> all = random_angles(3000, 9);
