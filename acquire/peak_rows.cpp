@@ -1,7 +1,5 @@
 #include "specula/acquire/peak_rows.h"
 
-#include <algorithm>
-#include <array>
 #include <numeric>
 #include <string>
 #include <vector>
@@ -27,13 +25,7 @@ std::size_t settle_peak_rows(std::span<float> grid, std::size_t bands, const Uns
         if (h < cap[std::size_t(d)]) return;
         const double keep = sin2_share(theta_h(h), theta_h(rows));
         const std::size_t first = brdf::merl_index({.theta_h = h, .theta_d = d, .phi_d = 0});
-        std::array<bool, brdf::kMerlPhiD> moved{};
-        for (std::size_t k = 0; k < bands; ++k) {
-          const std::span<float> ring(grid.data() + k * brdf::kMerlCells + first, brdf::kMerlPhiD);
-          settle_phi_d_ring(ring, keep);
-          for (int p = 0; p < brdf::kMerlPhiD; ++p) moved[std::size_t(p)] = moved[std::size_t(p)] || ring[std::size_t(p)] > 0;
-        }
-        settled[task] = std::size_t(std::ranges::count(moved, true));
+        settled[task] = settle_phi_d_rings(grid, bands, first, keep);
       },
       8);
   return std::accumulate(settled.begin(), settled.end(), std::size_t(0));

@@ -1,7 +1,6 @@
 #include "specula/acquire/retro_band.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <numbers>
 #include <numeric>
@@ -68,14 +67,7 @@ std::size_t settle_retro_pole(std::span<float> grid, std::size_t bands, int rows
         const int h = int(task / std::size_t(rows)), r = int(task % std::size_t(rows));
         const double keep = sin2_share(radians(r), radians(rows));
         const std::size_t first = brdf::merl_index({.theta_h = h, .theta_d = r, .phi_d = 0});
-        std::array<bool, brdf::kMerlPhiD> moved{};
-        for (std::size_t k = 0; k < bands; ++k) {
-          const std::span<float> ring(grid.data() + k * brdf::kMerlCells + first, brdf::kMerlPhiD);
-          settle_phi_d_ring(ring, keep);
-          for (int p = 0; p < brdf::kMerlPhiD; ++p)
-            moved[std::size_t(p)] = moved[std::size_t(p)] || ring[std::size_t(p)] > 0;
-        }
-        settled[task] = std::size_t(std::ranges::count(moved, true));
+        settled[task] = settle_phi_d_rings(grid, bands, first, keep);
       },
       8);
   return std::accumulate(settled.begin(), settled.end(), std::size_t(0));
