@@ -48,10 +48,11 @@ struct PriorMethod {
   /// true (the default): the unseen retro band's phi_d dependence settled as reciprocity asks at theta_d = 0
   /// (settle_retro_pole, acquire/retro_band.h), after everything else
   bool retro_pole = true;
-  /// theta_h rows round the peak, from the unseen cap up, settled in phi_d as reciprocity asks at theta_h = 0
-  /// (settle_peak_rows, acquire/peak_rows.h), the log residuals' boxes spanning every phi_d there
-  /// (LogResidualOptions::ring_rows); 0 turns it off
-  int peak_rows = kPeakRows;
+  /// theta_h rows round the peak, from the unseen cap up, settled in phi_d as reciprocity asks of an isotropic BRDF
+  /// at theta_h = 0 (settle_peak_rows, acquire/peak_rows.h), the log residuals' boxes spanning every phi_d there
+  /// (LogResidualOptions::ring_rows); 0 (the default: a material whose measurement is not isotropic loses by it)
+  /// leaves them; kPeakRows is what was measured
+  int peak_rows = 0;
 };
 
 /// A Lambertian plus microfacet lobes fitted as the base, the kd-tree estimate of the residuals added near samples.

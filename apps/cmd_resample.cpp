@@ -51,7 +51,7 @@ struct ResampleCliOptions {
   bool log_residuals_in_retro = false;
   bool no_log_residuals_in_retro = false;
   bool no_retro_pole = false;
-  bool no_peak_rows = false;
+  bool peak_rows = false;
   acquire::LogResidualOptions log_residuals;
   bool no_retro_continuation = false;
   bool retro_weight_overall = false;
@@ -163,7 +163,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     m.retro_residuals_auto = !o.log_residuals_in_retro && !o.no_log_residuals_in_retro;
     if (o.no_log_residuals) m.log_residuals.reset();
     m.retro_pole = !o.no_retro_pole;
-    if (o.no_peak_rows) m.peak_rows = 0;
+    if (o.peak_rows) m.peak_rows = acquire::kPeakRows;
     job.method = m;
   } else if (!o.model.empty()) {
     acquire::ModelMethod m{.fit = {.kind = {.distribution = acquire::parse_distribution(o.model),
@@ -316,10 +316,10 @@ void setup_resample(CLI::App& app) {
                 "--prior: leave the unseen retro band's dependence on phi_d as the estimates made it, instead of "
                 "fading it towards theta_d = 0 as sin^2 theta_d, where every phi_d is the same pair of directions "
                 "(docs/prior.md)");
-  cmd->add_flag("--no-peak-rows", o->no_peak_rows,
-                "--prior: leave the theta_h rows round the specular peak as the estimates made them, instead of "
-                "fading their dependence on phi_d towards theta_h = 0 as sin^2 theta_h, each ring's level from the "
-                "samples anywhere on it (docs/prior.md)");
+  cmd->add_flag("--peak-rows", o->peak_rows,
+                "--prior: fade the dependence on phi_d of the theta_h rows round the specular peak towards theta_h = 0 "
+                "as sin^2 theta_h, each ring's level from the samples anywhere on it, as an isotropic BRDF asks; "
+                "off by default: a material measured as not isotropic loses by it (docs/prior.md)");
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
   std::vector<const CLI::Option*> prior_only, model_only;
@@ -327,7 +327,7 @@ void setup_resample(CLI::App& app) {
        {"--lambda", "--prior-weights", "--prior-block-mb", "--prior-residuals", "--kd-tree-in-cap", "--blend-in-retro",
         "--prior-alone-in-cap", "--no-retro-continuation", "--retro-weight-overall", "--linear-blend", "--no-ceiling",
         "--no-energy-bound", "--no-log-residuals", "--log-residual-radius", "--log-residuals-in-retro",
-        "--no-log-residuals-in-retro", "--log-residual-passes", "--no-retro-pole", "--no-peak-rows"})
+        "--no-log-residuals-in-retro", "--log-residual-passes", "--no-retro-pole", "--peak-rows"})
     prior_only.push_back(cmd->get_option(name));
   for (const char* name : {"--lobes", "--fresnel", "--shadowing"}) model_only.push_back(cmd->get_option(name));
   const CLI::Option* reach = cmd->get_option("--confidence-reach");

@@ -110,22 +110,23 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   // The band's phi_d dependence is settled last, over its five rows; --no-retro-pole leaves it (below).
   const std::string pole = defaults.substr(defaults.find("\"retro_pole\":{\"rows\":5,"));
   EXPECT_GT(test::json_number(pole, "settled_cells"), 10000) << defaults;
-  // So are the theta_h rows round the peak, up to row 20, their log residuals taken over whole phi_d rings;
-  // --no-peak-rows leaves them (below).
-  EXPECT_EQ(test::json_number(lr, "ring_rows"), 20) << defaults;
-  const std::string peak = defaults.substr(defaults.find("\"peak_rows\":{\"rows\":20,"));
-  EXPECT_GT(test::json_number(peak, "settled_cells"), 10000) << defaults;
+  // The theta_h rows round the peak are left by default (--peak-rows settles them, below).
+  EXPECT_EQ(test::json_number(lr, "ring_rows"), 0) << defaults;
+  EXPECT_EQ(defaults.find("peak_rows"), std::string::npos) << defaults;
   EXPECT_LT(test::json_number(lr, "rms_after"), test::json_number(lr, "rms_before")) << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
-                  ":rl' --log-residual-radius 2 --log-residual-passes 2 --log-residuals-in-retro --json");
+                  ":rl' --log-residual-radius 2 --log-residual-passes 2 --log-residuals-in-retro --peak-rows --json");
   ASSERT_EQ(r.status, 0) << r.output;
+  // --peak-rows: up to theta_h row 20, the log residuals taken over whole phi_d rings and the rings settled
+  const std::string peak = r.output.substr(r.output.find("\"peak_rows\":{\"rows\":20,"));
+  EXPECT_GT(test::json_number(peak, "settled_cells"), 10000) << r.output;
   // the band of five theta_d rows less the radius
   EXPECT_NE(r.output.find("\"log_residuals\":{\"radius\":2,\"passes\":2,\"ring_rows\":20,\"carried_rows\":3,"),
             std::string::npos)
       << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
                   ":ra' --prior-alone-in-cap --no-ceiling --linear-blend --no-retro-continuation "
-                  "--retro-weight-overall --no-log-residuals --no-energy-bound --no-retro-pole --no-peak-rows --json");
+                  "--retro-weight-overall --no-log-residuals --no-energy-bound --no-retro-pole --json");
   ASSERT_EQ(r.status, 0) << r.output;
   const double overall = test::json_number(r.output.substr(r.output.find("\"retro_band\"")), "weight");
   for (std::size_t at = r.output.find("\"retro_weight\":"); at != std::string::npos;
@@ -145,8 +146,8 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(bounded.read_grid("ra").provenance.importer.find(" energy_bound=off "), std::string::npos);
   EXPECT_NE(bounded.read_grid("r").provenance.importer.find(" retro_pole=on rows=5 "), std::string::npos);
   EXPECT_NE(bounded.read_grid("ra").provenance.importer.find(" retro_pole=off "), std::string::npos);
-  EXPECT_NE(bounded.read_grid("r").provenance.importer.find(" peak_rows=on rows=20 "), std::string::npos);
-  EXPECT_NE(bounded.read_grid("ra").provenance.importer.find(" peak_rows=off "), std::string::npos);
+  EXPECT_NE(bounded.read_grid("rl").provenance.importer.find(" peak_rows=on rows=20 "), std::string::npos);
+  EXPECT_NE(bounded.read_grid("r").provenance.importer.find(" peak_rows=off "), std::string::npos);
   const std::string said = bounded.read_grid("r").provenance.importer;  // the carry's choice, as the report says
   EXPECT_NE(said.find(carried ? " retro_residuals=carried " : " retro_residuals=plain "), std::string::npos) << said;
   EXPECT_EQ(test::json_number(r.output, "energy_bounded_cells"), 0) << r.output;
