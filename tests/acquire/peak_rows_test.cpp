@@ -13,6 +13,7 @@
 #include <random>
 #include <vector>
 
+#include "phi_d_grid.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "ward_family.h"
@@ -38,15 +39,8 @@ TEST(PeakRows, ThePeaksDependenceOnPhiDFadesAsSinSquaredThetaH) {
   const UnseenCap cap = test_cap();
   const auto A = [](std::size_t k, int h, int d) { return 1.0 - 0.1 * h + 0.01 * d - 0.3 * double(k); };
   const auto D = [](std::size_t k, int h, int d) { return 0.3 + 0.01 * h - 0.002 * d + 0.1 * double(k); };
-  const auto c2 = [](int p) { return std::cos(2 * (p + 0.5) * pi / 180); };
-  std::vector<float> grid(2 * brdf::kMerlCells, -1.0f);
-  for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
-    const brdf::MerlCell m = brdf::merl_cell(cell);
-    if (!brdf::merl_cell_valid(m)) continue;
-    for (std::size_t k = 0; k < 2; ++k)
-      grid[k * brdf::kMerlCells + cell] =
-          float(std::exp(A(k, m.theta_h, m.theta_d) + D(k, m.theta_h, m.theta_d) * c2(m.phi_d)));
-  }
+  const auto c2 = test::cos2_phi_d;
+  std::vector<float> grid = test::cos2_phi_d_grid(A, D);
   const int zh = 12, zd = 30, zp = 40;  // a planted zero, band 1 only: its ring is not checked in closed form
   grid[brdf::kMerlCells + brdf::merl_index({.theta_h = zh, .theta_d = zd, .phi_d = zp})] = 0.0f;
   std::vector<float> out = grid;

@@ -15,6 +15,7 @@
 #include <random>
 #include <utility>
 
+#include "phi_d_grid.h"
 #include "specula/acquire/peak_cap.h"
 #include "specula/acquire/prior_resample.h"
 #include "specula/acquire/scan.h"
@@ -209,15 +210,8 @@ TEST(RetroBand, ThePolesDependenceOnPhiDFadesAsSinSquaredThetaD) {
   const int rows = 5;
   const auto A = [](std::size_t k, int h, int r) { return -2.0 - 0.01 * h + 0.1 * r + 0.3 * double(k); };
   const auto D = [](std::size_t k, int h, int r) { return 0.2 + 0.002 * h + 0.05 * r - 0.1 * double(k); };
-  const auto c2 = [](int p) { return std::cos(2 * (p + 0.5) * std::numbers::pi / 180); };
-  std::vector<float> grid(2 * brdf::kMerlCells, -1.0f);
-  for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) {
-    const brdf::MerlCell m = brdf::merl_cell(cell);
-    if (!brdf::merl_cell_valid(m)) continue;
-    for (std::size_t k = 0; k < 2; ++k)
-      grid[k * brdf::kMerlCells + cell] =
-          float(std::exp(A(k, m.theta_h, m.theta_d) + D(k, m.theta_h, m.theta_d) * c2(m.phi_d)));
-  }
+  const auto c2 = test::cos2_phi_d;
+  std::vector<float> grid = test::cos2_phi_d_grid(A, D);
   const int zh = 30, zr = 2, zp = 17;  // the planted zero, in band 0 only
   grid[brdf::merl_index({.theta_h = zh, .theta_d = zr, .phi_d = zp})] = 0.0f;
   std::vector<float> out = grid;
