@@ -151,15 +151,17 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   std::vector<float> confidence(brdf::kMerlCells);
   const PriorResampleStats st = resample_with_prior(src, prior, components, po, out.grid.brdf, confidence);
   const double eps = po.blend_epsilon.value_or(prior.epsilon);
+  std::optional<PeakRowsChoice> peak;
+  if (m.peak_auto) peak = choose_peak_rows(src, out.grid.brdf, info.wavelengths.size(), *m.peak_auto);
+  const int peak_rows = peak ? peak->rows : m.peak_rows;
   std::optional<LogResidualStats> corrected;
   if (log_residuals) {
-    log_residuals->ring_rows = m.peak_rows;
+    log_residuals->ring_rows = peak_rows;
     log_residuals->ring_from = st.unseen_cap;
     corrected = correct_by_log_residuals(src, *log_residuals, eps, out.grid.brdf);
   }
   std::optional<std::size_t> peak_settled, settled;
-  if (m.peak_rows > 0)
-    peak_settled = settle_peak_rows(out.grid.brdf, info.wavelengths.size(), st.unseen_cap, m.peak_rows);
+  if (peak_rows > 0) peak_settled = settle_peak_rows(out.grid.brdf, info.wavelengths.size(), st.unseen_cap, peak_rows);
   if (m.retro_pole && st.unseen_retro_rows > 0)
     settled = settle_retro_pole(out.grid.brdf, info.wavelengths.size(), st.unseen_retro_rows);
   out.confidence = confidence_grid(confidence, info.wavelengths);
@@ -179,7 +181,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
       corrected ? fmt::format("on radius={} passes={} carried_rows={}", log_residuals->radius, log_residuals->passes,
                               corrected->carried_rows)
                 : std::string("off"),
-      peak_settled ? fmt::format("on rows={}", m.peak_rows) : std::string("off"),
+      (peak_settled ? fmt::format("on rows={}", peak_rows) : std::string("off")) + (peak ? " chosen" : ""),
       settled ? fmt::format("on rows={}", st.unseen_retro_rows) : std::string("off"), local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
@@ -193,7 +195,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.report["blend"] = m.log_blend ? "log" : "linear";
   out.report["blend_epsilon"] = eps;
   if (corrected) out.report["log_residuals"] = log_residuals_json(*corrected, *log_residuals);
-  if (peak_settled) out.report["peak_rows"] = {{"rows", m.peak_rows}, {"settled_cells", *peak_settled}};
+  if (peak_settled) out.report["peak_rows"] = {{"rows", peak_rows}, {"settled_cells", *peak_settled}};
+  if (peak) out.report["peak_rows_auto"] = peak_rows_choice_json(*peak);
   if (settled) out.report["retro_pole"] = {{"rows", st.unseen_retro_rows}, {"settled_cells", *settled}};
   if (reach) out.report["confidence_reach_auto"] = reach_choice_json(*reach, *m.reach_auto);
   if (cap) out.report["cap_weight_auto"] = cap_weight_json(*cap);
@@ -280,7 +283,12 @@ void check_job(const ResampleJob& job) {
     if (!(r > 0 && r <= 1))
       throw UsageError(fmt::format("resample: confidence_reach = {:g}: give a fraction of max_gap in (0, 1]", r));
   };
-  if (const auto* m = std::get_if<PriorMethod>(&job.method)) reach(m->confidence_reach);
+  if (const auto* m = std::get_if<PriorMethod>(&job.method)) {
+    reach(m->confidence_reach);
+    if (!m->peak_auto && (m->peak_rows < 0 || m->peak_rows >= brdf::kMerlThetaH))
+      throw UsageError(fmt::format("resample: peak_rows = {}: give a count of theta_h rows in [0, {}) or 'auto'",
+                                   m->peak_rows, brdf::kMerlThetaH));
+  }
   if (const auto* m = std::get_if<ModelMethod>(&job.method)) {
     reach(m->confidence_reach);
     if (m->fit.lobes < 1 || m->fit.lobes > 2)

@@ -12,6 +12,7 @@
 #include "specula/acquire/log_residual.h"
 #include "specula/acquire/model_fit.h"
 #include "specula/acquire/peak_rows.h"
+#include "specula/acquire/peak_rows_choice.h"
 #include "specula/acquire/prior.h"
 #include "specula/acquire/prior_reach.h"
 #include "specula/acquire/prior_resample.h"
@@ -48,10 +49,12 @@ struct PriorMethod {
   /// true (the default): the unseen retro band's phi_d dependence settled as reciprocity asks at theta_d = 0
   /// (settle_retro_pole, acquire/retro_band.h), after everything else
   bool retro_pole = true;
-  /// theta_h rows round the peak, from the unseen cap up, settled in phi_d as reciprocity asks of an isotropic BRDF
-  /// at theta_h = 0 (settle_peak_rows, acquire/peak_rows.h), the log residuals' boxes spanning every phi_d there
-  /// (LogResidualOptions::ring_rows); 0 (the default: a material whose measurement is not isotropic loses by it)
-  /// leaves them; kPeakRows is what was measured
+  /// given (the default): the theta_h rows round the peak settled in phi_d are chosen from the samples
+  /// (choose_peak_rows, acquire/peak_rows_choice.h); empty: peak_rows
+  std::optional<PeakRowsChoiceOptions> peak_auto = PeakRowsChoiceOptions{};
+  /// without peak_auto: theta_h rows below this, from the unseen cap up, settled in phi_d as reciprocity asks of an
+  /// isotropic BRDF at theta_h = 0 (settle_peak_rows, acquire/peak_rows.h), the log residuals' boxes spanning every
+  /// phi_d there (LogResidualOptions::ring_rows); 0 leaves them
   int peak_rows = 0;
 };
 

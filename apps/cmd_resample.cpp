@@ -13,6 +13,7 @@
 #include "specula/acquire/prior_output.h"
 #include "specula/acquire/resample_run.h"
 #include "specula/codec/grid_files.h"
+#include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
 #include "specula/store/object_spec.h"
 #include "specula/store/store.h"
@@ -51,7 +52,7 @@ struct ResampleCliOptions {
   bool log_residuals_in_retro = false;
   bool no_log_residuals_in_retro = false;
   bool no_retro_pole = false;
-  bool peak_rows = false;
+  std::string peak_rows = "auto";
   acquire::LogResidualOptions log_residuals;
   bool no_retro_continuation = false;
   bool retro_weight_overall = false;
@@ -117,6 +118,20 @@ double reach_of(const std::string& text) {
   return r;
 }
 
+// --peak-rows: a count of theta_h rows in [0, 90), or 'auto'.
+int peak_rows_of(const std::string& text) {
+  std::size_t used = 0;
+  int rows = -1;
+  try {
+    rows = std::stoi(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || rows < 0 || rows >= brdf::kMerlThetaH)
+    throw UsageError("--peak-rows: give a count of theta_h rows in [0, 90) or 'auto', got '" + text + "'");
+  return rows;
+}
+
 // The job the options describe; UsageError naming the flag for what only the command line can get wrong.
 acquire::ResampleJob job_of(const ResampleCliOptions& o) {
   if (o.k_held_out < 1) throw UsageError("--k-held-out: give at least 1");
@@ -163,7 +178,10 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     m.retro_residuals_auto = !o.log_residuals_in_retro && !o.no_log_residuals_in_retro;
     if (o.no_log_residuals) m.log_residuals.reset();
     m.retro_pole = !o.no_retro_pole;
-    if (o.peak_rows) m.peak_rows = acquire::kPeakRows;
+    if (o.peak_rows != "auto") {
+      m.peak_auto.reset();
+      m.peak_rows = peak_rows_of(o.peak_rows);
+    }
     job.method = m;
   } else if (!o.model.empty()) {
     acquire::ModelMethod m{.fit = {.kind = {.distribution = acquire::parse_distribution(o.model),
@@ -316,10 +334,12 @@ void setup_resample(CLI::App& app) {
                 "--prior: leave the unseen retro band's dependence on phi_d as the estimates made it, instead of "
                 "fading it towards theta_d = 0 as sin^2 theta_d, where every phi_d is the same pair of directions "
                 "(docs/prior.md)");
-  cmd->add_flag("--peak-rows", o->peak_rows,
-                "--prior: fade the dependence on phi_d of the theta_h rows round the specular peak towards theta_h = 0 "
-                "as sin^2 theta_h, each ring's level from the samples anywhere on it, as an isotropic BRDF asks; "
-                "off by default: a material measured as not isotropic loses by it (docs/prior.md)");
+  cmd->add_option("--peak-rows", o->peak_rows,
+                  "--prior: fade the dependence on phi_d of the theta_h rows below this round the specular peak "
+                  "towards theta_h = 0 as sin^2 theta_h, each ring's level from the samples anywhere on it, as an "
+                  "isotropic BRDF asks; 'auto' settles only the rows where the samples show the BRDF nearly flat over "
+                  "phi_d, 0 none (docs/prior.md)")
+      ->capture_default_str();
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
   std::vector<const CLI::Option*> prior_only, model_only;

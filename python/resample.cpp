@@ -54,11 +54,14 @@ void init_resample(py::module_& m) {
       "resample",
       [](const StoreArg& store, const std::string& samples, const CountOrAuto& k, const std::string& weights,
          double power, const std::string& mapping, double max_gap, const OptStr& prior, const OptStr& model, int lobes,
-         std::optional<double> lambda, const ReachArg& confidence_reach,
-         std::optional<bool> log_residuals) -> ResampleResult {
+         std::optional<double> lambda, const ReachArg& confidence_reach, std::optional<bool> log_residuals,
+         const CountOrAuto& peak_rows) -> ResampleResult {
         if (!prior.is_none() && !model.is_none()) throw UsageError("resample: give prior or model, not both");
-        if (prior.is_none() && (lambda || log_residuals))
-          throw UsageError(fmt::format("resample: {}: only with a prior", lambda ? "lambda_" : "log_residuals"));
+        const bool peak_given = !(py::isinstance<py::str>(peak_rows) && peak_rows.cast<std::string>() == "auto");
+        if (prior.is_none() && (lambda || log_residuals || peak_given))
+          throw UsageError(fmt::format("resample: {}: only with a prior", lambda          ? "lambda_"
+                                                                          : log_residuals ? "log_residuals"
+                                                                                          : "peak_rows"));
         if (model.is_none() && lobes != 1) throw UsageError("resample: lobes: only with a model");
         bool k_auto = false;
         acquire::ResampleJob job{.store = store_path(store),
@@ -74,6 +77,14 @@ void init_resample(py::module_& m) {
           if (lambda) pm.fit.lambda = *lambda;
           set_reach(confidence_reach, &pm, nullptr);
           if (!log_residuals.value_or(true)) pm.log_residuals.reset();
+          if (peak_given) {
+            if (!py::isinstance<py::int_>(peak_rows) || py::isinstance<py::bool_>(peak_rows))
+              throw UsageError(
+                  fmt::format("resample: peak_rows = {}: give a count of theta_h rows in [0, 90) or 'auto'",
+                              py::repr(peak_rows).cast<std::string>()));
+            pm.peak_auto.reset();
+            pm.peak_rows = peak_rows.cast<int>();
+          }
           job.method = pm;
         } else if (!model.is_none()) {
           acquire::ModelMethod mm{
@@ -100,11 +111,14 @@ void init_resample(py::module_& m) {
       py::arg("power") = 1.0, py::arg("mapping") = "standard", py::arg("max_gap") = brdf::kDefaultMaxGapDegrees,
       py::arg("prior") = py::none(), py::arg("model") = py::none(), py::arg("lobes") = 1,
       py::arg("lambda_") = py::none(), py::arg("confidence_reach") = py::none(), py::arg("log_residuals") = py::none(),
+      py::arg("peak_rows") = "auto",
       "Resamples the scattered BRDF samples `samples` of `store` onto the MERL grid as `specula resample` does "
       "(docs/resampling.md, docs/prior.md): the kd-tree's k nearest samples (k a count or 'auto'), weighted by "
       "`weights` (shepard, loess, wendland, renka, mean), cells farther than max_gap degrees from every sample left "
       "without data; with prior='STORE.h5:NAME' a learned prior fitted and blended (every valid cell filled; lambda_ "
-      "its Tikhonov weight, 1e-3 when None; log_residuals False leaves out the samples' log residuals multiplied in); "
+      "its Tikhonov weight, 1e-3 when None; log_residuals False leaves out the samples' log residuals multiplied in; "
+      "peak_rows: the theta_h rows round the peak settled over phi_d, 'auto' chosen from the scan, a count given, 0 "
+      "none); "
       "with model='ggx' or 'beckmann' a "
       "Lambertian plus `lobes` microfacet lobes as the base. confidence_reach: the kd-tree's reach as a fraction of "
       "max_gap, 'auto' (a prior's holdout, its default) or None. Returns (grid, report): a specula.Grid in 1/sr and "

@@ -1,10 +1,12 @@
 // `specula prior build` and `specula resample --prior` from the command line on small analytic materials: the
 // prior is stored with its training list (the captured material left out by --exclude), every valid cell of the
 // result has data, the confidence grid lies beside it, the kd-tree's reach is chosen from the scan unless given, the
-// grid does not depend on --prior-block-mb, and a bad prior name or reach is one line leaving the store alone.
+// grid does not depend on --prior-block-mb, and a bad prior name, reach or peak rows is one line leaving the store
+// alone.
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include "specula/acquire/prior.h"
@@ -62,11 +64,12 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(test::json_number(r.output, "confidence_reach"), 0.25);
   EXPECT_EQ(r.output.find("confidence_reach_auto"), std::string::npos) << r.output;
-  for (const char* bad : {"--confidence-reach 0.1x", "--confidence-reach auto --prior-residuals"}) {
+  for (const char* bad :
+       {"--confidence-reach 0.1x", "--confidence-reach auto --prior-residuals", "--peak-rows 90", "--peak-rows 2x"}) {
     r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + (dir / "out.h5").string() + ":b' " +
                     bad);
     EXPECT_NE(r.status, 0) << bad;
-    EXPECT_NE(r.output.find("--confidence-reach"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(std::string(bad).substr(0, std::string(bad).find(' '))), std::string::npos) << r.output;
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
   }
   r = run_specula("resample '" + db + "' scan --model ggx -o '" + (dir / "m.spgrid").string() +
@@ -110,14 +113,20 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   // The band's phi_d dependence is settled last, over its five rows; --no-retro-pole leaves it (below).
   const std::string pole = defaults.substr(defaults.find("\"retro_pole\":{\"rows\":5,"));
   EXPECT_GT(test::json_number(pole, "settled_cells"), 10000) << defaults;
-  // The theta_h rows round the peak are left by default (--peak-rows settles them, below).
-  EXPECT_EQ(test::json_number(lr, "ring_rows"), 0) << defaults;
-  EXPECT_EQ(defaults.find("peak_rows"), std::string::npos) << defaults;
+  // The theta_h rows round the peak settled are chosen from the scan by default, a multiple of the group of 5 rows,
+  // and the log residuals span the same rows' rings (--peak-rows N forces them, below).
+  const std::string chosen = defaults.substr(defaults.find("\"peak_rows_auto\":{\"rows\":"));
+  const double rows = test::json_number(chosen, "rows");
+  EXPECT_TRUE(rows >= 0 && rows <= 20 && std::fmod(rows, 5) == 0) << defaults;
+  EXPECT_EQ(test::json_number(lr, "ring_rows"), rows) << defaults;
+  EXPECT_NE(chosen.find("\"grid_spread\":"), std::string::npos) << defaults;
   EXPECT_LT(test::json_number(lr, "rms_after"), test::json_number(lr, "rms_before")) << r.output;
-  r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
-                  ":rl' --log-residual-radius 2 --log-residual-passes 2 --log-residuals-in-retro --peak-rows --json");
+  r = run_specula(
+      "resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
+      ":rl' --log-residual-radius 2 --log-residual-passes 2 --log-residuals-in-retro --peak-rows 20 --json");
   ASSERT_EQ(r.status, 0) << r.output;
-  // --peak-rows: up to theta_h row 20, the log residuals taken over whole phi_d rings and the rings settled
+  // --peak-rows 20: up to theta_h row 20, the log residuals taken over whole phi_d rings and the rings settled
+  EXPECT_EQ(r.output.find("peak_rows_auto"), std::string::npos) << r.output;
   const std::string peak = r.output.substr(r.output.find("\"peak_rows\":{\"rows\":20,"));
   EXPECT_GT(test::json_number(peak, "settled_cells"), 10000) << r.output;
   // the band of five theta_d rows less the radius
@@ -126,7 +135,7 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
       << r.output;
   r = run_specula("resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
                   ":ra' --prior-alone-in-cap --no-ceiling --linear-blend --no-retro-continuation "
-                  "--retro-weight-overall --no-log-residuals --no-energy-bound --no-retro-pole --json");
+                  "--retro-weight-overall --no-log-residuals --no-energy-bound --no-retro-pole --peak-rows 0 --json");
   ASSERT_EQ(r.status, 0) << r.output;
   const double overall = test::json_number(r.output.substr(r.output.find("\"retro_band\"")), "weight");
   for (std::size_t at = r.output.find("\"retro_weight\":"); at != std::string::npos;
@@ -147,7 +156,9 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(bounded.read_grid("r").provenance.importer.find(" retro_pole=on rows=5 "), std::string::npos);
   EXPECT_NE(bounded.read_grid("ra").provenance.importer.find(" retro_pole=off "), std::string::npos);
   EXPECT_NE(bounded.read_grid("rl").provenance.importer.find(" peak_rows=on rows=20 "), std::string::npos);
-  EXPECT_NE(bounded.read_grid("r").provenance.importer.find(" peak_rows=off "), std::string::npos);
+  EXPECT_NE(bounded.read_grid("r").provenance.importer.find(rows > 0 ? " chosen " : " peak_rows=off chosen "),
+            std::string::npos);
+  EXPECT_NE(bounded.read_grid("ra").provenance.importer.find(" peak_rows=off "), std::string::npos);
   const std::string said = bounded.read_grid("r").provenance.importer;  // the carry's choice, as the report says
   EXPECT_NE(said.find(carried ? " retro_residuals=carried " : " retro_residuals=plain "), std::string::npos) << said;
   EXPECT_EQ(test::json_number(r.output, "energy_bounded_cells"), 0) << r.output;

@@ -70,13 +70,16 @@ def test_prior_fills_every_valid_cell_with_its_confidence_as_the_cli_does(db, tm
     assert report["valid_cells"] == int(valid.sum())
     assert report["confidence_reach"] in [r["reach"] for r in report["confidence_reach_auto"]["rows"]]
     assert report["log_residuals"]["samples"] > 0
-    # Without the log residuals, and with a reach given (no holdout): the CLI's flags for both.
-    g2, report2 = specula.resample(db, "scan", prior=f"{db}:p", confidence_reach=0.5, log_residuals=False)
+    assert report["peak_rows_auto"]["rows"] == report["log_residuals"]["ring_rows"]
+    # Without the log residuals, with a reach given (no holdout) and no peak rows: the CLI's flags for all three.
+    g2, report2 = specula.resample(db, "scan", prior=f"{db}:p", confidence_reach=0.5, log_residuals=False,
+                                   peak_rows=0)
     values2, _ = cli_grids(db, tmp_path, "scan", "--prior", f"{db}:p", "--confidence-reach", 0.5,
-                           "--no-log-residuals")
+                           "--no-log-residuals", "--peak-rows", 0)
     np.testing.assert_array_equal(g2.values, values2)
     assert report2["confidence_reach"] == 0.5 and "log_residuals" not in report2
     assert "confidence_reach_auto" not in report2
+    assert "peak_rows" not in report2 and "peak_rows_auto" not in report2
 
 
 def test_model_is_the_clis(db, tmp_path):
@@ -104,6 +107,9 @@ def test_the_grid_saves_and_reads_back(db, tmp_path):
     ({"lobes": 2}, "lobes: only with a model"),
     ({"lambda_": 0.1}, "lambda_: only with a prior"),
     ({"log_residuals": False}, "log_residuals: only with a prior"),
+    ({"peak_rows": 5}, "peak_rows: only with a prior"),
+    ({"prior": "x.h5:p", "peak_rows": 90}, "peak_rows = 90: give a count of theta_h rows in [0, 90) or 'auto'"),
+    ({"prior": "x.h5:p", "peak_rows": "all"}, "peak_rows = 'all': give a count of theta_h rows in [0, 90) or 'auto'"),
     ({"model": "ggx", "confidence_reach": 1.5}, "confidence_reach = 1.5: give a fraction of max_gap in (0, 1]"),
     ({"model": "ggx", "confidence_reach": "auto"}, "confidence_reach='auto' is chosen only with a prior"),
     ({"confidence_reach": 0.5}, "confidence_reach: only with a prior or a model"),
