@@ -9,6 +9,7 @@
 // ln f between its cells far apart on the same rings. A group of rows is settled when the grid's spread exceeds the
 // samples'.
 #include <nlohmann/json_fwd.hpp>
+
 #include <cstddef>
 #include <span>
 #include <vector>
