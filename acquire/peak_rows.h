@@ -11,7 +11,9 @@
 
 namespace specula::acquire {
 
-/// The theta_h rows round the peak that `resample --prior --peak-rows` settles: rows below 20 (theta_h < 4.7 degrees).
+/// The most theta_h rows round the peak that `resample --prior` settles (rows below 20, theta_h < 4.7 degrees); the
+/// scan chooses how many of them (`PriorMethod::peak_auto`, acquire/peak_rows_choice.h) unless `PriorMethod::peak_rows`
+/// sets it.
 inline constexpr int kPeakRows = 20;
 
 /// In every band and theta_d row d, for theta_h rows [cap[d], rows), each cell with a value > 0 has ln v drawn towards
