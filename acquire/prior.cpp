@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "specula/acquire/retro_rise.h"
 #include "specula/acquire/retro_trend.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/error.h"
@@ -90,12 +91,22 @@ struct Training {
   Eigen::MatrixXd proj;
 };
 
-// Adds theta_h rows [first, h0 + rows) of grid g's block buf (bands x rows x kRow, rows from h0) to tally, as channel
-// values (the projection of each cell's spectrum) at the theta_d rows it reads.
-void tally_rows(const Training& t, const TrainingGrid& grid, std::span<const float> buf, std::size_t h0,
-                std::size_t rows, std::size_t first, RetroExponentTally& tally) {
+// The retro band's tallies of the first pass: the exponents' (over channel values) and the rise's (over bands).
+struct RetroTallies {
+  RetroExponentTally exponents;
+  RetroRiseTally rise;
+  std::size_t tallied = 0;  // theta_h rows [0, tallied) added
+};
+
+// Adds theta_h rows [tallied, h0 + rows) of grid g's block buf (bands x rows x kRow, rows from h0) to the tallies: the
+// exponents' as channel values (the projection of each cell's spectrum) at the theta_d rows they read.
+void tally_rows(const Training& t, std::size_t g, std::span<const float> buf, std::size_t h0, std::size_t rows,
+                RetroTallies& tally) {
+  const TrainingGrid& grid = t.grids[g];
+  const std::size_t first = tally.tallied;
   if (first >= h0 + rows) return;
   const std::size_t b = grid.wavelengths.size(), n = h0 + rows - first, near = 2 * kRetroLearnedRows * brdf::kMerlPhiD;
+  tally.rise.add(g, buf, b, h0, rows, first, grid.scale);
   std::vector<float> ch(t.c * n * kRow, 0.0f);
   parallel_for(n, [&](std::size_t i) {
     Eigen::VectorXd s(static_cast<Eigen::Index>(b));
@@ -105,14 +116,14 @@ void tally_rows(const Training& t, const TrainingGrid& grid, std::span<const flo
       for (std::size_t j = 0; j < t.c; ++j) ch[(j * n + i) * kRow + at] = float(c[Eigen::Index(j)]);
     }
   });
-  tally.add(ch, t.c, first, n);
+  tally.exponents.add(ch, t.c, first, n);
 }
 
 // Cos-weighted channel values of cells [i0, i0 + n) of every grid into x (n x m, column g * c + j); counts each
-// grid's cells without data into holes. With a tally, the theta_h rows from *tallied on are added to it (and
-// *tallied moved past the block's rows).
+// grid's cells without data into holes. With tallies, the theta_h rows from their tallied on are added to them (and
+// tallied moved past the block's rows).
 void read_block(const Training& t, std::size_t i0, std::size_t n, Eigen::MatrixXf& x, std::vector<std::size_t>& holes,
-                RetroExponentTally* tally = nullptr, std::size_t* tallied = nullptr) {
+                RetroTallies* tally = nullptr) {
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
   const std::size_t h0 = cells[i0] / kRow, rows = cells[i0 + n - 1] / kRow - h0 + 1;
@@ -141,9 +152,9 @@ void read_block(const Training& t, std::size_t i0, std::size_t n, Eigen::MatrixX
       }
     });
     for (const std::size_t h : missing) holes[g] += h;
-    if (tally) tally_rows(t, grid, buf, h0, rows, *tallied, *tally);
+    if (tally) tally_rows(t, g, buf, h0, rows, *tally);
   }
-  if (tallied) *tallied = h0 + rows;
+  if (tally) tally->tallied = h0 + rows;
 }
 
 // Maps x (cells [i0, i0 + n)) log-relatively to reference and centres it on mean.
@@ -203,7 +214,7 @@ Training check_training(std::span<const TrainingGrid> grids, const PriorOptions&
 }
 
 // Pass 1: reference, mean and the Gram matrix of the centred observations, summed over kBlock cells in cell order
-// (the same sums for any thread count and block size); the retro band's exponents.
+// (the same sums for any thread count and block size); the retro band's exponents and rise maps.
 Eigen::MatrixXd first_pass(const Training& t, BrdfPrior& p) {
   const std::size_t d = valid_cells().size();
   p.reference.resize(d);
@@ -212,12 +223,11 @@ Eigen::MatrixXd first_pass(const Training& t, BrdfPrior& p) {
   Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(Eigen::Index(t.m), Eigen::Index(t.m));
   std::vector<std::size_t> holes(t.grids.size(), 0);
   Eigen::MatrixXf x;
-  RetroExponentTally tally;
-  std::size_t tallied = 0;
+  RetroTallies tally{.rise = RetroRiseTally(t.grids.size())};
   for (std::size_t i0 = 0; i0 < d; i0 += t.block) {
     check_interrupt();
     const std::size_t n = std::min(t.block, d - i0);
-    read_block(t, i0, n, x, holes, &tally, &tallied);
+    read_block(t, i0, n, x, holes, &tally);
     reference_and_mean(x, i0, p.epsilon, p);
     map_block(x, i0, p.reference, p.mean, p.epsilon);
     std::vector<Eigen::MatrixXd> partial((n + kBlock - 1) / kBlock);
@@ -233,7 +243,8 @@ Eigen::MatrixXd first_pass(const Training& t, BrdfPrior& p) {
       throw InputError("prior: grid '" + t.grids[g].name + "' has no data (or a non-finite value) at " +
                        std::to_string(holes[g]) + " of the " + std::to_string(d) +
                        " valid cells; a prior learns from complete grids");
-  p.retro_exponents = tally.exponents();
+  p.retro_exponents = tally.exponents.exponents();
+  p.retro_rise = tally.rise.maps();
   return gram;
 }
 

@@ -49,6 +49,10 @@ struct BrdfPrior {
   /// theta_d^p with (acquire/retro_trend.h), learned from the training grids; empty for a prior written before it was
   /// learned (store version <= 2), which continues with p = 2
   std::vector<double> retro_exponents;
+  /// per width of the unseen retro band the ridge map from its shoulder's profile to its own (acquire/retro_rise.h:
+  /// retro_rise_size() values), learned from the training grids; empty for a prior written before it was learned
+  /// (store version <= 3)
+  std::vector<double> retro_rise;
 
   std::size_t cells() const { return mean.size(); }
   std::size_t k() const { return variances.size(); }
@@ -97,7 +101,8 @@ using ComponentSource = std::function<void(std::size_t first, std::size_t count,
 
 /// Learns a prior from grids, all on the same wavelengths, each with data at every valid cell, in two passes over
 /// blocks of cells (each reading the block's rows of every grid): the per-cell reference and mean, the Gram matrix of
-/// the observations and the retro band's exponents (RetroExponentTally over the grids' channels); then, as sink asks
+/// the observations, the retro band's exponents (RetroExponentTally over the grids' channels) and rise maps
+/// (RetroRiseTally over their bands); then, as sink asks
 /// for them, the components. sink gets the prior without its components and their source (valid during the call).
 /// Memory: options.block_bytes plus one grid's rows of a block. The result does not depend on the thread count or
 /// block_bytes. InputError naming the grid for other bands or holes; UsageError for bad options or fewer than 2 grids.

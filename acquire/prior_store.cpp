@@ -16,7 +16,8 @@ store::PriorTables tables_of(const BrdfPrior& p) {
           .ceiling = p.ceiling,
           .components = p.components,
           .training = p.training,
-          .retro_exponents = p.retro_exponents};
+          .retro_exponents = p.retro_exponents,
+          .retro_rise = p.retro_rise};
 }
 
 BrdfPrior prior_of(store::PriorTables t) {
@@ -31,6 +32,7 @@ BrdfPrior prior_of(store::PriorTables t) {
   p.components = std::move(t.components);
   p.training = std::move(t.training);
   p.retro_exponents = std::move(t.retro_exponents);
+  p.retro_rise = std::move(t.retro_rise);
   return p;
 }
 

@@ -10,6 +10,7 @@
 #include "specula/acquire/prior_output.h"
 #include "specula/acquire/prior_resample.h"
 #include "specula/acquire/retro_band.h"
+#include "specula/acquire/retro_rise.h"
 #include "specula/acquire/store_samples.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_mapping.h"
@@ -108,6 +109,57 @@ ChosenK resolved_k(const ResampleJob& job, const store::Store& s) {
   return choice_of(choose_bandwidth(s, job.samples, job.local, *job.k_auto), *job.k_auto);
 }
 
+// The steps a prior's resample takes on the blended grid, in order, and what each did.
+struct FinalSteps {
+  std::optional<PeakRowsChoice> peak;
+  int peak_rows = 0;
+  std::optional<LogResidualOptions> log_residuals;
+  std::optional<LogResidualStats> corrected;
+  std::optional<std::size_t> peak_settled, pole_settled;
+  std::optional<std::vector<double>> risen;
+};
+
+// The peak's rows chosen, the log residuals multiplied in, the peak's rows and the retro pole settled and the band's
+// rise applied to grid, as m asks.
+FinalSteps final_steps(const PriorMethod& m, const BrdfPrior& prior, const brdf::SampleSource& src,
+                       const PriorResampleStats& st, std::optional<LogResidualOptions> log_residuals, double eps,
+                       std::span<float> grid) {
+  const std::size_t bands = src.bands();
+  FinalSteps f{.log_residuals = std::move(log_residuals)};
+  if (m.peak_auto) f.peak = choose_peak_rows(src, grid, bands, *m.peak_auto);
+  f.peak_rows = f.peak ? f.peak->rows : m.peak_rows;
+  if (f.log_residuals) {
+    f.log_residuals->ring_rows = f.peak_rows;
+    f.log_residuals->ring_from = st.unseen_cap;
+    f.corrected = correct_by_log_residuals(src, *f.log_residuals, eps, grid);
+  }
+  if (f.peak_rows > 0) f.peak_settled = settle_peak_rows(grid, bands, st.unseen_cap, f.peak_rows);
+  if (m.retro_pole && st.unseen_retro_rows > 0) f.pole_settled = settle_retro_pole(grid, bands, st.unseen_retro_rows);
+  if (m.retro_rise) f.risen = raise_retro_band(grid, bands, prior.retro_rise, st.unseen_retro_rows);
+  return f;
+}
+
+// The provenance words of the final steps: "log_residuals=... peak_rows=... retro_pole=... retro_rise=...".
+std::string final_words(const FinalSteps& f, int retro_rows) {
+  const auto rows = [&](bool on, int n) { return on ? fmt::format("on rows={}", n) : std::string("off"); };
+  return fmt::format("log_residuals={} peak_rows={}{} retro_pole={} retro_rise={}",
+                     f.corrected ? fmt::format("on radius={} passes={} carried_rows={}", f.log_residuals->radius,
+                                               f.log_residuals->passes, f.corrected->carried_rows)
+                                 : std::string("off"),
+                     rows(bool(f.peak_settled), f.peak_rows), f.peak ? " chosen" : "",
+                     rows(bool(f.pole_settled), retro_rows),
+                     f.risen && f.risen->empty() ? std::string("none") : rows(bool(f.risen), retro_rows));
+}
+
+// The final steps' fields of the --json report.
+void add_final_steps(Json& report, const FinalSteps& f, int retro_rows) {
+  if (f.corrected) report["log_residuals"] = log_residuals_json(*f.corrected, *f.log_residuals);
+  if (f.peak_settled) report["peak_rows"] = {{"rows", f.peak_rows}, {"settled_cells", *f.peak_settled}};
+  if (f.peak) report["peak_rows_auto"] = peak_rows_choice_json(*f.peak);
+  if (f.pole_settled) report["retro_pole"] = {{"rows", retro_rows}, {"settled_cells", *f.pole_settled}};
+  if (f.risen) report["retro_rise"] = {{"rows", retro_rows}, {"factors", *f.risen}};
+}
+
 ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const store::Store& s,
                            const store::SamplesInfo& info) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -115,6 +167,10 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   if (!spec) throw UsageError("resample: prior '" + m.prior + "': give STORE.h5:PRIOR");
   const store::Store prior_store = store::Store::open(spec->file);
   const BrdfPrior prior = read_prior_tables(prior_store, spec->name);  // components streamed by the fit
+  if (m.retro_rise && prior.retro_rise.empty())
+    throw InputError("resample: prior '" + m.prior +
+                     "' holds no retro rise maps (written before they were learned, version <= 3); build it again "
+                     "with specula prior build, or resample without --retro-rise");
   const ChosenK k = resolved_k(job, s);
   PriorResampleOptions po{.local = job.local,
                           .fit = m.fit,
@@ -151,24 +207,12 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   std::vector<float> confidence(brdf::kMerlCells);
   const PriorResampleStats st = resample_with_prior(src, prior, components, po, out.grid.brdf, confidence);
   const double eps = po.blend_epsilon.value_or(prior.epsilon);
-  std::optional<PeakRowsChoice> peak;
-  if (m.peak_auto) peak = choose_peak_rows(src, out.grid.brdf, info.wavelengths.size(), *m.peak_auto);
-  const int peak_rows = peak ? peak->rows : m.peak_rows;
-  std::optional<LogResidualStats> corrected;
-  if (log_residuals) {
-    log_residuals->ring_rows = peak_rows;
-    log_residuals->ring_from = st.unseen_cap;
-    corrected = correct_by_log_residuals(src, *log_residuals, eps, out.grid.brdf);
-  }
-  std::optional<std::size_t> peak_settled, settled;
-  if (peak_rows > 0) peak_settled = settle_peak_rows(out.grid.brdf, info.wavelengths.size(), st.unseen_cap, peak_rows);
-  if (m.retro_pole && st.unseen_retro_rows > 0)
-    settled = settle_retro_pole(out.grid.brdf, info.wavelengths.size(), st.unseen_retro_rows);
+  const FinalSteps fin = final_steps(m, prior, src, st, log_residuals, eps, out.grid.brdf);
   out.confidence = confidence_grid(confidence, info.wavelengths);
   out.confidence->provenance.source_file = out.grid.provenance.source_file;
   out.grid.provenance.importer = fmt::format(
       "resample prior={} lambda={} prior_weights={} {} prior_in_cap={}{} ceiling={} energy_bound={} blend={} "
-      "log_residuals={} peak_rows={} retro_pole={} {}",
+      "{} {}",
       m.prior, m.fit.lambda, prior_weights_name(m.fit.weights),
       reach ? reach_provenance(*reach, *m.reach_auto) : fmt::format("confidence_reach={}", m.confidence_reach),
       m.prior_in_cap, cap ? fmt::format(" cap_weight={}", cap->weight) : std::string(),
@@ -177,12 +221,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
                               : "on",
       m.energy_bound ? fmt::format("on floor={} kappa={}", m.energy_bound->floor, m.energy_bound->kappa)
                      : std::string("off"),
-      m.log_blend ? fmt::format("log eps={:.3g}", eps) : std::string("linear"),
-      corrected ? fmt::format("on radius={} passes={} carried_rows={}", log_residuals->radius, log_residuals->passes,
-                              corrected->carried_rows)
-                : std::string("off"),
-      (peak_settled ? fmt::format("on rows={}", peak_rows) : std::string("off")) + (peak ? " chosen" : ""),
-      settled ? fmt::format("on rows={}", st.unseen_retro_rows) : std::string("off"), local_words(po.local, k));
+      m.log_blend ? fmt::format("log eps={:.3g}", eps) : std::string("linear"), final_words(fin, st.unseen_retro_rows),
+      local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
   out.report["observed_cells"] = st.observed_cells;
@@ -194,10 +234,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
   out.report["confidence_reach"] = po.confidence_reach;
   out.report["blend"] = m.log_blend ? "log" : "linear";
   out.report["blend_epsilon"] = eps;
-  if (corrected) out.report["log_residuals"] = log_residuals_json(*corrected, *log_residuals);
-  if (peak_settled) out.report["peak_rows"] = {{"rows", peak_rows}, {"settled_cells", *peak_settled}};
-  if (peak) out.report["peak_rows_auto"] = peak_rows_choice_json(*peak);
-  if (settled) out.report["retro_pole"] = {{"rows", st.unseen_retro_rows}, {"settled_cells", *settled}};
+  add_final_steps(out.report, fin, st.unseen_retro_rows);
   if (reach) out.report["confidence_reach_auto"] = reach_choice_json(*reach, *m.reach_auto);
   if (cap) out.report["cap_weight_auto"] = cap_weight_json(*cap);
   add_k_auto(out.report, k);

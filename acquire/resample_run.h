@@ -49,6 +49,9 @@ struct PriorMethod {
   /// true (the default): the unseen retro band's phi_d dependence settled as reciprocity asks at theta_d = 0
   /// (settle_retro_pole, acquire/retro_band.h), after everything else
   bool retro_pole = true;
+  /// true: after the pole, the unseen retro band's rows from theta_h = 22.5 degrees on scaled to the rise the prior's
+  /// map predicts from the result's own shoulder (raise_retro_band, acquire/retro_rise.h); false (the default): left
+  bool retro_rise = false;
   /// given (the default): the theta_h rows round the peak settled in phi_d are chosen from the samples
   /// (choose_peak_rows, acquire/peak_rows_choice.h); empty: peak_rows
   std::optional<PeakRowsChoiceOptions> peak_auto = PeakRowsChoiceOptions{};

@@ -52,6 +52,7 @@ struct ResampleCliOptions {
   bool log_residuals_in_retro = false;
   bool no_log_residuals_in_retro = false;
   bool no_retro_pole = false;
+  bool retro_rise = false;
   std::string peak_rows = "auto";
   acquire::LogResidualOptions log_residuals;
   bool no_retro_continuation = false;
@@ -178,6 +179,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
     m.retro_residuals_auto = !o.log_residuals_in_retro && !o.no_log_residuals_in_retro;
     if (o.no_log_residuals) m.log_residuals.reset();
     m.retro_pole = !o.no_retro_pole;
+    m.retro_rise = o.retro_rise;
     if (o.peak_rows != "auto") {
       m.peak_auto.reset();
       m.peak_rows = peak_rows_of(o.peak_rows);
@@ -334,6 +336,10 @@ void setup_resample(CLI::App& app) {
                 "--prior: leave the unseen retro band's dependence on phi_d as the estimates made it, instead of "
                 "fading it towards theta_d = 0 as sin^2 theta_d, where every phi_d is the same pair of directions "
                 "(docs/prior.md)");
+  cmd->add_flag("--retro-rise", o->retro_rise,
+                "--prior: scale the unseen retro band's rows from theta_h = 22.5 degrees on to the rise the prior "
+                "learned from its training materials' shoulders, as the result's own shoulder predicts it (a prior "
+                "built by this version; docs/prior.md)");
   cmd->add_option("--peak-rows", o->peak_rows,
                   "--prior: fade the dependence on phi_d of the theta_h rows below this round the specular peak "
                   "towards theta_h = 0 as sin^2 theta_h, each ring's level from the samples anywhere on it, as an "
@@ -343,11 +349,26 @@ void setup_resample(CLI::App& app) {
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");
   std::vector<const CLI::Option*> prior_only, model_only;
-  for (const char* name :
-       {"--lambda", "--prior-weights", "--prior-block-mb", "--prior-residuals", "--kd-tree-in-cap", "--blend-in-retro",
-        "--prior-alone-in-cap", "--no-retro-continuation", "--retro-weight-overall", "--linear-blend", "--no-ceiling",
-        "--no-energy-bound", "--no-log-residuals", "--log-residual-radius", "--log-residuals-in-retro",
-        "--no-log-residuals-in-retro", "--log-residual-passes", "--no-retro-pole", "--peak-rows"})
+  for (const char* name : {"--lambda",
+                           "--prior-weights",
+                           "--prior-block-mb",
+                           "--prior-residuals",
+                           "--kd-tree-in-cap",
+                           "--blend-in-retro",
+                           "--prior-alone-in-cap",
+                           "--no-retro-continuation",
+                           "--retro-weight-overall",
+                           "--linear-blend",
+                           "--no-ceiling",
+                           "--no-energy-bound",
+                           "--no-log-residuals",
+                           "--log-residual-radius",
+                           "--log-residuals-in-retro",
+                           "--no-log-residuals-in-retro",
+                           "--log-residual-passes",
+                           "--no-retro-pole",
+                           "--retro-rise",
+                           "--peak-rows"})
     prior_only.push_back(cmd->get_option(name));
   for (const char* name : {"--lobes", "--fresnel", "--shadowing"}) model_only.push_back(cmd->get_option(name));
   const CLI::Option* reach = cmd->get_option("--confidence-reach");

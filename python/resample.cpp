@@ -55,13 +55,14 @@ void init_resample(py::module_& m) {
       [](const StoreArg& store, const std::string& samples, const CountOrAuto& k, const std::string& weights,
          double power, const std::string& mapping, double max_gap, const OptStr& prior, const OptStr& model, int lobes,
          std::optional<double> lambda, const ReachArg& confidence_reach, std::optional<bool> log_residuals,
-         const CountOrAuto& peak_rows) -> ResampleResult {
+         const CountOrAuto& peak_rows, bool retro_rise) -> ResampleResult {
         if (!prior.is_none() && !model.is_none()) throw UsageError("resample: give prior or model, not both");
         const bool peak_given = !(py::isinstance<py::str>(peak_rows) && peak_rows.cast<std::string>() == "auto");
-        if (prior.is_none() && (lambda || log_residuals || peak_given))
+        if (prior.is_none() && (lambda || log_residuals || peak_given || retro_rise))
           throw UsageError(fmt::format("resample: {}: only with a prior", lambda          ? "lambda_"
                                                                           : log_residuals ? "log_residuals"
-                                                                                          : "peak_rows"));
+                                                                          : peak_given    ? "peak_rows"
+                                                                                          : "retro_rise"));
         if (model.is_none() && lobes != 1) throw UsageError("resample: lobes: only with a model");
         bool k_auto = false;
         acquire::ResampleJob job{.store = store_path(store),
@@ -77,6 +78,7 @@ void init_resample(py::module_& m) {
           if (lambda) pm.fit.lambda = *lambda;
           set_reach(confidence_reach, &pm, nullptr);
           if (!log_residuals.value_or(true)) pm.log_residuals.reset();
+          pm.retro_rise = retro_rise;
           if (peak_given) {
             if (!py::isinstance<py::int_>(peak_rows) || py::isinstance<py::bool_>(peak_rows))
               throw UsageError(
@@ -111,14 +113,15 @@ void init_resample(py::module_& m) {
       py::arg("power") = 1.0, py::arg("mapping") = "standard", py::arg("max_gap") = brdf::kDefaultMaxGapDegrees,
       py::arg("prior") = py::none(), py::arg("model") = py::none(), py::arg("lobes") = 1,
       py::arg("lambda_") = py::none(), py::arg("confidence_reach") = py::none(), py::arg("log_residuals") = py::none(),
-      py::arg("peak_rows") = "auto",
+      py::arg("peak_rows") = "auto", py::arg("retro_rise") = false,
       "Resamples the scattered BRDF samples `samples` of `store` onto the MERL grid as `specula resample` does "
       "(docs/resampling.md, docs/prior.md): the kd-tree's k nearest samples (k a count or 'auto'), weighted by "
       "`weights` (shepard, loess, wendland, renka, mean), cells farther than max_gap degrees from every sample left "
       "without data; with prior='STORE.h5:NAME' a learned prior fitted and blended (every valid cell filled; lambda_ "
       "its Tikhonov weight, 1e-3 when None; log_residuals False leaves out the samples' log residuals multiplied in; "
       "peak_rows: the theta_h rows round the peak settled over phi_d, 'auto' chosen from the scan, a count given, 0 "
-      "none); "
+      "none; retro_rise True scales the unseen retro band to the rise the prior's map predicts from the "
+      "result's shoulder, as `--retro-rise`); "
       "with model='ggx' or 'beckmann' a "
       "Lambertian plus `lobes` microfacet lobes as the base. confidence_reach: the kd-tree's reach as a fraction of "
       "max_gap, 'auto' (a prior's holdout, its default) or None. Returns (grid, report): a specula.Grid in 1/sr and "

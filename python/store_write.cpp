@@ -194,6 +194,7 @@ py::dict prior_report(const PyStore& ps, const std::string& name, const acquire:
   d["variances"] = array(p.variances);
   d["training"] = p.training;
   d["retro_exponents"] = array(p.retro_exponents);
+  d["retro_rise"] = array(p.retro_rise);
   d["seconds"] = seconds;
   return d;
 }
@@ -279,7 +280,7 @@ void init_store_write(py::module_& m) {
            "all its grids) or a (name, specula.Grid) pair (a dict of them too); `exclude` the grid names left out; "
            "`channels` knots of the spectral basis, `components` kept (0: all), `epsilon` of the log-relative "
            "mapping (1/sr). Returns the prior's k, cells, channels, wavelengths, knots, epsilon, variances, "
-           "training names, retro_exponents and seconds. Committed at once outside `with`.")
+           "training names, retro_exponents, retro_rise and seconds. Committed at once outside `with`.")
       .def(
           "remove",
           [](PyStore& ps, const std::string& spec) {

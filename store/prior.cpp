@@ -13,8 +13,9 @@ namespace specula::store {
 namespace {
 
 // 2: `ceiling` added (a prior without it is written, and read, as version 1). 3: `retro_exponents` added (a prior
-// with a ceiling but without them is written, and read, as version 2).
-constexpr long long kPriorVersion = 3;
+// with a ceiling but without them is written, and read, as version 2). 4: `retro_rise` added (a prior with exponents
+// but without it is written, and read, as version 3).
+constexpr long long kPriorVersion = 4;
 
 // A rows x cols float32 dataset, chunked by rows of at most 2^18 values and deflated.
 void write_f32(hid_t loc, const std::string& name, std::span<const float> v, hsize_t rows, const std::string& ctx) {
@@ -121,6 +122,12 @@ h5::Id open_prior(const Store& s, const std::string& name, const std::string& ct
 
 }  // namespace
 
+std::size_t retro_rise_values(std::size_t widths) {
+  std::size_t n = 0;
+  for (std::size_t w = 1; w <= widths; ++w) n += 2 * w * w;
+  return n;
+}
+
 void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   const std::string path = "/priors/" + name, ctx = label() + ": " + path;
   const std::size_t k = p.variances.size(), cells = p.mean.size();
@@ -131,7 +138,14 @@ void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   h5::Id g = make_group(begin("priors", name, "prior"), path, ctx);
   if (p.ceiling.empty() && !p.retro_exponents.empty())
     throw UsageError(ctx + ": a prior with retro exponents needs its ceiling (version 3 keeps both)");
-  h5::write_attr(g, "prior_version", p.ceiling.empty() ? 1 : p.retro_exponents.empty() ? 2 : kPriorVersion, ctx);
+  if (!p.retro_rise.empty() && p.retro_rise.size() != retro_rise_values(p.retro_exponents.size()))
+    throw UsageError(ctx + ": a prior's retro rise maps need its exponents, 2 w^2 values for each of their widths w");
+  h5::write_attr(g, "prior_version",
+                 p.ceiling.empty()           ? 1
+                 : p.retro_exponents.empty() ? 2
+                 : p.retro_rise.empty()      ? 3
+                                             : kPriorVersion,
+                 ctx);
   h5::write_attr(g, "mapping", std::string_view("log-relative-cos"), ctx);
   h5::write_attr(g, "epsilon", p.epsilon, ctx);
   h5::write_vector(g, "wavelengths", p.wavelengths, ctx);
@@ -141,6 +155,7 @@ void StoreWriter::add_prior(const std::string& name, const PriorTables& p) {
   write_f32(g, "mean", p.mean, 1, ctx);
   if (!p.ceiling.empty()) write_f32(g, "ceiling", p.ceiling, 1, ctx);
   if (!p.retro_exponents.empty()) h5::write_vector(g, "retro_exponents", p.retro_exponents, ctx);
+  if (!p.retro_rise.empty()) h5::write_vector(g, "retro_rise", p.retro_rise, ctx);
   const hsize_t dims[2] = {k, cells};
   h5::Id space(h5::check(H5Screate_simple(2, dims, nullptr), ctx, "H5Screate_simple"));
   h5::Id dcpl(h5::check(H5Pcreate(H5P_DATASET_CREATE), ctx, "H5Pcreate"));
@@ -190,6 +205,7 @@ PriorTables Store::read_prior(const std::string& name, std::size_t cells, bool c
   const long long version = h5::read_int_attr(g, "prior_version", ctx);
   if (version >= 2) p.ceiling = read_f32(g, "ceiling", 1, cells, ctx);
   if (version >= 3) p.retro_exponents = h5::read_vector(g, "retro_exponents", ctx);
+  if (version >= 4) p.retro_rise = h5::read_vector(g, "retro_rise", ctx);
   if (components)
     p.components = read_f32(g, "components", p.variances.size(), cells, ctx);
   else
@@ -205,8 +221,11 @@ PriorTables Store::read_prior(const std::string& name, std::size_t cells, bool c
       std::any_of(p.ceiling.begin(), p.ceiling.end(), [](float c) { return c < 0; }) ||
       (version >= 3 && p.retro_exponents.empty()) ||
       std::any_of(p.retro_exponents.begin(), p.retro_exponents.end(),
-                  [](double e) { return !(e > 0) || !std::isfinite(e); }))
-    throw InputError(ctx + ": malformed prior (knots, epsilon, variances, a negative ceiling or retro exponents)");
+                  [](double e) { return !(e > 0) || !std::isfinite(e); }) ||
+      (version >= 4 && p.retro_rise.size() != retro_rise_values(p.retro_exponents.size())) ||
+      std::any_of(p.retro_rise.begin(), p.retro_rise.end(), [](double e) { return !std::isfinite(e); }))
+    throw InputError(ctx +
+                     ": malformed prior (knots, epsilon, variances, a negative ceiling, retro exponents or rise maps)");
   return p;
 }
 

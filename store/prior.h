@@ -28,8 +28,14 @@ struct PriorTables {
   /// the retro band's exponent per band width 1, 2, ... (> 0), or empty: a prior of version <= 2, written before it
   /// was learned
   std::vector<double> retro_exponents;
+  /// the retro band's rise maps, 2 w^2 values per width w = 1 .. W (W the exponents' count; finite), or empty: a prior
+  /// of version <= 3, written before they were learned
+  std::vector<double> retro_rise;
   std::string command_line;  ///< recorded as its provenance; empty: the transaction's
 };
+
+/// The values of a prior's retro rise maps for band widths 1 .. widths: 2 w^2 per width w (its 2w x w map).
+std::size_t retro_rise_values(std::size_t widths);
 
 /// Cells per block of a prior's components: add_prior writes (and asks component_blocks for) this many at a time.
 inline constexpr std::size_t kPriorBlockCells = std::size_t(1) << 16;

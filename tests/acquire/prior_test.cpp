@@ -2,6 +2,7 @@
 // reproduced from all its cells, a held-out material of the family is recovered from 1 % of its cells, the
 // prior round-trips through the store, and confidence is 0 where no sample falls.
 #include "specula/acquire/prior.h"
+#include "specula/acquire/retro_rise.h"
 
 #include <gtest/gtest.h>
 
@@ -454,6 +455,9 @@ TEST(Prior, StreamedThroughAStoreEqualsABruteForcePca) {
   EXPECT_EQ(p.variances, f.prior.variances);
   EXPECT_EQ(p.mean, f.prior.mean);
   EXPECT_EQ(p.ceiling, f.prior.ceiling);
+  EXPECT_EQ(p.retro_exponents, f.prior.retro_exponents);
+  EXPECT_EQ(p.retro_rise, f.prior.retro_rise);
+  EXPECT_EQ(p.retro_rise.size(), acquire::retro_rise_size());
   // Brute force: the mapped, centred observations in double, their SVD.
   const auto& cells = acquire::valid_cells();
   const std::size_t d = cells.size(), c = 3, m = f.grids.size() * c;

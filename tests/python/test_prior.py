@@ -79,12 +79,15 @@ def test_store_specs_are_the_clis_prior_with_what_it_prints(db, cli_specs, tmp_p
     assert (r["k"], r["cells"], r["channels"]) == (int(words[0]), int(words[3]), int(words[5]))
     np.testing.assert_array_equal(r["retro_exponents"], [float(p) for p in exponents.split(",")])
     assert len(r["retro_exponents"]) == 8 and 0 < r["k"] < len(MATERIALS) * 2 and r["channels"] == 2
+    assert len(r["retro_rise"]) == sum(2 * w * w for w in range(1, 9)) and np.all(np.isfinite(r["retro_rise"]))
     np.testing.assert_array_equal(r["wavelengths"], [400, 700])
     assert r["training"] == specs and r["name"] == "p" and r["store"] == s.path
     assert r["knots"].tolist() == [400, 700] and r["epsilon"] == 1e-3 and r["variances"].shape == (r["k"],)
     assert r["seconds"] > 0
     with h5py.File(s.path, "r") as f:
         assert f["priors/p"].attrs["command_line"].startswith("python: specula.Store.write_prior")
+        np.testing.assert_array_equal(f["priors/p/retro_rise"][...], r["retro_rise"])
+        assert f["priors/p"].attrs["prior_version"] == 4
 
 
 @pytest.mark.parametrize("form", ["str", "path", "store"])

@@ -71,15 +71,19 @@ def test_prior_fills_every_valid_cell_with_its_confidence_as_the_cli_does(db, tm
     assert report["confidence_reach"] in [r["reach"] for r in report["confidence_reach_auto"]["rows"]]
     assert report["log_residuals"]["samples"] > 0
     assert report["peak_rows_auto"]["rows"] == report["log_residuals"]["ring_rows"]
-    # Without the log residuals, with a reach given (no holdout) and no peak rows: the CLI's flags for all three.
+    assert "retro_rise" not in report
+    # Without the log residuals, with a reach given (no holdout), no peak rows and the retro band's rise: the CLI's
+    # flags for all four.
     g2, report2 = specula.resample(db, "scan", prior=f"{db}:p", confidence_reach=0.5, log_residuals=False,
-                                   peak_rows=0)
+                                   peak_rows=0, retro_rise=True)
     values2, _ = cli_grids(db, tmp_path, "scan", "--prior", f"{db}:p", "--confidence-reach", 0.5,
-                           "--no-log-residuals", "--peak-rows", 0)
+                           "--no-log-residuals", "--peak-rows", 0, "--retro-rise")
     np.testing.assert_array_equal(g2.values, values2)
     assert report2["confidence_reach"] == 0.5 and "log_residuals" not in report2
     assert "confidence_reach_auto" not in report2
     assert "peak_rows" not in report2 and "peak_rows_auto" not in report2
+    rise = report2["retro_rise"]
+    assert rise["rows"] >= 0 and len(rise["factors"]) in (0, rise["rows"])
 
 
 def test_model_is_the_clis(db, tmp_path):
@@ -108,6 +112,7 @@ def test_the_grid_saves_and_reads_back(db, tmp_path):
     ({"lambda_": 0.1}, "lambda_: only with a prior"),
     ({"log_residuals": False}, "log_residuals: only with a prior"),
     ({"peak_rows": 5}, "peak_rows: only with a prior"),
+    ({"retro_rise": True}, "retro_rise: only with a prior"),
     ({"prior": "x.h5:p", "peak_rows": 90}, "peak_rows = 90: give a count of theta_h rows in [0, 90) or 'auto'"),
     ({"prior": "x.h5:p", "peak_rows": "all"}, "peak_rows = 'all': give a count of theta_h rows in [0, 90) or 'auto'"),
     ({"model": "ggx", "confidence_reach": 1.5}, "confidence_reach = 1.5: give a fraction of max_gap in (0, 1]"),

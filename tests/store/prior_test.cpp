@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 
 #include "specula/core/error.h"
@@ -54,7 +55,7 @@ TEST(StorePrior, ComponentsReadBackRangeByRangeAcrossChunks) {
   EXPECT_THROW(s.read_prior("p", cells + 1, false), InputError);  // the components' shape is checked
 }
 
-TEST(StorePrior, CeilingAndRetroExponentsRoundTripAndOlderPriorsReadWithout) {
+TEST(StorePrior, CeilingRetroExponentsAndRiseMapsRoundTripAndOlderPriorsReadWithout) {
   constexpr std::size_t cells = 1000;
   PriorTables t{.wavelengths = {400, 700}, .knots = {400, 700}, .variances = {2, 1}, .epsilon = 1e-3};
   t.reference.assign(cells, 0.5f);
@@ -68,6 +69,10 @@ TEST(StorePrior, CeilingAndRetroExponentsRoundTripAndOlderPriorsReadWithout) {
   learned.retro_exponents = {2.0, 1.5, 1.4};
   PriorTables bad_exponent = learned;
   bad_exponent.retro_exponents[1] = 0;
+  PriorTables risen = learned;  // version 4: the rise maps, 2 + 8 + 18 values for widths 1, 2, 3
+  for (int i = 0; i < 28; ++i) risen.retro_rise.push_back(0.25 * i - 3);
+  PriorTables bad_rise = risen;
+  bad_rise.retro_rise[9] = std::nan("");
   PriorTables negative = t;
   negative.ceiling[17] = -1.0f;
   test::ScratchDir dir;
@@ -78,6 +83,8 @@ TEST(StorePrior, CeilingAndRetroExponentsRoundTripAndOlderPriorsReadWithout) {
     w.add_prior("negative", negative);
     w.add_prior("learned", learned);
     w.add_prior("bad_exponent", bad_exponent);
+    w.add_prior("risen", risen);
+    w.add_prior("bad_rise", bad_rise);
     w.commit();
   }
   const Store s = Store::open(dir / "db.h5");
@@ -87,10 +94,13 @@ TEST(StorePrior, CeilingAndRetroExponentsRoundTripAndOlderPriorsReadWithout) {
   EXPECT_TRUE(s.read_prior("p", cells, false).retro_exponents.empty());  // version 2: none learned
   EXPECT_EQ(s.read_prior("learned", cells, false).retro_exponents, learned.retro_exponents);
   EXPECT_EQ(s.read_prior("learned", cells, false).ceiling, t.ceiling);
-  for (const char* name : {"negative", "bad_exponent"}) {
+  EXPECT_TRUE(s.read_prior("learned", cells, false).retro_rise.empty());  // version 3: no rise maps
+  EXPECT_EQ(s.read_prior("risen", cells, false).retro_rise, risen.retro_rise);
+  EXPECT_EQ(s.read_prior("risen", cells, false).retro_exponents, learned.retro_exponents);
+  for (const char* name : {"negative", "bad_exponent", "bad_rise"}) {
     const std::string m = test::error_of([&] { s.read_prior(name, cells); });
     EXPECT_NE(m.find(std::string("/priors/") + name +
-                     ": malformed prior (knots, epsilon, variances, a negative ceiling or retro exponents)"),
+                     ": malformed prior (knots, epsilon, variances, a negative ceiling, retro exponents or rise maps)"),
               std::string::npos)
         << m;
   }
@@ -107,6 +117,9 @@ TEST(StorePrior, CeilingAndRetroExponentsRoundTripAndOlderPriorsReadWithout) {
   old.retro_exponents = {2.0};  // exponents without a ceiling: no version holds that
   StoreWriter w(dir / "db2.h5", {});
   EXPECT_THROW(w.add_prior("old", old), UsageError);
+  risen.retro_rise.pop_back();  // not 2 w^2 values for each of the exponents' widths
+  EXPECT_THROW(w.add_prior("risen", risen), UsageError);
+  EXPECT_EQ(retro_rise_values(3), 28u);
   t.ceiling.pop_back();
   EXPECT_THROW(w.add_prior("p", t), UsageError);
 }
