@@ -442,8 +442,9 @@ struct Piece {
   std::size_t s0 = 0, s1 = 0;
 };
 
-// The weighted normal equations of one piece (k x k into pa, k x c into pb); q holds the k x count components of the
-// block of cells from i0.
+// The weighted normal equations of one piece (k x k into pa's lower triangle, k x c into pb); q holds the k x count
+// components of the block of cells from i0. Rows are scaled by sqrt(w), so pa is a symmetric rank update: half the
+// product's work.
 void piece_equations(const Fit& f, Piece piece, std::size_t i0, std::size_t count, std::span<const float> q,
                      Eigen::MatrixXd& pa, Eigen::MatrixXd& pb) {
   const auto& cosines = valid_cell_cosines();
@@ -460,13 +461,14 @@ void piece_equations(const Fit& f, Piece piece, std::size_t i0, std::size_t coun
     for (std::size_t j = 0; j < f.c; ++j)
       y(Eigen::Index(r), Eigen::Index(j)) =
           double(mapped(float(ch[Eigen::Index(j)]), f.p.reference[i], f.p.epsilon)) - f.p.mean[i];
-    w[Eigen::Index(r)] = f.weight[s];
+    w[Eigen::Index(r)] = std::sqrt(f.weight[s]);
   }
   for (std::size_t j = 0; j < f.k; ++j)  // component by component: the cells ascend along q's rows
     for (std::size_t r = 0; r < rows; ++r) qm(Eigen::Index(r), Eigen::Index(j)) = q[j * count + at[r]];
   const Eigen::MatrixXd wq = w.asDiagonal() * qm;
-  pa = wq.transpose() * qm;
-  pb = wq.transpose() * y;
+  pa.setZero(Eigen::Index(f.k), Eigen::Index(f.k));
+  pa.selfadjointView<Eigen::Lower>().rankUpdate(wq.transpose());
+  pb = wq.transpose() * (w.asDiagonal() * y);
 }
 
 // Adds the normal equations of the observations in cells [i0, i0 + count) (components q) to ata and atb: pieces of
@@ -533,6 +535,8 @@ Fit check_fit(const BrdfPrior& p, const ComponentSource& components, const Prior
   if (!(o.lambda >= 0) || !std::isfinite(o.lambda)) throw UsageError("prior: lambda must be finite and >= 0");
   for (const std::uint32_t i : obs.cell)
     if (i >= f.d) throw UsageError("prior: observation cell out of range");
+  for (const float w : obs.weight)
+    if (!(w >= 0) || !std::isfinite(w)) throw UsageError("prior: observation weights must be finite and >= 0");
   f.weight = observation_weights(p, obs, o);
   f.order.resize(n);
   for (std::size_t s = 0; s < n; ++s) f.order[s] = std::uint32_t(s);
@@ -571,7 +575,7 @@ void fit_prior(const BrdfPrior& p, const ComponentSource& components, const Prio
     progress.advance(count);
   }
   for (std::size_t j = 0; j < f.k; ++j) ata(Eigen::Index(j), Eigen::Index(j)) += o.lambda / p.variances[j];
-  const Eigen::MatrixXd a = ata.ldlt().solve(atb);                  // k x c
+  const Eigen::MatrixXd a = ata.selfadjointView<Eigen::Lower>().ldlt().solve(atb);  // k x c; ata's lower half
   for (std::size_t i0 = (f.d - 1) / block * block;; i0 -= block) {  // backwards: the last block read is reused
     const std::size_t count = load(i0);
     reconstruct(f, a, i0, count, q, grid);

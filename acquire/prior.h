@@ -165,8 +165,8 @@ std::vector<double> observation_weights(const BrdfPrior& prior, const PriorObser
 /// Fits the prior (its tables; components from `components`) to obs per channel and writes the reconstruction at
 /// every valid cell into grid (bands x kMerlCells, band slowest; other cells untouched), in two passes over blocks
 /// of options.block_bytes: the normal equations of each block's observed cells, then the reconstruction of each
-/// block's cells. The result does not depend on the thread count or block_bytes. UsageError on sizes, InputError for
-/// no observation.
+/// block's cells. The result does not depend on the thread count or block_bytes. UsageError on sizes or a weight
+/// not finite and >= 0, InputError for no observation.
 void fit_prior(const BrdfPrior& prior, const ComponentSource& components, const PriorObservations& obs,
                const PriorFitOptions& options, std::span<float> grid);
 /// fit_prior with the components of prior (in memory).

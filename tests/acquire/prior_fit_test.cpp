@@ -183,3 +183,16 @@ TEST(PriorFit, AComponentRangeOutsideThePriorIsRefused) {
   torn.components.pop_back();
   EXPECT_THROW(acquire::memory_components(torn), UsageError);
 }
+
+TEST(PriorFit, ANegativeOrNonFiniteWeightIsRefused) {
+  const acquire::BrdfPrior p = random_prior();
+  acquire::PriorObservations obs = scattered(p);
+  std::vector<float> grid(kBands * brdf::kMerlCells);
+  const acquire::PriorFitOptions o{.weights = acquire::PriorWeights::count};
+  obs.weight[7] = 0;
+  EXPECT_NO_THROW(acquire::fit_prior(p, obs, o, grid)) << "a weight of 0 leaves the observation out";
+  for (const float bad : {-1.0f, std::nanf(""), INFINITY}) {
+    obs.weight[7] = bad;
+    EXPECT_THROW(acquire::fit_prior(p, obs, o, grid), UsageError) << bad;
+  }
+}
