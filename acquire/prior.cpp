@@ -471,10 +471,10 @@ void piece_equations(const Fit& f, Piece piece, std::size_t i0, std::size_t coun
   pb = wq.transpose() * (w.asDiagonal() * y);
 }
 
-// Adds the normal equations of the observations in cells [i0, i0 + count) (components q) to ata and atb: pieces of
-// at most kBlock observations within one store::kPriorBlockCells block of cells, made on every thread in groups and
-// summed in cell order, so the sums do not depend on the thread count or the block size. next: the first
-// observation (in cell order) not yet added.
+// Adds the normal equations of the observations in cells [i0, i0 + count) (components q) to ata's lower half and to
+// atb: pieces of at most kBlock observations within one store::kPriorBlockCells block of cells, made on every thread
+// in groups and summed in cell order, so the sums do not depend on the thread count or the block size. next: the
+// first observation (in cell order) not yet added.
 void add_equations(const Fit& f, std::size_t i0, std::size_t count, std::span<const float> q, std::size_t& next,
                    Eigen::MatrixXd& ata, Eigen::MatrixXd& atb) {
   std::vector<Piece> pieces;
@@ -491,7 +491,7 @@ void add_equations(const Fit& f, std::size_t i0, std::size_t count, std::span<co
     std::vector<Eigen::MatrixXd> pa(n), pb(n);
     parallel_for(n, [&](std::size_t t) { piece_equations(f, pieces[g0 + t], i0, count, q, pa[t], pb[t]); });
     for (std::size_t t = 0; t < n; ++t) {
-      ata += pa[t];
+      ata.triangularView<Eigen::Lower>() += pa[t];
       atb += pb[t];
     }
   }
