@@ -31,6 +31,9 @@ void check_reach_options(const ReachOptions& o) {
   if (g.size() < 2 || g.front() != 0 || g.back() != brdf::kMerlThetaH || !std::is_sorted(g.begin(), g.end()) ||
       std::adjacent_find(g.begin(), g.end()) != g.end())
     throw UsageError("confidence reach: theta_h groups must ascend strictly from row 0 to row 90");
+  for (std::size_t l = 0; l < o.k_ladder.size(); ++l)
+    if (o.k_ladder[l] < 1 || o.k_ladder[l] > 100000 || (l > 0 && o.k_ladder[l] <= o.k_ladder[l - 1]))
+      throw UsageError("confidence reach: the ladder of k must ascend strictly within [1, 100000]");
   for (std::size_t l = 0; l < o.retro_ladder.size(); ++l)
     if (!(o.retro_ladder[l] >= 0 && o.retro_ladder[l] <= 1) || (l > 0 && o.retro_ladder[l] <= o.retro_ladder[l - 1]))
       throw UsageError("confidence reach: the retro band's ladder of weights must ascend strictly within [0, 1]");
@@ -171,6 +174,37 @@ std::vector<float> rehearsal_blend(std::span<const float> fitted, std::span<cons
   return out;
 }
 
+// The kd-tree estimate over the kept samples at o.local.k, or at each k of r.k_ladder keeping the one whose least
+// mean error over the reach ladder is least (the smaller k on a tie): its grid and gaps, its per-cell errors and
+// their means over all held-out cells; the k and each k's least error into out.
+void kd_tree_of_least_error(const KeptSamples& kept, const PriorObservations& held, std::span<const float> fitted,
+                            const PriorResampleOptions& o, const ReachOptions& r, ReachChoice& out,
+                            std::vector<float>& kd, std::vector<float>& gaps, std::vector<double>& err,
+                            std::vector<double>& mean) {
+  const std::size_t b = kept.bands(), m = r.ladder.size();
+  const std::vector<std::size_t> ks = r.k_ladder.empty() ? std::vector<std::size_t>{o.local.k} : r.k_ladder;
+  const brdf::SampleTree tree(kept, o.local.mapping);
+  std::vector<float> grid(b * brdf::kMerlCells);
+  for (const std::size_t k : ks) {
+    brdf::ResampleOptions local = o.local;
+    local.k = k;
+    brdf::resample_grid(tree, kept, local, grid, gaps);
+    std::vector<double> e = held_out_errors(held, fitted, grid, gaps, b, r, local.max_gap, out.epsilon);
+    std::size_t n = 0;
+    std::vector<double> me = mean_errors(
+        e, m, [](std::size_t) { return true; }, n);
+    const double least_error = *std::min_element(me.begin(), me.end());
+    if (!r.k_ladder.empty()) out.k_rows.push_back({.reach = double(k), .error = least_error});
+    if (kd.empty() || least_error < *std::min_element(mean.begin(), mean.end())) {
+      out.k = k;
+      kd.swap(grid);
+      err.swap(e);
+      mean.swap(me);
+      if (grid.empty()) grid.resize(b * brdf::kMerlCells);
+    }
+  }
+}
+
 }  // namespace
 
 ReachHoldout reach_holdout(const brdf::SampleSource& src, const ReachOptions& o) {
@@ -246,14 +280,11 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
   fit_prior(prior, components, parts[0], o.fit, fitted);
   out.epsilon = judge_epsilon(parts[0], prior, b);
   const KeptSamples kept(src, out.holdout.held);
-  std::vector<float> kd(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
-  brdf::resample_grid(brdf::SampleTree(kept, o.local.mapping), kept, o.local, kd, gaps);
+  std::vector<float> kd, gaps(brdf::kMerlCells, -1.0f);
+  std::vector<double> err, mean;
+  kd_tree_of_least_error(kept, parts[1], fitted, o, r, out, kd, gaps, err, mean);
   out.holdout.held = {};
   const std::size_t m = r.ladder.size();
-  const std::vector<double> err = held_out_errors(parts[1], fitted, kd, gaps, b, r, o.local.max_gap, out.epsilon);
-  std::size_t n = 0;
-  const std::vector<double> mean = mean_errors(
-      err, m, [](std::size_t) { return true; }, n);
   for (std::size_t l = 0; l < m; ++l) out.rows.push_back({.reach = r.ladder[l], .error = mean[l]});
   out.reach = r.ladder[least(mean)];
   const auto& cells = valid_cells();
@@ -301,6 +332,10 @@ nlohmann::ordered_json reach_choice_json(const ReachChoice& c, const ReachOption
                               {"held_cells", c.holdout.held_cells},
                               {"seconds", c.seconds},
                               {"rows", rows_json(c.rows, "reach")}};
+  if (!c.k_rows.empty()) {
+    j["k"] = c.k;
+    j["k_rows"] = rows_json(c.k_rows, "k");
+  }
   nlohmann::ordered_json groups = nlohmann::ordered_json::array();
   for (const ReachGroup& g : c.groups)
     groups.push_back(
@@ -347,9 +382,11 @@ std::string reach_provenance(const ReachChoice& c, const ReachOptions& r) {
       band +=
           fmt::format("{}{}-{}:{}", band.empty() ? "" : ",", g.first, g.end, g.retro_weight.value_or(*c.retro_weight));
   }
+  std::string ks;
+  for (const ReachRow& row : c.k_rows) ks += fmt::format("{}{}", ks.empty() ? " k_by_holdout=" : ",", row.reach);
   return fmt::format(
-      "confidence_reach={} reach_by_theta_h={} reach_auto=holdout held_out={} seed={}{}", c.reach, groups, r.held_out,
-      r.seed,
+      "confidence_reach={} reach_by_theta_h={} reach_auto=holdout held_out={} seed={}{}{}", c.reach, groups, r.held_out,
+      r.seed, ks,
       c.retro_weight
           ? fmt::format(" retro_weight={} retro_by_theta_h={} retro_rows={}{}{}", *c.retro_weight, band,
                         c.holdout.retro_rows,

@@ -37,10 +37,16 @@ struct ReachOptions {
   std::vector<int> theta_h_groups = {0, 10, 20, 30, 45, 90};
   /// a group with fewer held-out cells (or held band cells) takes the reach (band weight) chosen over all of them
   std::size_t min_group_cells = 200;
+  /// the kd-tree's neighbour counts tried with the reach, ascending, each >= 1: the k whose least error over the
+  /// ladder is least is kept (the smaller on a tie); empty: the options' k alone
+  std::vector<std::size_t> k_ladder;
   /// given: whether the samples' log residuals (with these radius and passes) are carried into the band is rehearsed
   /// on the held band too (acquire/retro_residual.h); empty: not chosen for
   std::optional<LogResidualOptions> retro_residuals;
 };
+
+/// The neighbour counts `resample --prior -k holdout` tries with the reach (ReachOptions::k_ladder).
+inline const std::vector<std::size_t> kReachKLadder = {8, 16, 32, 64};
 
 /// Which samples the validation holds out.
 struct ReachHoldout {
@@ -81,6 +87,8 @@ struct ReachGroup {
 };
 
 struct ReachChoice {
+  std::size_t k = 0;               ///< the kd-tree's neighbour count the rest was chosen with (ReachOptions::k_ladder)
+  std::vector<ReachRow> k_rows;    ///< per k of the k ladder (as reach) its least error over the reach ladder
   double reach = 0;                ///< the ladder's r of least error over all held-out cells (the smaller on a tie)
   std::vector<ReachGroup> groups;  ///< one per theta_h group
   /// the chosen retro ladder's weight of least error at all the held band's cells (the smaller on a tie); empty without
@@ -104,13 +112,14 @@ struct ReachChoice {
 };
 
 /// Chooses o.confidence_reach for resample_with_prior(src, prior, o) on the holdout of reach_holdout: the prior fitted
-/// (o.fit) to the kept samples' cell means, the kd-tree (o.local) built over the kept samples, and at every held-out
-/// cell, for every ladder r, the mean over bands of (ln((blend cos_i cos_o + eps) / (target cos_i cos_o + eps)))^2,
-/// eps the prior's times min(1, the kept cell means' median cos-weighted band mean / the prior's median reference at
-/// the same cells), target the held-out samples' mean; on all threads, the same for any thread count. UsageError for
-/// bad options or o.residuals (the residuals form is not a blend); errors of reach_holdout and fit_prior. With
-/// r.retro_residuals and a held band, the carry of the log residuals into the band is rehearsed on the blend these
-/// choices make from the kept samples (choose_retro_residuals of acquire/retro_residual.h).
+/// (o.fit) to the kept samples' cell means, the kd-tree (o.local, or each k of r.k_ladder in turn, the k of least error
+/// kept) built over the kept samples, and at every held-out cell, for every ladder r, the mean over bands of (ln((blend
+/// cos_i cos_o + eps) / (target cos_i cos_o + eps)))^2, eps the prior's times min(1, the kept cell means' median
+/// cos-weighted band mean / the prior's median reference at the same cells), target the held-out samples' mean; on all
+/// threads, the same for any thread count. UsageError for bad options or o.residuals (the residuals form is not a
+/// blend); errors of reach_holdout and fit_prior. With r.retro_residuals and a held band, the carry of the log
+/// residuals into the band is rehearsed on the blend these choices make from the kept samples (choose_retro_residuals
+/// of acquire/retro_residual.h).
 ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPrior& prior,
                                     const PriorResampleOptions& o, const ReachOptions& r);
 /// choose_confidence_reach with the prior's components from `components` block by block (fit_prior).

@@ -189,6 +189,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
     ReachOptions ro = *m.reach_auto;
     if (m.retro_residuals_auto && log_residuals) ro.retro_residuals = *log_residuals;
     reach = choose_confidence_reach(src, prior, components, po, ro);
+    po.local.k = reach->k;
     if (reach->retro_residuals) log_residuals->into_retro_band = reach->retro_residuals->carried;
     po.confidence_reach = reach->reach;
     po.reach_by_theta_h = reach_by_theta_h(*reach);
@@ -222,9 +223,10 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
       m.energy_bound ? fmt::format("on floor={} kappa={}", m.energy_bound->floor, m.energy_bound->kappa)
                      : std::string("off"),
       m.log_blend ? fmt::format("log eps={:.3g}", eps) : std::string("linear"), final_words(fin, st.unseen_retro_rows),
-      local_words(po.local, k));
+      local_words(po.local, reach && !reach->k_rows.empty() ? given_k(po.local.k) : k));
   const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
+  out.report["k"] = po.local.k;
   out.report["observed_cells"] = st.observed_cells;
   out.report["bounded_cells"] = st.bounded_cells;
   out.report["energy_bounded_cells"] = st.energy_bounded_cells;

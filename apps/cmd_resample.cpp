@@ -146,6 +146,8 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
   const auto criterion = acquire::parse_bandwidth_criterion(o.k_criterion);
   if (o.k == "auto") {
     job.k_auto = acquire::BandwidthOptions{.held_out = o.k_held_out, .criterion = criterion};
+  } else if (o.k == "holdout") {
+    if (o.prior.empty()) throw UsageError("-k holdout: chosen by the prior's holdout, only with --prior");
   } else {
     std::size_t used = 0;
     try {
@@ -154,7 +156,7 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
       used = 0;
     }
     if (used == 0 || used != o.k.size())
-      throw UsageError("-k: give a count of neighbours or 'auto', got '" + o.k + "'");
+      throw UsageError("-k: give a count of neighbours, 'auto' or (with --prior) 'holdout', got '" + o.k + "'");
   }
   if (!o.prior.empty()) {
     acquire::PriorMethod m{.prior = o.prior,
@@ -169,6 +171,10 @@ acquire::ResampleJob job_of(const ResampleCliOptions& o) {
       throw UsageError("--confidence-reach auto: chosen for the blend, not with --prior-residuals");
     if (o.confidence_reach ? *o.confidence_reach != "auto" : o.prior_residuals) m.reach_auto.reset();
     if (o.confidence_reach && *o.confidence_reach != "auto") m.confidence_reach = reach_of(*o.confidence_reach);
+    if (o.k == "holdout" && !m.reach_auto)
+      throw UsageError(
+          "-k holdout: chosen with the reach, so not with a --confidence-reach given or --prior-residuals");
+    if (o.k == "holdout") m.reach_auto->k_ladder = acquire::kReachKLadder;
     if (o.blend_in_retro && m.reach_auto) m.reach_auto->retro_ladder.clear();
     if (o.no_retro_continuation && m.reach_auto) m.reach_auto->retro_continued = false;
     if (o.retro_weight_overall && m.reach_auto) m.reach_auto->retro_by_group = false;
@@ -232,7 +238,8 @@ void setup_resample(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("-k", o->k,
                   "Nearest samples per cell, or auto: the k of a fixed ladder (4 to 128) predicting held-out samples "
-                  "best by leave-one-out (docs/resampling.md)")
+                  "best by leave-one-out (docs/resampling.md), or (--prior) holdout: the k of 8, 16, 32 or 64 whose "
+                  "blend the prior's holdout finds closest, chosen with the reach (docs/prior.md)")
       ->capture_default_str();
   auto* k_criterion =
       cmd->add_option(

@@ -1,7 +1,8 @@
 // The kd-tree's reach in the prior's blend chosen by holdout (acquire/prior_reach.h): a material the prior cannot
 // represent, sampled densely without noise, gets a large reach (the kd-tree is right); a material of the prior's
 // family under heavy noise gets a small one (the fit is right); and the validation errors equal a brute-force
-// recomputation from the held-out cells, a separately built fit and kd-tree estimate, on any thread count.
+// recomputation from the held-out cells, a separately built fit and kd-tree estimate, on any thread count. The
+// kd-tree's k chosen with the reach is each k's own choice at its best, and noisy samples take the larger k.
 #include "specula/acquire/prior_reach.h"
 
 #include <gtest/gtest.h>
@@ -358,6 +359,54 @@ TEST(PriorReach, ASmallReachWhereThePriorHoldsTheMaterialAndTheSamplesAreNoisy) 
   EXPECT_LE(c.reach, 0.03);
   // The held-out means of a sample or two carry the noise too (the same error under every reach).
   EXPECT_GT(c.rows.back().error, 1.15 * c.rows.front().error) << "the prior alone better than the kd-tree";
+}
+
+TEST(PriorReach, TheKdTreesKIsTheOneWhoseBlendTheHoldoutFindsClosest) {
+  // Each k of the ladder judged alone (its own choice, o.local.k = k) gives the least error the ladder reports for
+  // it, the k kept is the least of them, and everything else is that k's own choice.
+  const Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 30000, 0.05, 0.3, 3);
+  const brdf::MemorySamples src(s.angles, s.values, 5);
+  acquire::ReachOptions r;
+  r.k_ladder = {4, 48};
+  const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), {}, r);
+  ASSERT_EQ(c.k_rows.size(), 2u);
+  EXPECT_NE(c.k_rows[0].error, c.k_rows[1].error) << "the two k must differ for the test to mean anything";
+  std::vector<acquire::ReachChoice> alone;
+  for (const std::size_t k : r.k_ladder) {
+    acquire::PriorResampleOptions o;
+    o.local.k = k;
+    alone.push_back(acquire::choose_confidence_reach(src, family_prior(), o, {}));
+    EXPECT_TRUE(alone.back().k_rows.empty());
+    EXPECT_EQ(alone.back().k, k);
+  }
+  std::size_t best = 0;
+  for (std::size_t i = 0; i < alone.size(); ++i) {
+    double least = INFINITY;
+    for (const auto& row : alone[i].rows) least = std::min(least, row.error);
+    EXPECT_EQ(c.k_rows[i].reach, double(r.k_ladder[i]));
+    EXPECT_DOUBLE_EQ(c.k_rows[i].error, least) << r.k_ladder[i];
+    if (c.k_rows[i].error < c.k_rows[best].error) best = i;
+  }
+  EXPECT_EQ(c.k, r.k_ladder[best]);
+  const acquire::ReachChoice& same = alone[best];
+  EXPECT_EQ(c.reach, same.reach);
+  ASSERT_EQ(c.rows.size(), same.rows.size());
+  for (std::size_t l = 0; l < c.rows.size(); ++l) EXPECT_DOUBLE_EQ(c.rows[l].error, same.rows[l].error);
+  ASSERT_EQ(c.groups.size(), same.groups.size());
+  for (std::size_t g = 0; g < c.groups.size(); ++g) EXPECT_EQ(c.groups[g].reach, same.groups[g].reach);
+  r.k_ladder = {16, 4};
+  EXPECT_THROW(acquire::choose_confidence_reach(src, family_prior(), {}, r), specula::UsageError);
+}
+
+TEST(PriorReach, NoisySamplesOfAMaterialThePriorCannotFollowTakeTheLargerK) {
+  // The rippled material under 30 % noise: the kd-tree must carry the ripple, and more neighbours average its noise.
+  const Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 120000, 0.3, 0.6, 4);
+  const brdf::MemorySamples src(s.angles, s.values, 5);
+  acquire::ReachOptions r;
+  r.k_ladder = {2, 64};
+  const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), {}, r);
+  EXPECT_EQ(c.k, 64u);
+  EXPECT_LT(c.k_rows[1].error, 0.8 * c.k_rows[0].error) << c.k_rows[0].error << " " << c.k_rows[1].error;
 }
 
 TEST(PriorReach, ValidationErrorsEqualABruteForceRecomputation) {

@@ -1,5 +1,5 @@
-// Cornell samples imported, resampled onto the grid and cross-validated from the command line; bad input is
-// one line and leaves the store alone.
+// Cornell samples imported, resampled onto the grid and cross-validated from the command line; with a prior the
+// kd-tree's k chosen by its holdout; bad input is one line and leaves the store alone.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -148,6 +148,7 @@ TEST(ResampleCli, BadInputIsOneLineAndLeavesTheStoreAlone) {
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' --mapping polar",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k 0",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k many",
+        "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k holdout",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k auto --k-criterion mean",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k auto --k-held-out 0",
         "resample '" + db.string() + "' ok -o '" + db.string() + ":g' -k 8 --k-held-out 100",
@@ -163,6 +164,41 @@ TEST(ResampleCli, BadInputIsOneLineAndLeavesTheStoreAlone) {
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << args << ": " << r.output;
   }
   EXPECT_EQ(test::read_bytes(db), before);
+}
+
+TEST(ResampleCli, WithAPriorTheKdTreesKChosenByTheHoldoutIsTheGivenKsGrid) {
+  // -k holdout keeps one k of its ladder, reports every k's least error, and writes the grid that k given outright
+  // writes, bit for bit; it needs --prior with the reach chosen, each refusal one line leaving the store alone.
+  test::ScratchDir dir;
+  const std::string db = (dir / "db.h5").string(), out = (dir / "out.h5").string(), wl = " --wavelengths 400:700:100";
+  for (const char* m : {"blue-paint", "gold", "green-matte", "study-ts", "cyan-gloss"})
+    ASSERT_EQ(run_specula(std::string("synth-brdf ") + m + wl + " -o '" + db + ":" + m + "'").status, 0) << m;
+  ASSERT_EQ(run_specula("prior build '" + db + "' --exclude cyan-gloss --channels 3 -o '" + db + "' --name p").status,
+            0);
+  ASSERT_EQ(
+      run_specula("synth-samples cyan-gloss --geometry random -n 40000 --noise 0.05" + wl + " -o '" + db + ":scan'")
+          .status,
+      0);
+  auto r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -k holdout -o '" + out + ":h' --json");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const double k = test::json_number(r.output, "k");
+  EXPECT_TRUE(k == 8 || k == 16 || k == 32 || k == 64) << r.output;
+  EXPECT_EQ(test::json_number(r.output.substr(r.output.find("\"confidence_reach_auto\"")), "k"), k) << r.output;
+  EXPECT_NE(r.output.find("\"k_rows\":[{\"k\":8"), std::string::npos) << r.output;
+  r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -k " + std::to_string(int(k)) + " -o '" + out +
+                  ":g'");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const store::Store s = store::Store::open(out);
+  EXPECT_EQ(s.read_grid("h").brdf, s.read_grid("g").brdf);
+  EXPECT_NE(s.read_grid("h").provenance.importer.find("k_by_holdout=8,16,32,64"), std::string::npos);
+  const std::string before = test::read_bytes(out);
+  for (const std::string flags : {" -k holdout --confidence-reach 0.1", " -k holdout --prior-residuals"}) {
+    r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + out + ":b'" + flags);
+    EXPECT_EQ(r.status, 1) << flags;
+    EXPECT_NE(r.output.find("-k holdout"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  }
+  EXPECT_EQ(test::read_bytes(out), before);
 }
 
 }  // namespace
