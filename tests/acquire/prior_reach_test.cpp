@@ -366,8 +366,7 @@ TEST(PriorReach, TheKdTreesKIsTheOneWhoseBlendTheHoldoutFindsClosest) {
   // it, the k kept is the least of them, and everything else is that k's own choice.
   const Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 30000, 0.05, 0.3, 3);
   const brdf::MemorySamples src(s.angles, s.values, 5);
-  acquire::ReachOptions r;
-  r.k_ladder = {4, 48};
+  acquire::ReachOptions r{.k_ladder = {4, 48}};
   const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), {}, r);
   ASSERT_EQ(c.k_rows.size(), 2u);
   EXPECT_NE(c.k_rows[0].error, c.k_rows[1].error) << "the two k must differ for the test to mean anything";
@@ -401,10 +400,8 @@ TEST(PriorReach, TheKdTreesKIsTheOneWhoseBlendTheHoldoutFindsClosest) {
 TEST(PriorReach, NoisySamplesOfAMaterialThePriorCannotFollowTakeTheLargerK) {
   // The rippled material under 30 % noise: the kd-tree must carry the ripple, and more neighbours average its noise.
   const Scan s = scan_of(ward(0.45, 0.25, 0.07, 0.12), 120000, 0.3, 0.6, 4);
-  const brdf::MemorySamples src(s.angles, s.values, 5);
-  acquire::ReachOptions r;
-  r.k_ladder = {2, 64};
-  const acquire::ReachChoice c = acquire::choose_confidence_reach(src, family_prior(), {}, r);
+  const acquire::ReachChoice c = acquire::choose_confidence_reach(brdf::MemorySamples(s.angles, s.values, 5),
+                                                                  family_prior(), {}, {.k_ladder = {2, 64}});
   EXPECT_EQ(c.k, 64u);
   EXPECT_LT(c.k_rows[1].error, 0.8 * c.k_rows[0].error) << c.k_rows[0].error << " " << c.k_rows[1].error;
 }
