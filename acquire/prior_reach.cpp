@@ -174,35 +174,37 @@ std::vector<float> rehearsal_blend(std::span<const float> fitted, std::span<cons
   return out;
 }
 
-// The kd-tree estimate over the kept samples at o.local.k, or at each k of r.k_ladder keeping the one whose least
-// mean error over the reach ladder is least (the smaller k on a tie): its grid and gaps, its per-cell errors and
-// their means over all held-out cells; the k and each k's least error into out.
-void kd_tree_of_least_error(const KeptSamples& kept, const PriorObservations& held, std::span<const float> fitted,
-                            const PriorResampleOptions& o, const ReachOptions& r, ReachChoice& out,
-                            std::vector<float>& kd, std::vector<float>& gaps, std::vector<double>& err,
-                            std::vector<double>& mean) {
-  const std::size_t b = kept.bands(), m = r.ladder.size();
-  const std::vector<std::size_t> ks = r.k_ladder.empty() ? std::vector<std::size_t>{o.local.k} : r.k_ladder;
-  const brdf::SampleTree tree(kept, o.local.mapping);
-  std::vector<float> grid(b * brdf::kMerlCells);
-  for (const std::size_t k : ks) {
+// The least of a ladder's mean errors over all of err's held-out cells.
+double least_mean_error(const std::vector<double>& err, std::size_t m) {
+  std::size_t n = 0;
+  const std::vector<double> mean = mean_errors(
+      err, m, [](std::size_t) { return true; }, n);
+  return *std::min_element(mean.begin(), mean.end());
+}
+
+// The kd-tree's k: o.local.k, or of r.k_ladder the one whose least mean error over the reach ladder at the held-out
+// cells is least (the smaller on a tie), each k's estimate made at those cells alone; each k's least error into
+// out.k_rows.
+std::size_t k_of_least_error(const brdf::SampleTree& tree, const KeptSamples& kept, const PriorObservations& held,
+                             std::span<const float> fitted, const PriorResampleOptions& o, const ReachOptions& r,
+                             ReachChoice& out) {
+  if (r.k_ladder.empty()) return o.local.k;
+  const auto& cells = valid_cells();
+  std::vector<std::uint32_t> at;
+  for (const std::uint32_t v : held.cell) at.push_back(cells[v]);
+  std::sort(at.begin(), at.end());
+  std::vector<float> kd(kept.bands() * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
+  std::size_t best = 0;
+  for (const std::size_t k : r.k_ladder) {
     brdf::ResampleOptions local = o.local;
     local.k = k;
-    brdf::resample_grid(tree, kept, local, grid, gaps);
-    std::vector<double> e = held_out_errors(held, fitted, grid, gaps, b, r, local.max_gap, out.epsilon);
-    std::size_t n = 0;
-    std::vector<double> me = mean_errors(
-        e, m, [](std::size_t) { return true; }, n);
-    const double least_error = *std::min_element(me.begin(), me.end());
-    if (!r.k_ladder.empty()) out.k_rows.push_back({.reach = double(k), .error = least_error});
-    if (kd.empty() || least_error < *std::min_element(mean.begin(), mean.end())) {
-      out.k = k;
-      kd.swap(grid);
-      err.swap(e);
-      mean.swap(me);
-      if (grid.empty()) grid.resize(b * brdf::kMerlCells);
-    }
+    brdf::resample_cells(tree, kept, local, at, kd, gaps);
+    const double error = least_mean_error(
+        held_out_errors(held, fitted, kd, gaps, kept.bands(), r, local.max_gap, out.epsilon), r.ladder.size());
+    out.k_rows.push_back({.reach = double(k), .error = error});
+    if (error < out.k_rows[best].error) best = out.k_rows.size() - 1;
   }
+  return r.k_ladder[best];
 }
 
 }  // namespace
@@ -280,11 +282,17 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
   fit_prior(prior, components, parts[0], o.fit, fitted);
   out.epsilon = judge_epsilon(parts[0], prior, b);
   const KeptSamples kept(src, out.holdout.held);
-  std::vector<float> kd, gaps(brdf::kMerlCells, -1.0f);
-  std::vector<double> err, mean;
-  kd_tree_of_least_error(kept, parts[1], fitted, o, r, out, kd, gaps, err, mean);
+  const brdf::SampleTree tree(kept, o.local.mapping);
+  brdf::ResampleOptions local = o.local;
+  local.k = out.k = k_of_least_error(tree, kept, parts[1], fitted, o, r, out);
+  std::vector<float> kd(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
+  brdf::resample_grid(tree, kept, local, kd, gaps);
   out.holdout.held = {};
   const std::size_t m = r.ladder.size();
+  const std::vector<double> err = held_out_errors(parts[1], fitted, kd, gaps, b, r, local.max_gap, out.epsilon);
+  std::size_t n = 0;
+  const std::vector<double> mean = mean_errors(
+      err, m, [](std::size_t) { return true; }, n);
   for (std::size_t l = 0; l < m; ++l) out.rows.push_back({.reach = r.ladder[l], .error = mean[l]});
   out.reach = r.ladder[least(mean)];
   const auto& cells = valid_cells();

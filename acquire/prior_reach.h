@@ -112,14 +112,14 @@ struct ReachChoice {
 };
 
 /// Chooses o.confidence_reach for resample_with_prior(src, prior, o) on the holdout of reach_holdout: the prior fitted
-/// (o.fit) to the kept samples' cell means, the kd-tree (o.local, or each k of r.k_ladder in turn, the k of least error
-/// kept) built over the kept samples, and at every held-out cell, for every ladder r, the mean over bands of (ln((blend
-/// cos_i cos_o + eps) / (target cos_i cos_o + eps)))^2, eps the prior's times min(1, the kept cell means' median
-/// cos-weighted band mean / the prior's median reference at the same cells), target the held-out samples' mean; on all
-/// threads, the same for any thread count. UsageError for bad options or o.residuals (the residuals form is not a
-/// blend); errors of reach_holdout and fit_prior. With r.retro_residuals and a held band, the carry of the log
-/// residuals into the band is rehearsed on the blend these choices make from the kept samples (choose_retro_residuals
-/// of acquire/retro_residual.h).
+/// (o.fit) to the kept samples' cell means, the kd-tree (o.local, or of r.k_ladder the k of least error, each k's
+/// estimate made at the held-out cells alone) built over the kept samples, and at every held-out cell, for every ladder
+/// r, the mean over bands of (ln((blend cos_i cos_o + eps) / (target cos_i cos_o + eps)))^2, eps the prior's times
+/// min(1, the kept cell means' median cos-weighted band mean / the prior's median reference at the same cells), target
+/// the held-out samples' mean; on all threads, the same for any thread count. UsageError for bad options or o.residuals
+/// (the residuals form is not a blend); errors of reach_holdout and fit_prior. With r.retro_residuals and a held band,
+/// the carry of the log residuals into the band is rehearsed on the blend these choices make from the kept samples
+/// (choose_retro_residuals of acquire/retro_residual.h).
 ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPrior& prior,
                                     const PriorResampleOptions& o, const ReachOptions& r);
 /// choose_confidence_reach with the prior's components from `components` block by block (fit_prior).

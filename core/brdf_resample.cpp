@@ -150,7 +150,7 @@ struct GridFill {
   const ResampleOptions& o;
   std::size_t n, bands;
   GridOut out;
-  const std::vector<std::uint32_t>& cells = merl_valid_cells();
+  std::span<const std::uint32_t> cells;  // the valid cells filled, ascending
 
   // Finds and weighs the neighbours of cells[first, first + m), row by row on all threads, and calls
   // visit(c, by_sample) for each cell c (from first) with support; the gaps are written when asked for.
@@ -301,7 +301,8 @@ GridStats fill_streaming(const GridFill& f, const ValueReader& read, std::size_t
 // ascending sample index, whichever way the values arrive: read whole when they take no more memory than a pass's
 // neighbour lists would (max_entries entries of 8 bytes), else streamed past the lists.
 GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const ValueReader& read,
-               std::size_t block_rows, const ResampleOptions& o, const GridOut& out) {
+               std::size_t block_rows, const ResampleOptions& o, const GridOut& out,
+               std::span<const std::uint32_t> cells) {
   check_options(o);
   if (!out.gaps.empty() && out.gaps.size() != kMerlCells)
     throw UsageError("resample: gaps must hold one value per cell");
@@ -310,7 +311,7 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
     throw UsageError("resample: the grid must hold bands x 90 x 90 x 180 values");
   if (out.cell_major && out.valid.size() != kMerlCells) throw UsageError("resample: valid must hold one flag per cell");
   if (!out.cell_major) std::fill(out.grid.begin(), out.grid.end(), -1.0f);
-  const GridFill f{.tree = tree, .o = o, .n = n, .bands = bands, .out = out};
+  const GridFill f{.tree = tree, .o = o, .n = n, .bands = bands, .out = out, .cells = cells};
   block_rows = std::max<std::size_t>(1, block_rows);
   GridStats stats;
   const std::size_t stride = padded_bands(bands);
@@ -330,6 +331,16 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
   }
   stats.samples = n;
   return stats;
+}
+
+// fill over the values of src.
+GridStats fill_source(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o, const GridOut& out,
+                      std::span<const std::uint32_t> cells) {
+  if (tree.size() != src.size()) throw UsageError("resample: the tree was built over other samples");
+  return fill(
+      tree, src.size(), src.bands(),
+      [&src](std::size_t first, std::size_t count, std::span<float> out) { src.read_values(first, count, out); },
+      src.block_rows(), o, out, cells);
 }
 
 }  // namespace
@@ -515,11 +526,19 @@ void neighbour_weights(Weights w, double power, std::span<const float> dist2, st
 
 GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
                         std::span<float> grid, std::span<float> gaps) {
-  if (tree.size() != src.size()) throw UsageError("resample: the tree was built over other samples");
-  return fill(
-      tree, src.size(), src.bands(),
-      [&src](std::size_t first, std::size_t count, std::span<float> out) { src.read_values(first, count, out); },
-      src.block_rows(), o, {.grid = grid, .gaps = gaps});
+  return fill_source(tree, src, o, {.grid = grid, .gaps = gaps}, merl_valid_cells());
+}
+
+GridStats resample_cells(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
+                         std::span<const std::uint32_t> cells, std::span<float> grid, std::span<float> gaps) {
+  const auto& valid = merl_valid_cells();
+  for (std::size_t c = 0; c < cells.size(); ++c)
+    if ((c > 0 && cells[c] <= cells[c - 1]) || !std::binary_search(valid.begin(), valid.end(), cells[c]))
+      throw UsageError(
+          fmt::format("resample: cell {} (at {}) is not a valid MERL cell above the one before it; "
+                      "give valid cells in ascending order",
+                      cells[c], c));
+  return fill_source(tree, src, o, {.grid = grid, .gaps = gaps}, cells);
 }
 
 GridStats resample_grid(const SampleSource& src, const ResampleOptions& o, std::span<float> grid) {
@@ -574,11 +593,12 @@ void Resampler::neighbours(const StdAngles& at, Neighbours& out) const { tree_->
 std::size_t Resampler::fill(std::span<float> grid, bool cell_major, std::span<std::uint8_t> valid) const {
   const std::size_t b = bands_;
   const auto values = values_;
-  return brdf::fill(*tree_, tree_->size(), b,
-                    [values, b](std::size_t first, std::size_t count, std::span<float> out) {
-                      std::copy_n(values.begin() + std::ptrdiff_t(first * b), count * b, out.begin());
-                    },
-                    std::size_t(1) << 16, o_, {.grid = grid, .cell_major = cell_major, .valid = valid})
+  return brdf::fill(
+             *tree_, tree_->size(), b,
+             [values, b](std::size_t first, std::size_t count, std::span<float> out) {
+               std::copy_n(values.begin() + std::ptrdiff_t(first * b), count * b, out.begin());
+             },
+             std::size_t(1) << 16, o_, {.grid = grid, .cell_major = cell_major, .valid = valid}, merl_valid_cells())
       .valid_cells;
 }
 

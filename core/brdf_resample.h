@@ -181,6 +181,11 @@ GridStats resample_grid(const SampleSource& src, const ResampleOptions& o, std::
 /// (kMerlCells values), each valid cell's config_distance to its nearest sample goes there (others untouched).
 GridStats resample_grid(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
                         std::span<float> grid, std::span<float> gaps = {});
+/// resample_grid at `cells` alone (valid MERL cell indices, ascending), each exactly as resample_grid computes it;
+/// the grid's other cells get -1 and the other gaps are left untouched. UsageError for a cell not valid or out of
+/// order.
+GridStats resample_cells(const SampleTree& tree, const SampleSource& src, const ResampleOptions& o,
+                         std::span<const std::uint32_t> cells, std::span<float> grid, std::span<float> gaps = {});
 
 /// Reconstruction at any configuration from samples in memory (the caller keeps the values alive).
 class Resampler {

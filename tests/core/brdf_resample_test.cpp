@@ -10,6 +10,7 @@
 
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
+#include "specula/core/merl_cells.h"
 #include "test_support.h"
 
 namespace specula::brdf {
@@ -448,6 +449,41 @@ TEST(Resampler, GridIsPredictAtEveryCellCentreForAnyPassCountAndThreadCount) {
       }
       EXPECT_GT(checked, 100u);
     }
+}
+
+TEST(Resampler, CellsAloneAreTheGridsCellsBitForBit) {
+  // A scattered subset (every 7th valid cell) and a few whole rows: in memory and streamed in passes, under weights
+  // with and without a reach; every other cell -1 and its gap untouched.
+  const Samples s = random_samples(20000, 3, 5);
+  const MemorySamples src(s.angles, s.values, 3);
+  const auto& valid = merl_valid_cells();
+  std::vector<std::uint32_t> subset;
+  for (std::size_t i = 0; i < valid.size(); ++i)
+    if (i % 7 == 3 || (valid[i] / 180) % 997 == 0) subset.push_back(valid[i]);
+  std::vector<std::uint8_t> in(kMerlCells, 0);
+  for (const std::uint32_t c : subset) in[c] = 1;
+  for (const Weights w : {Weights::shepard, Weights::renka, Weights::loess})
+    for (const std::size_t entries : {std::size_t(1) << 24, std::size_t(30011)}) {
+      const ResampleOptions o{.k = 8, .weights = w, .max_gap = 0.15, .max_entries = entries};
+      const SampleTree tree(src, o.mapping);
+      std::vector<float> grid(3 * kMerlCells), part(3 * kMerlCells, 5.0f);
+      std::vector<float> gaps(kMerlCells, 9.0f), part_gaps(kMerlCells, 9.0f);
+      resample_grid(tree, src, o, grid, gaps);
+      resample_cells(tree, src, o, subset, part, part_gaps);
+      std::size_t with_data = 0;
+      for (std::size_t c = 0; c < kMerlCells; ++c) {
+        ASSERT_EQ(part_gaps[c], in[c] ? gaps[c] : 9.0f) << c;
+        with_data += in[c] && grid[c] >= 0;
+        for (std::size_t q = 0; q < 3; ++q)
+          ASSERT_EQ(part[q * kMerlCells + c], in[c] ? grid[q * kMerlCells + c] : -1.0f) << weights_name(w) << " " << c;
+      }
+      EXPECT_GT(with_data, subset.size() / 2);
+    }
+  const SampleTree tree(src, Mapping::standard);
+  std::vector<float> grid(3 * kMerlCells);
+  const std::vector<std::uint32_t> descending = {valid[9], valid[2]}, invalid = {std::uint32_t(kMerlCells - 1)};
+  EXPECT_THROW(resample_cells(tree, src, {}, descending, grid), UsageError);
+  EXPECT_THROW(resample_cells(tree, src, {}, invalid, grid), UsageError);
 }
 
 TEST(Resampler, CellsFarFromEverySampleHaveNoData) {
