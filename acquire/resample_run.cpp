@@ -171,7 +171,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
     throw InputError("resample: prior '" + m.prior +
                      "' holds no retro rise maps (written before they were learned, version <= 3); build it again "
                      "with specula prior build, or resample without --retro-rise");
-  const ChosenK k = resolved_k(job, s);
+  ChosenK k = resolved_k(job, s);
   PriorResampleOptions po{.local = job.local,
                           .fit = m.fit,
                           .confidence_reach = m.confidence_reach,
@@ -189,7 +189,8 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
     ReachOptions ro = *m.reach_auto;
     if (m.retro_residuals_auto && log_residuals) ro.retro_residuals = *log_residuals;
     reach = choose_confidence_reach(src, prior, components, po, ro);
-    po.local.k = reach->k;
+    if (!reach->k_rows.empty()) k = given_k(reach->k);  // the reach's provenance names the ladder it came from
+    po.local.k = k.k;
     if (reach->retro_residuals) log_residuals->into_retro_band = reach->retro_residuals->carried;
     po.confidence_reach = reach->reach;
     po.reach_by_theta_h = reach_by_theta_h(*reach);
@@ -223,7 +224,7 @@ ResampleOutcome with_prior(const ResampleJob& job, const PriorMethod& m, const s
       m.energy_bound ? fmt::format("on floor={} kappa={}", m.energy_bound->floor, m.energy_bound->kappa)
                      : std::string("off"),
       m.log_blend ? fmt::format("log eps={:.3g}", eps) : std::string("linear"), final_words(fin, st.unseen_retro_rows),
-      local_words(po.local, reach && !reach->k_rows.empty() ? given_k(po.local.k) : k));
+      local_words(po.local, k));
   const double seconds = elapsed_seconds(t0);
   out.report = report_head(info, st.filled_cells);
   out.report["k"] = po.local.k;

@@ -9,6 +9,7 @@
 #include <numbers>
 
 #include "python/common.h"
+#include "specula/acquire/prior_reach.h"
 #include "specula/acquire/resample_run.h"
 
 namespace specula::python {
@@ -22,14 +23,29 @@ std::string store_path(const StoreArg& store) {
   return existing_file(store).string();
 }
 
-// `k` as a count, or true in `k_auto` for "auto".
-std::size_t count_or_auto(const CountOrAuto& k, bool& k_auto) {
-  k_auto = py::isinstance<py::str>(k) && k.cast<std::string>() == "auto";
-  if (k_auto) return brdf::ResampleOptions{}.k;
+// How `k` was given: a count, "auto" (leave-one-out over the samples) or "holdout" (with a prior: chosen with the
+// reach by its holdout).
+enum class KGiven { count, loo, holdout };
+
+// `k` as a count (the default count for "auto" and "holdout"), and how it was given into `how`.
+std::size_t neighbour_count(const CountOrAuto& k, KGiven& how) {
+  const std::string word = py::isinstance<py::str>(k) ? k.cast<std::string>() : "";
+  how = word == "auto" ? KGiven::loo : word == "holdout" ? KGiven::holdout : KGiven::count;
+  if (how != KGiven::count) return brdf::ResampleOptions{}.k;
   if (py::isinstance<py::int_>(k) && !py::isinstance<py::bool_>(k) && k.cast<long long>() > 0)
     return k.cast<std::size_t>();
-  throw UsageError(
-      fmt::format("resample: k = {}: give a count of neighbours or 'auto'", py::repr(k).cast<std::string>()));
+  throw UsageError(fmt::format("resample: k = {}: give a count of neighbours, 'auto' or (with a prior) 'holdout'",
+                               py::repr(k).cast<std::string>()));
+}
+
+// peak_rows of a prior: "auto" (chosen from the scan) or a count of theta_h rows.
+void set_peak_rows(const CountOrAuto& peak_rows, acquire::PriorMethod& prior) {
+  if (py::isinstance<py::str>(peak_rows) && peak_rows.cast<std::string>() == "auto") return;
+  if (!py::isinstance<py::int_>(peak_rows) || py::isinstance<py::bool_>(peak_rows))
+    throw UsageError(fmt::format("resample: peak_rows = {}: give a count of theta_h rows in [0, 90) or 'auto'",
+                                 py::repr(peak_rows).cast<std::string>()));
+  prior.peak_auto.reset();
+  prior.peak_rows = peak_rows.cast<int>();
 }
 
 // The reach of a prior's or a model's confidence: a fraction, "auto" (a prior's holdout), or None (the method's
@@ -64,29 +80,27 @@ void init_resample(py::module_& m) {
                                                                           : peak_given    ? "peak_rows"
                                                                                           : "retro_rise"));
         if (model.is_none() && lobes != 1) throw UsageError("resample: lobes: only with a model");
-        bool k_auto = false;
+        KGiven k_given = KGiven::count;
         acquire::ResampleJob job{.store = store_path(store),
                                  .samples = samples,
                                  .local = {.mapping = brdf::parse_mapping(mapping),
-                                           .k = count_or_auto(k, k_auto),
+                                           .k = neighbour_count(k, k_given),
                                            .weights = brdf::parse_weights(weights),
                                            .power = power,
                                            .max_gap = max_gap * std::numbers::pi / 180}};
-        if (k_auto) job.k_auto = acquire::BandwidthOptions{};
+        if (k_given == KGiven::loo) job.k_auto = acquire::BandwidthOptions{};
+        if (k_given == KGiven::holdout && prior.is_none())
+          throw UsageError("resample: k='holdout' is chosen by a prior's holdout, only with a prior");
         if (!prior.is_none()) {
           acquire::PriorMethod pm{.prior = prior.cast<std::string>()};
           if (lambda) pm.fit.lambda = *lambda;
           set_reach(confidence_reach, &pm, nullptr);
+          if (k_given == KGiven::holdout && !pm.reach_auto)
+            throw UsageError("resample: k='holdout' is chosen with the reach, so not with a confidence_reach given");
+          if (k_given == KGiven::holdout) pm.reach_auto->k_ladder = acquire::kReachKLadder;
           if (!log_residuals.value_or(true)) pm.log_residuals.reset();
           pm.retro_rise = retro_rise;
-          if (peak_given) {
-            if (!py::isinstance<py::int_>(peak_rows) || py::isinstance<py::bool_>(peak_rows))
-              throw UsageError(
-                  fmt::format("resample: peak_rows = {}: give a count of theta_h rows in [0, 90) or 'auto'",
-                              py::repr(peak_rows).cast<std::string>()));
-            pm.peak_auto.reset();
-            pm.peak_rows = peak_rows.cast<int>();
-          }
+          set_peak_rows(peak_rows, pm);
           job.method = pm;
         } else if (!model.is_none()) {
           acquire::ModelMethod mm{
@@ -115,7 +129,8 @@ void init_resample(py::module_& m) {
       py::arg("lambda_") = py::none(), py::arg("confidence_reach") = py::none(), py::arg("log_residuals") = py::none(),
       py::arg("peak_rows") = "auto", py::arg("retro_rise") = false,
       "Resamples the scattered BRDF samples `samples` of `store` onto the MERL grid as `specula resample` does "
-      "(docs/resampling.md, docs/prior.md): the kd-tree's k nearest samples (k a count or 'auto'), weighted by "
+      "(docs/resampling.md, docs/prior.md): the kd-tree's k nearest samples (k a count, 'auto' or, with a prior, "
+      "'holdout' as `-k holdout`), weighted by "
       "`weights` (shepard, loess, wendland, renka, mean), cells farther than max_gap degrees from every sample left "
       "without data; with prior='STORE.h5:NAME' a learned prior fitted and blended (every valid cell filled; lambda_ "
       "its Tikhonov weight, 1e-3 when None; log_residuals False leaves out the samples' log residuals multiplied in; "

@@ -218,7 +218,7 @@ def design_filters(store: _Path | Store, basis: str, k: int = 6, *, method: Lite
                    solve: Literal["wiener", "ridge"] = "wiener", ridge: float = 1e-3, peak: float = 0.9,
                    light_kelvin: float = 3200.0, colour_weight: float = ..., train: str | None = None,
                    test: str | None = None) -> dict[str, Any]: ...
-def resample(store: _Path | Store, samples: str, *, k: int | Literal["auto"] = 32,
+def resample(store: _Path | Store, samples: str, *, k: int | Literal["auto", "holdout"] = 32,
              weights: Literal["shepard", "loess", "wendland", "renka", "mean"] = "shepard", power: float = 1.0,
              mapping: Literal["standard", "marschner", "halfdiff"] = "standard", max_gap: float = 8.6,
              prior: str | None = None, model: Literal["ggx", "beckmann"] | None = None, lobes: int = 1,

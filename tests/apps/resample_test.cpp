@@ -191,6 +191,7 @@ TEST(ResampleCli, WithAPriorTheKdTreesKChosenByTheHoldoutIsTheGivenKsGrid) {
   const store::Store s = store::Store::open(out);
   EXPECT_EQ(s.read_grid("h").brdf, s.read_grid("g").brdf);
   EXPECT_NE(s.read_grid("h").provenance.importer.find("k_by_holdout=8,16,32,64"), std::string::npos);
+  EXPECT_NE(s.read_grid("h").provenance.importer.find(" k=" + std::to_string(int(k)) + " weights="), std::string::npos);
   const std::string before = test::read_bytes(out);
   for (const std::string flags : {" -k holdout --confidence-reach 0.1", " -k holdout --prior-residuals"}) {
     r = run_specula("resample '" + db + "' scan --prior '" + db + ":p' -o '" + out + ":b'" + flags);

@@ -86,6 +86,17 @@ def test_prior_fills_every_valid_cell_with_its_confidence_as_the_cli_does(db, tm
     assert rise["rows"] >= 0 and len(rise["factors"]) in (0, rise["rows"])
 
 
+def test_k_holdout_is_the_clis(db, tmp_path):
+    g, report = specula.resample(db, "scan", prior=f"{db}:p", k="holdout")
+    values, conf = cli_grids(db, tmp_path, "scan", "--prior", f"{db}:p", "-k", "holdout")
+    np.testing.assert_array_equal(g.values, values)
+    np.testing.assert_array_equal(report["confidence"], conf)
+    rows = report["confidence_reach_auto"]["k_rows"]
+    assert [r["k"] for r in rows] == [8, 16, 32, 64]
+    least = min(rows, key=lambda r: r["error"])
+    assert report["k"] == report["confidence_reach_auto"]["k"] == least["k"]
+
+
 def test_model_is_the_clis(db, tmp_path):
     g, report = specula.resample(db, "scan", model="ggx")
     values, conf = cli_grids(db, tmp_path, "scan", "--model", "ggx")
@@ -102,8 +113,11 @@ def test_the_grid_saves_and_reads_back(db, tmp_path):
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    ({"k": "many"}, "k = 'many': give a count of neighbours or 'auto'"),
-    ({"k": 0}, "k = 0: give a count of neighbours or 'auto'"),
+    ({"k": "many"}, "k = 'many': give a count of neighbours, 'auto' or (with a prior) 'holdout'"),
+    ({"k": 0}, "k = 0: give a count of neighbours, 'auto' or (with a prior) 'holdout'"),
+    ({"k": "holdout"}, "k='holdout' is chosen by a prior's holdout, only with a prior"),
+    ({"k": "holdout", "prior": "x.h5:p", "confidence_reach": 0.5},
+     "k='holdout' is chosen with the reach, so not with a confidence_reach given"),
     ({"prior": "x.h5:p", "model": "ggx"}, "give prior or model, not both"),
     ({"max_gap": 0.0}, "max_gap = 0 degrees: give degrees in (0, 180]"),
     ({"max_gap": 200}, "max_gap = 200 degrees: give degrees in (0, 180]"),
