@@ -63,6 +63,13 @@ std::vector<double> mean_errors(const std::vector<double>& err, std::size_t m, c
   return mean;
 }
 
+// Per ladder entry the mean of err (cells x ladder) over all its held-out cells.
+std::vector<double> overall_means(const std::vector<double>& err, std::size_t m) {
+  std::size_t n = 0;
+  return mean_errors(
+      err, m, [](std::size_t) { return true; }, n);
+}
+
 // The band's choice on one ladder's errors err (held band cells x ladder, group_of: each cell's theta_h group).
 struct BandPick {
   std::vector<double> mean;  // per ladder entry, over all the held band cells
@@ -75,9 +82,8 @@ struct BandPick {
 BandPick pick_band(const std::vector<double>& err, std::size_t m, const std::vector<std::size_t>& group_of,
                    const ReachOptions& r) {
   BandPick p;
-  std::size_t n = 0;
-  p.mean = mean_errors(
-      err, m, [](std::size_t) { return true; }, n);
+  const std::size_t n = m ? err.size() / m : 0;
+  p.mean = overall_means(err, m);
   p.overall = least(p.mean);
   for (std::size_t q = 0; q + 1 < r.theta_h_groups.size(); ++q) {
     std::size_t cells = 0;
@@ -174,14 +180,6 @@ std::vector<float> rehearsal_blend(std::span<const float> fitted, std::span<cons
   return out;
 }
 
-// The least of a ladder's mean errors over all of err's held-out cells.
-double least_mean_error(const std::vector<double>& err, std::size_t m) {
-  std::size_t n = 0;
-  const std::vector<double> mean = mean_errors(
-      err, m, [](std::size_t) { return true; }, n);
-  return *std::min_element(mean.begin(), mean.end());
-}
-
 // The kd-tree's k: o.local.k, or of r.k_ladder the one whose least mean error over the reach ladder at the held-out
 // cells is least (the smaller on a tie), each k's estimate made at those cells alone; each k's least error into
 // out.k_rows.
@@ -189,6 +187,7 @@ std::size_t k_of_least_error(const brdf::SampleTree& tree, const KeptSamples& ke
                              std::span<const float> fitted, const PriorResampleOptions& o, const ReachOptions& r,
                              ReachChoice& out) {
   if (r.k_ladder.empty()) return o.local.k;
+  const std::size_t m = r.ladder.size();
   const auto& cells = valid_cells();
   std::vector<std::uint32_t> at;
   for (const std::uint32_t v : held.cell) at.push_back(cells[v]);
@@ -199,8 +198,9 @@ std::size_t k_of_least_error(const brdf::SampleTree& tree, const KeptSamples& ke
     brdf::ResampleOptions local = o.local;
     local.k = k;
     brdf::resample_cells(tree, kept, local, at, kd, gaps);
-    const double error = least_mean_error(
-        held_out_errors(held, fitted, kd, gaps, kept.bands(), r, local.max_gap, out.epsilon), r.ladder.size());
+    const std::vector<double> mean =
+        overall_means(held_out_errors(held, fitted, kd, gaps, kept.bands(), r, local.max_gap, out.epsilon), m);
+    const double error = *std::min_element(mean.begin(), mean.end());
     out.k_rows.push_back({.reach = double(k), .error = error});
     if (error < out.k_rows[best].error) best = out.k_rows.size() - 1;
   }
@@ -290,9 +290,7 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
   out.holdout.held = {};
   const std::size_t m = r.ladder.size();
   const std::vector<double> err = held_out_errors(parts[1], fitted, kd, gaps, b, r, local.max_gap, out.epsilon);
-  std::size_t n = 0;
-  const std::vector<double> mean = mean_errors(
-      err, m, [](std::size_t) { return true; }, n);
+  const std::vector<double> mean = overall_means(err, m);
   for (std::size_t l = 0; l < m; ++l) out.rows.push_back({.reach = r.ladder[l], .error = mean[l]});
   out.reach = r.ladder[least(mean)];
   const auto& cells = valid_cells();
