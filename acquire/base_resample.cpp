@@ -7,6 +7,7 @@
 
 #include "specula/acquire/prior_resample.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/buffer.h"
 #include "specula/core/error.h"
 #include "specula/core/parallel.h"
 
@@ -53,7 +54,8 @@ brdf::GridStats resample_on_base(const brdf::SampleSource& src, const brdf::Resa
     throw UsageError("resampling on a base: the confidence's reach (a fraction of max_gap) must be in (0, 1]");
   const ResidualSamples residuals(src, base);
   const brdf::SampleTree tree(src, o.mapping);
-  std::vector<float> local(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
+  Buffer<float> local(b * brdf::kMerlCells, -1.0f);
+  std::vector<float> gaps(brdf::kMerlCells, -1.0f);
   const brdf::GridStats st = brdf::resample_grid(tree, residuals, o, local, gaps);
   const auto& cells = valid_cells();
   std::fill(confidence.begin(), confidence.end(), -1.0f);

@@ -10,6 +10,7 @@
 #include "specula/acquire/scan_holdout.h"
 #include "specula/core/brdf_geometry.h"
 #include "specula/core/brdf_mapping.h"
+#include "specula/core/buffer.h"
 #include "specula/core/error.h"
 #include "specula/core/parallel.h"
 
@@ -106,7 +107,7 @@ CapWeightChoice choose_cap_weight(const brdf::SampleSource& src, const BrdfPrior
     return out;
   }
   const std::size_t b = src.bands();
-  std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
+  Buffer<float> fitted(b * brdf::kMerlCells, -1.0f);
   fit_prior(prior, components, parts[0], o.fit, fitted);
   if (o.ceiling) {
     std::vector<std::uint8_t> rehearsal(brdf::kMerlCells, 0);
@@ -115,7 +116,7 @@ CapWeightChoice choose_cap_weight(const brdf::SampleSource& src, const BrdfPrior
   }
   out.epsilon = judge_epsilon(parts[0], prior, b);
   const KeptSamples kept(src, held);
-  std::vector<float> kd(b * brdf::kMerlCells, -1.0f);
+  Buffer<float> kd(b * brdf::kMerlCells, -1.0f);
   kd_at(kept, o.local, parts[1].cell, kd);
   const std::vector<double> err = weight_errors(parts[1], fitted, kd, b, c.ladder, out.epsilon, o.log_blend);
   for (std::size_t l = 0; l < c.ladder.size(); ++l) out.rows.push_back({.weight = c.ladder[l], .error = err[l]});

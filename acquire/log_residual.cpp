@@ -11,6 +11,7 @@
 
 #include "specula/acquire/prior.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/buffer.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/parallel.h"
@@ -51,7 +52,7 @@ bool sample_residual(const double* angles, const float* values, std::span<const 
 
 // Each plane of `planes` x kCells replaced by its box sums of half-width radius along one index axis (n cells apart
 // by stride; zero beyond the ends, or wrapped), line by line.
-void box_sums(std::vector<float>& a, std::size_t planes, std::size_t n, std::size_t stride, bool wrap, int radius) {
+void box_sums(std::span<float> a, std::size_t planes, std::size_t n, std::size_t stride, bool wrap, int radius) {
   const std::size_t lines = planes * kCells / n;
   parallel_for(
       lines, [] { return std::vector<float>(); },
@@ -76,9 +77,9 @@ void box_sums(std::vector<float>& a, std::size_t planes, std::size_t n, std::siz
 }
 
 // The RMS of every usable sample's residuals, counted into samples, the lowest theta_d row of their cells into
-// lowest; with sums, each sample's residuals (planes 0 .. bands-1) and a count (plane bands) added at its cell, in
-// sample order.
-double add_residuals(const brdf::SampleSource& src, std::span<const float> grid, double eps, std::vector<float>* sums,
+// lowest; with sums (not empty), each sample's residuals (planes 0 .. bands-1) and a count (plane bands) added at its
+// cell, in sample order.
+double add_residuals(const brdf::SampleSource& src, std::span<const float> grid, double eps, std::span<float> sums,
                      std::size_t& samples, int& lowest) {
   const std::size_t b = src.bands(), n = src.size(), block = src.block_rows();
   std::vector<double> angles;
@@ -109,10 +110,10 @@ double add_residuals(const brdf::SampleSource& src, std::span<const float> grid,
       if (cell_of[s] < 0) continue;
       const std::size_t cell = std::size_t(cell_of[s]);
       for (std::size_t k = 0; k < b; ++k) {
-        if (sums) (*sums)[k * kCells + cell] += residual[s * b + k];
+        if (!sums.empty()) sums[k * kCells + cell] += residual[s * b + k];
         squares += double(residual[s * b + k]) * residual[s * b + k];
       }
-      if (sums) (*sums)[b * kCells + cell] += 1;
+      if (!sums.empty()) sums[b * kCells + cell] += 1;
       lowest = std::min(lowest, brdf::merl_cell(cell).theta_d);
       ++samples;
     }
@@ -122,7 +123,7 @@ double add_residuals(const brdf::SampleSource& src, std::span<const float> grid,
 }
 
 // In theta_h rows [from[d], rows) of theta_d row d of every plane, each phi_d ring's values replaced by their total.
-void ring_totals(std::vector<float>& a, std::size_t planes, int rows, const std::array<int, brdf::kMerlThetaD>& from) {
+void ring_totals(std::span<float> a, std::size_t planes, int rows, const std::array<int, brdf::kMerlThetaD>& from) {
   constexpr std::size_t ring = brdf::kMerlPhiD, row = std::size_t(brdf::kMerlThetaD) * ring;
   parallel_for(
       planes * std::size_t(rows) * brdf::kMerlThetaD,
@@ -137,7 +138,7 @@ void ring_totals(std::vector<float>& a, std::size_t planes, int rows, const std:
 }
 
 // Every plane's values at theta_d row `from` copied into the rows below it, column by column.
-void carry_down(std::vector<float>& a, std::size_t planes, int from) {
+void carry_down(std::span<float> a, std::size_t planes, int from) {
   constexpr std::size_t row = brdf::kMerlPhiD, column = std::size_t(brdf::kMerlThetaD) * row;
   parallel_for(
       planes * brdf::kMerlThetaH,
@@ -151,11 +152,11 @@ void carry_down(std::vector<float>& a, std::size_t planes, int from) {
 // One pass: the box means of the residuals (carried into the retro band when asked) multiplied into every valid
 // cell with data they reach; the cells corrected.
 std::size_t correct_once(const brdf::SampleSource& src, const LogResidualOptions& o, double eps, std::span<float> grid,
-                         std::vector<float>& sums, double& rms, LogResidualStats& st) {
+                         std::span<float> sums, double& rms, LogResidualStats& st) {
   const std::size_t b = src.bands();
   std::fill(sums.begin(), sums.end(), 0.0f);
   int lowest = 0;
-  rms = add_residuals(src, grid, eps, &sums, st.samples, lowest);
+  rms = add_residuals(src, grid, eps, sums, st.samples, lowest);
   box_sums(sums, b + 1, brdf::kMerlPhiD, 1, true, o.radius);
   box_sums(sums, b + 1, brdf::kMerlThetaD, brdf::kMerlPhiD, false, o.radius);
   box_sums(sums, b + 1, brdf::kMerlThetaH, std::size_t(brdf::kMerlPhiD) * brdf::kMerlThetaD, false, o.radius);
@@ -198,15 +199,16 @@ LogResidualStats correct_by_log_residuals(const brdf::SampleSource& src, const L
   if (!(eps > 0) || !std::isfinite(eps)) throw UsageError("log residuals: epsilon must be positive");
   const auto t0 = std::chrono::steady_clock::now();
   LogResidualStats st;
-  std::vector<float> sums((b + 1) * kCells);
+  Buffer<float> sums;  // zeroed by each pass
+  sums.resize((b + 1) * kCells);
   for (int pass = 0; pass < o.passes; ++pass) {
     double rms = 0;
     st.corrected_cells = correct_once(src, o, eps, grid, sums, rms, st);
     if (pass == 0) st.rms_before = rms;
   }
-  std::vector<float>().swap(sums);
+  Buffer<float>().swap(sums);
   int lowest = 0;
-  st.rms_after = add_residuals(src, grid, eps, nullptr, st.samples, lowest);
+  st.rms_after = add_residuals(src, grid, eps, {}, st.samples, lowest);
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return st;
 }

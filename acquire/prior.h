@@ -10,6 +10,7 @@
 // Memory: building streams blocks of cells from the grids (PriorOptions::block_bytes); fitting streams blocks of the
 // components from wherever they are (a ComponentSource: the store, or a prior in memory; PriorFitOptions::block_bytes).
 #include <Eigen/Core>
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <span>
@@ -67,6 +68,15 @@ const std::vector<float>& valid_cell_cosines();
 /// The B x C hat functions of knots at wavelengths: column j is 1 at knot j and falls linearly to 0 at its
 /// neighbours (constant beyond the end knots).
 Eigen::MatrixXd hat_basis(const WavelengthGrid& wavelengths, std::span<const double> knots);
+/// The C x B least-squares projection of a spectrum onto the hat functions hats (B x C): (H'H)^-1 H'.
+Eigen::MatrixXd hat_projection(const Eigen::MatrixXd& hats);
+/// Cells of whole blocks of a prior's component storage (store::kPriorBlockCells cells each), as many as bytes holds
+/// at cell_bytes a cell, at least one block.
+std::size_t prior_block_cells(std::size_t bytes, std::size_t cell_bytes);
+/// The prior's mapping of a cos-weighted value x against the cell's reference ref: ln((x + eps) / (ref + eps)).
+inline float prior_mapped(float x, float ref, double eps) {
+  return float(std::log((double(x) + eps) / (double(ref) + eps)));
+}
 
 /// One training grid, read block by block in whole theta_h rows.
 struct TrainingGrid {

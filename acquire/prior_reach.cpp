@@ -14,6 +14,7 @@
 #include "specula/acquire/retro_trend.h"
 #include "specula/acquire/scan_holdout.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/buffer.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/parallel.h"
@@ -155,13 +156,12 @@ void copy_theta_d_rows(std::span<float> grid, std::size_t b, int first, int end,
 // group's weight of the chosen estimate kd (continued or not, as c says), the rows above at their group's reach, the
 // fit alone below the band. The cap is blended as elsewhere and neither the ceiling nor the energy bound is applied:
 // the rehearsal judges the band only.
-std::vector<float> rehearsal_blend(std::span<const float> fitted, std::span<const float> kd,
-                                   std::span<const float> gaps, std::size_t b, const ReachChoice& c, double max_gap,
-                                   bool log) {
+Buffer<float> rehearsal_blend(std::span<const float> fitted, std::span<const float> kd, std::span<const float> gaps,
+                              std::size_t b, const ReachChoice& c, double max_gap, bool log) {
   const std::vector<double> reach = reach_by_theta_h(c), weight = retro_weight_by_theta_h(c);
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
-  std::vector<float> out(fitted.begin(), fitted.end());
+  Buffer<float> out(fitted.begin(), fitted.end());
   parallel_for(
       cells.size(),
       [&](std::size_t i) {
@@ -192,7 +192,8 @@ std::size_t k_of_least_error(const brdf::SampleTree& tree, const KeptSamples& ke
   std::vector<std::uint32_t> at;
   for (const std::uint32_t v : held.cell) at.push_back(cells[v]);
   std::sort(at.begin(), at.end());
-  std::vector<float> kd(kept.bands() * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
+  Buffer<float> kd(kept.bands() * brdf::kMerlCells, -1.0f);
+  std::vector<float> gaps(brdf::kMerlCells, -1.0f);
   std::size_t best = 0;
   for (const std::size_t k : r.k_ladder) {
     brdf::ResampleOptions local = o.local;
@@ -278,14 +279,15 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
   const std::vector<PriorObservations> parts =
       cell_means(src, o.fit.weights != PriorWeights::scatter, out.holdout.held, 3);
   const std::size_t b = src.bands();
-  std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
+  Buffer<float> fitted(b * brdf::kMerlCells, -1.0f);
   fit_prior(prior, components, parts[0], o.fit, fitted);
   out.epsilon = judge_epsilon(parts[0], prior, b);
   const KeptSamples kept(src, out.holdout.held);
   const brdf::SampleTree tree(kept, o.local.mapping);
   brdf::ResampleOptions local = o.local;
   local.k = out.k = k_of_least_error(tree, kept, parts[1], fitted, o, r, out);
-  std::vector<float> kd(b * brdf::kMerlCells), gaps(brdf::kMerlCells, -1.0f);
+  Buffer<float> kd(b * brdf::kMerlCells, -1.0f);
+  std::vector<float> gaps(brdf::kMerlCells, -1.0f);
   brdf::resample_grid(tree, kept, local, kd, gaps);
   out.holdout.held = {};
   const std::size_t m = r.ladder.size();
@@ -316,7 +318,7 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
     if (r.retro_residuals) {
       if (!plain_rows.empty() && !out.retro_continued) copy_theta_d_rows(kd, b, first, end, plain_rows, true);
       std::vector<float>().swap(plain_rows);
-      const std::vector<float> blend = rehearsal_blend(fitted, kd, gaps, b, out, o.local.max_gap, o.log_blend);
+      const Buffer<float> blend = rehearsal_blend(fitted, kd, gaps, b, out, o.local.max_gap, o.log_blend);
       out.retro_residuals = choose_retro_residuals(kept, parts[2], blend, *r.retro_residuals, out.epsilon);
     }
   }

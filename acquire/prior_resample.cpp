@@ -10,6 +10,7 @@
 #include "specula/acquire/retro_band.h"
 #include "specula/acquire/retro_trend.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/buffer.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/parallel.h"
@@ -120,13 +121,15 @@ std::vector<PriorObservations> cell_means(const brdf::SampleSource& src, bool us
     throw UsageError("prior: give at least one part and one part label per sample");
   struct Sums {
     std::vector<std::int32_t> obs_of;
-    std::vector<double> sums, squares;
+    Buffer<double> sums, squares;  // reserved for every cell: growing by copies would fault in fresh pages each time
     std::vector<std::uint32_t> counts;
   };
   std::vector<Sums> acc(parts);
   std::vector<PriorObservations> out(parts);
   for (std::size_t q = 0; q < parts; ++q) {
     acc[q].obs_of.assign(valid_cells().size(), -1);
+    acc[q].sums.reserve(std::min(valid_cells().size(), n) * b);
+    acc[q].squares.reserve(std::min(valid_cells().size(), n) * b);
     out[q].spread_is_noise = use_variance && src.has_variance();
   }
   const bool noise = use_variance && src.has_variance();
@@ -228,7 +231,7 @@ PriorResampleStats resample_with_prior(const brdf::SampleSource& src, const Brdf
   const double eps = o.blend_epsilon.value_or(prior.epsilon);
   PriorResampleStats st;
   const auto t0 = std::chrono::steady_clock::now();
-  std::vector<float> fitted(b * brdf::kMerlCells, -1.0f);
+  Buffer<float> fitted(b * brdf::kMerlCells, -1.0f);
   UnseenCap cap{};
   int retro_rows = 0;
   {  // the observations are freed before the kd-tree pass

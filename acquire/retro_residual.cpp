@@ -6,6 +6,7 @@
 
 #include "specula/acquire/scan_holdout.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/buffer.h"
 #include "specula/core/error.h"
 
 namespace specula::acquire {
@@ -38,14 +39,14 @@ RetroResidualChoice choose_retro_residuals(const brdf::SampleSource& kept, const
   LogResidualOptions with = o, without = o;
   with.into_retro_band = true;
   without.into_retro_band = false;
-  std::vector<float> carried(rehearsal.begin(), rehearsal.end());
+  Buffer<float> carried(rehearsal.begin(), rehearsal.end());
   c.carried_rows = correct_by_log_residuals(kept, with, eps, carried).carried_rows;
   c.cells = band.cell.size();
   c.error_carried = band_error(band, carried, carried, 0, b, eps);
   if (o.passes == 1) {  // one pass takes its residuals against the grid as given: the carry changes its rows only
     c.error_plain = band_error(band, carried, rehearsal, c.carried_rows, b, eps);
   } else {
-    std::vector<float> plain(rehearsal.begin(), rehearsal.end());
+    Buffer<float> plain(rehearsal.begin(), rehearsal.end());
     correct_by_log_residuals(kept, without, eps, plain);
     c.error_plain = band_error(band, plain, plain, 0, b, eps);
   }

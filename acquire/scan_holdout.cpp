@@ -5,6 +5,7 @@
 
 #include "specula/acquire/prior_resample.h"
 #include "specula/core/brdf_geometry.h"
+#include "specula/core/buffer.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/parallel.h"
@@ -40,7 +41,8 @@ void KeptSamples::gather(std::size_t first, std::size_t count, std::size_t width
   if (first + count > kept_.size() || out.size() != count * width)
     throw UsageError("holdout: kept samples out of range");
   const std::size_t lo = kept_[first], hi = std::size_t(kept_[first + count - 1]) + 1;
-  std::vector<T> buf((hi - lo) * width);
+  Buffer<T> buf;  // left unwritten until read into
+  buf.resize((hi - lo) * width);
   read(lo, hi - lo, buf);
   for (std::size_t i = 0; i < count; ++i)
     std::copy_n(buf.begin() + std::ptrdiff_t((kept_[first + i] - lo) * width), width,

@@ -14,6 +14,7 @@
 #include <string>
 #include <utility>
 
+#include "specula/core/buffer.h"
 #include "specula/core/error.h"
 #include "specula/core/interrupt.h"
 #include "specula/core/merl_cells.h"
@@ -291,14 +292,18 @@ GridStats fill(const SampleTree& tree, std::size_t n, std::size_t bands, const V
   GridStats stats;
   const std::size_t stride = padded_bands(bands);
   if (n * stride * sizeof(float) <= o.max_entries * 8) {
-    std::vector<float> values(n * stride, 0.0f), block;
+    Buffer<float> values;  // every entry written below: the bands, then the padding's zeros
+    values.resize(n * stride);
+    std::vector<float> block;
     for (std::size_t s0 = 0; s0 < n; s0 += block_rows) {
       const std::size_t rows = std::min(block_rows, n - s0);
       block.resize(rows * bands);
       read(s0, rows, block);
-      for (std::size_t i = 0; i < rows; ++i)
-        std::copy_n(block.begin() + std::ptrdiff_t(i * bands), bands,
-                    values.begin() + std::ptrdiff_t((s0 + i) * stride));
+      for (std::size_t i = 0; i < rows; ++i) {
+        float* to = values.data() + (s0 + i) * stride;
+        std::copy_n(block.begin() + std::ptrdiff_t(i * bands), bands, to);
+        std::fill(to + bands, to + stride, 0.0f);
+      }
     }
     stats = fill_from_memory(f, values);
   } else {
