@@ -100,8 +100,7 @@ struct Piece {
   std::size_t s0 = 0, s1 = 0;
 };
 
-// A thread's storage for the pieces it makes: allocated afresh for every piece (and resized with each piece's rows),
-// their pages were faulted in again each time.
+// A thread's storage for the pieces it makes, reused from piece to piece so its pages are faulted in once a fit.
 struct PieceScratch {
   Buffer<double> qm, y, wq;  // rows x k, rows x c, rows x k, column-major
   std::vector<double> w;
