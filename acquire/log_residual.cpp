@@ -207,8 +207,10 @@ LogResidualStats correct_by_log_residuals(const brdf::SampleSource& src, const L
     if (pass == 0) st.rms_before = rms;
   }
   Buffer<float>().swap(sums);
-  int lowest = 0;
-  st.rms_after = add_residuals(src, grid, eps, {}, st.samples, lowest);
+  if (o.measure_after) {
+    int lowest = 0;
+    st.rms_after = add_residuals(src, grid, eps, {}, st.samples, lowest);
+  }
   st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return st;
 }

@@ -23,6 +23,8 @@ struct LogResidualOptions {
   /// varies with phi_d (acquire/peak_rows.h); in [0, kMerlThetaH)
   int ring_rows = 0;
   std::array<int, brdf::kMerlThetaD> ring_from{};  ///< per theta_d row, the first theta_h row of the rings
+  /// the residuals' RMS measured again after the passes (LogResidualStats::rms_after): one more pass over the samples
+  bool measure_after = true;
 };
 
 /// What one correction did.
@@ -30,7 +32,7 @@ struct LogResidualStats {
   std::size_t samples = 0;          ///< samples whose residual was taken (in each pass)
   std::size_t corrected_cells = 0;  ///< valid cells with data and a sample within the box
   double rms_before = 0;            ///< RMS over samples and bands of the residuals against the grid as given
-  double rms_after = 0;             ///< the same against the grid as the passes leave it
+  double rms_after = 0;             ///< the same against the grid as the passes leave it (0 unless measure_after)
   int carried_rows = 0;             ///< theta_d rows of the retro band the means were carried into
   double seconds = 0;
 };

@@ -208,18 +208,74 @@ std::size_t k_of_least_error(const brdf::SampleTree& tree, const KeptSamples& ke
   return r.k_ladder[best];
 }
 
+// The lowest theta_d row of the cells of obs (kMerlThetaD for none).
+int lowest_row(const PriorObservations& obs) {
+  int lowest = brdf::kMerlThetaD;
+  for (const std::uint32_t v : obs.cell) lowest = std::min(lowest, brdf::merl_cell(valid_cells()[v]).theta_d);
+  return lowest;
+}
+
+// The theta_d rows below which the carry's rehearsal reads the blend, made from the samples below
+// carry_rehearsal_rows (their cells' corners reach one row further); 0 without a carry rehearsed.
+int carry_blend_rows(const ReachHoldout& h, const ReachOptions& r, int lowest) {
+  if (!r.retro_residuals || h.band_end <= h.band_first) return 0;
+  return std::min(carry_rehearsal_rows(h.band_end, lowest, *r.retro_residuals) + 1, brdf::kMerlThetaD);
+}
+
+// The cells, ascending, where the rehearsal reads the kd-tree's estimate: the held-out cells `held`, and with a held
+// band every valid cell of theta_d rows [band_first, end): the band, the rows its continuation reads (as many above
+// it) and those below `carry_rows`.
+std::vector<std::uint32_t> rehearsal_cells(const PriorObservations& held, const ReachHoldout& h, int carry_rows) {
+  const auto& cells = valid_cells();
+  const int end = h.band_end > h.band_first
+                      ? std::min(std::max(2 * h.band_end - h.band_first, carry_rows), brdf::kMerlThetaD)
+                      : h.band_first;
+  std::vector<std::uint8_t> wanted(cells.size(), 0);
+  for (const std::uint32_t v : held.cell) wanted[v] = 1;
+  std::vector<std::uint32_t> at;
+  for (std::size_t v = 0; v < cells.size(); ++v) {
+    const int row = brdf::merl_cell(cells[v]).theta_d;
+    if (wanted[v] || (row >= h.band_first && row < end)) at.push_back(cells[v]);
+  }
+  return at;  // valid_cells() ascends
+}
+
+// The band's weights chosen at its held cells parts[2] and, when asked, the carry rehearsed on the blend those choices
+// make (choose_retro_residuals) from the kept samples below carry_rehearsal_rows alone; kd and gaps hold the kd-tree's
+// estimate where those read it. Their lowest row is that of the kept cell means parts[0]: the blend holds a value >= 0
+// at every valid cell from the band up (the fit's are), and a sample's own cell is one of its corners, so the
+// correction takes every sample the cell means take.
+void rehearse_band(const brdf::SampleSource& src, const std::vector<PriorObservations>& parts,
+                   std::span<const float> fitted, std::span<float> kd, std::span<const float> gaps,
+                   const PriorResampleOptions& o, const ReachOptions& r, ReachChoice& out) {
+  const std::size_t b = src.bands();
+  const int first = out.holdout.band_first, end = out.holdout.band_end;
+  std::vector<float> plain_rows;  // the kd-tree's band rows, which trying the continuation overwrites
+  if (r.retro_residuals && r.retro_continued) copy_theta_d_rows(kd, b, first, end, plain_rows, false);
+  choose_band(parts[2], fitted, kd, b, o.log_blend, r, out);
+  if (!r.retro_residuals) return;
+  if (!plain_rows.empty() && !out.retro_continued) copy_theta_d_rows(kd, b, first, end, plain_rows, true);
+  std::vector<float>().swap(plain_rows);
+  const int rows = carry_rehearsal_rows(end, lowest_row(parts[0]), *r.retro_residuals);
+  std::vector<std::uint8_t> far(out.holdout.held.size());
+  for (std::size_t s = 0; s < far.size(); ++s) far[s] = out.holdout.held[s] != 0 || out.holdout.theta_d_row[s] >= rows;
+  const Buffer<float> blend = rehearsal_blend(fitted, kd, gaps, b, out, o.local.max_gap, o.log_blend);
+  out.retro_residuals = choose_retro_residuals(KeptSamples(src, far), parts[2], blend, *r.retro_residuals, out.epsilon);
+}
+
 }  // namespace
 
 ReachHoldout reach_holdout(const brdf::SampleSource& src, const ReachOptions& o) {
   check_reach_options(o);
-  std::vector<std::uint8_t> own_row(src.size());
+  ReachHoldout h;
+  std::vector<std::uint8_t>& own_row = h.theta_d_row;
+  own_row.resize(src.size());
   const std::vector<std::int32_t> slots = sample_slots(src, own_row);
   const auto& cells = valid_cells();
   std::vector<std::uint32_t> count(cells.size(), 0);
   for (const std::int32_t v : slots)
     if (v >= 0) ++count[std::size_t(v)];
   const auto row_of = [&](std::size_t v) { return brdf::merl_cell(std::size_t(cells[v])).theta_d; };
-  ReachHoldout h;
   std::vector<std::uint32_t> observed;
   int highest = -1;
   for (std::size_t i = 0; i < count.size(); ++i)
@@ -288,8 +344,9 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
   local.k = out.k = k_of_least_error(tree, kept, parts[1], fitted, o, r, out);
   Buffer<float> kd(b * brdf::kMerlCells, -1.0f);
   std::vector<float> gaps(brdf::kMerlCells, -1.0f);
-  brdf::resample_grid(tree, kept, local, kd, gaps);
-  out.holdout.held = {};
+  brdf::resample_cells(tree, kept, local,
+                       rehearsal_cells(parts[1], out.holdout, carry_blend_rows(out.holdout, r, lowest_row(parts[0]))),
+                       kd, gaps);
   const std::size_t m = r.ladder.size();
   const std::vector<double> err = held_out_errors(parts[1], fitted, kd, gaps, b, r, local.max_gap, out.epsilon);
   const std::vector<double> mean = overall_means(err, m);
@@ -310,18 +367,9 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
     out.groups.push_back(std::move(g));
   }
   out.retro_exponent = retro_exponent(prior.retro_exponents, out.holdout.retro_rows);
-  if (!parts[2].cell.empty()) {
-    const int first = out.holdout.band_first, end = out.holdout.band_end;
-    std::vector<float> plain_rows;  // the kd-tree's band rows, which trying the continuation overwrites
-    if (r.retro_residuals && r.retro_continued) copy_theta_d_rows(kd, b, first, end, plain_rows, false);
-    choose_band(parts[2], fitted, kd, b, o.log_blend, r, out);
-    if (r.retro_residuals) {
-      if (!plain_rows.empty() && !out.retro_continued) copy_theta_d_rows(kd, b, first, end, plain_rows, true);
-      std::vector<float>().swap(plain_rows);
-      const Buffer<float> blend = rehearsal_blend(fitted, kd, gaps, b, out, o.local.max_gap, o.log_blend);
-      out.retro_residuals = choose_retro_residuals(kept, parts[2], blend, *r.retro_residuals, out.epsilon);
-    }
-  }
+  if (!parts[2].cell.empty()) rehearse_band(src, parts, fitted, kd, gaps, o, r, out);
+  out.holdout.held = {};
+  out.holdout.theta_d_row = {};
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

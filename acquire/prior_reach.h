@@ -52,10 +52,11 @@ inline const std::vector<std::size_t> kReachKLadder = {8, 16, 32, 64};
 struct ReachHoldout {
   /// per sample: 0 kept (fitted and in the kd-tree), 1 held out of a split cell, 2 held out with its theta_d row
   std::vector<std::uint8_t> held;
-  std::size_t observed_cells = 0;    ///< valid cells holding a sample
-  std::size_t held_cells = 0;        ///< cells that lose samples (split)
-  int retro_rows = 0;                ///< theta_d rows below the lowest observed one (the unseen band)
-  int band_first = 0, band_end = 0;  ///< theta_d rows [first, end) held out whole: the band one band higher
+  std::vector<std::uint8_t> theta_d_row;  ///< per sample its own theta_d row (kMerlThetaD for angles not finite)
+  std::size_t observed_cells = 0;         ///< valid cells holding a sample
+  std::size_t held_cells = 0;             ///< cells that lose samples (split)
+  int retro_rows = 0;                     ///< theta_d rows below the lowest observed one (the unseen band)
+  int band_first = 0, band_end = 0;       ///< theta_d rows [first, end) held out whole: the band one band higher
 };
 
 /// The held-out cells: round(held_out x the observed valid cells of two or more samples outside the held band) of
@@ -105,7 +106,7 @@ struct ReachChoice {
   /// the carry of the log residuals into the band rehearsed (ReachOptions::retro_residuals) on the blend the choices
   /// above make from the kept samples; empty when not asked for or without a held band
   std::optional<RetroResidualChoice> retro_residuals;
-  ReachHoldout holdout;        ///< without its per-sample flags
+  ReachHoldout holdout;        ///< without its per-sample flags and rows
   std::vector<ReachRow> rows;  ///< one per ladder entry
   double epsilon = 0;          ///< eps of the error: the prior's times min(1, kept cell means' median / reference's)
   double seconds = 0;
@@ -119,7 +120,9 @@ struct ReachChoice {
 /// the held-out samples' mean; on all threads, the same for any thread count. UsageError for bad options or o.residuals
 /// (the residuals form is not a blend); errors of reach_holdout and fit_prior. With r.retro_residuals and a held band,
 /// the carry of the log residuals into the band is rehearsed on the blend these choices make from the kept samples
-/// (choose_retro_residuals of acquire/retro_residual.h).
+/// (choose_retro_residuals of acquire/retro_residual.h; from those below carry_rehearsal_rows, which give the same).
+/// The kd-tree's estimate is made only where these read it (the held-out cells, the held band, the rows above it its
+/// continuation and the carry read), each cell as resample_grid makes it.
 ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPrior& prior,
                                     const PriorResampleOptions& o, const ReachOptions& r);
 /// choose_confidence_reach with the prior's components from `components` block by block (fit_prior).

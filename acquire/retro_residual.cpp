@@ -1,5 +1,6 @@
 #include "specula/acquire/retro_residual.h"
 
+#include <algorithm>
 #include <chrono>
 #include <nlohmann/json.hpp>
 #include <vector>
@@ -39,6 +40,7 @@ RetroResidualChoice choose_retro_residuals(const brdf::SampleSource& kept, const
   LogResidualOptions with = o, without = o;
   with.into_retro_band = true;
   without.into_retro_band = false;
+  with.measure_after = without.measure_after = false;
   Buffer<float> carried(rehearsal.begin(), rehearsal.end());
   c.carried_rows = correct_by_log_residuals(kept, with, eps, carried).carried_rows;
   c.cells = band.cell.size();
@@ -53,6 +55,10 @@ RetroResidualChoice choose_retro_residuals(const brdf::SampleSource& kept, const
   c.carried = c.error_carried < c.error_plain;
   c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return c;
+}
+
+int carry_rehearsal_rows(int band_end, int lowest, const LogResidualOptions& o) {
+  return std::max(band_end - 1, lowest - o.radius) + o.passes * (o.radius + 1) + 1;
 }
 
 nlohmann::ordered_json retro_residual_json(const RetroResidualChoice& c) {

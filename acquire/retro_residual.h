@@ -32,6 +32,12 @@ struct RetroResidualChoice {
 RetroResidualChoice choose_retro_residuals(const brdf::SampleSource& kept, const PriorObservations& band,
                                            std::span<const float> rehearsal, const LogResidualOptions& o, double eps);
 
+/// The theta_d rows [0, end) whose samples can change choose_retro_residuals' result at held band cells below theta_d
+/// row band_end, when the lowest row holding a usable kept sample is `lowest`: a pass corrects a cell from the samples
+/// within o.radius rows of it, the carry copies row lowest - o.radius down, and each further pass reaches o.radius + 1
+/// rows further through the grid's corners. Samples from row end up may be left out of `kept`.
+int carry_rehearsal_rows(int band_end, int lowest, const LogResidualOptions& o);
+
 /// What `resample --json` reports of the choice: carried, error_carried, error_plain, cells, carried_rows, seconds.
 nlohmann::ordered_json retro_residual_json(const RetroResidualChoice& c);
 

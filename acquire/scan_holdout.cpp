@@ -33,20 +33,26 @@ void KeptSamples::read_variance(std::size_t first, std::size_t count, std::span<
                 [&](std::size_t a, std::size_t n, std::span<float> to) { src_.read_variance(a, n, to); });
 }
 
-// Rows [first, first + count) of the kept samples, width values each, from the source's range that spans them.
+// Rows [first, first + count) of the kept samples, width values each, read in the source's blocks that hold them: a
+// sparse selection reads neither the rows between its blocks nor more than a block at once.
 template <class T, class Read>
 void KeptSamples::gather(std::size_t first, std::size_t count, std::size_t width, std::span<T> out,
                          const Read& read) const {
-  if (count == 0) return;
   if (first + count > kept_.size() || out.size() != count * width)
     throw UsageError("holdout: kept samples out of range");
-  const std::size_t lo = kept_[first], hi = std::size_t(kept_[first + count - 1]) + 1;
+  const std::size_t block = std::max<std::size_t>(1, src_.block_rows());
   Buffer<T> buf;  // left unwritten until read into
-  buf.resize((hi - lo) * width);
-  read(lo, hi - lo, buf);
-  for (std::size_t i = 0; i < count; ++i)
-    std::copy_n(buf.begin() + std::ptrdiff_t((kept_[first + i] - lo) * width), width,
-                out.begin() + std::ptrdiff_t(i * width));
+  for (std::size_t i = 0; i < count;) {
+    const std::size_t lo = kept_[first + i];
+    std::size_t j = i + 1;
+    while (j < count && kept_[first + j] < lo + block) ++j;
+    const std::size_t hi = std::size_t(kept_[first + j - 1]) + 1;
+    buf.resize((hi - lo) * width);
+    read(lo, hi - lo, buf);
+    for (; i < j; ++i)
+      std::copy_n(buf.begin() + std::ptrdiff_t((kept_[first + i] - lo) * width), width,
+                  out.begin() + std::ptrdiff_t(i * width));
+  }
 }
 
 std::vector<std::int32_t> sample_slots(const brdf::SampleSource& src, std::span<std::uint8_t> theta_d_rows) {

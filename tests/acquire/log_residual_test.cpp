@@ -93,6 +93,16 @@ TEST(LogResidual, HalfALambertianComesBackExactlyWhereTheSamplesReach) {
       if (!brdf::merl_cell_valid(brdf::merl_cell(c))) {
         ASSERT_EQ(grid[c], -1.0f);
       }
+    // Without the measure after the passes: the same grid, bit for bit, and no rms_after.
+    std::vector<float> unmeasured(bands * kCells, -1.0f);
+    for (const std::uint32_t c : valid_cells())
+      for (std::size_t k = 0; k < bands; ++k) unmeasured[k * kCells + c] = 0.5f * rho[k];
+    const LogResidualStats quiet = correct_by_log_residuals(
+        src, {.radius = radius, .into_retro_band = false, .measure_after = false}, 1e-12, unmeasured);
+    EXPECT_EQ(unmeasured, grid);
+    EXPECT_EQ(quiet.rms_after, 0.0);
+    EXPECT_EQ(quiet.rms_before, st.rms_before);
+    EXPECT_EQ(quiet.corrected_cells, st.corrected_cells);
   }
 }
 

@@ -2,8 +2,9 @@
 // a rehearsal grid at half a Lambertian material's value everywhere is put right in the held band only by the carry,
 // which is chosen; one right in the band and low above it is spoilt by the carry, which is not chosen; the errors
 // equal the squared log ratio written out here at the cells each version leaves at half or doubles; two passes
-// choose as one; 1 and 2 threads give the same numbers; sizes are checked. That the samples below the band's end are
-// held out of `kept`, whatever their cells, is reach_holdout's (tests/acquire/prior_reach_test.cpp).
+// choose as one; 1 and 2 threads give the same numbers; samples from carry_rehearsal_rows up change nothing, bit for
+// bit, and two rows fewer do; sizes are checked. That the samples below the band's end are held out of `kept`, whatever
+// their cells, is reach_holdout's (tests/acquire/prior_reach_test.cpp).
 #include "specula/acquire/retro_residual.h"
 
 #include <gtest/gtest.h>
@@ -11,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <random>
 #include <vector>
 
@@ -138,6 +140,72 @@ TEST(RetroResidual, TwoPassesChooseAsOneAndThreadsDoNotMatter) {
   omp_set_num_threads(threads);
   EXPECT_EQ(serial.error_plain, parallel.error_plain);
   EXPECT_EQ(serial.error_carried, parallel.error_carried);
+}
+
+TEST(RetroResidual, SamplesFromTheRehearsalsRowsUpChangeNothing) {
+  // Samples anywhere in their cells, each off the material by its own factor, on a rehearsal off by a factor per
+  // theta_d row everywhere: every row's residuals differ, and each pass reaches further through the grid's corners.
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> u(0, 1);
+  Kept k;
+  for (const std::uint32_t c : valid_cells()) {
+    const brdf::MerlCell m = brdf::merl_cell(c);
+    if (m.theta_d < kBandEnd || m.theta_d >= 30 || m.theta_h >= kThetaH) continue;
+    const double t = (m.theta_h + u(rng)) / brdf::kMerlThetaH;  // MERL's theta_h index is 90 sqrt(theta_h / 90 deg)
+    const brdf::HalfDiff h{.theta_h = t * t * std::numbers::pi / 2,
+                           .phi_h = 0,
+                           .theta_d = (m.theta_d + u(rng)) * std::numbers::pi / 2 / brdf::kMerlThetaD,
+                           .phi_d = (m.phi_d + u(rng)) * std::numbers::pi / brdf::kMerlPhiD};
+    const brdf::StdAngles a = brdf::std_angles(h);
+    if (!(a.theta_i < std::numbers::pi / 2 && a.theta_o < std::numbers::pi / 2)) continue;
+    k.angles.insert(k.angles.end(), {a.theta_i, a.phi_i, a.theta_o, a.phi_o});
+    const float f = float(0.5 + u(rng));
+    for (std::size_t b = 0; b < kBands; ++b) k.values.push_back(kRho[b] * f);
+    k.lowest = std::min(k.lowest, brdf::merl_cell(a).theta_d);
+  }
+  ASSERT_EQ(k.lowest, kBandEnd);
+  std::vector<float> factor(brdf::kMerlThetaD);
+  for (float& f : factor) f = std::uniform_real_distribution<float>(0.3f, 1.5f)(rng);
+  std::vector<float> rough(kBands * kCells, -1.0f);
+  for (const std::uint32_t c : valid_cells())
+    for (std::size_t b = 0; b < kBands; ++b) rough[b * kCells + c] = kRho[b] * factor[std::size_t(row_of(c))];
+  const PriorObservations band = held_band();
+  // The samples whose cells lie below theta_d row `end`.
+  const auto below = [&](int end, std::vector<double>& angles, std::vector<float>& values) {
+    angles.clear();
+    values.clear();
+    for (std::size_t i = 0; i < k.angles.size() / 4; ++i) {
+      const brdf::StdAngles a{k.angles[4 * i], k.angles[4 * i + 1], k.angles[4 * i + 2], k.angles[4 * i + 3]};
+      if (brdf::merl_cell(a).theta_d >= end) continue;
+      angles.insert(angles.end(), k.angles.begin() + std::ptrdiff_t(4 * i),
+                    k.angles.begin() + std::ptrdiff_t(4 * i + 4));
+      values.insert(values.end(), k.values.begin() + std::ptrdiff_t(kBands * i),
+                    k.values.begin() + std::ptrdiff_t(kBands * (i + 1)));
+    }
+  };
+  const brdf::MemorySamples all(k.angles, k.values, kBands);
+  std::vector<double> angles, too_few_angles;
+  std::vector<float> values, too_few_values;
+  for (const int radius : {0, 1, 2})
+    for (const int passes : {1, 2, 3}) {
+      const LogResidualOptions o{.radius = radius, .passes = passes};
+      const int end = carry_rehearsal_rows(kBandEnd, k.lowest, o);
+      EXPECT_EQ(end, std::max(kBandEnd - 1, kBandEnd - radius) + passes * (radius + 1) + 1);
+      below(end, angles, values);
+      below(end - 2, too_few_angles, too_few_values);
+      ASSERT_LT(values.size(), k.values.size());
+      const RetroResidualChoice want = choose_retro_residuals(all, band, rough, o, kEps);
+      const RetroResidualChoice got =
+          choose_retro_residuals(brdf::MemorySamples(angles, values, kBands), band, rough, o, kEps);
+      const RetroResidualChoice short_of =
+          choose_retro_residuals(brdf::MemorySamples(too_few_angles, too_few_values, kBands), band, rough, o, kEps);
+      EXPECT_EQ(got.carried_rows, want.carried_rows);
+      EXPECT_EQ(got.error_carried, want.error_carried) << "radius " << radius << ", passes " << passes;
+      EXPECT_EQ(got.error_plain, want.error_plain) << "radius " << radius << ", passes " << passes;
+      // Two rows fewer and the result moves: the rows read are the rows that matter.
+      EXPECT_TRUE(short_of.error_carried != want.error_carried || short_of.error_plain != want.error_plain)
+          << "radius " << radius << ", passes " << passes;
+    }
 }
 
 TEST(RetroResidual, SizesAndSettingsAreChecked) {
