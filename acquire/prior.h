@@ -173,12 +173,13 @@ std::vector<double> observation_weights(const BrdfPrior& prior, const PriorObser
                                         const PriorFitOptions& options);
 
 /// Fits the prior (its tables; components from `components`) to obs per channel and writes the reconstruction at
-/// every valid cell into grid (bands x kMerlCells, band slowest; other cells untouched), in two passes over blocks
-/// of options.block_bytes: the normal equations of each block's observed cells, then the reconstruction of each
-/// block's cells. The result does not depend on the thread count or block_bytes. UsageError on sizes or a weight
-/// not finite and >= 0, InputError for no observation.
+/// every valid cell, or at the valid cells `at` alone (positions in valid_cells(), ascending), into grid (bands x
+/// kMerlCells, band slowest; other cells untouched), in two passes over blocks of options.block_bytes: the normal
+/// equations of each block's observed cells, then the reconstruction of each block's cells; a block with nothing to
+/// add or write is not read. The result does not depend on the thread count, block_bytes or `at`. UsageError on
+/// sizes, `at` out of order or a weight not finite and >= 0, InputError for no observation.
 void fit_prior(const BrdfPrior& prior, const ComponentSource& components, const PriorObservations& obs,
-               const PriorFitOptions& options, std::span<float> grid);
+               const PriorFitOptions& options, std::span<float> grid, std::span<const std::uint32_t> at = {});
 /// fit_prior with the components of prior (in memory).
 void fit_prior(const BrdfPrior& prior, const PriorObservations& obs, const PriorFitOptions& options,
                std::span<float> grid);

@@ -203,21 +203,22 @@ void add_equations(const Fit& f, std::size_t i0, std::size_t count, std::span<co
   }
 }
 
-// The fitted coefficients a (k x c) mapped back at cells [i0, i0 + count) (components q) into grid.
-void reconstruct(const Fit& f, const Eigen::MatrixXd& a, std::size_t i0, std::size_t count, std::span<const float> q,
-                 std::span<float> grid) {
+// The fitted coefficients a (k x c) mapped back into grid at the cells i0 + cell[t] of the block [i0, i0 + count)
+// (components q).
+void reconstruct(const Fit& f, const Eigen::MatrixXd& a, std::size_t i0, std::size_t count,
+                 std::span<const std::uint32_t> cell, std::span<const float> q, std::span<float> grid) {
   const auto& cells = valid_cells();
   const auto& cosines = valid_cell_cosines();
   constexpr std::size_t tile = 64;  // cells whose components are gathered at once, row by row of q
-  parallel_for((count + tile - 1) / tile, [&](std::size_t blk) {
-    const std::size_t r0 = blk * tile, n = std::min(count, r0 + tile) - r0;
+  parallel_for((cell.size() + tile - 1) / tile, [&](std::size_t blk) {
+    const std::size_t r0 = blk * tile, n = std::min(cell.size(), r0 + tile) - r0;
     Eigen::MatrixXd qt(static_cast<Eigen::Index>(f.k), static_cast<Eigen::Index>(n));
     for (std::size_t j = 0; j < f.k; ++j)
-      for (std::size_t t = 0; t < n; ++t) qt(Eigen::Index(j), Eigen::Index(t)) = q[j * count + r0 + t];
+      for (std::size_t t = 0; t < n; ++t) qt(Eigen::Index(j), Eigen::Index(t)) = q[j * count + cell[r0 + t]];
     Eigen::VectorXd y(static_cast<Eigen::Index>(f.c)), qi(static_cast<Eigen::Index>(f.k));
-    for (std::size_t r = r0; r < r0 + n; ++r) {
-      const std::size_t i = i0 + r;
-      qi = qt.col(Eigen::Index(r - r0));
+    for (std::size_t t = 0; t < n; ++t) {
+      const std::size_t i = i0 + cell[r0 + t];
+      qi = qt.col(Eigen::Index(t));
       const Eigen::VectorXd mapped_y = (a.transpose() * qi).array() + double(f.p.mean[i]);
       const double cw = std::max(double(cosines[i]), 1e-6), ref = double(f.p.reference[i]) + f.p.epsilon;
       for (std::size_t j = 0; j < f.c; ++j)
@@ -255,20 +256,20 @@ Fit check_fit(const BrdfPrior& p, const ComponentSource& components, const Prior
 }  // namespace
 
 void fit_prior(const BrdfPrior& p, const ComponentSource& components, const PriorObservations& obs,
-               const PriorFitOptions& o, std::span<float> grid) {
+               const PriorFitOptions& o, std::span<float> grid, std::span<const std::uint32_t> at) {
   const Fit f = check_fit(p, components, obs, o, grid);
+  for (std::size_t t = 0; t < at.size(); ++t)
+    if (at[t] >= f.d || (t > 0 && at[t] <= at[t - 1]))
+      throw UsageError("prior: the cells to write must ascend within the valid cells");
   const std::size_t block = prior_block_cells(o.block_bytes, 4 * std::max<std::size_t>(f.k, 1));
   Buffer<float> q;  // left unwritten until the components are read into it
   std::size_t loaded = std::size_t(-1);
-  const auto load = [&](std::size_t i0) {  // the components of the block from i0; its cell count
-    const std::size_t count = std::min(block, f.d - i0);
-    if (loaded != i0) {
-      check_interrupt();
-      q.resize(f.k * count);
-      components(i0, count, q);
-      loaded = i0;
-    }
-    return count;
+  const auto load = [&](std::size_t i0, std::size_t count) {  // the components of the block of count cells from i0
+    if (loaded == i0) return;
+    check_interrupt();
+    q.resize(f.k * count);
+    components(i0, count, q);
+    loaded = i0;
   };
   // Per channel: minimise sum_s w_s (mean_s + Q_s a - y_s)^2 + lambda sum_q a_q^2 / variance_q.
   Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(Eigen::Index(f.k), Eigen::Index(f.k));
@@ -278,15 +279,29 @@ void fit_prior(const BrdfPrior& p, const ComponentSource& components, const Prio
   std::vector<PieceSums> sums(kPiecesInFlight);
   Progress progress("fitting the prior", 2 * f.d);
   for (std::size_t i0 = 0; i0 < f.d; i0 += block) {
-    const std::size_t count = load(i0);  // before q is taken: load resizes it
-    add_equations(f, i0, count, q, next, pool, sums, ata, atb);
+    const std::size_t count = std::min(block, f.d - i0);
+    if (next < f.order.size() && obs.cell[f.order[next]] < i0 + count) {  // blocks without observations add nothing
+      load(i0, count);
+      add_equations(f, i0, count, q, next, pool, sums, ata, atb);
+    }
     progress.advance(count);
   }
   for (std::size_t j = 0; j < f.k; ++j) ata(Eigen::Index(j), Eigen::Index(j)) += o.lambda / p.variances[j];
   const Eigen::MatrixXd a = ata.selfadjointView<Eigen::Lower>().ldlt().solve(atb);  // k x c; ata's lower half
+  std::vector<std::uint32_t> cell;                                  // the block's cells written, from its first
   for (std::size_t i0 = (f.d - 1) / block * block;; i0 -= block) {  // backwards: the last block read is reused
-    const std::size_t count = load(i0);
-    reconstruct(f, a, i0, count, q, grid);
+    const std::size_t count = std::min(block, f.d - i0);
+    cell.clear();
+    if (at.empty()) {
+      for (std::size_t t = 0; t < count; ++t) cell.push_back(std::uint32_t(t));
+    } else {
+      for (auto it = std::ranges::lower_bound(at, std::uint32_t(i0)); it != at.end() && *it < i0 + count; ++it)
+        cell.push_back(std::uint32_t(*it - i0));
+    }
+    if (!cell.empty()) {
+      load(i0, count);
+      reconstruct(f, a, i0, count, cell, q, grid);
+    }
     progress.advance(count);
     if (i0 == 0) break;
   }

@@ -222,9 +222,9 @@ int carry_blend_rows(const ReachHoldout& h, const ReachOptions& r, int lowest) {
   return std::min(carry_rehearsal_rows(h.band_end, lowest, *r.retro_residuals) + 1, brdf::kMerlThetaD);
 }
 
-// The cells, ascending, where the rehearsal reads the kd-tree's estimate: the held-out cells `held`, and with a held
-// band every valid cell of theta_d rows [band_first, end): the band, the rows its continuation reads (as many above
-// it) and those below `carry_rows`.
+// The cells (positions in valid_cells(), ascending) where the rehearsal reads the fit and the kd-tree's estimate:
+// the held-out cells `held`, and with a held band every valid cell of theta_d rows [band_first, end): the band, the
+// rows its continuation reads (as many above it) and those below `carry_rows`.
 std::vector<std::uint32_t> rehearsal_cells(const PriorObservations& held, const ReachHoldout& h, int carry_rows) {
   const auto& cells = valid_cells();
   const int end = h.band_end > h.band_first
@@ -235,16 +235,16 @@ std::vector<std::uint32_t> rehearsal_cells(const PriorObservations& held, const 
   std::vector<std::uint32_t> at;
   for (std::size_t v = 0; v < cells.size(); ++v) {
     const int row = brdf::merl_cell(cells[v]).theta_d;
-    if (wanted[v] || (row >= h.band_first && row < end)) at.push_back(cells[v]);
+    if (wanted[v] || (row >= h.band_first && row < end)) at.push_back(std::uint32_t(v));
   }
-  return at;  // valid_cells() ascends
+  return at;
 }
 
 // The band's weights chosen at its held cells parts[2] and, when asked, the carry rehearsed on the blend those choices
-// make (choose_retro_residuals) from the kept samples below carry_rehearsal_rows alone; kd and gaps hold the kd-tree's
-// estimate where those read it. Their lowest row is that of the kept cell means parts[0]: the blend holds a value >= 0
-// at every valid cell from the band up (the fit's are), and a sample's own cell is one of its corners, so the
-// correction takes every sample the cell means take.
+// make (choose_retro_residuals) from the kept samples below carry_rehearsal_rows alone; fitted, kd and gaps hold the
+// fit and the kd-tree's estimate where those read them. Their lowest row is that of the kept cell means parts[0]: the
+// blend holds a value >= 0 at every valid cell of the rows they read (the fit's are), and a sample's own cell is one
+// of its corners, so the correction takes every sample the cell means take.
 void rehearse_band(const brdf::SampleSource& src, const std::vector<PriorObservations>& parts,
                    std::span<const float> fitted, std::span<float> kd, std::span<const float> gaps,
                    const PriorResampleOptions& o, const ReachOptions& r, ReachChoice& out) {
@@ -335,8 +335,10 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
   const std::vector<PriorObservations> parts =
       cell_means(src, o.fit.weights != PriorWeights::scatter, out.holdout.held, 3);
   const std::size_t b = src.bands();
+  const std::vector<std::uint32_t> at =
+      rehearsal_cells(parts[1], out.holdout, carry_blend_rows(out.holdout, r, lowest_row(parts[0])));
   Buffer<float> fitted(b * brdf::kMerlCells, -1.0f);
-  fit_prior(prior, components, parts[0], o.fit, fitted);
+  fit_prior(prior, components, parts[0], o.fit, fitted, at);
   out.epsilon = judge_epsilon(parts[0], prior, b);
   const KeptSamples kept(src, out.holdout.held);
   const brdf::SampleTree tree(kept, o.local.mapping);
@@ -344,9 +346,9 @@ ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPri
   local.k = out.k = k_of_least_error(tree, kept, parts[1], fitted, o, r, out);
   Buffer<float> kd(b * brdf::kMerlCells, -1.0f);
   std::vector<float> gaps(brdf::kMerlCells, -1.0f);
-  brdf::resample_cells(tree, kept, local,
-                       rehearsal_cells(parts[1], out.holdout, carry_blend_rows(out.holdout, r, lowest_row(parts[0]))),
-                       kd, gaps);
+  std::vector<std::uint32_t> at_cells(at.size());
+  for (std::size_t t = 0; t < at.size(); ++t) at_cells[t] = valid_cells()[at[t]];
+  brdf::resample_cells(tree, kept, local, at_cells, kd, gaps);
   const std::size_t m = r.ladder.size();
   const std::vector<double> err = held_out_errors(parts[1], fitted, kd, gaps, b, r, local.max_gap, out.epsilon);
   const std::vector<double> mean = overall_means(err, m);

@@ -121,8 +121,8 @@ struct ReachChoice {
 /// (the residuals form is not a blend); errors of reach_holdout and fit_prior. With r.retro_residuals and a held band,
 /// the carry of the log residuals into the band is rehearsed on the blend these choices make from the kept samples
 /// (choose_retro_residuals of acquire/retro_residual.h; from those below carry_rehearsal_rows, which give the same).
-/// The kd-tree's estimate is made only where these read it (the held-out cells, the held band, the rows above it its
-/// continuation and the carry read), each cell as resample_grid makes it.
+/// The fit and the kd-tree's estimate are made only where these read them (the held-out cells, the held band, the
+/// rows above it its continuation and the carry read), each cell as over the whole grid.
 ReachChoice choose_confidence_reach(const brdf::SampleSource& src, const BrdfPrior& prior,
                                     const PriorResampleOptions& o, const ReachOptions& r);
 /// choose_confidence_reach with the prior's components from `components` block by block (fit_prior).

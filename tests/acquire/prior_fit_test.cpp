@@ -1,7 +1,9 @@
 // Fitting a learned prior (acquire/prior.h, fit_prior) block by block: on a small random prior and scattered
 // observations, the reconstruction equals a brute-force least-squares solve (QR of the stacked, weighted and
 // regularised system, not the normal equations) mapped back by hand, and is the same bit for bit whether the
-// components come from memory or from the store, in blocks of one or all store chunks, on 1 or 2 threads.
+// components come from memory or from the store, in blocks of one or all store chunks, on 1 or 2 threads. Made at
+// some cells alone it equals the whole fit there, bit for bit, and reads only the blocks those cells and the
+// observations lie in.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -170,6 +172,60 @@ TEST(PriorFit, StreamedFromTheStoreInAnyBlockOnAnyThreadsEqualsABruteForceSolve)
     if (!brdf::merl_cell_valid(brdf::merl_cell(c))) {
       ASSERT_EQ(ours[c], -1.0f) << "cells below the horizon untouched";
     }
+}
+
+TEST(PriorFit, AtSomeCellsEqualsTheWholeFitThereAndReadsOnlyTheBlocksItNeeds) {
+  const acquire::BrdfPrior p = random_prior();
+  const std::size_t d = p.cells();
+  acquire::PriorObservations obs;  // the observations of the first 100 000 cells only
+  const acquire::PriorObservations all = scattered(p);
+  for (std::size_t s = 0; s < all.cell.size(); ++s)
+    if (all.cell[s] < 100000) {
+      obs.cell.push_back(all.cell[s]);
+      obs.weight.push_back(all.weight[s]);
+      obs.values.insert(obs.values.end(), all.values.begin() + std::ptrdiff_t(s * kBands),
+                        all.values.begin() + std::ptrdiff_t((s + 1) * kBands));
+    }
+  std::vector<std::uint32_t> at;  // 500 cells from 300 000 on and the last one
+  for (std::uint32_t v = 300000; v < 300500; ++v) at.push_back(v);
+  at.push_back(std::uint32_t(d - 1));
+  std::vector<std::size_t> firsts;  // the first cell of every block read, in order
+  const acquire::ComponentSource memory = acquire::memory_components(p);
+  const acquire::ComponentSource counted = [&](std::size_t first, std::size_t count, std::span<float> out) {
+    firsts.push_back(first);
+    memory(first, count, out);
+  };
+  const acquire::PriorFitOptions o{.lambda = 1e-3, .block_bytes = 3 * 4 * kK * store::kPriorBlockCells};
+  const std::size_t block = 3 * store::kPriorBlockCells;
+  std::vector<float> whole(kBands * brdf::kMerlCells, -1.0f), part(whole);
+  // Pass 1: the blocks holding an observation; pass 2, backwards: every block, or those holding a cell of `at`.
+  std::vector<std::size_t> pass1;
+  for (std::size_t i0 = 0; i0 < 100000; i0 += block) pass1.push_back(i0);
+  std::vector<std::size_t> want = pass1;
+  for (std::size_t i0 = (d - 1) / block * block;; i0 -= block) {
+    want.push_back(i0);
+    if (i0 == 0) break;
+  }
+  acquire::fit_prior(p, counted, obs, o, whole);
+  EXPECT_EQ(firsts, want);
+  firsts.clear();
+  acquire::fit_prior(p, counted, obs, o, part, at);
+  want = pass1;
+  want.push_back((d - 1) / block * block);
+  for (std::size_t i0 = 300499 / block * block; i0 + block > 300000; i0 -= block) want.push_back(i0);
+  EXPECT_EQ(firsts, want);
+  std::vector<std::uint8_t> in_at(d, 0);
+  for (const std::uint32_t v : at) in_at[v] = 1;
+  const auto& cells = acquire::valid_cells();
+  for (std::size_t v = 0; v < d; ++v)
+    for (std::size_t k = 0; k < kBands; ++k) {
+      const std::size_t i = k * brdf::kMerlCells + cells[v];
+      ASSERT_EQ(part[i], in_at[v] ? whole[i] : -1.0f) << "cell " << v << " band " << k;
+    }
+  std::vector<std::uint32_t> backwards = {5, 3};
+  EXPECT_THROW(acquire::fit_prior(p, memory, obs, o, part, backwards), UsageError);
+  std::vector<std::uint32_t> outside = {std::uint32_t(d)};
+  EXPECT_THROW(acquire::fit_prior(p, memory, obs, o, part, outside), UsageError);
 }
 
 TEST(PriorFit, AComponentRangeOutsideThePriorIsRefused) {
