@@ -107,16 +107,16 @@ CapWeightChoice choose_cap_weight(const brdf::SampleSource& src, const BrdfPrior
     return out;
   }
   const std::size_t b = src.bands();
-  std::vector<std::uint32_t> at;  // the rehearsal's cells, the only ones read of the fit
+  std::vector<std::uint32_t> at;  // the rehearsal's cells (positions in cells), the only ones read of the fit
+  std::vector<std::uint8_t> rehearsal(brdf::kMerlCells, 0);
   for (std::size_t v = 0; v < cells.size(); ++v)
-    if (in_rehearsal(cap, cells[v])) at.push_back(std::uint32_t(v));
+    if (in_rehearsal(cap, cells[v])) {
+      at.push_back(std::uint32_t(v));
+      rehearsal[cells[v]] = 1;
+    }
   Buffer<float> fitted(b * brdf::kMerlCells, -1.0f);
   fit_prior(prior, components, parts[0], o.fit, fitted, at);
-  if (o.ceiling) {
-    std::vector<std::uint8_t> rehearsal(brdf::kMerlCells, 0);
-    for (std::size_t cell = 0; cell < brdf::kMerlCells; ++cell) rehearsal[cell] = in_rehearsal(cap, cell);
-    bound_by_ceiling(prior, rehearsal, fitted);
-  }
+  if (o.ceiling) bound_by_ceiling(prior, rehearsal, fitted);
   out.epsilon = judge_epsilon(parts[0], prior, b);
   const KeptSamples kept(src, held);
   Buffer<float> kd(b * brdf::kMerlCells, -1.0f);
