@@ -6,6 +6,7 @@
 // reciprocity leaves an isotropic BRDF even in phi_d there, so it departs from its ring's mean as sin^2 theta_h.
 #include <cstddef>
 #include <span>
+#include <vector>
 
 #include "specula/acquire/peak_cap.h"
 
@@ -16,10 +17,15 @@ namespace specula::acquire {
 /// sets it.
 inline constexpr int kPeakRows = 20;
 
-/// In every band and theta_d row d, for theta_h rows [cap[d], rows), each cell with a value > 0 has ln v drawn towards
-/// the mean of ln v over its phi_d ring's cells > 0, keeping the share sin^2(theta_h) / sin^2(theta_h of row `rows`)
-/// of its departure (row centres). Cells <= 0, below the horizon or in the cap are left. Returns the cells settled
-/// (those > 0 in some band). UsageError on sizes or rows outside [0, kMerlThetaH).
-std::size_t settle_peak_rows(std::span<float> grid, std::size_t bands, const UnseenCap& cap, int rows);
+/// In every band and theta_d row d, for theta_h rows h in [cap[d], keep.size()) with keep[h] < 1, each cell with a
+/// value > 0 has ln v drawn towards the mean of ln v over its phi_d ring's cells > 0, keeping the share keep[h] of its
+/// departure. Cells <= 0, below the horizon or in the cap are left. Returns the cells settled (those > 0 in some band).
+/// UsageError on sizes, more than kMerlThetaH rows or a keep outside [0, 1].
+std::size_t settle_peak_rows(std::span<float> grid, std::size_t bands, const UnseenCap& cap,
+                             std::span<const double> keep);
+
+/// The keeps of `--peak-rows N`: row h below `rows` keeps sin^2(theta_h) / sin^2(theta_h of row `rows`) of its
+/// departure (row centres), the rule for rows given rather than chosen. UsageError for rows outside [0, kMerlThetaH).
+std::vector<double> sin2_keeps(int rows);
 
 }  // namespace specula::acquire

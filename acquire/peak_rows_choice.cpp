@@ -163,6 +163,7 @@ PeakRowsChoice choose_peak_rows(const brdf::SampleSource& src, std::span<const f
     if (p.far_pairs > 0) out.far_rms = std::sqrt(p.far / double(p.far_pairs));
     if (out.measured) out.spread = std::sqrt(std::max(0.0, out.far_rms * out.far_rms - out.near_rms * out.near_rms));
     if (p.grid_pairs > 0) out.grid_spread = std::sqrt(p.grid / double(p.grid_pairs));
+    if (out.measured && out.grid_spread > 0) out.keep = std::min(1.0, std::pow(out.spread / out.grid_spread, 2));
     c.groups.push_back(out);
     if (ended || (!started && !out.measured)) continue;
     started = true;
@@ -171,6 +172,10 @@ PeakRowsChoice choose_peak_rows(const brdf::SampleSource& src, std::span<const f
     else
       ended = true;
   }
+  const auto first = std::ranges::find_if(c.groups, [](const PeakRowsGroup& g) { return g.measured; });
+  for (auto g = c.groups.begin(); g != first; ++g) g->keep = first == c.groups.end() ? 1.0 : first->keep;
+  c.keep.resize(kPeakRows);
+  for (int r = 0; r < kPeakRows; ++r) c.keep[std::size_t(r)] = c.groups[std::size_t(r / o.group)].keep;
   c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return c;
 }
@@ -185,7 +190,8 @@ nlohmann::ordered_json peak_rows_choice_json(const PeakRowsChoice& c) {
                       {"far_rms", g.far_rms},
                       {"spread", g.spread},
                       {"grid_spread", g.grid_spread},
-                      {"measured", g.measured}});
+                      {"measured", g.measured},
+                      {"keep", g.keep}});
   return {{"rows", c.rows}, {"samples", c.samples}, {"seconds", c.seconds}, {"groups", groups}};
 }
 

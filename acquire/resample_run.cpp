@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <numbers>
 
@@ -133,10 +134,20 @@ FinalSteps final_steps(const PriorMethod& m, const BrdfPrior& prior, const brdf:
     f.log_residuals->ring_from = st.unseen_cap;
     f.corrected = correct_by_log_residuals(src, *f.log_residuals, eps, grid);
   }
-  if (f.peak_rows > 0) f.peak_settled = settle_peak_rows(grid, bands, st.unseen_cap, f.peak_rows);
+  const std::vector<double> keep = f.peak ? f.peak->keep : sin2_keeps(m.peak_rows);
+  if (std::ranges::any_of(keep, [](double k) { return k < 1; }))
+    f.peak_settled = settle_peak_rows(grid, bands, st.unseen_cap, keep);
   if (m.retro_pole && st.unseen_retro_rows > 0) f.pole_settled = settle_retro_pole(grid, bands, st.unseen_retro_rows);
   if (m.retro_rise) f.risen = raise_retro_band(grid, bands, prior.retro_rise, st.unseen_retro_rows);
   return f;
+}
+
+// " keep=K0,K1,.." of the chosen groups, when some group is settled.
+std::string group_keeps(const PeakRowsChoice& c) {
+  if (std::ranges::all_of(c.groups, [](const PeakRowsGroup& g) { return g.keep >= 1; })) return "";
+  std::string out = " keep=";
+  for (const PeakRowsGroup& g : c.groups) out += fmt::format("{}{:.3g}", &g == &c.groups.front() ? "" : ",", g.keep);
+  return out;
 }
 
 // The provenance words of the final steps: "log_residuals=... peak_rows=... retro_pole=... retro_rise=...".
@@ -146,7 +157,7 @@ std::string final_words(const FinalSteps& f, int retro_rows) {
                      f.corrected ? fmt::format("on radius={} passes={} carried_rows={}", f.log_residuals->radius,
                                                f.log_residuals->passes, f.corrected->carried_rows)
                                  : std::string("off"),
-                     rows(bool(f.peak_settled), f.peak_rows), f.peak ? " chosen" : "",
+                     rows(bool(f.peak_settled), f.peak_rows), f.peak ? group_keeps(*f.peak) + " chosen" : "",
                      rows(bool(f.pole_settled), retro_rows),
                      f.risen && f.risen->empty() ? std::string("none") : rows(bool(f.risen), retro_rows));
 }
@@ -155,6 +166,7 @@ std::string final_words(const FinalSteps& f, int retro_rows) {
 void add_final_steps(Json& report, const FinalSteps& f, int retro_rows) {
   if (f.corrected) report["log_residuals"] = log_residuals_json(*f.corrected, *f.log_residuals);
   if (f.peak_settled) report["peak_rows"] = {{"rows", f.peak_rows}, {"settled_cells", *f.peak_settled}};
+  if (f.peak_settled && f.peak) report["peak_rows"]["keep"] = f.peak->keep;
   if (f.peak) report["peak_rows_auto"] = peak_rows_choice_json(*f.peak);
   if (f.pole_settled) report["retro_pole"] = {{"rows", retro_rows}, {"settled_cells", *f.pole_settled}};
   if (f.risen) report["retro_rise"] = {{"rows", retro_rows}, {"factors", *f.risen}};

@@ -52,8 +52,8 @@ struct PriorMethod {
   /// true: after the pole, the unseen retro band's rows from theta_h = 22.5 degrees on scaled to the rise the prior's
   /// map predicts from the result's own shoulder (raise_retro_band, acquire/retro_rise.h); false (the default): left
   bool retro_rise = false;
-  /// given (the default): the theta_h rows round the peak settled in phi_d are chosen from the samples
-  /// (choose_peak_rows, acquire/peak_rows_choice.h); empty: peak_rows
+  /// given (the default): how far the theta_h rows round the peak are settled in phi_d, group by group, and the log
+  /// residuals' ring rows are chosen from the samples (choose_peak_rows, acquire/peak_rows_choice.h); empty: peak_rows
   std::optional<PeakRowsChoiceOptions> peak_auto = PeakRowsChoiceOptions{};
   /// without peak_auto: theta_h rows below this, from the unseen cap up, settled in phi_d as reciprocity asks of an
   /// isotropic BRDF at theta_h = 0 (settle_peak_rows, acquire/peak_rows.h), the log residuals' boxes spanning every

@@ -347,11 +347,12 @@ void setup_resample(CLI::App& app) {
                 "--prior: scale the unseen retro band's rows from theta_h = 22.5 degrees on to the rise the prior "
                 "learned from its training materials' shoulders, as the result's own shoulder predicts it (a prior "
                 "built by this version; docs/prior.md)");
-  cmd->add_option("--peak-rows", o->peak_rows,
-                  "--prior: fade the dependence on phi_d of the theta_h rows below this round the specular peak "
-                  "towards theta_h = 0 as sin^2 theta_h, each ring's level from the samples anywhere on it, as an "
-                  "isotropic BRDF asks; 'auto' settles only the rows where the samples show the BRDF nearly flat over "
-                  "phi_d, 0 none (docs/prior.md)")
+  cmd->add_option(
+         "--peak-rows", o->peak_rows,
+         "--prior: fade the dependence on phi_d of the theta_h rows below this round the specular peak "
+         "towards theta_h = 0 as sin^2 theta_h, each ring's level from the samples anywhere on it, as an "
+         "isotropic BRDF asks; 'auto' judges them in groups of 5 rows, each keeping the share of its spread over "
+         "phi_d that the samples' own spread accounts for, 0 none (docs/prior.md)")
       ->capture_default_str();
   cmd->add_flag("--replace", o->replace, "Replace a grid of the same name in the store");
   cmd->add_flag("--json", o->json, "Print one JSON object (samples, cells, valid_cells, seconds)");

@@ -1,9 +1,10 @@
 // The choice of the peak's rows from the scan (acquire/peak_rows_choice.h): with ln f = a cos 2 phi_d on every ring,
 // the samples' spread is a sqrt(1.782) and the grid's b sqrt(1.827), the closed forms of the far (60-90 degrees) and
-// near (0-15 degrees) pairs' mean squared differences, 1 - the mean of cos 2 delta over each range; noise in the
-// samples leaves the spread where it is; a grid spreading more than the samples has its rows settled, one spreading
-// less has none, groups without samples below the first measured are passed and above it end the rows; the choice is
-// the same for 1 and 2 threads; settings are checked.
+// near (0-15 degrees) pairs' mean squared differences, 1 - the mean of cos 2 delta over each range, so a group keeps
+// (a / b)^2 1.782 / 1.827 of its departure; noise in the samples leaves the spread where it is; a grid spreading less
+// than the samples keeps it all and ends the log residuals' ring rows; groups without samples below the first
+// measured take its share and pass, above it keep all and end the rows; the choice is the same for 1 and 2 threads;
+// settings are checked.
 #include "specula/acquire/peak_rows_choice.h"
 
 #include <gtest/gtest.h>
@@ -76,6 +77,13 @@ TEST(PeakRowsChoice, SpreadsAreTheClosedFormsOfACos2PhiDRing) {
     EXPECT_NEAR(g.near_rms, 0.2 * std::sqrt(0.0451), 0.1 * 0.2 * std::sqrt(0.0451)) << g.first_row;
   }
   EXPECT_EQ(c.rows, kPeakRows);  // the grid spreads twice as much as the samples: every group settled
+  // Each group keeps (spread / grid spread)^2 of its departure: about (0.2^2 1.782) / (0.4^2 1.827) = 0.244.
+  ASSERT_EQ(c.keep.size(), std::size_t(kPeakRows));
+  for (int r = 0; r < kPeakRows; ++r) {
+    const PeakRowsGroup& g = c.groups[std::size_t(r / 5)];
+    EXPECT_DOUBLE_EQ(c.keep[std::size_t(r)], std::pow(g.spread / g.grid_spread, 2)) << r;
+    EXPECT_NEAR(c.keep[std::size_t(r)], 0.25 * 1.782 / 1.827, 0.05) << r;
+  }
 }
 
 TEST(PeakRowsChoice, NoiseRaisesBothKindsOfPairsAndLeavesTheSpread) {
@@ -88,15 +96,37 @@ TEST(PeakRowsChoice, NoiseRaisesBothKindsOfPairsAndLeavesTheSpread) {
 
 TEST(PeakRowsChoice, RowsEndWhereTheGridSpreadsNoMoreThanTheSamples) {
   const Scan all = ring_scan(1, kPeakRows, 0.2, 0.02, 150, 3);
-  EXPECT_EQ(choose(all, ring_grid([](int) { return 0.1; })).rows, 0);  // the first group already fails
-  EXPECT_EQ(choose(all, ring_grid([](int h) { return h < 10 ? 0.4 : 0.1; })).rows, 10);
+  const PeakRowsChoice flat = choose(all, ring_grid([](int) { return 0.1; }));
+  EXPECT_EQ(flat.rows, 0);                             // the first group already fails
+  for (const double k : flat.keep) EXPECT_EQ(k, 1.0);  // a grid spreading less than the samples keeps it all
+  const PeakRowsChoice low = choose(all, ring_grid([](int h) { return h < 10 ? 0.4 : 0.1; }));
+  EXPECT_EQ(low.rows, 10);
+  for (int r = 0; r < kPeakRows; ++r)
+    if (r < 10)
+      EXPECT_LT(low.keep[std::size_t(r)], 0.5) << r;
+    else
+      EXPECT_EQ(low.keep[std::size_t(r)], 1.0) << r;
+  // Spreading more again above rows that did not: settled by its share though the rows have ended.
+  const PeakRowsChoice high = choose(all, ring_grid([](int h) { return h < 10 ? 0.1 : 0.4; }));
+  EXPECT_EQ(high.rows, 0);
+  for (int r = 0; r < kPeakRows; ++r)
+    if (r < 10)
+      EXPECT_EQ(high.keep[std::size_t(r)], 1.0) << r;
+    else
+      EXPECT_LT(high.keep[std::size_t(r)], 0.5) << r;
   // Groups without samples: passed below the first measured one (the unseen cap), ending the rows above it.
   const Scan middle = ring_scan(5, 15, 0.2, 0.02, 150, 4);
   const PeakRowsChoice c = choose(middle, ring_grid([](int) { return 0.4; }));
   EXPECT_FALSE(c.groups[0].measured);
   EXPECT_FALSE(c.groups[3].measured);
   EXPECT_EQ(c.rows, 15);
-  EXPECT_EQ(choose(Scan{}, ring_grid([](int) { return 0.4; })).rows, 0);  // no sample: nothing settled
+  // The cap below the first group measured takes its share; the unmeasured group above keeps all.
+  for (int r = 0; r < 5; ++r) EXPECT_EQ(c.keep[std::size_t(r)], c.groups[1].keep) << r;
+  EXPECT_LT(c.groups[1].keep, 0.5);
+  for (int r = 15; r < kPeakRows; ++r) EXPECT_EQ(c.keep[std::size_t(r)], 1.0) << r;
+  const PeakRowsChoice none = choose(Scan{}, ring_grid([](int) { return 0.4; }));
+  EXPECT_EQ(none.rows, 0);  // no sample: nothing settled
+  for (const double k : none.keep) EXPECT_EQ(k, 1.0);
 }
 
 TEST(PeakRowsChoice, SameForOneAndTwoThreads) {
@@ -110,6 +140,7 @@ TEST(PeakRowsChoice, SameForOneAndTwoThreads) {
   for (std::size_t g = 0; g < one.groups.size(); ++g) {
     EXPECT_EQ(one.groups[g].spread, two.groups[g].spread);
     EXPECT_EQ(one.groups[g].grid_spread, two.groups[g].grid_spread);
+    EXPECT_EQ(one.groups[g].keep, two.groups[g].keep);
   }
 }
 

@@ -114,13 +114,16 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   // The band's phi_d dependence is settled last, over its five rows; --no-retro-pole leaves it (below).
   const std::string pole = defaults.substr(defaults.find("\"retro_pole\":{\"rows\":5,"));
   EXPECT_GT(test::json_number(pole, "settled_cells"), 10000) << defaults;
-  // The theta_h rows round the peak settled are chosen from the scan by default, a multiple of the group of 5 rows,
-  // and the log residuals span the same rows' rings (--peak-rows N forces them, below).
+  // The theta_h rows round the peak are judged from the scan by default in groups of 5 rows, each group settled by
+  // its share; the log residuals span the rings of the rows chosen, a multiple of 5 (--peak-rows N forces them, below).
   const std::string chosen = defaults.substr(defaults.find("\"peak_rows_auto\":{\"rows\":"));
   const double rows = test::json_number(chosen, "rows");
   EXPECT_TRUE(rows >= 0 && rows <= 20 && std::fmod(rows, 5) == 0) << defaults;
   EXPECT_EQ(test::json_number(lr, "ring_rows"), rows) << defaults;
   EXPECT_NE(chosen.find("\"grid_spread\":"), std::string::npos) << defaults;
+  const bool settled = defaults.find("\"peak_rows\":{\"rows\":") != std::string::npos;
+  EXPECT_TRUE(settled || rows == 0) << defaults;
+  EXPECT_EQ(settled, chosen.find("\"keep\":0.") != std::string::npos) << defaults;  // some group keeps under all
   EXPECT_LT(test::json_number(lr, "rms_after"), test::json_number(lr, "rms_before")) << r.output;
   r = run_specula(
       "resample '" + db + "' rig --prior '" + db + ":p' -o '" + (dir / "out.h5").string() +
@@ -157,7 +160,7 @@ TEST(PriorCli, BuildsLeavingTheCaptureOutAndResamplesEveryValidCellWithConfidenc
   EXPECT_NE(bounded.read_grid("r").provenance.importer.find(" retro_pole=on rows=5 "), std::string::npos);
   EXPECT_NE(bounded.read_grid("ra").provenance.importer.find(" retro_pole=off "), std::string::npos);
   EXPECT_NE(bounded.read_grid("rl").provenance.importer.find(" peak_rows=on rows=20 "), std::string::npos);
-  EXPECT_NE(bounded.read_grid("r").provenance.importer.find(rows > 0 ? " chosen " : " peak_rows=off chosen "),
+  EXPECT_NE(bounded.read_grid("r").provenance.importer.find(settled ? " keep=" : " peak_rows=off chosen "),
             std::string::npos);
   EXPECT_NE(bounded.read_grid("ra").provenance.importer.find(" peak_rows=off "), std::string::npos);
   const std::string said = bounded.read_grid("r").provenance.importer;  // the carry's choice, as the report says
