@@ -99,21 +99,17 @@ TEST(PeakRowsChoice, RowsEndWhereTheGridSpreadsNoMoreThanTheSamples) {
   const PeakRowsChoice flat = choose(all, ring_grid([](int) { return 0.1; }));
   EXPECT_EQ(flat.rows, 0);                             // the first group already fails
   for (const double k : flat.keep) EXPECT_EQ(k, 1.0);  // a grid spreading less than the samples keeps it all
-  const PeakRowsChoice low = choose(all, ring_grid([](int h) { return h < 10 ? 0.4 : 0.1; }));
-  EXPECT_EQ(low.rows, 10);
-  for (int r = 0; r < kPeakRows; ++r)
-    if (r < 10)
-      EXPECT_LT(low.keep[std::size_t(r)], 0.5) << r;
-    else
-      EXPECT_EQ(low.keep[std::size_t(r)], 1.0) << r;
-  // Spreading more again above rows that did not: settled by its share though the rows have ended.
-  const PeakRowsChoice high = choose(all, ring_grid([](int h) { return h < 10 ? 0.1 : 0.4; }));
-  EXPECT_EQ(high.rows, 0);
-  for (int r = 0; r < kPeakRows; ++r)
-    if (r < 10)
-      EXPECT_EQ(high.keep[std::size_t(r)], 1.0) << r;
-    else
-      EXPECT_LT(high.keep[std::size_t(r)], 0.5) << r;
+  // Rows below 10 spreading twice the samples' and those above half of it, then the other way round: the rows spreading
+  // more are settled by their share (under 0.5), the others keep all, though in the second the rows have ended at 0.
+  for (const bool low : {true, false}) {
+    const PeakRowsChoice c = choose(all, ring_grid([&](int h) { return (h < 10) == low ? 0.4 : 0.1; }));
+    EXPECT_EQ(c.rows, low ? 10 : 0);
+    for (int r = 0; r < kPeakRows; ++r)
+      if ((r < 10) == low)
+        EXPECT_LT(c.keep[std::size_t(r)], 0.5) << r;
+      else
+        EXPECT_EQ(c.keep[std::size_t(r)], 1.0) << r;
+  }
   // Groups without samples: passed below the first measured one (the unseen cap), ending the rows above it.
   const Scan middle = ring_scan(5, 15, 0.2, 0.02, 150, 4);
   const PeakRowsChoice c = choose(middle, ring_grid([](int) { return 0.4; }));
