@@ -174,10 +174,15 @@ PeakRowsChoice choose_peak_rows(const brdf::SampleSource& src, std::span<const f
   }
   const auto first = std::ranges::find_if(c.groups, [](const PeakRowsGroup& g) { return g.measured; });
   for (auto g = c.groups.begin(); g != first; ++g) g->keep = first == c.groups.end() ? 1.0 : first->keep;
-  c.keep.resize(kPeakRows);
-  for (int r = 0; r < kPeakRows; ++r) c.keep[std::size_t(r)] = c.groups[std::size_t(r / o.group)].keep;
   c.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return c;
+}
+
+std::vector<double> row_keeps(const PeakRowsChoice& c) {
+  std::vector<double> keep(kPeakRows, 1.0);
+  for (const PeakRowsGroup& g : c.groups)
+    std::fill(keep.begin() + std::clamp(g.first_row, 0, kPeakRows), keep.end(), g.keep);
+  return keep;
 }
 
 nlohmann::ordered_json peak_rows_choice_json(const PeakRowsChoice& c) {

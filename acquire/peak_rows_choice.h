@@ -40,8 +40,7 @@ struct PeakRowsGroup {
 };
 
 struct PeakRowsChoice {
-  int rows = 0;              ///< the log residuals average over phi_d rings in theta_h rows below this (0: none)
-  std::vector<double> keep;  ///< per theta_h row below kPeakRows, its group's keep
+  int rows = 0;  ///< the log residuals average over phi_d rings in theta_h rows below this (0: none)
   std::vector<PeakRowsGroup> groups;
   std::size_t samples = 0;  ///< samples in the groups' rows with a mean value > 0
   double seconds = 0;
@@ -54,6 +53,9 @@ struct PeakRowsChoice {
 /// thread count. UsageError for bad options or sizes.
 PeakRowsChoice choose_peak_rows(const brdf::SampleSource& src, std::span<const float> grid, std::size_t bands,
                                 const PeakRowsChoiceOptions& o);
+
+/// Per theta_h row below kPeakRows, the keep of the group holding it (groups in first_row order; 1 with none).
+std::vector<double> row_keeps(const PeakRowsChoice& c);
 
 /// The choice, as `resample --json` reports it under "peak_rows_auto".
 nlohmann::ordered_json peak_rows_choice_json(const PeakRowsChoice& c);

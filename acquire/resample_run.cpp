@@ -134,7 +134,7 @@ FinalSteps final_steps(const PriorMethod& m, const BrdfPrior& prior, const brdf:
     f.log_residuals->ring_from = st.unseen_cap;
     f.corrected = correct_by_log_residuals(src, *f.log_residuals, eps, grid);
   }
-  const std::vector<double> keep = f.peak ? f.peak->keep : sin2_keeps(m.peak_rows);
+  const std::vector<double> keep = f.peak ? row_keeps(*f.peak) : sin2_keeps(m.peak_rows);
   if (std::ranges::any_of(keep, [](double k) { return k < 1; }))
     f.peak_settled = settle_peak_rows(grid, bands, st.unseen_cap, keep);
   if (m.retro_pole && st.unseen_retro_rows > 0) f.pole_settled = settle_retro_pole(grid, bands, st.unseen_retro_rows);
@@ -166,7 +166,7 @@ std::string final_words(const FinalSteps& f, int retro_rows) {
 void add_final_steps(Json& report, const FinalSteps& f, int retro_rows) {
   if (f.corrected) report["log_residuals"] = log_residuals_json(*f.corrected, *f.log_residuals);
   if (f.peak_settled) report["peak_rows"] = {{"rows", f.peak_rows}, {"settled_cells", *f.peak_settled}};
-  if (f.peak_settled && f.peak) report["peak_rows"]["keep"] = f.peak->keep;
+  if (f.peak_settled && f.peak) report["peak_rows"]["keep"] = row_keeps(*f.peak);
   if (f.peak) report["peak_rows_auto"] = peak_rows_choice_json(*f.peak);
   if (f.pole_settled) report["retro_pole"] = {{"rows", retro_rows}, {"settled_cells", *f.pole_settled}};
   if (f.risen) report["retro_rise"] = {{"rows", retro_rows}, {"factors", *f.risen}};

@@ -78,11 +78,12 @@ TEST(PeakRowsChoice, SpreadsAreTheClosedFormsOfACos2PhiDRing) {
   }
   EXPECT_EQ(c.rows, kPeakRows);  // the grid spreads twice as much as the samples: every group settled
   // Each group keeps (spread / grid spread)^2 of its departure: about (0.2^2 1.782) / (0.4^2 1.827) = 0.244.
-  ASSERT_EQ(c.keep.size(), std::size_t(kPeakRows));
+  const std::vector<double> keep = row_keeps(c);
+  ASSERT_EQ(keep.size(), std::size_t(kPeakRows));
   for (int r = 0; r < kPeakRows; ++r) {
     const PeakRowsGroup& g = c.groups[std::size_t(r / 5)];
-    EXPECT_DOUBLE_EQ(c.keep[std::size_t(r)], std::pow(g.spread / g.grid_spread, 2)) << r;
-    EXPECT_NEAR(c.keep[std::size_t(r)], 0.25 * 1.782 / 1.827, 0.05) << r;
+    EXPECT_DOUBLE_EQ(keep[std::size_t(r)], std::pow(g.spread / g.grid_spread, 2)) << r;
+    EXPECT_NEAR(keep[std::size_t(r)], 0.25 * 1.782 / 1.827, 0.05) << r;
   }
 }
 
@@ -97,8 +98,8 @@ TEST(PeakRowsChoice, NoiseRaisesBothKindsOfPairsAndLeavesTheSpread) {
 TEST(PeakRowsChoice, RowsEndWhereTheGridSpreadsNoMoreThanTheSamples) {
   const Scan all = ring_scan(1, kPeakRows, 0.2, 0.02, 150, 3);
   const PeakRowsChoice flat = choose(all, ring_grid([](int) { return 0.1; }));
-  EXPECT_EQ(flat.rows, 0);                             // the first group already fails
-  for (const double k : flat.keep) EXPECT_EQ(k, 1.0);  // a grid spreading less than the samples keeps it all
+  EXPECT_EQ(flat.rows, 0);                                   // the first group already fails
+  for (const double k : row_keeps(flat)) EXPECT_EQ(k, 1.0);  // a grid spreading less than the samples keeps it all
   // Rows below 10 spreading twice the samples' and those above half of it, then the other way round: the rows spreading
   // more are settled by their share (under 0.5), the others keep all, though in the second the rows have ended at 0.
   for (const bool low : {true, false}) {
@@ -106,9 +107,9 @@ TEST(PeakRowsChoice, RowsEndWhereTheGridSpreadsNoMoreThanTheSamples) {
     EXPECT_EQ(c.rows, low ? 10 : 0);
     for (int r = 0; r < kPeakRows; ++r)
       if ((r < 10) == low)
-        EXPECT_LT(c.keep[std::size_t(r)], 0.5) << r;
+        EXPECT_LT(row_keeps(c)[std::size_t(r)], 0.5) << r;
       else
-        EXPECT_EQ(c.keep[std::size_t(r)], 1.0) << r;
+        EXPECT_EQ(row_keeps(c)[std::size_t(r)], 1.0) << r;
   }
   // Groups without samples: passed below the first measured one (the unseen cap), ending the rows above it.
   const Scan middle = ring_scan(5, 15, 0.2, 0.02, 150, 4);
@@ -117,12 +118,12 @@ TEST(PeakRowsChoice, RowsEndWhereTheGridSpreadsNoMoreThanTheSamples) {
   EXPECT_FALSE(c.groups[3].measured);
   EXPECT_EQ(c.rows, 15);
   // The cap below the first group measured takes its share; the unmeasured group above keeps all.
-  for (int r = 0; r < 5; ++r) EXPECT_EQ(c.keep[std::size_t(r)], c.groups[1].keep) << r;
+  for (int r = 0; r < 5; ++r) EXPECT_EQ(row_keeps(c)[std::size_t(r)], c.groups[1].keep) << r;
   EXPECT_LT(c.groups[1].keep, 0.5);
-  for (int r = 15; r < kPeakRows; ++r) EXPECT_EQ(c.keep[std::size_t(r)], 1.0) << r;
+  for (int r = 15; r < kPeakRows; ++r) EXPECT_EQ(row_keeps(c)[std::size_t(r)], 1.0) << r;
   const PeakRowsChoice none = choose(Scan{}, ring_grid([](int) { return 0.4; }));
   EXPECT_EQ(none.rows, 0);  // no sample: nothing settled
-  for (const double k : none.keep) EXPECT_EQ(k, 1.0);
+  for (const double k : row_keeps(none)) EXPECT_EQ(k, 1.0);
 }
 
 TEST(PeakRowsChoice, SameForOneAndTwoThreads) {
